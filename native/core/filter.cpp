@@ -1,0 +1,136 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "core/filter.h"
+
+#include <sstream>
+
+#include "core/color.h"
+#include "core/error.h"
+#include "core/parallel.h"
+
+namespace crisp {
+
+constexpr int kMaxDimension = 1 << 16;
+
+Filter::Filter(Context& context, std::vector<ParamSpec> params, std::vector<ImageRole> roles)
+    : context_(context), params_(std::move(params)), roles_(std::move(roles)) {
+  context_.refCount++;
+}
+
+Filter::~Filter() { context_.refCount--; }
+
+static const ImageRole* findRole(const std::vector<ImageRole>& roles, const std::string& name) {
+  for (const ImageRole& r : roles)
+    if (name == r.name) return &r;
+  return nullptr;
+}
+
+static std::string roleList(const std::vector<ImageRole>& roles) {
+  std::string s;
+  for (const ImageRole& r : roles) s += std::string(s.empty() ? "" : ", ") + r.name;
+  return s;
+}
+
+void Filter::setImage(const std::string& name, const ImageView& view) {
+  const ImageRole* role = findRole(roles_, name);
+  if (!role) invalidArgument(std::string("filter '") + type() + "' has no image '" + name + "' (known: " + roleList(roles_) + ")");
+  if (!view.ptr) {
+    unsetImage(name);
+    return;
+  }
+  const int c = view.channels();
+  bool formatOk = role->isUint ? (view.format == Format::UInt || view.format == Format::Float)
+                               : (view.format != Format::UInt && c >= role->minChannels && c <= role->maxChannels);
+  if (!formatOk)
+    invalidArgument("image '" + name + "': format " + formatName(view.format) + " not accepted (needs " +
+                    (role->isUint ? std::string("uint") : std::to_string(role->minChannels) + ".." +
+                                                            std::to_string(role->maxChannels) + " float channels") + ")");
+  if (view.width <= 0 || view.height <= 0 || view.width > kMaxDimension || view.height > kMaxDimension)
+    invalidArgument("image '" + name + "': size " + std::to_string(view.width) + "x" + std::to_string(view.height) +
+                    " is out of range [1, " + std::to_string(kMaxDimension) + "]");
+  if (view.pixelStride < formatBytes(view.format) || view.rowStride < view.pixelStride * std::size_t(view.width - 1) + formatBytes(view.format))
+    invalidArgument("image '" + name + "': strides (pixel " + std::to_string(view.pixelStride) + ", row " +
+                    std::to_string(view.rowStride) + " bytes) are smaller than the pixels they hold");
+  auto it = images_.find(name);
+  // Re-pointing a buffer of the same shape does not need a new commit.
+  if (it == images_.end() || it->second.width != view.width || it->second.height != view.height ||
+      it->second.format != view.format)
+    committed_ = false;
+  images_[name] = view;
+}
+
+void Filter::unsetImage(const std::string& name) {
+  if (!findRole(roles_, name)) invalidArgument(std::string("filter '") + type() + "' has no image '" + name + "' (known: " + roleList(roles_) + ")");
+  if (images_.erase(name)) committed_ = false;
+}
+
+bool Filter::hasImage(const std::string& name) const { return images_.count(name) != 0; }
+
+const ImageView& Filter::image(const std::string& name) const {
+  auto it = images_.find(name);
+  if (it == images_.end()) invalidData(std::string("filter '") + type() + "': image '" + name + "' is not set");
+  return it->second;
+}
+
+void Filter::commit() {
+  for (const ImageRole& r : roles_)
+    if (r.required && !hasImage(r.name))
+      invalidData(std::string("filter '") + type() + "': required image '" + r.name + "' (" + r.meaning + ") is not set");
+  const ImageView& color = image("color");
+  for (const auto& [name, view] : images_)
+    if (view.width != color.width || view.height != color.height)
+      invalidData("image '" + name + "' is " + std::to_string(view.width) + "x" + std::to_string(view.height) +
+                  " but 'color' is " + std::to_string(color.width) + "x" + std::to_string(color.height));
+  width_ = color.width;
+  height_ = color.height;
+  onCommit();
+  committed_ = true;
+}
+
+void Filter::execute() {
+  if (!committed_) fail(CRISP_ERROR_INVALID_OPERATION, std::string("filter '") + type() + "': execute called before commit (or after a change that needs a new commit)");
+  onExecute();
+}
+
+std::string Filter::doc() const {
+  std::ostringstream o;
+  o << "Filter '" << type() << "'\n\nImages:\n\n| name | required | channels | meaning |\n|---|---|---|---|\n";
+  for (const ImageRole& r : roles_)
+    o << "| `" << r.name << "` | " << (r.required ? "yes" : "no") << " | "
+      << (r.isUint ? std::string("uint id") : std::to_string(r.minChannels) + ".." + std::to_string(r.maxChannels))
+      << " | " << r.meaning << " |\n";
+  o << "\nParameters:\n\n" << params_.table();
+  return o.str();
+}
+
+void Filter::stageColor(Image& rgba) const {
+  const ImageView& in = image("color");
+  const int c = in.channels();
+  parallelRows(width_, height_, numThreads(), [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      float* dst = rgba.at(0, y);
+      for (int x = 0; x < width_; ++x, dst += 4) {
+        const float* p = in.pixel(x, y);
+        dst[0] = sanitizeColor(p[0]);
+        dst[1] = sanitizeColor(c > 1 ? p[1] : p[0]);
+        dst[2] = sanitizeColor(c > 2 ? p[2] : p[0]);
+        dst[3] = c > 3 ? sanitizeColor(p[3]) : 1.0f;
+      }
+    }
+  });
+}
+
+void Filter::writeOutput(const Image& rgba) const {
+  const ImageView& out = image("output");
+  const int c = out.channels();
+  parallelRows(width_, height_, numThreads(), [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const float* src = rgba.at(0, y);
+      for (int x = 0; x < width_; ++x, src += 4) {
+        float* p = out.pixel(x, y);
+        for (int k = 0; k < c; ++k) p[k] = src[k];
+      }
+    }
+  });
+}
+
+}  // namespace crisp

@@ -1,0 +1,41 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "core/image.h"
+
+namespace crisp {
+
+const char* formatName(Format f) {
+  switch (f) {
+    case Format::Float: return "float";
+    case Format::Float2: return "float2";
+    case Format::Float3: return "float3";
+    case Format::Float4: return "float4";
+    case Format::UInt: return "uint";
+    default: return "undefined";
+  }
+}
+
+ImageView makeView(void* ptr, Format format, int width, int height, std::size_t pixelStride, std::size_t rowStride) {
+  ImageView v;
+  v.ptr = ptr;
+  v.format = format;
+  v.width = width;
+  v.height = height;
+  v.pixelStride = pixelStride ? pixelStride : formatBytes(format);
+  v.rowStride = rowStride ? rowStride : v.pixelStride * std::size_t(width);
+  return v;
+}
+
+Image::Image(int w, int h, int c, float fill)
+    : width(w), height(h), channels(c), format(Format(c)), data(std::size_t(w) * std::size_t(h) * std::size_t(c), fill) {}
+
+Image Image::uintImage(int w, int h) {
+  Image im(w, h, 1, 0.0f);  // all-zero bits = ID 0
+  im.format = Format::UInt;
+  return im;
+}
+
+ImageView Image::view() const {
+  return makeView(const_cast<float*>(data.data()), format, width, height);
+}
+
+}  // namespace crisp

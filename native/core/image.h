@@ -1,0 +1,81 @@
+// SPDX-License-Identifier: Apache-2.0
+// Image views (non-owning, strided) and owned images. See conventions.h.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+namespace crisp {
+
+enum class Format : int { Undefined = 0, Float = 1, Float2 = 2, Float3 = 3, Float4 = 4, UInt = 5 };
+
+inline int formatChannels(Format f) {
+  switch (f) {
+    case Format::Float: return 1;
+    case Format::Float2: return 2;
+    case Format::Float3: return 3;
+    case Format::Float4: return 4;
+    case Format::UInt: return 1;
+    default: return 0;
+  }
+}
+inline std::size_t formatBytes(Format f) { return std::size_t(formatChannels(f)) * 4; }
+const char* formatName(Format f);
+
+// A non-owning strided view, as handed in through the C API.
+struct ImageView {
+  void* ptr = nullptr;
+  Format format = Format::Undefined;
+  int width = 0;
+  int height = 0;
+  std::size_t pixelStride = 0;  // bytes
+  std::size_t rowStride = 0;    // bytes
+
+  bool valid() const { return ptr != nullptr; }
+  int channels() const { return formatChannels(format); }
+  float* row(int y) const { return reinterpret_cast<float*>(static_cast<char*>(ptr) + std::size_t(y) * rowStride); }
+  float* pixel(int x, int y) const {
+    return reinterpret_cast<float*>(static_cast<char*>(ptr) + std::size_t(y) * rowStride + std::size_t(x) * pixelStride);
+  }
+  std::uint32_t uintAt(int x, int y) const {
+    std::uint32_t v;
+    std::memcpy(&v, pixel(x, y), 4);
+    return v;
+  }
+  bool packed() const { return pixelStride == formatBytes(format) && rowStride == pixelStride * std::size_t(width); }
+};
+
+// Fills in packed strides where 0 was given.
+ImageView makeView(void* ptr, Format format, int width, int height, std::size_t pixelStride = 0,
+                   std::size_t rowStride = 0);
+
+// An owned, packed, interleaved float image with 1..4 channels (or uint32 IDs
+// stored bit-for-bit in the float storage, Format::UInt).
+struct Image {
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+  Format format = Format::Undefined;
+  std::vector<float> data;
+
+  Image() = default;
+  Image(int w, int h, int c, float fill = 0.0f);
+  static Image uintImage(int w, int h);
+
+  bool empty() const { return data.empty(); }
+  std::size_t index(int x, int y) const { return (std::size_t(y) * std::size_t(width) + std::size_t(x)) * std::size_t(channels); }
+  float* at(int x, int y) { return data.data() + index(x, y); }
+  const float* at(int x, int y) const { return data.data() + index(x, y); }
+  std::uint32_t uintAt(int x, int y) const {
+    std::uint32_t v;
+    std::memcpy(&v, at(x, y), 4);
+    return v;
+  }
+  void setUint(int x, int y, std::uint32_t v) { std::memcpy(at(x, y), &v, 4); }
+  ImageView view() const;
+};
+
+}  // namespace crisp

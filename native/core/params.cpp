@@ -1,0 +1,173 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "core/params.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <sstream>
+
+#include "core/error.h"
+
+namespace crisp {
+
+const char* paramTypeName(ParamType t) {
+  switch (t) {
+    case ParamType::Int: return "int";
+    case ParamType::Float: return "float";
+    case ParamType::Bool: return "bool";
+    case ParamType::String: return "string";
+  }
+  return "?";
+}
+
+static std::vector<std::string> splitChoices(const char* choices) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (const char* p = choices ? choices : ""; *p; ++p) {
+    if (*p == '|') {
+      out.push_back(cur);
+      cur.clear();
+    } else {
+      cur += *p;
+    }
+  }
+  if (!cur.empty()) out.push_back(cur);
+  return out;
+}
+
+static std::string formatNumber(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+ParamSet::ParamSet(std::vector<ParamSpec> specs) : specs_(std::move(specs)) {
+  for (const ParamSpec& s : specs_) {
+    numbers_.push_back(s.defaultValue);
+    auto c = splitChoices(s.choices);
+    strings_.push_back(c.empty() ? std::string() : c.front());
+  }
+}
+
+std::size_t ParamSet::indexOf(const std::string& name) const {
+  for (std::size_t i = 0; i < specs_.size(); ++i)
+    if (name == specs_[i].name) return i;
+  std::string known;
+  for (const ParamSpec& s : specs_) known += std::string(known.empty() ? "" : ", ") + s.name;
+  invalidArgument("unknown parameter '" + name + "' (known: " + (known.empty() ? "none" : known) + ")");
+}
+
+const ParamSpec& ParamSet::spec(const std::string& name) const { return specs_[indexOf(name)]; }
+
+static void checkType(const ParamSpec& s, ParamType want) {
+  if (s.type != want)
+    invalidArgument(std::string("parameter '") + s.name + "' is " + paramTypeName(s.type) + ", not " +
+                    paramTypeName(want));
+}
+
+static void checkRange(const ParamSpec& s, double v) {
+  if (!std::isfinite(v) || v < s.minValue || v > s.maxValue)
+    invalidArgument(std::string("parameter '") + s.name + "' = " + formatNumber(v) + " is out of range [" +
+                    formatNumber(s.minValue) + ", " + formatNumber(s.maxValue) + "]");
+}
+
+void ParamSet::setInt(const std::string& name, int value) {
+  std::size_t i = indexOf(name);
+  // An int may set a float parameter (as OIDN does); the reverse is an error.
+  if (specs_[i].type != ParamType::Float) checkType(specs_[i], ParamType::Int);
+  checkRange(specs_[i], value);
+  numbers_[i] = value;
+}
+
+void ParamSet::setFloat(const std::string& name, float value) {
+  std::size_t i = indexOf(name);
+  checkType(specs_[i], ParamType::Float);
+  checkRange(specs_[i], value);
+  numbers_[i] = value;
+}
+
+void ParamSet::setBool(const std::string& name, bool value) {
+  std::size_t i = indexOf(name);
+  checkType(specs_[i], ParamType::Bool);
+  numbers_[i] = value ? 1.0 : 0.0;
+}
+
+void ParamSet::setString(const std::string& name, const std::string& value) {
+  std::size_t i = indexOf(name);
+  checkType(specs_[i], ParamType::String);
+  auto choices = splitChoices(specs_[i].choices);
+  for (const auto& c : choices)
+    if (c == value) {
+      strings_[i] = value;
+      return;
+    }
+  invalidArgument("parameter '" + name + "' = '" + value + "' is not one of: " + specs_[i].choices);
+}
+
+void ParamSet::setFromText(const std::string& name, const std::string& text) {
+  const ParamSpec& s = spec(name);
+  auto parseNumber = [&](bool integer) {
+    const char* b = text.c_str();
+    char* e = nullptr;
+    double v = integer ? double(std::strtol(b, &e, 10)) : std::strtod(b, &e);
+    if (text.empty() || *e != '\0')
+      invalidArgument("parameter '" + name + "' expects " + paramTypeName(s.type) + ", got '" + text + "'");
+    return v;
+  };
+  switch (s.type) {
+    case ParamType::Int: {
+      double v = parseNumber(true);
+      checkRange(s, v);
+      setInt(name, int(v));
+      break;
+    }
+    case ParamType::Float: setFloat(name, float(parseNumber(false))); break;
+    case ParamType::Bool:
+      if (text == "1" || text == "true" || text == "on" || text == "yes") setBool(name, true);
+      else if (text == "0" || text == "false" || text == "off" || text == "no") setBool(name, false);
+      else invalidArgument("parameter '" + name + "' expects a bool (true/false), got '" + text + "'");
+      break;
+    case ParamType::String: setString(name, text); break;
+  }
+}
+
+int ParamSet::getInt(const std::string& name) const {
+  std::size_t i = indexOf(name);
+  checkType(specs_[i], ParamType::Int);
+  return int(numbers_[i]);
+}
+float ParamSet::getFloat(const std::string& name) const {
+  std::size_t i = indexOf(name);
+  checkType(specs_[i], ParamType::Float);
+  return float(numbers_[i]);
+}
+bool ParamSet::getBool(const std::string& name) const {
+  std::size_t i = indexOf(name);
+  checkType(specs_[i], ParamType::Bool);
+  return numbers_[i] != 0.0;
+}
+const std::string& ParamSet::getString(const std::string& name) const {
+  std::size_t i = indexOf(name);
+  checkType(specs_[i], ParamType::String);
+  return strings_[i];
+}
+
+std::string ParamSet::table() const {
+  std::ostringstream o;
+  o << "| name | type | default | range | meaning | source |\n|---|---|---|---|---|---|\n";
+  for (const ParamSpec& s : specs_) {
+    o << "| `" << s.name << "` | " << paramTypeName(s.type) << " | ";
+    switch (s.type) {
+      case ParamType::Bool: o << (s.defaultValue != 0 ? "true" : "false") << " | true, false"; break;
+      case ParamType::String: {
+        auto c = splitChoices(s.choices);
+        o << (c.empty() ? "" : c.front()) << " | " << s.choices;
+        break;
+      }
+      default: o << formatNumber(s.defaultValue) << " | " << formatNumber(s.minValue) << " .. " << formatNumber(s.maxValue);
+    }
+    o << " | " << s.meaning << " | " << s.source << " |\n";
+  }
+  return o.str();
+}
+
+}  // namespace crisp

@@ -1,0 +1,50 @@
+// SPDX-License-Identifier: Apache-2.0
+// The filters known by name. Each filter's file provides its factory.
+#include <functional>
+
+#include "core/error.h"
+#include "core/filter.h"
+
+namespace crisp {
+
+std::unique_ptr<Filter> newNoneFilter(Context&);
+std::unique_ptr<Filter> newFxaaFilter(Context&);
+std::unique_ptr<Filter> newRepairFilter(Context&);
+
+namespace {
+struct Entry {
+  const char* name;
+  std::unique_ptr<Filter> (*make)(Context&);
+};
+const Entry kFilters[] = {
+    {"none", newNoneFilter},
+    {"fxaa", newFxaaFilter},
+    {"repair", newRepairFilter},
+};
+}  // namespace
+
+const std::vector<std::string>& filterTypes() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> v;
+    for (const Entry& e : kFilters) v.push_back(e.name);
+    return v;
+  }();
+  return names;
+}
+
+const char* filterTypesJoined() {
+  static const std::string joined = [] {
+    std::string s;
+    for (const auto& n : filterTypes()) s += (s.empty() ? "" : ",") + n;
+    return s;
+  }();
+  return joined.c_str();
+}
+
+std::unique_ptr<Filter> createFilter(Context& context, const std::string& type) {
+  for (const Entry& e : kFilters)
+    if (type == e.name) return e.make(context);
+  invalidArgument("unknown filter type '" + type + "' (known: " + filterTypesJoined() + ")");
+}
+
+}  // namespace crisp

@@ -1,0 +1,150 @@
+// SPDX-License-Identifier: Apache-2.0
+// Crisp: anti-aliasing filters for 1-sample renders. Public C API.
+//
+// Shape (after Intel Open Image Denoise): opaque handles; images and parameters
+// set by name so new ones never change the ABI; lifecycle
+// new -> set -> commit -> execute -> release. Errors are kept per thread as the
+// first unqueried error: every call that fails records one, and
+// crispGetError() returns it and clears it. No C++ exception crosses this API.
+//
+// Image convention (see native/core/conventions.h): rows top-down (row 0 is the
+// top of the picture, as stored in EXR), x to the right, linear scene-referred
+// colour, planar camera depth, motion in pixels as (previous - current) with y
+// DOWN, object IDs as the 32-bit Cryptomatte hash (0 = background).
+#ifndef CRISP_H
+#define CRISP_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#if defined(_WIN32)
+#  if defined(CRISP_BUILDING_LIBRARY)
+#    define CRISP_API __declspec(dllexport)
+#  else
+#    define CRISP_API __declspec(dllimport)
+#  endif
+#else
+#  define CRISP_API __attribute__((visibility("default")))
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define CRISP_VERSION_MAJOR 0
+#define CRISP_VERSION_MINOR 1
+#define CRISP_VERSION_PATCH 0
+#define CRISP_VERSION (CRISP_VERSION_MAJOR * 10000 + CRISP_VERSION_MINOR * 100 + CRISP_VERSION_PATCH)
+
+typedef enum CrispError {
+  CRISP_ERROR_NONE = 0,
+  CRISP_ERROR_UNKNOWN = 1,
+  CRISP_ERROR_INVALID_ARGUMENT = 2,   // bad name, value, size or null handle
+  CRISP_ERROR_INVALID_OPERATION = 3,  // wrong order (execute before commit, ...)
+  CRISP_ERROR_OUT_OF_MEMORY = 4,
+  CRISP_ERROR_IO = 5,                 // unreadable, truncated or corrupt file
+  CRISP_ERROR_INVALID_DATA = 6        // missing pass, wrong channel count, ...
+} CrispError;
+
+typedef enum CrispFormat {
+  CRISP_FORMAT_UNDEFINED = 0,
+  CRISP_FORMAT_FLOAT = 1,   // 1 x float32
+  CRISP_FORMAT_FLOAT2 = 2,
+  CRISP_FORMAT_FLOAT3 = 3,
+  CRISP_FORMAT_FLOAT4 = 4,
+  CRISP_FORMAT_UINT = 5     // 1 x uint32 (object ID hash)
+} CrispFormat;
+
+typedef struct CrispContextImpl* CrispContext;
+typedef struct CrispFilterImpl* CrispFilter;
+typedef struct CrispFrameImpl* CrispFrame;
+
+// ---- version and errors ---------------------------------------------------
+CRISP_API int crispGetVersion(void);                 // CRISP_VERSION of the loaded library
+CRISP_API const char* crispGetVersionString(void);   // "0.1.0"
+// Returns the first error recorded on this thread since the last query and
+// clears it. *outMessage (if not NULL) points to a thread-local string valid
+// until the next Crisp call on this thread.
+CRISP_API CrispError crispGetError(const char** outMessage);
+
+// ---- context --------------------------------------------------------------
+// Parameters: "numThreads" (int, 0 = all cores), "verbose" (int 0..2).
+CRISP_API CrispContext crispNewContext(void);
+CRISP_API void crispRetainContext(CrispContext context);
+CRISP_API void crispReleaseContext(CrispContext context);
+CRISP_API void crispSetContextInt(CrispContext context, const char* name, int value);
+CRISP_API int crispGetContextInt(CrispContext context, const char* name);
+CRISP_API void crispCommitContext(CrispContext context);
+
+// ---- filters --------------------------------------------------------------
+// Types: "none", "fxaa", "repair" (and the temporal ones as they land).
+// crispGetFilterTypes returns a comma-separated list.
+CRISP_API const char* crispGetFilterTypes(void);
+CRISP_API CrispFilter crispNewFilter(CrispContext context, const char* type);
+CRISP_API void crispRetainFilter(CrispFilter filter);
+CRISP_API void crispReleaseFilter(CrispFilter filter);
+
+// Non-owning strided view. pixelByteStride/rowByteStride 0 = packed.
+// Passing ptr = NULL unsets the image.
+CRISP_API void crispSetFilterImage(CrispFilter filter, const char* name, void* ptr,
+                                   CrispFormat format, size_t width, size_t height,
+                                   size_t pixelByteStride, size_t rowByteStride);
+CRISP_API void crispUnsetFilterImage(CrispFilter filter, const char* name);
+
+CRISP_API void crispSetFilterInt(CrispFilter filter, const char* name, int value);
+CRISP_API void crispSetFilterFloat(CrispFilter filter, const char* name, float value);
+CRISP_API void crispSetFilterBool(CrispFilter filter, const char* name, int value);
+CRISP_API void crispSetFilterString(CrispFilter filter, const char* name, const char* value);
+CRISP_API int crispGetFilterInt(CrispFilter filter, const char* name);
+CRISP_API float crispGetFilterFloat(CrispFilter filter, const char* name);
+CRISP_API int crispGetFilterBool(CrispFilter filter, const char* name);
+// Returned string is valid until the filter is changed or released.
+CRISP_API const char* crispGetFilterString(CrispFilter filter, const char* name);
+// Human-readable table of the filter's parameters and image roles.
+CRISP_API const char* crispGetFilterDoc(CrispFilter filter);
+
+// Validates images and parameters and allocates what execute needs.
+CRISP_API void crispCommitFilter(CrispFilter filter);
+// Runs one frame. Never allocates. Temporal filters keep history between calls.
+CRISP_API void crispExecuteFilter(CrispFilter filter);
+// Forgets temporal history (camera cut).
+CRISP_API void crispResetFilter(CrispFilter filter);
+
+// ---- frames: reading passes from files -----------------------------------
+// Reads a Blender multilayer EXR (Combined, Depth.Z, Normal, Vector, DiffCol,
+// CryptoObject00..) or a plain RGB(A) EXR/PNG into owned buffers converted to
+// the library's convention.
+CRISP_API CrispFrame crispLoadFrame(CrispContext context, const char* path);
+CRISP_API void crispReleaseFrame(CrispFrame frame);
+CRISP_API int crispGetFrameWidth(CrispFrame frame);
+CRISP_API int crispGetFrameHeight(CrispFrame frame);
+// Comma-separated list of roles present: "color,depth,normal,...".
+CRISP_API const char* crispGetFramePasses(CrispFrame frame);
+// Pointer to the pass's packed pixels (owned by the frame), or NULL with an
+// error if absent. *outFormat receives its format.
+CRISP_API void* crispGetFramePass(CrispFrame frame, const char* role, CrispFormat* outFormat);
+
+// Writes an image (RGB or RGBA float view) to `path`; the type comes from the
+// extension (.exr: float RGBA; .png: 8-bit sRGB-encoded). Writes to a
+// temporary name then renames, so an existing file is never left half-written.
+CRISP_API void crispWriteImage(CrispContext context, const char* path, const void* ptr,
+                               CrispFormat format, size_t width, size_t height,
+                               size_t pixelByteStride, size_t rowByteStride);
+
+// ---- metrics ---------------------------------------------------------------
+// Figures comparing a test image with a reference, on display-encoded values
+// (linear clamped to [0,1], sRGB-encoded). Fields are only ever appended.
+typedef struct CrispMetrics {
+  double mse, rmse, psnr, snr, ssim, flip;
+} CrispMetrics;
+
+// reference/test: RGB or RGBA float views of the same size. mask (may be NULL):
+// float view; only pixels with mask > 0 count.
+CRISP_API void crispCompareImages(CrispContext context, const void* reference, const void* test, CrispFormat format,
+                                  size_t width, size_t height, const float* mask, CrispMetrics* outMetrics);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif  // CRISP_H

@@ -1,0 +1,46 @@
+// SPDX-License-Identifier: Apache-2.0
+// A frame's render passes read from disk, converted to conventions.h.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/image.h"
+
+namespace crisp {
+
+// Roles a frame can hold, with their channel counts in memory:
+//   color  4  (Combined RGBA, or a plain RGB(A) image; alpha 1 if absent)
+//   depth  1  (Depth.Z)
+//   normal 3  (Normal.XYZ)
+//   motion 4  (Vector.XYZW, converted to y down)
+//   id     1  uint (CryptoObject00.r bits; the rank-0 object of each pixel)
+//   albedo 3  (DiffCol.RGB)
+struct Frame {
+  std::string path;
+  int width = 0;
+  int height = 0;
+  std::map<std::string, Image> passes;
+  std::map<std::string, std::uint32_t> objectIds;  // Cryptomatte manifest: name -> hash
+  std::vector<std::string> channelNames;           // every channel in the file, as named there
+
+  bool has(const std::string& role) const { return passes.count(role) != 0; }
+  // Throws CRISP_ERROR_INVALID_DATA naming the file and the pass if absent.
+  const Image& pass(const std::string& role) const;
+  std::string passList() const;  // "color,depth,..."
+};
+
+// Reads a Blender multilayer EXR or a plain RGB(A) EXR/PNG. Throws
+// CRISP_ERROR_IO (unreadable, truncated, corrupt) or CRISP_ERROR_INVALID_DATA
+// (no colour, inconsistent layers), always naming the file.
+Frame readFrame(const std::string& path);
+
+// Writes RGB(A) float to .exr (float RGBA, alpha 1 if absent) or .png (8-bit
+// sRGB-encoded RGBA) by extension, through a temporary file in the same folder
+// renamed into place: an existing file is replaced whole or not at all.
+void writeImage(const std::string& path, const ImageView& image);
+void writeImage(const std::string& path, const Image& image);
+
+}  // namespace crisp

@@ -1,0 +1,37 @@
+// SPDX-License-Identifier: Apache-2.0
+// Image-quality metrics. Every metric compares DISPLAY-ENCODED values: each
+// linear RGB channel clamped to [0,1] and sRGB-encoded (core/color.h), so the
+// figures match what a viewer sees and what PNG output holds.
+#pragma once
+
+#include "core/image.h"
+
+namespace crisp {
+
+struct Metrics {
+  double mse = 0;    // mean over pixels and RGB channels of squared difference
+  double rmse = 0;   // sqrt(mse)
+  double psnr = 0;   // 10 log10(1 / mse) dB (peak 1); capped at 100 dB for identical images
+  double snr = 0;    // 10 log10(sum ref^2 / sum (ref - test)^2) dB; capped at 100 dB
+  double ssim = 0;   // mean SSIM (Wang et al. 2004: 11x11 Gaussian sigma 1.5, K1 0.01, K2 0.03) of the luma
+                     // Y = 0.299R' + 0.587G' + 0.114B' of the encoded values
+  double flip = 0;   // mean perceptual LDR error in [0,1] (FLIP-style, flip.h)
+  long pixels = 0;   // pixels counted (mask > 0)
+};
+
+struct MetricMaps {
+  Image* error = nullptr;  // if set: 1 channel, per-pixel squared error averaged over RGB
+  Image* ssim = nullptr;   // if set: 1 channel, per-pixel SSIM
+  Image* flip = nullptr;   // if set: 1 channel, per-pixel perceptual error
+};
+
+// reference and test: same size, 3 or 4 channels (alpha ignored). mask (optional,
+// 1 channel, same size): only pixels with mask > 0 count. Throws
+// CRISP_ERROR_INVALID_DATA on size/channel mismatch.
+Metrics compareImages(const Image& reference, const Image& test, const Image* mask = nullptr,
+                      const MetricMaps& maps = {}, int numThreads = 0);
+
+// Display encoding used by every metric: RGB(A) linear -> 3-channel sRGB in [0,1].
+Image displayEncode(const Image& linear, int numThreads = 0);
+
+}  // namespace crisp

@@ -1,0 +1,60 @@
+// SPDX-License-Identifier: Apache-2.0
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+
+#include "core/error.h"
+#include "core/params.h"
+
+using namespace crisp;
+
+static ParamSet makeSet() {
+  return ParamSet({{"k", ParamType::Float, -1.0, -4.0, 4.0, nullptr, "threshold weight", "eq. 3.1"},
+                   {"n", ParamType::Int, 5, 3, 9, nullptr, "patch size", "alg. 3"},
+                   {"on", ParamType::Bool, 1, 0, 1, nullptr, "switch", "-"},
+                   {"mask", ParamType::String, 0, 0, 0, "gauss5|box3", "mask kind", "fig. 4.1"}});
+}
+
+TEST(Params, DefaultsAndSetters) {
+  ParamSet p = makeSet();
+  EXPECT_FLOAT_EQ(p.getFloat("k"), -1.0f);
+  EXPECT_EQ(p.getInt("n"), 5);
+  EXPECT_TRUE(p.getBool("on"));
+  EXPECT_EQ(p.getString("mask"), "gauss5");
+  p.setFloat("k", 2.5f);
+  p.setInt("k", 3);  // an int may set a float
+  EXPECT_FLOAT_EQ(p.getFloat("k"), 3.0f);
+  p.setFromText("n", "7");
+  p.setFromText("on", "false");
+  p.setFromText("mask", "box3");
+  EXPECT_EQ(p.getInt("n"), 7);
+  EXPECT_FALSE(p.getBool("on"));
+  EXPECT_EQ(p.getString("mask"), "box3");
+}
+
+static std::string errorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Params, ErrorsNameTheParameter) {
+  ParamSet p = makeSet();
+  EXPECT_NE(errorOf([&] { p.setFloat("kappa", 1); }).find("unknown parameter 'kappa'"), std::string::npos);
+  EXPECT_NE(errorOf([&] { p.setFloat("k", 9); }).find("'k' = 9 is out of range"), std::string::npos);
+  EXPECT_NE(errorOf([&] { p.setFloat("k", NAN); }).find("out of range"), std::string::npos);
+  EXPECT_NE(errorOf([&] { p.setFloat("n", 4); }).find("'n' is int, not float"), std::string::npos);
+  EXPECT_NE(errorOf([&] { p.setFromText("n", "5x"); }).find("expects int"), std::string::npos);
+  EXPECT_NE(errorOf([&] { p.setFromText("mask", "gauss7"); }).find("not one of"), std::string::npos);
+  EXPECT_NE(errorOf([&] { p.setFromText("on", "maybe"); }).find("expects a bool"), std::string::npos);
+  EXPECT_EQ(p.getFloat("k"), -1.0f);  // failed sets leave the value alone
+}
+
+TEST(Params, TableListsEveryParameter) {
+  std::string t = makeSet().table();
+  for (const char* n : {"`k`", "`n`", "`on`", "`mask`", "eq. 3.1", "gauss5|box3"}) EXPECT_NE(t.find(n), std::string::npos) << n;
+}
