@@ -1,1 +1,69 @@
 // SPDX-License-Identifier: Apache-2.0
+// crisp filter --method NAME [--set K=V]... INPUT... -o OUTDIR [--png]
+// Inputs are filtered in the order given (temporal methods keep history
+// between them) and each result goes to OUTDIR/<input name>.exr.
+#include <filesystem>
+#include <set>
+
+#include "cli/commands.h"
+#include "cli/progress.h"
+#include "core/error.h"
+#include "core/filter.h"
+
+namespace crisp::cli {
+
+namespace fs = std::filesystem;
+
+int runFilter(const ParsedArgs& args) {
+  if (args.positional.empty()) throw UsageError("'filter' needs at least one INPUT file");
+  const std::string outDir = args.get("output");
+  const bool png = args.has("png");
+
+  Context context;
+  context.setInt("numThreads", parseIntOption(args, "threads", 0, 0, 1024));
+  std::unique_ptr<Filter> filter = createFilter(context, args.get("method"));
+  for (const std::string& kv : args.all("set")) {
+    auto eq = kv.find('=');
+    if (eq == std::string::npos || eq == 0) throw UsageError("--set expects KEY=VALUE, got '" + kv + "'");
+    filter->params().setFromText(kv.substr(0, eq), kv.substr(eq + 1));
+  }
+
+  // Refuse before writing anything: outputs that would collide or overwrite an input.
+  std::set<std::string> stems;
+  std::set<fs::path> inputs;
+  for (const std::string& in : args.positional) {
+    if (!stems.insert(fileStem(in)).second)
+      throw UsageError("two inputs are named '" + fileStem(in) + "': their outputs would overwrite each other");
+    std::error_code ec;
+    inputs.insert(fs::weakly_canonical(in, ec));
+  }
+  makeDirectories(outDir);
+  for (const std::string& in : args.positional) {
+    std::error_code ec;
+    for (const char* ext : {".exr", ".png"})
+      if (inputs.count(fs::weakly_canonical(joinPath(outDir, fileStem(in) + ext), ec)))
+        throw UsageError("output for '" + in + "' would overwrite an input file; choose another -o folder");
+  }
+
+  Image output;
+  Progress progress("filter " + std::string(filter->type()), int(args.positional.size()), args.has("quiet"));
+  for (const std::string& in : args.positional) {
+    Frame frame = readFrame(in);
+    bindFrame(*filter, frame);
+    if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
+    filter->setImage("output", output.view());
+    try {
+      if (!filter->committed()) filter->commit();
+      filter->execute();
+    } catch (const Exception& e) {
+      throw Exception(e.code(), "'" + in + "': " + e.what());
+    }
+    const std::string base = joinPath(outDir, fileStem(in));
+    writeImage(base + ".exr", output);
+    if (png) writeImage(base + ".png", output);
+    progress.step(fileStem(in));
+  }
+  return 0;
+}
+
+}  // namespace crisp::cli

@@ -1,1 +1,40 @@
 // SPDX-License-Identifier: Apache-2.0
+// crisp info FILE...: the passes in each file, and per method what is missing.
+#include <cstdio>
+
+#include "cli/commands.h"
+#include "core/filter.h"
+
+namespace crisp::cli {
+
+int runInfo(const ParsedArgs& args) {
+  if (args.positional.empty()) throw UsageError("'info' needs at least one FILE");
+  Context context;
+  int missingAny = 0;
+  for (const std::string& path : args.positional) {
+    Frame frame = readFrame(path);
+    std::printf("%s\n  size: %dx%d\n  channels:", path.c_str(), frame.width, frame.height);
+    for (const std::string& c : frame.channelNames) std::printf(" %s", c.c_str());
+    std::printf("\n  passes: %s\n", frame.passList().c_str());
+    if (!frame.objectIds.empty()) {
+      std::printf("  objects (cryptomatte):");
+      for (const auto& [name, hash] : frame.objectIds) std::printf(" %s=%08x", name.c_str(), unsigned(hash));
+      std::printf("\n");
+    }
+    std::printf("  methods:\n");
+    for (const std::string& type : filterTypes()) {
+      auto filter = createFilter(context, type);
+      std::string missing, optional;
+      for (const ImageRole& r : filter->roles()) {
+        if (std::string(r.name) == "output" || frame.has(r.name)) continue;
+        (r.required ? missing : optional) += std::string(" ") + r.name;
+      }
+      if (!missing.empty()) ++missingAny;
+      std::printf("    %-14s %s%s%s\n", type.c_str(), missing.empty() ? "ready" : ("missing:" + missing).c_str(),
+                  optional.empty() ? "" : "; optional, absent:", optional.c_str());
+    }
+  }
+  return 0;
+}
+
+}  // namespace crisp::cli

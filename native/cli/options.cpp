@@ -1,1 +1,155 @@
 // SPDX-License-Identifier: Apache-2.0
+#include "cli/options.h"
+
+#include <cctype>
+#include <cstdlib>
+#include <stdexcept>
+#include <sstream>
+
+namespace crisp::cli {
+
+const std::vector<CommandSpec>& commands() {
+  static const std::vector<CommandSpec> c = {
+      {"filter", "INPUT...", "filter each input in order, write OUTDIR/<input name>.exr"},
+      {"compare", "", "compare test images with references: MSE, RMSE, PSNR, SNR, SSIM, perceptual error"},
+      {"info", "FILE...", "list the passes in a file and, per method, the required ones that are missing"},
+      {"synth", "", "write the analytic test chart: 1-sample, 16x16 reference and edge mask"},
+      {"bench", "[BENCHMARK ARGS...]", "run the benchmarks (crisp_bench, Google Benchmark)"},
+      {"help", "[COMMAND|METHOD]", "show help for a command, or a method's parameter table"},
+      {"version", "", "print the version"},
+  };
+  return c;
+}
+
+const std::vector<OptionSpec>& options() {
+  static const std::vector<OptionSpec> o = {
+      {"filter", "method", 'm', "NAME", false, true, "filter to run (see `crisp help`)"},
+      {"filter", "set", 's', "KEY=VALUE", false, false, "set a filter parameter (repeatable)"},
+      {"filter", "output", 'o', "OUTDIR", false, true, "output folder (created if missing)"},
+      {"filter", "png", 0, nullptr, false, false, "also write a display-encoded PNG beside each EXR"},
+      {"compare", "reference", 'r', "REF...", true, true, "reference images, paired in order with --test"},
+      {"compare", "test", 't', "TEST...", true, true, "images to measure"},
+      {"compare", "mask", 0, "MASK", false, false, "only count pixels where this image's first channel > 0"},
+      {"compare", "json", 0, "FILE", false, false, "write per-frame and mean figures as JSON"},
+      {"compare", "maps", 0, "DIR", false, false, "write per-pixel error, SSIM and perceptual-error maps"},
+      {"synth", "output", 'o', "OUTDIR", false, true, "output folder (created if missing)"},
+      {"synth", "size", 0, "WxH", false, false, "image size (default 320x180)"},
+      {"*", "threads", 'j', "N", false, false, "worker threads (0 = all cores, default)"},
+      {"*", "quiet", 'q', nullptr, false, false, "no progress output"},
+      {"*", "help", 'h', nullptr, false, false, "show this help"},
+  };
+  return o;
+}
+
+const std::vector<std::string>& ParsedArgs::all(const std::string& name) const {
+  static const std::vector<std::string> none;
+  auto it = values.find(name);
+  return it == values.end() ? none : it->second;
+}
+
+static const OptionSpec* findOption(const std::string& command, const std::string& arg) {
+  for (const OptionSpec& o : options()) {
+    if (std::string(o.command) != command && std::string(o.command) != "*") continue;
+    if (arg == std::string("--") + o.name) return &o;
+    if (o.shortName && arg.size() == 2 && arg[0] == '-' && arg[1] == o.shortName) return &o;
+  }
+  return nullptr;
+}
+
+ParsedArgs parseArgs(const std::vector<std::string>& args) {
+  ParsedArgs p;
+  if (args.empty()) throw UsageError("no command given");
+  p.command = args[0];
+  if (p.command == "--help" || p.command == "-h") {
+    p.command = "help";
+    return p;
+  }
+  if (p.command == "--version") {
+    p.command = "version";
+    return p;
+  }
+  bool known = false;
+  for (const CommandSpec& c : commands()) known |= p.command == c.name;
+  if (!known) throw UsageError("unknown command '" + p.command + "'");
+  if (p.command == "bench") {  // everything after is for the benchmark runner
+    p.positional.assign(args.begin() + 1, args.end());
+    return p;
+  }
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    std::string arg = args[i];
+    std::string inlineValue;
+    bool hasInline = false;
+    if (arg.rfind("--", 0) == 0 && arg.find('=') != std::string::npos) {
+      inlineValue = arg.substr(arg.find('=') + 1);
+      arg = arg.substr(0, arg.find('='));
+      hasInline = true;
+    }
+    if (arg.size() > 1 && arg[0] == '-' && !(arg.size() > 1 && (std::isdigit(static_cast<unsigned char>(arg[1])) || arg[1] == '.'))) {
+      const OptionSpec* o = findOption(p.command, arg);
+      if (!o) throw UsageError("unknown option '" + arg + "' for '" + p.command + "'");
+      auto& vals = p.values[o->name];
+      if (!o->valueName) {
+        if (hasInline) throw UsageError("option '" + arg + "' takes no value");
+        vals.push_back("");
+        continue;
+      }
+      if (hasInline) {
+        vals.push_back(inlineValue);
+      } else if (o->multi) {
+        std::size_t before = vals.size();
+        while (i + 1 < args.size() && !(args[i + 1].size() > 1 && args[i + 1][0] == '-' && findOption(p.command, args[i + 1].substr(0, args[i + 1].find('=')))))
+          vals.push_back(args[++i]);
+        if (vals.size() == before) throw UsageError("option '" + arg + "' needs at least one " + o->valueName);
+      } else {
+        if (i + 1 >= args.size()) throw UsageError("option '" + arg + "' needs a value " + o->valueName);
+        vals.push_back(args[++i]);
+      }
+      if (!o->multi && std::string(o->name) != "set" && vals.size() > 1)
+        throw UsageError("option '--" + std::string(o->name) + "' given more than once");
+    } else {
+      p.positional.push_back(args[i]);
+    }
+  }
+  if (!p.has("help"))
+    for (const OptionSpec& o : options())
+      if (o.required && std::string(o.command) == p.command && !p.has(o.name))
+        throw UsageError("'" + p.command + "' needs --" + std::string(o.name) + " " + o.valueName);
+  return p;
+}
+
+std::string helpText(const std::string& command) {
+  std::ostringstream s;
+  if (command.empty()) {
+    s << "crisp: anti-aliasing filters for 1-sample Blender renders\n\nUsage: crisp COMMAND [OPTIONS]\n\nCommands:\n";
+    for (const CommandSpec& c : commands()) s << "  " << c.name << std::string(10 - std::string(c.name).size(), ' ') << c.summary << "\n";
+    s << "\n`crisp help COMMAND` shows a command's options; `crisp help METHOD` a method's parameters.\n";
+    return s.str();
+  }
+  for (const CommandSpec& c : commands()) {
+    if (command != c.name) continue;
+    s << "Usage: crisp " << c.name << " [OPTIONS] " << c.usage << "\n  " << c.summary << "\n\nOptions:\n";
+    for (const OptionSpec& o : options()) {
+      if (std::string(o.command) != command && std::string(o.command) != "*") continue;
+      std::string flag = o.shortName ? std::string("-") + o.shortName + ", " : "    ";
+      flag += std::string("--") + o.name;
+      if (o.valueName) flag += std::string(" ") + o.valueName;
+      s << "  " << flag << std::string(flag.size() < 26 ? 26 - flag.size() : 1, ' ') << o.help
+        << (o.required ? " (required)" : "") << "\n";
+    }
+    return s.str();
+  }
+  return "";
+}
+
+int parseIntOption(const ParsedArgs& a, const std::string& name, int fallback, int lo, int hi) {
+  if (!a.has(name)) return fallback;
+  const std::string& v = a.get(name);
+  char* end = nullptr;
+  long x = std::strtol(v.c_str(), &end, 10);
+  if (v.empty() || *end || x < lo || x > hi)
+    throw UsageError("--" + name + " expects a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                     "], got '" + v + "'");
+  return int(x);
+}
+
+}  // namespace crisp::cli

@@ -41,6 +41,7 @@ class Filter {
   ParamSet& params() { return params_; }
   const ParamSet& params() const { return params_; }
   void markDirty() { committed_ = false; }
+  bool committed() const { return committed_; }
 
   void commit();
   void execute();

@@ -1,0 +1,33 @@
+// SPDX-License-Identifier: Apache-2.0
+// One function per subcommand; each returns the process exit code.
+#pragma once
+
+#include <string>
+
+#include "cli/options.h"
+#include "core/filter.h"
+#include "io/frame.h"
+
+namespace crisp::cli {
+
+int runFilter(const ParsedArgs& args);
+int runCompare(const ParsedArgs& args);
+int runInfo(const ParsedArgs& args);
+int runSynth(const ParsedArgs& args);
+int runBench(const ParsedArgs& args, const char* argv0);
+
+// Points every image role the filter declares at the frame's pass of that
+// name, if the frame has it. Errors from commit name the file.
+void bindFrame(Filter& filter, const Frame& frame);
+
+// File helpers: text written through a temporary file renamed into place.
+void writeTextFile(const std::string& path, const std::string& text);
+void makeDirectories(const std::string& path);
+std::string fileStem(const std::string& path);
+std::string joinPath(const std::string& dir, const std::string& name);
+
+// Minimal JSON output.
+std::string jsonString(const std::string& s);
+std::string jsonNumber(double v);
+
+}  // namespace crisp::cli

@@ -1,0 +1,53 @@
+// SPDX-License-Identifier: Apache-2.0
+// The CLI's options come from one table (options.cpp) that both parses the
+// command line and prints --help, so the two can never disagree.
+#pragma once
+
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace crisp::cli {
+
+struct OptionSpec {
+  const char* command;    // subcommand this option belongs to ("*" = all)
+  const char* name;       // long name without dashes
+  char shortName;         // 0 = none
+  const char* valueName;  // nullptr = a flag without value
+  bool multi;             // takes several values (until the next option)
+  bool required;
+  const char* help;
+};
+
+struct CommandSpec {
+  const char* name;
+  const char* usage;  // positional part of the usage line
+  const char* summary;
+};
+
+const std::vector<CommandSpec>& commands();
+const std::vector<OptionSpec>& options();
+
+struct ParsedArgs {
+  std::string command;
+  std::map<std::string, std::vector<std::string>> values;  // option -> values ("" for flags)
+  std::vector<std::string> positional;
+  bool has(const std::string& name) const { return values.count(name) != 0; }
+  const std::string& get(const std::string& name) const { return values.at(name).front(); }
+  std::string getOr(const std::string& name, const std::string& fallback) const {
+    return has(name) ? get(name) : fallback;
+  }
+  const std::vector<std::string>& all(const std::string& name) const;
+};
+
+// Throws UsageError with a message naming the offending argument.
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+ParsedArgs parseArgs(const std::vector<std::string>& args);
+std::string helpText(const std::string& command = "");
+
+int parseIntOption(const ParsedArgs& a, const std::string& name, int fallback, int lo, int hi);
+
+}  // namespace crisp::cli

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
+# The whole test suite, from a fresh Debian 12 machine: installs what is
+# missing, builds, then runs
+#   1. the unit and API tests under AddressSanitizer + UBSan,
+#   2. the libFuzzer targets for a short fixed time,
+#   3. every CTest test of the release build (unit, API, Python/ctypes,
+#      headless Blender, benchmark smoke run).
+# Set CRISP_FUZZ_SECONDS (default 30 per target) to change step 2.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/install-deps.sh
+
+echo "== sanitizer build (ASan + UBSan)"
+scripts/build.sh sanitize --target crisp_unit crisp_api_test
+ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+  ctest --test-dir build-sanitize -L 'unit|api' -j 2 --output-on-failure
+
+echo "== fuzzing (${CRISP_FUZZ_SECONDS:-30} s per target)"
+scripts/build.sh fuzz --target fuzz_frame_reader fuzz_c_api crisp_cli
+corpus=$(mktemp -d)
+trap 'rm -rf "$corpus"' EXIT
+mkdir -p "$corpus/frames" "$corpus/api"
+build-fuzz/bin/crisp synth -o "$corpus/gen" --size 8x6 >/dev/null
+# Seed files: a real EXR and PNG, prefixed with the byte that picks the extension.
+{ printf '\x00'; cat "$corpus/gen/chart_1spp.exr"; } >"$corpus/frames/exr"
+{ printf '\x01'; cat "$corpus/gen/chart_1spp.png"; } >"$corpus/frames/png"
+for target in fuzz_frame_reader:frames fuzz_c_api:api; do
+  bin=${target%%:*}
+  dir=$corpus/${target##*:}
+  ASAN_OPTIONS=detect_leaks=1 "build-fuzz/bin/$bin" -max_total_time="${CRISP_FUZZ_SECONDS:-30}" \
+    -timeout=10 -rss_limit_mb=4096 -print_final_stats=1 "$dir" 2>&1 | tail -n 4
+done
+
+echo "== release build and full test suite"
+scripts/build.sh release
+ctest --test-dir build -j 2 --output-on-failure

@@ -1,0 +1,165 @@
+// SPDX-License-Identifier: Apache-2.0
+// The public C API and its C++ wrapper, against the shared library only.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <thread>
+#include <vector>
+
+#include "crisp/crisp.hpp"
+
+namespace {
+
+std::vector<float> noise(int w, int h, int c, unsigned seed) {
+  std::vector<float> v(std::size_t(w) * h * c);
+  for (auto& x : v) {
+    seed = seed * 1664525u + 1013904223u;
+    x = float(seed >> 8) / float(1u << 24);
+  }
+  return v;
+}
+
+std::string lastError(CrispError* code = nullptr) {
+  const char* m = nullptr;
+  CrispError c = crispGetError(&m);
+  if (code) *code = c;
+  return m ? m : "";
+}
+
+}  // namespace
+
+TEST(CApi, VersionAndTypes) {
+  EXPECT_EQ(crispGetVersion(), CRISP_VERSION);
+  EXPECT_STREQ(crispGetVersionString(), "0.1.0");
+  std::string types = crispGetFilterTypes();
+  for (const char* t : {"none", "fxaa", "repair"}) EXPECT_NE(types.find(t), std::string::npos) << t;
+}
+
+TEST(CApi, NoneFilterCopiesThroughStridedViews) {
+  auto ctx = crisp::ContextRef::create();
+  ctx.set("numThreads", 2);
+  EXPECT_EQ(ctx.get("numThreads"), 2);
+  ctx.commit();
+  const int w = 13, h = 7;
+  // RGBA input read as RGB through the pixel stride, rows padded by 3 floats.
+  const std::size_t rowFloats = w * 4 + 3;
+  std::vector<float> in(rowFloats * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 4; ++c) in[y * rowFloats + x * 4 + c] = float(y * 1000 + x * 10 + c);
+  std::vector<float> out(std::size_t(w) * h * 3, -1.0f);
+  auto f = ctx.newFilter("none");
+  f.setImage("color", in.data(), CRISP_FORMAT_FLOAT3, w, h, 16, rowFloats * 4);
+  f.setImage("output", out.data(), CRISP_FORMAT_FLOAT3, w, h);
+  f.commit();
+  f.execute();
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(out[(y * w + x) * 3 + c], float(y * 1000 + x * 10 + c));
+}
+
+TEST(CApi, ErrorsNameWhatIsWrong) {
+  auto ctx = crisp::ContextRef::create();
+  CrispError code;
+  EXPECT_EQ(crispNewFilter(ctx.get(), "fxab"), nullptr);
+  EXPECT_NE(lastError(&code).find("unknown filter type 'fxab'"), std::string::npos);
+  EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(crispGetError(nullptr), CRISP_ERROR_NONE);  // cleared by the query
+
+  auto f = ctx.newFilter("repair");
+  crispSetFilterFloat(f.get(), "sharpness", 1.0f);
+  EXPECT_NE(lastError().find("unknown parameter 'sharpness'"), std::string::npos);
+  crispSetFilterImage(f.get(), "colour", nullptr, CRISP_FORMAT_FLOAT3, 4, 4, 0, 0);
+  EXPECT_NE(lastError().find("no image 'colour'"), std::string::npos);
+
+  std::vector<float> a(4 * 4 * 4), b(5 * 4 * 4);
+  f.setImage("color", a.data(), CRISP_FORMAT_FLOAT4, 4, 4);
+  crispExecuteFilter(f.get());
+  EXPECT_NE(lastError(&code).find("before commit"), std::string::npos);
+  EXPECT_EQ(code, CRISP_ERROR_INVALID_OPERATION);
+  crispCommitFilter(f.get());
+  EXPECT_NE(lastError(&code).find("'output'"), std::string::npos);
+  EXPECT_EQ(code, CRISP_ERROR_INVALID_DATA);
+  f.setImage("output", b.data(), CRISP_FORMAT_FLOAT4, 5, 4);
+  crispCommitFilter(f.get());
+  EXPECT_NE(lastError().find("'output' is 5x4 but 'color' is 4x4"), std::string::npos);
+  crispSetFilterImage(f.get(), "output", b.data(), CRISP_FORMAT_FLOAT4, 4, 4, 8, 0);  // stride < pixel
+  EXPECT_NE(lastError().find("strides"), std::string::npos);
+  crispSetFilterImage(f.get(), "color", a.data(), CRISP_FORMAT_FLOAT2, 4, 4, 0, 0);
+  EXPECT_NE(lastError().find("format float2 not accepted"), std::string::npos);
+  crispSetFilterImage(f.get(), "color", a.data(), CRISP_FORMAT_FLOAT4, 0, 4, 0, 0);
+  EXPECT_NE(lastError().find("out of range"), std::string::npos);
+  crispSetContextInt(ctx.get(), "numThreads", -1);
+  EXPECT_NE(lastError().find("numThreads"), std::string::npos);
+  crispCommitFilter(nullptr);
+  EXPECT_NE(lastError().find("NULL"), std::string::npos);
+  EXPECT_THROW(f.set("kappa", std::numeric_limits<float>::quiet_NaN()), crisp::Error);
+}
+
+TEST(CApi, FirstErrorIsKeptAndErrorsArePerThread) {
+  auto ctx = crisp::ContextRef::create();
+  crispNewFilter(ctx.get(), "first");
+  crispNewFilter(ctx.get(), "second");
+  std::string other;
+  std::thread t([&] { other = lastError(); });  // another thread sees none
+  t.join();
+  EXPECT_EQ(other, "");
+  EXPECT_NE(lastError().find("'first'"), std::string::npos);
+  EXPECT_EQ(lastError(), "");
+}
+
+TEST(CApi, EverySpatialFilterKeepsOutputFiniteOnNanAndInf) {
+  auto ctx = crisp::ContextRef::create();
+  const int w = 31, h = 17;
+  for (const char* type : {"none", "fxaa", "repair"}) {
+    std::vector<float> in = noise(w, h, 4, 7);
+    in[0] = std::numeric_limits<float>::quiet_NaN();
+    in[4 * 40 + 1] = std::numeric_limits<float>::infinity();
+    in[4 * 77 + 2] = -std::numeric_limits<float>::infinity();
+    in[4 * 100] = 1e30f;
+    std::vector<float> out(in.size());
+    auto f = ctx.newFilter(type);
+    f.setImage("color", in.data(), CRISP_FORMAT_FLOAT4, w, h);
+    f.setImage("output", out.data(), CRISP_FORMAT_FLOAT4, w, h);
+    f.commit();
+    f.execute();
+    for (float v : out) ASSERT_TRUE(std::isfinite(v)) << type;
+  }
+}
+
+TEST(CApi, InPlaceAndOddSizes) {
+  auto ctx = crisp::ContextRef::create();
+  for (const char* type : {"none", "fxaa", "repair"})
+    for (auto [w, h] : {std::pair{1, 1}, {2, 3}, {17, 9}}) {
+      std::vector<float> img = noise(w, h, 3, 11);
+      auto f = ctx.newFilter(type);
+      f.setImage("color", img.data(), CRISP_FORMAT_FLOAT3, w, h);
+      f.setImage("output", img.data(), CRISP_FORMAT_FLOAT3, w, h);  // in place
+      f.commit();
+      f.execute();
+      for (float v : img) ASSERT_TRUE(std::isfinite(v)) << type << " " << w << "x" << h;
+    }
+}
+
+TEST(CApi, ReleaseOrderDoesNotMatter) {
+  CrispContext c = crispNewContext();
+  CrispFilter f = crispNewFilter(c, "none");
+  crispReleaseContext(c);  // the filter keeps the context alive
+  std::vector<float> img(4 * 4 * 3, 0.5f);
+  crispSetFilterImage(f, "color", img.data(), CRISP_FORMAT_FLOAT3, 4, 4, 0, 0);
+  crispSetFilterImage(f, "output", img.data(), CRISP_FORMAT_FLOAT3, 4, 4, 0, 0);
+  crispCommitFilter(f);
+  crispExecuteFilter(f);
+  EXPECT_EQ(crispGetError(nullptr), CRISP_ERROR_NONE);
+  crispReleaseFilter(f);
+}
+
+TEST(CApi, DocListsParametersAndImages) {
+  auto ctx = crisp::ContextRef::create();
+  for (const char* type : {"fxaa", "repair"}) {
+    std::string d = ctx.newFilter(type).doc();
+    EXPECT_NE(d.find("| name | type | default | range | meaning | source |"), std::string::npos) << type;
+    EXPECT_NE(d.find("`color`"), std::string::npos) << type;
+  }
+}
