@@ -10,6 +10,7 @@ namespace crisp {
 std::unique_ptr<Filter> newNoneFilter(Context&);
 std::unique_ptr<Filter> newFxaaFilter(Context&);
 std::unique_ptr<Filter> newRepairFilter(Context&);
+std::unique_ptr<Filter> newTaaFilter(Context&);
 
 namespace {
 struct Entry {
@@ -20,6 +21,7 @@ const Entry kFilters[] = {
     {"none", newNoneFilter},
     {"fxaa", newFxaaFilter},
     {"repair", newRepairFilter},
+    {"taa", newTaaFilter},
 };
 }  // namespace
 
