@@ -1,0 +1,138 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""Headless Crisp driver, run inside Blender (this is what `crisp render` runs):
+
+    blender -b [SCENE.blend] --factory-startup --python-exit-code 1 --python <repo>/addon/crisp/batch.py -- \\
+        -o OUTDIR [--frames A-B] [--method NAME] [--set K=V ...] [--samples 1] [--reference-samples N]
+        [--resolution WxH] [--scene-script test_scenes/NAME.py | NAME] [--plan-only] [--no-filter]
+        [--no-png] [--threads N] [--library PATH] [--jitter blackman-harris|uniform]
+
+Arguments (after Blender's `--`):
+  -o, --output OUTDIR      where everything goes (created; must be writable)
+  --frames A-B | A         frame range (default: the scene's)
+  --method NAME            none, fxaa, repair, taa, taa-improved, phlm, rsaa (default fxaa)
+  --set K=V                a filter parameter, typed by the library's parameter table; repeatable
+  --samples N              EEVEE samples of the input frames (default 1)
+  --reference-samples N    also render OUTDIR/reference/ with N samples (default 0: none)
+  --resolution WxH         override the render size (100 %)
+  --scene-script PATH|NAME build the scene with a Python script first (NAME: test_scenes/NAME.py);
+                           without it the .blend opened by Blender is used as is
+  --plan-only              print the pass plan, write run.json, render nothing
+  --no-filter              render the inputs only (no library needed)
+  --no-png                 do not write filtered PNGs next to the EXRs
+  --threads N              library threads (0: all cores)
+  --library PATH           libcrisp.so to use (else $CRISP_LIBRARY, else <repo>/build/lib/libcrisp.so)
+  --jitter DIST            sub-pixel jitter distribution of temporal methods (default blackman-harris)
+
+Writes OUTDIR/input/frame_NNNN.exr + .json, OUTDIR/filtered/frame_NNNN.exr (+ .png),
+OUTDIR/reference/frame_NNNN.exr when asked, and OUTDIR/run.json (see pipeline.py), each through a
+temporary name renamed into place. The opened .blend is never saved.
+
+Exit codes: 0 done; 2 bad input (no camera, empty frame range, unwritable output, unknown method,
+bad arguments); 3 library missing or failing; 4 render failed. Messages start with "crisp: error:".
+"""
+
+import argparse
+import os
+import sys
+
+ADDON_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+REPO_DIR = os.path.dirname(ADDON_DIR)
+if ADDON_DIR not in sys.path:
+    sys.path.insert(0, ADDON_DIR)
+
+
+def _argv():
+    return sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+
+
+def make_parser():
+    p = argparse.ArgumentParser(prog="batch.py", description="Crisp headless render driver (inside Blender)")
+    p.add_argument("-o", "--output", required=True)
+    p.add_argument("--frames", default="")
+    p.add_argument("--method", default="fxaa")
+    p.add_argument("--set", dest="params", action="append", default=[], metavar="K=V")
+    p.add_argument("--samples", type=int, default=1)
+    p.add_argument("--reference-samples", type=int, default=0)
+    p.add_argument("--resolution", default="")
+    p.add_argument("--scene-script", default="")
+    p.add_argument("--plan-only", action="store_true")
+    p.add_argument("--no-filter", action="store_true")
+    p.add_argument("--no-png", action="store_true")
+    p.add_argument("--threads", type=int, default=0)
+    p.add_argument("--library", default="")
+    p.add_argument("--jitter", default="blackman-harris")
+    return p
+
+
+def fail(code, message):
+    print("crisp: error: " + message, file=sys.stderr, flush=True)
+    sys.exit(code)
+
+
+def scene_script_path(text):
+    if os.path.isfile(text):
+        return os.path.abspath(text)
+    named = os.path.join(REPO_DIR, "test_scenes", text + ("" if text.endswith(".py") else ".py"))
+    if os.path.isfile(named):
+        return named
+    known = sorted(f[:-3] for f in os.listdir(os.path.join(REPO_DIR, "test_scenes"))
+                   if f.endswith(".py") and f != "common.py")
+    fail(2, "scene script '%s' not found (bundled scenes: %s)" % (text, ", ".join(known)))
+
+
+def main(argv):
+    import runpy
+    import bpy
+    from crisp import native, pipeline, render
+
+    class ArgError(Exception):
+        pass
+
+    parser = make_parser()
+    parser.error = lambda msg: fail(2, msg)  # argparse would exit 2 with usage; keep one message style
+    args = parser.parse_args(argv)
+    if args.library:
+        os.environ["CRISP_LIBRARY"] = os.path.abspath(args.library)
+    if args.samples < 1 or args.reference_samples < 0:
+        fail(2, "--samples must be >= 1 and --reference-samples >= 0")
+    if args.jitter not in render.JITTER_DISTRIBUTIONS:
+        fail(2, "unknown --jitter '%s' (known: %s)" % (args.jitter, ", ".join(render.JITTER_DISTRIBUTIONS)))
+    params = {}
+    for kv in args.params:
+        if "=" not in kv:
+            fail(2, "--set needs K=V, got '%s'" % kv)
+        k, v = kv.split("=", 1)
+        params[k.strip()] = v.strip()
+
+    if args.scene_script:
+        path = scene_script_path(args.scene_script)
+        sys.path.insert(0, os.path.dirname(path))
+        runpy.run_path(path, run_name="__main__")
+    scene = bpy.context.scene
+    if args.resolution:
+        try:
+            w, h = (int(v) for v in args.resolution.lower().split("x"))
+            if w < 1 or h < 1:
+                raise ValueError
+        except ValueError:
+            fail(2, "bad --resolution '%s' (expected WxH, e.g. 480x270)" % args.resolution)
+        scene.render.resolution_x, scene.render.resolution_y = w, h
+        scene.render.resolution_percentage = 100
+
+    try:
+        frames = pipeline.parse_frames(args.frames, scene)
+        pipeline.run(scene, args.method, frames, os.path.abspath(args.output), params=params,
+                     samples=args.samples, reference_samples=args.reference_samples, plan_only=args.plan_only,
+                     filter_frames=not args.no_filter, threads=args.threads, jitter_distribution=args.jitter,
+                     write_png=not args.no_png, log=lambda s: print(s, flush=True))
+    except pipeline.InputError as e:
+        fail(2, str(e))
+    except render.RenderError as e:
+        fail(2 if "camera" in str(e) or "frame" in str(e) else 4, str(e))
+    except native.CrispError as e:
+        fail(3, str(e))
+    print("crisp: done: %s" % os.path.abspath(args.output), flush=True)
+
+
+if __name__ == "__main__":
+    main(_argv())

@@ -1,0 +1,345 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""Every call into libcrisp goes through this module (ctypes).
+
+The library is loaded lazily, on first use, from (in order): the add-on preference "library path",
+$CRISP_LIBRARY, then <repo>/build/lib/libcrisp.so relative to this file. Every signature is declared
+once in SIGNATURES; every call is followed by crispGetError and a failure raises CrispError. If the
+library cannot be loaded, the add-on still registers and `status()` says why.
+"""
+
+import ctypes
+import os
+
+# Mirrors of the C enums in native/include/crisp/crisp.h.
+FORMAT_FLOAT, FORMAT_FLOAT2, FORMAT_FLOAT3, FORMAT_FLOAT4, FORMAT_UINT = 1, 2, 3, 4, 5
+FORMAT_CHANNELS = {FORMAT_FLOAT: 1, FORMAT_FLOAT2: 2, FORMAT_FLOAT3: 3, FORMAT_FLOAT4: 4, FORMAT_UINT: 1}
+ERROR_NAMES = {0: "none", 1: "unknown", 2: "invalid argument", 3: "invalid operation", 4: "out of memory",
+               5: "I/O", 6: "invalid data"}
+
+
+class CrispError(RuntimeError):
+    """Any failure of the native library (or of loading it)."""
+
+
+class Metrics(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_double) for n in ("mse", "rmse", "psnr", "snr", "ssim", "flip")]
+
+
+_vp, _cp, _int, _sz, _f = ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_size_t, ctypes.c_float
+# name: (restype, argtypes). The one table of the C API this add-on uses.
+SIGNATURES = {
+    "crispGetVersion": (_int, []),
+    "crispGetVersionString": (_cp, []),
+    "crispGetError": (_int, [ctypes.POINTER(_cp)]),
+    "crispNewContext": (_vp, []),
+    "crispReleaseContext": (None, [_vp]),
+    "crispSetContextInt": (None, [_vp, _cp, _int]),
+    "crispCommitContext": (None, [_vp]),
+    "crispGetFilterTypes": (_cp, []),
+    "crispNewFilter": (_vp, [_vp, _cp]),
+    "crispReleaseFilter": (None, [_vp]),
+    "crispSetFilterImage": (None, [_vp, _cp, _vp, _int, _sz, _sz, _sz, _sz]),
+    "crispUnsetFilterImage": (None, [_vp, _cp]),
+    "crispSetFilterInt": (None, [_vp, _cp, _int]),
+    "crispSetFilterFloat": (None, [_vp, _cp, _f]),
+    "crispSetFilterBool": (None, [_vp, _cp, _int]),
+    "crispSetFilterString": (None, [_vp, _cp, _cp]),
+    "crispGetFilterDoc": (_cp, [_vp]),
+    "crispCommitFilter": (None, [_vp]),
+    "crispExecuteFilter": (None, [_vp]),
+    "crispResetFilter": (None, [_vp]),
+    "crispLoadFrame": (_vp, [_vp, _cp]),
+    "crispReleaseFrame": (None, [_vp]),
+    "crispGetFrameWidth": (_int, [_vp]),
+    "crispGetFrameHeight": (_int, [_vp]),
+    "crispGetFramePasses": (_cp, [_vp]),
+    "crispGetFramePass": (_vp, [_vp, _cp, ctypes.POINTER(_int)]),
+    "crispWriteImage": (None, [_vp, _cp, _vp, _int, _sz, _sz, _sz, _sz]),
+    "crispCompareImages": (None, [_vp, _vp, _vp, _int, _sz, _sz, _vp, ctypes.POINTER(Metrics)]),
+}
+# Calls that do not record errors (and crispGetError itself).
+_NO_CHECK = {"crispGetError", "crispGetVersion", "crispGetVersionString", "crispGetFilterTypes"}
+
+_preference_path = ""   # set by preferences.py
+_lib = None             # the loaded _Library, or None
+_load_error = None      # why loading failed (string), or None
+
+
+def repo_library_path():
+    here = os.path.dirname(os.path.abspath(__file__))
+    return os.path.normpath(os.path.join(here, "..", "..", "build", "lib", "libcrisp.so"))
+
+
+def candidate_paths():
+    out = []
+    if _preference_path:
+        out.append(("preference", os.path.abspath(os.path.expanduser(_preference_path))))
+    if os.environ.get("CRISP_LIBRARY"):
+        out.append(("$CRISP_LIBRARY", os.environ["CRISP_LIBRARY"]))
+    out.append(("repository build", repo_library_path()))
+    return out
+
+
+def set_preference_path(path):
+    """Changing the path forgets a failed load so the next use retries."""
+    global _preference_path, _lib, _load_error
+    if path != _preference_path:
+        _preference_path = path or ""
+        if _lib is None:
+            _load_error = None
+
+
+class _Library:
+    def __init__(self, path):
+        self.path = path
+        self.dll = ctypes.CDLL(path)
+        self.fns = {}
+        missing = []
+        for name, (res, args) in SIGNATURES.items():
+            try:
+                fn = getattr(self.dll, name)
+            except AttributeError:
+                missing.append(name)
+                continue
+            fn.restype, fn.argtypes = res, args
+            self.fns[name] = fn
+        if missing:
+            raise OSError("%s lacks %s (an older libcrisp?)" % (path, ", ".join(missing)))
+
+    def call(self, name, *args):
+        result = self.fns[name](*args)
+        if name not in _NO_CHECK:
+            msg = _cp()
+            code = self.fns["crispGetError"](ctypes.byref(msg))
+            if code:
+                text = msg.value.decode("utf-8", "replace") if msg.value else "(no message)"
+                raise CrispError("%s: %s error: %s" % (name, ERROR_NAMES.get(code, code), text))
+        return result
+
+
+def load():
+    """The library, loading it on first use. Raises CrispError saying where it looked."""
+    global _lib, _load_error
+    if _lib is not None:
+        return _lib
+    tried = []
+    for origin, path in candidate_paths():
+        if not os.path.isfile(path):
+            tried.append("%s %s: no such file" % (origin, path))
+            if origin != "repository build":
+                break  # an explicit path that is wrong is an error, not a reason to fall through
+            continue
+        try:
+            _lib = _Library(path)
+            _load_error = None
+            return _lib
+        except OSError as e:
+            tried.append("%s %s: %s" % (origin, path, e))
+            break
+    _load_error = "libcrisp not loaded; " + "; ".join(tried)
+    raise CrispError(_load_error)
+
+
+def status():
+    """(ok, text) for the panel: the loaded library and version, or why it is not there."""
+    try:
+        lib = load()
+    except CrispError as e:
+        return False, str(e)
+    return True, "libcrisp %s (%s)" % (lib.call("crispGetVersionString").decode(), lib.path)
+
+
+def call(name, *args):
+    return load().call(name, *args)
+
+
+def _b(s):
+    return s.encode("utf-8") if isinstance(s, str) else s
+
+
+def filter_types():
+    return [t for t in call("crispGetFilterTypes").decode().split(",") if t]
+
+
+# ---- objects with owned handles ----------------------------------------------------------------
+
+class Context:
+    def __init__(self, threads=0):
+        self.handle = call("crispNewContext")
+        if threads:
+            call("crispSetContextInt", self.handle, b"numThreads", int(threads))
+        call("crispCommitContext", self.handle)
+
+    def close(self):
+        if self.handle:
+            call("crispReleaseContext", self.handle)
+            self.handle = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def parse_param_types(doc):
+    """name -> type ('int'|'float'|'bool'|'string') from the filter's Markdown parameter table."""
+    types = {}
+    for line in (doc or "").splitlines():
+        cells = [c.strip().strip("`") for c in line.strip().strip("|").split("|")]
+        if len(cells) >= 2 and cells[1].lower() in ("int", "float", "bool", "string"):
+            types[cells[0]] = cells[1].lower()
+    return types
+
+
+class Filter:
+    def __init__(self, context, method):
+        self.method = method
+        self.handle = call("crispNewFilter", context.handle, _b(method))
+        self._param_types = None
+
+    def doc(self):
+        return (call("crispGetFilterDoc", self.handle) or b"").decode("utf-8", "replace")
+
+    def set_param(self, name, value):
+        """Sets by the type the filter declares; a text value (from --set K=V) is parsed to it."""
+        if self._param_types is None:
+            self._param_types = parse_param_types(self.doc())
+        kind = self._param_types.get(name)
+        if kind is None:  # unknown to the doc: infer from the Python value, the library validates
+            kind = {bool: "bool", int: "int", float: "float"}.get(type(value), "string")
+            if isinstance(value, str):
+                kind = _infer_kind(value)
+        if kind == "bool":
+            v = value if isinstance(value, bool) else str(value).lower() in ("1", "true", "yes", "on")
+            call("crispSetFilterBool", self.handle, _b(name), int(v))
+        elif kind == "int":
+            call("crispSetFilterInt", self.handle, _b(name), int(value))
+        elif kind == "float":
+            call("crispSetFilterFloat", self.handle, _b(name), float(value))
+        else:
+            call("crispSetFilterString", self.handle, _b(name), _b(str(value)))
+
+    def set_image(self, name, ptr, fmt, width, height):
+        call("crispSetFilterImage", self.handle, _b(name), ptr, fmt, width, height, 0, 0)
+
+    def commit(self):
+        call("crispCommitFilter", self.handle)
+
+    def execute(self):
+        call("crispExecuteFilter", self.handle)
+
+    def reset(self):
+        call("crispResetFilter", self.handle)
+
+    def close(self):
+        if self.handle:
+            call("crispReleaseFilter", self.handle)
+            self.handle = None
+
+
+def _infer_kind(text):
+    t = text.strip().lower()
+    if t in ("true", "false", "yes", "no", "on", "off"):
+        return "bool"
+    try:
+        int(t)
+        return "int"
+    except ValueError:
+        pass
+    try:
+        float(t)
+        return "float"
+    except ValueError:
+        return "string"
+
+
+class Frame:
+    """A multilayer EXR (or plain image) read by the library; passes stay owned by the frame."""
+
+    def __init__(self, context, path):
+        self.path = path
+        self.handle = call("crispLoadFrame", context.handle, _b(path))
+        self.width = call("crispGetFrameWidth", self.handle)
+        self.height = call("crispGetFrameHeight", self.handle)
+
+    def passes(self):
+        return [p for p in call("crispGetFramePasses", self.handle).decode().split(",") if p]
+
+    def pass_pointer(self, role):
+        fmt = ctypes.c_int(0)
+        ptr = call("crispGetFramePass", self.handle, _b(role), ctypes.byref(fmt))
+        return ptr, fmt.value
+
+    def pass_values(self, role):
+        """The pass as a flat Python list (row 0 = top), and its channel count."""
+        ptr, fmt = self.pass_pointer(role)
+        n = self.width * self.height * FORMAT_CHANNELS[fmt]
+        ctype = ctypes.c_uint32 if fmt == FORMAT_UINT else ctypes.c_float
+        return list((ctype * n).from_address(ptr)), FORMAT_CHANNELS[fmt]
+
+    def close(self):
+        if self.handle:
+            call("crispReleaseFrame", self.handle)
+            self.handle = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def write_image(context, path, ptr, fmt, width, height):
+    call("crispWriteImage", context.handle, _b(path), ptr, fmt, width, height, 0, 0)
+
+
+def compare_images(context, reference_path, test_path):
+    """PSNR/SSIM/... of a test image against a reference, both read by the library."""
+    with Frame(context, reference_path) as ref, Frame(context, test_path) as test:
+        if (ref.width, ref.height) != (test.width, test.height):
+            raise CrispError("compare: %s is %dx%d but %s is %dx%d" % (reference_path, ref.width, ref.height,
+                                                                      test_path, test.width, test.height))
+        rp, rf = ref.pass_pointer("color")
+        tp, tf = test.pass_pointer("color")
+        if rf != tf:
+            raise CrispError("compare: colour formats differ (%d vs %d)" % (rf, tf))
+        m = Metrics()
+        call("crispCompareImages", context.handle, rp, tp, rf, ref.width, ref.height, None, ctypes.byref(m))
+        return {n: getattr(m, n) for n, _ in Metrics._fields_}
+
+
+class FrameFilter:
+    """Filters a sequence of frames with one filter object (so temporal history carries over)."""
+
+    def __init__(self, method, params=None, threads=0, passes=("color",)):
+        self.context = Context(threads)
+        self.filter = Filter(self.context, method)
+        self.passes = [p for p in passes if p != "subsamples"]
+        for k, v in (params or {}).items():
+            self.filter.set_param(k, v)
+        self._out = None
+        self._shape = None
+
+    def run(self, input_path, output_paths):
+        """Loads one frame, filters it, writes it to each path (.exr and/or .png)."""
+        with Frame(self.context, input_path) as frame:
+            w, h = frame.width, frame.height
+            if self._shape != (w, h):
+                self._out = (ctypes.c_float * (w * h * 4))()
+                self._shape = (w, h)
+            present = set(frame.passes())
+            for role in self.passes:
+                if role not in present:
+                    raise CrispError("%s has no '%s' pass (has: %s)" % (input_path, role, ", ".join(sorted(present))))
+                ptr, fmt = frame.pass_pointer(role)
+                self.filter.set_image(role, ptr, fmt, w, h)
+            self.filter.set_image("output", ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)
+            self.filter.commit()
+            self.filter.execute()
+            for p in output_paths:
+                write_image(self.context, p, ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)
+
+    def close(self):
+        self.filter.close()
+        self.context.close()

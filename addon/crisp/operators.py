@@ -1,0 +1,158 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""Operators: Render with Crisp, Render reference, Compare, Update plan, Load result, Preview."""
+
+import os
+
+import bpy
+
+from . import compositor, native, pipeline, preferences, render
+from . import properties as props
+
+
+def _out_dir(settings):
+    return os.path.abspath(bpy.path.abspath(settings.output_dir or "//crisp/"))
+
+
+def _frames(scene):
+    return pipeline.parse_frames("%d-%d" % (scene.frame_start, scene.frame_end))
+
+
+def _fail(op, e):
+    op.report({"ERROR"}, str(e))
+    return {"CANCELLED"}
+
+
+class CRISP_OT_plan(bpy.types.Operator):
+    bl_idname = "crisp.plan"
+    bl_label = "Update Plan"
+    bl_description = "Work out which passes the chosen method needs on this scene, with reasons"
+
+    def execute(self, context):
+        scene, s = context.scene, context.scene.crisp
+        try:
+            the_plan, _ = pipeline.scene_plan(scene, s.method, list(_frames(scene)), context.view_layer)
+        except (pipeline.InputError, render.RenderError, ValueError) as e:
+            return _fail(self, e)
+        s.plan_text = the_plan.describe()
+        return {"FINISHED"}
+
+
+class CRISP_OT_render(bpy.types.Operator):
+    bl_idname = "crisp.render"
+    bl_label = "Render with Crisp"
+    bl_description = "Render the frame range at 1 sample with the planned passes and filter each frame"
+
+    def execute(self, context):
+        scene, s = context.scene, context.scene.crisp
+        out = _out_dir(s)
+        wm = context.window_manager
+        frames = list(_frames(scene))
+        wm.progress_begin(0, len(frames))
+        done = []
+
+        def log(text):
+            print(text)
+            if text.startswith("frame "):
+                done.append(text)
+                wm.progress_update(len(done))
+        try:
+            result = pipeline.run(scene, s.method, frames, out, params=props.changed_params(s, s.method),
+                                  threads=preferences.threads(context), jitter_distribution=s.jitter_distribution,
+                                  write_png=s.write_png, log=log, view_layer=context.view_layer)
+            s.plan_text = "\n".join(
+                ["plan for %s:" % s.method] + ["  + %s: %s" % (p, result["plan"]["reasons"][p])
+                                               for p in result["plan"]["passes"]])
+            if s.load_result:
+                compositor.load_result(scene, os.path.join(out, "filtered"), frames[0], frames[-1])
+        except (pipeline.InputError, render.RenderError, native.CrispError, OSError) as e:
+            return _fail(self, e)
+        finally:
+            wm.progress_end()
+        self.report({"INFO"}, "Crisp: %d frames filtered with %s into %s" % (len(result["frames"]), s.method, out))
+        return {"FINISHED"}
+
+
+class CRISP_OT_render_reference(bpy.types.Operator):
+    bl_idname = "crisp.render_reference"
+    bl_label = "Render Reference"
+    bl_description = "Render the frame range with the reference sample count (no jitter, colour only)"
+
+    def execute(self, context):
+        scene, s = context.scene, context.scene.crisp
+        out = os.path.join(_out_dir(s), "reference")
+        try:
+            pipeline.check_output_dir(out)
+            infos = render.render_reference(scene, _frames(scene), out, s.reference_samples,
+                                            view_layer=context.view_layer)
+        except (pipeline.InputError, render.RenderError, OSError) as e:
+            return _fail(self, e)
+        mean = sum(i["render_s"] for i in infos) / max(len(infos), 1)
+        self.report({"INFO"}, "Crisp: %d reference frames at %d samples (%.2f s/frame)"
+                    % (len(infos), s.reference_samples, mean))
+        return {"FINISHED"}
+
+
+class CRISP_OT_compare(bpy.types.Operator):
+    bl_idname = "crisp.compare"
+    bl_label = "Compare"
+    bl_description = "PSNR and SSIM of the filtered frames against the reference frames (through libcrisp)"
+
+    def execute(self, context):
+        scene, s = context.scene, context.scene.crisp
+        out = _out_dir(s)
+        try:
+            res = pipeline.compare_dirs(os.path.join(out, "filtered"), os.path.join(out, "reference"),
+                                        _frames(scene), preferences.threads(context))
+        except (pipeline.InputError, native.CrispError) as e:
+            return _fail(self, e)
+        s.last_psnr, s.last_ssim = res["mean"]["psnr"], res["mean"]["ssim"]
+        s.last_compare = "%d frames: PSNR %.2f dB, SSIM %.4f" % (len(res["frames"]), s.last_psnr, s.last_ssim)
+        self.report({"INFO"}, "Crisp: " + s.last_compare)
+        return {"FINISHED"}
+
+
+class CRISP_OT_load_result(bpy.types.Operator):
+    bl_idname = "crisp.load_result"
+    bl_label = "Load into Compositor"
+    bl_description = "Load the filtered sequence into the compositor node group 'Crisp Result'"
+
+    def execute(self, context):
+        scene = context.scene
+        try:
+            compositor.load_result(scene, os.path.join(_out_dir(scene.crisp), "filtered"),
+                                   scene.frame_start, scene.frame_end)
+        except OSError as e:
+            return _fail(self, e)
+        return {"FINISHED"}
+
+
+class CRISP_OT_preview(bpy.types.Operator):
+    bl_idname = "crisp.preview"
+    bl_label = "Preview Frame"
+    bl_description = "Show the current frame's filtered image in the Image Editor"
+
+    def execute(self, context):
+        scene = context.scene
+        folder = os.path.join(_out_dir(scene.crisp), "filtered")
+        path = os.path.join(folder, render.frame_name(scene.frame_current, ".png"))
+        if not os.path.isfile(path):
+            path = os.path.join(folder, render.frame_name(scene.frame_current))
+        try:
+            compositor.preview(path, context)
+        except OSError as e:
+            return _fail(self, e)
+        return {"FINISHED"}
+
+
+CLASSES = (CRISP_OT_plan, CRISP_OT_render, CRISP_OT_render_reference, CRISP_OT_compare, CRISP_OT_load_result,
+           CRISP_OT_preview)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

@@ -1,0 +1,168 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""One Crisp run on a scene, shared by batch.py and the operators: check inputs, plan the passes,
+render the 1-sample frames, filter them through the library, optionally render references, and write
+OUTDIR/run.json. Layout:
+
+    OUTDIR/input/frame_NNNN.exr (+ .json sidecar, + _subK.exr for RSAA)
+    OUTDIR/filtered/frame_NNNN.exr (+ .png)
+    OUTDIR/reference/frame_NNNN.exr          (when reference_samples > 0)
+    OUTDIR/run.json
+"""
+
+import json
+import os
+import time
+
+import bpy
+
+from . import native
+from . import plan as plan_mod
+from . import render
+
+
+class InputError(RuntimeError):
+    """Bad input from the user (scene, frames, method, output folder): nothing was rendered."""
+
+
+def parse_frames(text, scene=None):
+    """'A-B', 'A' or '' (the scene's range) -> range. Empty ranges are an InputError."""
+    if not text:
+        if scene is None:
+            raise InputError("no frame range given")
+        a, b = scene.frame_start, scene.frame_end
+    else:
+        try:
+            parts = text.split("-", 1) if not text.startswith("-") else [text]
+            a = int(parts[0])
+            b = int(parts[1]) if len(parts) > 1 else a
+        except ValueError:
+            raise InputError("bad frame range '%s' (expected A-B or A)" % text)
+    if b < a:
+        raise InputError("frame range %d-%d is empty (end before start)" % (a, b))
+    return range(a, b + 1)
+
+
+def check_output_dir(out_dir):
+    """Creates out_dir if needed and proves it writable, or raises InputError naming it."""
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+        probe = os.path.join(out_dir, ".crisp_write_test")
+        with open(probe, "w") as f:
+            f.write("ok")
+        os.remove(probe)
+    except OSError as e:
+        raise InputError("output folder '%s' is not writable: %s" % (out_dir, e.strerror or e))
+
+
+def check_method(method, need_library):
+    if method not in plan_mod.METHOD_PASSES:
+        raise InputError("unknown method '%s' (known: %s)" % (method, ", ".join(plan_mod.METHOD_PASSES)))
+    if need_library:
+        types = native.filter_types()  # raises CrispError if the library is missing
+        if method not in types:
+            raise InputError("method '%s' is not in this libcrisp (it has: %s)" % (method, ", ".join(types)))
+
+
+def scene_plan(scene, method, frames, view_layer=None):
+    engine = render.eevee_engine(scene)
+    facts = plan_mod.scene_facts(scene, frames[0], frames[-1], view_layer=view_layer,
+                                 renderer_motion_pass=render.renderer_motion_pass(engine))
+    return plan_mod.make_plan(method, facts), facts
+
+
+def _write_json(path, data):
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(data, f, indent=1)
+    os.replace(tmp, path)
+
+
+def run(scene, method, frames, out_dir, params=None, samples=1, reference_samples=0, plan_only=False,
+        filter_frames=True, threads=0, jitter_distribution="blackman-harris", write_png=True, log=print,
+        view_layer=None, should_cancel=None):
+    """Returns the run.json dictionary (also written to out_dir/run.json)."""
+    frames = list(frames)
+    if not frames:
+        raise InputError("no frames to render (empty frame range)")
+    render.check_blender_version()
+    if scene.camera is None:
+        raise InputError("scene '%s' has no camera: add one and set it as the scene camera" % scene.name)
+    check_method(method, need_library=filter_frames and not plan_only)
+    check_output_dir(out_dir)
+    user_engine = scene.render.engine
+    if user_engine not in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):
+        log("note: the scene's engine is %s; Crisp renders with EEVEE and puts %s back afterwards"
+            % (user_engine, user_engine))
+    the_plan, facts = scene_plan(scene, method, frames, view_layer)
+    log(the_plan.describe())
+    result = {"blender_version": bpy.app.version_string, "method": method, "params": dict(params or {}),
+              "scene": scene.name, "frames_requested": [frames[0], frames[-1]], "samples": samples,
+              "engine": render.eevee_engine(scene), "user_engine": user_engine,
+              "plan": the_plan.to_json(), "facts": {"camera_moves": facts.camera_moves,
+                                                   "moving_objects": facts.moving_objects,
+                                                   "deforming_objects": facts.deforming_objects,
+                                                   "visible_objects": facts.visible_objects},
+              "jitter_distribution": jitter_distribution if the_plan.jitter else "none",
+              "gi_cubemap_resolution": render.CUBEMAP_RESOLUTION, "frames": []}
+    if native._lib is not None or (filter_frames and not plan_only):
+        ok, text = native.status()
+        result["library"] = text
+    run_json = os.path.join(out_dir, "run.json")
+    if plan_only:
+        _write_json(run_json, result)
+        return result
+
+    input_dir = os.path.join(out_dir, "input")
+    filtered_dir = os.path.join(out_dir, "filtered")
+    frame_filter = None
+    if filter_frames:
+        os.makedirs(filtered_dir, exist_ok=True)
+        frame_filter = native.FrameFilter(method, params, threads, the_plan.passes)
+
+    def on_frame(f, info):
+        entry = {"frame": f, "render_s": round(info["render_s"], 4), "jitter": info["jitter"]}
+        if frame_filter is not None:
+            outs = [os.path.join(filtered_dir, render.frame_name(f))]
+            if write_png:
+                outs.append(os.path.join(filtered_dir, render.frame_name(f, ".png")))
+            t0 = time.perf_counter()
+            frame_filter.run(info["exr"], outs)
+            entry["filter_s"] = round(time.perf_counter() - t0, 4)
+        result["frames"].append(entry)
+        log("frame %d: render %.3f s%s" % (f, info["render_s"],
+                                          ", filter %.3f s" % entry["filter_s"] if "filter_s" in entry else ""))
+
+    t0 = time.perf_counter()
+    try:
+        render.render_frames(scene, the_plan, frames, input_dir, samples=samples,
+                             jitter_distribution=jitter_distribution, view_layer=view_layer,
+                             on_frame=on_frame, should_cancel=should_cancel)
+    finally:
+        if frame_filter is not None:
+            frame_filter.close()
+    result["total_s"] = round(time.perf_counter() - t0, 3)
+    if reference_samples:
+        ref = render.render_reference(scene, frames, os.path.join(out_dir, "reference"), reference_samples,
+                                      view_layer=view_layer, should_cancel=should_cancel)
+        result["reference"] = {"samples": reference_samples,
+                               "frames": [{"frame": r["frame"], "render_s": round(r["render_s"], 4)} for r in ref]}
+    _write_json(run_json, result)
+    return result
+
+
+def compare_dirs(test_dir, reference_dir, frames, threads=0):
+    """Metrics of test_dir/frame_NNNN.exr against reference_dir/frame_NNNN.exr, per frame and mean."""
+    rows = []
+    with native.Context(threads) as ctx:
+        for f in frames:
+            t = os.path.join(test_dir, render.frame_name(f))
+            r = os.path.join(reference_dir, render.frame_name(f))
+            if not (os.path.isfile(t) and os.path.isfile(r)):
+                continue
+            m = native.compare_images(ctx, r, t)
+            m["frame"] = f
+            rows.append(m)
+    if not rows:
+        raise InputError("nothing to compare: no frame has both %s and %s" % (test_dir, reference_dir))
+    mean = {k: sum(r[k] for r in rows) / len(rows) for k in ("psnr", "ssim", "rmse", "flip")}
+    return {"frames": rows, "mean": mean}

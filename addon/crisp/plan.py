@@ -1,0 +1,254 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""The pass plan: which render passes a method reads, minus what the scene does not need.
+
+Pure Python: nothing here imports ``bpy`` at module level, so plain tests (tests/python/test_plan.py)
+reach the logic. ``scene_facts`` takes a Blender scene object as an argument and only calls methods on it.
+
+Logical passes (the library's image roles, see native/core/conventions.h) and the view-layer flag each
+one needs in Blender:
+
+    color       Combined              always
+    depth       use_pass_z            planar depth (half float on EEVEE 3.4)
+    normal      use_pass_normal       world-space normal
+    motion      use_pass_vector       only where the renderer writes it (EEVEE Next, Cycles);
+                                      on EEVEE 3.4 the library reconstructs it (issue 3 item 4) from
+                                      depth, camera matrices and object transforms in the sidecars
+    id          use_pass_cryptomatte_object   CryptoObject00 (hash of the object name)
+    albedo      use_pass_diffuse_color        DiffCol
+    subsamples  extra geometry-only renders (depth + normal) at sub-pixel offsets (RSAA)
+"""
+
+from dataclasses import dataclass, field
+
+# What each method reads when the scene needs everything (METHODS.md).
+METHOD_PASSES = {
+    "none": ("color",),
+    "fxaa": ("color",),
+    "repair": ("color",),
+    "taa": ("color", "motion", "depth"),
+    "taa-improved": ("color", "depth", "id", "albedo", "motion"),
+    "phlm": ("color", "motion"),
+    "rsaa": ("color", "depth", "normal", "subsamples"),
+}
+STATIC_METHODS = tuple(METHOD_PASSES)
+TEMPORAL_METHODS = ("taa", "taa-improved", "phlm")
+
+# Why a method reads a pass (used in the reasons).
+USE = {
+    ("taa", "motion"): "reprojects the history along the motion vectors",
+    ("taa", "depth"): "takes the velocity of the closest-depth pixel of the 3x3 neighbourhood",
+    ("taa-improved", "motion"): "reprojects the history along the motion vectors",
+    ("taa-improved", "depth"): "depth Sobel term and depth pseudo-variances (eqs. 4.4-4.6)",
+    ("taa-improved", "id"): "modelAverage: fraction of 3x3 neighbours with another object ID (eq. 4.1)",
+    ("taa-improved", "albedo"): "unlit luminance term of the Sobel edge measure",
+    ("phlm", "motion"): "reprojects the per-pixel linear models",
+    ("rsaa", "depth"): "positions for the SADP similarity",
+    ("rsaa", "normal"): "normals for the SADP similarity",
+    ("rsaa", "subsamples"): "8 geometric sub-samples per pixel (depth + normal at sub-pixel offsets)",
+}
+
+# Blender view-layer flag of each logical pass (None: not a view-layer pass).
+PASS_FLAGS = {
+    "color": "use_pass_combined",
+    "depth": "use_pass_z",
+    "normal": "use_pass_normal",
+    "motion": "use_pass_vector",
+    "id": "use_pass_cryptomatte_object",
+    "albedo": "use_pass_diffuse_color",
+    "subsamples": None,
+}
+
+
+@dataclass
+class SceneFacts:
+    """What the plan needs to know about a scene over a frame range."""
+    frame_start: int
+    frame_end: int
+    camera_moves: bool = False
+    moving_objects: list = field(default_factory=list)      # names whose world matrix changes
+    deforming_objects: list = field(default_factory=list)   # names with animated geometry
+    visible_objects: list = field(default_factory=list)     # renderable, visible object names
+    renderer_motion_pass: bool = False                      # the renderer writes a Vector pass
+
+
+@dataclass
+class Plan:
+    method: str
+    passes: list                  # logical passes, in METHOD_PASSES order
+    reasons: dict                 # pass -> why it is rendered
+    skipped: dict                 # pass -> why it is not rendered
+    jitter: bool                  # per-frame sub-pixel jitter (temporal methods)
+    motion_source: str = "none"   # "renderer" | "reconstruct" | "none"
+
+    def render_flags(self):
+        """View-layer flags to switch on (everything else off)."""
+        flags = [PASS_FLAGS[p] for p in self.passes if PASS_FLAGS.get(p)]
+        if self.motion_source == "reconstruct":
+            flags = [f for f in flags if f != "use_pass_vector"]
+        return flags
+
+    def to_json(self):
+        return {"method": self.method, "passes": list(self.passes), "reasons": dict(self.reasons),
+                "skipped": dict(self.skipped), "jitter": self.jitter, "motion_source": self.motion_source}
+
+    def describe(self):
+        lines = ["plan for %s:" % self.method]
+        for p in self.passes:
+            lines.append("  + %-10s %s" % (p, self.reasons[p]))
+        for p, why in self.skipped.items():
+            lines.append("  - %-10s %s" % (p, why))
+        lines.append("  jitter: %s; motion: %s" % ("per-frame Halton(2,3)" if self.jitter else "none",
+                                                     self.motion_source))
+        return "\n".join(lines)
+
+
+def make_plan(method, facts):
+    """The passes `method` reads on a scene described by `facts`, each with a reason."""
+    if method not in METHOD_PASSES:
+        raise ValueError("unknown method '%s' (known: %s)" % (method, ", ".join(METHOD_PASSES)))
+    wanted = METHOD_PASSES[method]
+    moving = bool(facts.camera_moves or facts.moving_objects or facts.deforming_objects)
+    single = len(facts.visible_objects) <= 1
+    passes, reasons, skipped = [], {}, {}
+    motion_source = "none"
+
+    def movers():
+        what = []
+        if facts.camera_moves:
+            what.append("the camera")
+        what += facts.moving_objects + facts.deforming_objects
+        return ", ".join(what[:4]) + (" and %d more" % (len(what) - 4) if len(what) > 4 else "")
+
+    for p in wanted:
+        use = USE.get((method, p), "")
+        if p == "color":
+            passes.append(p)
+            reasons[p] = "the image %s filters (Combined, 1 sample)" % method
+        elif p == "motion":
+            if not moving:
+                skipped[p] = ("nothing moves over frames %d-%d (camera and every visible object keep their "
+                              "world matrix): motion is zero" % (facts.frame_start, facts.frame_end))
+                continue
+            passes.append(p)
+            if facts.renderer_motion_pass:
+                motion_source = "renderer"
+                reasons[p] = "%s move: %s; from the renderer's Vector pass" % (movers(), use)
+            else:
+                motion_source = "reconstruct"
+                reasons[p] = ("%s move: %s; this renderer has no Vector pass, so the library reconstructs it "
+                              "from depth, the camera matrices and the object transforms in the sidecars"
+                              % (movers(), use))
+        elif p == "depth" and method == "taa" and not moving:
+            skipped[p] = "taa reads depth only to pick the closest velocity, and nothing moves"
+        elif p == "id" and single:
+            skipped[p] = ("%d visible object: an object/background mask follows from depth"
+                          % len(facts.visible_objects))
+        else:
+            passes.append(p)
+            reasons[p] = use
+
+    # Motion reconstruction (item 4) needs depth, and IDs to match pixels to moving object transforms.
+    if motion_source == "reconstruct":
+        if "depth" not in passes:
+            passes.append("depth")
+            reasons["depth"] = "motion reconstruction unprojects each pixel with its depth"
+            skipped.pop("depth", None)
+        needs_id = bool(facts.moving_objects or facts.deforming_objects) and not single
+        if needs_id and "id" not in passes:
+            passes.append("id")
+            reasons["id"] = "motion reconstruction matches pixels to moving objects by Cryptomatte ID"
+            skipped.pop("id", None)
+        elif "id" not in passes and "id" not in skipped:
+            skipped["id"] = ("motion reconstruction needs no IDs: "
+                             + ("only the camera moves" if not (facts.moving_objects or facts.deforming_objects)
+                                else "one visible object, told from the background by depth"))
+    for p in ("depth", "normal", "id", "albedo", "subsamples"):
+        if p not in passes and p not in skipped:
+            skipped[p] = "%s does not read it" % method
+    if "motion" not in passes and "motion" not in skipped:
+        skipped["motion"] = "%s does not read it" % method
+    order = ["color", "depth", "normal", "motion", "id", "albedo", "subsamples"]
+    passes.sort(key=order.index)
+    return Plan(method=method, passes=passes, reasons=reasons, skipped=skipped,
+                jitter=method in TEMPORAL_METHODS, motion_source=motion_source)
+
+
+# ---- reading the facts off a Blender scene (bpy objects passed in, no bpy import) -----------------
+
+RENDERABLE_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "GPENCIL", "VOLUME", "POINTCLOUD", "CURVES"}
+
+
+def visible_objects(scene, view_layer=None):
+    """Objects that reach the render: renderable types, not hidden from render, visible in the layer."""
+    layer = view_layer or scene.view_layers[0]
+    out = []
+    for ob in scene.objects:
+        if ob.type not in RENDERABLE_TYPES or ob.hide_render:
+            continue
+        try:
+            if not ob.visible_get(view_layer=layer):
+                continue
+        except TypeError:  # older signature
+            if not ob.visible_get():
+                continue
+        out.append(ob)
+    return out
+
+
+def _deforms(ob):
+    """True if the object's geometry can change over time (not covered by rigid reconstruction)."""
+    data = getattr(ob, "data", None)
+    if data is not None and getattr(data, "animation_data", None) and data.animation_data.action:
+        return True
+    keys = getattr(data, "shape_keys", None)
+    if keys is not None and keys.animation_data:
+        return True
+    for m in getattr(ob, "modifiers", []):
+        if m.type in {"ARMATURE", "CLOTH", "SOFT_BODY", "OCEAN", "WAVE", "DYNAMIC_PAINT", "FLUID",
+                      "MESH_CACHE", "MESH_SEQUENCE_CACHE", "EXPLODE", "PARTICLE_SYSTEM"}:
+            return True
+        if getattr(m, "show_render", True) and ob.animation_data and ob.animation_data.action:
+            for fc in ob.animation_data.action.fcurves:
+                if fc.data_path.startswith('modifiers["%s"]' % m.name):
+                    return True
+    return False
+
+
+def _same(a, b, eps=1e-6):
+    return all(abs(a[i][j] - b[i][j]) <= eps for i in range(4) for j in range(4))
+
+
+def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_pass=False):
+    """Steps through the frame range and compares world matrices with the first frame's.
+
+    Restores the current frame. Checks matrices (not only animation data) so constraints, drivers
+    and parenting count too."""
+    layer = view_layer or scene.view_layers[0]
+    saved = (scene.frame_current, scene.frame_subframe)
+    cam = scene.camera
+    first_cam, first = None, {}
+    moving, names = set(), []
+    camera_moves = False
+    try:
+        for f in range(frame_start, frame_end + 1):
+            scene.frame_set(f)
+            obs = visible_objects(scene, layer)
+            if f == frame_start:
+                names = [o.name for o in obs]
+            cm = [list(r) for r in cam.matrix_world] if cam else None
+            if first_cam is None:
+                first_cam = cm
+            elif cm is not None and not _same(cm, first_cam):
+                camera_moves = True
+            for o in obs:
+                m = [list(r) for r in o.matrix_world]
+                if o.name not in first:
+                    first[o.name] = m
+                elif not _same(m, first[o.name]):
+                    moving.add(o.name)
+        deforming = [o.name for o in visible_objects(scene, layer) if _deforms(o)]
+    finally:
+        scene.frame_set(saved[0], subframe=saved[1])
+    return SceneFacts(frame_start=frame_start, frame_end=frame_end, camera_moves=camera_moves,
+                      moving_objects=sorted(moving), deforming_objects=sorted(deforming),
+                      visible_objects=names, renderer_motion_pass=renderer_motion_pass)

@@ -1,0 +1,383 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""1-sample EEVEE frame rendering with per-frame sub-pixel jitter, into multilayer float EXRs with a
+JSON sidecar per frame. Every scene property touched is snapshotted and restored afterwards, even on
+error or cancel (`Snapshot`).
+
+Facts used (../../../shared/BLENDER.md, checked on Blender 3.4.1):
+* 1 EEVEE sample sits exactly on the pixel centre; camera shift moves every sample point by
+  (+dx, +dy) pixels (x right, y up) with shift = d / fit_size (fit_size = max(W, H) for sensor fit
+  AUTO). The shift is set from Python right before each render and never keyframed.
+* gi_cubemap_resolution '64': the world probe is re-rendered every frame; at the default 512 it costs
+  ~1.4 s per frame on this machine, at 64 it is negligible (recorded in every sidecar).
+* EEVEE 3.4 writes no Vector pass (the flag is accepted silently); EEVEE Next and Cycles do.
+"""
+
+import bisect
+import json
+import math
+import os
+import time
+
+import bpy
+
+from . import hashing
+from . import plan as plan_mod
+
+CUBEMAP_RESOLUTION = "64"
+CUBEMAP_REASON = "the world probe is re-rendered per frame; 512 (default) costs ~1.4 s/frame, 64 ~0 s"
+HALTON_PERIOD = 16
+JITTER_DISTRIBUTIONS = ("blackman-harris", "uniform")
+# RSAA geometric sub-sample offsets in pixels (x right, y up): 8 points on two rotated squares, so
+# every direction through the centre is cut. The filter's offset table must be built for this pattern.
+RSAA_PATTERN = [(-0.375, -0.125), (0.125, -0.375), (0.375, 0.125), (-0.125, 0.375),
+                (-0.25, 0.25), (0.25, 0.25), (0.25, -0.25), (-0.25, -0.25)]
+
+
+class RenderError(RuntimeError):
+    """A render could not be set up or produced no file; the message says what to change."""
+
+
+# ---- engines and capabilities --------------------------------------------------------------------
+
+def eevee_engine(scene):
+    """'BLENDER_EEVEE_NEXT' where the engine enum offers it (4.2, 4.3), else 'BLENDER_EEVEE'."""
+    items = [i.identifier for i in scene.render.bl_rna.properties["engine"].enum_items]
+    if "BLENDER_EEVEE_NEXT" in items:
+        return "BLENDER_EEVEE_NEXT"
+    if "BLENDER_EEVEE" in items:
+        return "BLENDER_EEVEE"
+    raise RenderError("this Blender offers no EEVEE engine (engines: %s)" % ", ".join(items))
+
+
+def renderer_motion_pass(engine):
+    """Whether the engine writes a Vector pass: EEVEE Next (4.2+) and Cycles do, EEVEE 3.x does not."""
+    if engine == "CYCLES" or engine == "BLENDER_EEVEE_NEXT":
+        return True
+    return engine == "BLENDER_EEVEE" and bpy.app.version >= (4, 2, 0)
+
+
+def check_blender_version():
+    if bpy.app.version < (3, 4, 0):
+        raise RenderError("Blender %s is not supported: Crisp needs 3.4 or newer" % bpy.app.version_string)
+
+
+# ---- restoring what we touch ---------------------------------------------------------------------
+
+class Snapshot:
+    """Context manager: `set(owner, attr, value)` remembers the first old value of each property and
+    everything is put back in reverse order on exit, whatever happened."""
+
+    def __init__(self, scene):
+        self.scene = scene
+        self._saved = []
+        self._seen = set()
+
+    def set(self, owner, attr, value):
+        key = (owner.as_pointer() if hasattr(owner, "as_pointer") else id(owner), attr)
+        if key not in self._seen:
+            self._seen.add(key)
+            self._saved.append((owner, attr, getattr(owner, attr)))
+        if getattr(owner, attr) != value:
+            setattr(owner, attr, value)
+
+    def __enter__(self):
+        self._frame = (self.scene.frame_current, self.scene.frame_subframe)
+        return self
+
+    def restore(self):
+        errors = []
+        for owner, attr, value in reversed(self._saved):
+            try:
+                if getattr(owner, attr) != value:
+                    setattr(owner, attr, value)
+            except Exception as e:  # keep restoring the rest
+                errors.append("%s: %s" % (attr, e))
+        self._saved.clear()
+        self._seen.clear()
+        self.scene.frame_set(self._frame[0], subframe=self._frame[1])
+        return errors
+
+    def __exit__(self, *exc):
+        errors = self.restore()
+        if errors and exc[0] is None:
+            raise RenderError("could not restore: " + "; ".join(errors))
+        return False
+
+
+# ---- jitter ----------------------------------------------------------------------------------------
+
+def halton(index, base):
+    """Radical inverse of `index` in `base` (index >= 1 gives a value in (0, 1))."""
+    f, r = 1.0, 0.0
+    while index > 0:
+        f /= base
+        r += f * (index % base)
+        index //= base
+    return r
+
+
+def _blackman_harris_inverse_cdf(width, n=1024):
+    """Table of the inverse CDF of a Blackman-Harris window spanning [-width/2, width/2] pixels
+    (Harris 1978, 4-term window a0..a3 = 0.35875, 0.48829, 0.14128, 0.01168)."""
+    xs = [-0.5 + i / n for i in range(n + 1)]
+    w = [0.35875 - 0.48829 * math.cos(2 * math.pi * (x + 0.5)) + 0.14128 * math.cos(4 * math.pi * (x + 0.5))
+         - 0.01168 * math.cos(6 * math.pi * (x + 0.5)) for x in xs]
+    cdf = [0.0]
+    for i in range(n):
+        cdf.append(cdf[-1] + 0.5 * (w[i] + w[i + 1]))
+    total = cdf[-1]
+    cdf = [c / total for c in cdf]
+    return [x * width for x in xs], cdf
+
+
+_BH_CACHE = {}
+
+
+def jitter_offset(frame, distribution="blackman-harris", width=1.5, period=HALTON_PERIOD):
+    """Sub-pixel offset (dx, dy) in pixels (x right, y up) of `frame`, from Halton(2,3) point
+    (frame mod period) + 1. 'uniform': the point minus 0.5 (inside the pixel). 'blackman-harris':
+    each coordinate through the inverse CDF of a Blackman-Harris window `width` pixels wide, the
+    distribution EEVEE 3.x gives its own samples (BLENDER.md), so averages converge to its reference."""
+    index = frame % period + 1
+    u, v = halton(index, 2), halton(index, 3)
+    if distribution == "uniform":
+        return u - 0.5, v - 0.5, index
+    if distribution != "blackman-harris":
+        raise RenderError("unknown jitter distribution '%s' (known: %s)" % (distribution, ", ".join(JITTER_DISTRIBUTIONS)))
+    if width <= 1e-6:
+        return 0.0, 0.0, index
+    if width not in _BH_CACHE:
+        _BH_CACHE[width] = _blackman_harris_inverse_cdf(width)
+    xs, cdf = _BH_CACHE[width]
+
+    def inv(p):
+        i = min(max(bisect.bisect_right(cdf, p) - 1, 0), len(cdf) - 2)
+        t = (p - cdf[i]) / (cdf[i + 1] - cdf[i]) if cdf[i + 1] > cdf[i] else 0.0
+        return xs[i] + t * (xs[i + 1] - xs[i])
+    return inv(u), inv(v), index
+
+
+def render_size(scene):
+    r = scene.render
+    return (int(r.resolution_x * r.resolution_percentage / 100), int(r.resolution_y * r.resolution_percentage / 100))
+
+
+def shift_per_pixel(scene):
+    """Camera shift that moves the samples by one pixel, or RenderError if the setup is not covered."""
+    r = scene.render
+    if abs(r.pixel_aspect_x - r.pixel_aspect_y) > 1e-6:
+        raise RenderError("jitter needs square pixels (pixel aspect is %g:%g)" % (r.pixel_aspect_x, r.pixel_aspect_y))
+    w, h = render_size(scene)
+    fit = scene.camera.data.sensor_fit
+    size = {"AUTO": max(w, h), "HORIZONTAL": w, "VERTICAL": h}[fit]
+    return 1.0 / size
+
+
+# ---- the sidecar ---------------------------------------------------------------------------------
+
+def _matrix(m):
+    return [[float(v) for v in row] for row in m]
+
+
+def camera_matrices(scene, depsgraph):
+    cam = scene.camera
+    w, h = render_size(scene)
+    proj = cam.calc_matrix_camera(depsgraph, x=w, y=h, scale_x=scene.render.pixel_aspect_x,
+                                  scale_y=scene.render.pixel_aspect_y)
+    return _matrix(cam.matrix_world.inverted()), _matrix(proj)
+
+
+def object_table(scene, view_layer):
+    out = {}
+    for ob in plan_mod.visible_objects(scene, view_layer):
+        out[hashing.cryptomatte_hex(ob.name)] = {"name": ob.name, "matrix_world": _matrix(ob.matrix_world)}
+    return out
+
+
+def render_settings(scene, engine, samples):
+    r = scene.render
+    w, h = render_size(scene)
+    return {"engine": engine, "samples": samples, "resolution": [w, h], "pixel_aspect": [r.pixel_aspect_x, r.pixel_aspect_y],
+            "filter_size": r.filter_size, "film_transparent": r.film_transparent,
+            "gi_cubemap_resolution": scene.eevee.gi_cubemap_resolution, "gi_cubemap_reason": CUBEMAP_REASON,
+            "view_transform": scene.view_settings.view_transform, "fps": r.fps / r.fps_base,
+            "motion_blur": False, "exr": "multilayer float32, codec NONE, linear scene-referred"}
+
+
+def _write_json(path, data):
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(data, f, indent=1)
+    os.replace(tmp, path)
+
+
+# ---- rendering -------------------------------------------------------------------------------------
+
+def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_EXR_MULTILAYER"):
+    r = scene.render
+    snap.set(r, "engine", engine)
+    snap.set(scene.eevee, "taa_render_samples", samples)
+    snap.set(scene.eevee, "gi_cubemap_resolution", CUBEMAP_RESOLUTION)
+    snap.set(scene.eevee, "use_motion_blur", False)
+    snap.set(r, "use_motion_blur", False)
+    snap.set(r, "use_compositing", False)
+    snap.set(r, "use_sequencer", False)
+    snap.set(r, "use_single_layer", True)
+    snap.set(r, "use_stamp", False)
+    snap.set(r, "use_border", False)
+    snap.set(r, "use_file_extension", False)
+    snap.set(r.image_settings, "file_format", file_format)
+    snap.set(r.image_settings, "color_depth", "32")
+    snap.set(r.image_settings, "exr_codec", "NONE")
+    snap.set(r.image_settings, "color_mode", "RGBA")
+    for prop in view_layer.bl_rna.properties:
+        if prop.identifier.startswith("use_pass_"):
+            snap.set(view_layer, prop.identifier, prop.identifier in flags or prop.identifier == "use_pass_combined")
+    for prop in view_layer.eevee.bl_rna.properties:
+        if prop.identifier.startswith("use_pass_"):
+            snap.set(view_layer.eevee, prop.identifier, False)
+    if "use_pass_cryptomatte_object" in flags:
+        snap.set(view_layer, "pass_cryptomatte_depth", 2)  # one EXR layer: rank 0 is all a 1-sample pixel has
+
+
+def _render_to(scene, path):
+    """Renders the current frame to `path` through a temporary name, renamed once complete."""
+    folder, name = os.path.split(path)
+    tmp = os.path.join(folder, "." + name + ".tmp")
+    scene.render.filepath = tmp
+    t0 = time.perf_counter()
+    bpy.ops.render.render(write_still=True, scene=scene.name)
+    dt = time.perf_counter() - t0
+    if not os.path.isfile(tmp):
+        raise RenderError("Blender wrote no file for frame %d (expected %s)" % (scene.frame_current, tmp))
+    os.replace(tmp, path)
+    return dt
+
+
+def frame_name(frame, ext=".exr"):
+    return "frame_%04d%s" % (frame, ext)
+
+
+def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distribution="blackman-harris",
+                  view_layer=None, on_frame=None, should_cancel=None):
+    """Renders `frames` of `scene` into out_dir/frame_NNNN.exr + .json with the plan's passes.
+
+    on_frame(frame, info) is called after each frame (info: dict with render_s, paths); it may raise to
+    stop. should_cancel() -> True stops after the current frame. Returns the list of infos. The scene
+    is restored on return, error or cancel."""
+    check_blender_version()
+    if scene.camera is None:
+        raise RenderError("scene '%s' has no camera: set one (Scene properties > Camera)" % scene.name)
+    frames = list(frames)
+    if not frames:
+        raise RenderError("no frames to render (empty frame range)")
+    view_layer = view_layer or bpy.context.view_layer
+    if view_layer.name not in scene.view_layers:
+        view_layer = scene.view_layers[0]
+    engine = eevee_engine(scene)
+    os.makedirs(out_dir, exist_ok=True)
+    infos = []
+    cam_data = scene.camera.data
+    with Snapshot(scene) as snap:
+        base_shift = (cam_data.shift_x, cam_data.shift_y)
+        snap.set(cam_data, "shift_x", base_shift[0])
+        snap.set(cam_data, "shift_y", base_shift[1])
+        snap.set(scene.render, "filepath", scene.render.filepath)
+        _prepare(snap, scene, view_layer, engine, samples, set(the_plan.render_flags()))
+        unit = shift_per_pixel(scene) if the_plan.jitter else 0.0
+        width = scene.render.filter_size
+        for f in frames:
+            if should_cancel and should_cancel():
+                break
+            scene.frame_set(f)
+            cam_data.shift_x, cam_data.shift_y = base_shift
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            depsgraph.update()
+            view, proj_plain = camera_matrices(scene, depsgraph)
+            dx = dy = 0.0
+            index = 0
+            if the_plan.jitter:
+                dx, dy, index = jitter_offset(f, jitter_distribution, width)
+                cam_data.shift_x = base_shift[0] + dx * unit
+                cam_data.shift_y = base_shift[1] + dy * unit
+                depsgraph.update()
+            _, proj = camera_matrices(scene, depsgraph)
+            path = os.path.join(out_dir, frame_name(f))
+            render_s = _render_to(scene, path)
+            sidecar = {
+                "frame": f, "file": os.path.basename(path),
+                "jitter": {"x": dx, "y": dy, "units": "pixels, x right, y up", "enabled": the_plan.jitter,
+                           "sequence": "halton(2,3)", "index": index, "period": HALTON_PERIOD,
+                           "distribution": jitter_distribution if the_plan.jitter else "none",
+                           "width": width if jitter_distribution == "blackman-harris" else 1.0},
+                "camera": {"name": scene.camera.name, "matrix_world": _matrix(scene.camera.matrix_world),
+                           "view": view, "projection": proj, "projection_unjittered": proj_plain,
+                           "type": cam_data.type, "base_shift": list(base_shift)},
+                "objects": object_table(scene, view_layer),
+                "passes": list(the_plan.passes), "render_flags": the_plan.render_flags(),
+                "render_settings": render_settings(scene, engine, samples),
+                "blender_version": bpy.app.version_string, "render_s": render_s,
+            }
+            if "subsamples" in the_plan.passes:
+                sidecar["subsamples"] = _render_subsamples(snap, scene, view_layer, f, out_dir, base_shift,
+                                                           shift_per_pixel(scene), dx, dy)
+                cam_data.shift_x, cam_data.shift_y = base_shift
+            _write_json(os.path.join(out_dir, frame_name(f, ".json")), sidecar)
+            info = {"frame": f, "render_s": render_s, "exr": path, "jitter": [dx, dy]}
+            infos.append(info)
+            if on_frame:
+                on_frame(f, info)
+    return infos
+
+
+def _render_subsamples(snap, scene, view_layer, frame, out_dir, base_shift, unit, dx, dy):
+    """RSAA's geometric sub-samples: depth + normal renders at RSAA_PATTERN offsets (around the
+    frame's own jitter), with a plain grey material override so shading costs nothing."""
+    mat = bpy.data.materials.get("CrispGeometryOnly") or bpy.data.materials.new("CrispGeometryOnly")
+    props = ("material_override", "use_pass_cryptomatte_object", "use_pass_diffuse_color")
+    for prop in props:  # registers the user's values for the final restore
+        snap.set(view_layer, prop, getattr(view_layer, prop))
+    main = {prop: getattr(view_layer, prop) for prop in props}
+    view_layer.material_override = mat
+    view_layer.use_pass_cryptomatte_object = view_layer.use_pass_diffuse_color = False
+    out = []
+    cam = scene.camera.data
+    try:
+        for k, (ox, oy) in enumerate(RSAA_PATTERN):
+            cam.shift_x = base_shift[0] + (dx + ox) * unit
+            cam.shift_y = base_shift[1] + (dy + oy) * unit
+            path = os.path.join(out_dir, "frame_%04d_sub%d.exr" % (frame, k))
+            out.append({"offset": [ox, oy], "file": os.path.basename(path), "render_s": _render_to(scene, path)})
+    finally:
+        for prop, value in main.items():  # back to the main frames' settings
+            setattr(view_layer, prop, value)
+    return out
+
+
+def render_reference(scene, frames, out_dir, samples, view_layer=None, on_frame=None, should_cancel=None):
+    """The same frames with `samples` EEVEE samples, no jitter, colour only, into out_dir/frame_NNNN.exr
+    (plain RGBA float EXR). Returns [{frame, render_s, exr}]. Hook for the sample curve (issue 3 item 5):
+    call this once per sample count and keep each render_s."""
+    check_blender_version()
+    if scene.camera is None:
+        raise RenderError("scene '%s' has no camera: set one (Scene properties > Camera)" % scene.name)
+    frames = list(frames)
+    if not frames:
+        raise RenderError("no frames to render (empty frame range)")
+    view_layer = view_layer or bpy.context.view_layer
+    engine = eevee_engine(scene)
+    os.makedirs(out_dir, exist_ok=True)
+    infos = []
+    with Snapshot(scene) as snap:
+        snap.set(scene.render, "filepath", scene.render.filepath)
+        _prepare(snap, scene, view_layer, engine, samples, {"use_pass_combined"}, file_format="OPEN_EXR")
+        for f in frames:
+            if should_cancel and should_cancel():
+                break
+            scene.frame_set(f)
+            path = os.path.join(out_dir, frame_name(f))
+            info = {"frame": f, "render_s": _render_to(scene, path), "exr": path, "samples": samples}
+            infos.append(info)
+            if on_frame:
+                on_frame(f, info)
+    return infos
