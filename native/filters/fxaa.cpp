@@ -1,20 +1,458 @@
 // SPDX-License-Identifier: Apache-2.0
-// PLACEHOLDER until the real fxaa filter lands: copies colour to output.
+// "fxaa": FXAA 3.11 quality path, preset 12 (see fxaa.h), written from Lottes'
+// published description of the algorithm. Per pixel:
+//   1. local contrast check on the centre and its 4 neighbours (early exit);
+//   2. sub-pixel aliasing amount from the 3x3 low-pass vs the centre;
+//   3. edge orientation from second differences over the 3x3 block;
+//   4. the side of the edge with the steeper luma step;
+//   5. end-of-edge search in both directions along the edge, on the luma
+//      mid-way between the two rows (columns) either side of the edge;
+//   6. blend offset from the nearer end's position on the span, kept only if
+//      that end bends the right way; final offset = max(edge, sub-pixel);
+//   7. one bilinear colour fetch moved by that offset across the edge.
+//
+// Parameters (also `crisp help fxaa` / crispGetFilterDoc):
+// | name | type | default | range | meaning | source |
+// |---|---|---|---|---|---|
+// | edgeThreshold | float | 0.166 | [0, 1] | min local luma range, relative to the local max luma | FXAA 3.11 QUALITY_EDGE_THRESHOLD |
+// | edgeThresholdMin | float | 0.0833 | [0, 1] | min local luma range, absolute (skips dark areas) | FXAA 3.11 QUALITY_EDGE_THRESHOLD_MIN |
+// | subpix | float | 0.75 | [0, 1] | sub-pixel aliasing removal (0 off, 1 softest) | FXAA 3.11 QUALITY_SUBPIX |
+// | reference | bool | false | - | run the scalar reference path (single thread, clamped fetches) | this file |
+//
+// Deviations from the shader, on purpose: luma is computed here from linear
+// colour (fxaa.h perceptualLuma) into a plane, instead of read from an alpha
+// channel written by an earlier pass; alpha passes through instead of holding
+// luma; images are addressed in pixel units (centre of pixel i at i) with
+// clamp-to-edge borders, as a texture sampler with clamp addressing would.
+#include "filters/fxaa.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "core/color.h"
+#include "core/error.h"
 #include "core/filter.h"
+#include "core/parallel.h"
+
+namespace crisp::fxaa {
+
+static_assert(kLumaPad >= 1 + 9, "pad must cover the furthest search look (8.5 px) plus a bilinear tap");
+
+float perceptualLuma(float r, float g, float b) {
+  const float y = std::max(luminance709(r, g, b), 0.0f);
+  return std::sqrt(y / (1.0f + y));
+}
+
+struct Access {
+  static std::vector<float>& luma(Workspace& w) { return w.luma_; }
+  static std::vector<float>& paddedLuma(Workspace& w) { return w.paddedLuma_; }
+  static std::vector<std::uint8_t>& needsSearch(Workspace& w) { return w.needsSearch_; }
+  static std::vector<float>& staging(Workspace& w) { return w.staging_; }
+};
+
+void Workspace::allocate(int width, int height) {
+  width_ = width;
+  height_ = height;
+  const std::size_t w = std::size_t(width), h = std::size_t(height), pad = std::size_t(kLumaPad);
+  luma_.assign(w * h, 0.0f);
+  paddedLuma_.assign((w + 2 * pad) * (h + 2 * pad), 0.0f);
+  needsSearch_.assign(w * h, 0);
+  staging_.assign(w * h * 4, 0.0f);
+}
+
+namespace {
+
+// ---------------------------------------------------------------------------
+// Shared per-pixel arithmetic. Both paths call exactly these functions.
+
+inline float lerp(float a, float b, float t) { return a + (b - a) * t; }
+// max/min as selects the vectoriser maps onto maxps/minps (no NaN reaches them).
+inline float maxOf(float a, float b) { return a < b ? b : a; }
+inline float minOf(float a, float b) { return b < a ? b : a; }
+
+// Step 1, local contrast check. True when the pixel needs no anti-aliasing.
+// Written branch-free so the fast path's row loop vectorises.
+inline bool lowContrast(float m, float n, float s, float w, float e, const Settings& st) {
+  const float hi = maxOf(maxOf(maxOf(n, s), maxOf(w, e)), m);
+  const float lo = minOf(minOf(minOf(n, s), minOf(w, e)), m);
+  const float range = hi - lo;
+  // range <= 0 also catches edgeThresholdMin = 0 on a flat area (no 1/range later).
+  return (range < maxOf(st.edgeThresholdMin, hi * st.edgeThreshold)) | (range <= 0.0f);
+}
+
+// Where to fetch the colour of pixel (x, y): `offset` pixels across the edge
+// (along y for a horizontal edge, along x for a vertical one); 0 = keep.
+struct Blend {
+  bool horizontalEdge = true;
+  float offset = 0.0f;
+};
+
+// Bilinear luma at (fx, fy), pixel centres on integers.
+template <class Luma>
+inline float bilinear(const Luma& luma, float fx, float fy) {
+  const float x0f = std::floor(fx), y0f = std::floor(fy);
+  const int x0 = int(x0f), y0 = int(y0f);
+  const float tx = fx - x0f, ty = fy - y0f;
+  const float top = lerp(luma.at(x0, y0), luma.at(x0 + 1, y0), tx);
+  const float bottom = lerp(luma.at(x0, y0 + 1), luma.at(x0 + 1, y0 + 1), tx);
+  return lerp(top, bottom, ty);
+}
+
+template <class Luma>
+inline Blend blendFor(const Luma& luma, int x, int y, const Settings& st) {
+  Blend out;
+  const float m = luma.at(x, y);
+  const float n = luma.at(x, y - 1), s = luma.at(x, y + 1);
+  const float w = luma.at(x - 1, y), e = luma.at(x + 1, y);
+  if (lowContrast(m, n, s, w, e, st)) return out;
+  const float range = maxOf(maxOf(maxOf(n, s), maxOf(w, e)), m) - minOf(minOf(minOf(n, s), minOf(w, e)), m);
+  const float nw = luma.at(x - 1, y - 1), ne = luma.at(x + 1, y - 1);
+  const float sw = luma.at(x - 1, y + 1), se = luma.at(x + 1, y + 1);
+
+  // Step 2: sub-pixel aliasing. The 3x3 low-pass (weights 1 2 1 / 2 0 2 /
+  // 1 2 1, sum 12) against the centre, relative to the local range, eased by
+  // smoothstep, squared, and scaled by `subpix`.
+  const float lowpass = (2.0f * (n + s + w + e) + (nw + ne + sw + se)) * (1.0f / 12.0f);
+  const float subpixContrast = std::min(std::fabs(lowpass - m) / range, 1.0f);
+  const float eased = (3.0f - 2.0f * subpixContrast) * subpixContrast * subpixContrast;
+  const float subpixBlend = eased * eased * st.subpix;
+
+  // Step 3: orientation. Vertical second differences down the three columns
+  // (centre column weighted 2) measure a horizontal edge; horizontal second
+  // differences along the three rows measure a vertical one.
+  const float acrossRows = std::fabs(nw + sw - 2.0f * w) + 2.0f * std::fabs(n + s - 2.0f * m) +
+                           std::fabs(ne + se - 2.0f * e);
+  const float acrossColumns = std::fabs(nw + ne - 2.0f * n) + 2.0f * std::fabs(w + e - 2.0f * m) +
+                              std::fabs(sw + se - 2.0f * s);
+  const bool horizontal = acrossRows >= acrossColumns;
+  out.horizontalEdge = horizontal;
+
+  // Step 4: the neighbour across the edge with the larger luma step decides
+  // on which side of the centre the edge lies (-1: up/left, +1: down/right).
+  const float before = horizontal ? n : w;
+  const float after = horizontal ? s : e;
+  const float stepBefore = std::fabs(before - m), stepAfter = std::fabs(after - m);
+  const bool towardBefore = stepBefore >= stepAfter;
+  const float side = towardBefore ? -1.0f : 1.0f;
+  const float gradient = std::max(stepBefore, stepAfter);
+  // Luma half-way across the edge, and the change from it that ends the edge.
+  const float edgeLuma = 0.5f * (m + (towardBefore ? before : after));
+  const float endThreshold = 0.25f * gradient;
+  const bool centreBelowEdge = m - edgeLuma < 0.0f;
+
+  // Step 5: end-of-edge search, on the line half a pixel toward the edge,
+  // where a bilinear fetch averages the two rows (columns) it separates.
+  const float across = float(horizontal ? y : x) + 0.5f * side;
+  const float along = float(horizontal ? x : y);
+  auto look = [&](float position) {
+    const float l = horizontal ? bilinear(luma, position, across) : bilinear(luma, across, position);
+    return l - edgeLuma;
+  };
+  float distNeg = kSearchSteps[0], distPos = kSearchSteps[0];
+  float endNeg = look(along - distNeg), endPos = look(along + distPos);
+  bool doneNeg = std::fabs(endNeg) >= endThreshold, donePos = std::fabs(endPos) >= endThreshold;
+  for (int k = 1; k < kSearchStepCount && !(doneNeg && donePos); ++k) {
+    if (!doneNeg) distNeg += kSearchSteps[k];
+    if (!donePos) distPos += kSearchSteps[k];
+    if (k == kSearchStepCount - 1) break;  // the last step is taken without a look
+    if (!doneNeg) {
+      endNeg = look(along - distNeg);
+      doneNeg = std::fabs(endNeg) >= endThreshold;
+    }
+    if (!donePos) {
+      endPos = look(along + distPos);
+      donePos = std::fabs(endPos) >= endThreshold;
+    }
+  }
+
+  // Step 6: the nearer end decides. The span is a staircase step of length
+  // distNeg + distPos; a pixel at distance d from its nearer end is covered
+  // by 0.5 - d / span of the other side. Only blend when the luma at that end
+  // crosses the mid-way value in the opposite sense to the centre (otherwise
+  // this pixel is on the wrong side of the step).
+  const bool negNearer = distNeg < distPos;
+  const float nearest = std::min(distNeg, distPos);
+  const float endLuma = negNearer ? endNeg : endPos;
+  const bool goodSpan = (endLuma < 0.0f) != centreBelowEdge;
+  const float edgeBlend = goodSpan ? 0.5f - nearest / (distNeg + distPos) : 0.0f;
+  out.offset = side * std::max(edgeBlend, subpixBlend);
+  return out;
+}
+
+// ---------------------------------------------------------------------------
+// Addressing: the only thing the two paths do differently.
+
+// Reference: unpadded plane, clamp-to-edge on every fetch.
+struct ClampedLuma {
+  const float* plane;
+  int width, height;
+  float at(int x, int y) const {
+    x = std::clamp(x, 0, width - 1);
+    y = std::clamp(y, 0, height - 1);
+    return plane[std::size_t(y) * std::size_t(width) + std::size_t(x)];
+  }
+};
+
+// Fast: plane padded by kLumaPad clamp-to-edge copies on every side; `origin`
+// points at pixel (0, 0). Valid for -kLumaPad <= x < width + kLumaPad.
+struct PaddedLuma {
+  const float* origin;
+  std::ptrdiff_t stride;
+  float at(int x, int y) const { return origin[std::ptrdiff_t(y) * stride + x]; }
+};
+
+// Colour source: the input view, or the staging copy when output overlaps it.
+// Values are sanitised on every read (idempotent on the staged copy).
+struct ColorSource {
+  const char* base;
+  std::size_t pixelStride, rowStride;
+  int channels;
+  const float* pixel(int x, int y) const {
+    return reinterpret_cast<const float*>(base + std::size_t(y) * rowStride + std::size_t(x) * pixelStride);
+  }
+  void rgba(int x, int y, float out[4]) const {
+    const float* p = pixel(x, y);
+    out[0] = sanitize(p[0]);
+    out[1] = sanitize(p[1]);
+    out[2] = sanitize(p[2]);
+    out[3] = channels > 3 ? sanitize(p[3]) : 1.0f;
+  }
+};
+
+// Step 7: the colour of (x, y) fetched `blend.offset` pixels across the edge.
+// The fetch point is on a pixel-centre line, so the bilinear fetch reduces to
+// a lerp between the two pixels either side of it.
+template <bool kClamp>
+inline void resolve(const ColorSource& src, int width, int height, int x, int y, const Blend& blend, float out[4]) {
+  src.rgba(x, y, out);
+  if (blend.offset == 0.0f) return;
+  const float pos = float(blend.horizontalEdge ? y : x) + blend.offset;
+  const float p0f = std::floor(pos);
+  const float t = pos - p0f;
+  int p0 = int(p0f), p1 = p0 + 1;
+  if (kClamp) {
+    const int last = (blend.horizontalEdge ? height : width) - 1;
+    p0 = std::clamp(p0, 0, last);
+    p1 = std::clamp(p1, 0, last);
+  }
+  float a[4], b[4];
+  if (blend.horizontalEdge) {
+    src.rgba(x, p0, a);
+    src.rgba(x, p1, b);
+  } else {
+    src.rgba(p0, y, a);
+    src.rgba(p1, y, b);
+  }
+  for (int k = 0; k < 3; ++k) out[k] = lerp(a[k], b[k], t);  // alpha stays the centre's
+}
+
+inline void store(const ImageView& output, int x, int y, const float rgba[4]) {
+  float* p = output.pixel(x, y);
+  const int c = output.channels();
+  for (int k = 0; k < c; ++k) p[k] = rgba[k];
+}
+
+// ---------------------------------------------------------------------------
+// Set-up shared by both paths.
+
+void checkViews(const ImageView& color, const ImageView& output, const Workspace& ws) {
+  if (color.width != ws.width() || color.height != ws.height() || output.width != ws.width() ||
+      output.height != ws.height())
+    invalidArgument("fxaa: color " + std::to_string(color.width) + "x" + std::to_string(color.height) + " / output " +
+                    std::to_string(output.width) + "x" + std::to_string(output.height) +
+                    " do not match the workspace " + std::to_string(ws.width()) + "x" + std::to_string(ws.height()));
+  if (color.channels() < 3 || color.channels() > 4 || output.channels() < 3 || output.channels() > 4 ||
+      color.format == Format::UInt || output.format == Format::UInt)
+    invalidArgument("fxaa: color and output need 3 or 4 float channels");
+}
+
+bool overlaps(const ImageView& a, const ImageView& b) {
+  auto span = [](const ImageView& v) {
+    const char* begin = static_cast<const char*>(v.ptr);
+    const char* end = begin + std::size_t(v.height - 1) * v.rowStride + std::size_t(v.width - 1) * v.pixelStride +
+                      formatBytes(v.format);
+    return std::make_pair(begin, end);
+  };
+  auto [a0, a1] = span(a);
+  auto [b0, b1] = span(b);
+  return a0 < b1 && b0 < a1;
+}
+
+// Reads colour from the input, or from a sanitised packed copy when the
+// output would overwrite pixels still to be read.
+ColorSource colorSource(const ImageView& color, const ImageView& output, Workspace& ws, int numThreads) {
+  if (!overlaps(color, output))
+    return {static_cast<const char*>(color.ptr), color.pixelStride, color.rowStride, color.channels()};
+  std::vector<float>& staged = Access::staging(ws);
+  const ColorSource in{static_cast<const char*>(color.ptr), color.pixelStride, color.rowStride, color.channels()};
+  parallelRows(color.width, color.height, numThreads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < color.width; ++x) in.rgba(x, y, staged.data() + (std::size_t(y) * color.width + x) * 4);
+  });
+  return {reinterpret_cast<const char*>(staged.data()), 16, std::size_t(color.width) * 16, 4};
+}
+
+// Luma of one row, with loops specialised for the usual pixel strides so the
+// compiler can vectorise them. Same operations as perceptualLuma(rgba(...)).
+template <int kStrideFloats>
+void lumaRowFixed(const float* row, int width, float* dst) {
+  for (int x = 0; x < width; ++x) {
+    const float* p = row + std::size_t(x) * kStrideFloats;
+    dst[x] = perceptualLuma(sanitize(p[0]), sanitize(p[1]), sanitize(p[2]));
+  }
+}
+
+void lumaRow(const ColorSource& src, int y, int width, float* dst) {
+  const float* row = src.pixel(0, y);
+  if (src.pixelStride == 16) return lumaRowFixed<4>(row, width, dst);
+  if (src.pixelStride == 12) return lumaRowFixed<3>(row, width, dst);
+  for (int x = 0; x < width; ++x) {
+    const float* p = src.pixel(x, y);
+    dst[x] = perceptualLuma(sanitize(p[0]), sanitize(p[1]), sanitize(p[2]));
+  }
+}
+
+// Sanitised copy of one row of colour to the output (pixels FXAA leaves alone).
+void copyRow(const ColorSource& src, const ImageView& output, int y, int width) {
+  const int outChannels = output.channels();
+  if (src.pixelStride == 16 && src.channels == 4 && outChannels == 4 && output.pixelStride == 16) {
+    const float* in = src.pixel(0, y);
+    float* out = output.row(y);
+    for (int i = 0; i < 4 * width; ++i) out[i] = sanitize(in[i]);
+    return;
+  }
+  for (int x = 0; x < width; ++x) {
+    float rgba[4];
+    src.rgba(x, y, rgba);
+    store(output, x, y, rgba);
+  }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+
+void runReference(const ImageView& color, const ImageView& output, const Settings& settings, Workspace& ws) {
+  checkViews(color, output, ws);
+  const int width = ws.width(), height = ws.height();
+  const ColorSource src = colorSource(color, output, ws, 1);
+  std::vector<float>& plane = Access::luma(ws);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      float rgba[4];
+      src.rgba(x, y, rgba);
+      plane[std::size_t(y) * width + x] = perceptualLuma(rgba[0], rgba[1], rgba[2]);
+    }
+  const ClampedLuma luma{plane.data(), width, height};
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      float rgba[4];
+      resolve<true>(src, width, height, x, y, blendFor(luma, x, y, settings), rgba);
+      store(output, x, y, rgba);
+    }
+}
+
+void runFast(const ImageView& color, const ImageView& output, const Settings& settings, Workspace& ws,
+             int numThreads) {
+  checkViews(color, output, ws);
+  const int width = ws.width(), height = ws.height();
+  const ColorSource src = colorSource(color, output, ws, numThreads);
+  const std::ptrdiff_t stride = std::ptrdiff_t(width) + 2 * kLumaPad;
+  float* padded = Access::paddedLuma(ws).data();
+  float* origin = padded + kLumaPad * stride + kLumaPad;
+
+  // Pass 1: luma plane rows with their left/right clamp-to-edge pads ...
+  parallelRows(width, height, numThreads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      float* row = origin + std::ptrdiff_t(y) * stride;
+      lumaRow(src, y, width, row);
+      std::fill(row - kLumaPad, row, row[0]);
+      std::fill(row + width, row + width + kLumaPad, row[width - 1]);
+    }
+  });
+  // ... then the top/bottom pads (copies of the first/last padded row).
+  for (int p = 1; p <= kLumaPad; ++p) {
+    std::memcpy(origin - kLumaPad - p * stride, origin - kLumaPad, sizeof(float) * std::size_t(stride));
+    std::memcpy(origin - kLumaPad + std::ptrdiff_t(height - 1 + p) * stride,
+                origin - kLumaPad + std::ptrdiff_t(height - 1) * stride, sizeof(float) * std::size_t(stride));
+  }
+
+  // Pass 2: per row, a vectorisable contrast check over the whole row, a
+  // plain copy, then the full FXAA for the pixels that passed the check.
+  const PaddedLuma luma{origin, stride};
+  std::uint8_t* needsSearch = Access::needsSearch(ws).data();
+  parallelRows(width, height, numThreads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const float* mid = origin + std::ptrdiff_t(y) * stride;
+      const float* up = mid - stride;
+      const float* down = mid + stride;
+      std::uint8_t* flags = needsSearch + std::size_t(y) * width;
+      for (int x = 0; x < width; ++x)
+        flags[x] = std::uint8_t(!lowContrast(mid[x], up[x], down[x], mid[x - 1], mid[x + 1], settings));
+      copyRow(src, output, y, width);
+      const bool interiorRow = y > 0 && y < height - 1;
+      for (int x = 0; x < width; ++x) {
+        if (!flags[x]) continue;
+        const Blend blend = blendFor(luma, x, y, settings);
+        float rgba[4];
+        if (interiorRow && x > 0 && x < width - 1)
+          resolve<false>(src, width, height, x, y, blend, rgba);
+        else
+          resolve<true>(src, width, height, x, y, blend, rgba);
+        store(output, x, y, rgba);
+      }
+    }
+  });
+}
+
+}  // namespace crisp::fxaa
+
+// ---------------------------------------------------------------------------
+// The filter.
 
 namespace crisp {
 namespace {
+
 class FxaaFilter final : public Filter {
  public:
   explicit FxaaFilter(Context& c)
-      : Filter(c, {}, {{"color", true, 3, 4, false, "linear RGB(A) colour"}, {"output", true, 3, 4, false, "filtered colour"}}) {}
+      : Filter(c,
+               {{"edgeThreshold", ParamType::Float, 0.166, 0.0, 1.0, nullptr,
+                 "minimum local luma range, relative to the local maximum luma, for a pixel to be filtered",
+                 "FXAA 3.11 quality: local contrast check (QUALITY_EDGE_THRESHOLD)"},
+                {"edgeThresholdMin", ParamType::Float, 0.0833, 0.0, 1.0, nullptr,
+                 "minimum local luma range, absolute: dark areas below it are left alone",
+                 "FXAA 3.11 quality: local contrast check (QUALITY_EDGE_THRESHOLD_MIN)"},
+                {"subpix", ParamType::Float, 0.75, 0.0, 1.0, nullptr,
+                 "amount of sub-pixel aliasing removal (0 off, 1 softest)",
+                 "FXAA 3.11 quality: 3x3 low-pass sub-pixel test (QUALITY_SUBPIX)"},
+                {"reference", ParamType::Bool, 0, 0, 1, nullptr,
+                 "run the scalar reference path (single thread, clamped fetches) instead of the fast path",
+                 "filters/fxaa.h (both paths are bit-identical)"}},
+               {{"color", true, 3, 4, false, "linear RGB(A) colour"},
+                {"output", true, 3, 4, false, "anti-aliased linear colour, same size; alpha passes through"}}) {}
   const char* type() const override { return "fxaa"; }
+
  protected:
-  void onCommit() override { staged_ = Image(width(), height(), 4); }
-  void onExecute() override { stageColor(staged_); writeOutput(staged_); }
+  void onCommit() override { workspace_.allocate(width(), height()); }
+  void onExecute() override {
+    fxaa::Settings settings;
+    settings.edgeThreshold = params().getFloat("edgeThreshold");
+    settings.edgeThresholdMin = params().getFloat("edgeThresholdMin");
+    settings.subpix = params().getFloat("subpix");
+    if (params().getBool("reference"))
+      fxaa::runReference(image("color"), image("output"), settings, workspace_);
+    else
+      fxaa::runFast(image("color"), image("output"), settings, workspace_, numThreads());
+  }
+
  private:
-  Image staged_;
+  fxaa::Workspace workspace_;
 };
+
 }  // namespace
+
 std::unique_ptr<Filter> newFxaaFilter(Context& c) { return std::make_unique<FxaaFilter>(c); }
+
 }  // namespace crisp
