@@ -36,6 +36,11 @@ struct Frame {
 // CRISP_ERROR_IO (unreadable, truncated, corrupt) or CRISP_ERROR_INVALID_DATA
 // (no colour, inconsistent layers), always naming the file.
 Frame readFrame(const std::string& path);
+// The same, reading the named view layer of a multilayer EXR (throws
+// CRISP_ERROR_INVALID_DATA listing the layers if it is absent). readFrame(path)
+// picks "ViewLayer" (Blender's default name) if present, else the first layer,
+// by name, that has a Combined pass, else the plain R,G,B[,A] channels.
+Frame readFrame(const std::string& path, const std::string& viewLayer);
 
 // Writes RGB(A) float to .exr (float RGBA, alpha 1 if absent) or .png (8-bit
 // sRGB-encoded RGBA) by extension, through a temporary file in the same folder

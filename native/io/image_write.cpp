@@ -1,2 +1,144 @@
 // SPDX-License-Identifier: Apache-2.0
-// placeholder
+// writeImage: RGBA float EXR or 8-bit sRGB PNG, written to a temporary file in
+// the target folder and renamed into place (rename(2) within one filesystem is
+// atomic), so `path` holds either its old content or the whole new image.
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <OpenImageIO/imageio.h>
+
+#include "core/color.h"
+#include "core/error.h"
+#include "io/frame.h"
+#include "io/image_write_testing.h"
+#include "io/oiio_util.h"
+
+namespace crisp {
+
+namespace {
+
+std::string lowerExtension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return ext;
+}
+
+std::function<void(const std::string&)>& faultHook() {
+  static std::function<void(const std::string&)> hook;
+  return hook;
+}
+
+// ".<name>.tmp-<pid>-<n><ext>" beside the target: same filesystem (so rename
+// is atomic), hidden, unique per process and call, and the real extension
+// last because OIIO picks the file format from it. The name part is cut to 64
+// bytes so a target name near NAME_MAX (255) still gets a valid sibling.
+std::string temporaryPathFor(const std::string& path) {
+  static std::atomic<unsigned> counter{0};
+  const std::filesystem::path p(path);
+  const std::string name = "." + p.stem().string().substr(0, 64) + ".tmp-" + std::to_string(long(::getpid())) + "-" +
+                           std::to_string(counter.fetch_add(1)) + p.extension().string();
+  return (p.parent_path() / name).string();
+}
+
+// Removes the temporary file on every exit that did not commit it.
+struct TemporaryFile {
+  std::string path;
+  bool committed = false;
+  ~TemporaryFile() {
+    if (!committed && !path.empty()) std::remove(path.c_str());
+  }
+};
+
+}  // namespace
+
+void setWriteImageFaultForTesting(std::function<void(const std::string&)> hook) { faultHook() = std::move(hook); }
+
+void writeImage(const std::string& path, const ImageView& image) {
+  OiioErrorDrain drain;
+  if (path.empty()) invalidArgument("cannot write an image: the file name is empty");
+  if (!image.valid()) invalidArgument("image to write to '" + path + "' is NULL");
+  const int channels = image.channels();
+  if (image.format == Format::UInt || (channels != 3 && channels != 4))
+    invalidArgument("image to write to '" + path + "' is " + formatName(image.format) + "; expected float3 or float4");
+  if (image.width <= 0 || image.height <= 0)
+    invalidArgument("image to write to '" + path + "' has size " + std::to_string(image.width) + "x" +
+                    std::to_string(image.height));
+  const std::string ext = lowerExtension(path);
+  const bool png = ext == ".png";
+  if (!png && ext != ".exr")
+    invalidArgument("cannot write '" + path + "': unsupported extension '" + ext + "' (use .exr or .png)");
+
+  // Packed RGBA, converted for the file type.
+  const std::size_t w = std::size_t(image.width), h = std::size_t(image.height);
+  std::vector<float> rgbaFloat;
+  std::vector<unsigned char> rgba8;
+  if (png)
+    rgba8.resize(w * h * 4);
+  else
+    rgbaFloat.resize(w * h * 4);
+  for (int y = 0; y < image.height; ++y) {
+    for (int x = 0; x < image.width; ++x) {
+      const float* s = image.pixel(x, y);
+      const float a = channels == 4 ? s[3] : 1.0f;
+      const std::size_t o = (std::size_t(y) * w + std::size_t(x)) * 4;
+      if (png) {
+        // Display encoding of core/color.h; alpha is linear coverage.
+        for (int k = 0; k < 3; ++k) rgba8[o + std::size_t(k)] = (unsigned char)std::lround(srgbEncode(s[k]) * 255.0f);
+        const float ac = std::isnan(a) ? 0.0f : std::clamp(a, 0.0f, 1.0f);
+        rgba8[o + 3] = (unsigned char)std::lround(ac * 255.0f);
+      } else {
+        for (int k = 0; k < 3; ++k) rgbaFloat[o + std::size_t(k)] = s[k];
+        rgbaFloat[o + 3] = a;
+      }
+    }
+  }
+
+  TemporaryFile tmp;
+  tmp.path = temporaryPathFor(path);
+  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(tmp.path);
+  if (!out) ioError("cannot write '" + path + "': " + oiioErrors(static_cast<OIIO::ImageOutput*>(nullptr)));
+  OIIO::ImageSpec spec(image.width, image.height, 4, png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
+  spec.channelnames = {"R", "G", "B", "A"};
+  spec.alpha_channel = 3;
+  if (png) {
+    spec.attribute("oiio:ColorSpace", "sRGB");
+  } else {
+    spec.attribute("oiio:ColorSpace", "Linear");
+    spec.attribute("compression", "zip");
+  }
+  // Values are written as given: OIIO would otherwise un-premultiply colour for
+  // PNG. The reader reads PNG alpha unassociated too, so a round trip is exact.
+  spec.attribute("oiio:UnassociatedAlpha", 1);
+  if (!out->open(tmp.path, spec)) ioError("cannot write '" + path + "': " + oiioErrors(out.get()));
+  const bool wrote = png ? out->write_image(OIIO::TypeDesc::UINT8, rgba8.data())
+                         : out->write_image(OIIO::TypeDesc::FLOAT, rgbaFloat.data());
+  if (!wrote) {
+    std::string msg = oiioErrors(out.get());
+    out->close();
+    ioError("cannot write '" + path + "': " + msg);
+  }
+  if (!out->close()) ioError("cannot write '" + path + "': " + oiioErrors(out.get()));
+  out.reset();
+  if (faultHook()) faultHook()(tmp.path);
+  if (std::rename(tmp.path.c_str(), path.c_str()) != 0)
+    ioError("cannot write '" + path + "': renaming the temporary file into place failed: " + std::strerror(errno));
+  tmp.committed = true;
+}
+
+void writeImage(const std::string& path, const Image& image) {
+  if (image.empty()) invalidArgument("image to write to '" + path + "' is empty");
+  writeImage(path, image.view());
+}
+
+}  // namespace crisp

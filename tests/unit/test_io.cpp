@@ -1,0 +1,754 @@
+// SPDX-License-Identifier: Apache-2.0
+// Pass I/O: Blender-like multilayer EXRs written through OpenImageIO with the
+// channel names Blender 3.4 writes (checked on a real render), plain EXR/PNG
+// round trips through writeImage, damaged files and failed writes.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <OpenImageIO/imageio.h>
+
+#include "core/color.h"
+#include "core/conventions.h"
+#include "core/error.h"
+#include "io/cryptomatte.h"
+#include "io/frame.h"
+#include "io/image_write_testing.h"
+
+namespace fs = std::filesystem;
+using namespace crisp;
+
+namespace {
+
+// A distinct, exactly representable (also in half) value per pixel and channel.
+float pixelValue(int x, int y, int c) { return float(100 * y + x) + 0.25f * float(c); }
+
+struct Channel {
+  std::string name;
+  OIIO::TypeDesc type;
+  std::function<float(int, int)> value;
+};
+
+struct ExrLayout {
+  int width = 7, height = 5;           // data window size
+  int x = 0, y = 0;                    // data window origin
+  int fullWidth = 0, fullHeight = 0;   // display window (0 = same as data)
+  std::vector<std::pair<std::string, std::string>> attributes;
+};
+
+// Writes an EXR through OIIO with the given channels (names used verbatim).
+void writeExr(const std::string& path, const std::vector<Channel>& channels, const ExrLayout& layout,
+              const char* compression = "none") {
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out) << OIIO::geterror();
+  OIIO::ImageSpec spec(layout.width, layout.height, int(channels.size()), OIIO::TypeDesc::FLOAT);
+  spec.x = layout.x;
+  spec.y = layout.y;
+  spec.full_x = 0;
+  spec.full_y = 0;
+  spec.full_width = layout.fullWidth ? layout.fullWidth : layout.width;
+  spec.full_height = layout.fullHeight ? layout.fullHeight : layout.height;
+  spec.channelnames.clear();
+  spec.channelformats.clear();
+  for (const auto& c : channels) {
+    spec.channelnames.push_back(c.name);
+    spec.channelformats.push_back(c.type);
+  }
+  spec.alpha_channel = -1;
+  spec.attribute("compression", compression);
+  for (const auto& kv : layout.attributes) spec.attribute(kv.first, kv.second);
+  ASSERT_TRUE(out->open(path, spec)) << out->geterror();
+  std::vector<float> data(std::size_t(layout.width) * std::size_t(layout.height) * channels.size());
+  for (int y = 0; y < layout.height; ++y)
+    for (int x = 0; x < layout.width; ++x)
+      for (std::size_t c = 0; c < channels.size(); ++c)
+        data[(std::size_t(y) * std::size_t(layout.width) + std::size_t(x)) * channels.size() + c] = channels[c].value(x, y);
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, data.data())) << out->geterror();
+  ASSERT_TRUE(out->close()) << out->geterror();
+}
+
+// Objects of the synthetic frame: left columns "Left", right columns "Right",
+// the bottom row background.
+const std::string kLeft = "Left", kRight = "Right.001";
+std::uint32_t objectAt(int x, int y, int w, int h) {
+  if (y == h - 1) return 0;
+  return x < w / 2 ? cryptomatteHash(kLeft) : cryptomatteHash(kRight);
+}
+float bitsToFloat(std::uint32_t v) { return cryptomatteHashToFloat(v); }
+float bgDepth(int x, int y, int w, int h) { return objectAt(x, y, w, h) ? float(1 + x + 7 * y) : 65504.0f; }
+
+// Channels as Blender 3.4 writes them (layer "ViewLayer"), in a shuffled
+// order: the reader must go by name, not position.
+std::vector<Channel> blenderChannels(const std::string& layer, int w, int h, bool withVector = true) {
+  const auto F = OIIO::TypeDesc::FLOAT;
+  const auto H = OIIO::TypeDesc::HALF;
+  std::vector<Channel> ch = {
+      {layer + ".Normal.Z", H, [](int x, int y) { return pixelValue(x, y, 2) / 1024.0f; }},
+      {layer + ".Combined.B", F, [](int x, int y) { return pixelValue(x, y, 2); }},
+      {layer + ".Depth.Z", H, [w, h](int x, int y) { return bgDepth(x, y, w, h); }},
+      {layer + ".Combined.R", F, [](int x, int y) { return pixelValue(x, y, 0); }},
+      {layer + ".CryptoObject00.r", F, [w, h](int x, int y) { return bitsToFloat(objectAt(x, y, w, h)); }},
+      {layer + ".CryptoObject00.g", F, [w, h](int x, int y) { return objectAt(x, y, w, h) ? 1.0f : 0.0f; }},
+      {layer + ".CryptoObject00.b", F, [](int, int) { return 0.0f; }},
+      {layer + ".CryptoObject00.a", F, [](int, int) { return 0.0f; }},
+      {layer + ".Combined.G", F, [](int x, int y) { return pixelValue(x, y, 1); }},
+      {layer + ".Combined.A", F, [](int x, int y) { return pixelValue(x, y, 3); }},
+      {layer + ".Normal.X", H, [](int x, int y) { return pixelValue(x, y, 0) / 1024.0f; }},
+      {layer + ".Normal.Y", H, [](int x, int y) { return pixelValue(x, y, 1) / 1024.0f; }},
+      {layer + ".DiffCol.R", F, [](int x, int y) { return pixelValue(x, y, 0) / 1000.0f; }},
+      {layer + ".DiffCol.G", F, [](int x, int y) { return pixelValue(x, y, 1) / 1000.0f; }},
+      {layer + ".DiffCol.B", F, [](int x, int y) { return pixelValue(x, y, 2) / 1000.0f; }},
+  };
+  if (withVector) {
+    ch.push_back({layer + ".Vector.X", F, [](int x, int) { return 0.5f + float(x); }});
+    ch.push_back({layer + ".Vector.Y", F, [](int, int y) { return 1.5f + float(y); }});
+    ch.push_back({layer + ".Vector.Z", F, [](int x, int) { return -2.0f - float(x); }});
+    ch.push_back({layer + ".Vector.W", F, [](int, int y) { return -3.0f - float(y); }});
+  }
+  return ch;
+}
+
+// The manifest attribute as Blender 3.4 wrote it for "ViewLayer.CryptoObject"
+// in a real render: key "cryptomatte/542cafa/...".
+std::vector<std::pair<std::string, std::string>> blenderManifest() {
+  const std::string manifest = "{\"" + kLeft + "\":\"" + hashToHex(cryptomatteHash(kLeft)) + "\",\"" + kRight +
+                               "\":\"" + hashToHex(cryptomatteHash(kRight)) + "\"}";
+  return {{"cryptomatte/542cafa/name", "ViewLayer.CryptoObject"},
+          {"cryptomatte/542cafa/hash", "MurmurHash3_32"},
+          {"cryptomatte/542cafa/conversion", "uint32_to_float32"},
+          {"cryptomatte/542cafa/manifest", manifest}};
+}
+
+class IoTest : public ::testing::Test {
+ protected:
+  fs::path dir;
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir = fs::temp_directory_path() /
+          ("crisp_io_" + std::to_string(::getpid()) + "_" + info->test_suite_name() + "_" + info->name());
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::permissions(dir, fs::perms::owner_all, fs::perm_options::add, ec);
+    fs::remove_all(dir, ec);
+  }
+  std::string file(const std::string& name) const { return (dir / name).string(); }
+  std::vector<std::string> temporaries() const {
+    std::vector<std::string> found;
+    for (const auto& e : fs::directory_iterator(dir))
+      if (e.path().filename().string().find(".tmp-") != std::string::npos) found.push_back(e.path().string());
+    return found;
+  }
+};
+
+// Runs `f`, expecting a crisp::Exception with `code` whose message names `needle`.
+template <class F>
+void expectError(F&& f, CrispError code, const std::string& needle, const std::string& needle2 = "") {
+  try {
+    f();
+    FAIL() << "no exception; expected code " << code << " naming " << needle;
+  } catch (const Exception& e) {
+    EXPECT_EQ(e.code(), code) << e.what();
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    if (!needle2.empty()) {
+      EXPECT_NE(std::string(e.what()).find(needle2), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_FALSE(OIIO::has_error()) << "OIIO error queue left non-empty: " << OIIO::geterror();
+}
+
+std::vector<char> readBytes(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return std::vector<char>((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+void writeBytes(const std::string& path, const std::vector<char>& bytes) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  f.write(bytes.data(), std::streamsize(bytes.size()));
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- reading ----
+
+TEST_F(IoTest, BlenderMultilayerFollowsConventions) {
+  const int w = 7, h = 5;
+  ExrLayout layout;
+  layout.attributes = blenderManifest();
+  const std::string path = file("blender.exr");
+  writeExr(path, blenderChannels("ViewLayer", w, h), layout);
+
+  Frame f = readFrame(path);
+  ASSERT_EQ(f.width, w);
+  ASSERT_EQ(f.height, h);
+  EXPECT_EQ(f.passList(), "color,depth,normal,motion,id,albedo");
+  EXPECT_EQ(f.channelNames.size(), blenderChannels("ViewLayer", w, h).size());
+  for (const auto& c : blenderChannels("ViewLayer", w, h))
+    EXPECT_NE(std::find(f.channelNames.begin(), f.channelNames.end(), c.name), f.channelNames.end()) << c.name;
+
+  const Image& color = f.pass("color");
+  ASSERT_EQ(color.channels, 4);
+  // Row 0 is the top: pixel (0,0) holds what was written first, (6,4) the last.
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 4; ++c) ASSERT_EQ(color.at(x, y)[c], pixelValue(x, y, c)) << x << "," << y << "," << c;
+
+  const Image& depth = f.pass("depth");
+  ASSERT_EQ(depth.channels, 1);
+  EXPECT_EQ(*depth.at(0, 0), 1.0f);
+  EXPECT_EQ(*depth.at(6, 3), float(1 + 6 + 21));
+  EXPECT_TRUE(isBackgroundDepth(*depth.at(3, h - 1)));  // half-float 65504 background
+  EXPECT_FALSE(isBackgroundDepth(*depth.at(3, 0)));
+
+  const Image& normal = f.pass("normal");
+  ASSERT_EQ(normal.channels, 3);
+  EXPECT_EQ(normal.at(2, 1)[0], pixelValue(2, 1, 0) / 1024.0f);
+  EXPECT_EQ(normal.at(2, 1)[2], pixelValue(2, 1, 2) / 1024.0f);
+
+  // Motion: Blender's y-up Vector becomes y-down: y and w negated, x and z kept.
+  const Image& motion = f.pass("motion");
+  ASSERT_EQ(motion.channels, 4);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      EXPECT_EQ(motion.at(x, y)[0], 0.5f + float(x));
+      EXPECT_EQ(motion.at(x, y)[1], -(1.5f + float(y)));
+      EXPECT_EQ(motion.at(x, y)[2], -2.0f - float(x));
+      EXPECT_EQ(motion.at(x, y)[3], 3.0f + float(y));
+    }
+
+  const Image& id = f.pass("id");
+  ASSERT_EQ(id.format, Format::UInt);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) ASSERT_EQ(id.uintAt(x, y), objectAt(x, y, w, h)) << x << "," << y;
+  EXPECT_EQ(id.uintAt(0, 0), cryptomatteHash(kLeft));
+  EXPECT_EQ(id.uintAt(6, 0), cryptomatteHash(kRight));
+  EXPECT_EQ(id.uintAt(0, h - 1), 0u);
+
+  const Image& albedo = f.pass("albedo");
+  ASSERT_EQ(albedo.channels, 3);
+  EXPECT_EQ(albedo.at(6, 4)[1], pixelValue(6, 4, 1) / 1000.0f);
+
+  ASSERT_EQ(f.objectIds.size(), 2u);
+  EXPECT_EQ(f.objectIds.at(kLeft), cryptomatteHash(kLeft));
+  EXPECT_EQ(f.objectIds.at(kRight), cryptomatteHash(kRight));
+}
+
+TEST_F(IoTest, IdIsZeroWhereCoverageIsZero) {
+  // A hash in .r with zero coverage (a pixel Cryptomatte did not assign) is background.
+  const std::uint32_t hash = cryptomatteHash("Ghost");
+  std::vector<Channel> ch = {
+      {"ViewLayer.Combined.R", OIIO::TypeDesc::FLOAT, [](int, int) { return 0.5f; }},
+      {"ViewLayer.Combined.G", OIIO::TypeDesc::FLOAT, [](int, int) { return 0.5f; }},
+      {"ViewLayer.Combined.B", OIIO::TypeDesc::FLOAT, [](int, int) { return 0.5f; }},
+      {"ViewLayer.CryptoObject00.r", OIIO::TypeDesc::FLOAT, [hash](int, int) { return bitsToFloat(hash); }},
+      {"ViewLayer.CryptoObject00.g", OIIO::TypeDesc::FLOAT, [](int x, int) { return x == 0 ? 0.0f : 0.75f; }},
+  };
+  ExrLayout layout;
+  writeExr(file("cov.exr"), ch, layout);
+  Frame f = readFrame(file("cov.exr"));
+  EXPECT_EQ(f.pass("id").uintAt(0, 2), 0u);
+  EXPECT_EQ(f.pass("id").uintAt(1, 2), hash);
+  EXPECT_EQ(f.pass("color").at(3, 3)[3], 1.0f);  // no Combined.A: alpha 1
+  EXPECT_TRUE(f.objectIds.empty());
+}
+
+TEST_F(IoTest, PicksBlenderDefaultLayerOrTheNamedOne) {
+  // "Second" sorts before "ViewLayer" in the file; the default layer wins.
+  std::vector<Channel> ch = blenderChannels("ViewLayer", 7, 5, false);
+  for (const char* c : {"R", "G", "B", "A"})
+    ch.push_back({std::string("Second.Combined.") + c, OIIO::TypeDesc::FLOAT, [](int, int) { return -7.0f; }});
+  ExrLayout layout;
+  writeExr(file("layers.exr"), ch, layout);
+  Frame f = readFrame(file("layers.exr"));
+  EXPECT_EQ(f.pass("color").at(1, 1)[0], pixelValue(1, 1, 0));
+  EXPECT_FALSE(f.has("motion"));
+
+  Frame second = readFrame(file("layers.exr"), "Second");
+  EXPECT_EQ(second.pass("color").at(1, 1)[0], -7.0f);
+  EXPECT_EQ(second.passList(), "color");
+  expectError([&] { readFrame(file("layers.exr"), "Nope"); }, CRISP_ERROR_INVALID_DATA, "Nope", "layers.exr");
+  // A pass that is absent is reported by name.
+  expectError([&] { second.pass("depth"); }, CRISP_ERROR_INVALID_DATA, "depth", "layers.exr");
+}
+
+TEST_F(IoTest, LayerNamesWithDotsSplitFromTheRight) {
+  std::vector<Channel> ch = blenderChannels("My.Layer", 7, 5, false);
+  ExrLayout layout;
+  writeExr(file("dots.exr"), ch, layout);
+  Frame f = readFrame(file("dots.exr"));
+  EXPECT_EQ(f.passList(), "color,depth,normal,id,albedo");
+  EXPECT_EQ(f.pass("color").at(4, 2)[2], pixelValue(4, 2, 2));
+}
+
+TEST_F(IoTest, PassWithWrongChannelsIsAnErrorNamingIt) {
+  std::vector<Channel> ch = blenderChannels("ViewLayer", 7, 5, false);
+  ch.erase(std::remove_if(ch.begin(), ch.end(), [](const Channel& c) { return c.name == "ViewLayer.Normal.Z"; }),
+           ch.end());
+  ExrLayout layout;
+  writeExr(file("normal2.exr"), ch, layout);
+  expectError([&] { readFrame(file("normal2.exr")); }, CRISP_ERROR_INVALID_DATA, "ViewLayer.Normal", "normal2.exr");
+
+  // An extra channel is as wrong as a missing one.
+  std::vector<Channel> ch2 = blenderChannels("ViewLayer", 7, 5, false);
+  ch2.push_back({"ViewLayer.Depth.W", OIIO::TypeDesc::FLOAT, [](int, int) { return 0.0f; }});
+  writeExr(file("depth2.exr"), ch2, layout);
+  expectError([&] { readFrame(file("depth2.exr")); }, CRISP_ERROR_INVALID_DATA, "ViewLayer.Depth", "depth2.exr");
+}
+
+TEST_F(IoTest, MissingColourIsAnErrorNamingTheFile) {
+  std::vector<Channel> ch = {{"ViewLayer.Depth.Z", OIIO::TypeDesc::FLOAT, [](int, int) { return 1.0f; }}};
+  ExrLayout layout;
+  writeExr(file("nocolor.exr"), ch, layout);
+  expectError([&] { readFrame(file("nocolor.exr")); }, CRISP_ERROR_INVALID_DATA, "nocolor.exr", "colour");
+}
+
+TEST_F(IoTest, HalfFloatIdsAreRefused) {
+  std::vector<Channel> ch = blenderChannels("ViewLayer", 7, 5, false);
+  for (auto& c : ch)
+    if (c.name == "ViewLayer.CryptoObject00.r") c.type = OIIO::TypeDesc::HALF;
+  ExrLayout layout;
+  writeExr(file("halfid.exr"), ch, layout);
+  expectError([&] { readFrame(file("halfid.exr")); }, CRISP_ERROR_INVALID_DATA, "CryptoObject00", "halfid.exr");
+}
+
+TEST_F(IoTest, BadManifestIsAnError) {
+  ExrLayout layout;
+  layout.attributes = {{"cryptomatte/542cafa/name", "ViewLayer.CryptoObject"},
+                       {"cryptomatte/542cafa/manifest", "{\"Cube\":\"a8fce86\"}"}};
+  writeExr(file("badmanifest.exr"), blenderChannels("ViewLayer", 7, 5, false), layout);
+  expectError([&] { readFrame(file("badmanifest.exr")); }, CRISP_ERROR_INVALID_DATA, "badmanifest.exr", "Cube");
+}
+
+TEST_F(IoTest, ManifestFoundByMatteNameWhenKeyDiffers) {
+  // Another writer might key the manifest differently; the name entry links it.
+  ExrLayout layout;
+  layout.attributes = {{"cryptomatte/0000000/name", "ViewLayer.CryptoObject"},
+                       {"cryptomatte/0000000/manifest", "{\"Left\":\"" + hashToHex(cryptomatteHash(kLeft)) + "\"}"}};
+  writeExr(file("otherkey.exr"), blenderChannels("ViewLayer", 7, 5, false), layout);
+  Frame f = readFrame(file("otherkey.exr"));
+  ASSERT_EQ(f.objectIds.size(), 1u);
+  EXPECT_EQ(f.objectIds.at(kLeft), cryptomatteHash(kLeft));
+}
+
+TEST_F(IoTest, DataWindowInsideDisplayWindowIsPlaced) {
+  // Display 7x5; data 3x2 at (2,1): pixels land at their display position and
+  // the rest is background.
+  ExrLayout layout;
+  layout.width = 3;
+  layout.height = 2;
+  layout.x = 2;
+  layout.y = 1;
+  layout.fullWidth = 7;
+  layout.fullHeight = 5;
+  std::vector<Channel> ch = blenderChannels("ViewLayer", 3, 2, false);
+  writeExr(file("window.exr"), ch, layout);
+  Frame f = readFrame(file("window.exr"));
+  ASSERT_EQ(f.width, 7);
+  ASSERT_EQ(f.height, 5);
+  const Image& color = f.pass("color");
+  EXPECT_EQ(color.at(2, 1)[0], pixelValue(0, 0, 0));  // data (0,0)
+  EXPECT_EQ(color.at(4, 2)[1], pixelValue(2, 1, 1));  // data (2,1)
+  EXPECT_EQ(color.at(0, 0)[0], 0.0f);
+  EXPECT_EQ(color.at(0, 0)[3], 0.0f);
+  EXPECT_EQ(color.at(6, 4)[0], 0.0f);
+  EXPECT_TRUE(isBackgroundDepth(*f.pass("depth").at(1, 1)));
+  EXPECT_EQ(*f.pass("depth").at(2, 1), 1.0f);
+  EXPECT_EQ(f.pass("id").uintAt(0, 0), 0u);
+  EXPECT_EQ(f.pass("id").uintAt(2, 1), cryptomatteHash(kLeft));
+}
+
+TEST_F(IoTest, DataWindowLargerThanDisplayIsCropped) {
+  // Overscan: data 9x7 at (-1,-1) around a 7x5 display window.
+  ExrLayout layout;
+  layout.width = 9;
+  layout.height = 7;
+  layout.x = -1;
+  layout.y = -1;
+  layout.fullWidth = 7;
+  layout.fullHeight = 5;
+  writeExr(file("overscan.exr"), blenderChannels("ViewLayer", 9, 7, false), layout);
+  Frame f = readFrame(file("overscan.exr"));
+  ASSERT_EQ(f.width, 7);
+  ASSERT_EQ(f.height, 5);
+  EXPECT_EQ(f.pass("color").at(0, 0)[0], pixelValue(1, 1, 0));
+  EXPECT_EQ(f.pass("color").at(6, 4)[2], pixelValue(7, 5, 2));
+}
+
+TEST_F(IoTest, PlainExrWithZChannel) {
+  std::vector<Channel> ch = {
+      {"R", OIIO::TypeDesc::HALF, [](int x, int y) { return pixelValue(x, y, 0); }},
+      {"G", OIIO::TypeDesc::HALF, [](int x, int y) { return pixelValue(x, y, 1); }},
+      {"B", OIIO::TypeDesc::HALF, [](int x, int y) { return pixelValue(x, y, 2); }},
+      {"Z", OIIO::TypeDesc::FLOAT, [](int x, int) { return x == 0 ? 1e10f : 3.0f; }},
+  };
+  ExrLayout layout;
+  writeExr(file("plainz.exr"), ch, layout);
+  Frame f = readFrame(file("plainz.exr"));
+  EXPECT_EQ(f.passList(), "color,depth");
+  EXPECT_EQ(f.pass("color").at(6, 4)[0], pixelValue(6, 4, 0));  // linear EXR: no decoding
+  EXPECT_EQ(f.pass("color").at(6, 4)[3], 1.0f);
+  EXPECT_TRUE(isBackgroundDepth(*f.pass("depth").at(0, 2)));
+  EXPECT_EQ(*f.pass("depth").at(1, 2), 3.0f);
+}
+
+TEST_F(IoTest, NonFiniteColourIsSanitised) {
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  std::vector<Channel> ch = {
+      {"R", OIIO::TypeDesc::FLOAT, [nan](int x, int) { return x == 0 ? nan : 1.0f; }},
+      {"G", OIIO::TypeDesc::FLOAT, [inf](int x, int) { return x == 0 ? inf : 1.0f; }},
+      {"B", OIIO::TypeDesc::FLOAT, [inf](int x, int) { return x == 0 ? -inf : 1.0f; }},
+  };
+  ExrLayout layout;
+  writeExr(file("nan.exr"), ch, layout);
+  Frame f = readFrame(file("nan.exr"));
+  EXPECT_EQ(f.pass("color").at(0, 0)[0], 0.0f);
+  EXPECT_EQ(f.pass("color").at(0, 0)[1], kMaxColor);
+  EXPECT_EQ(f.pass("color").at(0, 0)[2], -kMaxColor);
+}
+
+TEST_F(IoTest, EightBitPngIsSrgbDecoded) {
+  // An 8-bit file written directly through OIIO: code value v reads as srgbDecode(v/255).
+  const int w = 7, h = 5;
+  auto out = OIIO::ImageOutput::create(file("direct.png"));
+  ASSERT_TRUE(out);
+  OIIO::ImageSpec spec(w, h, 3, OIIO::TypeDesc::UINT8);
+  ASSERT_TRUE(out->open(file("direct.png"), spec));
+  std::vector<unsigned char> px(std::size_t(w * h * 3));
+  for (int i = 0; i < w * h * 3; ++i) px[std::size_t(i)] = (unsigned char)(i * 7 % 256);
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
+  ASSERT_TRUE(out->close());
+  Frame f = readFrame(file("direct.png"));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const int i = (y * w + x) * 3 + c;
+        ASSERT_NEAR(f.pass("color").at(x, y)[c], srgbDecode(float(i * 7 % 256) / 255.0f), 1e-6f) << x << "," << y;
+      }
+  EXPECT_EQ(f.pass("color").at(0, 0)[3], 1.0f);
+}
+
+TEST_F(IoTest, GreyPngBecomesRgb) {
+  auto out = OIIO::ImageOutput::create(file("grey.png"));
+  ASSERT_TRUE(out);
+  OIIO::ImageSpec spec(3, 2, 1, OIIO::TypeDesc::UINT8);
+  ASSERT_TRUE(out->open(file("grey.png"), spec));
+  const unsigned char px[6] = {0, 50, 100, 150, 200, 255};
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px));
+  ASSERT_TRUE(out->close());
+  Frame f = readFrame(file("grey.png"));
+  const float* p = f.pass("color").at(1, 1);  // value 200
+  EXPECT_NEAR(p[0], srgbDecode(200.0f / 255.0f), 1e-6f);
+  EXPECT_EQ(p[0], p[1]);
+  EXPECT_EQ(p[0], p[2]);
+}
+
+// ---------------------------------------------------------------- writing ----
+
+TEST_F(IoTest, ExrRoundTripIsExactAndTopDown) {
+  const int w = 7, h = 5;
+  Image im(w, h, 4);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 4; ++c) im.at(x, y)[c] = pixelValue(x, y, c) * 0.001f - 0.1f;
+  writeImage(file("rgba.exr"), im);
+  Frame f = readFrame(file("rgba.exr"));
+  ASSERT_EQ(f.width, w);
+  ASSERT_EQ(f.height, h);
+  EXPECT_EQ(f.pass("color").data, im.data);
+  EXPECT_TRUE(temporaries().empty());
+
+  // Reading the file with OIIO directly: the first scanline is row 0.
+  auto in = OIIO::ImageInput::open(file("rgba.exr"));
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->spec().nchannels, 4);
+  EXPECT_EQ(in->spec().format, OIIO::TypeDesc::FLOAT);
+  std::vector<float> first(std::size_t(w) * 4);
+  ASSERT_TRUE(in->read_scanline(0, 0, OIIO::TypeDesc::FLOAT, first.data()));
+  EXPECT_EQ(first[0], im.at(0, 0)[0]);
+  EXPECT_EQ(first[4 * 6 + 2], im.at(6, 0)[2]);
+}
+
+TEST_F(IoTest, RgbViewWithPaddedStridesGetsAlphaOne) {
+  // A float3 view inside a larger buffer: 5 floats per pixel, 2 pixels of row padding.
+  const int w = 7, h = 5, pixelFloats = 5, rowFloats = (w + 2) * pixelFloats;
+  std::vector<float> buffer(std::size_t(rowFloats * h), -99.0f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) buffer[std::size_t(y * rowFloats + x * pixelFloats + c)] = pixelValue(x, y, c);
+  ImageView view = makeView(buffer.data(), Format::Float3, w, h, pixelFloats * 4, std::size_t(rowFloats) * 4);
+  writeImage(file("rgb.exr"), view);
+  Frame f = readFrame(file("rgb.exr"));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(f.pass("color").at(x, y)[c], pixelValue(x, y, c));
+      ASSERT_EQ(f.pass("color").at(x, y)[3], 1.0f);
+    }
+}
+
+TEST_F(IoTest, PngRoundTripWithinOneCodeValue) {
+  const int w = 7, h = 5;
+  Image im(w, h, 4);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      float* p = im.at(x, y);
+      p[0] = float(x) / float(w - 1);           // 0..1 across
+      p[1] = float(y) / float(h - 1) * 0.25f;   // dark values, where sRGB is steep
+      p[2] = float(x * h + y) / float(w * h) * 1.5f - 0.2f;  // includes out-of-range values
+      p[3] = 1.0f - float(y) * 0.2f;
+    }
+  writeImage(file("rgba.png"), im);
+  EXPECT_TRUE(temporaries().empty());
+  Frame f = readFrame(file("rgba.png"));
+  ASSERT_EQ(f.width, w);
+  ASSERT_EQ(f.height, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 4; ++c) {
+        const float want = c < 3 ? srgbEncode(im.at(x, y)[c]) : std::clamp(im.at(x, y)[c], 0.0f, 1.0f);
+        const float got = c < 3 ? srgbEncode(f.pass("color").at(x, y)[c]) : f.pass("color").at(x, y)[c];
+        ASSERT_NEAR(got, want, 1.0f / 255.0f) << x << "," << y << "," << c;
+      }
+  // The top row is the first one in the file: alpha 1 there, 0.2 at the bottom.
+  EXPECT_NEAR(f.pass("color").at(3, 0)[3], 1.0f, 1e-6f);
+  EXPECT_NEAR(f.pass("color").at(3, h - 1)[3], 0.2f, 0.5f / 255.0f);
+}
+
+TEST_F(IoTest, WriteReplacesAnExistingFileWhole) {
+  Image a(7, 5, 4, 0.25f), b(3, 2, 4, 0.75f);
+  writeImage(file("out.exr"), a);
+  writeImage(file("out.exr"), b);
+  Frame f = readFrame(file("out.exr"));
+  EXPECT_EQ(f.width, 3);
+  EXPECT_EQ(f.pass("color").at(2, 1)[0], 0.75f);
+  EXPECT_TRUE(temporaries().empty());
+}
+
+TEST_F(IoTest, FailedWritesLeaveNoTraceAndTheOldFileIntact) {
+  Image im(7, 5, 4, 0.5f);
+  // Non-existent folder.
+  const std::string missingDir = file("no/such/dir/out.exr");
+  expectError([&] { writeImage(missingDir, im); }, CRISP_ERROR_IO, missingDir);
+
+  // The target is a directory: OIIO writes the temporary file, the rename fails.
+  fs::create_directory(dir / "adir.exr");
+  expectError([&] { writeImage(file("adir.exr"), im); }, CRISP_ERROR_IO, "adir.exr");
+  EXPECT_TRUE(fs::is_directory(dir / "adir.exr"));
+  EXPECT_TRUE(temporaries().empty());
+
+  // A name near NAME_MAX still writes (the temporary name is shortened).
+  const std::string longName = std::string(240, 'n') + ".exr";
+  writeImage(file(longName), im);
+  EXPECT_EQ(readFrame(file(longName)).pass("color").at(6, 4)[0], 0.5f);
+  EXPECT_TRUE(temporaries().empty());
+
+  // A late failure (after the temporary file is complete, before the rename):
+  // the old file keeps its bytes and the temporary file is removed.
+  for (const char* name : {"late.exr", "late.png"}) {
+    Image old(7, 5, 4, 0.125f);
+    writeImage(file(name), old);
+    const std::vector<char> before = readBytes(file(name));
+    std::string seenTemporary;
+    setWriteImageFaultForTesting([&](const std::string& tmp) {
+      seenTemporary = tmp;
+      EXPECT_TRUE(fs::exists(tmp));
+      ioError("simulated failure writing '" + std::string(name) + "'");
+    });
+    expectError([&] { writeImage(file(name), im); }, CRISP_ERROR_IO, name);
+    setWriteImageFaultForTesting(nullptr);
+    EXPECT_FALSE(seenTemporary.empty());
+    EXPECT_FALSE(fs::exists(seenTemporary));
+    EXPECT_EQ(readBytes(file(name)), before);
+    EXPECT_TRUE(temporaries().empty());
+  }
+
+  // Unknown extension and bad views are refused before touching the disk.
+  writeBytes(file("keep.tif"), {'x', 'y'});
+  expectError([&] { writeImage(file("keep.tif"), im); }, CRISP_ERROR_INVALID_ARGUMENT, "keep.tif");
+  EXPECT_EQ(readBytes(file("keep.tif")), std::vector<char>({'x', 'y'}));
+  Image ids = Image::uintImage(7, 5);
+  expectError([&] { writeImage(file("ids.exr"), ids); }, CRISP_ERROR_INVALID_ARGUMENT, "ids.exr");
+  expectError([&] { writeImage(file("empty.exr"), Image()); }, CRISP_ERROR_INVALID_ARGUMENT, "empty.exr");
+  EXPECT_FALSE(fs::exists(dir / "ids.exr"));
+  EXPECT_TRUE(temporaries().empty());
+}
+
+TEST_F(IoTest, ReadOnlyFolderKeepsTheOldFile) {
+  if (::geteuid() == 0) GTEST_SKIP() << "running as root: folder permissions are not enforced";
+  Image old(7, 5, 4, 0.125f), im(7, 5, 4, 0.5f);
+  writeImage(file("ro.png"), old);
+  const std::vector<char> before = readBytes(file("ro.png"));
+  fs::permissions(dir, fs::perms::owner_read | fs::perms::owner_exec, fs::perm_options::replace);
+  expectError([&] { writeImage(file("ro.png"), im); }, CRISP_ERROR_IO, "ro.png");
+  fs::permissions(dir, fs::perms::owner_all, fs::perm_options::add);
+  EXPECT_EQ(readBytes(file("ro.png")), before);
+  EXPECT_TRUE(temporaries().empty());
+}
+
+// ------------------------------------------------------------ bad files ----
+
+TEST_F(IoTest, MissingEmptyAndNonImageFiles) {
+  expectError([&] { readFrame(file("missing.exr")); }, CRISP_ERROR_IO, file("missing.exr"));
+  writeBytes(file("empty.exr"), {});
+  expectError([&] { readFrame(file("empty.exr")); }, CRISP_ERROR_IO, file("empty.exr"));
+  const std::string text = "this is not an image\n";
+  writeBytes(file("text.exr"), std::vector<char>(text.begin(), text.end()));
+  expectError([&] { readFrame(file("text.exr")); }, CRISP_ERROR_IO, file("text.exr"));
+  writeBytes(file("text.png"), std::vector<char>(text.begin(), text.end()));
+  expectError([&] { readFrame(file("text.png")); }, CRISP_ERROR_IO, file("text.png"));
+  expectError([&] { readFrame(dir.string()); }, CRISP_ERROR_IO, dir.string());
+}
+
+TEST_F(IoTest, TruncatedExrIsAnIoError) {
+  for (const char* compression : {"none", "zip"}) {
+    SCOPED_TRACE(compression);
+    ExrLayout layout;
+    layout.width = 64;
+    layout.height = 48;
+    layout.attributes = blenderManifest();
+    const std::string path = file(std::string("trunc_") + compression + ".exr");
+    writeExr(path, blenderChannels("ViewLayer", 64, 48), layout, compression);
+    ASSERT_NO_THROW(readFrame(path));
+    std::vector<char> bytes = readBytes(path);
+    bytes.resize(bytes.size() / 2);
+    writeBytes(path, bytes);
+    expectError([&] { readFrame(path); }, CRISP_ERROR_IO, path);
+    // The header alone, cut inside the line offset table.
+    bytes.resize(bytes.size() / 8);
+    writeBytes(path, bytes);
+    try {
+      readFrame(path);
+      ADD_FAILURE() << "read a file cut to " << bytes.size() << " bytes";
+    } catch (const Exception& e) {
+      EXPECT_TRUE(e.code() == CRISP_ERROR_IO || e.code() == CRISP_ERROR_INVALID_DATA) << e.what();
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(OIIO::has_error());
+  }
+}
+
+TEST_F(IoTest, CorruptBytesAreAnError) {
+  ExrLayout layout;
+  layout.width = 64;
+  layout.height = 48;
+  const std::string path = file("corrupt.exr");
+  writeExr(path, blenderChannels("ViewLayer", 64, 48), layout, "zip");
+  const std::vector<char> good = readBytes(path);
+
+  // Compressed pixel data overwritten: decompression fails.
+  std::vector<char> bytes = good;
+  for (std::size_t i = bytes.size() / 2; i < bytes.size() / 2 + 2000 && i < bytes.size(); ++i) bytes[i] = char(i * 37);
+  writeBytes(path, bytes);
+  expectError([&] { readFrame(path); }, CRISP_ERROR_IO, path);
+
+  // Magic number destroyed: not recognised as an image at all.
+  bytes = good;
+  bytes[0] = 'X';
+  bytes[1] = 'Y';
+  writeBytes(path, bytes);
+  expectError([&] { readFrame(path); }, CRISP_ERROR_IO, path);
+}
+
+// Finds an EXR box2i attribute ("dataWindow"/"displayWindow") in the header.
+std::size_t findBoxAttribute(const std::vector<char>& bytes, const std::string& name) {
+  const std::string key = name + std::string(1, '\0') + "box2i" + std::string(1, '\0');
+  auto it = std::search(bytes.begin(), bytes.end(), key.begin(), key.end());
+  if (it == bytes.end()) return 0;
+  return std::size_t(it - bytes.begin()) + key.size() + 4;  // skip the int32 size
+}
+
+TEST_F(IoTest, AbsurdAndZeroSizesAreRefused) {
+  ExrLayout layout;
+  const std::string path = file("size.exr");
+  writeExr(path, blenderChannels("ViewLayer", 7, 5), layout);
+  const std::vector<char> good = readBytes(path);
+  const std::size_t data = findBoxAttribute(good, "dataWindow"), display = findBoxAttribute(good, "displayWindow");
+  ASSERT_NE(data, 0u);
+  ASSERT_NE(display, 0u);
+  auto patch = [&](std::vector<char>& b, std::size_t at, std::int32_t xmax, std::int32_t ymax) {
+    std::memcpy(&b[at + 8], &xmax, 4);  // box2i = xmin, ymin, xmax, ymax (little-endian int32)
+    std::memcpy(&b[at + 12], &ymax, 4);
+  };
+  for (auto [xmax, ymax] : {std::pair<std::int32_t, std::int32_t>{999999, 999999}, {2000000000, 4}, {6, -5}}) {
+    SCOPED_TRACE(std::to_string(xmax) + "x" + std::to_string(ymax));
+    std::vector<char> bytes = good;
+    patch(bytes, data, xmax, ymax);
+    patch(bytes, display, xmax, ymax);
+    writeBytes(path, bytes);
+    try {
+      readFrame(path);
+      ADD_FAILURE() << "accepted a forged size";
+    } catch (const Exception& e) {
+      EXPECT_TRUE(e.code() == CRISP_ERROR_IO || e.code() == CRISP_ERROR_INVALID_DATA) << e.what();
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(OIIO::has_error());
+  }
+}
+
+// ---------------------------------------------------------- Cryptomatte ----
+
+TEST(Cryptomatte, MurmurHash3ReferenceVectors) {
+  // Published MurmurHash3_x86_32 test vectors (SMHasher verification set).
+  EXPECT_EQ(murmurHash3_x86_32("", 0, 0), 0u);
+  EXPECT_EQ(murmurHash3_x86_32("", 0, 1), 0x514e28b7u);
+  EXPECT_EQ(murmurHash3_x86_32("", 0, 0xffffffffu), 0x81f16f39u);
+  EXPECT_EQ(murmurHash3_x86_32("\0\0\0\0", 4, 0), 0x2362f9deu);
+  EXPECT_EQ(murmurHash3_x86_32("aaaa", 4, 0x9747b28cu), 0x5a97808au);
+  EXPECT_EQ(murmurHash3_x86_32("The quick brown fox jumps over the lazy dog", 43, 0x9747b28cu), 0x2fa826cdu);
+}
+
+TEST(Cryptomatte, MatchesARealBlenderManifest) {
+  // Blender 3.4.1, default cube: manifest {"Cube":"a8fce865"} under the key
+  // "cryptomatte/542cafa/" for the matte "ViewLayer.CryptoObject".
+  EXPECT_EQ(hashToHex(cryptomatteHash("Cube")), "a8fce865");
+  EXPECT_EQ(cryptomatteKeyPrefix("ViewLayer.CryptoObject"), "cryptomatte/542cafa/");
+}
+
+TEST(Cryptomatte, HashIsAlwaysANormalFloat) {
+  int tweaked = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const std::string name = "Object." + std::to_string(i);
+    const std::uint32_t raw = murmurHash3_x86_32(name.data(), name.size(), 0);
+    const std::uint32_t h = cryptomatteHash(name);
+    const std::uint32_t e = (raw >> 23) & 0xffu;
+    if (e == 0 || e == 255) {
+      ++tweaked;
+      EXPECT_EQ(h, raw ^ (1u << 23)) << name;
+    } else {
+      EXPECT_EQ(h, raw) << name;
+    }
+    ASSERT_TRUE(std::isnormal(cryptomatteHashToFloat(h))) << name;
+  }
+  EXPECT_GT(tweaked, 0);  // 2/256 of names need the tweak: the branch is exercised
+}
+
+TEST(Cryptomatte, ManifestParser) {
+  auto m = parseCryptomatteManifest(
+      " { \"Cube\" : \"a8fce865\", \"Say \\\"hi\\\"\\\\\":\"0000000A\",\n\"caf\\u00e9 \\ud83d\\ude00\":\"ffffffff\" } ");
+  ASSERT_EQ(m.size(), 3u);
+  EXPECT_EQ(m.at("Cube"), 0xa8fce865u);
+  EXPECT_EQ(m.at("Say \"hi\"\\"), 0x0000000au);
+  EXPECT_EQ(m.at("caf\xc3\xa9 \xf0\x9f\x98\x80"), 0xffffffffu);
+  EXPECT_TRUE(parseCryptomatteManifest("{}").empty());
+  for (const char* bad : {"", "[]", "{", "{\"a\"}", "{\"a\":1}", "{\"a\":\"xyz\"}", "{\"a\":\"123456789\"}",
+                          "{\"a\":\"00000000\",}", "{\"a\":\"00000000\"} x", "{\"\\ud800\":\"00000000\"}",
+                          "{\"a\\q\":\"00000000\"}"}) {
+    try {
+      parseCryptomatteManifest(bad);
+      ADD_FAILURE() << "accepted: " << bad;
+    } catch (const Exception& e) {
+      EXPECT_EQ(e.code(), CRISP_ERROR_INVALID_DATA) << bad;
+    }
+  }
+}
