@@ -72,6 +72,10 @@ class Snapshot:
         self._saved = []
         self._seen = set()
 
+    def remember(self, owner, attr):
+        """Records a value that setting another property may change as a side effect."""
+        self.set(owner, attr, getattr(owner, attr))
+
     def set(self, owner, attr, value):
         key = (owner.as_pointer() if hasattr(owner, "as_pointer") else id(owner), attr)
         if key not in self._seen:
@@ -85,17 +89,23 @@ class Snapshot:
         return self
 
     def restore(self):
-        errors = []
-        for owner, attr, value in reversed(self._saved):
-            try:
-                if getattr(owner, attr) != value:
-                    setattr(owner, attr, value)
-            except Exception as e:  # keep restoring the rest
-                errors.append("%s: %s" % (attr, e))
+        """Puts every value back. Two passes: some values are only valid once another one is back
+        (an 8-bit colour depth is refused while the file format is still EXR)."""
+        errors = {}
+        for _ in range(2):
+            errors.clear()
+            for owner, attr, value in reversed(self._saved):
+                try:
+                    if getattr(owner, attr) != value:
+                        setattr(owner, attr, value)
+                except Exception as e:  # keep restoring the rest
+                    errors[attr] = str(e)
+        errors.update({attr: "still %r, not %r" % (getattr(o, attr), v) for o, attr, v in self._saved
+                       if attr not in errors and getattr(o, attr) != v})
         self._saved.clear()
         self._seen.clear()
         self.scene.frame_set(self._frame[0], subframe=self._frame[1])
-        return errors
+        return ["%s: %s" % kv for kv in errors.items()]
 
     def __exit__(self, *exc):
         errors = self.restore()
@@ -226,6 +236,8 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
     snap.set(r, "use_stamp", False)
     snap.set(r, "use_border", False)
     snap.set(r, "use_file_extension", False)
+    for attr in ("color_depth", "exr_codec", "color_mode"):  # file_format changes them as a side effect
+        snap.remember(r.image_settings, attr)
     snap.set(r.image_settings, "file_format", file_format)
     snap.set(r.image_settings, "color_depth", "32")
     snap.set(r.image_settings, "exr_codec", "NONE")

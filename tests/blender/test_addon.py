@@ -1,0 +1,204 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""The add-on inside Blender: register/unregister, library status, the pass plan of every test scene
+for every method, scene state restored after a render and after an error mid-render, the compositor
+node group, and in-process bad input (no camera, empty range) touching nothing of the user's."""
+
+import os
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import harness  # noqa: E402
+
+import bpy  # noqa: E402
+import crisp  # noqa: E402
+from crisp import native, pipeline, plan, render  # noqa: E402
+
+# What each scene is, by construction (see each scene's docstring): which kind of motion, how many
+# objects are visible. The expected plans below follow from these facts and METHODS.md.
+STATIC, ONE_MOVING, CAMERA, OBJECT_AMONG_MANY = "static", "one-moving", "camera", "object-among-many"
+SCENE_KIND = {"still_life": STATIC, "spinning_cube": ONE_MOVING, "camera_dolly": CAMERA,
+              "ghosting": OBJECT_AMONG_MANY, "hairball": ONE_MOVING, "foliage": OBJECT_AMONG_MANY, "shiny": STATIC}
+# Expected logical passes on EEVEE 3.4 (no Vector pass: motion is reconstructed from depth (+ ids)).
+EXPECTED = {
+    "none": {k: ["color"] for k in (STATIC, ONE_MOVING, CAMERA, OBJECT_AMONG_MANY)},
+    "fxaa": {k: ["color"] for k in (STATIC, ONE_MOVING, CAMERA, OBJECT_AMONG_MANY)},
+    "repair": {k: ["color"] for k in (STATIC, ONE_MOVING, CAMERA, OBJECT_AMONG_MANY)},
+    "taa": {STATIC: ["color"], ONE_MOVING: ["color", "depth", "motion"], CAMERA: ["color", "depth", "motion"],
+            OBJECT_AMONG_MANY: ["color", "depth", "motion", "id"]},
+    "taa-improved": {STATIC: ["color", "depth", "id", "albedo"],
+                     ONE_MOVING: ["color", "depth", "motion", "albedo"],
+                     CAMERA: ["color", "depth", "motion", "id", "albedo"],
+                     OBJECT_AMONG_MANY: ["color", "depth", "motion", "id", "albedo"]},
+    "phlm": {STATIC: ["color"], ONE_MOVING: ["color", "depth", "motion"], CAMERA: ["color", "depth", "motion"],
+             OBJECT_AMONG_MANY: ["color", "depth", "motion", "id"]},
+    "rsaa": {k: ["color", "depth", "normal", "subsamples"] for k in (STATIC, ONE_MOVING, CAMERA, OBJECT_AMONG_MANY)},
+}
+
+
+def touched_state(scene):
+    """Every property the renderer may change, to compare before/after."""
+    vl = scene.view_layers[0]
+    r = scene.render
+    cam = scene.camera.data if scene.camera else None
+    state = {"engine": r.engine, "samples": scene.eevee.taa_render_samples,
+             "cubemap": scene.eevee.gi_cubemap_resolution, "filepath": r.filepath, "format": r.image_settings.file_format,
+             "depth": r.image_settings.color_depth, "codec": r.image_settings.exr_codec, "frame": scene.frame_current,
+             "compositing": r.use_compositing, "ext": r.use_file_extension, "stamp": r.use_stamp,
+             "single": r.use_single_layer, "override": vl.material_override,
+             "passes": {p.identifier: getattr(vl, p.identifier) for p in vl.bl_rna.properties
+                        if p.identifier.startswith("use_pass_")}}
+    if cam:
+        state["shift"] = (cam.shift_x, cam.shift_y)
+    return state
+
+
+class AddonTest(unittest.TestCase):
+    def test_register_unregister(self):
+        crisp.register()
+        try:
+            self.assertTrue(hasattr(bpy.types.Scene, "crisp"))
+            self.assertTrue(hasattr(bpy.ops.crisp, "render"))
+            self.assertIn("CRISP_PT_render", dir(bpy.types))
+            s = bpy.context.scene.crisp
+            self.assertEqual(s.reference_samples, 256)
+            s.method = "fxaa"
+            self.assertEqual(s.method, "fxaa")
+        finally:
+            crisp.unregister()
+        self.assertFalse(hasattr(bpy.types.Scene, "crisp"))
+        self.assertNotIn("CRISP_PT_render", dir(bpy.types))
+        crisp.register()  # twice in a row must work too
+        crisp.unregister()
+
+    def test_missing_library_still_registers_and_says_why(self):
+        saved_lib, saved_env = native._lib, os.environ.get("CRISP_LIBRARY")
+        native._lib = None
+        os.environ["CRISP_LIBRARY"] = "/nonexistent/libcrisp.so"
+        try:
+            crisp.register()
+            ok, text = native.status()
+            self.assertFalse(ok)
+            self.assertIn("/nonexistent/libcrisp.so", text)
+            # The method menu falls back to the static list.
+            from crisp import properties
+            names = [i[0] for i in properties.method_items(None, bpy.context)]
+            self.assertEqual(names, list(plan.METHOD_PASSES))
+            with self.assertRaises(native.CrispError):
+                native.filter_types()
+            crisp.unregister()
+        finally:
+            native._lib = saved_lib
+            if saved_env is None:
+                os.environ.pop("CRISP_LIBRARY", None)
+            else:
+                os.environ["CRISP_LIBRARY"] = saved_env
+
+    def test_plan_of_every_scene_for_every_method(self):
+        for name in harness.SCENES:
+            scene = harness.build_scene(name)
+            frames = list(range(scene.frame_start, scene.frame_end + 1))
+            kind = SCENE_KIND[name]
+            for method in plan.METHOD_PASSES:
+                with self.subTest(scene=name, method=method):
+                    p, facts = pipeline.scene_plan(scene, method, frames)
+                    self.assertEqual(p.passes, EXPECTED[method][kind], p.describe())
+                    for q in p.passes:
+                        self.assertTrue(p.reasons[q], "no reason for %s" % q)
+                    self.assertNotIn("use_pass_vector", p.render_flags(), "EEVEE 3.4 writes no Vector pass")
+                    self.assertEqual(p.jitter, method in plan.TEMPORAL_METHODS)
+                    if "motion" in p.passes:
+                        self.assertEqual(p.motion_source, "reconstruct")
+                    if "motion" in p.skipped and method in plan.TEMPORAL_METHODS:
+                        self.assertIn("nothing moves", p.skipped["motion"])
+            self.assertEqual(scene.frame_current, scene.frame_start, "planning must restore the frame")
+
+    def test_shiny_moving_light_needs_no_motion(self):
+        scene = harness.build_scene("shiny")
+        lamp = scene.objects["Lamp"]
+        scene.frame_set(1)
+        a = lamp.matrix_world.translation.copy()
+        scene.frame_set(scene.frame_end)
+        self.assertGreater((lamp.matrix_world.translation - a).length, 1.0, "the light really moves")
+        p, _ = pipeline.scene_plan(scene, "taa", list(range(1, scene.frame_end + 1)))
+        self.assertNotIn("motion", p.passes)
+
+    def test_state_restored_after_render_and_after_error(self):
+        scene = harness.build_scene("spinning_cube")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        scene.render.filepath = "//user_path_"
+        scene.camera.data.shift_x = 0.01
+        scene.view_layers[0].use_pass_mist = True
+        scene.frame_set(5)
+        before = touched_state(scene)
+        the_plan = plan.make_plan("taa-improved", plan.scene_facts(scene, 1, 3))
+        with tempfile.TemporaryDirectory() as d:
+            render.render_frames(scene, the_plan, [1, 2], d)
+            self.assertEqual(touched_state(scene), before)
+            self.assertEqual(sorted(f for f in os.listdir(d) if f.endswith(".exr")), ["frame_0001.exr", "frame_0002.exr"])
+
+            class Boom(Exception):
+                pass
+
+            def explode(frame, info):
+                raise Boom("mid-render failure")
+            with self.assertRaises(Boom):
+                render.render_frames(scene, the_plan, [1, 2, 3], os.path.join(d, "b"), on_frame=explode)
+            self.assertEqual(touched_state(scene), before)
+            # cancel after the first frame: the rest is not rendered, settings are back
+            calls = []
+            render.render_frames(scene, the_plan, [1, 2, 3], os.path.join(d, "c"),
+                                 should_cancel=lambda: calls.append(1) or len(calls) > 1)
+            self.assertEqual(touched_state(scene), before)
+            self.assertEqual(sorted(f for f in os.listdir(os.path.join(d, "c")) if f.endswith(".exr")),
+                             ["frame_0001.exr"])
+
+    def test_no_camera_and_empty_range_touch_nothing(self):
+        scene = harness.build_scene("still_life")
+        before_state = touched_state(scene)
+        with tempfile.TemporaryDirectory() as d:
+            out = os.path.join(d, "out")
+            with self.assertRaisesRegex(pipeline.InputError, "empty"):
+                pipeline.run(scene, "fxaa", pipeline.parse_frames("5-3", scene), out, filter_frames=False)
+            cam = scene.camera
+            scene.camera = None
+            try:
+                with self.assertRaisesRegex(pipeline.InputError, "no camera"):
+                    pipeline.run(scene, "fxaa", range(1, 3), out, filter_frames=False)
+            finally:
+                scene.camera = cam
+            with self.assertRaisesRegex(pipeline.InputError, "unknown method 'smaa'"):
+                pipeline.run(scene, "smaa", range(1, 3), out, filter_frames=False)
+            self.assertFalse(os.path.exists(out), "nothing written on bad input")
+        self.assertEqual(touched_state(scene), before_state)
+
+    def test_compositor_node_group(self):
+        scene = harness.build_scene("still_life")
+        with tempfile.TemporaryDirectory() as d:
+            # two stand-in filtered frames (plain PNGs written by Blender itself)
+            img = bpy.data.images.new("stand_in", 8, 4)
+            img.pixels[:] = [0.5] * (8 * 4 * 4)
+            for f in (3, 4):
+                img.filepath_raw = os.path.join(d, "frame_%04d.png" % f)
+                img.file_format = "PNG"
+                img.save()
+            node = crisp.compositor.load_result(scene, d, 3, 4, ext=".png")
+            group = bpy.data.node_groups["Crisp Result"]
+            self.assertEqual(node.node_tree, group)
+            self.assertTrue(scene.use_nodes)
+            frames = group.nodes["Crisp Frames"]
+            self.assertEqual(frames.image.source, "SEQUENCE")
+            self.assertEqual(frames.frame_duration, 2)
+            self.assertEqual(frames.frame_start, 3)
+            self.assertEqual(bpy.path.abspath(frames.image.filepath), os.path.join(d, "frame_0003.png"))
+            out = group.nodes["Group Output"]
+            self.assertTrue(out.inputs["Image"].is_linked)
+            # loading again reuses the group and the node
+            crisp.compositor.load_result(scene, d, 3, 4, ext=".png")
+            self.assertEqual(len([n for n in scene.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]), 1)
+            self.assertEqual(crisp.compositor.preview(os.path.join(d, "frame_0004.png")).size[:], (8, 4))
+
+
+if __name__ == "__main__":
+    harness.run(AddonTest)

@@ -1,0 +1,111 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""Sub-pixel jitter, measured: an orthographic camera looks at an emissive plane whose colour is its
+own position (R = x, G = y, linear ramps). At 1 sample a pixel's value is the ramp at its sample
+point, so (jittered - unjittered) / (ramp step per pixel) is the sample shift in pixels, to ~1e-4 px.
+Checks both jitter distributions, the sign convention (x right, y up) and the sidecar records."""
+
+import json
+import os
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import harness  # noqa: E402
+
+import bpy  # noqa: E402
+import common  # noqa: E402  (test_scenes/common.py)
+import exr_util  # noqa: E402
+from crisp import plan, render  # noqa: E402
+
+W, H = 64, 36
+
+
+def ramp_scene():
+    scene = common.reset(1, 8, (W, H))
+    common.world((0, 0, 0))
+    mat = bpy.data.materials.new("Ramp")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    nodes.remove(nodes["Principled BSDF"])
+    coords = nodes.new("ShaderNodeTexCoord")
+    em = nodes.new("ShaderNodeEmission")
+    links.new(coords.outputs["Generated"], em.inputs["Color"])
+    links.new(em.outputs["Emission"], nodes["Material Output"].inputs["Surface"])
+    common.mesh_object("Ramp", "plane", mat, size=4.0)
+    cam = common.camera((0, 0, 5), (0, 0, 0), ortho_scale=2.0)
+    cam.rotation_euler = (0, 0, 0)  # looking down -Z, image x = world x, image up = world y
+    return scene
+
+
+def channel(data, name):
+    key = next(k for k in data if k.endswith("Combined." + name))
+    return data[key]
+
+
+def measure(plain, jittered):
+    """Mean sample shift (dx, dy) in pixels from the two ramps, over interior pixels."""
+    r0, g0, r1, g1 = channel(plain, "R"), channel(plain, "G"), channel(jittered, "R"), channel(jittered, "G")
+    step_x = sum(r0[y * W + x + 1] - r0[y * W + x] for y in range(H) for x in range(W - 1)) / (H * (W - 1))
+    # rows are top-down in the file: the row above has the larger y
+    step_y = sum(g0[y * W + x] - g0[(y + 1) * W + x] for y in range(H - 1) for x in range(W)) / ((H - 1) * W)
+    inner = [y * W + x for y in range(2, H - 2) for x in range(2, W - 2)]
+    dx = sum(r1[i] - r0[i] for i in inner) / len(inner) / step_x
+    dy = sum(g1[i] - g0[i] for i in inner) / len(inner) / step_y
+    return dx, dy
+
+
+class JitterTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.scene = ramp_scene()
+        cls.tmp = tempfile.TemporaryDirectory()
+        facts = plan.scene_facts(cls.scene, 1, 3)
+        still = plan.make_plan("none", facts)
+        render.render_frames(cls.scene, still, [1], os.path.join(cls.tmp.name, "plain"))
+        cls.plain = exr_util.read(os.path.join(cls.tmp.name, "plain", "frame_0001.exr"))[1]
+        cls.jittered_plan = plan.make_plan("taa", facts)
+        assert cls.jittered_plan.jitter
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def check(self, distribution, frames):
+        out = os.path.join(self.tmp.name, distribution)
+        render.render_frames(self.scene, self.jittered_plan, frames, out, jitter_distribution=distribution)
+        for f in frames:
+            want_x, want_y, index = render.jitter_offset(f, distribution, self.scene.render.filter_size)
+            self.assertGreater(abs(want_x) + abs(want_y), 0.05, "a jitter worth measuring")
+            got_x, got_y = measure(self.plain, exr_util.read(os.path.join(out, "frame_%04d.exr" % f))[1])
+            with self.subTest(distribution=distribution, frame=f):
+                self.assertAlmostEqual(got_x, want_x, delta=0.01)
+                self.assertAlmostEqual(got_y, want_y, delta=0.01)
+            with open(os.path.join(out, "frame_%04d.json" % f)) as fh:
+                side = json.load(fh)
+            self.assertEqual(side["frame"], f)
+            self.assertEqual(side["jitter"]["distribution"], distribution)
+            self.assertEqual(side["jitter"]["index"], index)
+            self.assertAlmostEqual(side["jitter"]["x"], want_x, places=9)
+            # Orthographic projection: the jitter shifts NDC x by 2 dx / W (ortho uses m[0][3]).
+            p, q = side["camera"]["projection"], side["camera"]["projection_unjittered"]
+            self.assertAlmostEqual(abs(p[0][3] - q[0][3]), abs(2 * want_x / W), places=5)
+        self.assertEqual((self.scene.camera.data.shift_x, self.scene.camera.data.shift_y), (0.0, 0.0))
+
+    def test_uniform_halton(self):
+        self.check("uniform", [1, 2])
+
+    def test_blackman_harris_halton(self):
+        self.check("blackman-harris", [3, 4])
+
+    def test_halton_points(self):
+        self.assertEqual([render.halton(i, 2) for i in (1, 2, 3)], [0.5, 0.25, 0.75])
+        self.assertAlmostEqual(render.halton(1, 3), 1 / 3)
+        # Blackman-Harris offsets stay within half the window and have zero mean over the period.
+        xs = [render.jitter_offset(f, "blackman-harris", 1.5)[0] for f in range(16)]
+        self.assertLess(max(abs(x) for x in xs), 0.75)
+        self.assertLess(abs(sum(xs) / 16), 0.05)
+
+
+if __name__ == "__main__":
+    harness.run(JitterTest)

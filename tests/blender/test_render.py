@@ -1,0 +1,161 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""batch.py end to end in fresh Blender processes (as `crisp render` runs it): files, passes in the
+EXRs (through the library, cross-checked with a minimal EXR reader), sidecars, run.json, filtered
+output; and bad input (no camera, empty range, unwritable output, unknown method, missing library)
+giving clear errors with a non-zero exit code and leaving the user's .blend untouched."""
+
+import hashlib
+import json
+import os
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import harness  # noqa: E402
+
+import bpy  # noqa: E402
+import exr_util  # noqa: E402
+from crisp import hashing, native, render  # noqa: E402
+
+LIB_OK, LIB_WHY = harness.library_usable()
+
+
+def files(d):
+    return sorted(os.listdir(d)) if os.path.isdir(d) else []
+
+
+class BatchTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    @unittest.skipUnless(LIB_OK, "library not usable: " + LIB_WHY)
+    def test_spatial_method_end_to_end(self):
+        out = os.path.join(self.tmp.name, "fxaa")
+        rc, log = harness.blender_batch(["--scene-script", "still_life", "--frames", "1-2", "--method", "fxaa",
+                                         "--resolution", "96x54", "-o", out], env={"CRISP_LIBRARY": harness.LIBRARY})
+        self.assertEqual(rc, 0, log[-3000:])
+        self.assertEqual(files(os.path.join(out, "input")),
+                         ["frame_0001.exr", "frame_0001.json", "frame_0002.exr", "frame_0002.json"])
+        self.assertEqual(files(os.path.join(out, "filtered")),
+                         ["frame_0001.exr", "frame_0001.png", "frame_0002.exr", "frame_0002.png"])
+        with open(os.path.join(out, "run.json")) as f:
+            run = json.load(f)
+        self.assertEqual(run["blender_version"], bpy.app.version_string)
+        self.assertEqual(run["method"], "fxaa")
+        self.assertEqual(run["plan"]["passes"], ["color"])
+        self.assertIn("color", run["plan"]["reasons"])
+        self.assertEqual([fr["frame"] for fr in run["frames"]], [1, 2])
+        for fr in run["frames"]:
+            self.assertGreater(fr["render_s"], 0)
+            self.assertGreaterEqual(fr["filter_s"], 0)
+        with native.Context() as ctx:
+            for f in (1, 2):
+                with native.Frame(ctx, os.path.join(out, "input", "frame_%04d.exr" % f)) as fr:
+                    self.assertEqual((fr.width, fr.height), (96, 54))
+                    self.assertEqual(fr.passes(), ["color"])  # only the planned pass was rendered
+                    color, _ = fr.pass_values("color")
+                with native.Frame(ctx, os.path.join(out, "filtered", "frame_%04d.exr" % f)) as filt:
+                    self.assertEqual((filt.width, filt.height), (96, 54))
+                    out_color, _ = filt.pass_values("color")
+                self.assertNotEqual(color, out_color, "FXAA changed nothing")
+                diff = sum(abs(a - b) for a, b in zip(color, out_color)) / len(color)
+                self.assertLess(diff, 0.1, "FXAA output far from its input")
+
+    def test_passes_and_sidecars_of_a_temporal_plan(self):
+        """ghosting + taa-improved on EEVEE 3.4: colour, depth, ID, albedo, no Vector (reconstructed
+        later), jitter on; Cryptomatte hashes of the sidecar = the EXR manifest = the ID pass."""
+        out = os.path.join(self.tmp.name, "taai")
+        rc, log = harness.blender_batch(["--scene-script", "ghosting", "--frames", "3-4", "--method", "taa-improved",
+                                         "--resolution", "96x54", "--no-filter", "-o", out])
+        self.assertEqual(rc, 0, log[-3000:])
+        for f in (3, 4):
+            exr = os.path.join(out, "input", "frame_%04d.exr" % f)
+            names, header = exr_util.channels(exr)
+            layers = {n.split(".")[1] for n in names}
+            self.assertEqual(layers, {"Combined", "Depth", "CryptoObject00", "DiffCol"}, names)
+            with open(os.path.join(out, "input", "frame_%04d.json" % f)) as fh:
+                side = json.load(fh)
+            self.assertEqual(side["frame"], f)
+            self.assertTrue(side["jitter"]["enabled"])
+            want = render.jitter_offset(f, "blackman-harris", side["render_settings"]["filter_size"])
+            self.assertAlmostEqual(side["jitter"]["x"], want[0])
+            self.assertEqual(side["render_settings"]["samples"], 1)
+            self.assertEqual(side["render_settings"]["gi_cubemap_resolution"], "64")
+            self.assertEqual(side["blender_version"], bpy.app.version_string)
+            names_by_hash = {h: o["name"] for h, o in side["objects"].items()}
+            self.assertEqual(sorted(names_by_hash.values()), ["Sphere", "Wall"])
+            manifest_key = next(k for k in header if k.startswith("cryptomatte/") and k.endswith("/manifest"))
+            manifest = json.loads(header[manifest_key])
+            self.assertEqual({n: h for n, h in manifest.items()}, {n: h for h, n in names_by_hash.items()})
+            # sphere moved between the frames, the wall did not
+            if f == 4:
+                prev = json.load(open(os.path.join(out, "input", "frame_0003.json")))
+                sph = hashing.cryptomatte_hex("Sphere")
+                wall = hashing.cryptomatte_hex("Wall")
+                self.assertNotEqual(prev["objects"][sph]["matrix_world"], side["objects"][sph]["matrix_world"])
+                self.assertEqual(prev["objects"][wall]["matrix_world"], side["objects"][wall]["matrix_world"])
+            if LIB_OK:
+                with native.Context() as ctx, native.Frame(ctx, exr) as fr:
+                    self.assertEqual(sorted(fr.passes()), ["albedo", "color", "depth", "id"])
+                    ids, _ = fr.pass_values("id")
+                    known = {int(h, 16) for h in names_by_hash} | {0}
+                    self.assertTrue(set(ids) <= known, set(ids) - known)
+                    self.assertEqual(set(ids) - {0}, {int(h, 16) for h in names_by_hash})
+        with open(os.path.join(out, "run.json")) as fh:
+            run = json.load(fh)
+        self.assertEqual(run["plan"]["motion_source"], "reconstruct")
+        self.assertNotIn("filter_s", run["frames"][0])
+
+    def test_bad_inputs_clear_errors_user_file_untouched(self):
+        blend = os.path.join(self.tmp.name, "user.blend")
+        harness.build_scene("still_life")
+        bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+        digest = hashlib.sha256(open(blend, "rb").read()).hexdigest()
+        mtime = os.stat(blend).st_mtime_ns
+        nocam = os.path.join(self.tmp.name, "nocam.py")
+        with open(nocam, "w") as f:
+            f.write("import bpy\nfor o in list(bpy.data.objects):\n    bpy.data.objects.remove(o)\n"
+                    "bpy.ops.mesh.primitive_cube_add()\n")
+        blocker = os.path.join(self.tmp.name, "a_file")
+        open(blocker, "w").close()
+        out = os.path.join(self.tmp.name, "bad_out")
+        cases = [
+            (["--frames", "1-2", "--scene-script", nocam, "-o", out], None, 2, "no camera"),
+            (["--frames", "5-3", "-o", out], blend, 2, "frame range 5-3 is empty"),
+            (["--frames", "1-2", "-o", os.path.join(blocker, "out")], blend, 2, "is not writable"),
+            (["--frames", "1-2", "--method", "smaa", "-o", out], blend, 2, "unknown method 'smaa'"),
+            (["--frames", "1-2", "--library", "/nonexistent/libcrisp.so", "-o", out], blend, 3,
+             "/nonexistent/libcrisp.so: no such file"),
+            (["--frames", "1-2", "--resolution", "big", "-o", out], blend, 2, "bad --resolution"),
+        ]
+        for args, opened, code, message in cases:
+            with self.subTest(args=args):
+                rc, log = harness.blender_batch(args, blend=opened)
+                self.assertEqual(rc, code, log[-2000:])
+                self.assertIn("crisp: error: ", log)
+                self.assertIn(message, log)
+                self.assertFalse(os.path.exists(out) and files(out), "output written on bad input")
+        self.assertEqual(hashlib.sha256(open(blend, "rb").read()).hexdigest(), digest)
+        self.assertEqual(os.stat(blend).st_mtime_ns, mtime)
+        self.assertFalse(os.path.exists(blend + "1"), "no .blend1 backup: the file was never saved")
+
+    def test_plan_only_prints_reasons(self):
+        out = os.path.join(self.tmp.name, "plan")
+        rc, log = harness.blender_batch(["--scene-script", "camera_dolly", "--method", "taa", "--plan-only", "-o", out])
+        self.assertEqual(rc, 0, log[-2000:])
+        self.assertIn("+ motion", log)
+        self.assertIn("the camera move", log)
+        self.assertEqual(files(out), ["run.json"])
+        run = json.load(open(os.path.join(out, "run.json")))
+        self.assertEqual(run["plan"]["passes"], ["color", "depth", "motion"])
+        self.assertEqual(run["frames"], [])
+
+
+if __name__ == "__main__":
+    harness.run(BatchTest)

@@ -1,0 +1,103 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Plain-Python tests of the add-on's pass plan (addon/crisp/plan.py) and Cryptomatte hashing
+(addon/crisp/hashing.py): no Blender needed."""
+
+import os
+import sys
+
+import pytest
+
+SOURCE = os.environ.get("CRISP_SOURCE_DIR") or os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.join(SOURCE, "addon", "crisp"))
+
+import hashing  # noqa: E402
+import plan  # noqa: E402
+
+
+def facts(**kw):
+    base = dict(frame_start=1, frame_end=10, visible_objects=["A", "B", "C"])
+    base.update(kw)
+    return plan.SceneFacts(**base)
+
+
+def test_spatial_methods_read_colour_only_whatever_moves():
+    for method in ("none", "fxaa", "repair"):
+        p = plan.make_plan(method, facts(camera_moves=True, moving_objects=["A"]))
+        assert p.passes == ["color"]
+        assert not p.jitter
+        assert p.render_flags() == ["use_pass_combined"]
+        assert set(p.skipped) == {"depth", "normal", "motion", "id", "albedo", "subsamples"}
+
+
+def test_static_scene_drops_motion_and_taa_depth():
+    p = plan.make_plan("taa", facts())
+    assert p.passes == ["color"]
+    assert "nothing moves" in p.skipped["motion"]
+    assert "depth" in p.skipped
+    assert p.jitter  # temporal methods still need sub-pixel jitter to accumulate
+
+
+def test_renderer_vector_pass_is_used_when_it_exists():
+    p = plan.make_plan("phlm", facts(moving_objects=["A"], renderer_motion_pass=True))
+    assert p.passes == ["color", "motion"]
+    assert p.motion_source == "renderer"
+    assert "use_pass_vector" in p.render_flags()
+
+
+def test_reconstruction_adds_depth_and_ids_only_when_needed():
+    # object motion among several objects: depth + id
+    p = plan.make_plan("phlm", facts(moving_objects=["B"]))
+    assert p.passes == ["color", "depth", "motion", "id"]
+    assert p.motion_source == "reconstruct"
+    assert "use_pass_vector" not in p.render_flags()
+    assert "Cryptomatte" in p.reasons["id"]
+    # camera-only motion: depth, no id
+    p = plan.make_plan("phlm", facts(camera_moves=True))
+    assert p.passes == ["color", "depth", "motion"]
+    assert "only the camera" in p.skipped["id"]
+    # one visible object moving: no id
+    p = plan.make_plan("taa", facts(moving_objects=["A"], visible_objects=["A"]))
+    assert p.passes == ["color", "depth", "motion"]
+
+
+def test_taa_improved_single_object_has_no_id():
+    p = plan.make_plan("taa-improved", facts(visible_objects=["Cube"], moving_objects=["Cube"]))
+    assert p.passes == ["color", "depth", "motion", "albedo"]
+    assert "1 visible object" in p.skipped["id"]
+    p = plan.make_plan("taa-improved", facts())
+    assert p.passes == ["color", "depth", "id", "albedo"]
+
+
+def test_rsaa_reads_geometry_and_subsamples():
+    p = plan.make_plan("rsaa", facts(camera_moves=True))
+    assert p.passes == ["color", "depth", "normal", "subsamples"]
+    assert set(p.render_flags()) == {"use_pass_combined", "use_pass_z", "use_pass_normal"}
+
+
+def test_every_planned_pass_has_a_reason_and_json_round_trip():
+    for method in plan.METHOD_PASSES:
+        for f in (facts(), facts(camera_moves=True), facts(moving_objects=["A"], deforming_objects=["B"])):
+            p = plan.make_plan(method, f)
+            assert set(p.reasons) == set(p.passes)
+            assert all(p.reasons.values())
+            assert not set(p.skipped) & set(p.passes)
+            j = p.to_json()
+            assert j["passes"] == p.passes and j["reasons"] == p.reasons
+            assert method in p.describe()
+
+
+def test_unknown_method_is_a_clear_error():
+    with pytest.raises(ValueError, match="unknown method 'smaa'"):
+        plan.make_plan("smaa", facts())
+
+
+def test_murmurhash3_known_values_and_cryptomatte_float_guard():
+    # Published MurmurHash3_x86_32 test vectors (seed 0 and seed 1).
+    assert hashing.murmurhash3_x86_32(b"") == 0
+    assert hashing.murmurhash3_x86_32(b"", 1) == 0x514E28B7
+    assert hashing.murmurhash3_x86_32(b"hello") == 0x248BFA47
+    assert hashing.murmurhash3_x86_32(b"The quick brown fox jumps over the lazy dog") == 0x2E4FF723
+    for name in ("Cube", "Sphere", "Wall", "a", "Ünïcode"):
+        h = hashing.cryptomatte_hash(name)
+        assert ((h >> 23) & 0xFF) not in (0, 255)
+        assert hashing.cryptomatte_hex(name) == "%08x" % h
