@@ -125,12 +125,11 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
             outs = [os.path.join(filtered_dir, render.frame_name(f))]
             if write_png:
                 outs.append(os.path.join(filtered_dir, render.frame_name(f, ".png")))
-            t0 = time.perf_counter()
-            frame_filter.run(info["exr"], outs)
-            entry["filter_s"] = round(time.perf_counter() - t0, 4)
+            times = frame_filter.run(info["exr"], outs)
+            entry.update({k: round(v, 4) for k, v in times.items()})
         result["frames"].append(entry)
-        log("frame %d: render %.3f s%s" % (f, info["render_s"],
-                                          ", filter %.3f s" % entry["filter_s"] if "filter_s" in entry else ""))
+        log("frame %d: render %.3f s%s" % (f, info["render_s"], ", load %.3f s, filter %.3f s, write %.3f s" % (
+            entry["load_s"], entry["filter_s"], entry["write_s"]) if "filter_s" in entry else ""))
 
     t0 = time.perf_counter()
     try:
