@@ -29,6 +29,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "core/color.h"
 #include "core/error.h"
@@ -39,10 +42,17 @@ namespace crisp::fxaa {
 
 static_assert(kLumaPad >= 1 + 9, "pad must cover the furthest search look (8.5 px) plus a bilinear tap");
 
-float perceptualLuma(float r, float g, float b) {
-  const float y = std::max(luminance709(r, g, b), 0.0f);
+namespace {
+// The tone curve of perceptualLuma on Rec. 709 luminance. 0.5 (Y + |Y|) is
+// exactly max(Y, 0) for finite Y, written without a select so row loops
+// vectorise.
+inline float toneLuma(float luminance) {
+  const float y = 0.5f * (luminance + std::fabs(luminance));
   return std::sqrt(y / (1.0f + y));
 }
+}  // namespace
+
+float perceptualLuma(float r, float g, float b) { return toneLuma(luminance709(r, g, b)); }
 
 struct Access {
   static std::vector<float>& luma(Workspace& w) { return w.luma_; }
@@ -61,6 +71,12 @@ void Workspace::allocate(int width, int height) {
   staging_.assign(w * h * 4, 0.0f);
 }
 
+std::size_t Workspace::searchedPixels() const {
+  std::size_t n = 0;
+  for (std::uint8_t f : needsSearch_) n += f;
+  return n;
+}
+
 namespace {
 
 // ---------------------------------------------------------------------------
@@ -73,12 +89,12 @@ inline float minOf(float a, float b) { return b < a ? b : a; }
 
 // Step 1, local contrast check. True when the pixel needs no anti-aliasing.
 // Written branch-free so the fast path's row loop vectorises.
-inline bool lowContrast(float m, float n, float s, float w, float e, const Settings& st) {
+inline bool lowContrast(float m, float n, float s, float w, float e, float threshold, float thresholdMin) {
   const float hi = maxOf(maxOf(maxOf(n, s), maxOf(w, e)), m);
   const float lo = minOf(minOf(minOf(n, s), minOf(w, e)), m);
   const float range = hi - lo;
   // range <= 0 also catches edgeThresholdMin = 0 on a flat area (no 1/range later).
-  return (range < maxOf(st.edgeThresholdMin, hi * st.edgeThreshold)) | (range <= 0.0f);
+  return (range < maxOf(thresholdMin, hi * threshold)) | (range <= 0.0f);
 }
 
 // Where to fetch the colour of pixel (x, y): `offset` pixels across the edge
@@ -105,7 +121,7 @@ inline Blend blendFor(const Luma& luma, int x, int y, const Settings& st) {
   const float m = luma.at(x, y);
   const float n = luma.at(x, y - 1), s = luma.at(x, y + 1);
   const float w = luma.at(x - 1, y), e = luma.at(x + 1, y);
-  if (lowContrast(m, n, s, w, e, st)) return out;
+  if (lowContrast(m, n, s, w, e, st.edgeThreshold, st.edgeThresholdMin)) return out;
   const float range = maxOf(maxOf(maxOf(n, s), maxOf(w, e)), m) - minOf(minOf(minOf(n, s), minOf(w, e)), m);
   const float nw = luma.at(x - 1, y - 1), ne = luma.at(x + 1, y - 1);
   const float sw = luma.at(x - 1, y + 1), se = luma.at(x + 1, y + 1);
@@ -293,39 +309,50 @@ ColorSource colorSource(const ImageView& color, const ImageView& output, Workspa
   return {reinterpret_cast<const char*>(staged.data()), 16, std::size_t(color.width) * 16, 4};
 }
 
-// Luma of one row, with loops specialised for the usual pixel strides so the
-// compiler can vectorise them. Same operations as perceptualLuma(rgba(...)).
-template <int kStrideFloats>
-void lumaRowFixed(const float* row, int width, float* dst) {
-  for (int x = 0; x < width; ++x) {
-    const float* p = row + std::size_t(x) * kStrideFloats;
-    dst[x] = perceptualLuma(sanitize(p[0]), sanitize(p[1]), sanitize(p[2]));
+// toneLuma over a row. GCC keeps a scalar errno branch around sqrt (the
+// library does not build with -fno-math-errno), which blocks vectorisation,
+// so SSE2 (part of x86-64) is spelled out; IEEE sqrt/div/add/mul are exactly
+// rounded, so lanes equal the scalar toneLuma bit for bit.
+void toneLumaRow(float* luma, int width) {
+  int x = 0;
+#if defined(__SSE2__)
+  const __m128 half = _mm_set1_ps(0.5f), one = _mm_set1_ps(1.0f);
+  const __m128 absMask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  for (; x + 4 <= width; x += 4) {
+    const __m128 l = _mm_loadu_ps(luma + x);
+    const __m128 y = _mm_mul_ps(half, _mm_add_ps(l, _mm_and_ps(l, absMask)));
+    _mm_storeu_ps(luma + x, _mm_sqrt_ps(_mm_div_ps(y, _mm_add_ps(one, y))));
   }
+#endif
+  for (; x < width; ++x) luma[x] = toneLuma(luma[x]);
 }
 
-void lumaRow(const ColorSource& src, int y, int width, float* dst) {
-  const float* row = src.pixel(0, y);
-  if (src.pixelStride == 16) return lumaRowFixed<4>(row, width, dst);
-  if (src.pixelStride == 12) return lumaRowFixed<3>(row, width, dst);
+// Pass 1 of the fast path for one row: the sanitised colour copied to the
+// output (pixels FXAA leaves alone keep it), and the luma row computed from
+// that copy. Packed RGBA -> RGBA and RGB -> RGB get loops the compiler
+// vectorises; the luma is luminance709 then toneLuma, i.e. the same
+// operations as perceptualLuma(rgba(...)) in the reference path.
+template <int kChannels>
+void copyAndLumaPacked(const float* in, float* out, int width, float* luma) {
+  for (int i = 0; i < kChannels * width; ++i) out[i] = sanitize(in[i]);
   for (int x = 0; x < width; ++x) {
-    const float* p = src.pixel(x, y);
-    dst[x] = perceptualLuma(sanitize(p[0]), sanitize(p[1]), sanitize(p[2]));
+    const float* p = out + std::size_t(x) * kChannels;
+    luma[x] = luminance709(p[0], p[1], p[2]);
   }
+  toneLumaRow(luma, width);
 }
 
-// Sanitised copy of one row of colour to the output (pixels FXAA leaves alone).
-void copyRow(const ColorSource& src, const ImageView& output, int y, int width) {
-  const int outChannels = output.channels();
-  if (src.pixelStride == 16 && src.channels == 4 && outChannels == 4 && output.pixelStride == 16) {
-    const float* in = src.pixel(0, y);
-    float* out = output.row(y);
-    for (int i = 0; i < 4 * width; ++i) out[i] = sanitize(in[i]);
-    return;
+void copyAndLumaRow(const ColorSource& src, const ImageView& output, int y, int width, float* luma) {
+  const int c = output.channels();
+  if (src.channels == c && src.pixelStride == std::size_t(4 * c) && output.pixelStride == std::size_t(4 * c)) {
+    if (c == 4) return copyAndLumaPacked<4>(src.pixel(0, y), output.row(y), width, luma);
+    return copyAndLumaPacked<3>(src.pixel(0, y), output.row(y), width, luma);
   }
   for (int x = 0; x < width; ++x) {
     float rgba[4];
     src.rgba(x, y, rgba);
     store(output, x, y, rgba);
+    luma[x] = perceptualLuma(rgba[0], rgba[1], rgba[2]);
   }
 }
 
@@ -362,11 +389,12 @@ void runFast(const ImageView& color, const ImageView& output, const Settings& se
   float* padded = Access::paddedLuma(ws).data();
   float* origin = padded + kLumaPad * stride + kLumaPad;
 
-  // Pass 1: luma plane rows with their left/right clamp-to-edge pads ...
+  // Pass 1: sanitised copy to the output, and luma plane rows with their
+  // left/right clamp-to-edge pads ...
   parallelRows(width, height, numThreads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       float* row = origin + std::ptrdiff_t(y) * stride;
-      lumaRow(src, y, width, row);
+      copyAndLumaRow(src, output, y, width, row);
       std::fill(row - kLumaPad, row, row[0]);
       std::fill(row + width, row + width + kLumaPad, row[width - 1]);
     }
@@ -378,23 +406,34 @@ void runFast(const ImageView& color, const ImageView& output, const Settings& se
                 origin - kLumaPad + std::ptrdiff_t(height - 1) * stride, sizeof(float) * std::size_t(stride));
   }
 
-  // Pass 2: per row, a vectorisable contrast check over the whole row, a
-  // plain copy, then the full FXAA for the pixels that passed the check.
+  // Pass 2: per row, a vectorisable contrast check over the whole row, then
+  // the full FXAA for the pixels that passed it (pass 1 wrote the others).
   const PaddedLuma luma{origin, stride};
   std::uint8_t* needsSearch = Access::needsSearch(ws).data();
+  const Settings st = settings;
   parallelRows(width, height, numThreads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
-      const float* mid = origin + std::ptrdiff_t(y) * stride;
-      const float* up = mid - stride;
-      const float* down = mid + stride;
-      std::uint8_t* flags = needsSearch + std::size_t(y) * width;
-      for (int x = 0; x < width; ++x)
-        flags[x] = std::uint8_t(!lowContrast(mid[x], up[x], down[x], mid[x - 1], mid[x + 1], settings));
-      copyRow(src, output, y, width);
+      const float* __restrict mid = origin + std::ptrdiff_t(y) * stride;
+      const float* __restrict up = mid - stride;
+      const float* __restrict down = mid + stride;
+      std::uint8_t* __restrict flags = needsSearch + std::size_t(y) * width;
+      // Locals, not captures: the byte stores could alias anything captured.
+      const int n = width;
+      const float threshold = st.edgeThreshold, thresholdMin = st.edgeThresholdMin;
+      for (int x = 0; x < n; ++x)
+        flags[x] = std::uint8_t(!lowContrast(mid[x], up[x], down[x], mid[x - 1], mid[x + 1], threshold, thresholdMin));
       const bool interiorRow = y > 0 && y < height - 1;
       for (int x = 0; x < width; ++x) {
+        if (x + 8 <= width) {  // skip 8 flat pixels at a time
+          std::uint64_t eight;
+          std::memcpy(&eight, flags + x, 8);
+          if (eight == 0) {
+            x += 7;
+            continue;
+          }
+        }
         if (!flags[x]) continue;
-        const Blend blend = blendFor(luma, x, y, settings);
+        const Blend blend = blendFor(luma, x, y, st);
         float rgba[4];
         if (interiorRow && x > 0 && x < width - 1)
           resolve<false>(src, width, height, x, y, blend, rgba);

@@ -69,6 +69,8 @@ class Workspace {
   void allocate(int width, int height);
   int width() const { return width_; }
   int height() const { return height_; }
+  // Pixels that passed the contrast check in the last runFast (for benchmarks).
+  std::size_t searchedPixels() const;
 
  private:
   friend struct Access;
