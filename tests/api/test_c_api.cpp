@@ -62,35 +62,35 @@ TEST(CApi, NoneFilterCopiesThroughStridedViews) {
 TEST(CApi, ErrorsNameWhatIsWrong) {
   auto ctx = crisp::ContextRef::create();
   CrispError code;
-  EXPECT_EQ(crispNewFilter(ctx.get(), "fxab"), nullptr);
+  EXPECT_EQ(crispNewFilter(ctx.handle(), "fxab"), nullptr);
   EXPECT_NE(lastError(&code).find("unknown filter type 'fxab'"), std::string::npos);
   EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(crispGetError(nullptr), CRISP_ERROR_NONE);  // cleared by the query
 
   auto f = ctx.newFilter("repair");
-  crispSetFilterFloat(f.get(), "sharpness", 1.0f);
+  crispSetFilterFloat(f.handle(), "sharpness", 1.0f);
   EXPECT_NE(lastError().find("unknown parameter 'sharpness'"), std::string::npos);
-  crispSetFilterImage(f.get(), "colour", nullptr, CRISP_FORMAT_FLOAT3, 4, 4, 0, 0);
+  crispSetFilterImage(f.handle(), "colour", nullptr, CRISP_FORMAT_FLOAT3, 4, 4, 0, 0);
   EXPECT_NE(lastError().find("no image 'colour'"), std::string::npos);
 
   std::vector<float> a(4 * 4 * 4), b(5 * 4 * 4);
   f.setImage("color", a.data(), CRISP_FORMAT_FLOAT4, 4, 4);
-  crispExecuteFilter(f.get());
+  crispExecuteFilter(f.handle());
   EXPECT_NE(lastError(&code).find("before commit"), std::string::npos);
   EXPECT_EQ(code, CRISP_ERROR_INVALID_OPERATION);
-  crispCommitFilter(f.get());
+  crispCommitFilter(f.handle());
   EXPECT_NE(lastError(&code).find("'output'"), std::string::npos);
   EXPECT_EQ(code, CRISP_ERROR_INVALID_DATA);
   f.setImage("output", b.data(), CRISP_FORMAT_FLOAT4, 5, 4);
-  crispCommitFilter(f.get());
+  crispCommitFilter(f.handle());
   EXPECT_NE(lastError().find("'output' is 5x4 but 'color' is 4x4"), std::string::npos);
-  crispSetFilterImage(f.get(), "output", b.data(), CRISP_FORMAT_FLOAT4, 4, 4, 8, 0);  // stride < pixel
+  crispSetFilterImage(f.handle(), "output", b.data(), CRISP_FORMAT_FLOAT4, 4, 4, 8, 0);  // stride < pixel
   EXPECT_NE(lastError().find("strides"), std::string::npos);
-  crispSetFilterImage(f.get(), "color", a.data(), CRISP_FORMAT_FLOAT2, 4, 4, 0, 0);
+  crispSetFilterImage(f.handle(), "color", a.data(), CRISP_FORMAT_FLOAT2, 4, 4, 0, 0);
   EXPECT_NE(lastError().find("format float2 not accepted"), std::string::npos);
-  crispSetFilterImage(f.get(), "color", a.data(), CRISP_FORMAT_FLOAT4, 0, 4, 0, 0);
+  crispSetFilterImage(f.handle(), "color", a.data(), CRISP_FORMAT_FLOAT4, 0, 4, 0, 0);
   EXPECT_NE(lastError().find("out of range"), std::string::npos);
-  crispSetContextInt(ctx.get(), "numThreads", -1);
+  crispSetContextInt(ctx.handle(), "numThreads", -1);
   EXPECT_NE(lastError().find("numThreads"), std::string::npos);
   crispCommitFilter(nullptr);
   EXPECT_NE(lastError().find("NULL"), std::string::npos);
@@ -99,8 +99,8 @@ TEST(CApi, ErrorsNameWhatIsWrong) {
 
 TEST(CApi, FirstErrorIsKeptAndErrorsArePerThread) {
   auto ctx = crisp::ContextRef::create();
-  crispNewFilter(ctx.get(), "first");
-  crispNewFilter(ctx.get(), "second");
+  crispNewFilter(ctx.handle(), "first");
+  crispNewFilter(ctx.handle(), "second");
   std::string other;
   std::thread t([&] { other = lastError(); });  // another thread sees none
   t.join();

@@ -43,7 +43,7 @@ class Ref {
   ~Ref() {
     if (h_) Release(h_);
   }
-  Handle get() const { return h_; }
+  Handle handle() const { return h_; }
   explicit operator bool() const { return h_ != nullptr; }
 
  protected:
