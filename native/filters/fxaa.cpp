@@ -342,9 +342,57 @@ void copyAndLumaPacked(const float* in, float* out, int width, float* luma) {
   toneLumaRow(luma, width);
 }
 
+#if defined(__SSE2__)
+// Packed RGBA -> RGBA in SSE2, four pixels at a time: sanitise (the same
+// selects as sanitize(): NaN -> +0 by mask, then max with -kMaxColor, min with
+// kMaxColor, whose tie cases return equal values), store, transpose to planar
+// R, G, B and compute luminance709 then toneLuma lane-wise in the same order
+// as the scalar code. `stream` uses non-temporal stores so a frame larger
+// than the caches is written without first being read (as memcpy does).
+void copyAndLumaRgbaSse2(const float* in, float* out, int width, float* luma, bool stream) {
+  const __m128 hi = _mm_set1_ps(kMaxColor), lo = _mm_set1_ps(-kMaxColor);
+  const __m128 wr = _mm_set1_ps(0.2126f), wg = _mm_set1_ps(0.7152f), wb = _mm_set1_ps(0.0722f);
+  const __m128 half = _mm_set1_ps(0.5f), one = _mm_set1_ps(1.0f);
+  const __m128 absMask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  int x = 0;
+  for (; x + 4 <= width; x += 4) {
+    __m128 p[4];
+    for (int k = 0; k < 4; ++k) {
+      __m128 v = _mm_loadu_ps(in + 4 * (x + k));
+      v = _mm_and_ps(v, _mm_cmpeq_ps(v, v));
+      p[k] = _mm_min_ps(_mm_max_ps(v, lo), hi);
+      if (stream)
+        _mm_stream_ps(out + 4 * (x + k), p[k]);
+      else
+        _mm_storeu_ps(out + 4 * (x + k), p[k]);
+    }
+    _MM_TRANSPOSE4_PS(p[0], p[1], p[2], p[3]);  // now R, G, B, A of the four pixels
+    const __m128 l = _mm_add_ps(_mm_add_ps(_mm_mul_ps(wr, p[0]), _mm_mul_ps(wg, p[1])), _mm_mul_ps(wb, p[2]));
+    const __m128 y = _mm_mul_ps(half, _mm_add_ps(l, _mm_and_ps(l, absMask)));
+    _mm_storeu_ps(luma + x, _mm_sqrt_ps(_mm_div_ps(y, _mm_add_ps(one, y))));
+  }
+  for (; x < width; ++x) {
+    for (int k = 0; k < 4; ++k) out[4 * x + k] = sanitize(in[4 * x + k]);
+    luma[x] = perceptualLuma(out[4 * x], out[4 * x + 1], out[4 * x + 2]);
+  }
+  if (stream) _mm_sfence();  // order the streamed stores before the pass ends
+}
+#endif
+
+// Frames at least this large are written with non-temporal stores.
+constexpr std::size_t kStreamBytes = std::size_t(8) << 20;
+
 void copyAndLumaRow(const ColorSource& src, const ImageView& output, int y, int width, float* luma) {
   const int c = output.channels();
   if (src.channels == c && src.pixelStride == std::size_t(4 * c) && output.pixelStride == std::size_t(4 * c)) {
+#if defined(__SSE2__)
+    if (c == 4) {
+      float* out = output.row(y);
+      const bool stream = (reinterpret_cast<std::uintptr_t>(out) & 15) == 0 &&
+                          std::size_t(output.height) * output.rowStride >= kStreamBytes;
+      return copyAndLumaRgbaSse2(src.pixel(0, y), out, width, luma, stream);
+    }
+#endif
     if (c == 4) return copyAndLumaPacked<4>(src.pixel(0, y), output.row(y), width, luma);
     return copyAndLumaPacked<3>(src.pixel(0, y), output.row(y), width, luma);
   }
