@@ -52,7 +52,8 @@
 //  * The kernels are applied as correlations: sign of the derivative responses
 //    is irrelevant, only magnitudes are used.
 //  * Arithmetic in float (the map is perceptual; means are taken in double by
-//    the caller), final value clamped to [0,1] for safety.
+//    the caller), final value clamped to [0,1] for safety. sRGB decoding and
+//    the CIELAB cube roots are tabulated (power_table.h, ~1e-7 absolute).
 #include "metrics/flip.h"
 
 #include <algorithm>
@@ -64,6 +65,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "metrics/convolve.h"
+#include "metrics/power_table.h"
 
 namespace crisp {
 
@@ -102,10 +104,12 @@ struct ColorSpace {
   float rgbToXyz[3][3];
   float xyzToRgb[3][3];
   float white[3];  // XYZ of RGB (1,1,1): the reference white of CIELAB here
+  const metrics_detail::PowerTable* cbrt = nullptr;
 };
 
 ColorSpace makeColorSpace() {
   ColorSpace cs;
+  cs.cbrt = &metrics_detail::cbrtTable();
   const auto& m = kRgbToXyz;
   // Inverse by the adjugate (in double, then stored as float).
   const double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
@@ -136,16 +140,17 @@ void multiply(const float m[3][3], const float in[3], float out[3]) {
 }
 
 // CIELAB's cube-root with its linear toe (CIE 15).
-float labF(float t) {
+float labF(float t, const metrics_detail::PowerTable& cbrt) {
   constexpr float delta = 6.0f / 29.0f;
-  return t > delta * delta * delta ? std::cbrt(t) : t / (3.0f * delta * delta) + 4.0f / 29.0f;
+  return t > delta * delta * delta ? metrics_detail::fastCbrt(t, cbrt) : t / (3.0f * delta * delta) + 4.0f / 29.0f;
 }
 
 // Linear RGB (already in [0,1]) -> Hunt-adjusted L*a*b* (steps 3-4).
 void huntLab(const ColorSpace& cs, const float rgb[3], float lab[3]) {
   float xyz[3];
   multiply(cs.rgbToXyz, rgb, xyz);
-  const float fx = labF(xyz[0] / cs.white[0]), fy = labF(xyz[1] / cs.white[1]), fz = labF(xyz[2] / cs.white[2]);
+  const float fx = labF(xyz[0] / cs.white[0], *cs.cbrt), fy = labF(xyz[1] / cs.white[1], *cs.cbrt),
+              fz = labF(xyz[2] / cs.white[2], *cs.cbrt);
   const float l = 116.0f * fy - 16.0f;
   lab[0] = l;
   lab[1] = 0.01f * l * (500.0f * (fx - fy));
@@ -287,6 +292,9 @@ Image flipErrorMap(const Image& referenceSrgb, const Image& testSrgb, float pixe
   int maxRadius = features.radius;
   for (const CsfFilter& f : csf)
     for (int t = 0; t < f.terms; ++t) maxRadius = std::max(maxRadius, f.kernel[t].radius);
+  // ppd <= 1000 gives radii <= 136; convolve.h supports up to kMaxRadius.
+  if (maxRadius > metrics_detail::kMaxRadius)
+    invalidArgument("flipErrorMap: pixelsPerDegree " + std::to_string(pixelsPerDegree) + " needs too wide filters");
 
   // cmax: compressed HyAB between Hunt-adjusted green and blue (step 6).
   float cmax;
@@ -305,6 +313,7 @@ Image flipErrorMap(const Image& referenceSrgb, const Image& testSrgb, float pixe
   auto plane = [&](int image, int channel) { return planes.data() + std::size_t(image * 4 + channel) * planeSize; };
 
   // Step 1 (+ the achromatic input of step 7).
+  const metrics_detail::PowerTable& decode = metrics_detail::srgbDecodeTable();
   parallelRows(width, height, numThreads, [&](int y0, int y1) {
     for (int image = 0; image < 2; ++image) {
       const Image& src = image == 0 ? referenceSrgb : testSrgb;
@@ -315,7 +324,9 @@ Image flipErrorMap(const Image& referenceSrgb, const Image& testSrgb, float pixe
       for (int y = y0; y < y1; ++y)
         for (int x = 0; x < width; ++x) {
           const float* p = src.at(x, y);
-          const float rgb[3] = {srgbDecode(p[0]), srgbDecode(p[1]), srgbDecode(p[2])};
+          const float rgb[3] = {metrics_detail::fastSrgbDecode(p[0], decode),
+                                metrics_detail::fastSrgbDecode(p[1], decode),
+                                metrics_detail::fastSrgbDecode(p[2], decode)};
           float xyz[3];
           multiply(cs.rgbToXyz, rgb, xyz);
           const float xr = xyz[0] / cs.white[0], yr = xyz[1] / cs.white[1], zr = xyz[2] / cs.white[2];
@@ -364,7 +375,8 @@ Image flipErrorMap(const Image& referenceSrgb, const Image& testSrgb, float pixe
         // Step 8.
         const float featureDiff =
             std::max(std::fabs(edge[x] - edge[w + x]), std::fabs(point[x] - point[w + x])) * invSqrt2;
-        const float featureError = std::pow(std::min(featureDiff, 1.0f), kQf);
+        static_assert(kQf == 0.5f, "the feature exponent qf is applied as a square root");
+        const float featureError = std::sqrt(std::min(featureDiff, 1.0f));
         o[x] = std::clamp(std::pow(colourError, 1.0f - featureError), 0.0f, 1.0f);
       }
     }

@@ -30,6 +30,7 @@
 #include "core/parallel.h"
 #include "metrics/convolve.h"
 #include "metrics/flip.h"
+#include "metrics/power_table.h"
 
 namespace crisp {
 
@@ -133,13 +134,17 @@ Image displayEncode(const Image& linear, int numThreads) {
     invalidData("displayEncode: image is " + describe(linear) + ", expected 3 or 4 channels (RGB or RGBA)");
   if (linear.width <= 0 || linear.height <= 0) invalidData("displayEncode: image is empty");
   Image out(linear.width, linear.height, 3);
+  // srgbEncode (core/color.h) to ~2e-7, tabulated: powf would dominate the cost of PSNR.
+  const metrics_detail::PowerTable& table = metrics_detail::srgbEncodeTable();
+  const int inChannels = linear.channels;
   parallelRows(linear.width, linear.height, numThreads, [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y)
-      for (int x = 0; x < linear.width; ++x) {
-        const float* in = linear.at(x, y);
-        float* o = out.at(x, y);
-        for (int c = 0; c < 3; ++c) o[c] = srgbEncode(in[c]);  // NaN -> 0, clamps to [0,1]
-      }
+    for (int y = y0; y < y1; ++y) {
+      const float* in = linear.at(0, y);
+      float* o = out.at(0, y);
+      for (int x = 0; x < linear.width; ++x)
+        for (int c = 0; c < 3; ++c)
+          o[3 * x + c] = metrics_detail::fastSrgbEncode(in[inChannels * x + c], table);  // NaN -> 0, clamps
+    }
   });
   return out;
 }

@@ -3,7 +3,10 @@
 // maps, thread-count independence and bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <functional>
 #include <random>
@@ -13,6 +16,7 @@
 #include "core/color.h"
 #include "core/error.h"
 #include "metrics/metrics.h"
+#include "metrics/power_table.h"
 
 using namespace crisp;
 
@@ -64,15 +68,18 @@ double mapMean(const Image& map, const Image* mask = nullptr) {
 // Straightforward 2-D SSIM with an 11x11 Gaussian window on a mirrored image,
 // written independently of metrics.cpp (folding loop instead of modulo, 2-D
 // window instead of separable passes).
+// The encoding is the library's displayEncode (checked on its own elsewhere),
+// so this isolates the window, border and formula.
 std::vector<double> bruteForceSsim(const Image& refLinear, const Image& testLinear) {
   const int w = refLinear.width, h = refLinear.height;
-  auto lumaAt = [&](const Image& im, int x, int y) {
+  const Image refEnc = displayEncode(refLinear), testEnc = displayEncode(testLinear);
+  auto lumaAt = [&](const Image& linear, int x, int y) {
     auto fold = [](int i, int n) {
       while (i < 0 || i >= n) i = i < 0 ? -i - 1 : 2 * n - i - 1;
       return i;
     };
-    const float* p = im.at(fold(x, w), fold(y, h));
-    return 0.299 * srgbEncode(p[0]) + 0.587 * srgbEncode(p[1]) + 0.114 * srgbEncode(p[2]);
+    const float* p = (&linear == &refLinear ? refEnc : testEnc).at(fold(x, w), fold(y, h));
+    return 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
   };
   double g[11], gs = 0;
   for (int i = -5; i <= 5; ++i) gs += g[i + 5] = std::exp(-double(i * i) / (2 * 1.5 * 1.5));
@@ -345,11 +352,32 @@ TEST(Metrics, DisplayEncodeDropsAlphaAndClamps) {
       EXPECT_GE(v, 0.0f);
       EXPECT_LE(v, 1.0f);
       if (std::isfinite(values[x][c])) {
-        EXPECT_EQ(v, srgbEncode(values[x][c]));
+        EXPECT_NEAR(v, srgbEncode(values[x][c]), 3e-7);
       }
     }
   EXPECT_EQ(enc.at(0, 0)[0], 0.0f);
   EXPECT_NEAR(enc.at(2, 0)[0], 1.0f, 1e-7f);  // 1.055 - 0.055 in float: 0.99999994
   EXPECT_EQ(enc.at(2, 0)[1], 0.0f);  // NaN
   EXPECT_NEAR(enc.at(1, 0)[1], 0.7354f, 1e-4);  // sRGB of 0.5 (IEC 61966-2-1)
+}
+
+TEST(Metrics, TabulatedPowersMatchTheExactFunctions) {
+  // Every 257th float in [0, 1] (~4M values), against the functions in double.
+  double worstEncode = 0, worstDecode = 0, worstCbrt = 0;
+  const std::uint32_t one = 0x3f800000u;
+  for (std::uint32_t bits = 0; bits <= one; bits += 257) {
+    float v;
+    std::memcpy(&v, &bits, 4);
+    const double d = v;
+    const double encode = d <= 0.0031308 ? 12.92 * d : 1.055 * std::pow(d, 1 / 2.4) - 0.055;
+    const double decode = d <= 0.04045 ? d / 12.92 : std::pow((d + 0.055) / 1.055, 2.4);
+    worstEncode = std::max(worstEncode, std::fabs(metrics_detail::fastSrgbEncode(v) - encode));
+    worstDecode = std::max(worstDecode, std::fabs(metrics_detail::fastSrgbDecode(v) - decode));
+    if (v > 0.008856f) worstCbrt = std::max(worstCbrt, std::fabs(metrics_detail::fastCbrt(v) - std::cbrt(d)));
+  }
+  EXPECT_LT(worstEncode, 2.5e-7);
+  EXPECT_LT(worstDecode, 1.5e-7);
+  EXPECT_LT(worstCbrt, 2e-7);
+  std::printf("tabulated powers, worst absolute error: encode %.3g decode %.3g cbrt %.3g\n", worstEncode, worstDecode,
+              worstCbrt);
 }
