@@ -1,0 +1,74 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "temporal/jitter.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace crisp::temporal {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kA0 = 0.35875, kA1 = 0.48829, kA2 = 0.14128, kA3 = 0.01168;
+}  // namespace
+
+double radicalInverse(unsigned index, unsigned base) {
+  // Seed 004's generator: digits of index in `base`, mirrored about the point.
+  double result = 0.0, fraction = 1.0 / base;
+  while (index > 0) {
+    result += double(index % base) * fraction;
+    index /= base;
+    fraction /= base;
+  }
+  return result;
+}
+
+double blackmanHarrisWindow(double t) {
+  if (t <= 0.0 || t >= 1.0) return 0.0;
+  const double a = 2.0 * kPi * t;
+  return kA0 - kA1 * std::cos(a) + kA2 * std::cos(2.0 * a) - kA3 * std::cos(3.0 * a);
+}
+
+double blackmanHarrisCdf(double t) {
+  t = std::clamp(t, 0.0, 1.0);
+  const double a = 2.0 * kPi * t;
+  // Integral of the window from 0 to t; the total over [0, 1] is a0.
+  const double integral = kA0 * t - kA1 * std::sin(a) / (2.0 * kPi) + kA2 * std::sin(2.0 * a) / (4.0 * kPi) -
+                          kA3 * std::sin(3.0 * a) / (6.0 * kPi);
+  return integral / kA0;
+}
+
+double blackmanHarrisInverse(double u, double width) {
+  u = std::clamp(u, 0.0, 1.0);
+  double lo = 0.0, hi = 1.0;
+  for (int i = 0; i < 60; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (blackmanHarrisCdf(mid) < u ? lo : hi) = mid;
+  }
+  return (0.5 * (lo + hi) - 0.5) * width;
+}
+
+Jitter jitterForFrame(int frame, JitterDistribution distribution, float width, int period) {
+  if (period < 1) period = 1;
+  const int m = ((frame % period) + period) % period;
+  const unsigned index = unsigned(m) + 1u;
+  const double u = radicalInverse(index, 2), v = radicalInverse(index, 3);
+  double x, yUp;
+  if (distribution == JitterDistribution::Uniform) {
+    x = u - 0.5;
+    yUp = v - 0.5;
+  } else if (width <= 1e-6f) {
+    x = yUp = 0.0;
+  } else {
+    x = blackmanHarrisInverse(u, width);
+    yUp = blackmanHarrisInverse(v, width);
+  }
+  return Jitter{float(x), float(-yUp)};
+}
+
+float blackmanHarrisWeight(float x, float y, float width) {
+  if (!(width > 0.0f)) return 1.0f;
+  const double tx = double(x) / width + 0.5, ty = double(y) / width + 0.5;
+  return float(blackmanHarrisWindow(tx) * blackmanHarrisWindow(ty) / (kA0 * kA0));
+}
+
+}  // namespace crisp::temporal

@@ -1,0 +1,53 @@
+// SPDX-License-Identifier: Apache-2.0
+// Sub-pixel jitter for temporal filters: the Halton(2,3) sequence (seed 004,
+// "Halton sequence generator"; seed 000 §3.6.1 and appendix B) and the
+// Blackman-Harris distribution EEVEE 3.x gives its own samples (BLENDER.md,
+// "Sampling and jitter"), so a temporal filter fed frames jittered this way
+// converges to EEVEE's many-sample reference (METHODS.md, "Jitter and
+// references").
+//
+// Convention: offsets are in PIXELS in the library's convention (x right,
+// y DOWN, conventions.h): the sample of pixel (i, j) sits at
+// (i + 0.5 + x, j + 0.5 + y). Blender's camera shift and the add-on's sidecar
+// use y UP: jitterForFrame() returns y already negated, so its (x, y) is what
+// the taa filter's jitterX / jitterY expect.
+#pragma once
+
+namespace crisp::temporal {
+
+// Radical inverse of index in base (index >= 1 gives a value in (0, 1)).
+double radicalInverse(unsigned index, unsigned base);
+
+// The 4-term Blackman-Harris window (Harris 1978: a0..a3 = 0.35875, 0.48829,
+// 0.14128, 0.01168) on t in [0, 1] (0 at both ends, peak 1 at t = 0.5).
+double blackmanHarrisWindow(double t);
+// Its integral over [0, t], normalised to 1 at t = 1 (closed form).
+double blackmanHarrisCdf(double t);
+// Inverse of blackmanHarrisCdf, mapped to a pixel offset in [-width/2, width/2]
+// (bisection in double precision: exact to ~1e-12 px, monotonic).
+double blackmanHarrisInverse(double u, double width);
+
+enum class JitterDistribution { Uniform, BlackmanHarris };
+
+struct Jitter {
+  float x = 0.0f;  // pixels, x right
+  float y = 0.0f;  // pixels, y DOWN
+};
+
+// Jitter of frame `frame` as the add-on draws it (addon/crisp/render.py
+// jitter_offset): Halton(2,3) point number (frame mod period) + 1; Uniform =
+// the point minus 0.5 (inside the pixel); BlackmanHarris = each coordinate
+// through the inverse CDF of a window `width` pixels wide (EEVEE's
+// filter_size, default 1.5). y is returned in the library convention (y down).
+// The add-on integrates the CDF with a 1024-step trapezoid table; the closed
+// form here differs from it by < 1e-5 px.
+Jitter jitterForFrame(int frame, JitterDistribution distribution, float width = 1.5f, int period = 16);
+
+// Relative weight of a sample at offset (x, y) under a separable
+// Blackman-Harris pixel filter `width` pixels wide, normalised so that its
+// mean over uniform offsets in [-width/2, width/2]^2 is 1 (0 outside). Used
+// to weight uniformly jittered samples so their weighted average converges to
+// the Blackman-Harris-filtered image.
+float blackmanHarrisWeight(float x, float y, float width);
+
+}  // namespace crisp::temporal

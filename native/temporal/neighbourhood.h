@@ -1,0 +1,91 @@
+// SPDX-License-Identifier: Apache-2.0
+// Neighbourhood colour statistics for history rejection (seed 000 §3.6.3,
+// Fig. 3.7; Pedersen/INSIDE 2016): min, max and average over the 3x3 block and
+// over the 5-tap cross, and their "rounded" mix (the mean of the two), plus
+// clipping toward the box centre (seed 000 §3.6.4, Fig. 3.9: clip, not clamp).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+
+#include "temporal/color_space.h"
+
+namespace crisp::temporal {
+
+struct ColorBox {
+  Float3 min, max, avg;
+};
+
+// Tap order of the 3x3 block, row by row: index 4 is the centre; the cross
+// is {1, 3, 4, 5, 7}.
+constexpr int kCrossTaps[5] = {1, 3, 4, 5, 7};
+
+// taps[9]: the 3x3 block in row order (any colour space). Sums run in tap
+// order so results are reproducible.
+inline void neighbourhoodBoxes(const Float3 taps[9], ColorBox& box3x3, ColorBox& cross) {
+  for (int c = 0; c < 3; ++c) {
+    float lo = taps[0][c], hi = taps[0][c], sum = taps[0][c];
+    for (int i = 1; i < 9; ++i) {
+      lo = std::min(lo, taps[i][c]);
+      hi = std::max(hi, taps[i][c]);
+      sum += taps[i][c];
+    }
+    box3x3.min[c] = lo;
+    box3x3.max[c] = hi;
+    box3x3.avg[c] = sum * (1.0f / 9.0f);
+    float clo = taps[1][c], chi = taps[1][c], csum = taps[1][c];
+    for (int k = 1; k < 5; ++k) {
+      const float t = taps[kCrossTaps[k]][c];
+      clo = std::min(clo, t);
+      chi = std::max(chi, t);
+      csum += t;
+    }
+    cross.min[c] = clo;
+    cross.max[c] = chi;
+    cross.avg[c] = csum * 0.2f;
+  }
+}
+
+// The "rounded" box: the average of the 3x3 and cross statistics, which trims
+// the corners the diagonal taps add (Pedersen 2016; seed 000 §3.6.3: "los
+// promediamos").
+inline ColorBox roundedBox(const ColorBox& box3x3, const ColorBox& cross) {
+  ColorBox r;
+  for (int c = 0; c < 3; ++c) {
+    r.min[c] = 0.5f * (box3x3.min[c] + cross.min[c]);
+    r.max[c] = 0.5f * (box3x3.max[c] + cross.max[c]);
+    r.avg[c] = 0.5f * (box3x3.avg[c] + cross.avg[c]);
+  }
+  return r;
+}
+
+// Smallest box half-extent used by clipping: keeps the ray/box division finite
+// on a flat neighbourhood (min == max) without moving a point that is inside.
+constexpr float kClipEpsilon = 1e-7f;
+
+struct ClipResult {
+  Float3 color;
+  float excess;  // max over channels of |p - centre| / half-extent: > 1 = was outside
+};
+
+// Clips `p` toward the centre of [min, max] along the ray from the centre:
+// the point where that segment leaves the box, or p itself if it is inside.
+// Unlike a per-channel clamp, the hue of the clipped colour stays on the line
+// to the centre (seed 000 Fig. 3.9).
+inline ClipResult clipTowardCentre(const Float3& p, const Float3& min, const Float3& max) {
+  Float3 centre, offset;
+  float excess = 0.0f;
+  for (int c = 0; c < 3; ++c) {
+    centre[c] = 0.5f * (max[c] + min[c]);
+    const float half = 0.5f * (max[c] - min[c]) + kClipEpsilon;
+    offset[c] = p[c] - centre[c];
+    excess = std::max(excess, std::fabs(offset[c]) / half);
+  }
+  if (!(excess > 1.0f)) return {p, excess};
+  const float scale = 1.0f / excess;
+  Float3 out;
+  for (int c = 0; c < 3; ++c) out[c] = centre[c] + offset[c] * scale;
+  return {out, excess};
+}
+
+}  // namespace crisp::temporal

@@ -1,0 +1,404 @@
+// SPDX-License-Identifier: Apache-2.0
+// The "taa" filter (native/filters/taa.cpp) on the moving synthetic sequences
+// of synth/moving.h, whose motion, depth and references are exact.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <functional>
+#include <limits>
+#include <random>
+
+#include "core/color.h"
+#include "core/context.h"
+#include "core/error.h"
+#include "core/filter.h"
+#include "filters/taa.h"
+#include "metrics/metrics.h"
+#include "synth/moving.h"
+#include "temporal/color_space.h"
+
+using namespace crisp;
+
+namespace {
+
+CompareOptions cheap() {
+  CompareOptions o;
+  o.ssim = false;
+  o.flip = false;
+  return o;
+}
+double psnr(const Image& ref, const Image& test) { return compareImages(ref, test, nullptr, {}, 1, cheap()).psnr; }
+
+struct Driver {
+  Context context;
+  std::unique_ptr<Filter> filter;
+  Image output;
+  explicit Driver(int threads = 1) {
+    context.setInt("numThreads", threads);
+    filter = createFilter(context, "taa");
+  }
+  // Runs one frame; motion/depth only when asked.
+  const Image& run(const synth::FrameData& f, bool motion, bool depth) {
+    if (output.width != f.color.width) output = Image(f.color.width, f.color.height, 4);
+    filter->setImage("color", f.color.view());
+    if (motion) filter->setImage("motion", f.motion.view()); else filter->unsetImage("motion");
+    if (depth) filter->setImage("depth", f.depth.view()); else filter->unsetImage("depth");
+    filter->setImage("output", output.view());
+    filter->params().setFloat("jitterX", f.jitter.x);
+    filter->params().setFloat("jitterY", f.jitter.y);
+    filter->markDirty();
+    filter->commit();
+    filter->execute();
+    return output;
+  }
+};
+
+bool allFinite(const Image& im) {
+  for (float v : im.data)
+    if (!std::isfinite(v)) return false;
+  return true;
+}
+
+}  // namespace
+
+// Static scene, no motion image: the running average of uniformly jittered
+// samples converges toward the 16x16 box reference.
+TEST(Taa, StaticAccumulationConvergesToBoxReference) {
+  const int w = 48, h = 32, frames = 64;
+  synth::Sequence seq = synth::staticChartSequence(w, h);
+  synth::FrameOptions opt;
+  opt.period = 64;
+  opt.reference = synth::ReferenceKind::None;
+  const Image reference = synth::renderSupersampled(seq.sceneAt(0), w, h, 16);  // still: the same every frame
+  std::vector<synth::FrameData> input;
+  for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, opt));
+  const double oneSample = psnr(reference, input[0].color);
+  for (bool staticClip : {true, false}) {
+    Driver d;
+    d.filter->params().setBool("staticClip", staticClip);
+    std::vector<double> p(frames + 1);
+    for (int t = 0; t < frames; ++t) p[t + 1] = psnr(reference, d.run(input[t], false, false));
+    std::printf("static chart %dx%d, uniform jitter, staticClip=%d: PSNR 1-sample %.2f; TAA after 1/4/16/64 frames "
+                "%.2f/%.2f/%.2f/%.2f dB\n",
+                w, h, int(staticClip), oneSample, p[1], p[4], p[16], p[64]);
+    EXPECT_EQ(p[1], oneSample);  // first frame: bootstrap = the current frame
+    EXPECT_GT(p[4], p[1] + 2.0);
+    EXPECT_GT(p[16], p[4] + 1.0);
+    EXPECT_GT(p[64], p[16]);
+    EXPECT_GT(p[64], oneSample + (staticClip ? 8.0 : 15.0));
+  }
+}
+
+// METHODS.md: jitter drawn like EEVEE's (Blackman-Harris) converges to the
+// Blackman-Harris reference; uniform jitter does not, unless its samples are
+// weighted by the filter (jitterWeighting) over the filter's support.
+TEST(Taa, BlackmanHarrisJitterConvergesToEeveeStyleReference) {
+  const int w = 48, h = 32, frames = 64;
+  synth::Sequence seq = synth::staticChartSequence(w, h);
+  synth::FrameOptions bh;
+  bh.period = frames;
+  bh.jitter = synth::JitterKind::BlackmanHarris;
+  bh.reference = synth::ReferenceKind::BlackmanHarris;
+  const Image ref = synth::renderFrame(seq, w, h, 0, bh).reference;
+  const synth::Scene still = seq.sceneAt(0);
+  auto accumulate = [&](int mode) {
+    Driver d;
+    d.filter->params().setBool("staticClip", false);
+    if (mode == 2) d.filter->params().setString("jitterWeighting", "blackman-harris");
+    const Image* out = nullptr;
+    for (int t = 0; t < frames; ++t) {
+      synth::FrameData f;
+      if (mode == 0) {
+        synth::FrameOptions noReference = bh;
+        noReference.reference = synth::ReferenceKind::None;
+        f = synth::renderFrame(seq, w, h, t, noReference);
+      } else {
+        // Uniform jitter: inside the pixel (mode 1), over the filter's 1.5 px support (mode 2).
+        temporal::Jitter j = temporal::jitterForFrame(t, temporal::JitterDistribution::Uniform, 1.0f, frames);
+        const float scale = mode == 2 ? 1.5f : 1.0f;
+        f.jitter = {j.x * scale, j.y * scale};
+        f.color = synth::renderCentre(still, w, h, f.jitter.x, f.jitter.y);
+      }
+      out = &d.run(f, false, false);
+    }
+    return psnr(ref, *out);
+  };
+  const double viaBh = accumulate(0), viaUniform = accumulate(1), viaWeighted = accumulate(2);
+  std::printf("vs Blackman-Harris reference after %d frames: BH jitter %.2f dB, uniform %.2f dB, uniform over "
+              "support weighted %.2f dB\n", frames, viaBh, viaUniform, viaWeighted);
+  EXPECT_GT(viaBh, viaUniform + 3.0);
+  EXPECT_GT(viaWeighted, viaUniform + 1.0);
+}
+
+// Moving edge with exact motion and depth: TAA beats the 1-sample frames on
+// mean PSNR after warm-up, for both history filters.
+TEST(Taa, MovingSequencesBeatOneSampleAfterWarmUp) {
+  const int w = 48, h = 40, frames = 48, warmUp = 8;
+  struct Case {
+    const char* name;
+    synth::Sequence seq;
+  } cases[] = {{"edge 30deg v=(0.7,0.3)", synth::movingEdgeSequence(w, h, 30.0f, 0.7f, 0.3f)},
+               {"ghosting disk v=(1.3,0)", synth::ghostingSequence(w, h, 8.0f, 1.3f, 0.0f)}};
+  for (const Case& c : cases) {
+    std::vector<synth::FrameData> input;
+    for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(c.seq, w, h, t, {}));
+    for (const char* filter : {"catmull-rom", "bilinear"}) {
+      Driver d;
+      d.filter->params().setString("historyFilter", filter);
+      double taa = 0, one = 0;
+      for (int t = 0; t < frames; ++t) {
+        const synth::FrameData& f = input[t];
+        const Image& out = d.run(f, true, true);
+        ASSERT_TRUE(allFinite(out));
+        if (t < warmUp) continue;
+        taa += psnr(f.reference, out);
+        one += psnr(f.reference, f.color);
+      }
+      taa /= frames - warmUp;
+      one /= frames - warmUp;
+      std::printf("%s, %s: mean PSNR frames %d-%d: 1-sample %.2f dB, TAA %.2f dB\n", c.name, filter, warmUp,
+                  frames - 1, one, taa);
+      EXPECT_GT(taa, one + 2.0) << c.name << " " << filter;
+    }
+  }
+}
+
+// Camera cut at frame 20 with zero motion afterwards (history looks static)
+// and no reset: the old scene must not ghost into the new one.
+TEST(Taa, CameraCutLeavesNoGhost) {
+  const int w = 48, h = 32, cut = 20;
+  synth::Sequence seq = synth::cameraCutSequence(w, h, cut);
+  std::vector<synth::FrameData> input;
+  for (int t = 0; t < cut + 6; ++t) {
+    synth::FrameOptions opt;
+    opt.reference = t < cut ? synth::ReferenceKind::None : synth::ReferenceKind::Box;
+    input.push_back(synth::renderFrame(seq, w, h, t, opt));
+  }
+  for (bool callReset : {false, true}) {
+    Driver d;
+    for (int t = 0; t < cut + 6; ++t) {
+      const synth::FrameData& f = input[t];
+      if (callReset && t == cut) d.filter->reset();
+      const Image& out = d.run(f, true, true);
+      if (t < cut) continue;
+      const double taa = psnr(f.reference, out), one = psnr(f.reference, f.color);
+      if (t == cut) std::printf("camera cut (reset=%d): frame after cut PSNR TAA %.2f vs 1-sample %.2f dB\n",
+                                int(callReset), taa, one);
+      // No ghost: never worse than the plain 1-sample frame.
+      EXPECT_GE(taa, one - 0.5) << "frame " << t;
+      if (callReset && t == cut) EXPECT_EQ(out.data, f.color.data);  // bootstrap = current
+    }
+  }
+}
+
+// Off-screen reprojection (huge motion), non-finite motion -> reset to the
+// current colour; zero motion behaves exactly as no motion image at all.
+TEST(Taa, HugeZeroAndInvalidMotion) {
+  const int w = 24, h = 20;
+  synth::Sequence seq = synth::movingEdgeSequence(w, h, 30.0f, 0.0f, 0.0f);
+  Driver huge, zero, none;
+  for (int t = 0; t < 12; ++t) {
+    synth::FrameData f = synth::renderFrame(seq, w, h, t, {});
+    synth::FrameData g = f;
+    for (std::size_t i = 0; i < g.motion.data.size(); i += 2) {
+      g.motion.data[i] = (i / 2) % 3 == 0 ? 1e30f : (i / 2) % 3 == 1 ? -5000.0f : std::nanf("");
+      g.motion.data[i + 1] = (i / 2) % 5 == 0 ? INFINITY : 0.25f;
+    }
+    EXPECT_EQ(huge.run(g, true, false).data, f.color.data) << "frame " << t;  // every pixel reset to current
+    const Image& a = zero.run(f, true, false);  // motion image all zero
+    const Image& b = none.run(f, false, false);
+    EXPECT_EQ(a.data, b.data) << "frame " << t;
+  }
+}
+
+// Disocclusion: background revealed behind a moving bar is reset to the
+// current sample, never mixed with the bar's colour.
+TEST(Taa, DisocclusionResetsRevealedBackground) {
+  const int w = 48, h = 24;
+  synth::Sequence seq = synth::disocclusionSequence(w, h, 2.0f);
+  Driver d;
+  synth::FrameOptions opt;
+  opt.reference = synth::ReferenceKind::None;
+  synth::FrameData prev;
+  int revealed = 0;
+  for (int t = 0; t < 10; ++t) {
+    synth::FrameData f = synth::renderFrame(seq, w, h, t, opt);
+    const Image& out = d.run(f, true, true);
+    if (t > 0)
+      for (int y = 0; y < h; ++y)
+        for (int x = 1; x < w - 1; ++x) {
+          // Background now, bar before, and no bar in the 3x3 now.
+          bool barNear = false;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx)
+              barNear |= f.id.uintAt(x + dx, std::clamp(y + dy, 0, h - 1)) == 1;
+          if (barNear || prev.id.uintAt(x, y) != 1) continue;
+          ++revealed;
+          for (int c = 0; c < 3; ++c) EXPECT_EQ(out.at(x, y)[c], f.color.at(x, y)[c]) << x << "," << y;
+        }
+    prev = f;
+  }
+  EXPECT_GT(revealed, 100);
+}
+
+// NaN, +-Inf and HDR fireflies in colour, motion and depth: outputs stay
+// finite and inside the 3x3 range of the (sanitised) current frame (clip in
+// RGB, no sharpen: every path is a convex mix of values inside that box).
+TEST(Taa, NonFiniteAndFireflyInputsGiveBoundedOutputs) {
+  const int w = 32, h = 24;
+  synth::Sequence seq = synth::ghostingSequence(w, h, 6.0f, 1.5f, 0.5f);
+  std::mt19937 rng(7);
+  for (bool useDepth : {false, true}) {
+    Driver d;
+    d.filter->params().setString("clipSpace", "rgb");
+    for (int t = 0; t < 24; ++t) {
+      synth::FrameData f = synth::renderFrame(seq, w, h, t, {});
+      const float bad[] = {std::nanf(""), INFINITY, -INFINITY, 1e4f, 1e5f, 1e6f};
+      for (int k = 0; k < 12; ++k) {
+        const int x = int(rng() % w), y = int(rng() % h);
+        f.color.at(x, y)[rng() % 3] = bad[rng() % 6];
+        f.motion.at(int(rng() % w), int(rng() % h))[rng() % 2] = bad[rng() % 3];
+        *f.depth.at(int(rng() % w), int(rng() % h)) = bad[rng() % 6];
+      }
+      const Image& out = d.run(f, true, useDepth);
+      ASSERT_TRUE(allFinite(out)) << "frame " << t;
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          for (int c = 0; c < 3; ++c) {
+            float lo = INFINITY, hi = -INFINITY;
+            for (int dy = -1; dy <= 1; ++dy)
+              for (int dx = -1; dx <= 1; ++dx) {
+                const float v = sanitizeColor(f.color.at(std::clamp(x + dx, 0, w - 1), std::clamp(y + dy, 0, h - 1))[c]);
+                lo = std::min(lo, v);
+                hi = std::max(hi, v);
+              }
+            const float tol = 1e-5f * (1.0f + std::fabs(lo) + std::fabs(hi));
+            EXPECT_GE(out.at(x, y)[c], lo - tol) << x << "," << y << " frame " << t;
+            EXPECT_LE(out.at(x, y)[c], hi + tol) << x << "," << y << " frame " << t;
+          }
+    }
+  }
+}
+
+// A single 1e6 firefly on a still grey field: it shows in its own frame and
+// has stopped affecting the output one frame later (stated bound: 1 frame).
+TEST(Taa, SingleFireflyFadesWithinOneFrame) {
+  const int w = 16, h = 16, fireflyFrame = 30;
+  for (bool moving : {false, true}) {
+    Driver clean, dirty;
+    double maxAfter = 0, maxAt = 0;
+    for (int t = 0; t < 40; ++t) {
+      synth::FrameData f;
+      f.jitter = temporal::jitterForFrame(t, temporal::JitterDistribution::Uniform);
+      f.color = Image(w, h, 4, 0.3f);
+      f.motion = Image(w, h, 2, moving ? 0.5f : 0.0f);
+      f.depth = Image(w, h, 1, 5.0f);
+      synth::FrameData g = f;
+      if (t == fireflyFrame) g.color.at(7, 8)[1] = 1e6f;
+      const Image a = clean.run(f, true, true);
+      const Image& b = dirty.run(g, true, true);
+      double diff = 0;
+      for (std::size_t i = 0; i < a.data.size(); ++i) diff = std::max(diff, double(std::fabs(a.data[i] - b.data[i])));
+      if (t == fireflyFrame) maxAt = diff;
+      if (t > fireflyFrame) maxAfter = std::max(maxAfter, diff);
+    }
+    std::printf("firefly 1e6 (%s): max output change in its frame %.3g, in the 9 frames after %.3g\n",
+                moving ? "moving" : "static", maxAt, maxAfter);
+    EXPECT_GT(maxAt, 1.0);
+    EXPECT_LT(maxAfter, 1e-4);
+  }
+}
+
+// reset() forgets the history: the next output is the current frame.
+TEST(Taa, ResetAndRecommitKeepOrForgetHistory) {
+  const int w = 24, h = 16;
+  synth::Sequence seq = synth::staticChartSequence(w, h);
+  Driver d;
+  for (int t = 0; t < 6; ++t) d.run(synth::renderFrame(seq, w, h, t, {}), false, false);
+  synth::FrameData f = synth::renderFrame(seq, w, h, 6, {});
+  EXPECT_NE(d.run(f, false, false).data, f.color.data);  // re-commit for a new jitter keeps history
+  d.filter->reset();
+  EXPECT_EQ(d.run(f, false, false).data, f.color.data);
+  // A new size starts over too.
+  synth::FrameData g = synth::renderFrame(synth::staticChartSequence(20, 12), 20, 12, 3, {});
+  EXPECT_EQ(d.run(g, false, false).data, g.color.data);
+  // Parameter checks.
+  d.filter->params().setFloat("feedbackMin", 0.99f);
+  EXPECT_THROW(d.run(g, false, false), Exception);
+  EXPECT_THROW(d.filter->params().setString("historyFilter", "lanczos"), Exception);
+}
+
+// The scalar reference path and the threaded fast path are bit-identical
+// (outputs every frame), over odd sizes, both fetches, both spaces, sharpen.
+TEST(Taa, ReferencePathEqualsFastPath) {
+  const int w = 37, h = 29;
+  synth::Sequence seq = synth::ghostingSequence(w, h, 7.0f, 1.7f, -0.6f);
+  struct Config {
+    const char* filter;
+    const char* space;
+    float sharpen;
+    bool depth;
+  } configs[] = {{"catmull-rom", "ycocg", 0.0f, true}, {"bilinear", "rgb", 0.5f, true}, {"catmull-rom", "rgb", 1.0f, false}};
+  for (const Config& c : configs) {
+    Driver ref(1), fast(2);
+    for (Driver* d : {&ref, &fast}) {
+      d->filter->params().setString("historyFilter", c.filter);
+      d->filter->params().setString("clipSpace", c.space);
+      d->filter->params().setFloat("sharpen", c.sharpen);
+    }
+    ref.filter->params().setBool("reference", true);
+    for (int t = 0; t < 12; ++t) {
+      synth::FrameData f = synth::renderFrame(seq, w, h, t, {});
+      const Image& a = ref.run(f, true, c.depth);
+      const Image& b = fast.run(f, true, c.depth);
+      ASSERT_EQ(0, std::memcmp(a.data.data(), b.data.data(), a.data.size() * sizeof(float)))
+          << c.filter << " " << c.space << " frame " << t;
+    }
+  }
+}
+
+// Long run (20 000 frames, 8x8): a constant region stays exactly constant, a
+// checkerboard that inverts every frame (the sub-pixel flicker TAA exists to
+// remove) settles to its mean, and nothing drifts or goes non-finite.
+TEST(Taa, LongRunConstantAndFlickerStability) {
+  const int w = 8, h = 8, frames = 20000;
+  Driver d;
+  double worstConstant = 0, worstFlicker = 0;
+  Image previous;
+  for (int t = 0; t < frames; ++t) {
+    synth::FrameData f;
+    f.jitter = temporal::jitterForFrame(t, temporal::JitterDistribution::BlackmanHarris);
+    f.color = Image(w, h, 4, 1.0f);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        float* p = f.color.at(x, y);
+        if (x < 4) {
+          p[0] = 0.3f, p[1] = 0.5f, p[2] = 0.7f;
+        } else {
+          const float v = ((x + y + t) & 1) ? 1.0f : 0.0f;
+          p[0] = p[1] = p[2] = v;
+        }
+      }
+    const Image& out = d.run(f, false, false);
+    ASSERT_TRUE(allFinite(out)) << t;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const float* p = out.at(x, y);
+        if (x < 3) {
+          worstConstant = std::max({worstConstant, double(std::fabs(p[0] - 0.3f)), double(std::fabs(p[1] - 0.5f)),
+                                    double(std::fabs(p[2] - 0.7f))});
+        } else if (x > 4 && t > 200) {
+          ASSERT_GE(p[0], 0.0f);
+          ASSERT_LE(p[0], 1.0f);
+          worstFlicker = std::max(worstFlicker, double(std::fabs(p[0] - previous.at(x, y)[0])));
+        }
+      }
+    previous = out;
+  }
+  std::printf("20000 frames 8x8: constant region max error %.3g; checker flicker amplitude after frame 200: %.3g "
+              "(input 1.0)\n", worstConstant, worstFlicker);
+  EXPECT_LT(worstConstant, 1e-6);
+  EXPECT_LT(worstFlicker, 0.05);
+}
