@@ -104,6 +104,7 @@ struct ColorSpace {
   float rgbToXyz[3][3];
   float xyzToRgb[3][3];
   float white[3];  // XYZ of RGB (1,1,1): the reference white of CIELAB here
+  float invWhite[3];
   const metrics_detail::PowerTable* cbrt = nullptr;
 };
 
@@ -127,6 +128,7 @@ ColorSpace makeColorSpace() {
   inv[2][2] = (m[0][0] * m[1][1] - m[0][1] * m[1][0]) / det;
   for (int i = 0; i < 3; ++i) {
     cs.white[i] = float(m[i][0] + m[i][1] + m[i][2]);
+    cs.invWhite[i] = float(1.0 / (m[i][0] + m[i][1] + m[i][2]));
     for (int j = 0; j < 3; ++j) {
       cs.rgbToXyz[i][j] = float(m[i][j]);
       cs.xyzToRgb[i][j] = float(inv[i][j]);
@@ -149,8 +151,8 @@ float labF(float t, const metrics_detail::PowerTable& cbrt) {
 void huntLab(const ColorSpace& cs, const float rgb[3], float lab[3]) {
   float xyz[3];
   multiply(cs.rgbToXyz, rgb, xyz);
-  const float fx = labF(xyz[0] / cs.white[0], *cs.cbrt), fy = labF(xyz[1] / cs.white[1], *cs.cbrt),
-              fz = labF(xyz[2] / cs.white[2], *cs.cbrt);
+  const float fx = labF(xyz[0] * cs.invWhite[0], *cs.cbrt), fy = labF(xyz[1] * cs.invWhite[1], *cs.cbrt),
+              fz = labF(xyz[2] * cs.invWhite[2], *cs.cbrt);
   const float l = 116.0f * fy - 16.0f;
   lab[0] = l;
   lab[1] = 0.01f * l * (500.0f * (fx - fy));
@@ -329,7 +331,7 @@ Image flipErrorMap(const Image& referenceSrgb, const Image& testSrgb, float pixe
                                 metrics_detail::fastSrgbDecode(p[2], decode)};
           float xyz[3];
           multiply(cs.rgbToXyz, rgb, xyz);
-          const float xr = xyz[0] / cs.white[0], yr = xyz[1] / cs.white[1], zr = xyz[2] / cs.white[2];
+          const float xr = xyz[0] * cs.invWhite[0], yr = xyz[1] * cs.invWhite[1], zr = xyz[2] * cs.invWhite[2];
           const std::size_t i = std::size_t(y) * std::size_t(width) + std::size_t(x);
           yy[i] = 116.0f * yr - 16.0f;
           cx[i] = 500.0f * (xr - yr);
@@ -360,9 +362,9 @@ Image flipErrorMap(const Image& referenceSrgb, const Image& testSrgb, float pixe
         for (int image = 0; image < 2; ++image) {
           const float* f = filtered.data() + std::size_t(image * 3) * w;
           // Step 3: filtered YyCxCz -> XYZ -> linear RGB in [0,1] -> Hunt-adjusted Lab.
-          const float yr = (f[x] + 16.0f) / 116.0f;
-          const float xyz[3] = {(f[w + x] / 500.0f + yr) * cs.white[0], yr * cs.white[1],
-                                (yr - f[2 * w + x] / 200.0f) * cs.white[2]};
+          const float yr = (f[x] + 16.0f) * (1.0f / 116.0f);
+          const float xyz[3] = {(f[w + x] * (1.0f / 500.0f) + yr) * cs.white[0], yr * cs.white[1],
+                                (yr - f[2 * w + x] * (1.0f / 200.0f)) * cs.white[2]};
           float rgb[3];
           multiply(cs.xyzToRgb, xyz, rgb);
           for (float& v : rgb) v = std::clamp(v, 0.0f, 1.0f);
