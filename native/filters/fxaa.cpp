@@ -40,7 +40,15 @@
 
 namespace crisp::fxaa {
 
-static_assert(kLumaPad >= 1 + 9, "pad must cover the furthest search look (8.5 px) plus a bilinear tap");
+// The furthest look of the search is the sum of all steps but the last
+// (8.5 px for preset 12); its bilinear taps reach one texel further, rounded
+// up. Across the edge, looks reach 1 px. The padded plane must cover both.
+constexpr float furthestLook() {
+  float sum = 0.0f;
+  for (int k = 0; k + 1 < kSearchStepCount; ++k) sum += kSearchSteps[k];
+  return sum;
+}
+static_assert(float(kLumaPad) >= furthestLook() + 1.0f, "kLumaPad must cover the furthest search look and its taps");
 
 namespace {
 // The tone curve of perceptualLuma on Rec. 709 luminance. 0.5 (Y + |Y|) is
@@ -58,6 +66,7 @@ struct Access {
   static std::vector<float>& luma(Workspace& w) { return w.luma_; }
   static std::vector<float>& paddedLuma(Workspace& w) { return w.paddedLuma_; }
   static std::vector<std::uint8_t>& needsSearch(Workspace& w) { return w.needsSearch_; }
+  static std::vector<std::uint8_t>& rowChecked(Workspace& w) { return w.rowChecked_; }
   static std::vector<float>& staging(Workspace& w) { return w.staging_; }
 };
 
@@ -68,6 +77,7 @@ void Workspace::allocate(int width, int height) {
   luma_.assign(w * h, 0.0f);
   paddedLuma_.assign((w + 2 * pad) * (h + 2 * pad), 0.0f);
   needsSearch_.assign(w * h, 0);
+  rowChecked_.assign(h, 0);
   staging_.assign(w * h * 4, 0.0f);
 }
 
@@ -273,6 +283,7 @@ inline void store(const ImageView& output, int x, int y, const float rgba[4]) {
 // Set-up shared by both paths.
 
 void checkViews(const ImageView& color, const ImageView& output, const Workspace& ws) {
+  if (ws.width() < 1 || ws.height() < 1) invalidArgument("fxaa: the workspace is not allocated (empty image?)");
   if (color.width != ws.width() || color.height != ws.height() || output.width != ws.width() ||
       output.height != ws.height())
     invalidArgument("fxaa: color " + std::to_string(color.width) + "x" + std::to_string(color.height) + " / output " +
@@ -404,6 +415,18 @@ void copyAndLumaRow(const ColorSource& src, const ImageView& output, int y, int 
   }
 }
 
+// Step 1 over a row of the padded luma plane: flags[x] = 1 where pixel x
+// needs the rest of FXAA. Vectorised by the compiler.
+void contrastRow(const float* origin, std::ptrdiff_t stride, int y, int width, const Settings& st,
+                 std::uint8_t* __restrict flags) {
+  const float* __restrict mid = origin + std::ptrdiff_t(y) * stride;
+  const float* __restrict up = mid - stride;
+  const float* __restrict down = mid + stride;
+  const float threshold = st.edgeThreshold, thresholdMin = st.edgeThresholdMin;
+  for (int x = 0; x < width; ++x)
+    flags[x] = std::uint8_t(!lowContrast(mid[x], up[x], down[x], mid[x - 1], mid[x + 1], threshold, thresholdMin));
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------
@@ -437,14 +460,24 @@ void runFast(const ImageView& color, const ImageView& output, const Settings& se
   float* padded = Access::paddedLuma(ws).data();
   float* origin = padded + kLumaPad * stride + kLumaPad;
 
-  // Pass 1: sanitised copy to the output, and luma plane rows with their
-  // left/right clamp-to-edge pads ...
+  // Pass 1: sanitised copy to the output, luma plane rows with their
+  // left/right clamp-to-edge pads, and -- while its three luma rows are still
+  // in cache -- the contrast check of each row whose neighbours are in the
+  // same band ...
+  std::uint8_t* needsSearch = Access::needsSearch(ws).data();
+  std::uint8_t* rowChecked = Access::rowChecked(ws).data();
+  const Settings st = settings;
   parallelRows(width, height, numThreads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       float* row = origin + std::ptrdiff_t(y) * stride;
       copyAndLumaRow(src, output, y, width, row);
       std::fill(row - kLumaPad, row, row[0]);
       std::fill(row + width, row + width + kLumaPad, row[width - 1]);
+      rowChecked[y] = 0;
+      if (y - 2 >= y0) {
+        contrastRow(origin, stride, y - 1, width, st, needsSearch + std::size_t(y - 1) * width);
+        rowChecked[y - 1] = 1;
+      }
     }
   });
   // ... then the top/bottom pads (copies of the first/last padded row).
@@ -454,22 +487,14 @@ void runFast(const ImageView& color, const ImageView& output, const Settings& se
                 origin - kLumaPad + std::ptrdiff_t(height - 1) * stride, sizeof(float) * std::size_t(stride));
   }
 
-  // Pass 2: per row, a vectorisable contrast check over the whole row, then
-  // the full FXAA for the pixels that passed it (pass 1 wrote the others).
+  // Pass 2: the contrast check of the rows pass 1 could not do (first and
+  // last of each band), then the full FXAA for the pixels that passed it
+  // (pass 1 wrote the others).
   const PaddedLuma luma{origin, stride};
-  std::uint8_t* needsSearch = Access::needsSearch(ws).data();
-  const Settings st = settings;
   parallelRows(width, height, numThreads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
-      const float* __restrict mid = origin + std::ptrdiff_t(y) * stride;
-      const float* __restrict up = mid - stride;
-      const float* __restrict down = mid + stride;
-      std::uint8_t* __restrict flags = needsSearch + std::size_t(y) * width;
-      // Locals, not captures: the byte stores could alias anything captured.
-      const int n = width;
-      const float threshold = st.edgeThreshold, thresholdMin = st.edgeThresholdMin;
-      for (int x = 0; x < n; ++x)
-        flags[x] = std::uint8_t(!lowContrast(mid[x], up[x], down[x], mid[x - 1], mid[x + 1], threshold, thresholdMin));
+      std::uint8_t* flags = needsSearch + std::size_t(y) * width;
+      if (!rowChecked[y]) contrastRow(origin, stride, y, width, st, flags);
       const bool interiorRow = y > 0 && y < height - 1;
       for (int x = 0; x < width; ++x) {
         if (x + 8 <= width) {  // skip 8 flat pixels at a time

@@ -79,6 +79,7 @@ class Workspace {
   std::vector<float> luma_;        // reference: width x height
   std::vector<float> paddedLuma_;  // fast: (width + 2 pad) x (height + 2 pad)
   std::vector<std::uint8_t> needsSearch_;  // fast: per pixel, passed the contrast check
+  std::vector<std::uint8_t> rowChecked_;   // fast: per row, contrast check done in pass 1
   std::vector<float> staging_;     // packed RGBA copy of colour, used when output overlaps it
 };
 

@@ -352,4 +352,8 @@ TEST(Fxaa, WorkspaceSizeMismatchIsAnError) {
   Image a(9, 8, 4), b(9, 8, 4);
   EXPECT_THROW(fxaa::runFast(a.view(), b.view(), fxaa::Settings{}, ws, 0), Exception);
   EXPECT_THROW(fxaa::runReference(a.view(), b.view(), fxaa::Settings{}, ws), Exception);
+  fxaa::Workspace empty;
+  EXPECT_THROW(fxaa::runFast(a.view(), b.view(), fxaa::Settings{}, empty, 0), Exception);
+  Image three(8, 8, 4), two(8, 8, 2);
+  EXPECT_THROW(fxaa::runFast(three.view(), two.view(), fxaa::Settings{}, ws, 0), Exception);
 }
