@@ -223,8 +223,10 @@ FeatureKernels makeFeatureKernels(double ppd) {
   for (Kernel<float>* kk : {&k.gauss, &k.first, &k.second}) kk->radius = radius;
   for (std::size_t i = 0; i < g.size(); ++i) {
     k.gauss.taps.push_back(float(g[i] / sumG));
-    k.first.taps.push_back(float(d1[i] / posD1));
-    k.second.taps.push_back(float(d2[i] > 0 ? d2[i] / posD2 : d2[i] / negD2));
+    // At tiny sigma (ppd < ~0.6) the off-centre weights underflow to 0: no
+    // detectable feature, zero kernels rather than 0/0.
+    k.first.taps.push_back(posD1 > 0 ? float(d1[i] / posD1) : 0.0f);
+    k.second.taps.push_back(posD2 > 0 && negD2 > 0 ? float(d2[i] > 0 ? d2[i] / posD2 : d2[i] / negD2) : 0.0f);
   }
   return k;
 }

@@ -7,6 +7,7 @@
 #include <functional>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "core/color.h"
 #include "core/error.h"
@@ -122,6 +123,17 @@ TEST(Flip, AntialiasedEdgeBeatsAliasedOneAgainstTheReference) {
   EXPECT_GT(eAliased, 0.0);
   EXPECT_LT(eAliased, 0.5);
   EXPECT_GT(mean(flipErrorMap(ref, shifted)), 0.0);
+}
+
+TEST(Flip, ExtremeObserversStayFiniteAndInRange) {
+  const Image a = randomSrgb(24, 20, 6), b = randomSrgb(24, 20, 7);
+  for (float ppd : {0.1f, 1.0f, 400.0f, 1000.0f}) {
+    const Image map = flipErrorMap(a, b, ppd);
+    for (float v : map.data) {
+      ASSERT_TRUE(v >= 0.0f && v <= 1.0f) << ppd << " ppd: " << v;
+    }
+    EXPECT_EQ(flipErrorMap(a, a, ppd).data, std::vector<float>(map.data.size(), 0.0f)) << ppd;
+  }
 }
 
 TEST(Flip, IndependentOfThreadCount) {
