@@ -531,7 +531,7 @@ class FxaaFilter final : public Filter {
   explicit FxaaFilter(Context& c)
       : Filter(c,
                {{"edgeThreshold", ParamType::Float, 0.166, 0.0, 1.0, nullptr,
-                 "minimum local luma range, relative to the local maximum luma, for a pixel to be filtered",
+                 "minimum local range of perceptual luma sqrt(Y/(1+Y)) (Y: Rec. 709 luminance), relative to the local maximum, for a pixel to be filtered",
                  "FXAA 3.11 quality: local contrast check (QUALITY_EDGE_THRESHOLD)"},
                 {"edgeThresholdMin", ParamType::Float, 0.0833, 0.0, 1.0, nullptr,
                  "minimum local luma range, absolute: dark areas below it are left alone",

@@ -7,10 +7,14 @@
 // Two paths, bit-identical by construction and by test:
 //  * runReference: single thread, unpadded luma plane, clamp-to-edge on every
 //    fetch. The source of truth.
-//  * runFast: rows in parallel (crisp::parallelRows), a luma plane padded by
-//    clamp-to-edge copies so no luma fetch needs a clamp, a vectorisable
-//    contrast pass that lets flat pixels skip the per-pixel search, and
-//    unclamped colour fetches away from the first/last row/column.
+//  * runFast: rows in parallel (crisp::parallelRows). Pass 1 writes the
+//    sanitised colour to the output and the luma plane in one sweep (SSE2 for
+//    packed RGBA, with non-temporal stores for frames of 8 MiB and more;
+//    compiler-vectorised loops for packed RGB), the plane padded by
+//    clamp-to-edge copies so no luma fetch needs a clamp, and runs the
+//    vectorised contrast check on rows whose neighbours it has just made.
+//    Pass 2 runs the per-pixel search only on pixels that passed the check,
+//    with unclamped colour fetches away from the first/last row/column.
 // Both evaluate the same per-pixel arithmetic (fxaa.cpp) in the same order
 // (the library builds with -ffp-contract=off), so only addressing and
 // scheduling differ.
