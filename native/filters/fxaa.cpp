@@ -114,15 +114,56 @@ struct Blend {
   float offset = 0.0f;
 };
 
-// Bilinear luma at (fx, fy), pixel centres on integers.
-template <class Luma>
-inline float bilinear(const Luma& luma, float fx, float fy) {
-  const float x0f = std::floor(fx), y0f = std::floor(fy);
-  const int x0 = int(x0f), y0 = int(y0f);
-  const float tx = fx - x0f, ty = fy - y0f;
-  const float top = lerp(luma.at(x0, y0), luma.at(x0 + 1, y0), tx);
-  const float bottom = lerp(luma.at(x0, y0 + 1), luma.at(x0 + 1, y0 + 1), tx);
-  return lerp(top, bottom, ty);
+// Bilinear luma on the line half-way between rows (kHorizontal) or columns
+// `low` and `low + 1`, at `position` along it: the fetch of step 5, with the
+// across weight 1/2 known; interpolates along x first, then y. Pixel centres
+// are on integers.
+template <bool kHorizontal, class Luma>
+inline float lookBetween(const Luma& luma, int low, float position) {
+  int i = int(position);
+  if (float(i) > position) --i;  // floor (positions are small multiples of 1/2)
+  const float t = position - float(i);
+  if (kHorizontal) {
+    const float top = lerp(luma.at(i, low), luma.at(i + 1, low), t);
+    const float bottom = lerp(luma.at(i, low + 1), luma.at(i + 1, low + 1), t);
+    return lerp(top, bottom, 0.5f);
+  }
+  const float top = lerp(luma.at(low, i), luma.at(low + 1, i), 0.5f);
+  const float bottom = lerp(luma.at(low, i + 1), luma.at(low + 1, i + 1), 0.5f);
+  return lerp(top, bottom, t);
+}
+
+// Step 5 result: distance searched on each side and the luma change (from
+// the mid-edge value) seen at the last look on that side.
+struct Span {
+  float distNeg, distPos, endNeg, endPos;
+};
+
+// End-of-edge search in both directions from `along` (the pixel's x for a
+// horizontal edge, y for a vertical one). A side stops when the averaged luma
+// has moved by endThreshold from edgeLuma; each step of kSearchSteps moves
+// the sides still going, and looks again except after the last step.
+template <bool kHorizontal, class Luma>
+inline Span searchSpan(const Luma& luma, int acrossLow, int along, float edgeLuma, float endThreshold) {
+  const float centre = float(along);
+  Span s{kSearchSteps[0], kSearchSteps[0], 0.0f, 0.0f};
+  s.endNeg = lookBetween<kHorizontal>(luma, acrossLow, centre - s.distNeg) - edgeLuma;
+  s.endPos = lookBetween<kHorizontal>(luma, acrossLow, centre + s.distPos) - edgeLuma;
+  bool doneNeg = std::fabs(s.endNeg) >= endThreshold, donePos = std::fabs(s.endPos) >= endThreshold;
+  for (int k = 1; k < kSearchStepCount && !(doneNeg && donePos); ++k) {
+    if (!doneNeg) s.distNeg += kSearchSteps[k];
+    if (!donePos) s.distPos += kSearchSteps[k];
+    if (k == kSearchStepCount - 1) break;  // the last step is taken without a look
+    if (!doneNeg) {
+      s.endNeg = lookBetween<kHorizontal>(luma, acrossLow, centre - s.distNeg) - edgeLuma;
+      doneNeg = std::fabs(s.endNeg) >= endThreshold;
+    }
+    if (!donePos) {
+      s.endPos = lookBetween<kHorizontal>(luma, acrossLow, centre + s.distPos) - edgeLuma;
+      donePos = std::fabs(s.endPos) >= endThreshold;
+    }
+  }
+  return s;
 }
 
 template <class Luma>
@@ -169,28 +210,10 @@ inline Blend blendFor(const Luma& luma, int x, int y, const Settings& st) {
 
   // Step 5: end-of-edge search, on the line half a pixel toward the edge,
   // where a bilinear fetch averages the two rows (columns) it separates.
-  const float across = float(horizontal ? y : x) + 0.5f * side;
-  const float along = float(horizontal ? x : y);
-  auto look = [&](float position) {
-    const float l = horizontal ? bilinear(luma, position, across) : bilinear(luma, across, position);
-    return l - edgeLuma;
-  };
-  float distNeg = kSearchSteps[0], distPos = kSearchSteps[0];
-  float endNeg = look(along - distNeg), endPos = look(along + distPos);
-  bool doneNeg = std::fabs(endNeg) >= endThreshold, donePos = std::fabs(endPos) >= endThreshold;
-  for (int k = 1; k < kSearchStepCount && !(doneNeg && donePos); ++k) {
-    if (!doneNeg) distNeg += kSearchSteps[k];
-    if (!donePos) distPos += kSearchSteps[k];
-    if (k == kSearchStepCount - 1) break;  // the last step is taken without a look
-    if (!doneNeg) {
-      endNeg = look(along - distNeg);
-      doneNeg = std::fabs(endNeg) >= endThreshold;
-    }
-    if (!donePos) {
-      endPos = look(along + distPos);
-      donePos = std::fabs(endPos) >= endThreshold;
-    }
-  }
+  const int acrossLow = (horizontal ? y : x) - (towardBefore ? 1 : 0);
+  const Span span = horizontal ? searchSpan<true>(luma, acrossLow, x, edgeLuma, endThreshold)
+                               : searchSpan<false>(luma, acrossLow, y, edgeLuma, endThreshold);
+  const float distNeg = span.distNeg, distPos = span.distPos, endNeg = span.endNeg, endPos = span.endPos;
 
   // Step 6: the nearer end decides. The span is a staircase step of length
   // distNeg + distPos; a pixel at distance d from its nearer end is covered
@@ -251,8 +274,7 @@ struct ColorSource {
 // a lerp between the two pixels either side of it.
 template <bool kClamp>
 inline void resolve(const ColorSource& src, int width, int height, int x, int y, const Blend& blend, float out[4]) {
-  src.rgba(x, y, out);
-  if (blend.offset == 0.0f) return;
+  if (blend.offset == 0.0f) return src.rgba(x, y, out);
   const float pos = float(blend.horizontalEdge ? y : x) + blend.offset;
   const float p0f = std::floor(pos);
   const float t = pos - p0f;
@@ -270,7 +292,8 @@ inline void resolve(const ColorSource& src, int width, int height, int x, int y,
     src.rgba(p0, y, a);
     src.rgba(p1, y, b);
   }
-  for (int k = 0; k < 3; ++k) out[k] = lerp(a[k], b[k], t);  // alpha stays the centre's
+  for (int k = 0; k < 3; ++k) out[k] = lerp(a[k], b[k], t);
+  out[3] = src.channels > 3 ? sanitize(src.pixel(x, y)[3]) : 1.0f;  // alpha stays the centre's
 }
 
 inline void store(const ImageView& output, int x, int y, const float rgba[4]) {
