@@ -84,6 +84,7 @@
 #include "temporal/history_fetch.h"
 #include "temporal/jitter.h"
 #include "temporal/neighbourhood.h"
+#include "temporal/vec4.h"
 #include "temporal/velocity.h"
 
 namespace crisp::taa {
@@ -115,8 +116,8 @@ struct Frame {
   float depthTolerance;
 };
 
-inline float lumaOf(const Float3& c, ClipSpace space) {
-  return space == ClipSpace::YCoCg ? c[0] : temporal::luma709(c);
+inline float lumaOf(const temporal::Vec4& c, ClipSpace space) {
+  return space == ClipSpace::YCoCg ? c[0] : 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
 }
 
 inline Float3 toRgb(const Float3& c, ClipSpace space) {
@@ -137,8 +138,9 @@ inline void storeOutput(const ImageView& out, int x, int y, const Float3& rgb, f
 // path skip it. Both read the same values, so results are identical.
 template <bool Clamp>
 inline void taaPixel(const Frame& f, int x, int y) {
+  using temporal::Vec4;
   const int w = f.width, h = f.height;
-  Float3 taps[9];
+  Vec4 taps[9];  // RGBA staged: colour in the clip space, alpha in lane 3
   float depth9[9];
   int tapX[9], tapY[9];
   for (int j = 0, i = 0; j < 3; ++j)
@@ -147,12 +149,11 @@ inline void taaPixel(const Frame& f, int x, int y) {
       const int ty = Clamp ? std::clamp(y + j - 1, 0, h - 1) : y + j - 1;
       tapX[i] = tx;
       tapY[i] = ty;
-      const float* s = f.staged + (std::size_t(ty) * w + tx) * 4;
-      taps[i] = {{s[0], s[1], s[2]}};
+      taps[i] = temporal::load4(f.staged + (std::size_t(ty) * w + tx) * 4);
       if (f.depth) depth9[i] = f.depth[std::size_t(ty) * w + tx];
     }
-  const Float3 current = taps[4];
-  const float alpha = f.staged[(std::size_t(y) * w + x) * 4 + 3];
+  const Vec4 current = taps[4];
+  const float alpha = current[3];
 
   // Step 3: velocity of the closest-depth tap (seed 000 §3.6.3).
   const int tap = (f.depth && f.motion.ptr) ? temporal::closestDepthTap(depth9) : 4;
@@ -183,47 +184,43 @@ inline void taaPixel(const Frame& f, int x, int y) {
     valid = match;
   }
 
-  float hist[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+  Vec4 hist = temporal::splat(0.0f);
   if (valid) {
-    if (!moving) {
-      std::memcpy(hist, f.previous.at(x, y), sizeof hist);  // exact: no filtering at zero motion
-    } else if (f.filter == HistoryFilter::CatmullRom) {
-      temporal::fetchCatmullRom(f.previous, qx, qy, hist);
-    } else {
-      temporal::fetchBilinear(f.previous, qx, qy, hist);
-    }
+    if (!moving)
+      hist = temporal::load4(f.previous.at(x, y));  // exact: no filtering at zero motion
+    else if (f.filter == HistoryFilter::CatmullRom)
+      hist = temporal::fetchCatmullRom4(f.previous, qx, qy);
+    else
+      hist = temporal::fetchBilinear4(f.previous, qx, qy);
   }
   const float historyWeight = valid ? std::fabs(hist[3]) : 0.0f;
   const float weight = f.sampleWeight;
   const float weightSum = historyWeight + weight;
 
-  Float3 result;
-  float newWeight;
-  bool reset = false;
-  if (!valid || !(weightSum > 0.0f)) {
-    reset = true;  // first frame bootstrap / invalid reprojection
-  } else {
-    const Float3 history = {{hist[0], hist[1], hist[2]}};
-    ColorBox box3x3, cross;
-    temporal::neighbourhoodBoxes(taps, box3x3, cross);
+  Vec4 result = current;
+  float newWeight = weight;
+  bool reset = !valid || !(weightSum > 0.0f);  // first frame bootstrap / invalid reprojection
+  if (!reset) {
+    temporal::ColorBox4 box3x3, cross;
+    temporal::neighbourhoodBoxes4(taps, box3x3, cross);
     const bool staticPixel = f.staticAccumulation && !moving && hist[3] > 0.0f;
     // Static pixels are tested against the full 3x3 box (a converged edge
     // value always lies in its 3x3 range); moving ones against the rounded box.
-    const ColorBox box = staticPixel ? box3x3 : temporal::roundedBox(box3x3, cross);
-    const temporal::ClipResult clipped = temporal::clipTowardCentre(history, box.min, box.max);
-    if (staticPixel && (!f.staticClip || !(clipped.excess > 1.0f))) {
+    const temporal::ColorBox4 box = staticPixel ? box3x3 : temporal::roundedBox4(box3x3, cross);
+    float excess;
+    const Vec4 clipped = temporal::clipTowardCentre4(hist, box.min, box.max, &excess);
+    if (staticPixel && (!f.staticClip || !(excess > 1.0f))) {
       // Running average, weight w/W, in linear light.
-      const float a = weight / weightSum;
-      for (int c = 0; c < 3; ++c) result[c] = history[c] + (current[c] - history[c]) * a;
+      result = hist + (current - hist) * (weight / weightSum);
       newWeight = std::min(weightSum, f.maxSamples);
     } else {
       // Step 6: luma-difference feedback on the clipped history.
-      const float l0 = lumaOf(clipped.color, f.space), l1 = lumaOf(current, f.space);
+      const float l0 = lumaOf(clipped, f.space), l1 = lumaOf(current, f.space);
       const float diff = std::clamp(std::fabs(l0 - l1) / std::max(std::max(l0, l1), 0.2f), 0.0f, 1.0f);
       const float unbiased = (1.0f - diff) * (1.0f - diff);
       const float k = f.feedbackMin + (f.feedbackMax - f.feedbackMin) * unbiased;
       const float a = std::max(1.0f - k, weight / weightSum);
-      for (int c = 0; c < 3; ++c) result[c] = clipped.color[c] + (current[c] - clipped.color[c]) * a;
+      result = clipped + (current - clipped) * a;
       // The effective sample count of an exponential blend is about 1/(1-k).
       newWeight = 1.0f - k > 0.0f ? std::min(weightSum, 1.0f / (1.0f - k)) : weightSum;
       newWeight = std::min(newWeight, f.maxSamples);
@@ -235,11 +232,8 @@ inline void taaPixel(const Frame& f, int x, int y) {
     result = current;
     newWeight = weight;
   }
-  float* out = f.history + (std::size_t(y) * w + x) * 4;
-  out[0] = result[0];
-  out[1] = result[1];
-  out[2] = result[2];
-  out[3] = moving ? -newWeight : newWeight;  // sign: was this pixel static this frame
+  result[3] = moving ? -newWeight : newWeight;  // sign: was this pixel static this frame
+  temporal::store4(f.history + (std::size_t(y) * w + x) * 4, result);
   if (!f.writeOutput) return;
   if (reset) {
     // Reset to current: the input colour itself (sanitised), not its YCoCg
@@ -249,7 +243,7 @@ inline void taaPixel(const Frame& f, int x, int y) {
     storeOutput(f.output, x, y, {{sanitizeColor(p[0]), sanitizeColor(cc > 1 ? p[1] : p[0]), sanitizeColor(cc > 2 ? p[2] : p[0])}},
                 alpha);
   } else {
-    storeOutput(f.output, x, y, toRgb(result, f.space), alpha);
+    storeOutput(f.output, x, y, toRgb({{result[0], result[1], result[2]}}, f.space), alpha);
   }
 }
 

@@ -10,6 +10,8 @@
 #include <cmath>
 #include <cstddef>
 
+#include "temporal/vec4.h"
+
 namespace crisp::temporal {
 
 struct HistoryImage {
@@ -37,22 +39,19 @@ inline Footprint footprintOf(float x, float y) {
 
 // Bilinear fetch of the first 3 channels; out[3] = the carried channel of the
 // nearest tap (never interpolated).
-inline void fetchBilinear(const HistoryImage& h, float x, float y, float out[4]) {
+inline Vec4 fetchBilinear4(const HistoryImage& h, float x, float y) {
   const Footprint f = footprintOf(x, y);
   const int xa = std::clamp(f.x0, 0, h.width - 1), xb = std::clamp(f.x0 + 1, 0, h.width - 1);
   const int ya = std::clamp(f.y0, 0, h.height - 1), yb = std::clamp(f.y0 + 1, 0, h.height - 1);
-  const float* p00 = h.at(xa, ya);
-  const float* p10 = h.at(xb, ya);
-  const float* p01 = h.at(xa, yb);
-  const float* p11 = h.at(xb, yb);
-  for (int c = 0; c < 3; ++c) {
-    const float top = p00[c] + (p10[c] - p00[c]) * f.tx;
-    const float bottom = p01[c] + (p11[c] - p01[c]) * f.tx;
-    out[c] = top + (bottom - top) * f.ty;
-  }
-  const float* nearest = h.at(f.tx < 0.5f ? xa : xb, f.ty < 0.5f ? ya : yb);
-  out[3] = nearest[3];
+  const Vec4 p00 = load4(h.at(xa, ya)), p10 = load4(h.at(xb, ya));
+  const Vec4 p01 = load4(h.at(xa, yb)), p11 = load4(h.at(xb, yb));
+  const Vec4 top = p00 + (p10 - p00) * f.tx;
+  const Vec4 bottom = p01 + (p11 - p01) * f.tx;
+  Vec4 out = top + (bottom - top) * f.ty;
+  out[3] = h.at(f.tx < 0.5f ? xa : xb, f.ty < 0.5f ? ya : yb)[3];
+  return out;
 }
+inline void fetchBilinear(const HistoryImage& h, float x, float y, float out[4]) { store4(out, fetchBilinear4(h, x, y)); }
 
 // Catmull-Rom (cubic convolution, Keys 1981 with a = -0.5) weights of the taps
 // floor - 1 .. floor + 2 at fraction t. They sum to 1; w0 and w3 are <= 0.
@@ -68,36 +67,34 @@ inline void catmullRomWeights(float t, float w[4]) {
 // (bilinear) taps, so the sharpening lobes cannot ring past the local colours
 // (no overshoot, no negative colour from positive history). out[3] = the
 // carried channel of the nearest tap.
-inline void fetchCatmullRom(const HistoryImage& h, float x, float y, float out[4]) {
+inline Vec4 fetchCatmullRom4(const HistoryImage& h, float x, float y) {
   const Footprint f = footprintOf(x, y);
   float wx[4], wy[4];
   catmullRomWeights(f.tx, wx);
   catmullRomWeights(f.ty, wy);
-  int xs[4], ys[4];
-  for (int i = 0; i < 4; ++i) {
-    xs[i] = std::clamp(f.x0 - 1 + i, 0, h.width - 1);
-    ys[i] = std::clamp(f.y0 - 1 + i, 0, h.height - 1);
-  }
-  float acc[3] = {0.0f, 0.0f, 0.0f};
-  float lo[3], hi[3];
-  const float* c11 = h.at(xs[1], ys[1]);
-  for (int c = 0; c < 3; ++c) lo[c] = hi[c] = c11[c];
+  int xs[4];
+  for (int i = 0; i < 4; ++i) xs[i] = std::clamp(f.x0 - 1 + i, 0, h.width - 1);
+  Vec4 acc = splat(0.0f), lo = splat(0.0f), hi = splat(0.0f);
   for (int j = 0; j < 4; ++j) {
-    float row[3] = {0.0f, 0.0f, 0.0f};
-    for (int i = 0; i < 4; ++i) {
-      const float* p = h.at(xs[i], ys[j]);
-      for (int c = 0; c < 3; ++c) row[c] += wx[i] * p[c];
-      if ((i == 1 || i == 2) && (j == 1 || j == 2))
-        for (int c = 0; c < 3; ++c) {
-          lo[c] = std::min(lo[c], p[c]);
-          hi[c] = std::max(hi[c], p[c]);
-        }
+    const float* row = h.at(0, std::clamp(f.y0 - 1 + j, 0, h.height - 1));
+    const Vec4 t0 = load4(row + 4 * xs[0]), t1 = load4(row + 4 * xs[1]);
+    const Vec4 t2 = load4(row + 4 * xs[2]), t3 = load4(row + 4 * xs[3]);
+    const Vec4 r = ((t0 * wx[0] + t1 * wx[1]) + t2 * wx[2]) + t3 * wx[3];
+    acc += r * wy[j];
+    if (j == 1) {
+      lo = vmin(t1, t2);
+      hi = vmax(t1, t2);
+    } else if (j == 2) {
+      lo = vmin(lo, vmin(t1, t2));
+      hi = vmax(hi, vmax(t1, t2));
     }
-    for (int c = 0; c < 3; ++c) acc[c] += wy[j] * row[c];
   }
-  for (int c = 0; c < 3; ++c) out[c] = std::clamp(acc[c], lo[c], hi[c]);
-  const float* nearest = h.at(f.tx < 0.5f ? xs[1] : xs[2], f.ty < 0.5f ? ys[1] : ys[2]);
-  out[3] = nearest[3];
+  Vec4 out = vmin(vmax(acc, lo), hi);
+  out[3] = h.at(f.tx < 0.5f ? xs[1] : xs[2], std::clamp(f.ty < 0.5f ? f.y0 : f.y0 + 1, 0, h.height - 1))[3];
+  return out;
+}
+inline void fetchCatmullRom(const HistoryImage& h, float x, float y, float out[4]) {
+  store4(out, fetchCatmullRom4(h, x, y));
 }
 
 }  // namespace crisp::temporal

@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "temporal/color_space.h"
+#include "temporal/vec4.h"
 
 namespace crisp::temporal {
 
@@ -86,6 +87,48 @@ inline ClipResult clipTowardCentre(const Float3& p, const Float3& min, const Flo
   Float3 out;
   for (int c = 0; c < 3; ++c) out[c] = centre[c] + offset[c] * scale;
   return {out, excess};
+}
+
+// ---- 4-lane versions (RGBA in one Vec4; lane 3 rides along) ----------------
+// Same definitions as above, lane-wise; the kernels use these.
+struct ColorBox4 {
+  Vec4 min, max, avg;
+};
+
+inline void neighbourhoodBoxes4(const Vec4 taps[9], ColorBox4& box3x3, ColorBox4& cross) {
+  Vec4 lo = taps[0], hi = taps[0], sum = taps[0];
+  for (int i = 1; i < 9; ++i) {
+    lo = vmin(lo, taps[i]);
+    hi = vmax(hi, taps[i]);
+    sum += taps[i];
+  }
+  box3x3 = {lo, hi, sum * (1.0f / 9.0f)};
+  Vec4 clo = taps[1], chi = taps[1], csum = taps[1];
+  for (int k = 1; k < 5; ++k) {
+    const Vec4 t = taps[kCrossTaps[k]];
+    clo = vmin(clo, t);
+    chi = vmax(chi, t);
+    csum += t;
+  }
+  cross = {clo, chi, csum * 0.2f};
+}
+
+inline ColorBox4 roundedBox4(const ColorBox4& a, const ColorBox4& b) {
+  return {0.5f * (a.min + b.min), 0.5f * (a.max + b.max), 0.5f * (a.avg + b.avg)};
+}
+
+// clipTowardCentre on lanes 0-2; lane 3 of the result is p's. *excess as above.
+inline Vec4 clipTowardCentre4(Vec4 p, Vec4 min, Vec4 max, float* excess) {
+  const Vec4 centre = 0.5f * (max + min);
+  const Vec4 half = 0.5f * (max - min) + kClipEpsilon;
+  const Vec4 offset = p - centre;
+  const Vec4 ratio = vabs(offset) / half;
+  const float e = std::max(std::max(ratio[0], ratio[1]), ratio[2]);
+  *excess = e;
+  if (!(e > 1.0f)) return p;
+  Vec4 out = centre + offset * (1.0f / e);
+  out[3] = p[3];
+  return out;
 }
 
 }  // namespace crisp::temporal

@@ -13,6 +13,7 @@
 #include "temporal/history_fetch.h"
 #include "temporal/jitter.h"
 #include "temporal/neighbourhood.h"
+#include "temporal/vec4.h"
 #include "temporal/velocity.h"
 
 using namespace crisp;
@@ -295,4 +296,35 @@ TEST(MovingSequences, BlackmanHarrisReferenceIsSmootherThanBox) {
     }
   EXPECT_NEAR(sa, sb, 0.02 * sa);
   EXPECT_GT(mixedB, mixedA);
+}
+
+TEST(TemporalNeighbourhood, FourLaneVersionsMatchScalar) {
+  std::vector<float> values = {0.3f, -2.0f, 7.5f, 1e4f, 0.0f, 0.25f, 3.0f, -0.5f, 9.0f, 2.0f, 4.0f, 0.1f};
+  Float3 taps[9];
+  Vec4 taps4[9];
+  for (int i = 0; i < 9; ++i) {
+    for (int c = 0; c < 3; ++c) taps[i][c] = values[(i * 5 + c * 7) % values.size()];
+    taps4[i] = Vec4{taps[i][0], taps[i][1], taps[i][2], 42.0f};
+  }
+  ColorBox b3, cr;
+  ColorBox4 b34, cr4;
+  neighbourhoodBoxes(taps, b3, cr);
+  neighbourhoodBoxes4(taps4, b34, cr4);
+  const ColorBox r = roundedBox(b3, cr);
+  const ColorBox4 r4 = roundedBox4(b34, cr4);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_EQ(b3.min[c], b34.min[c]);
+    EXPECT_EQ(b3.max[c], b34.max[c]);
+    EXPECT_FLOAT_EQ(b3.avg[c], b34.avg[c]);
+    EXPECT_EQ(cr.max[c], cr4.max[c]);
+    EXPECT_EQ(r.min[c], r4.min[c]);
+  }
+  for (const Float3& p : {Float3{{0.0f, 0.0f, 0.0f}}, Float3{{50.0f, -3.0f, 2.0f}}, Float3{{1.0f, 1.0f, 1.0f}}}) {
+    const ClipResult s = clipTowardCentre(p, r.min, r.max);
+    float excess;
+    const Vec4 v = clipTowardCentre4(Vec4{p[0], p[1], p[2], 5.0f}, r4.min, r4.max, &excess);
+    EXPECT_EQ(s.excess, excess);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(s.color[c], v[c]);
+    EXPECT_EQ(v[3], 5.0f);  // lane 3 rides along
+  }
 }

@@ -1,0 +1,26 @@
+// SPDX-License-Identifier: Apache-2.0
+// A 4-lane float vector (GCC/Clang vector extension: one SSE/NEON register)
+// for per-pixel RGBA work in the temporal kernels. Lane-wise IEEE arithmetic
+// only (no fused multiply-add: the build uses -ffp-contract=off), so a kernel
+// gives the same bits whichever path or thread runs it.
+#pragma once
+
+#include <cstring>
+
+namespace crisp::temporal {
+
+typedef float Vec4 __attribute__((vector_size(16)));
+
+inline Vec4 load4(const float* p) {
+  Vec4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void store4(float* p, Vec4 v) { std::memcpy(p, &v, sizeof v); }
+inline Vec4 splat(float s) { return Vec4{s, s, s, s}; }
+// Same operand order as std::min / std::max.
+inline Vec4 vmin(Vec4 a, Vec4 b) { return b < a ? b : a; }
+inline Vec4 vmax(Vec4 a, Vec4 b) { return a < b ? b : a; }
+inline Vec4 vabs(Vec4 a) { return a < 0.0f ? -a : a; }
+
+}  // namespace crisp::temporal
