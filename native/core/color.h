@@ -23,6 +23,7 @@ inline float luminance709(float r, float g, float b) { return 0.2126f * r + 0.71
 inline float srgbEncode(float linear) {
   float v = std::clamp(linear, 0.0f, 1.0f);
   if (!(v == v)) v = 0.0f;
+  if (v >= 1.0f) return 1.0f;  // 1.055f - 0.055f is not exactly 1 in float
   return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
 }
 inline float srgbDecode(float encoded) {
