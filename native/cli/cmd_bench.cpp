@@ -13,10 +13,7 @@ namespace crisp::cli {
 
 int runBench(const ParsedArgs& args, const char* argv0) {
   namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  if (ec) self = fs::absolute(argv0);
-  fs::path bench = self.parent_path() / "crisp_bench";
+  fs::path bench = fs::path(executableDir()) / "crisp_bench";
   if (!fs::exists(bench))
     fail(CRISP_ERROR_INVALID_OPERATION, "benchmark runner '" + bench.string() + "' is not built (configure with -DCRISP_BUILD_TESTS=ON)");
   std::vector<std::string> a = {bench.string()};

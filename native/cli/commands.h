@@ -14,6 +14,7 @@ int runFilter(const ParsedArgs& args);
 int runCompare(const ParsedArgs& args);
 int runInfo(const ParsedArgs& args);
 int runSynth(const ParsedArgs& args);
+int runRender(const ParsedArgs& args);
 int runBench(const ParsedArgs& args, const char* argv0);
 
 // Points every image role the filter declares at the frame's pass of that
@@ -25,6 +26,8 @@ void writeTextFile(const std::string& path, const std::string& text);
 void makeDirectories(const std::string& path);
 std::string fileStem(const std::string& path);
 std::string joinPath(const std::string& dir, const std::string& name);
+// Folder of the running executable (/proc/self/exe).
+std::string executableDir();
 
 // Minimal JSON output.
 std::string jsonString(const std::string& s);

@@ -44,6 +44,12 @@ void makeDirectories(const std::string& path) {
   if (access(path.c_str(), W_OK) != 0) ioError("output folder '" + path + "' is not writable");
 }
 
+std::string executableDir() {
+  std::error_code ec;
+  fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? std::string(".") : self.parent_path().string();
+}
+
 std::string fileStem(const std::string& path) { return fs::path(path).stem().string(); }
 
 std::string joinPath(const std::string& dir, const std::string& name) { return (fs::path(dir) / name).string(); }

@@ -44,6 +44,7 @@ int main(int argc, char** argv) {
     if (a.command == "compare") return runCompare(a);
     if (a.command == "info") return runInfo(a);
     if (a.command == "synth") return runSynth(a);
+    if (a.command == "render") return runRender(a);
     if (a.command == "bench") return runBench(a, argv[0]);
     throw UsageError("unknown command '" + a.command + "'");
   } catch (const UsageError& e) {
