@@ -8,6 +8,7 @@ library cannot be loaded, the add-on still registers and `status()` says why.
 """
 
 import ctypes
+import json
 import os
 import time
 
@@ -46,6 +47,7 @@ SIGNATURES = {
     "crispSetFilterBool": (None, [_vp, _cp, _int]),
     "crispSetFilterString": (None, [_vp, _cp, _cp]),
     "crispGetFilterDoc": (_cp, [_vp]),
+    "crispGetFilterInfo": (_cp, [_vp]),
     "crispCommitFilter": (None, [_vp]),
     "crispExecuteFilter": (None, [_vp]),
     "crispResetFilter": (None, [_vp]),
@@ -162,6 +164,16 @@ def filter_types():
     return [t for t in call("crispGetFilterTypes").decode().split(",") if t]
 
 
+def filter_info(method):
+    """{"type", "images": [...], "params": [...]} of a filter, from the library itself."""
+    with Context() as ctx:
+        f = Filter(ctx, method)
+        try:
+            return f.info()
+        finally:
+            f.close()
+
+
 # ---- objects with owned handles ----------------------------------------------------------------
 
 class Context:
@@ -183,16 +195,6 @@ class Context:
         self.close()
 
 
-def parse_param_types(doc):
-    """name -> type ('int'|'float'|'bool'|'string') from the filter's Markdown parameter table."""
-    types = {}
-    for line in (doc or "").splitlines():
-        cells = [c.strip().strip("`") for c in line.strip().strip("|").split("|")]
-        if len(cells) >= 2 and cells[1].lower() in ("int", "float", "bool", "string"):
-            types[cells[0]] = cells[1].lower()
-    return types
-
-
 class Filter:
     def __init__(self, context, method):
         self.method = method
@@ -202,12 +204,16 @@ class Filter:
     def doc(self):
         return (call("crispGetFilterDoc", self.handle) or b"").decode("utf-8", "replace")
 
+    def info(self):
+        """The filter's image and parameter tables (crispGetFilterInfo) as Python objects."""
+        return json.loads(call("crispGetFilterInfo", self.handle).decode("utf-8"))
+
     def set_param(self, name, value):
         """Sets by the type the filter declares; a text value (from --set K=V) is parsed to it."""
         if self._param_types is None:
-            self._param_types = parse_param_types(self.doc())
+            self._param_types = {p["name"]: p["type"] for p in self.info()["params"]}
         kind = self._param_types.get(name)
-        if kind is None:  # unknown to the doc: infer from the Python value, the library validates
+        if kind is None:  # unknown: the library names it in its error
             kind = {bool: "bool", int: "int", float: "float"}.get(type(value), "string")
             if isinstance(value, str):
                 kind = _infer_kind(value)

@@ -1,9 +1,9 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 """Scene settings (scene.crisp): method, its parameters, references, output.
 
-Parameters are sent to the library only when they differ from their default here, so a library whose
-filter has other defaults (or a placeholder without parameters) keeps working. LIBRARY_NAMES maps a
-property to the library's parameter name (the filter's parameter table, `crisp help METHOD`)."""
+Each method's parameters are built at registration from the library's own table
+(crispGetFilterInfo): same names, types, defaults and ranges as `crisp help METHOD`. Only values that
+differ from the default are sent."""
 
 import bpy
 
@@ -33,61 +33,58 @@ def method_items(self, context):
     return _enum_cache
 
 
-class FxaaParams(bpy.types.PropertyGroup):
-    subpix: bpy.props.FloatProperty(name="Sub-pixel", default=0.75, min=0.0, max=1.0)
-    edge_threshold: bpy.props.FloatProperty(name="Edge threshold", default=0.166, min=0.0, max=1.0)
-    edge_threshold_min: bpy.props.FloatProperty(name="Edge threshold min", default=0.0833, min=0.0, max=1.0)
+# Parameters the pipeline sets itself (per frame) or that only tests use: not shown to artists.
+PIPELINE_PARAMS = {"jitterX", "jitterY", "reference"}
 
 
-class RepairParams(bpy.types.PropertyGroup):
-    kappa: bpy.props.FloatProperty(name="Kappa", default=-1.0, min=-5.0, max=5.0,
-                                   description="Edge threshold T = mean + kappa * sigma of the gradients")
-    patch_size: bpy.props.IntProperty(name="Patch size", default=5, min=3, max=9)
-    mask: bpy.props.EnumProperty(name="Mask", items=[("gaussian", "Gaussian 5x5", ""), ("average", "Average 3x3", "")])
+def group_name(method):
+    """Attribute of scene.crisp holding a method's parameters."""
+    return method.replace("-", "_")
 
 
-class TaaParams(bpy.types.PropertyGroup):
-    feedback_min: bpy.props.FloatProperty(name="Feedback min", default=0.88, min=0.0, max=1.0)
-    feedback_max: bpy.props.FloatProperty(name="Feedback max", default=0.97, min=0.0, max=1.0)
-    clip_space: bpy.props.EnumProperty(name="Clip space", items=[("ycocg", "YCoCg", ""), ("rgb", "RGB", "")])
-    history_filter: bpy.props.EnumProperty(name="History filter", items=[("catmull-rom", "Catmull-Rom", ""),
-                                                                         ("bilinear", "Bilinear", "")])
-    sharpen: bpy.props.BoolProperty(name="Sharpen", default=False)
+def _property_for(spec):
+    """A bpy property built from one row of the library's parameter table (crispGetFilterInfo)."""
+    desc = (spec.get("meaning") or "") + (" [" + spec["source"] + "]" if spec.get("source") else "")
+    name, kind = spec["name"], spec["type"]
+    if kind == "bool":
+        return bpy.props.BoolProperty(name=name, default=bool(spec["default"]), description=desc)
+    if kind == "int":
+        return bpy.props.IntProperty(name=name, default=int(spec["default"]), min=int(spec["min"]),
+                                     max=int(spec["max"]), description=desc)
+    if kind == "float":
+        return bpy.props.FloatProperty(name=name, default=float(spec["default"]), min=float(spec["min"]),
+                                       max=float(spec["max"]), description=desc, precision=4)
+    items = [(c, c, "") for c in spec["choices"]]
+    return bpy.props.EnumProperty(name=name, items=items, default=spec["default"], description=desc)
 
 
-class PhlmParams(bpy.types.PropertyGroup):
-    forgetting: bpy.props.FloatProperty(name="Forgetting (lambda)", default=0.998, min=0.9, max=1.0, precision=4)
-    alpha_a: bpy.props.FloatProperty(name="a", default=0.125, min=0.0, max=4.0)
-    alpha_b: bpy.props.FloatProperty(name="b", default=0.25, min=0.0, max=4.0)
+def _library_param_groups():
+    """{method: PropertyGroup class} built from the loaded library's own tables, so names, defaults and
+    ranges can never drift from the code. Empty when the library cannot load (the panel says why)."""
+    try:
+        methods = native.filter_types()
+        infos = {m: native.filter_info(m) for m in methods}
+    except native.CrispError:
+        return {}
+    groups = {}
+    for method, info in infos.items():
+        annotations = {p["name"]: _property_for(p) for p in info["params"] if p["name"] not in PIPELINE_PARAMS}
+        if annotations:
+            groups[method] = type("CrispParams_" + group_name(method), (bpy.types.PropertyGroup,),
+                                  {"__annotations__": annotations})
+    return groups
 
 
-class RsaaParams(bpy.types.PropertyGroup):
-    threshold: bpy.props.FloatProperty(name="SADP threshold", default=0.1, min=0.0, max=10.0)
-    verification: bpy.props.IntProperty(name="Verification mode", default=0, min=0, max=2)
-
-
-PARAM_GROUPS = {"fxaa": "fxaa", "repair": "repair", "taa": "taa", "taa-improved": "taa_improved",
-                "phlm": "phlm", "rsaa": "rsaa"}
-# property -> library parameter name, per method (only where they differ).
-LIBRARY_NAMES = {
-    "fxaa": {"subpix": "subpix", "edge_threshold": "edgeThreshold", "edge_threshold_min": "edgeThresholdMin"},
-    "repair": {"patch_size": "patchSize"},
-    "taa": {"feedback_min": "feedbackMin", "feedback_max": "feedbackMax", "clip_space": "clipSpace",
-            "history_filter": "historyFilter"},
-    "taa-improved": {"feedback_min": "feedbackMin", "feedback_max": "feedbackMax", "clip_space": "clipSpace",
-                     "history_filter": "historyFilter"},
-    "phlm": {"forgetting": "lambda", "alpha_a": "a", "alpha_b": "b"},
-    "rsaa": {},
-}
+_param_classes = {}  # method -> registered PropertyGroup class
 
 
 def param_group(settings, method):
-    name = PARAM_GROUPS.get(method)
-    return getattr(settings, name) if name else None
+    """The PropertyGroup holding a method's parameters, or None (no parameters / no library)."""
+    return getattr(settings, group_name(method), None) if method in _param_classes else None
 
 
 def changed_params(settings, method):
-    """{library name: value} of the parameters that differ from their defaults."""
+    """{library name: value} of the parameters that differ from the library's defaults."""
     group = param_group(settings, method)
     out = {}
     if group is None:
@@ -102,19 +99,13 @@ def changed_params(settings, method):
             continue
         if value == default:
             continue
-        out[LIBRARY_NAMES.get(method, {}).get(ident, ident)] = value
+        out[ident] = value
     return out
 
 
 class CrispSettings(bpy.types.PropertyGroup):
     method: bpy.props.EnumProperty(name="Method", items=method_items,
                                    description="Anti-aliasing filter (from the loaded library's list)")
-    fxaa: bpy.props.PointerProperty(type=FxaaParams)
-    repair: bpy.props.PointerProperty(type=RepairParams)
-    taa: bpy.props.PointerProperty(type=TaaParams)
-    taa_improved: bpy.props.PointerProperty(type=TaaParams)
-    phlm: bpy.props.PointerProperty(type=PhlmParams)
-    rsaa: bpy.props.PointerProperty(type=RsaaParams)
     reference_samples: bpy.props.IntProperty(name="Reference samples", default=256, min=1, max=65536,
                                              description="EEVEE samples of the reference frames (>= 256 for final figures)")
     output_dir: bpy.props.StringProperty(name="Output", subtype="DIR_PATH", default="//crisp/")
@@ -129,16 +120,22 @@ class CrispSettings(bpy.types.PropertyGroup):
     last_compare: bpy.props.StringProperty(name="Last comparison", default="")
 
 
-CLASSES = (FxaaParams, RepairParams, TaaParams, PhlmParams, RsaaParams, CrispSettings)
-
-
 def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
+    _param_classes.clear()
+    _param_classes.update(_library_param_groups())
+    for cls in _param_classes.values():
+        bpy.utils.register_class(cls)
+    # One pointer per method with parameters, added before CrispSettings is registered.
+    for method, cls in _param_classes.items():
+        CrispSettings.__annotations__[group_name(method)] = bpy.props.PointerProperty(type=cls)
+    bpy.utils.register_class(CrispSettings)
     bpy.types.Scene.crisp = bpy.props.PointerProperty(type=CrispSettings)
 
 
 def unregister():
     del bpy.types.Scene.crisp
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+    bpy.utils.unregister_class(CrispSettings)
+    for method, cls in reversed(list(_param_classes.items())):
+        CrispSettings.__annotations__.pop(group_name(method), None)
+        bpy.utils.unregister_class(cls)
+    _param_classes.clear()

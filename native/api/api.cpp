@@ -258,6 +258,16 @@ const char* crispGetFilterDoc(CrispFilter filter) {
       static_cast<const char*>(nullptr));
 }
 
+const char* crispGetFilterInfo(CrispFilter filter) {
+  return guarded(
+      [&]() -> const char* {
+        need(filter, "filter");
+        filter->scratch = filter->filter->infoJson();
+        return filter->scratch.c_str();
+      },
+      static_cast<const char*>(nullptr));
+}
+
 void crispCommitFilter(CrispFilter filter) {
   guardedVoid([&] {
     need(filter, "filter");

@@ -102,6 +102,19 @@ std::string Filter::doc() const {
   return o.str();
 }
 
+std::string Filter::infoJson() const {
+  std::ostringstream o;
+  o << "{\"type\": " << jsonQuote(type()) << ", \"images\": [";
+  for (std::size_t i = 0; i < roles_.size(); ++i) {
+    const ImageRole& r = roles_[i];
+    o << (i ? ", " : "") << "{\"name\": " << jsonQuote(r.name) << ", \"required\": " << (r.required ? "true" : "false")
+      << ", \"minChannels\": " << r.minChannels << ", \"maxChannels\": " << r.maxChannels
+      << ", \"uint\": " << (r.isUint ? "true" : "false") << ", \"meaning\": " << jsonQuote(r.meaning) << "}";
+  }
+  o << "], \"params\": " << params_.json() << "}";
+  return o.str();
+}
+
 void Filter::stageColor(Image& rgba) const {
   const ImageView& in = image("color");
   const int c = in.channels();

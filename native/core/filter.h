@@ -49,6 +49,8 @@ class Filter {
 
   const std::vector<ImageRole>& roles() const { return roles_; }
   std::string doc() const;
+  // {"type", "images": [{"name", "required", "minChannels", "maxChannels", "uint", "meaning"}], "params": ParamSet::json()}
+  std::string infoJson() const;
   int width() const { return width_; }
   int height() const { return height_; }
   int numThreads() const { return context_.numThreads(); }

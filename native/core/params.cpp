@@ -2,6 +2,7 @@
 #include "core/params.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <sstream>
 
@@ -149,6 +150,49 @@ const std::string& ParamSet::getString(const std::string& name) const {
   std::size_t i = indexOf(name);
   checkType(specs_[i], ParamType::String);
   return strings_[i];
+}
+
+std::string jsonQuote(const std::string& s) {
+  std::string o = "\"";
+  for (unsigned char c : s) {
+    if (c == '"' || c == '\\') {
+      o += '\\';
+      o += char(c);
+    } else if (c < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", c);
+      o += buf;
+    } else {
+      o += char(c);
+    }
+  }
+  return o + "\"";
+}
+
+std::string ParamSet::json() const {
+  std::ostringstream o;
+  o << "[";
+  for (std::size_t i = 0; i < specs_.size(); ++i) {
+    const ParamSpec& s = specs_[i];
+    o << (i ? ", " : "") << "{\"name\": " << jsonQuote(s.name) << ", \"type\": " << jsonQuote(paramTypeName(s.type));
+    switch (s.type) {
+      case ParamType::Bool: o << ", \"default\": " << (s.defaultValue != 0 ? "true" : "false"); break;
+      case ParamType::String: {
+        auto c = splitChoices(s.choices);
+        o << ", \"default\": " << jsonQuote(c.empty() ? "" : c.front()) << ", \"choices\": [";
+        for (std::size_t k = 0; k < c.size(); ++k) o << (k ? ", " : "") << jsonQuote(c[k]);
+        o << "]";
+        break;
+      }
+      default:
+        o << ", \"default\": " << formatNumber(s.defaultValue) << ", \"min\": " << formatNumber(s.minValue)
+          << ", \"max\": " << formatNumber(s.maxValue);
+    }
+    o << ", \"meaning\": " << jsonQuote(s.meaning ? s.meaning : "") << ", \"source\": " << jsonQuote(s.source ? s.source : "")
+      << "}";
+  }
+  o << "]";
+  return o.str();
 }
 
 std::string ParamSet::table() const {

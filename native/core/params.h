@@ -11,6 +11,8 @@ namespace crisp {
 
 enum class ParamType { Int, Float, Bool, String };
 const char* paramTypeName(ParamType t);
+// JSON string literal (quotes and escapes included).
+std::string jsonQuote(const std::string& s);
 
 struct ParamSpec {
   const char* name;
@@ -45,6 +47,8 @@ class ParamSet {
 
   // Markdown table: name | type | default | range | meaning | source.
   std::string table() const;
+  // JSON array: [{"name", "type", "default", "min", "max", "choices", "meaning", "source"}, ...]
+  std::string json() const;
 
  private:
   std::size_t indexOf(const std::string& name) const;

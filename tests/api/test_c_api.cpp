@@ -163,3 +163,16 @@ TEST(CApi, DocListsParametersAndImages) {
     EXPECT_NE(d.find("`color`"), std::string::npos) << type;
   }
 }
+
+TEST(CApi, InfoJsonDescribesImagesAndParameters) {
+  auto ctx = crisp::ContextRef::create();
+  auto f = ctx.newFilter("repair");
+  std::string info = crispGetFilterInfo(f.handle());
+  EXPECT_EQ(crispGetError(nullptr), CRISP_ERROR_NONE);
+  EXPECT_EQ(info.rfind("{\"type\": \"repair\", \"images\": [", 0), 0u) << info;
+  EXPECT_NE(info.find("{\"name\": \"color\", \"required\": true"), std::string::npos) << info;
+  EXPECT_NE(info.find("\"name\": \"mask\", \"type\": \"string\", \"default\": \"gauss5\", \"choices\": [\"gauss5\", \"box3\"]"),
+            std::string::npos)
+      << info;
+  EXPECT_NE(info.find("\"name\": \"patchSize\", \"type\": \"int\", \"default\": 5, \"min\": 3"), std::string::npos) << info;
+}

@@ -72,6 +72,33 @@ class AddonTest(unittest.TestCase):
         crisp.register()  # twice in a row must work too
         crisp.unregister()
 
+    def test_settings_mirror_the_library_parameter_tables(self):
+        from crisp import properties
+        crisp.register()
+        try:
+            s = bpy.context.scene.crisp
+            for method in native.filter_types():
+                info = native.filter_info(method)
+                group = properties.param_group(s, method)
+                shown = [p for p in info["params"] if p["name"] not in properties.PIPELINE_PARAMS]
+                if not shown:
+                    self.assertIsNone(group, method)
+                    continue
+                for p in shown:  # same names and defaults as the library
+                    value = getattr(group, p["name"])
+                    if p["type"] == "float":
+                        self.assertAlmostEqual(value, p["default"], places=5, msg=(method, p["name"]))
+                    else:
+                        self.assertEqual(value, p["default"], (method, p["name"]))
+                self.assertEqual(properties.changed_params(s, method), {}, method)
+            s.repair.kappa = -1.0
+            s.repair.mask = "box3"
+            self.assertEqual(properties.changed_params(s, "repair"), {"kappa": -1.0, "mask": "box3"})
+            with self.assertRaises(TypeError):
+                s.repair.mask = "gaussian"  # not one of the library's choices
+        finally:
+            crisp.unregister()
+
     def test_missing_library_still_registers_and_says_why(self):
         saved_lib, saved_env = native._lib, os.environ.get("CRISP_LIBRARY")
         native._lib = None

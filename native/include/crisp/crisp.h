@@ -102,6 +102,12 @@ CRISP_API int crispGetFilterBool(CrispFilter filter, const char* name);
 CRISP_API const char* crispGetFilterString(CrispFilter filter, const char* name);
 // Human-readable table of the filter's parameters and image roles.
 CRISP_API const char* crispGetFilterDoc(CrispFilter filter);
+// The same as JSON, for programs (the Blender add-on builds its settings from
+// it): {"type": ..., "images": [{"name", "required", "minChannels",
+// "maxChannels", "uint", "meaning"}...], "params": [{"name", "type" (int,
+// float, bool, string), "default", "min", "max" | "choices", "meaning",
+// "source"}...]}. Valid until the filter is changed or released.
+CRISP_API const char* crispGetFilterInfo(CrispFilter filter);
 
 // Validates images and parameters and allocates what execute needs.
 CRISP_API void crispCommitFilter(CrispFilter filter);
