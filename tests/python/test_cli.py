@@ -1,0 +1,148 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The `crisp` CLI end to end on real files: filter, compare, info, synth, help, and bad input.
+
+Every failure must exit non-zero with a message naming the file, pass or parameter, and leave no
+partial output under a final name (nor touch existing files)."""
+import json
+import os
+import pathlib
+import subprocess
+
+import pytest
+
+BUILD = pathlib.Path(os.environ.get("CRISP_BUILD_DIR", pathlib.Path(__file__).resolve().parents[2] / "build"))
+CRISP = BUILD / "bin" / "crisp"
+
+
+def run(*args, ok=True):
+    p = subprocess.run([str(CRISP), *map(str, args)], capture_output=True, text=True, timeout=120)
+    if ok:
+        assert p.returncode == 0, p.stderr
+    return p
+
+
+@pytest.fixture(scope="module")
+def chart(tmp_path_factory):
+    d = tmp_path_factory.mktemp("chart")
+    run("synth", "-o", d, "--size", "97x61")
+    return d
+
+
+def test_synth_filter_compare_roundtrip(chart, tmp_path):
+    out = tmp_path / "out"
+    run("filter", "--method", "repair", "--set", "kappa=-1", "--png", chart / "chart_1spp.exr", "-o", out)
+    assert (out / "chart_1spp.exr").is_file() and (out / "chart_1spp.png").is_file()
+    js = tmp_path / "m.json"
+    p = run("compare", "--reference", chart / "chart_reference.exr", chart / "chart_reference.exr",
+            "--test", chart / "chart_1spp.exr", out / "chart_1spp.exr", "--json", js, "--maps", tmp_path / "maps")
+    data = json.loads(js.read_text())
+    assert [f["test"] for f in data["frames"]] == [str(chart / "chart_1spp.exr"), str(out / "chart_1spp.exr")]
+    for f in data["frames"]:
+        for k in ("mse", "psnr", "ssim", "snr", "rmse", "flip"):
+            assert isinstance(f[k], float)
+    unfiltered, filtered = data["frames"]
+    assert data["mean"]["psnr"] == pytest.approx((unfiltered["psnr"] + filtered["psnr"]) / 2, rel=1e-6)
+    assert "mean" in p.stdout
+    assert (tmp_path / "maps" / "chart_1spp.ssim.exr").is_file()
+
+
+def test_edge_mask_restricts_compare(chart, tmp_path):
+    js_all, js_edges = tmp_path / "a.json", tmp_path / "e.json"
+    args = ["--reference", chart / "chart_reference.exr", "--test", chart / "chart_1spp.exr"]
+    run("compare", *args, "--json", js_all)
+    run("compare", *args, "--mask", chart / "chart_edges.exr", "--json", js_edges)
+    whole = json.loads(js_all.read_text())["frames"][0]
+    edges = json.loads(js_edges.read_text())["frames"][0]
+    assert edges["pixels"] < whole["pixels"] == 97 * 61
+    assert edges["psnr"] < whole["psnr"]  # all the error sits on edge pixels
+
+
+def test_info_lists_passes_and_missing(chart):
+    p = run("info", chart / "chart_1spp.exr")
+    assert "passes: color" in p.stdout
+    assert "fxaa" in p.stdout and "ready" in p.stdout
+
+
+def test_help_prints_parameter_tables():
+    p = run("help", "repair")
+    assert "| `kappa` | float |" in p.stdout
+    assert "--method" in run("help", "filter").stdout
+    assert run("--help").returncode == 0
+
+
+@pytest.mark.parametrize("args, code, words", [
+    (["filter", "--method", "nope", "IN", "-o", "OUT"], 1, ["unknown filter type 'nope'"]),
+    (["filter", "--method", "repair", "--set", "kapa=1", "IN", "-o", "OUT"], 1, ["unknown parameter 'kapa'"]),
+    (["filter", "--method", "repair", "--set", "kappa=9", "IN", "-o", "OUT"], 1, ["'kappa' = 9", "out of range"]),
+    (["filter", "--method", "repair", "--set", "kappa", "IN", "-o", "OUT"], 2, ["KEY=VALUE"]),
+    (["filter", "--method", "fxaa", "IN"], 2, ["--output"]),
+    (["filter", "--method", "fxaa", "--bogus", "IN", "-o", "OUT"], 2, ["unknown option '--bogus'"]),
+    (["compare", "--reference", "IN", "--test", "IN", "IN"], 2, ["paired in order"]),
+    (["frobnicate"], 2, ["unknown command 'frobnicate'"]),
+])
+def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
+    args = [str(chart / "chart_1spp.exr") if a == "IN" else str(tmp_path / "out") if a == "OUT" else a for a in args]
+    p = run(*args, ok=False)
+    assert p.returncode == code, p.stderr
+    for w in words:
+        assert w in p.stderr
+    assert not (tmp_path / "out" / "chart_1spp.exr").exists()
+
+
+def test_bad_files_name_the_file_and_write_nothing(chart, tmp_path):
+    good = (chart / "chart_1spp.exr").read_bytes()
+    cases = {
+        "truncated.exr": good[: len(good) // 2],
+        "corrupt.exr": good[:40] + bytes(b ^ 0x5A for b in good[40:400]) + good[400:],
+        "empty.exr": b"",
+        "text.exr": b"this is not an image\n",
+    }
+    out = tmp_path / "out"
+    for name, data in cases.items():
+        f = tmp_path / name
+        f.write_bytes(data)
+        p = run("filter", "--method", "fxaa", f, "-o", out, ok=False)
+        assert p.returncode == 1, (name, p.stderr)
+        assert name in p.stderr, (name, p.stderr)
+        assert not (out / (f.stem + ".exr")).exists(), name
+    p = run("filter", "--method", "fxaa", tmp_path / "missing.exr", "-o", out, ok=False)
+    assert p.returncode == 1 and "missing.exr" in p.stderr
+    leftovers = [x.name for x in out.iterdir()] if out.exists() else []
+    assert leftovers == [], leftovers  # no temporary files either
+
+
+def test_mismatched_sizes_are_named(chart, tmp_path):
+    small = tmp_path / "small"
+    run("synth", "-o", small, "--size", "31x17")
+    p = run("compare", "--reference", chart / "chart_reference.exr", "--test", small / "chart_1spp.exr", ok=False)
+    assert p.returncode == 1
+    assert "97x61" in p.stderr and "31x17" in p.stderr and "chart_1spp.exr" in p.stderr
+
+
+def test_existing_output_survives_a_failed_run(chart, tmp_path):
+    out = tmp_path / "out"
+    run("filter", "--method", "fxaa", chart / "chart_1spp.exr", "-o", out)
+    before = (out / "chart_1spp.exr").read_bytes()
+    bad = tmp_path / "chart_1spp.exr"  # same name as the existing output, but corrupt
+    bad.write_bytes(b"\x76\x2f\x31\x01" + b"\x00" * 64)
+    p = run("filter", "--method", "fxaa", bad, "-o", out, ok=False)
+    assert p.returncode == 1
+    assert (out / "chart_1spp.exr").read_bytes() == before
+
+
+def test_refuses_to_overwrite_inputs(chart, tmp_path):
+    src = tmp_path / "in"
+    run("synth", "-o", src, "--size", "8x8")
+    p = run("filter", "--method", "fxaa", src / "chart_1spp.exr", "-o", src, ok=False)
+    assert p.returncode == 2 and "overwrite an input" in p.stderr
+    p = run("filter", "--method", "fxaa", src / "chart_1spp.exr", src / "chart_1spp.png", "-o", tmp_path / "o", ok=False)
+    assert p.returncode == 2 and "overwrite each other" in p.stderr
+
+
+def test_tiny_and_odd_sizes(tmp_path):
+    for size in ("1x1", "2x3", "17x9"):
+        d = tmp_path / size
+        run("synth", "-o", d, "--size", size)
+        for m in ("none", "fxaa", "repair", "taa"):
+            run("filter", "-q", "--method", m, d / "chart_1spp.exr", "-o", d / m)
+            assert (d / m / "chart_1spp.exr").is_file()
