@@ -6,7 +6,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake ninja-build pkg-config git
-  libopenimageio-dev openimageio-tools libopenexr-dev libglm-dev
+  libopenimageio-dev openimageio-tools libopenexr-dev libglm-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev
   python3 python3-numpy python3-skimage python3-pytest
