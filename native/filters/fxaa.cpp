@@ -271,14 +271,17 @@ struct ColorSource {
 
 // Step 7: the colour of (x, y) fetched `blend.offset` pixels across the edge.
 // The fetch point is on a pixel-centre line, so the bilinear fetch reduces to
-// a lerp between the two pixels either side of it.
+// a lerp between the two pixels either side of it; |offset| <= subpix <= 1,
+// so for pixels off the border both lie inside the image.
 template <bool kClamp>
 inline void resolve(const ColorSource& src, int width, int height, int x, int y, const Blend& blend, float out[4]) {
   if (blend.offset == 0.0f) return src.rgba(x, y, out);
   const float pos = float(blend.horizontalEdge ? y : x) + blend.offset;
   const float p0f = std::floor(pos);
   const float t = pos - p0f;
-  int p0 = int(p0f), p1 = p0 + 1;
+  // |offset| reaches 1 when subpix = 1: the fetch lands on the neighbour's
+  // centre (t = 0), and the pixel beyond it must not be read.
+  int p0 = int(p0f), p1 = t == 0.0f ? p0 : p0 + 1;
   if (kClamp) {
     const int last = (blend.horizontalEdge ? height : width) - 1;
     p0 = std::clamp(p0, 0, last);
