@@ -11,6 +11,7 @@
 #include "core/filter.h"
 #include "io/frame.h"
 #include "metrics/metrics.h"
+#include "motion/reconstruct.h"
 #include "crisp/crisp.h"
 
 struct CrispContextImpl {
@@ -335,6 +336,17 @@ void* crispGetFramePass(CrispFrame frame, const char* role, CrispFormat* outForm
         return const_cast<float*>(im.data.data());
       },
       static_cast<void*>(nullptr));
+}
+
+void crispReconstructFrameMotion(CrispContext context, CrispFrame frame, const char* previousSidecar,
+                                 const char* nextSidecar) {
+  guardedVoid([&] {
+    need(context, "context");
+    need(frame, "frame");
+    crisp::reconstructFrameMotion(frame->frame, nameOf(previousSidecar, "previous sidecar"),
+                                  nextSidecar ? std::string(nextSidecar) : std::string(), context->ctx.numThreads());
+    frame->passes = frame->frame.passList();
+  });
 }
 
 void crispWriteImage(CrispContext context, const char* path, const void* ptr, CrispFormat format, size_t width,

@@ -1,18 +1,52 @@
 // SPDX-License-Identifier: Apache-2.0
 // crisp filter --method NAME [--set K=V]... INPUT... -o OUTDIR [--png]
 // Inputs are filtered in the order given (temporal methods keep history
-// between them) and each result goes to OUTDIR/<input name>.exr.
+// between them) and each result goes to OUTDIR/<input name>.exr. Methods that
+// read motion get it reconstructed for inputs with add-on sidecars and no
+// motion pass (addReconstructedMotion).
+#include <algorithm>
+#include <cstring>
 #include <filesystem>
 #include <set>
+#include <vector>
 
 #include "cli/commands.h"
 #include "cli/progress.h"
 #include "core/error.h"
 #include "core/filter.h"
+#include "io/sidecar.h"
+#include "motion/reconstruct.h"
 
 namespace crisp::cli {
 
 namespace fs = std::filesystem;
+
+namespace {
+
+// For a method that reads "motion", an input without a motion pass but with
+// an add-on sidecar (frame_NNNN.json) gets motion reconstructed from its depth
+// and the sidecars of the previous input (and of the next one, for zw) in the
+// order given; the first input gets zero motion.
+void addReconstructedMotion(const Filter& filter, Frame& frame, const std::vector<std::string>& inputs,
+                            std::size_t index, int numThreads) {
+  const auto& roles = filter.roles();
+  const bool readsMotion = std::any_of(roles.begin(), roles.end(),
+                                       [](const ImageRole& r) { return std::strcmp(r.name, "motion") == 0; });
+  std::error_code ec;
+  if (!readsMotion || frame.has("motion") || !fs::is_regular_file(sidecarPathFor(frame.path), ec)) return;
+  if (index == 0) {
+    frame.passes["motion"] = Image(frame.width, frame.height, 4, 0.0f);
+    return;
+  }
+  const std::string previous = sidecarPathFor(inputs[index - 1]);
+  if (!fs::is_regular_file(previous, ec)) return;
+  std::string next;
+  if (index + 1 < inputs.size() && fs::is_regular_file(sidecarPathFor(inputs[index + 1]), ec))
+    next = sidecarPathFor(inputs[index + 1]);
+  reconstructFrameMotion(frame, previous, next, numThreads);
+}
+
+}  // namespace
 
 int runFilter(const ParsedArgs& args) {
   if (args.positional.empty()) throw UsageError("'filter' needs at least one INPUT file");
@@ -47,8 +81,10 @@ int runFilter(const ParsedArgs& args) {
 
   Image output;
   Progress progress("filter " + std::string(filter->type()), int(args.positional.size()), args.has("quiet"));
-  for (const std::string& in : args.positional) {
+  for (std::size_t i = 0; i < args.positional.size(); ++i) {
+    const std::string& in = args.positional[i];
     Frame frame = readFrame(in);
+    addReconstructedMotion(*filter, frame, args.positional, i, context.numThreads());
     bindFrame(*filter, frame);
     if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
     filter->setImage("output", output.view());

@@ -129,6 +129,20 @@ CRISP_API const char* crispGetFramePasses(CrispFrame frame);
 // Pointer to the pass's packed pixels (owned by the frame), or NULL with an
 // error if absent. *outFormat receives its format.
 CRISP_API void* crispGetFramePass(CrispFrame frame, const char* role, CrispFormat* outFormat);
+// Motion vectors for a frame rendered without a Vector pass (EEVEE 3.x), from
+// its "depth" pass, its "id" pass if present, and the JSON sidecars the Blender
+// add-on writes: the frame's own (its path with the extension replaced by
+// ".json"), previousSidecar (required) and nextSidecar (may be NULL). Adds or
+// replaces the frame's "motion" pass (float4, pixels, y down: xy = previous -
+// current, zw = current - next, 0 without nextSidecar; jitter removed) and a
+// "motion_flags" pass (uint32 bits per pixel: 1 xy valid, 2 zw valid,
+// 4 background, 8 invalid point (depth <= 0, behind the previous/next camera),
+// 16 ID unknown to the sidecar (moved as static), 32 object missing from the
+// previous/next sidecar); motion is 0 wherever its valid bit is clear.
+// Exact for rigid object and camera motion; not for deforming meshes.
+// Threads: the context's numThreads.
+CRISP_API void crispReconstructFrameMotion(CrispContext context, CrispFrame frame, const char* previousSidecar,
+                                           const char* nextSidecar);
 
 // Writes an image (RGB or RGBA float view) to `path`; the type comes from the
 // extension (.exr: float RGBA; .png: 8-bit sRGB-encoded). Writes to a
