@@ -1,0 +1,314 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""GPU versions of the Crisp filters (fxaa, repair, taa) for the viewport preview.
+
+The GLSL lives in the repository's `shaders/` (one file per filter, twin of native/filters/*.cpp, plus
+common.glsl and fullscreen_vert.glsl). It is looked up in `<add-on>/shaders/` first (a packaged add-on
+bundles a copy there) and then in `<repo>/shaders/` next to `addon/`; CRISP_SHADER_DIR overrides both.
+Every pass is built with gpu.shader.create_from_info (required on 4.x's Metal/Vulkan backends, present
+in 3.4): this module declares each pass's samplers, push constants and outputs in PASSES; the GLSL
+file holds the functions, guarded by one macro per pass.
+
+Needs a window (the gpu module refuses background mode). Textures are RGBA32F; each filter owns its
+targets, allocated for one size and kept until the size changes, and taa keeps two history textures
+between runs (ping-pong) until reset() or a size change.
+"""
+
+import os
+
+import gpu
+from gpu_extras.batch import batch_for_shader
+
+METHODS = ("fxaa", "repair", "taa")
+
+# Parameter names and defaults of the C++ kernels (the library's crispGetFilterInfo tables). Enum-valued
+# parameters are passed to GLSL as int indices into their choices.
+CHOICES = {
+    "mask": ("gauss5", "box3"),
+    "angleEstimator": ("regression", "thesis"),
+    "jitterWeighting": ("none", "blackman-harris"),
+    "historyFilter": ("catmull-rom", "bilinear"),
+    "clipSpace": ("ycocg", "rgb"),
+}
+DEFAULTS = {
+    "fxaa": {"edgeThreshold": 0.166, "edgeThresholdMin": 0.0833, "subpix": 0.75},
+    "repair": {"kappa": 0.0, "patchSize": 5, "mask": "gauss5", "angleEstimator": "regression"},
+    "taa": {"jitterX": 0.0, "jitterY": 0.0, "jitterWeighting": "none", "filterSize": 1.5,
+            "historyFilter": "catmull-rom", "clipSpace": "ycocg", "feedbackMin": 0.88, "feedbackMax": 0.97,
+            "sharpen": 0.0, "staticAccumulation": True, "maxSamples": 128, "staticClip": True},
+}
+
+# Resources of each GLSL file (declared for every pass of the file) and each pass's macro, entry and
+# outputs. Push constants: (type, name); bool parameters are INT 0/1.
+FILES = {
+    "fxaa": {
+        "samplers": ("colorImage", "lumaImage"),
+        "push": (("FLOAT", "edgeThreshold"), ("FLOAT", "edgeThresholdMin"), ("FLOAT", "subpix")),
+    },
+    "repair": {
+        "samplers": ("colorImage", "greyImage", "gradientImage", "statsImage"),
+        "push": (("FLOAT", "kappa"), ("INT", "patchSize"), ("INT", "mask"), ("INT", "angleEstimator")),
+    },
+    "taa": {
+        "samplers": ("colorImage", "historyImage", "motionImage"),
+        "push": (("FLOAT", "jitterX"), ("FLOAT", "jitterY"), ("INT", "jitterWeighting"), ("FLOAT", "filterSize"),
+                 ("INT", "historyFilter"), ("INT", "clipSpace"), ("FLOAT", "feedbackMin"),
+                 ("FLOAT", "feedbackMax"), ("FLOAT", "sharpen"), ("INT", "staticAccumulation"),
+                 ("INT", "maxSamples"), ("INT", "staticClip"), ("INT", "hasHistory"), ("INT", "hasMotion")),
+    },
+}
+PASSES = {
+    "fxaa_luma": ("fxaa", "FXAA_LUMA_PASS", "fxaaLumaPass", (("FLOAT", "lumaOut"),)),
+    "fxaa_resolve": ("fxaa", "FXAA_RESOLVE_PASS", "fxaaResolvePass", (("VEC4", "fragColor"),)),
+    "repair_grey": ("repair", "REPAIR_GREY_PASS", "repairGreyPass", (("FLOAT", "greyOut"),)),
+    "repair_gradient": ("repair", "REPAIR_GRADIENT_PASS", "repairGradientPass", (("FLOAT", "gradientOut"),)),
+    "repair_stats": ("repair", "REPAIR_STATS_PASS", "repairStatsPass", (("VEC4", "statsOut"),)),
+    "repair_reduce": ("repair", "REPAIR_REDUCE_PASS", "repairReducePass", (("VEC4", "statsOut"),)),
+    "repair_resolve": ("repair", "REPAIR_RESOLVE_PASS", "repairResolvePass", (("VEC4", "fragColor"),)),
+    "taa_resolve": ("taa", "TAA_RESOLVE_PASS", "taaResolvePass", (("VEC4", "historyOut"), ("VEC4", "fragColor"))),
+    "taa_sharpen": ("taa", "TAA_SHARPEN_PASS", "taaSharpenPass", (("VEC4", "fragColor"),)),
+    # Display pass of the viewport preview (common.glsl only): the filtered texture, sRGB-encoded.
+    "display": (None, "DISPLAY_PASS", "displayPass", (("VEC4", "fragColor"),)),
+}
+
+DISPLAY_SOURCE = """
+#ifdef DISPLAY_PASS
+void displayPass() {
+  vec4 c = texelFetch(colorImage, fragmentPixel() - offset, 0);
+  fragColor = vec4(srgbEncode(c.r), srgbEncode(c.g), srgbEncode(c.b), 1.0);
+}
+#endif
+"""
+
+
+class GpuFilterError(RuntimeError):
+    """A shader that does not build, a missing shader file, or a GPU module that is unavailable."""
+
+
+def shader_dirs():
+    here = os.path.dirname(os.path.abspath(__file__))
+    dirs = []
+    if os.environ.get("CRISP_SHADER_DIR"):
+        dirs.append(os.environ["CRISP_SHADER_DIR"])
+    dirs += [os.path.join(here, "shaders"), os.path.normpath(os.path.join(here, "..", "..", "shaders"))]
+    return dirs
+
+
+def shader_source(name):
+    for d in shader_dirs():
+        path = os.path.join(d, name)
+        if os.path.isfile(path):
+            with open(path, encoding="utf-8") as f:
+                return f.read()
+    raise GpuFilterError("shader %s not found in %s" % (name, ", ".join(shader_dirs())))
+
+
+_shaders = {}
+_batch = {}
+
+
+def shader(pass_name):
+    """The built shader of one pass (cached for the session)."""
+    if pass_name in _shaders:
+        return _shaders[pass_name]
+    file_key, macro, entry, outputs = PASSES[pass_name]
+    info = gpu.types.GPUShaderCreateInfo()
+    info.vertex_in(0, "VEC2", "pos")
+    if file_key is None:
+        samplers, push, body = ("colorImage",), (("IVEC2", "offset"),), DISPLAY_SOURCE
+    else:
+        samplers, push = FILES[file_key]["samplers"], FILES[file_key]["push"]
+        body = shader_source(file_key + ".glsl")
+    for slot, name in enumerate(samplers):
+        info.sampler(slot, "FLOAT_2D", name)
+    for kind, name in push:
+        info.push_constant(kind, name)
+    for slot, (kind, name) in enumerate(outputs):
+        info.fragment_out(slot, kind, name)
+    info.vertex_source(shader_source("fullscreen_vert.glsl"))
+    info.fragment_source("#define %s\n%s\n%s\nvoid main() { %s(); }\n" % (macro, shader_source("common.glsl"), body,
+                                                                         entry))
+    try:
+        built = gpu.shader.create_from_info(info)
+    except Exception as e:  # Blender prints the compiler log to stderr; name the pass here
+        raise GpuFilterError("building shader pass %s failed: %s" % (pass_name, e)) from e
+    _shaders[pass_name] = built
+    return built
+
+
+def _fullscreen_batch(sh):
+    key = id(sh)
+    if key not in _batch:
+        # One triangle covering the target; fragments address pixels by gl_FragCoord.
+        _batch[key] = batch_for_shader(sh, "TRIS", {"pos": ((-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0))})
+    return _batch[key]
+
+
+class Target:
+    """A render target: one or more RGBA32F/R32F textures behind one framebuffer."""
+
+    def __init__(self, width, height, formats=("RGBA32F",)):
+        self.width, self.height = width, height
+        self.textures = [gpu.types.GPUTexture((width, height), format=f) for f in formats]
+        self.framebuffer = gpu.types.GPUFrameBuffer(color_slots=tuple(self.textures))
+
+    @property
+    def texture(self):
+        return self.textures[0]
+
+    def read(self, slot=0, channels=4):
+        """The texture's pixels as a flat list of floats, row 0 first."""
+        with self.framebuffer.bind():
+            buf = self.framebuffer.read_color(0, 0, self.width, self.height, channels, slot, "FLOAT")
+        buf.dimensions = self.width * self.height * channels
+        return list(buf)
+
+
+def run_pass(pass_name, target, samplers, constants=()):
+    """Draws one pass into `target` (every texel once)."""
+    sh = shader(pass_name)
+    batch = _fullscreen_batch(sh)
+    with target.framebuffer.bind():
+        gpu.state.viewport_set(0, 0, target.width, target.height)
+        gpu.state.blend_set("NONE")
+        gpu.state.depth_test_set("NONE")
+        sh.bind()
+        for name, tex in samplers.items():
+            sh.uniform_sampler(name, tex)
+        for kind, name, value in constants:
+            try:
+                if kind == "INT":
+                    sh.uniform_int(name, int(value))
+                else:
+                    sh.uniform_float(name, float(value))
+            except ValueError:
+                pass  # declared for the whole file, unused by (so compiled out of) this pass
+        batch.draw(sh)
+
+
+def _constants(file_key, params):
+    out = []
+    for kind, name in FILES[file_key]["push"]:
+        if name not in params:
+            continue
+        v = params[name]
+        if name in CHOICES:
+            v = CHOICES[name].index(v) if isinstance(v, str) else int(v)
+        out.append((kind, name, v))
+    return out
+
+
+def texture_from_rgba(width, height, values):
+    """An RGBA32F texture from a flat list of width*height*4 floats (row 0 = texture row 0)."""
+    buf = gpu.types.Buffer("FLOAT", width * height * 4, values)
+    return gpu.types.GPUTexture((width, height), format="RGBA32F", data=buf)
+
+
+class GpuFilter:
+    """One filter on the GPU: run(color_texture) -> the output texture (RGBA32F, owned by the filter)."""
+
+    def __init__(self, method, params=None):
+        if method not in METHODS:
+            raise GpuFilterError("no GPU version of filter '%s' (have: %s)" % (method, ", ".join(METHODS)))
+        self.method = method
+        self.params = dict(DEFAULTS[method])
+        self.set_params(params or {})
+        self.size = None
+        self.frames = 0  # taa: frames since reset
+        for name in [p for p in PASSES if p.startswith(method + "_")]:
+            shader(name)  # build now, so a broken shader fails here and not mid-redraw
+
+    def set_params(self, params):
+        for k, v in params.items():
+            if k not in DEFAULTS[self.method]:
+                raise GpuFilterError("filter '%s' has no parameter '%s' on the GPU (has: %s)"
+                                     % (self.method, k, ", ".join(DEFAULTS[self.method])))
+            self.params[k] = v
+
+    def reset(self):
+        """taa: forget the history (the next run is a first frame)."""
+        self.frames = 0
+
+    def _allocate(self, width, height):
+        if self.size == (width, height):
+            return
+        self.size = (width, height)
+        self.frames = 0
+        self.output = Target(width, height)
+        if self.method == "fxaa":
+            self.luma = Target(width, height, ("R32F",))
+        elif self.method == "repair":
+            self.grey = Target(width, height, ("R32F",))
+            self.gradient = Target(width, height, ("R32F",))
+            # The 4x4 -> 1 reduction tree of the threshold statistics, down to 1x1.
+            self.stats = []
+            w, h = width, height
+            while True:
+                w, h = (w + 3) // 4, (h + 3) // 4
+                self.stats.append(Target(w, h))
+                if w == 1 and h == 1:
+                    break
+        elif self.method == "taa":
+            # history[i] and the output share a framebuffer (MRT: history at slot 0, output at slot 1).
+            self.history_tex = [gpu.types.GPUTexture((width, height), format="RGBA32F") for _ in range(2)]
+            self.history_fb = [gpu.types.GPUFrameBuffer(color_slots=(t, self.output.texture))
+                               for t in self.history_tex]
+            self.current = 0
+            self.zero_motion = gpu.types.GPUTexture((width, height), format="RGBA32F")
+
+    def run(self, color, width, height, motion=None):
+        """Filters the RGBA32F texture `color` (width x height); returns the output texture.
+        motion (taa only): an RGBA32F texture of pixel offsets previous - current, or None (static)."""
+        self._allocate(width, height)
+        p = self.params
+        if self.method == "fxaa":
+            run_pass("fxaa_luma", self.luma, {"colorImage": color})
+            run_pass("fxaa_resolve", self.output, {"colorImage": color, "lumaImage": self.luma.texture},
+                     _constants("fxaa", p))
+        elif self.method == "repair":
+            run_pass("repair_grey", self.grey, {"colorImage": color})
+            run_pass("repair_gradient", self.gradient, {"greyImage": self.grey.texture})
+            run_pass("repair_stats", self.stats[0], {"gradientImage": self.gradient.texture})
+            for lower, upper in zip(self.stats, self.stats[1:]):
+                run_pass("repair_reduce", upper, {"statsImage": lower.texture})
+            run_pass("repair_resolve", self.output,
+                     {"colorImage": color, "gradientImage": self.gradient.texture,
+                      "statsImage": self.stats[-1].texture}, _constants("repair", p))
+        else:
+            self._run_taa(color, width, height, motion)
+        return self.output.texture
+
+    def _run_taa(self, color, width, height, motion):
+        p = dict(self.params)
+        p["hasHistory"] = 1 if self.frames > 0 else 0
+        p["hasMotion"] = 1 if motion is not None else 0
+        for b in ("staticAccumulation", "staticClip"):
+            p[b] = 1 if p[b] else 0
+        previous, nxt = self.history_tex[self.current], 1 - self.current
+        target = Target.__new__(Target)
+        target.width, target.height = width, height
+        target.framebuffer = self.history_fb[nxt]
+        samplers = {"colorImage": color, "historyImage": previous, "motionImage": motion or self.zero_motion}
+        run_pass("taa_resolve", target, samplers, _constants("taa", p))
+        if float(p["sharpen"]) > 0.0:
+            run_pass("taa_sharpen", self.output, {"colorImage": color, "historyImage": self.history_tex[nxt],
+                                                  "motionImage": self.zero_motion}, _constants("taa", p))
+        self.current = nxt
+        self.frames += 1
+
+    def history(self):
+        """taa: the history written by the last run (flat RGBA floats)."""
+        t = Target.__new__(Target)
+        t.width, t.height = self.size
+        t.framebuffer = gpu.types.GPUFrameBuffer(color_slots=self.history_tex[self.current])
+        return t.read()
+
+
+def draw_display(texture, width, height, x=0, y=0):
+    """Draws `texture` (linear RGBA) sRGB-encoded into the bound framebuffer's pixels [x, x+width) x [y, y+height)."""
+    sh = shader("display")
+    batch = _fullscreen_batch(sh)
+    gpu.state.viewport_set(x, y, width, height)
+    sh.bind()
+    sh.uniform_sampler("colorImage", texture)
+    sh.uniform_int("offset", (x, y))
+    batch.draw(sh)

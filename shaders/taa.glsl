@@ -1,0 +1,251 @@
+// SPDX-License-Identifier: Apache-2.0
+// TAA baseline (seed 000 chapter III): the GLSL twin of native/filters/taa.cpp
+// (taa.h) and the temporal helpers it uses (native/temporal/*.h). Same
+// function names, parameter names and defaults; the steps and their sources
+// are described in taa.cpp's header.
+//
+// Passes (gpu_filters.py; both declare every sampler and push constant of
+// this file, and exactly one pass macro):
+//  1. TAA_RESOLVE_PASS  colorImage (this frame, 1 jittered sample per pixel),
+//                       historyImage (the previous history, RGBA32F, colour in
+//                       the clip space + signed sample weight), motionImage
+//                       (optional, hasMotion; pixels, previous - current, the
+//                       texture's y) -> out vec4 historyOut (location 0),
+//                       out vec4 fragColor (location 1, the output unless sharpening)
+//     = taa.cpp referencePixel + resolvePixel without depth and aliasedValue;
+//  2. TAA_SHARPEN_PASS  historyImage (the history just written), colorImage
+//                       (alpha) -> out vec4 fragColor = taa.cpp sharpenPixel<true>.
+// History ping-pongs between two textures kept by gpu_filters.py between
+// redraws (the C++ Kernel's history_[2]); hasHistory = 0 is Kernel::reset().
+//
+// Parameters (taa.cpp table; enum-valued ones as ints):
+//   jitterX 0, jitterY 0 (pixels, the texture's x and y),
+//   jitterWeighting 0 = none / 1 = blackman-harris, filterSize 1.5,
+//   historyFilter 0 = catmull-rom / 1 = bilinear, clipSpace 0 = ycocg / 1 = rgb,
+//   feedbackMin 0.88, feedbackMax 0.97, sharpen 0, staticAccumulation 1,
+//   maxSamples 128, staticClip 1. (depthTolerance: no depth here.)
+//
+// Not in this version, on purpose: depth (closest-depth velocity and the
+// disocclusion test) and the aliasedValue plane of taa-improved. The viewport
+// offers neither a depth pass nor motion vectors (BLENDER.md: EEVEE's buffers
+// are not accessible), so the preview runs the static path (motion 0, history
+// reset whenever the view changes); motion is still accepted for tests.
+//
+// Known differences from the C++ kernel (besides common.glsl's):
+//  * blackmanHarrisWeight is evaluated in float (C++: double, then rounded);
+//  * a moving pixel's Catmull-Rom/bilinear fetch is explicit texelFetch taps
+//    with the C++ summation order (not the sampler's filtering).
+
+const float kClipEpsilon = 1e-7;  // temporal/neighbourhood.h
+
+// ---- temporal/color_space.h -----------------------------------------------
+vec3 rgbToYCoCg(vec3 c) {
+  return vec3(0.25 * c.r + 0.5 * c.g + 0.25 * c.b, 0.5 * c.r - 0.5 * c.b, -0.25 * c.r + 0.5 * c.g - 0.25 * c.b);
+}
+vec3 yCoCgToRgb(vec3 c) { return vec3(c.x + c.y - c.z, c.x + c.z, c.x - c.y - c.z); }
+
+// ---- temporal/jitter.cpp blackmanHarrisWindow / blackmanHarrisWeight ------
+float blackmanHarrisWindow(float t) {
+  if (t <= 0.0 || t >= 1.0) return 0.0;
+  float a = 2.0 * 3.14159265358979 * t;
+  return 0.35875 - 0.48829 * cos(a) + 0.14128 * cos(2.0 * a) - 0.01168 * cos(3.0 * a);
+}
+float blackmanHarrisWeight(float x, float y, float width) {
+  if (!(width > 0.0)) return 1.0;
+  float tx = x / width + 0.5, ty = y / width + 0.5;
+  return blackmanHarrisWindow(tx) * blackmanHarrisWindow(ty) / (0.35875 * 0.35875);
+}
+
+// ---- taa.cpp stagePixel / lumaOf / toRgb -----------------------------------
+vec4 stagePixel(vec4 p, int space) {
+  vec3 rgb = vec3(sanitizeColor(p.r), sanitizeColor(p.g), sanitizeColor(p.b));
+  vec3 c = space == 0 ? rgbToYCoCg(rgb) : rgb;
+  return vec4(c, sanitizeColor(p.a));
+}
+float lumaOf(vec4 c, int space) { return space == 0 ? c.x : 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
+vec3 toRgb(vec3 c, int space) { return space == 0 ? yCoCgToRgb(c) : c; }
+
+// C++ vmin/vmax operand order (temporal/vec4.h).
+vec4 vmin(vec4 a, vec4 b) { return mix(a, b, lessThan(b, a)); }
+vec4 vmax(vec4 a, vec4 b) { return mix(a, b, lessThan(a, b)); }
+
+// ---- temporal/neighbourhood.h columnFirstBoxes4 ----------------------------
+struct MinMax4 {
+  vec4 lo, hi;
+};
+void columnFirstBoxes4(vec4 taps[9], out MinMax4 box3x3, out MinMax4 cross) {
+  vec4 lmin = vmin(vmin(taps[0], taps[3]), taps[6]), lmax = vmax(vmax(taps[0], taps[3]), taps[6]);
+  vec4 cmin = vmin(vmin(taps[1], taps[4]), taps[7]), cmax = vmax(vmax(taps[1], taps[4]), taps[7]);
+  vec4 rmin = vmin(vmin(taps[2], taps[5]), taps[8]), rmax = vmax(vmax(taps[2], taps[5]), taps[8]);
+  box3x3 = MinMax4(vmin(vmin(lmin, cmin), rmin), vmax(vmax(lmax, cmax), rmax));
+  cross = MinMax4(vmin(vmin(taps[3], cmin), taps[5]), vmax(vmax(taps[3], cmax), taps[5]));
+}
+
+// ---- temporal/neighbourhood.h clipTowardCentre4 ----------------------------
+vec4 clipTowardCentre4(vec4 p, vec4 lo, vec4 hi, out float excess) {
+  vec4 centre = 0.5 * (hi + lo);
+  vec4 halfExtent = 0.5 * (hi - lo) + kClipEpsilon;
+  vec4 offset = p - centre;
+  vec4 ratio = abs(offset) / halfExtent;
+  float e = max(max(ratio.x, ratio.y), ratio.z);
+  excess = e;
+  if (!(e > 1.0)) return p;
+  vec4 clipped = centre + offset * (1.0 / e);
+  clipped.w = p.w;
+  return clipped;
+}
+
+// ---- temporal/history_fetch.h ----------------------------------------------
+bool onScreen(float x, float y, int width, int height) {
+  return x >= -0.5 && y >= -0.5 && x <= float(width) - 0.5 && y <= float(height) - 0.5;
+}
+vec4 historyAt(int x, int y) { return fetchClamped(historyImage, x, y); }
+
+vec4 fetchBilinear4(float x, float y) {
+  float fx = floor(x), fy = floor(y);
+  float tx = x - fx, ty = y - fy;
+  int x0 = int(fx), y0 = int(fy);
+  vec4 p00 = historyAt(x0, y0), p10 = historyAt(x0 + 1, y0);
+  vec4 p01 = historyAt(x0, y0 + 1), p11 = historyAt(x0 + 1, y0 + 1);
+  vec4 top = p00 + (p10 - p00) * tx;
+  vec4 bottom = p01 + (p11 - p01) * tx;
+  vec4 result = top + (bottom - top) * ty;
+  result.w = historyAt(tx < 0.5 ? x0 : x0 + 1, ty < 0.5 ? y0 : y0 + 1).w;
+  return result;
+}
+
+vec4 catmullRomWeights(float t) {
+  return vec4(t * (-0.5 + t * (1.0 - 0.5 * t)), 1.0 + t * t * (-2.5 + 1.5 * t), t * (0.5 + t * (2.0 - 1.5 * t)),
+              t * t * (-0.5 + 0.5 * t));
+}
+
+vec4 fetchCatmullRom4(float x, float y) {
+  float fx = floor(x), fy = floor(y);
+  float tx = x - fx, ty = y - fy;
+  int x0 = int(fx), y0 = int(fy);
+  vec4 wx = catmullRomWeights(tx), wy = catmullRomWeights(ty);
+  vec4 acc = vec4(0.0), lo = vec4(0.0), hi = vec4(0.0);
+  for (int j = 0; j < 4; ++j) {
+    int row = y0 - 1 + j;
+    vec4 t0 = historyAt(x0 - 1, row), t1 = historyAt(x0, row), t2 = historyAt(x0 + 1, row), t3 = historyAt(x0 + 2, row);
+    vec4 r = ((t0 * wx[0] + t1 * wx[1]) + t2 * wx[2]) + t3 * wx[3];
+    acc += r * wy[j];
+    if (j == 1) {
+      lo = vmin(t1, t2);
+      hi = vmax(t1, t2);
+    } else if (j == 2) {
+      lo = vmin(lo, vmin(t1, t2));
+      hi = vmax(hi, vmax(t1, t2));
+    }
+  }
+  vec4 result = vmin(vmax(acc, lo), hi);
+  result.w = historyAt(tx < 0.5 ? x0 : x0 + 1, ty < 0.5 ? y0 : y0 + 1).w;
+  return result;
+}
+
+// temporal/velocity.h finiteMotion.
+bool finiteMotion(float mx, float my) { return finiteValue(mx) && finiteValue(my); }
+
+#ifdef TAA_RESOLVE_PASS
+// taa.cpp referencePixel + resolvePixel (no depth, no aliasedValue).
+void taaResolvePass() {
+  ivec2 p = fragmentPixel();
+  int x = p.x, y = p.y;
+  ivec2 size = textureSize(colorImage, 0);
+  int w = size.x, h = size.y;
+  vec4 taps[9];
+  for (int i = 0; i < 9; ++i) taps[i] = stagePixel(fetchClamped(colorImage, x + i % 3 - 1, y + i / 3 - 1), clipSpace);
+  MinMax4 box3x3, cross;
+  columnFirstBoxes4(taps, box3x3, cross);
+  vec4 current = taps[4];
+  float alpha = current.w;
+
+  // Step 3: velocity of the centre (no depth to follow).
+  float vx = 0.0, vy = 0.0;
+  if (hasMotion != 0) {
+    vec4 m = texelFetch(motionImage, p, 0);
+    vx = m.x;
+    vy = m.y;
+  }
+  bool moving = vx != 0.0 || vy != 0.0;
+
+  // Step 8: usable history at p + v?
+  float qx = float(x) + vx, qy = float(y) + vy;
+  bool valid = hasHistory != 0 && finiteMotion(vx, vy) && onScreen(qx, qy, w, h);
+  vec4 hist = vec4(0.0);
+  if (valid) {
+    if (!moving)
+      hist = texelFetch(historyImage, p, 0);
+    else if (historyFilter == 0)
+      hist = fetchCatmullRom4(qx, qy);
+    else
+      hist = fetchBilinear4(qx, qy);
+  }
+  float historyWeight = valid ? abs(hist.w) : 0.0;
+  float weight = jitterWeighting == 1 ? blackmanHarrisWeight(jitterX, jitterY, filterSize) : 1.0;
+  float weightSum = historyWeight + weight;
+
+  vec4 result = current;
+  float newWeight = weight;
+  bool reset = !valid || !(weightSum > 0.0);
+  if (!reset) {
+    bool staticPixel = staticAccumulation != 0 && !moving && hist.w > 0.0;
+    float excess = 0.0;
+    if (staticPixel) clipTowardCentre4(hist, box3x3.lo, box3x3.hi, excess);
+    if (staticPixel && (staticClip == 0 || !(excess > 1.0))) {
+      result = hist + (current - hist) * (weight / weightSum);
+      newWeight = min(weightSum, float(max(1, maxSamples)));
+    } else {
+      vec4 lo = 0.5 * (box3x3.lo + cross.lo);
+      vec4 hi = 0.5 * (box3x3.hi + cross.hi);
+      vec4 clipped = clipTowardCentre4(hist, lo, hi, excess);
+      float l0 = lumaOf(clipped, clipSpace), l1 = lumaOf(current, clipSpace);
+      float diff = clamp(abs(l0 - l1) / max(max(l0, l1), 0.2), 0.0, 1.0);
+      float unbiased = (1.0 - diff) * (1.0 - diff);
+      float k = feedbackMin + (feedbackMax - feedbackMin) * unbiased;
+      float mixWeight = max(1.0 - k, weight / weightSum);
+      result = clipped + (current - clipped) * mixWeight;
+      newWeight = 1.0 - k > 0.0 ? min(weightSum, 1.0 / (1.0 - k)) : weightSum;
+      newWeight = min(newWeight, float(max(1, maxSamples)));
+    }
+    reset = !(finiteValue(result.x) && finiteValue(result.y) && finiteValue(result.z));  // never a non-finite history
+  }
+  if (reset) {
+    result = current;
+    newWeight = weight;
+  }
+  result.w = moving ? -newWeight : newWeight;
+  historyOut = result;
+  if (reset) {
+    vec4 c = sanitizeColor4(texelFetch(colorImage, p, 0));  // the input itself, not its YCoCg round trip
+    fragColor = vec4(c.rgb, alpha);
+  } else {
+    vec3 rgb = toRgb(result.xyz, clipSpace);
+    fragColor = vec4(sanitizeColor(rgb.r), sanitizeColor(rgb.g), sanitizeColor(rgb.b), alpha);
+  }
+}
+#endif
+
+#ifdef TAA_SHARPEN_PASS
+// taa.cpp sharpenPixel<true> (eq. 3.1), from the history just written.
+void taaSharpenPass() {
+  ivec2 p = fragmentPixel();
+  vec4 c = historyAt(p.x, p.y);
+  vec4 n[4] = vec4[4](historyAt(p.x, p.y - 1), historyAt(p.x - 1, p.y), historyAt(p.x + 1, p.y), historyAt(p.x, p.y + 1));
+  vec3 result;
+  for (int ch = 0; ch < 3; ++ch) {
+    float lo = c[ch], hi = c[ch];
+    float sum = 0.0;
+    for (int i = 0; i < 4; ++i) {
+      sum += n[i][ch];
+      lo = min(lo, n[i][ch]);
+      hi = max(hi, n[i][ch]);
+    }
+    float sharpened = c[ch] + sharpen * (4.0 * c[ch] - sum);
+    result[ch] = clamp(sharpened, lo, hi);
+  }
+  vec3 rgb = toRgb(result, clipSpace);
+  float alpha = sanitizeColor(texelFetch(colorImage, p, 0).a);
+  fragColor = vec4(sanitizeColor(rgb.r), sanitizeColor(rgb.g), sanitizeColor(rgb.b), alpha);
+}
+#endif

@@ -1,0 +1,186 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""Parity of the GLSL filters (shaders/*.glsl through addon/crisp/gpu_filters.py) with the library
+(libcrisp through addon/crisp/native.py, ctypes): the same synthetic input buffers go to both, the
+shader output is read back, and the max / mean absolute differences must stay within the tolerances
+stated in TOLERANCES (why each is what it is: beside it). Runs in Blender with a window under Xvfb."""
+
+import ctypes
+import math
+import os
+import random
+import sys
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import gui_harness  # noqa: E402
+
+from crisp import gpu_filters, native  # noqa: E402
+
+W, H = 128, 96
+
+# (max abs, mean abs) over all RGBA values. The shaders mirror the reference path operation for
+# operation, so what is left is float rounding of different functions (pow/sqrt/atan approximations,
+# possible fma contraction, float vs double statistics), i.e. ~1e-6 of values in [0, 2]. A decision
+# flipped by one ulp at a threshold (FXAA's contrast/search ends, REPAIR's edge threshold T, the angle
+# fold) moves one pixel by up to the local contrast; such pixels must stay rare, so max is allowed up to
+# a full edge step only through FLIP_FRACTION, and the mean stays tiny.
+TOLERANCES = {
+    "fxaa": (1e-4, 1e-6),
+    "repair": (1e-4, 1e-6),
+    "taa": (1e-4, 1e-6),
+}
+FLIP_THRESHOLD = 1e-3   # a value differing by more is a "flipped decision"
+FLIP_FRACTION = 0.002   # at most this fraction of values may flip (then max is not checked against TOLERANCES)
+
+
+def chart(x, y, t=0.0):
+    """A rotated-edge chart, point-sampled at continuous position (x, y) (pixels, y down): a dark disc with
+    a bright rotated square inside, thin rotated lines and an HDR stripe; t rotates it a little."""
+    cx, cy = W * 0.5, H * 0.5
+    dx, dy = x - cx, y - cy
+    r = math.hypot(dx, dy)
+    a = math.radians(17.0 + t)
+    u, v = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
+    if abs(u) < 18 and abs(v) < 14:
+        return (0.9, 0.8, 0.3)
+    if r < 40:
+        return (0.05, 0.1, 0.4)
+    # thin lines at 5 and 60 degrees
+    for ang, off in ((5.0, 0.0), (60.0, 10.0)):
+        b = math.radians(ang)
+        if abs(-(x - 20) * math.sin(b) + (y - 20 - off) * math.cos(b)) < 0.6:
+            return (1.0, 1.0, 1.0)
+    if 100 < x + 0.3 * y < 104:
+        return (4.0, 3.0, 2.0)  # HDR
+    return (0.2, 0.25, 0.2)
+
+
+def chart_image(jx=0.0, jy=0.0):
+    out = []
+    for y in range(H):
+        for x in range(W):
+            out.extend(chart(x + 0.5 + jx, y + 0.5 + jy))
+            out.append(1.0)
+    return out
+
+
+def noise_image(seed=7):
+    rng = random.Random(seed)
+    out = []
+    for i in range(W * H):
+        c = [rng.random() ** 2 * (3.0 if i % 97 == 0 else 1.0) for _ in range(3)]
+        out.extend(c + [rng.random()])
+    # non-finite input must be sanitised the same way on both sides
+    out[4 * 10 + 0] = float("nan")
+    out[4 * 500 + 1] = float("inf")
+    out[4 * 900 + 2] = float("-inf")
+    return out
+
+
+def library_filter(method, frames, params):
+    """Runs the library on each frame in turn (one filter object: taa history carries over); frames is a
+    list of (rgba list, per-frame params). Returns the last output as a flat list."""
+    with native.Context() as ctx:
+        f = native.Filter(ctx, method)
+        try:
+            for k, v in params.items():
+                f.set_param(k, v)
+            out = (ctypes.c_float * (W * H * 4))()
+            for rgba, extra in frames:
+                buf = (ctypes.c_float * (W * H * 4))(*rgba)
+                for k, v in extra.items():
+                    f.set_param(k, v)
+                f.set_image("color", ctypes.addressof(buf), native.FORMAT_FLOAT4, W, H)
+                f.set_image("output", ctypes.addressof(out), native.FORMAT_FLOAT4, W, H)
+                f.commit()
+                f.execute()
+            return list(out)
+        finally:
+            f.close()
+
+
+def gpu_filter(method, frames, params):
+    g = gpu_filters.GpuFilter(method, params)
+    for rgba, extra in frames:
+        g.set_params(extra)
+        tex = gpu_filters.texture_from_rgba(W, H, rgba)
+        g.run(tex, W, H)
+    return g.output.read()
+
+
+def differences(a, b):
+    diffs = [abs(x - y) for x, y in zip(a, b)]
+    flipped = sum(1 for d in diffs if d > FLIP_THRESHOLD)
+    return max(diffs), sum(diffs) / len(diffs), flipped / len(diffs)
+
+
+def taa_frames(n):
+    """n frames of the chart jittered by Halton(2,3) (uniform in the pixel), zero motion."""
+    def radical_inverse(i, base):
+        r, f = 0.0, 1.0 / base
+        while i:
+            r += (i % base) * f
+            i //= base
+            f /= base
+        return r
+    frames = []
+    for k in range(n):
+        jx, jy = radical_inverse(k + 1, 2) - 0.5, radical_inverse(k + 1, 3) - 0.5
+        frames.append((chart_image(jx, jy), {"jitterX": jx, "jitterY": jy}))
+    return frames
+
+
+RESULTS = []
+
+
+class GpuParity(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        os.environ.setdefault("CRISP_LIBRARY", gui_harness.LIBRARY)
+        native.load()
+
+    def check(self, label, method, frames, params):
+        ref = library_filter(method, frames, params)
+        got = gpu_filter(method, frames, params)
+        self.assertEqual(len(ref), len(got))
+        inp = frames[-1][0]
+        changed = sum(1 for i in range(0, len(ref), 4) if abs(ref[i] - inp[i]) > 1e-6
+                      and not math.isnan(inp[i]))
+        mx, mean, flipped = differences(ref, got)
+        line = "parity %-28s max %.3g mean %.3g flipped %.4f%% (library changed %d of %d pixels)" % (
+            label, mx, mean, 100 * flipped, changed, W * H)
+        print(line, file=sys.stderr)
+        RESULTS.append(line)
+        self.assertGreater(changed, 50, "the input must exercise the filter")
+        tol_max, tol_mean = TOLERANCES[method]
+        self.assertLessEqual(flipped, FLIP_FRACTION, line)
+        if flipped == 0:
+            self.assertLessEqual(mx, tol_max, line)
+        self.assertLessEqual(mean, tol_mean if flipped == 0 else 10 * tol_mean, line)
+
+    def test_fxaa_chart(self):
+        self.check("fxaa chart", "fxaa", [(chart_image(), {})], {})
+
+    def test_fxaa_noise_params(self):
+        self.check("fxaa noise subpix=1", "fxaa", [(noise_image(), {})], {"subpix": 1.0, "edgeThreshold": 0.1})
+
+    def test_repair_chart(self):
+        self.check("repair chart", "repair", [(chart_image(), {})], {})
+
+    def test_repair_chart_box3_kappa(self):
+        self.check("repair chart box3 kappa=-1", "repair", [(chart_image(), {})], {"mask": "box3", "kappa": -1.0})
+
+    def test_repair_noise_thesis(self):
+        self.check("repair noise thesis n=7", "repair", [(noise_image(), {})],
+                   {"angleEstimator": "thesis", "patchSize": 7})
+
+    def test_taa_static_8_frames(self):
+        self.check("taa 8 frames jittered", "taa", taa_frames(8), {})
+
+    def test_taa_rgb_sharpen_bh(self):
+        self.check("taa 6 frames rgb sharpen bh", "taa", taa_frames(6),
+                   {"clipSpace": "rgb", "sharpen": 0.5, "jitterWeighting": "blackman-harris"})
+
+
+if __name__ == "__main__":
+    gui_harness.run(GpuParity)
