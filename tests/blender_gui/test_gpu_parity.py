@@ -25,13 +25,13 @@ W, H = 128, 96
 # fold) moves one pixel by up to the local contrast; such values ("flipped": beyond the method's max tolerance) must stay
 # under FLIP_FRACTION, and all other values must meet TOLERANCES.
 # Measured on llvmpipe (Mesa 22.3): fxaa <= 7.1e-6 / 8e-9, repair <= 6.7e-6 / 1.4e-8 (one case with
-# 0.02% flipped values), taa <= 7.2e-7 / 5e-10 (static: bit-identical); tolerances ~3x above.
+# 0.05% flipped values), taa <= 7.2e-7 / 5e-10 (static: bit-identical); tolerances ~3x above.
 TOLERANCES = {
     "fxaa": (2e-5, 5e-8),
-    "repair": (2e-5, 5e-8),
+    "repair": (2e-5, 2e-7),  # the thesis estimator's float atan on noise: 7.3e-8
     "taa": (5e-6, 5e-9),
 }
-FLIP_FRACTION = 0.001   # at most this fraction of values may flip (measured: 0.022% in one case, 0 elsewhere)
+FLIP_FRACTION = 0.001   # at most this fraction of values may flip (measured: 0.055% in one case, 0 elsewhere)
 
 
 def chart(x, y, t=0.0):
