@@ -11,6 +11,7 @@ std::unique_ptr<Filter> newNoneFilter(Context&);
 std::unique_ptr<Filter> newFxaaFilter(Context&);
 std::unique_ptr<Filter> newRepairFilter(Context&);
 std::unique_ptr<Filter> newTaaFilter(Context&);
+std::unique_ptr<Filter> newPhlmFilter(Context&);
 
 namespace {
 struct Entry {
@@ -22,6 +23,7 @@ const Entry kFilters[] = {
     {"fxaa", newFxaaFilter},
     {"repair", newRepairFilter},
     {"taa", newTaaFilter},
+    {"phlm", newPhlmFilter},
 };
 }  // namespace
 

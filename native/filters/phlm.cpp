@@ -1,0 +1,587 @@
+// SPDX-License-Identifier: Apache-2.0
+// "phlm": pixel history linear models (Iglesias-Guitian et al. 2016, seed 002;
+// METHODS.md "PHLM"). Per pixel i, per frame (Algorithm 1):
+//   1. velocity v_i: of the closest-depth pixel of the 3x3 with depth, else the
+//      centre's (temporal/velocity.h); no motion image = static scene: pi(v) = i,
+//      no reprojection work, the state is updated in place (§5.2 "Special case");
+//   2. temporal feature z_i (§5.1, eq. 1): exponential history of the
+//      low-frequency colour, reprojected with a bilinear fetch, blended with
+//      this frame's low-frequency colour with the per-pixel weight
+//      alpha_i = phi(v_i, l_i) / (l_i + Delta_i(Y)), phi = a l^2 + b |v| l^3;
+//   3. model (beta, P) of pixel q = pi(v_i) = nearest pixel to i + v (§5.2
+//      "Pixel history reprojection": the model placed at q); q off-screen,
+//      non-finite motion or a depth mismatch (disocclusion) -> reset to y_i;
+//   4. prediction f = beta' [1, z] (eq. 4); if f lies outside the 3x3 RGB
+//      colour box (the axis-aligned approximation of Conv(Omega_i), §5.2
+//      "Pixel history correction") it is moved onto the box along the ray
+//      from f toward y_i (lines 14-17) and the model is reset to that colour;
+//   5. e = y - f; RLS update (eqs. 5-7, lambda = 0.998) in the stabilised form
+//      of phlm_rls.h; output beta' x after the update.
+// Initialisation (§6): beta intercept = y, slopes 0, P = 1000 I, z = y.
+//
+// Decisions the paper leaves open, and deviations (beside the code too):
+//  * Stabilised RLS (phlm_rls.h): UD-factorised P (symmetric, positive
+//    definite by construction) and regularised forgetting that bounds
+//    P <= P0 / lambda^3 (trace <= (p0 + 3 ps) / lambda^3); identical to
+//    eqs. 6-7 except where the paper's P would wind up past its reset value.
+//  * Reset covariance P0 = diag(p0, ps, ps, ps) = diag(1000, 1, 1, 1), not the
+//    paper's 1000 I: with 1000 on the slopes the fit "explains" per-frame
+//    flicker by the feature's tiny per-frame changes (z is an exponential
+//    history that includes this frame's low-frequency colour, so it is
+//    correlated with y): slopes of ~1/|dz| that reproduce the aliasing, and an
+//    ill-conditioned fit whose float32 and float64 runs drift apart. The
+//    feature is in a bounded space (below), where slopes of O(1) are natural,
+//    so a prior variance of 1 only removes implausible slopes. The first
+//    sample after a reset still dominates (gain 1 - lambda/(lambda + x'P0 x)
+//    > 0.999). slopeCovariance = 1000 is the paper's setting.
+//  * The feature lives in a bounded space: z = c / (1 + Y(c)) of the clamped
+//    (>= 0) low-frequency colour c, Y the YCgCo luminance (R + 2G + B) / 4
+//    (§5.1 uses YCgCo luminance). So |z_k| < 4, x is well scaled whatever the
+//    HDR range, and l, Delta are tonemapped luminances in [0, 1) (the paper's
+//    a, b were tuned on LDR values).
+//  * "Low-frequency colour" = the 3x3 box average of this frame.
+//  * l = distance of the feature's luminance to [Ymin, Ymax] of the 3x3 (0
+//    inside), Delta = Ymax - Ymin. We read alpha as the weight of the CURRENT
+//    low-frequency colour (alpha = 0 would freeze a feature that lies in range,
+//    and grows as it leaves the range), clamped to [featureAlphaMin, 1]; the
+//    floor (default 0.05, not in the paper) lets the feature follow slow
+//    changes inside the range.
+//  * The model is reprojected from the nearest pixel (no interpolation of
+//    beta or P, which would mix the models of two surfaces at an edge); the
+//    feature, a low-frequency colour, bilinearly.
+//  * Output = f + g e with g = x'P x / (1/w + x'P x) in [0, 1), which equals
+//    beta'x after the update (eq. 8) in exact arithmetic and is a convex
+//    combination of two points of the box: the output lies in the 3x3 colour
+//    box of the current frame (a final clamp absorbs rounding).
+//  * Jitter: like "taa", the current sample is never resampled; jitterX/Y
+//    only set the sample weight w when jitterWeighting = blackman-harris
+//    (weighted least squares: measurement variance 1/w), the "weighted moving
+//    average" of §5.2's static special case.
+//
+// Parameters (also `crisp help phlm` / crispGetFilterDoc):
+// | name | type | default | range | meaning | source |
+// |---|---|---|---|---|---|
+// | jitterX | float | 0 | [-4, 4] | this frame's sample offset, pixels, x right | §5.2, seed 000 app. B |
+// | jitterY | float | 0 | [-4, 4] | sample offset, pixels, y DOWN | §5.2 |
+// | jitterWeighting | string | none | none, blackman-harris | weight of each sample in the RLS | §5.2 static case |
+// | filterSize | float | 1.5 | [0.01, 4] | Blackman-Harris width for the weighting | BLENDER.md |
+// | lambda | float | 0.998 | [0.5, 0.99999] | forgetting factor | eqs. 6-7 |
+// | initialCovariance | float | 1000 | [1e-3, 1e6] | p0: intercept variance at init/reset, and its bound | §6 |
+// | slopeCovariance | float | 1 | [1e-3, 1e6] | ps: slope variances at init/reset, and their bound | §6 (deviation) |
+// | featureA | float | 0.125 | [0, 10] | a of phi | §5.1 |
+// | featureB | float | 0.25 | [0, 10] | b of phi | §5.1 |
+// | featureAlphaMin | float | 0.05 | [0, 1] | floor of the feature's current weight | this file |
+// | depthTolerance | float | 0.05 | [0, 10] | relative depth change still the same surface | this file |
+// | reference | bool | false | - | scalar reference path | this file |
+#include "filters/phlm.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "core/color.h"
+#include "core/error.h"
+#include "core/filter.h"
+#include "core/parallel.h"
+#include "temporal/history_fetch.h"
+#include "temporal/jitter.h"
+#include "temporal/velocity.h"
+
+namespace crisp::phlm {
+
+namespace {
+
+template <class T>
+struct Frame {
+  int width, height;
+  const float* staged;         // RGBA, sanitised linear colour
+  const float* depth;          // this frame's sanitised depth, or null
+  const float* previousDepth;  // previous frame's, or null (no depth test)
+  ImageView motion;            // ptr null: static scene
+  bool hasHistory;
+  const T* previous;           // records of the last frame (== next when static)
+  T* next;                     // records written
+  ImageView output;
+  long* rowStats;
+  T inverseLambda, regulariserVariance[kDims], sampleVariance, p0, ps;
+  bool update;                 // sample weight > 0
+  bool bilinearBeta;           // reproject beta bilinearly (else nearest)
+  T boxResetScale;             // P after a box correction = boxResetScale * P0
+  int axis;                    // regularised axis of this frame
+  T featureA, featureB, featureAlphaMin;
+  float depthTolerance;
+};
+
+// YCgCo luminance (R + 2G + B) / 4 (§5.1).
+template <class T>
+inline T lumaYCgCo(const T c[3]) {
+  return T(0.25) * c[0] + T(0.5) * c[1] + T(0.25) * c[2];
+}
+
+// The feature space: c / (1 + Y(c)) of the colour clamped to >= 0.
+template <class T>
+inline void toFeature(const T c[3], T out[3]) {
+  T p[3];
+  for (int k = 0; k < 3; ++k) p[k] = std::max(c[k], T(0));
+  const T scale = T(1) / (T(1) + lumaYCgCo(p));
+  for (int k = 0; k < 3; ++k) out[k] = p[k] * scale;
+}
+
+// Bilinear fetch of the feature z of the previous records at (x, y), clamp to
+// edge (temporal/history_fetch.h's footprint and addressing).
+template <class T>
+inline void fetchFeature(const T* records, int w, int h, float x, float y, T z[3]) {
+  const temporal::Footprint f = temporal::footprintOf(x, y);
+  const int xa = std::clamp(f.x0, 0, w - 1), xb = std::clamp(f.x0 + 1, 0, w - 1);
+  const int ya = std::clamp(f.y0, 0, h - 1), yb = std::clamp(f.y0 + 1, 0, h - 1);
+  auto at = [&](int px, int py) { return records + (std::size_t(py) * w + px) * kRecord + kZ; };
+  const T* p00 = at(xa, ya);
+  const T* p10 = at(xb, ya);
+  const T* p01 = at(xa, yb);
+  const T* p11 = at(xb, yb);
+  const T tx = T(f.tx), ty = T(f.ty);
+  for (int c = 0; c < 3; ++c) {
+    const T top = p00[c] + (p10[c] - p00[c]) * tx;
+    const T bottom = p01[c] + (p11[c] - p01[c]) * tx;
+    z[c] = top + (bottom - top) * ty;
+  }
+}
+
+// Bilinear fetch of the coefficients beta of the previous records at (x, y),
+// clamp to edge: the blended model predicts the bilinear blend of the four
+// models' predictions for this pixel's x (§6: the models live in textures
+// read with bilinear filtering). P stays the nearest model's.
+template <class T>
+inline void fetchBeta(const T* records, int w, int h, float x, float y, T* model) {
+  const temporal::Footprint f = temporal::footprintOf(x, y);
+  const int xa = std::clamp(f.x0, 0, w - 1), xb = std::clamp(f.x0 + 1, 0, w - 1);
+  const int ya = std::clamp(f.y0, 0, h - 1), yb = std::clamp(f.y0 + 1, 0, h - 1);
+  auto at = [&](int px, int py) { return records + (std::size_t(py) * w + px) * kRecord + kBeta; };
+  const T* p00 = at(xa, ya);
+  const T* p10 = at(xb, ya);
+  const T* p01 = at(xa, yb);
+  const T* p11 = at(xb, yb);
+  const T tx = T(f.tx), ty = T(f.ty);
+  for (int i = 0; i < 12; ++i) {
+    const T top = p00[i] + (p10[i] - p00[i]) * tx;
+    const T bottom = p01[i] + (p11[i] - p01[i]) * tx;
+    model[kBeta + i] = top + (bottom - top) * ty;
+  }
+}
+
+// Lines 13-17 of Algorithm 1 on the axis-aligned box [lo, hi] (which contains
+// y): the smallest t in [0, 1] with f + t (y - f) inside the box (0 = inside).
+// The inside test allows a slack of 1e-3 of the box extent plus 1e-5 of the
+// colour's magnitude: y itself is often a corner of its box, and a prediction
+// that equals y up to rounding must not reset the model in one precision and
+// not in the other (the float32 and float64 paths would part ways). The
+// output is clamped to the exact box afterwards.
+template <class T>
+inline T rayEntry(const T f[3], const T y[3], const T lo[3], const T hi[3]) {
+  T t = T(0);
+  for (int c = 0; c < 3; ++c) {
+    const T slack = T(1e-3) * (hi[c] - lo[c]) + T(1e-5) * std::max(std::fabs(lo[c]), std::fabs(hi[c]));
+    if (f[c] < lo[c] - slack) t = std::max(t, (lo[c] - f[c]) / (y[c] - f[c]));
+    else if (f[c] > hi[c] + slack) t = std::max(t, (f[c] - hi[c]) / (f[c] - y[c]));
+  }
+  return std::min(t, T(1));
+}
+
+template <class T, bool Clamp>
+inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets, long& boxResets) {
+  const int w = f.width, h = f.height;
+  // 3x3 neighbourhood of this frame: box, average (the low-frequency colour),
+  // tonemapped luminance range.
+  T lo[3], hi[3], sum[3] = {T(0), T(0), T(0)}, yMin = T(0), yMax = T(0), current[3];
+  float depth9[9];
+  int tapX[9], tapY[9];
+  for (int j = 0, i = 0; j < 3; ++j)
+    for (int k = 0; k < 3; ++k, ++i) {
+      const int tx = Clamp ? std::clamp(x + k - 1, 0, w - 1) : x + k - 1;
+      const int ty = Clamp ? std::clamp(y + j - 1, 0, h - 1) : y + j - 1;
+      tapX[i] = tx;
+      tapY[i] = ty;
+      const float* p = f.staged + (std::size_t(ty) * w + tx) * 4;
+      const T c[3] = {T(p[0]), T(p[1]), T(p[2])};
+      T positive[3] = {std::max(c[0], T(0)), std::max(c[1], T(0)), std::max(c[2], T(0))};
+      const T luma = lumaYCgCo(positive);
+      const T tonemapped = luma / (T(1) + luma);
+      if (i == 0) {
+        for (int ch = 0; ch < 3; ++ch) lo[ch] = hi[ch] = c[ch];
+        yMin = yMax = tonemapped;
+      } else {
+        for (int ch = 0; ch < 3; ++ch) {
+          lo[ch] = std::min(lo[ch], c[ch]);
+          hi[ch] = std::max(hi[ch], c[ch]);
+        }
+        yMin = std::min(yMin, tonemapped);
+        yMax = std::max(yMax, tonemapped);
+      }
+      for (int ch = 0; ch < 3; ++ch) sum[ch] += c[ch];
+      if (i == 4)
+        for (int ch = 0; ch < 3; ++ch) current[ch] = c[ch];
+      if (f.depth) depth9[i] = f.depth[std::size_t(ty) * w + tx];
+    }
+
+  // Step 1: velocity (closest depth of the 3x3 when depth is given).
+  float vx = 0.0f, vy = 0.0f;
+  int tap = 4;
+  if (f.motion.ptr) {
+    if (f.depth) tap = temporal::closestDepthTap(depth9);
+    const float* m = f.motion.pixel(tapX[tap], tapY[tap]);
+    vx = m[0];
+    vy = m[1];
+  }
+  const bool moving = vx != 0.0f || vy != 0.0f;
+  bool valid = f.hasHistory && temporal::finiteMotion(vx, vy);
+  const float px = float(x) + vx, py = float(y) + vy;
+  if (valid) valid = temporal::onScreen(px, py, w, h);
+  int qx = x, qy = y;
+  if (valid && moving) {
+    qx = std::clamp(int(std::floor(px + 0.5f)), 0, w - 1);
+    qy = std::clamp(int(std::floor(py + 0.5f)), 0, h - 1);
+  }
+  if (valid && f.previousDepth) {
+    // Disocclusion: the followed surface must be in the previous frame's 3x3
+    // around q (a jittered edge pixel's own sample may be of either surface).
+    const float d = depth9[tap];
+    bool match = false;
+    for (int j = -1; j <= 1 && !match; ++j)
+      for (int k = -1; k <= 1 && !match; ++k) {
+        const int sx = std::clamp(qx + k, 0, w - 1), sy = std::clamp(qy + j, 0, h - 1);
+        match = temporal::sameSurfaceDepth(d, f.previousDepth[std::size_t(sy) * w + sx], f.depthTolerance);
+      }
+    valid = match;
+  }
+
+  T model[kRecord];
+  T z[3];
+  if (valid) {
+    const T* source = f.previous + (std::size_t(qy) * w + qx) * kRecord;
+    std::memcpy(model, source, sizeof(T) * kZ);
+    if (moving && f.bilinearBeta) fetchBeta(f.previous, w, h, px, py, model);
+    // Step 2: feature history at pi(v) (exact at zero motion), eq. 1.
+    T history[3];
+    if (moving) fetchFeature(f.previous, w, h, px, py, history);
+    else for (int c = 0; c < 3; ++c) history[c] = source[kZ + c];
+    const T featureLuma = lumaYCgCo(history);
+    const T l = std::max(T(0), std::max(yMin - featureLuma, featureLuma - yMax));
+    const T delta = yMax - yMin;
+    const T speed = T(std::sqrt(vx * vx + vy * vy));
+    const T phi = f.featureA * l * l + f.featureB * speed * l * l * l;
+    const T alpha = std::clamp(phi / (l + delta + T(1e-6)), f.featureAlphaMin, T(1));
+    T average[3], lowFrequency[3];
+    for (int c = 0; c < 3; ++c) average[c] = sum[c] * T(1.0 / 9.0);
+    toFeature(average, lowFrequency);
+    for (int c = 0; c < 3; ++c) z[c] = history[c] + (lowFrequency[c] - history[c]) * alpha;
+  } else {
+    // Lines 7-9 / §6: reset to the input; z = y.
+    ++reprojectionResets;
+    resetModel(model, current, f.p0, f.ps);
+    toFeature(current, z);
+  }
+  const T x4[kDims] = {T(1), z[0], z[1], z[2]};
+
+  // Step 4: prediction and box correction (lines 12-19).
+  T predicted[3];
+  predict(model, x4, predicted);
+  const bool finite = std::isfinite(predicted[0]) && std::isfinite(predicted[1]) && std::isfinite(predicted[2]);
+  const T t = finite ? rayEntry(predicted, current, lo, hi) : T(1);
+  if (t > T(0)) {
+    ++boxResets;
+    for (int c = 0; c < 3; ++c)
+      predicted[c] = std::clamp(predicted[c] + t * (current[c] - predicted[c]), lo[c], hi[c]);
+    if (!finite)
+      for (int c = 0; c < 3; ++c) predicted[c] = current[c];
+    resetModel(model, predicted, f.p0 * f.boxResetScale, f.ps * f.boxResetScale);
+  }
+
+  // Step 5: stabilised RLS (phlm_rls.h), output beta' x = f + g e (clamped
+  // to the box: only rounding and the inside-test slack can reach past it).
+  forget(model, f.inverseLambda);
+  regularise(model, f.axis, f.regulariserVariance[f.axis]);
+  T out[3] = {predicted[0], predicted[1], predicted[2]};
+  if (f.update) {
+    const T e[3] = {current[0] - predicted[0], current[1] - predicted[1], current[2] - predicted[2]};
+    const T g = rlsUpdate(model, x4, e, f.sampleVariance);
+    for (int c = 0; c < 3; ++c) out[c] = std::clamp(predicted[c] + g * e[c], lo[c], hi[c]);
+    // Guard: beta can only become non-finite through an overflow; restart from the output.
+    T check = T(0);
+    for (int i = 0; i < 12; ++i) check += model[kBeta + i] * T(0);
+    if (!(check == T(0))) resetModel(model, out, f.p0, f.ps);
+  }
+  for (int c = 0; c < 3; ++c) model[kZ + c] = z[c];
+  std::memcpy(f.next + (std::size_t(y) * w + x) * kRecord, model, sizeof model);
+
+  float* o = f.output.pixel(x, y);
+  o[0] = sanitizeColor(float(out[0]));
+  o[1] = sanitizeColor(float(out[1]));
+  o[2] = sanitizeColor(float(out[2]));
+  if (f.output.channels() > 3) o[3] = f.staged[(std::size_t(y) * w + x) * 4 + 3];
+}
+
+// Per-pixel function over rows [y0, y1): clamped taps on the border, unclamped
+// inside (fast path), or clamped everywhere (reference).
+template <class Fn>
+void rowsWithBorder(int width, int height, int y0, int y1, bool clampAll, Fn&& fn) {
+  for (int y = y0; y < y1; ++y) {
+    if (clampAll || y == 0 || y == height - 1 || width < 3) {
+      for (int x = 0; x < width; ++x) fn(std::true_type{}, x, y);
+    } else {
+      fn(std::true_type{}, 0, y);
+      for (int x = 1; x < width - 1; ++x) fn(std::false_type{}, x, y);
+      fn(std::true_type{}, width - 1, y);
+    }
+  }
+}
+
+}  // namespace
+
+template <class T>
+void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth) {
+  const std::size_t pixels = std::size_t(width) * std::size_t(height);
+  const bool sameSize = width == width_ && height == height_ && !staged_.empty();
+  if (!sameSize) {
+    width_ = width;
+    height_ = height;
+    staged_ = Image(width, height, 4);
+    models_[0].assign(pixels * kRecord, T(0));
+    models_[1].clear();
+    models_[1].shrink_to_fit();
+    depth_[0].clear();
+    depth_[1].clear();
+    current_ = 0;
+    withMotion_ = withDepth_ = false;
+    rowStats_.assign(std::size_t(height) * 2, 0);
+    reset();
+  }
+  if (withMotion && !withMotion_) {
+    models_[1 - current_] = models_[current_];  // keeps the history
+  } else if (!withMotion && withMotion_) {
+    models_[1 - current_].clear();
+    models_[1 - current_].shrink_to_fit();
+  }
+  withMotion_ = withMotion;
+  if (withDepth && !withDepth_) {
+    depth_[0].assign(pixels, kBackgroundDepth);
+    depth_[1].assign(pixels, kBackgroundDepth);
+    previousDepthValid_ = false;
+  } else if (!withDepth && withDepth_) {
+    depth_[0] = std::vector<float>();
+    depth_[1] = std::vector<float>();
+    previousDepthValid_ = false;
+  }
+  withDepth_ = withDepth;
+}
+
+template <class T>
+void Kernel<T>::reset() {
+  frames_ = 0;
+  previousDepthValid_ = false;
+}
+
+template <class T>
+std::size_t Kernel<T>::bytesKeptBetweenFrames() const {
+  return (models_[0].size() + models_[1].size()) * sizeof(T) + (depth_[0].size() + depth_[1].size()) * sizeof(float);
+}
+
+template <class T>
+std::size_t Kernel<T>::bytesScratch() const {
+  return staged_.data.size() * sizeof(float) + rowStats_.size() * sizeof(long);
+}
+
+template <class T>
+void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int numThreads) {
+  if (in.color.width != width_ || in.color.height != height_)
+    invalidData("phlm: colour is " + std::to_string(in.color.width) + "x" + std::to_string(in.color.height) +
+                " but the filter was committed for " + std::to_string(width_) + "x" + std::to_string(height_));
+  if (in.motion.ptr && !withMotion_) invalidData("phlm: a motion image is given but the state was allocated without one");
+  if (in.depth.ptr && !withDepth_) invalidData("phlm: a depth image is given but the state was allocated without one");
+  if (!(s.lambda > 0.0 && s.lambda < 1.0)) invalidArgument("phlm: parameter 'lambda' must lie in (0, 1)");
+  const int threads = reference ? 1 : numThreads;
+  const bool hasDepth = in.depth.ptr != nullptr;
+  const int nextDepth = frames_ % 2;
+  float* depthNow = hasDepth ? depth_[nextDepth].data() : nullptr;
+  const int colorChannels = in.color.channels();
+
+  auto stageRows = [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < width_; ++x) {
+        const float* p = in.color.pixel(x, y);
+        float* d = staged_.at(x, y);
+        d[0] = sanitizeColor(p[0]);
+        d[1] = sanitizeColor(colorChannels > 1 ? p[1] : p[0]);
+        d[2] = sanitizeColor(colorChannels > 2 ? p[2] : p[0]);
+        d[3] = colorChannels > 3 ? sanitizeColor(p[3]) : 1.0f;
+        if (hasDepth) depthNow[std::size_t(y) * width_ + x] = temporal::sanitizeDepth(in.depth.pixel(x, y)[0]);
+      }
+  };
+  if (reference) stageRows(0, height_);
+  else parallelRows(width_, height_, threads, stageRows);
+
+  const bool moving = in.motion.ptr != nullptr;
+  const int next = moving ? 1 - current_ : current_;
+  Frame<T> f;
+  f.width = width_;
+  f.height = height_;
+  f.staged = staged_.data.data();
+  f.depth = depthNow;
+  f.previousDepth = hasDepth && previousDepthValid_ ? depth_[1 - nextDepth].data() : nullptr;
+  f.motion = in.motion;
+  f.hasHistory = frames_ > 0;
+  f.previous = models_[current_].data();
+  f.next = models_[next].data();
+  f.output = in.output;
+  const T lambda = T(s.lambda);
+  f.p0 = T(s.initialCovariance);
+  f.ps = T(s.slopeCovariance);
+  if (!(f.p0 > T(0) && f.ps > T(0))) invalidArgument("phlm: parameters 'initialCovariance' and 'slopeCovariance' must be > 0");
+  f.inverseLambda = T(1) / lambda;
+  for (int k = 0; k < kDims; ++k)  // information 4 (1 - lambda) / P0_kk (phlm_rls.h point 3)
+    f.regulariserVariance[k] = (k == 0 ? f.p0 : f.ps) / (T(4) * (T(1) - lambda));
+  const float weight = s.weighting == JitterWeighting::BlackmanHarris
+                           ? temporal::blackmanHarrisWeight(s.jitterX, s.jitterY, s.filterSize)
+                           : 1.0f;
+  f.update = weight > 0.0f;
+  f.sampleVariance = f.update ? T(1) / T(weight) : T(1);
+  f.axis = frames_ % kDims;
+  f.bilinearBeta = s.modelFetch == ModelFetch::Bilinear;
+  f.boxResetScale = T(s.boxResetCovariance) / f.p0;
+  if (!(f.boxResetScale > T(0))) invalidArgument("phlm: parameter 'boxResetCovariance' must be > 0");
+  f.featureA = T(s.featureA);
+  f.featureB = T(s.featureB);
+  f.featureAlphaMin = T(s.featureAlphaMin);
+  f.depthTolerance = s.depthTolerance;
+  long* rowStats = rowStats_.data();
+
+  auto pixelRows = [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) rowStats[2 * y] = rowStats[2 * y + 1] = 0;
+    rowsWithBorder(width_, height_, y0, y1, reference, [&](auto clamp, int x, int y) {
+      phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], rowStats[2 * y + 1]);
+    });
+  };
+  if (reference) pixelRows(0, height_);
+  else parallelRows(width_, height_, threads, pixelRows);
+
+  stats_ = {};
+  for (int y = 0; y < height_; ++y) {
+    stats_.reprojectionResets += rowStats[2 * y];
+    stats_.boxResets += rowStats[2 * y + 1];
+  }
+  current_ = next;
+  previousDepthValid_ = hasDepth;
+  ++frames_;
+}
+
+template class Kernel<float>;
+template class Kernel<double>;
+
+}  // namespace crisp::phlm
+
+// ---------------------------------------------------------------------------
+// The filter (float32 kernel).
+
+namespace crisp {
+namespace {
+
+std::vector<ParamSpec> phlmParams() {
+  return {
+      {"jitterX", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
+       "this frame's sub-pixel sample offset in pixels, x right (used by jitterWeighting only; the sample is never "
+       "resampled)",
+       "seed 002 §5.2 (jittered sampling); seed 000 appendix B"},
+      {"jitterY", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
+       "this frame's sample offset in pixels, y DOWN (negate Blender's / the sidecar's y-up value)",
+       "seed 002 §5.2; seed 000 appendix B"},
+      {"jitterWeighting", ParamType::String, 0, 0, 0, "none|blackman-harris",
+       "weight w of each frame's sample in the RLS (measurement variance 1/w): none = 1; blackman-harris = a "
+       "Blackman-Harris filter of width filterSize at the jitter (for uniformly drawn jitter)",
+       "seed 002 §5.2 static case (weighted moving average); METHODS.md Jitter and references"},
+      {"filterSize", ParamType::Float, 1.5, 0.01, 4.0, nullptr,
+       "width in pixels of the Blackman-Harris pixel filter used by jitterWeighting (EEVEE's filter_size)",
+       "BLENDER.md Sampling and jitter"},
+      {"lambda", ParamType::Float, 0.998, 0.5, 0.99999, nullptr,
+       "RLS forgetting factor: weight of the previous frames' evidence", "seed 002 eqs. 6-7"},
+      {"initialCovariance", ParamType::Float, 1000.0, 1e-3, 1e6, nullptr,
+       "p0: variance of the intercept at initialisation and every reset (large: the first sample after a reset "
+       "dominates), and its bound: P <= diag(p0, ps, ps, ps) / lambda^3",
+       "seed 002 §6 Initialization; phlm_rls.h"},
+      {"slopeCovariance", ParamType::Float, 1.0, 1e-3, 1e6, nullptr,
+       "ps: variance of the 3 feature slopes at initialisation/reset and their bound (the paper: 1000 for all; "
+       "smaller keeps the fit from explaining flicker with tiny feature changes)",
+       "seed 002 §6 (deviation, phlm.cpp); phlm_rls.h"},
+      {"boxResetCovariance", ParamType::Float, 1000.0, 1e-4, 1e6, nullptr,
+       "intercept variance of the model reset to the box-corrected prediction (Algorithm 1 line 18); the slope "
+       "variances are scaled alike. = initialCovariance: the paper (the output then follows y); small: the "
+       "corrected history is trusted like TAA's clipped history (gain ~ value / (1 + value))",
+       "seed 002 Alg. 1 line 18 (the reset's covariance is not given)"},
+      {"featureA", ParamType::Float, 0.125, 0.0, 10.0, nullptr, "a of phi(v, l) = a l^2 + b |v| l^3",
+       "seed 002 §5.1"},
+      {"featureB", ParamType::Float, 0.25, 0.0, 10.0, nullptr, "b of phi(v, l) (v in pixels per frame)",
+       "seed 002 §5.1"},
+      {"featureAlphaMin", ParamType::Float, 0.05, 0.0, 1.0, nullptr,
+       "floor of the temporal feature's current-frame weight alpha = phi / (l + Delta(Y)) (lets the feature "
+       "follow slow changes inside the neighbourhood's range)",
+       "phlm.cpp (not in the paper)"},
+      {"depthTolerance", ParamType::Float, 0.05, 0.0, 10.0, nullptr,
+       "relative depth difference between this pixel and the reprojected one still counted as the same surface "
+       "(larger: disocclusion, reset)",
+       "phlm.cpp"},
+      {"reference", ParamType::Bool, 0, 0, 1, nullptr,
+       "run the scalar reference path (one thread, clamped taps everywhere); bit-identical to the fast path",
+       "phlm.cpp"},
+  };
+}
+
+class PhlmFilter final : public Filter {
+ public:
+  explicit PhlmFilter(Context& c)
+      : Filter(c, phlmParams(),
+               {{"color", true, 3, 4, false, "linear RGB(A) colour, 1 jittered sample per pixel"},
+                {"motion", false, 2, 4, false,
+                 "motion vectors in pixels, previous - current, y down (absent: static scene, no reprojection)"},
+                {"depth", false, 1, 4, false, "planar depth (channel 0): closest-depth velocity, disocclusion"},
+                {"output", true, 3, 4, false, "anti-aliased linear colour; alpha passes through"}}) {}
+  const char* type() const override { return "phlm"; }
+  void reset() override { kernel_.reset(); }
+
+ protected:
+  void onCommit() override {
+    const ParamSet& p = params();
+    settings_.jitterX = p.getFloat("jitterX");
+    settings_.jitterY = p.getFloat("jitterY");
+    settings_.weighting = p.getString("jitterWeighting") == "blackman-harris" ? phlm::JitterWeighting::BlackmanHarris
+                                                                               : phlm::JitterWeighting::None;
+    settings_.filterSize = p.getFloat("filterSize");
+    settings_.lambda = p.getFloat("lambda");
+    settings_.initialCovariance = p.getFloat("initialCovariance");
+    settings_.slopeCovariance = p.getFloat("slopeCovariance");
+    settings_.boxResetCovariance = p.getFloat("boxResetCovariance");
+    settings_.featureA = p.getFloat("featureA");
+    settings_.featureB = p.getFloat("featureB");
+    settings_.featureAlphaMin = p.getFloat("featureAlphaMin");
+    settings_.depthTolerance = p.getFloat("depthTolerance");
+    reference_ = p.getBool("reference");
+    // Re-committing for a new jitter keeps the state; a new size starts over.
+    kernel_.allocate(width(), height(), hasImage("motion"), hasImage("depth"));
+  }
+  void onExecute() override {
+    phlm::Inputs in;
+    in.color = image("color");
+    if (hasImage("motion")) in.motion = image("motion");
+    if (hasImage("depth")) in.depth = image("depth");
+    in.output = image("output");
+    kernel_.run(in, settings_, reference_, numThreads());
+  }
+
+ private:
+  phlm::Settings settings_;
+  bool reference_ = false;
+  phlm::Kernel<float> kernel_;
+};
+
+}  // namespace
+
+std::unique_ptr<Filter> newPhlmFilter(Context& c) { return std::make_unique<PhlmFilter>(c); }
+
+}  // namespace crisp

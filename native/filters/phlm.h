@@ -1,0 +1,100 @@
+// SPDX-License-Identifier: Apache-2.0
+// PHLM, pixel history linear models (seed 002; METHODS.md "PHLM"): the kernel
+// and its per-pixel state, drivable by tests and benchmarks without the
+// Filter interface, templated on the scalar type: Kernel<float> is the
+// product (the "phlm" filter, phlm.cpp), Kernel<double> the test oracle.
+// The stabilised RLS math is in phlm_rls.h.
+//
+// State kept between frames (bytesKeptBetweenFrames), allocated in
+// allocate() (the filter's onCommit), never in run():
+//  * one record of kRecord = 25 scalars per pixel: beta (12), the UD factors
+//    of P (10), the temporal feature z (3); two such buffers (ping-pong) when
+//    motion is given, because a pixel reads the model of another pixel; one
+//    when the scene is static (no motion image: updated in place, no
+//    reprojection work). float: 100 bytes per pixel per buffer.
+//  * with depth: two float depth planes (this frame's and the previous one).
+// Scratch (bytesScratch): the staged, sanitised frame, RGBA float.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include "core/image.h"
+#include "filters/phlm_rls.h"
+
+namespace crisp::phlm {
+
+enum class JitterWeighting { None, BlackmanHarris };
+enum class ModelFetch { Bilinear, Nearest };  // how beta is reprojected (P, U/D: always nearest)
+
+struct Settings {
+  float jitterX = 0.0f;  // this frame's sample offset, pixels, x right
+  float jitterY = 0.0f;  // pixels, y DOWN (library convention)
+  JitterWeighting weighting = JitterWeighting::None;
+  float filterSize = 1.5f;       // Blackman-Harris width for the weighting
+  double lambda = 0.998;         // forgetting factor (eqs. 6-7)
+  double initialCovariance = 1000.0;  // p0: intercept variance at init/reset (§6) and its bound
+  double slopeCovariance = 1.0;       // ps: slope variances at init/reset and their bound (§6 has 1000)
+  double featureA = 0.125;       // a of phi (§5.1)
+  double featureB = 0.25;        // b of phi (§5.1)
+  double featureAlphaMin = 0.05;  // floor of the feature's current-frame weight (this file)
+  float depthTolerance = 0.05f;  // relative depth difference still the same surface
+  ModelFetch modelFetch = ModelFetch::Bilinear;
+  double boxResetCovariance = 1000.0;  // intercept variance after a box correction (P scaled from P0)
+};
+
+struct Inputs {
+  ImageView color;   // required, 3-4 float channels
+  ImageView motion;  // optional: pixels, previous - current, y down; null = static scene
+  ImageView depth;   // optional: planar depth, channel 0
+  ImageView output;  // required, 3-4 channels
+};
+
+// Per-frame counts (diagnostics and tests).
+struct FrameStats {
+  long reprojectionResets = 0;  // off-screen, non-finite motion, disocclusion, first frame
+  long boxResets = 0;           // prediction outside the 3x3 box (Algorithm 1 line 16)
+};
+
+template <class T>
+class Kernel {
+ public:
+  // withMotion: allocate the second model buffer (reprojection). withDepth:
+  // the depth planes. A call with the same size keeps the history (a buffer
+  // added for motion starts as a copy of the current one).
+  void allocate(int width, int height, bool withMotion, bool withDepth);
+  // Forgets the history: the next frame is a first frame.
+  void reset();
+  // One frame. reference: the scalar path (one thread, clamp-to-edge on every
+  // tap); otherwise row bands on numThreads threads with unclamped interior
+  // taps. Both give bit-identical outputs and states.
+  void run(const Inputs& in, const Settings& s, bool reference, int numThreads);
+
+  std::size_t bytesKeptBetweenFrames() const;
+  std::size_t bytesScratch() const;
+  int framesSinceReset() const { return frames_; }
+  const FrameStats& lastStats() const { return stats_; }
+  // The record (kRecord scalars, phlm_rls.h layout) of pixel (x, y) after the last run.
+  const T* record(int x, int y) const {
+    return models_[current_].data() + (std::size_t(y) * std::size_t(width_) + std::size_t(x)) * kRecord;
+  }
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+ private:
+  int width_ = 0, height_ = 0;
+  bool withMotion_ = false, withDepth_ = false;
+  Image staged_;
+  std::vector<T> models_[2];
+  std::vector<float> depth_[2];
+  std::vector<long> rowStats_;  // 2 per row: reprojection resets, box resets
+  int current_ = 0;
+  int frames_ = 0;
+  bool previousDepthValid_ = false;
+  FrameStats stats_;
+};
+
+extern template class Kernel<float>;
+extern template class Kernel<double>;
+
+}  // namespace crisp::phlm
