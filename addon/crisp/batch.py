@@ -4,7 +4,7 @@
     blender -b [SCENE.blend] --factory-startup --python-exit-code 1 --python <repo>/addon/crisp/batch.py -- \\
         -o OUTDIR [--frames A-B] [--method NAME] [--set K=V ...] [--samples 1] [--reference-samples N]
         [--resolution WxH] [--scene-script test_scenes/NAME.py | NAME] [--plan-only] [--no-filter]
-        [--no-png] [--threads N] [--library PATH] [--jitter blackman-harris|uniform]
+        [--no-png] [--threads N] [--library PATH] [--jitter blackman-harris|uniform] [--engine eevee|cycles]
 
 Arguments (after Blender's `--`):
   -o, --output OUTDIR      where everything goes (created; must be writable)
@@ -22,6 +22,9 @@ Arguments (after Blender's `--`):
   --threads N              library threads (0: all cores)
   --library PATH           libcrisp.so to use (else $CRISP_LIBRARY, else <repo>/build/lib/libcrisp.so)
   --jitter DIST            sub-pixel jitter distribution of temporal methods (default blackman-harris)
+  --engine eevee|cycles    renderer of the input frames (default eevee); cycles renders the same frames
+                           cheaply (1 sample, 0.01 px box filter, no denoising) with its own Vector pass,
+                           to check reconstructed motion against it
 
 Writes OUTDIR/input/frame_NNNN.exr + .json, OUTDIR/filtered/frame_NNNN.exr (+ .png),
 OUTDIR/reference/frame_NNNN.exr when asked, and OUTDIR/run.json (see pipeline.py), each through a
@@ -61,6 +64,7 @@ def make_parser():
     p.add_argument("--threads", type=int, default=0)
     p.add_argument("--library", default="")
     p.add_argument("--jitter", default="blackman-harris")
+    p.add_argument("--engine", default="eevee")
     return p
 
 
@@ -97,6 +101,8 @@ def main(argv):
         fail(2, "--samples must be >= 1 and --reference-samples >= 0")
     if args.jitter not in render.JITTER_DISTRIBUTIONS:
         fail(2, "unknown --jitter '%s' (known: %s)" % (args.jitter, ", ".join(render.JITTER_DISTRIBUTIONS)))
+    if args.engine not in render.ENGINES:
+        fail(2, "unknown --engine '%s' (known: %s)" % (args.engine, ", ".join(render.ENGINES)))
     params = {}
     for kv in args.params:
         if "=" not in kv:
@@ -124,7 +130,7 @@ def main(argv):
         pipeline.run(scene, args.method, frames, os.path.abspath(args.output), params=params,
                      samples=args.samples, reference_samples=args.reference_samples, plan_only=args.plan_only,
                      filter_frames=not args.no_filter, threads=args.threads, jitter_distribution=args.jitter,
-                     write_png=not args.no_png, log=lambda s: print(s, flush=True))
+                     write_png=not args.no_png, log=lambda s: print(s, flush=True), engine_name=args.engine)
     except pipeline.InputError as e:
         fail(2, str(e))
     except render.RenderError as e:

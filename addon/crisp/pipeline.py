@@ -63,8 +63,8 @@ def check_method(method, need_library):
             raise InputError("method '%s' is not in this libcrisp (it has: %s)" % (method, ", ".join(types)))
 
 
-def scene_plan(scene, method, frames, view_layer=None):
-    engine = render.eevee_engine(scene)
+def scene_plan(scene, method, frames, view_layer=None, engine_name="eevee"):
+    engine = render.render_engine(scene, engine_name)
     facts = plan_mod.scene_facts(scene, frames[0], frames[-1], view_layer=view_layer,
                                  renderer_motion_pass=render.renderer_motion_pass(engine))
     return plan_mod.make_plan(method, facts), facts
@@ -79,8 +79,9 @@ def _write_json(path, data):
 
 def run(scene, method, frames, out_dir, params=None, samples=1, reference_samples=0, plan_only=False,
         filter_frames=True, threads=0, jitter_distribution="blackman-harris", write_png=True, log=print,
-        view_layer=None, should_cancel=None):
-    """Returns the run.json dictionary (also written to out_dir/run.json)."""
+        view_layer=None, should_cancel=None, engine_name="eevee"):
+    """Returns the run.json dictionary (also written to out_dir/run.json). engine_name: 'eevee', or
+    'cycles' to render the same frames with Cycles (cheap settings, its own Vector pass) for checks."""
     frames = list(frames)
     if not frames:
         raise InputError("no frames to render (empty frame range)")
@@ -93,11 +94,12 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     if user_engine not in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):
         log("note: the scene's engine is %s; Crisp renders with EEVEE and puts %s back afterwards"
             % (user_engine, user_engine))
-    the_plan, facts = scene_plan(scene, method, frames, view_layer)
+    engine = render.render_engine(scene, engine_name)
+    the_plan, facts = scene_plan(scene, method, frames, view_layer, engine_name)
     log(the_plan.describe())
     result = {"blender_version": bpy.app.version_string, "method": method, "params": dict(params or {}),
               "scene": scene.name, "frames_requested": [frames[0], frames[-1]], "samples": samples,
-              "engine": render.eevee_engine(scene), "user_engine": user_engine,
+              "engine": engine, "user_engine": user_engine,
               "plan": the_plan.to_json(), "facts": {"camera_moves": facts.camera_moves,
                                                    "moving_objects": facts.moving_objects,
                                                    "deforming_objects": facts.deforming_objects,
@@ -135,7 +137,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     try:
         render.render_frames(scene, the_plan, frames, input_dir, samples=samples,
                              jitter_distribution=jitter_distribution, view_layer=view_layer,
-                             on_frame=on_frame, should_cancel=should_cancel)
+                             on_frame=on_frame, should_cancel=should_cancel,
+                             engine=engine if engine == "CYCLES" else None)
     finally:
         if frame_filter is not None:
             frame_filter.close()

@@ -49,6 +49,22 @@ def eevee_engine(scene):
     raise RenderError("this Blender offers no EEVEE engine (engines: %s)" % ", ".join(items))
 
 
+# Cycles as a second renderer (validation of reconstructed motion against its Vector pass): cheap
+# settings, and a 0.01 px box pixel filter so its one sample sits on the pixel centre (plus the
+# jitter shift) like EEVEE's, which makes its Depth, Vector and CryptoObject values those of that point.
+CYCLES_SETTINGS = {"device": "CPU", "use_denoising": False, "use_adaptive_sampling": False,
+                   "pixel_filter_type": "BOX", "filter_width": 0.01, "max_bounces": 2, "seed": 0,
+                   "use_animated_seed": False}
+ENGINES = {"eevee": None, "cycles": "CYCLES"}  # None: EEVEE (EEVEE Next where offered)
+
+
+def render_engine(scene, name="eevee"):
+    """Engine identifier for a user-facing name ('eevee' or 'cycles')."""
+    if name not in ENGINES:
+        raise RenderError("unknown engine '%s' (known: %s)" % (name, ", ".join(ENGINES)))
+    return ENGINES[name] or eevee_engine(scene)
+
+
 def renderer_motion_pass(engine):
     """Whether the engine writes a Vector pass: EEVEE Next (4.2+) and Cycles do, EEVEE 3.x does not."""
     if engine == "CYCLES" or engine == "BLENDER_EEVEE_NEXT":
@@ -207,7 +223,8 @@ def object_table(scene, view_layer):
 def render_settings(scene, engine, samples):
     r = scene.render
     w, h = render_size(scene)
-    return {"engine": engine, "samples": samples, "resolution": [w, h], "pixel_aspect": [r.pixel_aspect_x, r.pixel_aspect_y],
+    extra = {"cycles": dict(CYCLES_SETTINGS, samples=samples)} if engine == "CYCLES" else {}
+    return {**extra, "engine": engine, "samples": samples, "resolution": [w, h], "pixel_aspect": [r.pixel_aspect_x, r.pixel_aspect_y],
             "filter_size": r.filter_size, "film_transparent": r.film_transparent,
             "gi_cubemap_resolution": scene.eevee.gi_cubemap_resolution, "gi_cubemap_reason": CUBEMAP_REASON,
             "view_transform": scene.view_settings.view_transform, "fps": r.fps / r.fps_base,
@@ -227,6 +244,10 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
     r = scene.render
     snap.set(r, "engine", engine)
     snap.set(scene.eevee, "taa_render_samples", samples)
+    if engine == "CYCLES":
+        snap.set(scene.cycles, "samples", samples)
+        for attr, value in CYCLES_SETTINGS.items():
+            snap.set(scene.cycles, attr, value)
     snap.set(scene.eevee, "gi_cubemap_resolution", CUBEMAP_RESOLUTION)
     snap.set(scene.eevee, "use_motion_blur", False)
     snap.set(r, "use_motion_blur", False)
@@ -271,12 +292,12 @@ def frame_name(frame, ext=".exr"):
 
 
 def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distribution="blackman-harris",
-                  view_layer=None, on_frame=None, should_cancel=None):
+                  view_layer=None, on_frame=None, should_cancel=None, engine=None):
     """Renders `frames` of `scene` into out_dir/frame_NNNN.exr + .json with the plan's passes.
 
     on_frame(frame, info) is called after each frame (info: dict with render_s, paths); it may raise to
     stop. should_cancel() -> True stops after the current frame. Returns the list of infos. The scene
-    is restored on return, error or cancel."""
+    is restored on return, error or cancel. engine: None (EEVEE) or 'CYCLES' (see CYCLES_SETTINGS)."""
     check_blender_version()
     if scene.camera is None:
         raise RenderError("scene '%s' has no camera: set one (Scene properties > Camera)" % scene.name)
@@ -286,7 +307,7 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
     view_layer = view_layer or bpy.context.view_layer
     if view_layer.name not in scene.view_layers:
         view_layer = scene.view_layers[0]
-    engine = eevee_engine(scene)
+    engine = engine or eevee_engine(scene)
     os.makedirs(out_dir, exist_ok=True)
     infos = []
     cam_data = scene.camera.data

@@ -136,14 +136,19 @@ FrameMotion reconstructMotion(const Image& depth, const Image* ids, const Sideca
       for (int x = 0; x < W; ++x) {
         float* m = out.motion.at(x, y);
         std::uint32_t flags = 0;
-        // Blender 3.4 EEVEE stores Depth.Z as half float: 11 significant bits,
-        // so the depth read here is off by up to 2^-11 relative (e.g. <= 0.002
-        // units at 4-8 units away). That slides the point along its own pixel
-        // ray: its current position is unchanged, and the reconstructed vector
-        // errs by about 2^-11 (0.05 %) of the part of the motion that depends
-        // on depth (parallax from camera translation, object motion relative to
-        // the camera); camera rotation about its centre is unaffected. Depths
-        // at or beyond 65504 (half max) read as background.
+        // Blender 3.4 EEVEE computes Depth.Z in half float (the EXR holds it
+        // as float32, every value exactly a half; background 65504): 11
+        // significant bits, so d is off by up to 2^-11 relative (<= 0.002
+        // units at 4-8 units away). That slides the
+        // point by that much along its own ray: its current pixel is
+        // unchanged, and the vector errs by the motion of that small
+        // displacement: ~(dd / d) * parallax for a camera translation, ~theta
+        // * dd * f / d pixels for a rotation by theta (object, or camera about
+        // another point; f = focal length in pixels), nothing for a camera
+        // turning about its own centre. Measured on the spinning cube (theta
+        // 0.07 rad/frame, d ~5.5, f 133 px): median 0.003 px, max 0.011 px
+        // against Cycles' Vector (tests/blender/test_motion_vectors.py).
+        // Depths at or beyond 65504 read as background.
         const float d = *depth.at(x, y);
         if (isBackgroundDepth(d)) {
           out.flags.setUint(x, y, kMotionBackground);
