@@ -11,9 +11,9 @@ bl_info = {
     "category": "Render",
 }
 
-from . import compositor, operators, preferences, properties, ui  # noqa: E402
+from . import compositor, operators, preferences, properties, ui, viewport  # noqa: E402
 
-_modules = (preferences, properties, operators, compositor, ui)
+_modules = (preferences, properties, operators, compositor, ui, viewport)
 
 
 def register():

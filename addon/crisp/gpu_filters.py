@@ -66,15 +66,25 @@ PASSES = {
     "repair_resolve": ("repair", "REPAIR_RESOLVE_PASS", "repairResolvePass", (("VEC4", "fragColor"),)),
     "taa_resolve": ("taa", "TAA_RESOLVE_PASS", "taaResolvePass", (("VEC4", "historyOut"), ("VEC4", "fragColor"))),
     "taa_sharpen": ("taa", "TAA_SHARPEN_PASS", "taaSharpenPass", (("VEC4", "fragColor"),)),
-    # Display pass of the viewport preview (common.glsl only): the filtered texture, sRGB-encoded.
+    # Viewport preview (common.glsl only): the colour-managed view decoded to linear by the sRGB curve,
+    # and the filtered texture drawn at a pixel offset as linear values: the 3D view's region framebuffer
+    # in 3.4 is sRGB and encodes on write (measured by tests/blender_gui/test_viewport_preview.py: an
+    # explicit encode here doubled the encoding, +0.24 on flat grey).
+    "decode": (None, "DECODE_PASS", "decodePass", (("VEC4", "fragColor"),)),
     "display": (None, "DISPLAY_PASS", "displayPass", (("VEC4", "fragColor"),)),
 }
 
 DISPLAY_SOURCE = """
+#ifdef DECODE_PASS
+void decodePass() {
+  vec4 c = texelFetch(colorImage, fragmentPixel(), 0);
+  fragColor = vec4(srgbDecode(c.r), srgbDecode(c.g), srgbDecode(c.b), c.a);
+}
+#endif
 #ifdef DISPLAY_PASS
 void displayPass() {
   vec4 c = texelFetch(colorImage, fragmentPixel() - offset, 0);
-  fragColor = vec4(srgbEncode(c.r), srgbEncode(c.g), srgbEncode(c.b), 1.0);
+  fragColor = vec4(c.rgb, 1.0);
 }
 #endif
 """
@@ -304,7 +314,7 @@ class GpuFilter:
 
 
 def draw_display(texture, width, height, x=0, y=0):
-    """Draws `texture` (linear RGBA) sRGB-encoded into the bound framebuffer's pixels [x, x+width) x [y, y+height)."""
+    """Draws `texture` (linear RGBA) into the bound (sRGB-encoding) framebuffer's pixels [x, x+width) x [y, y+height)."""
     sh = shader("display")
     batch = _fullscreen_batch(sh)
     gpu.state.viewport_set(x, y, width, height)

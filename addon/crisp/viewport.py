@@ -1,0 +1,280 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""Artist preview of a Crisp filter in the 3D viewport (issue 7).
+
+When on, a POST_PIXEL draw handler renders the view into an offscreen buffer each redraw
+(GPUOffScreen.draw_view3d, colour-managed: what the viewport shows), decodes it to linear with the sRGB
+curve, runs the chosen filter's GLSL twin (gpu_filters.py), and draws the result sRGB-encoded over the
+region. For taa the projection is jittered by Halton(2,3) (uniform inside the pixel) each redraw, the
+history is kept between redraws and reset when the view matrix, projection, size or method changes;
+while the history holds fewer than ACCUMULATE_FRAMES frames the preview asks for another redraw.
+Motion vectors and depth are not available to an add-on in the viewport (BLENDER.md), so taa runs its
+static path: moving the view restarts the accumulation.
+
+When off, no handler is installed (the viewport does not pay anything). Where the gpu module is not
+available (background mode) switching it on switches it back off with a message.
+
+Differences from the filters on final renders: the input is the colour-managed viewport image decoded
+by the sRGB curve (equal to linear light with the Standard view transform; with Filmic it is Filmic's
+output), and the preview covers the overlays drawn before it (grid, outlines).
+"""
+
+import bpy
+from mathutils import Matrix
+
+METHODS = (("fxaa", "FXAA", "FXAA 3.11 quality (spatial)"),
+           ("repair", "REPAIR", "REPAIR rotated spatial filtering (spatial)"),
+           ("taa", "TAA", "Temporal AA baseline, jittered projection, static accumulation"))
+ACCUMULATE_FRAMES = 16  # taa: redraws requested after the view stops changing (Halton period of the library)
+
+
+class _State:
+    handle = None        # the draw handler, or None when the preview is off
+    filters = {}         # method -> gpu_filters.GpuFilter
+    offscreen = None
+    offscreen_size = None
+    decoded = None       # gpu_filters.Target: the linear input
+    view_key = None
+    frame = 0            # taa: index into the Halton sequence
+    drawing = False      # re-entrancy guard (draw_view3d inside a draw handler)
+    last_ms = 0.0
+
+
+def gpu_unavailable_reason():
+    """None when the gpu module can be used here, else why not."""
+    if bpy.app.background:
+        return "the GPU module is not available in background mode (run Blender with a window)"
+    try:
+        import gpu  # noqa: F401
+        import gpu.shader  # noqa: F401
+    except Exception as e:  # pragma: no cover - depends on the build
+        return "the GPU module is not available: %s" % e
+    return None
+
+
+def radical_inverse(index, base):
+    result, fraction = 0.0, 1.0 / base
+    while index > 0:
+        result += (index % base) * fraction
+        index //= base
+        fraction /= base
+    return result
+
+
+def halton_jitter(frame, period=ACCUMULATE_FRAMES):
+    """Pixel offset (x right, y up) of redraw `frame`: Halton(2,3) point (frame mod period) + 1, minus 0.5
+    (the uniform distribution of temporal/jitter.h jitterForFrame)."""
+    i = frame % period + 1
+    return radical_inverse(i, 2) - 0.5, radical_inverse(i, 3) - 0.5
+
+
+def jittered_projection(projection, dx, dy, width, height):
+    """projection moved by (dx, dy) pixels on screen: a translation of 2 dx / width in NDC after the
+    perspective divide, i.e. T @ P (works for perspective and orthographic views)."""
+    return Matrix.Translation((2.0 * dx / width, 2.0 * dy / height, 0.0)) @ projection
+
+
+def _settings(context):
+    return context.window_manager.crisp_viewport
+
+
+def _filter_params(context, method):
+    """The scene's parameters for `method` (scene.crisp, built from the library's table) that the GPU
+    version has; defaults when the add-on's settings are unavailable."""
+    from . import gpu_filters
+    out = {}
+    try:
+        from . import properties
+        group = properties.param_group(context.scene.crisp, method)
+    except Exception:
+        group = None
+    if group is not None:
+        for name in gpu_filters.DEFAULTS[method]:
+            if hasattr(group, name):
+                out[name] = getattr(group, name)
+    return out
+
+
+def _tag_redraw():
+    wm = bpy.context.window_manager
+    for window in wm.windows:
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+    return None
+
+
+def _draw():
+    if _State.drawing:
+        return
+    _State.drawing = True
+    try:
+        _draw_preview(bpy.context)
+    except Exception as e:
+        message = "Crisp preview off: %s" % e
+        print(message)
+        bpy.app.timers.register(lambda: _switch_off(message), first_interval=0.0)
+    finally:
+        _State.drawing = False
+
+
+def _draw_preview(context):
+    import time
+
+    import gpu
+
+    from . import gpu_filters
+
+    t0 = time.perf_counter()
+    settings = _settings(context)
+    region, space, rv3d = context.region, context.space_data, context.region_data
+    if region is None or rv3d is None or space is None or space.type != "VIEW_3D":
+        return
+    width, height = region.width, region.height
+    if width < 4 or height < 4:
+        return
+    method = settings.method
+    filt = _State.filters.get(method)
+    if filt is None:
+        filt = _State.filters[method] = gpu_filters.GpuFilter(method)
+    filt.set_params(_filter_params(context, method))
+
+    view = rv3d.view_matrix.copy()
+    projection = rv3d.window_matrix.copy()
+    key = (tuple(tuple(r) for r in view), tuple(tuple(r) for r in projection), width, height, method)
+    if key != _State.view_key:
+        _State.view_key = key
+        _State.frame = 0
+        filt.reset()
+    if method == "taa":
+        dx, dy = halton_jitter(_State.frame)
+        _State.frame += 1
+        # Offscreen rows are bottom-up (y up), the shaders' y is the texture row: jitterY = dy.
+        filt.set_params({"jitterX": dx, "jitterY": dy})
+        projection = jittered_projection(projection, dx, dy, width, height)
+
+    if _State.offscreen_size != (width, height):
+        if _State.offscreen is not None:
+            _State.offscreen.free()
+        _State.offscreen = gpu.types.GPUOffScreen(width, height, format="RGBA32F")
+        _State.decoded = gpu_filters.Target(width, height)
+        _State.offscreen_size = (width, height)
+    blend = gpu.state.blend_get()
+    _State.offscreen.draw_view3d(context.scene, context.view_layer, space, region, view, projection,
+                                 do_color_management=True)
+    gpu_filters.run_pass("decode", _State.decoded, {"colorImage": _State.offscreen.texture_color})
+    out = filt.run(_State.decoded.texture, width, height)
+    gpu.state.blend_set("NONE")
+    gpu_filters.draw_display(out, width, height)
+    gpu.state.blend_set(blend)
+    if method == "taa" and filt.frames < ACCUMULATE_FRAMES and not bpy.app.timers.is_registered(_tag_redraw):
+        bpy.app.timers.register(_tag_redraw, first_interval=0.0)
+    _State.last_ms = 1000.0 * (time.perf_counter() - t0)
+
+
+def _install():
+    if _State.handle is None:
+        _State.handle = bpy.types.SpaceView3D.draw_handler_add(_draw, (), "WINDOW", "POST_PIXEL")
+        _State.view_key = None
+    _tag_redraw()
+
+
+def _remove():
+    if _State.handle is not None:
+        bpy.types.SpaceView3D.draw_handler_remove(_State.handle, "WINDOW")
+        _State.handle = None
+    _State.filters = {}
+    if _State.offscreen is not None:
+        _State.offscreen.free()
+    _State.offscreen = _State.offscreen_size = _State.decoded = None
+    _State.view_key = None
+    try:
+        _tag_redraw()
+    except Exception:
+        pass
+
+
+def _switch_off(message):
+    wm = bpy.context.window_manager
+    s = wm.crisp_viewport
+    s.status = message
+    if s.enabled:
+        s.enabled = False  # update callback removes the handler
+    else:
+        _remove()
+    return None
+
+
+def _on_enabled(self, context):
+    if self.enabled:
+        why = gpu_unavailable_reason()
+        if why is not None:
+            self.status = "Crisp preview off: " + why
+            print(self.status)
+            self.enabled = False
+            return
+        self.status = ""
+        _install()
+    else:
+        _remove()
+
+
+def _on_method(self, context):
+    _State.view_key = None
+    if self.enabled:
+        _tag_redraw()
+
+
+def is_active():
+    return _State.handle is not None
+
+
+def last_draw_ms():
+    return _State.last_ms
+
+
+class CrispViewportSettings(bpy.types.PropertyGroup):
+    enabled: bpy.props.BoolProperty(
+        name="Crisp Preview", default=False, update=_on_enabled,
+        description="Filter the 3D viewport with the chosen Crisp method (GPU version of the library's filter)")
+    method: bpy.props.EnumProperty(name="Method", items=METHODS, default="fxaa", update=_on_method,
+                                   description="Filter used by the viewport preview")
+    status: bpy.props.StringProperty(name="Status", default="")
+
+
+class CRISP_PT_viewport(bpy.types.Panel):
+    bl_label = "Crisp Preview"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Crisp"
+
+    def draw(self, context):
+        s = _settings(context)
+        layout = self.layout
+        layout.prop(s, "enabled")
+        layout.prop(s, "method")
+        if s.status:
+            row = layout.row()
+            row.alert = True
+            row.label(text=s.status, icon="ERROR")
+        elif is_active():
+            layout.label(text="%.1f ms per redraw" % _State.last_ms)
+
+
+def _header_toggle(self, context):
+    s = _settings(context)
+    self.layout.prop(s, "enabled", text="", icon="ANTIALIASED")
+
+
+def register():
+    bpy.utils.register_class(CrispViewportSettings)
+    bpy.types.WindowManager.crisp_viewport = bpy.props.PointerProperty(type=CrispViewportSettings)
+    bpy.utils.register_class(CRISP_PT_viewport)
+    bpy.types.VIEW3D_HT_header.append(_header_toggle)
+
+
+def unregister():
+    _remove()
+    bpy.types.VIEW3D_HT_header.remove(_header_toggle)
+    bpy.utils.unregister_class(CRISP_PT_viewport)
+    del bpy.types.WindowManager.crisp_viewport
+    bpy.utils.unregister_class(CrispViewportSettings)
