@@ -74,6 +74,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 
 #include "core/color.h"
@@ -89,19 +90,18 @@
 
 namespace crisp::taa {
 
-using temporal::ColorBox;
 using temporal::Float3;
+using temporal::Vec4;
 
 namespace {
 
 // Everything one frame's pixels read, set up once per frame.
 struct Frame {
   int width, height;
-  const float* staged;         // RGBA, colour in the clip space
-  const float* depth;          // this frame's sanitised depth, or null
-  const float* previousDepth;  // previous frame's, or null (no depth test)
+  const float* previousDepth;  // previous frame's sanitised depth, or null (no depth test)
   ImageView color;             // the input, for exact resets
   ImageView motion;            // ptr null: static scene
+  ImageView depth;             // ptr null: no depth
   temporal::HistoryImage previous;  // valid only if hasHistory
   bool hasHistory;
   float* history;              // written: RGBA
@@ -114,9 +114,24 @@ struct Frame {
   bool staticAccumulation, staticClip;
   float maxSamples;
   float depthTolerance;
+  const float* aliased;        // aliasedValue plane or null
+  bool aliasedNeighbourhood, aliasedBoxSize;
 };
 
-inline float lumaOf(const temporal::Vec4& c, ClipSpace space) {
+// The current frame as the kernel reads it (conventions.h): sanitised, in
+// the clip space, alpha 1 for RGB input. Both paths stage through this.
+inline Vec4 stagePixel(const float* p, int channels, ClipSpace space) {
+  Vec4 v = channels > 3 ? temporal::load4(p)
+                        : Vec4{p[0], channels > 1 ? p[1] : p[0], channels > 2 ? p[2] : p[0], 1.0f};
+  v = temporal::sanitize4(v, kMaxColor);  // sanitizeColor per lane; alpha 1 stays 1
+  if (space == ClipSpace::YCoCg) {
+    const Float3 c = temporal::rgbToYCoCg({{v[0], v[1], v[2]}});
+    v = Vec4{c[0], c[1], c[2], v[3]};
+  }
+  return v;
+}
+
+inline float lumaOf(const Vec4& c, ClipSpace space) {
   return space == ClipSpace::YCoCg ? c[0] : 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
 }
 
@@ -124,64 +139,68 @@ inline Float3 toRgb(const Float3& c, ClipSpace space) {
   return space == ClipSpace::YCoCg ? temporal::yCoCgToRgb(c) : c;
 }
 
-inline void storeOutput(const ImageView& out, int x, int y, const Float3& rgb, float alpha) {
+// rgb in lanes 0-2 (sanitised here), alpha in lane 3.
+inline void storeOutput(const ImageView& out, int x, int y, Vec4 rgba) {
+  const float alpha = rgba[3];
+  rgba = temporal::sanitize4(rgba, kMaxColor);
+  rgba[3] = alpha;
   float* p = out.pixel(x, y);
-  const int channels = out.channels();
-  p[0] = sanitizeColor(rgb[0]);
-  p[1] = sanitizeColor(rgb[1]);
-  p[2] = sanitizeColor(rgb[2]);
-  if (channels > 3) p[3] = alpha;
+  if (out.channels() > 3) {
+    temporal::store4(p, rgba);
+  } else {
+    p[0] = rgba[0];
+    p[1] = rgba[1];
+    p[2] = rgba[2];
+  }
+}
+inline Vec4 toRgb4(Vec4 c, ClipSpace space, float alpha) {
+  const Float3 rgb = toRgb({{c[0], c[1], c[2]}}, space);
+  return Vec4{rgb[0], rgb[1], rgb[2], alpha};
 }
 
-// One pixel of the TAA pass. Clamp: clamp the 3x3 taps to the image (border
-// pixels, and every pixel on the reference path); interior pixels of the fast
-// path skip it. Both read the same values, so results are identical.
-template <bool Clamp>
-inline void taaPixel(const Frame& f, int x, int y) {
-  using temporal::Vec4;
+// What the per-pixel core needs from the 3x3 block, however it was gathered.
+struct Neighbourhood {
+  Vec4 current;                  // centre tap, staged
+  temporal::MinMax4 box3x3, cross;
+  int tap;                       // followed tap (closest depth; 4 = centre), row order
+  float tapDepth;                // its sanitised depth (with depth only)
+};
+
+constexpr int kTapDx[9] = {-1, 0, 1, -1, 0, 1, -1, 0, 1};
+constexpr int kTapDy[9] = {-1, -1, -1, 0, 0, 0, 1, 1, 1};
+
+// Steps 3-8 for one pixel: the part both paths share (and taa-improved, through
+// the aliasedValue plane). Writes the history and, unless sharpening, the output.
+__attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, int y, const Neighbourhood& nb) {
   const int w = f.width, h = f.height;
-  Vec4 taps[9];  // RGBA staged: colour in the clip space, alpha in lane 3
-  float depth9[9];
-  int tapX[9], tapY[9];
-  for (int j = 0, i = 0; j < 3; ++j)
-    for (int k = 0; k < 3; ++k, ++i) {
-      const int tx = Clamp ? std::clamp(x + k - 1, 0, w - 1) : x + k - 1;
-      const int ty = Clamp ? std::clamp(y + j - 1, 0, h - 1) : y + j - 1;
-      tapX[i] = tx;
-      tapY[i] = ty;
-      taps[i] = temporal::load4(f.staged + (std::size_t(ty) * w + tx) * 4);
-      if (f.depth) depth9[i] = f.depth[std::size_t(ty) * w + tx];
-    }
-  const Vec4 current = taps[4];
+  const Vec4 current = nb.current;
   const float alpha = current[3];
 
-  // Step 3: velocity of the closest-depth tap (seed 000 §3.6.3).
-  const int tap = (f.depth && f.motion.ptr) ? temporal::closestDepthTap(depth9) : 4;
+  // Step 3: velocity of the followed tap (clamped to the image, as the taps are).
   float vx = 0.0f, vy = 0.0f;
   if (f.motion.ptr) {
-    const float* m = f.motion.pixel(tapX[tap], tapY[tap]);
+    const float* m = f.motion.pixel(std::clamp(x + kTapDx[nb.tap], 0, w - 1), std::clamp(y + kTapDy[nb.tap], 0, h - 1));
     vx = m[0];
     vy = m[1];
   }
   const bool moving = vx != 0.0f || vy != 0.0f;
 
   // Step 8: is there usable history at p + v?
-  bool valid = f.hasHistory && temporal::finiteMotion(vx, vy);
   const float qx = float(x) + vx, qy = float(y) + vy;
-  if (valid) valid = temporal::onScreen(qx, qy, w, h);
+  bool valid = f.hasHistory && temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h);
   if (valid && f.previousDepth) {
-    // Disocclusion: some tap of the bilinear footprint must hold the surface
-    // whose velocity we follow (depth is compared, never interpolated).
-    const float d = depth9[tap];
+    // Disocclusion: some tap of the bilinear footprint with non-zero weight
+    // must hold the surface whose velocity we follow (depth is compared,
+    // never interpolated). Evaluated without branches.
     const temporal::Footprint fp = temporal::footprintOf(qx, qy);
-    bool match = false;
-    for (int j = 0; j < 2 && !match; ++j)
-      for (int k = 0; k < 2 && !match; ++k) {
-        if ((k == 1 && fp.tx == 0.0f) || (j == 1 && fp.ty == 0.0f)) continue;  // zero-weight tap
-        const int sx = std::clamp(fp.x0 + k, 0, w - 1), sy = std::clamp(fp.y0 + j, 0, h - 1);
-        match = temporal::sameSurfaceDepth(d, f.previousDepth[std::size_t(sy) * w + sx], f.depthTolerance);
-      }
-    valid = match;
+    const int xa = std::clamp(fp.x0, 0, w - 1), xb = std::clamp(fp.x0 + 1, 0, w - 1);
+    const float* r0 = f.previousDepth + std::size_t(std::clamp(fp.y0, 0, h - 1)) * w;
+    const float* r1 = f.previousDepth + std::size_t(std::clamp(fp.y0 + 1, 0, h - 1)) * w;
+    const float d = nb.tapDepth, tol = f.depthTolerance;
+    const bool useX1 = fp.tx != 0.0f, useY1 = fp.ty != 0.0f;
+    valid = temporal::sameSurfaceDepth(d, r0[xa], tol) | (useX1 & temporal::sameSurfaceDepth(d, r0[xb], tol)) |
+            (useY1 & temporal::sameSurfaceDepth(d, r1[xa], tol)) |
+            (useX1 & useY1 & temporal::sameSurfaceDepth(d, r1[xb], tol));
   }
 
   Vec4 hist = temporal::splat(0.0f);
@@ -201,26 +220,41 @@ inline void taaPixel(const Frame& f, int x, int y) {
   float newWeight = weight;
   bool reset = !valid || !(weightSum > 0.0f);  // first frame bootstrap / invalid reprojection
   if (!reset) {
-    temporal::ColorBox4 box3x3, cross;
-    temporal::neighbourhoodBoxes4(taps, box3x3, cross);
     const bool staticPixel = f.staticAccumulation && !moving && hist[3] > 0.0f;
+    float excess = 0.0f;
     // Static pixels are tested against the full 3x3 box (a converged edge
-    // value always lies in its 3x3 range); moving ones against the rounded box.
-    const temporal::ColorBox4 box = staticPixel ? box3x3 : temporal::roundedBox4(box3x3, cross);
-    float excess;
-    const Vec4 clipped = temporal::clipTowardCentre4(hist, box.min, box.max, &excess);
+    // value always lies in its 3x3 range).
+    if (staticPixel) temporal::clipTowardCentre4(hist, nb.box3x3.min, nb.box3x3.max, &excess);
     if (staticPixel && (!f.staticClip || !(excess > 1.0f))) {
       // Running average, weight w/W, in linear light.
       result = hist + (current - hist) * (weight / weightSum);
       newWeight = std::min(weightSum, f.maxSamples);
     } else {
+      // The moving path's box: the rounded box (mean of 3x3 and cross), or
+      // steered by aliasedValue a (seed 000 §4.3.4): mix(cross, 3x3, a)
+      // (eq. 4.15) and shrunk toward the current colour, mix(current, box, a)
+      // (eq. 4.16); mix(x, y, t) = x(1 - t) + yt (eq. 4.11).
+      Vec4 lo, hi;
+      const float a = f.aliased ? f.aliased[std::size_t(y) * w + x] : 0.0f;
+      if (f.aliased && f.aliasedNeighbourhood) {
+        lo = nb.cross.min * (1.0f - a) + nb.box3x3.min * a;
+        hi = nb.cross.max * (1.0f - a) + nb.box3x3.max * a;
+      } else {
+        lo = 0.5f * (nb.box3x3.min + nb.cross.min);
+        hi = 0.5f * (nb.box3x3.max + nb.cross.max);
+      }
+      if (f.aliased && f.aliasedBoxSize) {
+        lo = current * (1.0f - a) + lo * a;
+        hi = current * (1.0f - a) + hi * a;
+      }
+      const Vec4 clipped = temporal::clipTowardCentre4(hist, lo, hi, &excess);
       // Step 6: luma-difference feedback on the clipped history.
       const float l0 = lumaOf(clipped, f.space), l1 = lumaOf(current, f.space);
       const float diff = std::clamp(std::fabs(l0 - l1) / std::max(std::max(l0, l1), 0.2f), 0.0f, 1.0f);
       const float unbiased = (1.0f - diff) * (1.0f - diff);
       const float k = f.feedbackMin + (f.feedbackMax - f.feedbackMin) * unbiased;
-      const float a = std::max(1.0f - k, weight / weightSum);
-      result = clipped + (current - clipped) * a;
+      const float mixWeight = std::max(1.0f - k, weight / weightSum);
+      result = clipped + (current - clipped) * mixWeight;
       // The effective sample count of an exponential blend is about 1/(1-k).
       newWeight = 1.0f - k > 0.0f ? std::min(weightSum, 1.0f / (1.0f - k)) : weightSum;
       newWeight = std::min(newWeight, f.maxSamples);
@@ -240,17 +274,131 @@ inline void taaPixel(const Frame& f, int x, int y) {
     // round trip, which can differ in the last bit.
     const float* p = f.color.pixel(x, y);
     const int cc = f.color.channels();
-    storeOutput(f.output, x, y, {{sanitizeColor(p[0]), sanitizeColor(cc > 1 ? p[1] : p[0]), sanitizeColor(cc > 2 ? p[2] : p[0])}},
-                alpha);
+    storeOutput(f.output, x, y, Vec4{p[0], cc > 1 ? p[1] : p[0], cc > 2 ? p[2] : p[0], alpha});
   } else {
-    storeOutput(f.output, x, y, toRgb({{result[0], result[1], result[2]}}, f.space), alpha);
+    storeOutput(f.output, x, y, toRgb4(result, f.space, alpha));
   }
 }
 
-// Step 7: sharpen the blended image (eq. 3.1) into the output, clamped to the
-// range of the 5 taps.
+// The scalar reference: every tap clamped to the image and staged on the
+// spot, boxes by the column-first definition, depth sanitised per tap.
+void referencePixel(const Frame& f, int x, int y, float* depthNow) {
+  const int w = f.width, h = f.height;
+  const int cc = f.color.channels();
+  Vec4 taps[9];
+  float depth9[9];
+  for (int i = 0; i < 9; ++i) {
+    const int tx = std::clamp(x + kTapDx[i], 0, w - 1), ty = std::clamp(y + kTapDy[i], 0, h - 1);
+    taps[i] = stagePixel(f.color.pixel(tx, ty), cc, f.space);
+    depth9[i] = f.depth.ptr ? temporal::sanitizeDepth(f.depth.pixel(tx, ty)[0]) : kBackgroundDepth;
+  }
+  Neighbourhood nb;
+  nb.current = taps[4];
+  temporal::columnFirstBoxes4(taps, nb.box3x3, nb.cross);
+  nb.tap = (f.depth.ptr && f.motion.ptr) ? temporal::closestDepthTap(depth9) : 4;
+  nb.tapDepth = depth9[nb.tap];
+  if (depthNow) depthNow[std::size_t(y) * w + x] = depth9[4];
+  resolvePixel(f, x, y, nb);
+}
+
+// Fast path scratch of one row band: a ring of three staged rows and three
+// depth rows, each padded by one pixel left and right (a copy of the edge
+// pixel = clamp-to-edge), and the column reductions of the current row.
+struct BandScratch {
+  float* staged[3];  // (width + 2) x 4
+  float* depth[3];   // width + 2
+  float* columnMin;  // (width + 2) x 4: column reductions of the current row
+  float* columnMax;
+};
+
+inline std::size_t bandFloats(int width) { return std::size_t(width + 2) * (3 * 4 + 3 + 8); }
+
+BandScratch bandScratch(float* base, int width) {
+  const std::size_t row = std::size_t(width + 2);
+  BandScratch s;
+  for (int i = 0; i < 3; ++i) s.staged[i] = base + i * row * 4;
+  for (int i = 0; i < 3; ++i) s.depth[i] = base + 12 * row + i * row;
+  s.columnMin = base + 15 * row;
+  s.columnMax = base + 19 * row;
+  return s;
+}
+
+// Stages image row y into ring slot y % 3 (and this frame's depth plane when
+// the row belongs to the band).
+void stageRow(const Frame& f, const BandScratch& s, int y, float* depthNow) {
+  const int w = f.width, cc = f.color.channels();
+  float* dst = s.staged[y % 3];
+  const char* src = static_cast<const char*>(f.color.ptr) + std::size_t(y) * f.color.rowStride;
+  const std::size_t stride = f.color.pixelStride;
+  for (int x = 0; x < w; ++x)
+    temporal::store4(dst + 4 * (x + 1), stagePixel(reinterpret_cast<const float*>(src + x * stride), cc, f.space));
+  std::memcpy(dst, dst + 4, 4 * sizeof(float));
+  std::memcpy(dst + 4 * (w + 1), dst + 4 * w, 4 * sizeof(float));
+  if (!f.depth.ptr) return;
+  float* d = s.depth[y % 3];
+  const char* dsrc = static_cast<const char*>(f.depth.ptr) + std::size_t(y) * f.depth.rowStride;
+  for (int x = 0; x < w; ++x)
+    d[x + 1] = temporal::sanitizeDepth(*reinterpret_cast<const float*>(dsrc + x * f.depth.pixelStride));
+  d[0] = d[1];
+  d[w + 1] = d[w];
+  if (depthNow) std::memcpy(depthNow + std::size_t(y) * w, d + 1, std::size_t(w) * sizeof(float));
+}
+
+// Rows [y0, y1) on the fast path: staging folded into the pass (each row is
+// staged once per band, plus one halo row above and below), the 3x3 and
+// cross boxes from shared column reductions (3 min + 3 max per column instead
+// of 9 + 9 per pixel), the same per-pixel core.
+void fastRows(const Frame& f, const BandScratch& s, int y0, int y1, float* depthNow) {
+  const int w = f.width, h = f.height;
+  const bool followDepth = f.depth.ptr && f.motion.ptr;
+  if (y0 > 0) stageRow(f, s, y0 - 1, nullptr);
+  stageRow(f, s, y0, depthNow);
+  for (int y = y0; y < y1; ++y) {
+    if (y + 1 < h) stageRow(f, s, y + 1, y + 1 < y1 ? depthNow : nullptr);
+    const int up = std::max(y - 1, 0) % 3, mid = y % 3, down = std::min(y + 1, h - 1) % 3;
+    const float* s0 = s.staged[up];
+    const float* s1 = s.staged[mid];
+    const float* s2 = s.staged[down];
+    // Unaligned loads/stores only (memcpy): the scratch carries no alignment promise.
+    for (int i = 0; i < w + 2; ++i) {
+      const temporal::ColumnReduction4 c = temporal::reduceColumn4(
+          temporal::load4(s0 + 4 * i), temporal::load4(s1 + 4 * i), temporal::load4(s2 + 4 * i));
+      temporal::store4(s.columnMin + 4 * i, c.min);
+      temporal::store4(s.columnMax + 4 * i, c.max);
+    }
+    const float* d0 = s.depth[up];
+    const float* d1 = s.depth[mid];
+    const float* d2 = s.depth[down];
+    for (int x = 0; x < w; ++x) {
+      const int i = x + 1;
+      Neighbourhood nb;
+      nb.current = temporal::load4(s1 + 4 * i);
+      auto column = [&](int k) {
+        return temporal::ColumnReduction4{temporal::load4(s.columnMin + 4 * k), temporal::load4(s.columnMax + 4 * k)};
+      };
+      temporal::boxesFromColumns4(column(i - 1), column(i), column(i + 1), temporal::load4(s1 + 4 * (i - 1)),
+                                  temporal::load4(s1 + 4 * (i + 1)), nb.box3x3, nb.cross);
+      if (followDepth) {
+        const float depth9[9] = {d0[i - 1], d0[i], d0[i + 1], d1[i - 1], d1[i], d1[i + 1], d2[i - 1], d2[i], d2[i + 1]};
+        nb.tap = temporal::closestDepthTap(depth9);
+        nb.tapDepth = depth9[nb.tap];
+      } else {
+        nb.tap = 4;
+        nb.tapDepth = f.depth.ptr ? d1[i] : kBackgroundDepth;
+      }
+      resolvePixel(f, x, y, nb);
+    }
+  }
+}
+
+inline float alphaOf(const ImageView& color, int x, int y) {
+  return color.channels() > 3 ? sanitizeColor(color.pixel(x, y)[3]) : 1.0f;
+}
+
+// Step 7: sharpen the blended image (eq. 3.1; eq. 4.17 is the same stencil at
+// a quarter of the amount) into the output, clamped to the range of the 5 taps.
 template <bool Clamp>
-inline void sharpenPixel(const Frame& f, const float* staged, float amount, int x, int y) {
+inline void sharpenPixel(const Frame& f, float amount, int x, int y) {
   const int w = f.width, h = f.height;
   auto at = [&](int dx, int dy) {
     const int tx = Clamp ? std::clamp(x + dx, 0, w - 1) : x + dx;
@@ -271,7 +419,7 @@ inline void sharpenPixel(const Frame& f, const float* staged, float amount, int 
     const float sharpened = c[ch] + amount * (4.0f * c[ch] - sum);
     result[ch] = std::clamp(sharpened, lo, hi);
   }
-  storeOutput(f.output, x, y, toRgb(result, f.space), staged[(std::size_t(y) * w + x) * 4 + 3]);
+  storeOutput(f.output, x, y, toRgb4(Vec4{result[0], result[1], result[2], 0.0f}, f.space, alphaOf(f.color, x, y)));
 }
 
 // Runs a per-pixel function over rows [y0, y1): clamped taps on the border,
@@ -289,17 +437,31 @@ void rowsWithBorder(int width, int height, int y0, int y1, bool clampAll, Fn&& f
   }
 }
 
+// Row bands of the fast path: enough to keep the threads busy, few enough
+// that the halo rows (staged twice) stay a small fraction.
+int bandCount(int height) { return std::clamp(height / 32, 1, 16); }
+
 }  // namespace
 
-void Kernel::allocate(int width, int height) {
-  if (width == width_ && height == height_ && !staged_.empty()) return;  // keep the history
+std::size_t Kernel::scratchFloatsPerBand() const { return bandFloats(width_); }
+
+void Kernel::allocate(int width, int height, bool withDepth) {
+  const bool sameShape = width == width_ && height == height_ && !history_[0].empty();
+  if (sameShape && withDepth == !depth_[0].empty()) return;  // keep the history
   width_ = width;
   height_ = height;
-  staged_ = Image(width, height, 4);
-  history_[0] = Image(width, height, 4);
-  history_[1] = Image(width, height, 4);
-  depth_[0].assign(std::size_t(width) * height, kBackgroundDepth);
-  depth_[1].assign(std::size_t(width) * height, kBackgroundDepth);
+  if (!sameShape) {
+    bands_ = bandCount(height);
+    bandScratch_.assign(std::size_t(bands_) * bandFloats(width), 0.0f);
+    history_[0] = Image(width, height, 4);
+    history_[1] = Image(width, height, 4);
+  }
+  for (auto& d : depth_) {
+    if (withDepth)
+      d.assign(std::size_t(width) * height, kBackgroundDepth);
+    else
+      std::vector<float>().swap(d);
+  }
   reset();
 }
 
@@ -312,57 +474,33 @@ std::size_t Kernel::bytesKeptBetweenFrames() const {
   return (history_[0].data.size() + history_[1].data.size() + depth_[0].size() + depth_[1].size()) * sizeof(float);
 }
 
-std::size_t Kernel::bytesScratch() const { return staged_.data.size() * sizeof(float); }
+std::size_t Kernel::bytesScratch() const { return bandScratch_.size() * sizeof(float); }
 
 void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThreads) {
   if (in.color.width != width_ || in.color.height != height_)
     invalidData("taa: colour is " + std::to_string(in.color.width) + "x" + std::to_string(in.color.height) +
                 " but the filter was committed for " + std::to_string(width_) + "x" + std::to_string(height_));
+  const bool hasDepth = in.depth.ptr != nullptr;
+  if (hasDepth && depth_[0].empty())
+    invalidData("taa: image 'depth' given but the kernel was allocated without depth planes");
   if (frames_ > 0 && s.clipSpace != historySpace_) reset();  // history is stored in the clip space
   historySpace_ = s.clipSpace;
-  const int threads = reference ? 1 : numThreads;
-  const bool hasDepth = in.depth.ptr != nullptr;
   const int next = 1 - current_;
-  float* depthNow = depth_[next].data();
-  const int colorChannels = in.color.channels();
-  const ClipSpace space = s.clipSpace;
-
-  // Stage the current frame: sanitised (conventions.h), in the clip space;
-  // sanitised depth for this frame.
-  auto stageRows = [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y)
-      for (int x = 0; x < width_; ++x) {
-        const float* p = in.color.pixel(x, y);
-        Float3 rgb = {{sanitizeColor(p[0]), sanitizeColor(colorChannels > 1 ? p[1] : p[0]),
-                       sanitizeColor(colorChannels > 2 ? p[2] : p[0])}};
-        const Float3 c = space == ClipSpace::YCoCg ? temporal::rgbToYCoCg(rgb) : rgb;
-        float* d = staged_.at(x, y);
-        d[0] = c[0];
-        d[1] = c[1];
-        d[2] = c[2];
-        d[3] = colorChannels > 3 ? sanitizeColor(p[3]) : 1.0f;
-        if (hasDepth) depthNow[std::size_t(y) * width_ + x] = temporal::sanitizeDepth(in.depth.pixel(x, y)[0]);
-      }
-  };
-  if (reference)
-    stageRows(0, height_);
-  else
-    parallelRows(width_, height_, threads, stageRows);
+  float* depthNow = hasDepth ? depth_[next].data() : nullptr;
 
   Frame f;
   f.width = width_;
   f.height = height_;
-  f.staged = staged_.data.data();
-  f.depth = hasDepth ? depthNow : nullptr;
-  f.previousDepth = hasDepth && previousDepthValid_ ? depth_[current_].data() : nullptr;
+  f.previousDepth = hasDepth && previousDepthValid_ && frames_ > 0 ? depth_[current_].data() : nullptr;
   f.color = in.color;
   f.motion = in.motion;
+  f.depth = in.depth;
   f.previous = {history_[current_].data.data(), width_, height_};
   f.hasHistory = frames_ > 0;
   f.history = history_[next].data.data();
   f.output = in.output;
   f.writeOutput = !(s.sharpen > 0.0f);
-  f.space = space;
+  f.space = s.clipSpace;
   f.filter = s.historyFilter;
   f.sampleWeight = s.weighting == JitterWeighting::BlackmanHarris
                        ? temporal::blackmanHarrisWeight(s.jitterX, s.jitterY, s.filterSize)
@@ -373,29 +511,37 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   f.staticClip = s.staticClip;
   f.maxSamples = float(std::max(1, s.maxSamples));
   f.depthTolerance = s.depthTolerance;
+  f.aliased = in.aliasedValue;
+  f.aliasedNeighbourhood = s.aliasedNeighbourhood;
+  f.aliasedBoxSize = s.aliasedBoxSize;
 
-  auto taaRows = [&](int y0, int y1) {
-    rowsWithBorder(width_, height_, y0, y1, reference, [&](auto clamp, int x, int y) {
-      taaPixel<decltype(clamp)::value>(f, x, y);
+  if (reference) {
+    for (int y = 0; y < height_; ++y)
+      for (int x = 0; x < width_; ++x) referencePixel(f, x, y, depthNow);
+  } else {
+    // Band b covers rows [b h / bands, (b + 1) h / bands) and owns scratch b;
+    // parallelRows hands out bands (a virtual image one band per row).
+    const int bands = bands_;
+    parallelRows(8192, bands, numThreads, [&](int b0, int b1) {
+      for (int b = b0; b < b1; ++b) {
+        const BandScratch scratch = bandScratch(bandScratch_.data() + std::size_t(b) * bandFloats(width_), width_);
+        fastRows(f, scratch, int(std::int64_t(b) * height_ / bands), int(std::int64_t(b + 1) * height_ / bands),
+                 depthNow);
+      }
     });
-  };
-  if (reference)
-    taaRows(0, height_);
-  else
-    parallelRows(width_, height_, threads, taaRows);
+  }
 
   if (!f.writeOutput) {
     const float amount = s.sharpen;
-    const float* staged = f.staged;
     auto sharpenRows = [&](int y0, int y1) {
       rowsWithBorder(width_, height_, y0, y1, reference, [&](auto clamp, int x, int y) {
-        sharpenPixel<decltype(clamp)::value>(f, staged, amount, x, y);
+        sharpenPixel<decltype(clamp)::value>(f, amount, x, y);
       });
     };
     if (reference)
       sharpenRows(0, height_);
     else
-      parallelRows(width_, height_, threads, sharpenRows);
+      parallelRows(width_, height_, numThreads, sharpenRows);
   }
 
   current_ = next;
@@ -499,7 +645,7 @@ class TaaFilter final : public Filter {
     settings_.depthTolerance = p.getFloat("depthTolerance");
     reference_ = p.getBool("reference");
     // Re-committing for a new jitter keeps the history; a new size starts over.
-    kernel_.allocate(width(), height());
+    kernel_.allocate(width(), height(), hasImage("depth"));
   }
   void onExecute() override {
     taa::Inputs in;

@@ -6,9 +6,11 @@
 // History kept between frames (bytesKeptBetweenFrames): two RGBA float
 // images (ping-pong: the reprojected fetch reads neighbours of the pixel being
 // written) holding the accumulated colour in the clip space plus a signed
-// sample weight, and, when depth is given, two float depth planes (this
-// frame's and the previous frame's). Scratch (bytesScratch): the staged
-// current frame, RGBA float.
+// sample weight, and, only when the filter is committed with depth, two float
+// depth planes (this frame's and the previous frame's). Scratch
+// (bytesScratch): per row band of the fast path, three staged rows (RGBA,
+// the clip space), three depth rows and the column min/max of the 3x3 box;
+// the current frame is staged on the fly, never as a whole image.
 #pragma once
 
 #include <cstddef>
@@ -36,6 +38,12 @@ struct Settings {
   int maxSamples = 128;       // cap of the running average's sample count (weighted units)
   bool staticClip = true;     // clip history in static pixels too (rejects cuts, fireflies, light changes)
   float depthTolerance = 0.05f;  // relative depth difference still the same surface
+  // Steering by a per-pixel aliasedValue plane (Inputs::aliasedValue; seed 000
+  // §4.3.4, used by taa-improved): the moving path's box is
+  // mix(cross, 3x3, a) (eq. 4.15) instead of the rounded box, and/or shrunk
+  // toward the current colour by a (eq. 4.16). Ignored without a plane.
+  bool aliasedNeighbourhood = true;
+  bool aliasedBoxSize = true;
 };
 
 struct Inputs {
@@ -43,11 +51,16 @@ struct Inputs {
   ImageView motion;  // optional (ptr null = static scene): 2-4 channels, pixels, previous - current, y down
   ImageView depth;   // optional: planar depth, channel 0
   ImageView output;  // required, 3-4 channels
+  // optional: aliasedValue in [0, 1] per pixel, packed width x height floats
+  // (taa-improved). Null: the baseline's rounded box.
+  const float* aliasedValue = nullptr;
 };
 
 class Kernel {
  public:
-  void allocate(int width, int height);
+  // withDepth: keep depth planes (needed to run with depth; without, runs
+  // given depth throw). Same size and depth: keeps the history.
+  void allocate(int width, int height, bool withDepth = true);
   // Forgets the history: the next frame is a first frame (bootstrap).
   void reset();
   // One frame. reference: the scalar path (one thread, clamp-to-edge on every
@@ -62,10 +75,17 @@ class Kernel {
   // that run, alpha = signed sample weight (negative: the pixel was moving).
   const Image& history() const { return history_[current_]; }
   ClipSpace historySpace() const { return historySpace_; }
+  // The previous frame's sanitised depth plane (width x height), or null when
+  // the previous frame had none or there is no history. Valid until run().
+  const float* previousDepth() const {
+    return frames_ > 0 && previousDepthValid_ && !depth_[current_].empty() ? depth_[current_].data() : nullptr;
+  }
 
  private:
   int width_ = 0, height_ = 0;
-  Image staged_;
+  int bands_ = 0;                  // row bands of the fast path
+  std::vector<float> bandScratch_;  // bands_ x scratchFloatsPerBand()
+  std::size_t scratchFloatsPerBand() const;
   Image history_[2];
   std::vector<float> depth_[2];
   int current_ = 0;           // index of the history written last

@@ -32,8 +32,16 @@ struct Footprint {
   int x0, y0;    // top-left tap (may be -1 or size - 1 + 1: clamped on read)
   float tx, ty;  // fractions in [0, 1)
 };
+// floor without a libm call (x86-64 without SSE4.1 has no rounding
+// instruction): truncate, step down for negative non-integers. Exact for
+// |x| < 2^23; larger floats are integers already (and NaN stays NaN).
+inline float floorExact(float x) {
+  if (!(std::fabs(x) < 8388608.0f)) return x;
+  const float t = float(int(x));
+  return t > x ? t - 1.0f : t;
+}
 inline Footprint footprintOf(float x, float y) {
-  const float fx = std::floor(x), fy = std::floor(y);
+  const float fx = floorExact(x), fy = floorExact(y);
   return {int(fx), int(fy), x - fx, y - fy};
 }
 

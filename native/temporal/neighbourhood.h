@@ -113,6 +113,32 @@ inline void neighbourhoodBoxes4(const Vec4 taps[9], ColorBox4& box3x3, ColorBox4
   cross = {clo, chi, csum * 0.2f};
 }
 
+// Min and max only (the clip box), 3x3 and cross, reduced column first:
+// column k of the 3x3 (taps k, 3+k, 6+k, top down), then the three columns
+// left to right; the cross is min(left tap, centre column, right tap). This
+// is the order a sliding-window fast path (shared column reductions) can
+// reproduce exactly. min/max are exact, so it equals neighbourhoodBoxes4's
+// min/max except for which of two equal values (+0 / -0) is returned.
+struct MinMax4 {
+  Vec4 min, max;
+};
+struct ColumnReduction4 {
+  Vec4 min, max;
+};
+inline ColumnReduction4 reduceColumn4(Vec4 top, Vec4 middle, Vec4 bottom) {
+  return {vmin(vmin(top, middle), bottom), vmax(vmax(top, middle), bottom)};
+}
+// left/centre/right: column reductions; west/east: the centre row's taps left and right.
+inline void boxesFromColumns4(const ColumnReduction4& left, const ColumnReduction4& centre,
+                              const ColumnReduction4& right, Vec4 west, Vec4 east, MinMax4& box3x3, MinMax4& cross) {
+  box3x3 = {vmin(vmin(left.min, centre.min), right.min), vmax(vmax(left.max, centre.max), right.max)};
+  cross = {vmin(vmin(west, centre.min), east), vmax(vmax(west, centre.max), east)};
+}
+inline void columnFirstBoxes4(const Vec4 taps[9], MinMax4& box3x3, MinMax4& cross) {
+  boxesFromColumns4(reduceColumn4(taps[0], taps[3], taps[6]), reduceColumn4(taps[1], taps[4], taps[7]),
+                    reduceColumn4(taps[2], taps[5], taps[8]), taps[3], taps[5], box3x3, cross);
+}
+
 inline ColorBox4 roundedBox4(const ColorBox4& a, const ColorBox4& b) {
   return {0.5f * (a.min + b.min), 0.5f * (a.max + b.max), 0.5f * (a.avg + b.avg)};
 }

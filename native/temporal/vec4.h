@@ -22,5 +22,11 @@ inline Vec4 splat(float s) { return Vec4{s, s, s, s}; }
 inline Vec4 vmin(Vec4 a, Vec4 b) { return b < a ? b : a; }
 inline Vec4 vmax(Vec4 a, Vec4 b) { return a < b ? b : a; }
 inline Vec4 vabs(Vec4 a) { return a < 0.0f ? -a : a; }
+// crisp::sanitizeColor (core/color.h) on every lane, same results: NaN -> 0,
+// then std::clamp(v, -limit, limit).
+inline Vec4 sanitize4(Vec4 v, float limit) {
+  v = v == v ? v : splat(0.0f);
+  return v < -limit ? splat(-limit) : (limit < v ? splat(limit) : v);
+}
 
 }  // namespace crisp::temporal

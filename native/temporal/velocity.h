@@ -18,9 +18,15 @@ inline float sanitizeDepth(float d) { return isBackgroundDepth(d) || std::isnan(
 // Returns the index of the closest (smallest) depth; the centre wins ties,
 // then the first in row order, so the choice is deterministic.
 inline int closestDepthTap(const float depth9[9]) {
+  // Branch-free (selects, not jumps: depth edges are unpredictable); the
+  // running best depth is carried instead of re-read.
   int best = 4;
-  for (int i = 0; i < 9; ++i)
-    if (depth9[i] < depth9[best]) best = i;
+  float bestDepth = depth9[4];
+  for (int i = 0; i < 9; ++i) {
+    const bool closer = depth9[i] < bestDepth;
+    best = closer ? i : best;
+    bestDepth = closer ? depth9[i] : bestDepth;
+  }
   return best;
 }
 

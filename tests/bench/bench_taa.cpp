@@ -6,7 +6,7 @@
 // history fetch (Catmull-Rom default, bilinear), and a still scene without
 // motion and depth (the static accumulation path, no reprojection work).
 // Counters: kept_MB = memory kept between frames (history), scratch_MB = the
-// staged frame. The memory-copy floor of the same run is floor.memcpy_rgba
+// fast path's per-band row rings. The memory-copy floor of the same run is floor.memcpy_rgba
 // (bench_floor.cpp).
 #include <benchmark/benchmark.h>
 
@@ -76,7 +76,7 @@ void runTaa(benchmark::State& state, int width, int height, int threads, bool re
     benchmark::ClobberMemory();
   }
   crisp::taa::Kernel k;
-  k.allocate(width, height);
+  k.allocate(width, height, moving);  // depth planes only when depth is given
   state.counters["kept_MB"] = double(k.bytesKeptBetweenFrames()) / 1e6;
   state.counters["scratch_MB"] = double(k.bytesScratch()) / 1e6;
   state.counters["pixels_per_s"] =
