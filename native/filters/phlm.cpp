@@ -94,7 +94,8 @@ namespace {
 template <class T>
 struct Frame {
   int width, height;
-  const float* staged;         // RGBA, sanitised linear colour
+  const float* staged;         // sanitised linear RGB + tonemapped YCgCo luminance Y / (1 + Y)
+  ImageView color;             // the input (alpha)
   const float* depth;          // this frame's sanitised depth, or null
   const float* previousDepth;  // previous frame's, or null (no depth test)
   ImageView motion;            // ptr null: static scene
@@ -103,7 +104,7 @@ struct Frame {
   T* next;                     // records written
   ImageView output;
   long* rowStats;
-  T inverseLambda, regulariserVariance[kDims], sampleVariance, p0, ps;
+  T inverseLambda, regulariserVariance[kDims], regulariserWeight[kDims], sampleVariance, sampleWeight, p0, ps;
   bool update;                 // sample weight > 0
   bool bilinearBeta;           // reproject beta bilinearly (else nearest)
   T boxResetScale;             // P after a box correction = boxResetScale * P0
@@ -203,9 +204,7 @@ inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
       tapY[i] = ty;
       const float* p = f.staged + (std::size_t(ty) * w + tx) * 4;
       const T c[3] = {T(p[0]), T(p[1]), T(p[2])};
-      T positive[3] = {std::max(c[0], T(0)), std::max(c[1], T(0)), std::max(c[2], T(0))};
-      const T luma = lumaYCgCo(positive);
-      const T tonemapped = luma / (T(1) + luma);
+      const T tonemapped = T(p[3]);
       if (i == 0) {
         for (int ch = 0; ch < 3; ++ch) lo[ch] = hi[ch] = c[ch];
         yMin = yMax = tonemapped;
@@ -299,11 +298,11 @@ inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
   // Step 5: stabilised RLS (phlm_rls.h), output beta' x = f + g e (clamped
   // to the box: only rounding and the inside-test slack can reach past it).
   forget(model, f.inverseLambda);
-  regularise(model, f.axis, f.regulariserVariance[f.axis]);
+  regularise(model, f.axis, f.regulariserVariance[f.axis], f.regulariserWeight[f.axis]);
   T out[3] = {predicted[0], predicted[1], predicted[2]};
   if (f.update) {
     const T e[3] = {current[0] - predicted[0], current[1] - predicted[1], current[2] - predicted[2]};
-    const T g = rlsUpdate(model, x4, e, f.sampleVariance);
+    const T g = rlsUpdate(model, x4, e, f.sampleVariance, f.sampleWeight);
     for (int c = 0; c < 3; ++c) out[c] = std::clamp(predicted[c] + g * e[c], lo[c], hi[c]);
     // Guard: beta can only become non-finite through an overflow; restart from the output.
     T check = T(0);
@@ -317,7 +316,7 @@ inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
   o[0] = sanitizeColor(float(out[0]));
   o[1] = sanitizeColor(float(out[1]));
   o[2] = sanitizeColor(float(out[2]));
-  if (f.output.channels() > 3) o[3] = f.staged[(std::size_t(y) * w + x) * 4 + 3];
+  if (f.output.channels() > 3) o[3] = f.color.channels() > 3 ? sanitizeColor(f.color.pixel(x, y)[3]) : 1.0f;
 }
 
 // Per-pixel function over rows [y0, y1): clamped taps on the border, unclamped
@@ -412,7 +411,9 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
         d[0] = sanitizeColor(p[0]);
         d[1] = sanitizeColor(colorChannels > 1 ? p[1] : p[0]);
         d[2] = sanitizeColor(colorChannels > 2 ? p[2] : p[0]);
-        d[3] = colorChannels > 3 ? sanitizeColor(p[3]) : 1.0f;
+        // The luminance range of §5.1 (Delta, l) on tonemapped YCgCo luminance.
+        const float luma = 0.25f * std::max(d[0], 0.0f) + 0.5f * std::max(d[1], 0.0f) + 0.25f * std::max(d[2], 0.0f);
+        d[3] = luma / (1.0f + luma);
         if (hasDepth) depthNow[std::size_t(y) * width_ + x] = temporal::sanitizeDepth(in.depth.pixel(x, y)[0]);
       }
   };
@@ -425,6 +426,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.width = width_;
   f.height = height_;
   f.staged = staged_.data.data();
+  f.color = in.color;
   f.depth = depthNow;
   f.previousDepth = hasDepth && previousDepthValid_ ? depth_[1 - nextDepth].data() : nullptr;
   f.motion = in.motion;
@@ -437,13 +439,16 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.ps = T(s.slopeCovariance);
   if (!(f.p0 > T(0) && f.ps > T(0))) invalidArgument("phlm: parameters 'initialCovariance' and 'slopeCovariance' must be > 0");
   f.inverseLambda = T(1) / lambda;
-  for (int k = 0; k < kDims; ++k)  // information 4 (1 - lambda) / P0_kk (phlm_rls.h point 3)
+  for (int k = 0; k < kDims; ++k) {  // information 4 (1 - lambda) / P0_kk (phlm_rls.h point 3)
     f.regulariserVariance[k] = (k == 0 ? f.p0 : f.ps) / (T(4) * (T(1) - lambda));
+    f.regulariserWeight[k] = T(1) / f.regulariserVariance[k];
+  }
   const float weight = s.weighting == JitterWeighting::BlackmanHarris
                            ? temporal::blackmanHarrisWeight(s.jitterX, s.jitterY, s.filterSize)
                            : 1.0f;
   f.update = weight > 0.0f;
   f.sampleVariance = f.update ? T(1) / T(weight) : T(1);
+  f.sampleWeight = f.update ? T(weight) : T(1);
   f.axis = frames_ % kDims;
   f.bilinearBeta = s.modelFetch == ModelFetch::Bilinear;
   f.boxResetScale = T(s.boxResetCovariance) / f.p0;

@@ -13,7 +13,8 @@
 //    when the scene is static (no motion image: updated in place, no
 //    reprojection work). float: 100 bytes per pixel per buffer.
 //  * with depth: two float depth planes (this frame's and the previous one).
-// Scratch (bytesScratch): the staged, sanitised frame, RGBA float.
+// Scratch (bytesScratch): the staged, sanitised frame (RGB + tonemapped
+// luminance, float) and two counters per row.
 #pragma once
 
 #include <cstddef>

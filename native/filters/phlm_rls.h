@@ -71,11 +71,12 @@ inline void predict(const T* m, const T x[kDims], T f[3]) {
 }
 
 // Bierman's UD measurement update for the measurement h (entries h[0..first-1]
-// must be 0 and are not read) with variance r: P <- P - P h h'P / (r + h'P h).
-// gain[] (may be null) receives K = P h / (r + h'P h) (the old P). Returns
-// r + h'P h (> 0 whenever r > 0 and D > 0).
+// must be 0 and are not read) with variance r (inverseR = 1/r, given so the
+// caller can hoist it): P <- P - P h h'P / (r + h'P h). gain[] (may be null)
+// receives K = P h / (r + h'P h) (the old P). Returns 1 / (r + h'P h).
+// One division per row: the reciprocal of alpha_j serves row j and j + 1.
 template <class T>
-inline T biermanUpdate(T* m, const T h[kDims], int first, T r, T* gain) {
+inline T biermanUpdate(T* m, const T h[kDims], int first, T r, T inverseR, T* gain) {
   T f[kDims], v[kDims], b[kDims];
   for (int j = first; j < kDims; ++j) {
     T s = h[j];
@@ -84,25 +85,24 @@ inline T biermanUpdate(T* m, const T h[kDims], int first, T r, T* gain) {
     v[j] = m[kD + j] * s;  // v = D f
   }
   for (int i = 0; i < first; ++i) b[i] = T(0);
-  T alpha = r;
+  T alpha = r, inversePrevious = inverseR;
   for (int j = first; j < kDims; ++j) {
     const T previous = alpha;
     alpha = previous + f[j] * v[j];
     const T inverse = T(1) / alpha;
     m[kD + j] = m[kD + j] * previous * inverse;
     b[j] = v[j];
-    const T p = -f[j] / previous;
+    const T p = -f[j] * inversePrevious;
     for (int i = 0; i < j; ++i) {
       const T u = m[uIndex(i, j)];
       m[uIndex(i, j)] = u + b[i] * p;
       b[i] = b[i] + u * v[j];
     }
+    inversePrevious = inverse;
   }
-  if (gain) {
-    const T inverse = T(1) / alpha;
-    for (int j = 0; j < kDims; ++j) gain[j] = b[j] * inverse;
-  }
-  return alpha;
+  if (gain)
+    for (int j = 0; j < kDims; ++j) gain[j] = b[j] * inversePrevious;
+  return inversePrevious;
 }
 
 // Exponential forgetting (eq. 7's 1/lambda): P <- P / lambda.
@@ -111,12 +111,12 @@ inline void forget(T* m, T inverseLambda) {
   for (int j = 0; j < kDims; ++j) m[kD + j] *= inverseLambda;
 }
 
-// Point 3 above: information w on axis k, beta unchanged.
+// Point 3 above: information w = 1 / variance on axis k, beta unchanged.
 template <class T>
-inline void regularise(T* m, int axis, T variance) {
+inline void regularise(T* m, int axis, T variance, T inverseVariance) {
   T h[kDims] = {T(0), T(0), T(0), T(0)};
   h[axis] = T(1);
-  biermanUpdate(m, h, axis, variance, static_cast<T*>(nullptr));
+  biermanUpdate(m, h, axis, variance, inverseVariance, static_cast<T*>(nullptr));
 }
 
 // One RLS step (eqs. 5-7) on the error e = y - beta'x of this frame, with
@@ -124,12 +124,12 @@ inline void regularise(T* m, int axis, T variance) {
 // g = x'K = x'P x / (1/w + x'P x) in [0, 1): the updated prediction is
 // beta'x + g e, a convex combination of the prediction and y.
 template <class T>
-inline T rlsUpdate(T* m, const T x[kDims], const T e[3], T variance) {
+inline T rlsUpdate(T* m, const T x[kDims], const T e[3], T variance, T inverseVariance) {
   T k[kDims];
-  const T alpha = biermanUpdate(m, x, 0, variance, k);
+  const T inverseAlpha = biermanUpdate(m, x, 0, variance, inverseVariance, k);
   for (int j = 0; j < kDims; ++j)
     for (int c = 0; c < 3; ++c) m[kBeta + 3 * j + c] += k[j] * e[c];
-  return T(1) - variance / alpha;
+  return T(1) - variance * inverseAlpha;
 }
 
 // P = U D U' in double (tests, diagnostics).

@@ -109,7 +109,7 @@ TEST(PhlmRls, UdUpdateEqualsPaperEquations) {
     for (int c = 0; c < 3; ++c) e[c] = 0.4 + 0.3 * u(rng) - f[c];
     paper.update(x, e, lambda);
     phlm::forget(m, 1.0 / lambda);
-    phlm::rlsUpdate(m, x, e, 1.0);
+    phlm::rlsUpdate(m, x, e, 1.0, 1.0);
   }
   double P[4][4];
   phlm::covariance(m, P);
@@ -137,8 +137,9 @@ TEST(PhlmRls, PaperFormWindsUpStabilisedFormDoesNot) {
     const double e[3] = {0, 0, 0};
     paper.update(x, e, lambda);
     phlm::forget(m, 1.0f / float(lambda));
-    phlm::regularise(m, t % 4, float(1.0 / (4.0 * (1.0 - lambda))) * (t % 4 == 0 ? 1000.0f : 1.0f));
-    phlm::rlsUpdate(m, x32, zero, 1.0f);
+    const float variance = float(1.0 / (4.0 * (1.0 - lambda))) * (t % 4 == 0 ? 1000.0f : 1.0f);
+    phlm::regularise(m, t % 4, variance, 1.0f / variance);
+    phlm::rlsUpdate(m, x32, zero, 1.0f, 1.0f);
     double P[4][4], trace = 0;
     phlm::covariance(m, P);
     for (int i = 0; i < 4; ++i) trace += P[i][i];
