@@ -10,7 +10,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev
   python3 python3-numpy python3-skimage python3-pytest
-  blender xvfb xauth
+  blender xvfb xauth chromium
   "$@"
 )
 

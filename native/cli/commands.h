@@ -15,6 +15,7 @@ int runCompare(const ParsedArgs& args);
 int runInfo(const ParsedArgs& args);
 int runSynth(const ParsedArgs& args);
 int runRender(const ParsedArgs& args);
+int runEval(const ParsedArgs& args);
 int runBench(const ParsedArgs& args, const char* argv0);
 
 // Points every image role the filter declares at the frame's pass of that

@@ -45,6 +45,7 @@ int main(int argc, char** argv) {
     if (a.command == "info") return runInfo(a);
     if (a.command == "synth") return runSynth(a);
     if (a.command == "render") return runRender(a);
+    if (a.command == "eval") return runEval(a);
     if (a.command == "bench") return runBench(a, argv[0]);
     throw UsageError("unknown command '" + a.command + "'");
   } catch (const UsageError& e) {

@@ -1,0 +1,173 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""Headless driver of the renders behind `crisp eval`, run inside Blender:
+
+    blender -b [SCENE.blend] --factory-startup --python-exit-code 1 --python <repo>/addon/crisp/batch_eval.py -- \\
+        -o RENDERDIR --methods none,fxaa,taa [--frames A-B] [--resolution WxH] [--scene-script NAME]
+        [--reference-samples 64] [--curve 1,2,4,8] [--smaa-threshold 0.2] [--progress-fd N]
+
+Renders (eval_renders.py has the layout): EEVEE's curve (each count in --curve, always including 1),
+the 1-sample inputs of the methods whose plans need more than colour (jittered for temporal methods),
+the reference, and Blender's compositor SMAA on the 1-sample frames; writes RENDERDIR/scene.json.
+Frames already rendered (EXR present and timed) are skipped. The methods themselves run in the CLI,
+not here.
+
+Progress: one line per render on file descriptor --progress-fd (default: stderr):
+    `progress DONE TOTAL COST_DONE COST_TOTAL SECONDS_LEFT ITEM`
+where COST counts EEVEE samples (an SMAA pass counts 1), so the time left follows the real cost.
+
+Exit codes: 0 done; 2 bad input; 4 render failed (as batch.py).
+"""
+
+import argparse
+import os
+import sys
+import time
+
+ADDON_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ADDON_DIR not in sys.path:
+    sys.path.insert(0, ADDON_DIR)
+
+
+def _argv():
+    return sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+
+
+def make_parser():
+    p = argparse.ArgumentParser(prog="batch_eval.py", description="Crisp eval renders (inside Blender)")
+    p.add_argument("-o", "--output", required=True)
+    p.add_argument("--methods", default="none")
+    p.add_argument("--frames", default="")
+    p.add_argument("--resolution", default="")
+    p.add_argument("--scene-script", default="")
+    p.add_argument("--reference-samples", type=int, default=64)
+    p.add_argument("--curve", default="1,2,4,8,16")
+    p.add_argument("--smaa-threshold", type=float, default=None)
+    p.add_argument("--jitter", default="blackman-harris")
+    p.add_argument("--progress-fd", type=int, default=-1)
+    return p
+
+
+def parse_curve(text):
+    try:
+        counts = sorted({int(v) for v in text.split(",") if v.strip()} | {1})
+    except ValueError:
+        raise ValueError("bad --curve '%s' (expected sample counts like 1,2,4,8)" % text)
+    if counts[0] < 1:
+        raise ValueError("--curve sample counts must be >= 1, got '%s'" % text)
+    return counts
+
+
+def main(argv):
+    import runpy
+    import bpy
+    from crisp import batch, eval_renders, pipeline, render
+
+    def fail(code, message):
+        print("crisp: error: " + message, file=sys.stderr, flush=True)
+        sys.exit(code)
+
+    parser = make_parser()
+    parser.error = lambda msg: fail(2, msg)
+    args = parser.parse_args(argv)
+    progress = os.fdopen(args.progress_fd, "w", buffering=1) if args.progress_fd >= 0 else sys.stderr
+    try:
+        curve = parse_curve(args.curve)
+    except ValueError as e:
+        fail(2, str(e))
+    if args.reference_samples < 1:
+        fail(2, "--reference-samples must be >= 1")
+    if args.jitter not in render.JITTER_DISTRIBUTIONS:
+        fail(2, "unknown --jitter '%s' (known: %s)" % (args.jitter, ", ".join(render.JITTER_DISTRIBUTIONS)))
+    methods = [m for m in args.methods.split(",") if m]
+
+    if args.scene_script:
+        path = batch.scene_script_path(args.scene_script)
+        sys.path.insert(0, os.path.dirname(path))
+        runpy.run_path(path, run_name="__main__")
+    scene = bpy.context.scene
+    if args.resolution:
+        try:
+            w, h = (int(v) for v in args.resolution.lower().split("x"))
+            if w < 1 or h < 1:
+                raise ValueError
+        except ValueError:
+            fail(2, "bad --resolution '%s' (expected WxH, e.g. 480x270)" % args.resolution)
+        scene.render.resolution_x, scene.render.resolution_y = w, h
+        scene.render.resolution_percentage = 100
+    out = os.path.abspath(args.output)
+    try:
+        render.check_blender_version()
+        frames = list(pipeline.parse_frames(args.frames, scene))
+        if scene.camera is None:
+            raise pipeline.InputError("scene '%s' has no camera: add one and set it as the scene camera" % scene.name)
+        pipeline.check_output_dir(out)
+        plans, sets, unknown, facts = eval_renders.group_plans(scene, methods, frames)
+    except pipeline.InputError as e:
+        fail(2, str(e))
+    except render.RenderError as e:
+        fail(2, str(e))
+
+    compositor = eval_renders.SmaaCompositor(
+        args.smaa_threshold if args.smaa_threshold is not None else eval_renders.SMAA_THRESHOLD)
+    w, h = render.render_size(scene)
+    info = {
+        "blender_version": bpy.app.version_string, "scene": scene.name, "resolution": [w, h],
+        "scene_label": (os.path.splitext(os.path.basename(args.scene_script))[0] if args.scene_script
+                        else os.path.splitext(os.path.basename(bpy.data.filepath))[0] or scene.name),
+        "frames": [frames[0], frames[-1]], "engine": render.eevee_engine(scene),
+        "curve": curve, "reference_samples": args.reference_samples, "jitter_distribution": args.jitter,
+        "filter_size": scene.render.filter_size,
+        "facts": {"camera_moves": facts.camera_moves, "moving_objects": facts.moving_objects,
+                  "deforming_objects": facts.deforming_objects, "visible_objects": facts.visible_objects},
+        "plans": {m: p.to_json() for m, p in plans.items()},
+        "inputs": {m: eval_renders.input_set(plans.get(m)) for m in methods},
+        "sets": {name: p.to_json() for name, p in sets.items()},
+        "unplanned_methods": unknown, "smaa": compositor.settings(),
+    }
+    eval_renders.write_json(os.path.join(out, "scene.json"), info)
+
+    # The work list, in the order a user wants results: cheap inputs first, the reference last but one
+    # so an interrupted run has something to show, and SMAA (needs eevee_1) at the end.
+    jobs = [("eevee_%d" % s, s) for s in curve]
+    jobs += [(name, 1) for name in sets]
+    jobs += [("reference_%d" % args.reference_samples, args.reference_samples), ("blender-smaa", 1)]
+    cost_total = sum(c for _, c in jobs) * len(frames)
+    state = {"done": 0, "cost": 0, "rendered_cost": 0, "rendered_s": 0.0}
+    total = len(jobs) * len(frames)
+    t_start = time.perf_counter()
+    t_last = [t_start]
+
+    def step(name, frame, cost, skipped=False):
+        now = time.perf_counter()
+        state["done"] += 1
+        state["cost"] += cost
+        if not skipped:
+            state["rendered_cost"] += cost
+            state["rendered_s"] += now - t_last[0]
+        t_last[0] = now
+        rate = state["rendered_s"] / state["rendered_cost"] if state["rendered_cost"] else 0.0
+        left = rate * (cost_total - state["cost"])
+        progress.write("progress %d %d %d %d %.1f %s frame %d%s\n" % (
+            state["done"], total, state["cost"], cost_total, left, name, frame, " (done before)" if skipped else ""))
+        progress.flush()
+
+    try:
+        missing = sum(len(eval_renders.TimeBook(os.path.join(out, n)).missing(frames)) for n, _ in jobs)
+        if missing:
+            eval_renders.warm_up(scene, os.path.join(out, "warmup"))
+        t_last[0] = time.perf_counter()
+        for s in curve:
+            eval_renders.render_curve_set(scene, frames, os.path.join(out, "eevee_%d" % s), s, step)
+        for name, the_plan in sets.items():
+            eval_renders.render_input_set(scene, the_plan, frames, os.path.join(out, name), args.jitter, step)
+        eval_renders.render_curve_set(scene, frames, os.path.join(out, "reference_%d" % args.reference_samples),
+                                      args.reference_samples, step)
+        eval_renders.render_smaa_set(frames, os.path.join(out, "eevee_1"), os.path.join(out, "blender-smaa"),
+                                     compositor, step)
+    except render.RenderError as e:
+        fail(4, str(e))
+    print("crisp: eval renders done: %s (%.1f s)" % (out, time.perf_counter() - t_start), flush=True)
+
+
+if __name__ == "__main__":
+    main(_argv())

@@ -1,0 +1,210 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""The renders `crisp eval` needs, inside Blender (driven by batch_eval.py). Everything goes through
+render.py's own functions (render_reference, render_frames) so eval measures exactly what the add-on
+renders; this module only adds the grouping, the resume bookkeeping, the timing record and Blender's
+compositor Anti-Aliasing (SMAA) baseline.
+
+Layout under RENDERDIR (OUTDIR/renders):
+
+    eevee_S/frame_NNNN.exr     S EEVEE samples, no jitter, colour only (S = 1 is also the input of the
+                               methods that need nothing but colour, and of blender-smaa)
+    jittered/frame_NNNN.exr    1 sample, per-frame jitter, the union of the temporal methods' passes
+                               (+ .json sidecar)
+    unjittered/frame_NNNN.exr  1 sample, no jitter, the union of the other methods' passes, only
+                               when some of them need more than colour
+    reference_N/frame_NNNN.exr the reference (N EEVEE samples)
+    blender-smaa/frame_NNNN.exr  eevee_1 through Image -> Anti-Aliasing -> Composite
+    <set>/times.json           {"NNNN": wall seconds of that frame's render}
+    scene.json                 what was rendered, the plans, Blender version, SMAA settings
+
+A frame counts as done when its EXR exists and times.json holds its time: an interrupted run resumes
+with the frames still missing.
+"""
+
+import json
+import os
+import time
+
+import bpy
+
+from . import plan as plan_mod
+from . import render
+
+# BLENDER.md: in 3.4 the node's `threshold` maps to SMAA's threshold as 0.5 x value, so 0.2 is the
+# 0.1 that SMAA (Jimenez et al. 2012) uses by default.
+SMAA_THRESHOLD = 0.2
+
+
+def write_json(path, data):
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(data, f, indent=1)
+    os.replace(tmp, path)
+
+
+def read_json(path, default):
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return default
+
+
+class TimeBook:
+    """times.json of one render set: frame -> seconds, rewritten after each frame."""
+
+    def __init__(self, folder):
+        self.folder = folder
+        os.makedirs(folder, exist_ok=True)
+        self.path = os.path.join(folder, "times.json")
+        self.times = read_json(self.path, {})
+
+    def done(self, frame):
+        return ("%04d" % frame) in self.times and os.path.isfile(os.path.join(self.folder, render.frame_name(frame)))
+
+    def missing(self, frames):
+        return [f for f in frames if not self.done(f)]
+
+    def record(self, frame, seconds):
+        self.times["%04d" % frame] = round(seconds, 5)
+        write_json(self.path, self.times)
+
+
+def group_plans(scene, methods, frames):
+    """Plans of the library methods `methods` (names plan.py knows), grouped into render sets.
+
+    Returns (plans, sets, unknown): plans {method: Plan.to_json()}; sets {set name: Plan} for the
+    1-sample renders to make ("jittered", maybe "unjittered"); unknown: methods plan.py has no passes
+    for (they get the plain 1-sample frames)."""
+    engine = render.eevee_engine(scene)
+    facts = plan_mod.scene_facts(scene, frames[0], frames[-1],
+                                 renderer_motion_pass=render.renderer_motion_pass(engine))
+    plans, unknown = {}, []
+    groups = {True: [], False: []}
+    for m in methods:
+        if m not in plan_mod.METHOD_PASSES:
+            unknown.append(m)
+            continue
+        p = plan_mod.make_plan(m, facts)
+        plans[m] = p
+        groups[p.jitter].append(p)
+    sets = {}
+    for jitter, members in groups.items():
+        passes = []
+        for p in members:
+            passes += [q for q in p.passes if q not in passes and q != "subsamples"]
+        if not members or (not jitter and passes == ["color"]):
+            continue  # colour-only, unjittered: the curve's 1-sample frames are exactly these
+        order = ["color", "depth", "normal", "motion", "id", "albedo"]
+        passes.sort(key=order.index)
+        reasons = {}
+        for p in members:
+            reasons.update({k: v for k, v in p.reasons.items() if k in passes})
+        sources = {p.motion_source for p in members} - {"none"}
+        union = plan_mod.Plan(method="+".join(p.method for p in members), passes=passes, reasons=reasons,
+                              skipped={}, jitter=jitter, motion_source=sources.pop() if sources else "none")
+        sets["jittered" if jitter else "unjittered"] = union
+    return plans, sets, unknown, facts
+
+
+def input_set(plan):
+    """Render set a method's input frames come from."""
+    if plan is None or not plan.jitter and plan.passes == ["color"]:
+        return "eevee_1"
+    return "jittered" if plan.jitter else "unjittered"
+
+
+def warm_up(scene, folder):
+    """One untimed 1-sample render: EEVEE compiles its shaders on the first render of a process
+    (~10 s here), which would otherwise land on whichever render comes first."""
+    t0 = time.perf_counter()
+    render.render_reference(scene, [scene.frame_current], folder, 1)
+    return time.perf_counter() - t0
+
+
+def render_curve_set(scene, frames, folder, samples, step):
+    book = TimeBook(folder)
+    for f in frames:
+        if book.done(f):
+            step(os.path.basename(folder), f, samples, skipped=True)
+            continue
+        info = render.render_reference(scene, [f], folder, samples)[0]
+        book.record(f, info["render_s"])
+        step(os.path.basename(folder), f, samples)
+
+
+def render_input_set(scene, the_plan, frames, folder, jitter_distribution, step):
+    book = TimeBook(folder)
+    for f in frames:
+        if book.done(f):
+            step(os.path.basename(folder), f, 1, skipped=True)
+            continue
+        info = render.render_frames(scene, the_plan, [f], folder, samples=1,
+                                    jitter_distribution=jitter_distribution)[0]
+        book.record(f, info["render_s"])
+        step(os.path.basename(folder), f, 1)
+
+
+class SmaaCompositor:
+    """Blender's compositor Anti-Aliasing node (SMAA 1x) on a loaded image, in a scene of its own with
+    no camera and no Render Layers node, so rendering it runs the compositor only (BLENDER.md)."""
+
+    def __init__(self, threshold=SMAA_THRESHOLD):
+        self.scene = bpy.data.scenes.new("CrispEvalSMAA")
+        s = self.scene
+        s.use_nodes = True
+        s.render.use_compositing = True
+        s.render.use_sequencer = False
+        s.render.resolution_percentage = 100
+        s.render.use_file_extension = False
+        s.render.image_settings.file_format = "OPEN_EXR"
+        s.render.image_settings.color_depth = "32"
+        s.render.image_settings.exr_codec = "NONE"
+        s.render.image_settings.color_mode = "RGBA"
+        tree = s.node_tree
+        tree.nodes.clear()
+        self.image_node = tree.nodes.new("CompositorNodeImage")
+        self.aa = tree.nodes.new("CompositorNodeAntiAliasing")
+        self.aa.threshold = threshold
+        comp = tree.nodes.new("CompositorNodeComposite")
+        tree.links.new(self.image_node.outputs["Image"], self.aa.inputs["Image"])
+        tree.links.new(self.aa.outputs["Image"], comp.inputs["Image"])
+
+    def settings(self):
+        return {"node": "CompositorNodeAntiAliasing", "threshold": self.aa.threshold,
+                "smaa_threshold": 0.5 * self.aa.threshold, "contrast_limit": self.aa.contrast_limit,
+                "corner_rounding": self.aa.corner_rounding,
+                "note": "Blender 3.4 maps the node's threshold to SMAA's as 0.5 x value (BLENDER.md); "
+                        "0.2 is SMAA's usual 0.1"}
+
+    def run(self, src, dst):
+        """Returns the wall seconds of the compositor render (image load + SMAA + write)."""
+        folder, name = os.path.split(dst)
+        tmp = os.path.join(folder, "." + name + ".tmp")
+        t0 = time.perf_counter()
+        img = bpy.data.images.load(src, check_existing=False)
+        try:
+            self.image_node.image = img
+            self.scene.render.resolution_x, self.scene.render.resolution_y = img.size[0], img.size[1]
+            self.scene.render.filepath = tmp
+            bpy.ops.render.render(write_still=True, scene=self.scene.name)
+        finally:
+            self.image_node.image = None
+            bpy.data.images.remove(img)
+        dt = time.perf_counter() - t0
+        if not os.path.isfile(tmp):
+            raise render.RenderError("the compositor wrote no file for %s (expected %s)" % (src, tmp))
+        os.replace(tmp, dst)
+        return dt
+
+
+def render_smaa_set(frames, source_folder, folder, compositor, step):
+    book = TimeBook(folder)
+    for f in frames:
+        if book.done(f):
+            step("blender-smaa", f, 1, skipped=True)
+            continue
+        seconds = compositor.run(os.path.join(source_folder, render.frame_name(f)),
+                                 os.path.join(folder, render.frame_name(f)))
+        book.record(f, seconds)
+        step("blender-smaa", f, 1)

@@ -1,0 +1,238 @@
+// SPDX-License-Identifier: Apache-2.0
+// crisp eval --scene SCENE -o OUTDIR [...]: renders everything the evaluation
+// needs in headless Blender (addon/crisp/batch_eval.py: EEVEE's sample curve,
+// the methods' 1-sample inputs, the reference, Blender's SMAA), then runs the
+// methods through the library, measures them and writes the report
+// (native/eval/). Blender's own output goes to OUTDIR/logs/blender.log; its
+// progress comes back on a pipe. Finished frames are never redone.
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "core/filter.h"
+#include "eval/eval.h"
+
+namespace crisp::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path addonDir() {
+  if (const char* env = std::getenv("CRISP_ADDON_DIR")) return env;
+  for (fs::path p : {fs::path(CRISP_SOURCE_DIR) / "addon", fs::path(executableDir()) / ".." / "share" / "crisp" / "addon"})
+    if (fs::exists(p / "crisp" / "batch_eval.py")) return p;
+  fail(CRISP_ERROR_IO, "cannot find the add-on's eval driver (addon/crisp/batch_eval.py); set CRISP_ADDON_DIR");
+}
+
+std::vector<std::string> splitList(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream s(text);
+  std::string item;
+  while (std::getline(s, item, ','))
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+// The exact command line of this process (/proc/self/cmdline), shell-quoted where needed.
+std::string commandLine() {
+  std::ifstream in("/proc/self/cmdline", std::ios::binary);
+  std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()), out, arg;
+  auto flush = [&]() {
+    bool plain = !arg.empty() && arg.find_first_not_of(
+        "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-_./=,:+") == std::string::npos;
+    out += (out.empty() ? "" : " ") + (plain ? arg : "'" + arg + "'");
+    arg.clear();
+  };
+  for (char c : all) {
+    if (c == '\0') flush();
+    else arg += c;
+  }
+  if (!arg.empty()) flush();
+  return out;
+}
+
+// Runs Blender; progress lines from batch_eval.py arrive on a pipe and are shown here.
+int runBlender(std::vector<std::string> cmd, const fs::path& log, bool quiet) {
+  int fds[2];
+  if (pipe(fds) != 0) ioError("cannot start Blender (pipe failed)");
+  cmd.push_back("--progress-fd");
+  cmd.push_back(std::to_string(fds[1]));
+  std::vector<char*> argv;
+  for (auto& s : cmd) argv.push_back(s.data());
+  argv.push_back(nullptr);
+  std::fflush(stdout);
+  std::fflush(stderr);
+  pid_t pid = fork();
+  if (pid < 0) ioError("cannot start Blender (fork failed)");
+  if (pid == 0) {
+    close(fds[0]);
+    int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    if (fd >= 0) {
+      dup2(fd, 1);
+      dup2(fd, 2);
+      close(fd);
+    }
+    execvp(argv[0], argv.data());
+    std::fprintf(stderr, "crisp: error: cannot run Blender '%s' (install it, or pass --blender PATH)\n", argv[0]);
+    _exit(127);
+  }
+  close(fds[1]);
+  FILE* in = fdopen(fds[0], "r");
+  const bool tty = isatty(fileno(stderr)) != 0;
+  char line[1024];
+  while (in && std::fgets(line, sizeof line, in)) {
+    int done = 0, total = 0;
+    long cost = 0, costTotal = 0;
+    double left = 0;
+    int consumed = 0;
+    if (std::sscanf(line, "progress %d %d %ld %ld %lf %n", &done, &total, &cost, &costTotal, &left, &consumed) >= 5 &&
+        !quiet) {
+      std::string item(line + consumed);
+      while (!item.empty() && (item.back() == '\n' || item.back() == '\r')) item.pop_back();
+      const int width = 30;
+      int filled = costTotal > 0 ? int(cost * width / costTotal) : width;
+      if (tty)
+        std::fprintf(stderr, "\rrender [%s%s] %d/%d %.0fs left  %-40.40s", std::string(filled, '#').c_str(),
+                     std::string(width - filled, '.').c_str(), done, total, left, item.c_str());
+      else
+        std::fprintf(stderr, "render %d/%d %s (%.0fs left)\n", done, total, item.c_str(), left);
+      std::fflush(stderr);
+    }
+  }
+  if (in) std::fclose(in);
+  if (!quiet && tty) std::fprintf(stderr, "\n");
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFEXITED(status)) return WEXITSTATUS(status);
+  return 128 + WTERMSIG(status);
+}
+
+// The lines of Blender's log that say what went wrong.
+std::string blenderErrors(const fs::path& log) {
+  std::ifstream in(log);
+  std::string line, out;
+  while (std::getline(in, line))
+    if (line.find("crisp: error") != std::string::npos || line.find("Error") != std::string::npos ||
+        line.find("Traceback") != std::string::npos)
+      if (line.find("EGL") == std::string::npos) out += "  " + line + "\n";
+  return out;
+}
+
+}  // namespace
+
+int runEval(const ParsedArgs& args) {
+  if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
+  const std::string scene = args.get("scene");
+  const fs::path outDir = fs::absolute(args.get("output"));
+  const bool quiet = args.has("quiet");
+  const int threads = parseIntOption(args, "threads", 0, 0, 1024);
+  const int refSamples = parseIntOption(args, "reference-samples", 64, 1, 65536);
+
+  // Methods: the library's, or the list given; "none" (the 1-sample frames) always comes first.
+  std::vector<std::string> methods;
+  std::vector<std::string> asked = args.has("methods") ? splitList(args.get("methods")) : filterTypes();
+  methods.push_back("none");
+  for (const std::string& m : asked) {
+    if (m == "blender-smaa") continue;  // always measured
+    if (std::find(filterTypes().begin(), filterTypes().end(), m) == filterTypes().end())
+      throw UsageError("--methods: unknown method '" + m + "' (known: " + filterTypesJoined() + ", blender-smaa)");
+    if (std::find(methods.begin(), methods.end(), m) == methods.end()) methods.push_back(m);
+  }
+  std::string curve = args.getOr("curve", "");
+  if (curve.empty()) {  // 1, 2, 4, ... below the reference's count
+    for (int s = 1; s < refSamples && s <= 16; s *= 2) curve += (curve.empty() ? "" : ",") + std::to_string(s);
+    if (curve.empty()) curve = "1";
+  }
+  for (const std::string& c : splitList(curve)) {
+    char* end = nullptr;
+    long v = std::strtol(c.c_str(), &end, 10);
+    if (*end || v < 1 || v > 65536) throw UsageError("--curve expects sample counts like 1,2,4,8; got '" + c + "'");
+  }
+
+  const fs::path addon = addonDir();
+  std::vector<std::string> cmd = {args.getOr("blender", "blender"), "-b"};
+  std::string sceneScript;
+  if (fs::path(scene).extension() == ".blend") {
+    if (!fs::is_regular_file(scene)) fail(CRISP_ERROR_IO, "scene file '" + scene + "' does not exist");
+    cmd.push_back(fs::absolute(scene).string());
+  } else if (fs::is_regular_file(addon.parent_path() / "test_scenes" / (scene + ".py"))) {
+    sceneScript = scene;
+  } else {
+    throw UsageError("--scene '" + scene + "' is neither a .blend file nor a bundled test scene (see test_scenes/)");
+  }
+  makeDirectories(outDir.string());
+  const fs::path renders = outDir / "renders", logs = outDir / "logs";
+  makeDirectories(renders.string());
+  makeDirectories(logs.string());
+  // A resumed run must be the same scene at the same size: refuse to mix.
+  const fs::path settings = outDir / "eval_settings.json";
+  nlohmann::json want = {{"scene", scene}, {"resolution", args.getOr("resolution", "")}};
+  if (fs::exists(settings)) {
+    std::ifstream in(settings);
+    nlohmann::json have = nlohmann::json::parse(in, nullptr, false);
+    if (have != want)
+      throw UsageError("'" + outDir.string() + "' holds an evaluation of another scene or size (" + have.dump() +
+                       "); use another -o folder or delete it");
+  }
+  writeTextFile(settings.string(), want.dump() + "\n");
+
+  for (const char* a : {"--factory-startup", "--python-exit-code", "1", "--python"}) cmd.push_back(a);
+  cmd.push_back((addon / "crisp" / "batch_eval.py").string());
+  cmd.push_back("--");
+  cmd.push_back("-o");
+  cmd.push_back(renders.string());
+  if (!sceneScript.empty()) {
+    cmd.push_back("--scene-script");
+    cmd.push_back(sceneScript);
+  }
+  std::string methodList;
+  for (const std::string& m : methods) methodList += (methodList.empty() ? "" : ",") + m;
+  cmd.insert(cmd.end(), {"--methods", methodList, "--reference-samples", std::to_string(refSamples), "--curve", curve});
+  for (const char* opt : {"frames", "resolution"})
+    if (args.has(opt)) {
+      cmd.push_back(std::string("--") + opt);
+      cmd.push_back(args.get(opt));
+    }
+
+  const fs::path log = logs / "blender.log";
+  if (!quiet) std::fprintf(stderr, "crisp eval: rendering in Blender (log: %s)\n", log.c_str());
+  auto t0 = std::chrono::steady_clock::now();
+  int code = runBlender(cmd, log, quiet);
+  double blenderSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (code == 127) return 1;
+  if (code != 0) {
+    std::fprintf(stderr, "crisp: error: Blender failed (exit %d); from %s:\n%s", code, log.c_str(),
+                 blenderErrors(log).c_str());
+    return code == 2 ? 2 : 1;
+  }
+
+  eval::Options o;
+  o.outDir = outDir.string();
+  o.renderDir = renders.string();
+  o.methods = methods;
+  o.threads = threads;
+  o.quiet = quiet;
+  o.command = commandLine();
+  o.blenderSeconds = blenderSeconds;
+  int rc = eval::run(o);
+  if (rc == 0) std::printf("report: %s\n", (outDir / "report.html").c_str());
+  return rc;
+}
+
+}  // namespace crisp::cli

@@ -1,0 +1,605 @@
+// SPDX-License-Identifier: Apache-2.0
+// `crisp eval` after the renders: methods, measurements, results files (eval.h).
+#include "eval/eval.h"
+
+#include <sys/utsname.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <OpenImageIO/oiioversion.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "cli/commands.h"
+#include "cli/progress.h"
+#include "core/color.h"
+#include "core/error.h"
+#include "core/filter.h"
+#include "crisp/crisp.h"
+#include "io/frame.h"
+#include "metrics/metrics.h"
+#include "metrics/temporal_error.h"
+#if __has_include("motion/reconstruct.h")
+#include "motion/reconstruct.h"
+#define CRISP_EVAL_HAS_RECONSTRUCT 1
+#endif
+
+namespace crisp::eval {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+std::string frameName(int f, const char* ext = ".exr") {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "frame_%04d%s", f, ext);
+  return buf;
+}
+
+std::string frameKey(int f) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "%04d", f);
+  return buf;
+}
+
+json readJson(const fs::path& path, bool required) {
+  std::ifstream in(path);
+  if (!in) {
+    if (required) ioError("cannot read '" + path.string() + "'");
+    return json::object();
+  }
+  try {
+    return json::parse(in);
+  } catch (const std::exception& e) {
+    if (required) invalidData("'" + path.string() + "' is not valid JSON: " + e.what());
+    return json::object();
+  }
+}
+
+void writeJson(const fs::path& path, const json& j) { cli::writeTextFile(path.string(), j.dump(1) + "\n"); }
+
+double mean(const std::vector<double>& v) {
+  double s = 0;
+  int n = 0;
+  for (double x : v)
+    if (std::isfinite(x)) s += x, ++n;
+  return n ? s / n : kNaN;
+}
+
+// Per-frame render seconds of one render set (renders/<set>/times.json).
+std::map<int, double> renderTimes(const fs::path& dir) {
+  std::map<int, double> t;
+  json j = readJson(dir / "times.json", false);
+  for (auto it = j.begin(); it != j.end(); ++it) t[std::stoi(it.key())] = it.value().get<double>();
+  return t;
+}
+
+// ---- the methods ---------------------------------------------------------------------------------
+
+bool hasParam(const Filter& f, const char* name) {
+  for (const ParamSpec& s : f.params().specs())
+    if (std::string(s.name) == name) return true;
+  return false;
+}
+
+// Sub-pixel jitter of a frame from its sidecar: pixels, x right, y UP (render.py).
+bool readJitter(const fs::path& exr, double& x, double& y) {
+  fs::path side = exr;
+  side.replace_extension(".json");
+  json j = readJson(side, false);
+  if (!j.contains("jitter")) return false;
+  x = j["jitter"].value("x", 0.0);
+  y = j["jitter"].value("y", 0.0);
+  return true;
+}
+
+// Motion for the frames of a render set that has depth (renders/jittered): the
+// renderer's pass, else reconstructed from depth and the sidecars when the
+// library has the reconstruction. Empty when neither.
+void addMotion(Frame& frame, const fs::path& inputDir, int f, int firstFrame, int threads) {
+  if (frame.has("motion") || f == firstFrame || !frame.has("depth")) return;
+#ifdef CRISP_EVAL_HAS_RECONSTRUCT
+  fs::path prev = inputDir / frameName(f - 1, ".json");
+  if (fs::exists(prev)) reconstructFrameMotion(frame, prev.string(), "", threads);
+#else
+  (void)inputDir, (void)threads;
+#endif
+}
+
+void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const fs::path& inputDir,
+               cli::Progress& progress) {
+  const fs::path dir = fs::path(o.outDir) / "methods" / e.name;
+  cli::makeDirectories(dir.string());
+  json times = readJson(dir / "times.json", false);
+  auto done = [&](int f) { return times.contains(frameKey(f)) && fs::exists(dir / frameName(f)); };
+  bool allDone = std::all_of(frames.begin(), frames.end(), done);
+  // A temporal method's frame depends on the history of all earlier ones: a partial run starts over.
+  if (!allDone && e.temporal) times = json::object();
+  Context context;
+  context.setInt("numThreads", o.threads);
+  std::unique_ptr<Filter> filter = createFilter(context, e.name);
+  const bool jitterParams = hasParam(*filter, "jitterX") && hasParam(*filter, "jitterY");
+  Image output;
+  for (int f : frames) {
+    if (!e.temporal ? done(f) : allDone) {
+      progress.step(e.name + " frame " + std::to_string(f) + " (done before)");
+      continue;
+    }
+    const fs::path in = inputDir / frameName(f);
+    Frame frame = readFrame(in.string());
+    addMotion(frame, inputDir, f, frames.front(), o.threads);
+    cli::bindFrame(*filter, frame);
+    if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
+    filter->setImage("output", output.view());
+    double jx = 0, jy = 0;
+    if (jitterParams && readJitter(in, jx, jy)) {
+      // Library y is down, the sidecar's y is up.
+      if (filter->params().getFloat("jitterX") != float(jx) || filter->params().getFloat("jitterY") != float(-jy)) {
+        filter->params().setFloat("jitterX", float(jx));
+        filter->params().setFloat("jitterY", float(-jy));
+        filter->markDirty();
+      }
+    }
+    auto t0 = Clock::now();
+    try {
+      if (!filter->committed()) filter->commit();
+      filter->execute();
+    } catch (const Exception& ex) {
+      throw Exception(ex.code(), "'" + in.string() + "': " + ex.what());
+    }
+    double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    writeImage((dir / frameName(f)).string(), output);
+    writeImage((dir / frameName(f, ".png")).string(), output);
+    times[frameKey(f)] = seconds;
+    writeJson(dir / "times.json", times);
+    progress.step(e.name + " frame " + std::to_string(f));
+  }
+}
+
+// ---- measuring -----------------------------------------------------------------------------------
+
+Image crop(const Image& img, const Crop& c) {
+  Image out(c.size, c.size, img.channels);
+  for (int y = 0; y < c.size; ++y)
+    std::copy(img.at(c.x, c.y + y), img.at(c.x, c.y + y) + std::size_t(c.size) * std::size_t(img.channels), out.at(0, y));
+  return out;
+}
+
+// A sequential colour map (dark blue -> red -> yellow -> white) for the error maps, returned as
+// LINEAR values so that writeImage's sRGB encoding puts the intended colour in the PNG.
+void heat(float t, float* rgb) {
+  t = std::fmin(std::fmax(t, 0.0f), 1.0f);
+  static const float stops[5][3] = {{0.02f, 0.02f, 0.1f}, {0.3f, 0.05f, 0.5f}, {0.85f, 0.2f, 0.2f},
+                                    {1.0f, 0.75f, 0.1f}, {1.0f, 1.0f, 0.9f}};
+  float s = t * 4.0f;
+  int i = std::min(int(s), 3);
+  float u = s - float(i);
+  for (int c = 0; c < 3; ++c) rgb[c] = srgbDecode(stops[i][c] * (1 - u) + stops[i + 1][c] * u);
+}
+
+void writeMap(const fs::path& path, const Image& map, float (*scale)(float)) {
+  Image out(map.width, map.height, 3);
+  for (int y = 0; y < map.height; ++y)
+    for (int x = 0; x < map.width; ++x) heat(scale(map.at(x, y)[0]), out.at(x, y));
+  writeImage(path.string(), out);
+}
+
+// Squared error -> absolute error over a 0.25 full scale (sRGB units).
+float errorScale(float sq) { return std::sqrt(std::fmax(sq, 0.0f)) / 0.25f; }
+float ssimScale(float s) { return 1.0f - s; }
+float flipScale(float v) { return v; }
+
+// The most aliased places: windows with the largest summed 1-sample error, greedily, not overlapping.
+std::vector<Crop> chooseCrops(const Image& errorSum, int count) {
+  const int w = errorSum.width, h = errorSum.height;
+  const int size = std::max(8, std::min({64, (std::min(w, h) + 4) / 5, std::min(w, h)}));
+  std::vector<double> integral(std::size_t(w + 1) * std::size_t(h + 1), 0.0);
+  auto I = [&](int x, int y) -> double& { return integral[std::size_t(y) * std::size_t(w + 1) + std::size_t(x)]; };
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) I(x + 1, y + 1) = errorSum.at(x, y)[0] + I(x, y + 1) + I(x + 1, y) - I(x, y);
+  std::vector<Crop> chosen;
+  for (int k = 0; k < count; ++k) {
+    Crop best;
+    best.score = -1;
+    for (int y = 0; y + size <= h; y += 2)
+      for (int x = 0; x + size <= w; x += 2) {
+        bool overlaps = false;
+        for (const Crop& c : chosen)
+          overlaps |= x < c.x + c.size && c.x < x + size && y < c.y + c.size && c.y < y + size;
+        if (overlaps) continue;
+        double s = I(x + size, y + size) - I(x, y + size) - I(x + size, y) + I(x, y);
+        if (s > best.score) best = Crop{x, y, size, s};
+      }
+    if (best.score < 0) break;
+    best.score /= double(size) * double(size);
+    chosen.push_back(best);
+  }
+  return chosen;
+}
+
+std::string cpuModel() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  return "unknown";
+}
+
+json machine() {
+  struct utsname u {};
+  uname(&u);
+  return {{"cpu", cpuModel()}, {"cores", int(std::thread::hardware_concurrency())},
+          {"os", std::string(u.sysname) + " " + u.release + " " + u.machine}};
+}
+
+json figuresJson(const Entry& e) {
+  json frames = json::array();
+  for (const FrameFigures& f : e.frames)
+    frames.push_back({{"frame", f.frame}, {"psnr", f.psnr}, {"ssim", f.ssim}, {"perceptual_error", f.flip},
+                      {"rmse", f.rmse}, {"temporal_error", f.temporalError}, {"render_s", f.renderS},
+                      {"filter_s", f.filterS}, {"time_s", f.renderS + (std::isfinite(f.filterS) ? f.filterS : 0.0)},
+                      {"file", f.file}});
+  json j = {{"name", e.name}, {"kind", e.kind}, {"samples", e.samples}, {"input", e.inputSet},
+            {"temporal", e.temporal}, {"error", e.error.empty() ? json(nullptr) : json(e.error)},
+            {"mean", {{"psnr", e.psnr}, {"ssim", e.ssim}, {"perceptual_error", e.flip},
+                      {"temporal_error", e.temporalError}, {"time_s", e.timeS}, {"render_s", e.renderS},
+                      {"filter_s", e.filterS}}},
+            {"equivalent_eevee_samples", e.equivalentSamples},
+            {"equivalent_note", e.equivalentNote}, {"pareto", e.pareto}, {"frames", frames}};
+  if (e.kind == "eevee") {  // the issue's flat shape for curve points
+    j["psnr"] = e.psnr;
+    j["ssim"] = e.ssim;
+    j["perceptual_error"] = e.flip;
+    j["temporal_error"] = e.temporalError;
+    j["time_s"] = e.timeS;
+  }
+  return j;
+}
+
+std::string csvNumber(double v) {
+  if (!std::isfinite(v)) return "";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+}  // namespace
+
+double equivalentSamples(const std::vector<int>& samples, const std::vector<double>& psnr, double value,
+                         std::string* note) {
+  if (note) note->clear();
+  if (samples.empty() || !std::isfinite(value)) return kNaN;
+  for (std::size_t i = 0; i + 1 < samples.size(); ++i) {
+    double a = psnr[i], b = psnr[i + 1];
+    if ((value >= a && value <= b) || (value <= a && value >= b)) {
+      double t = b == a ? 0.0 : (value - a) / (b - a);
+      return std::exp2(std::log2(double(samples[i])) * (1 - t) + std::log2(double(samples[i + 1])) * t);
+    }
+  }
+  if (samples.size() == 1 && value == psnr[0]) return samples[0];
+  double best = *std::max_element(psnr.begin(), psnr.end());
+  if (note) *note = value > best ? "> " + std::to_string(samples.back()) : "< " + std::to_string(samples.front());
+  return kNaN;
+}
+
+int run(const Options& o) {
+  const auto tStart = Clock::now();
+  const fs::path out(o.outDir), renders(o.renderDir);
+  json scene = readJson(renders / "scene.json", true);
+  const int first = scene["frames"][0], last = scene["frames"][1];
+  std::vector<int> frames;
+  for (int f = first; f <= last; ++f) frames.push_back(f);
+  const int width = scene["resolution"][0], height = scene["resolution"][1];
+  const int refSamples = scene["reference_samples"];
+  const std::vector<int> curveSamples = scene["curve"].get<std::vector<int>>();
+  const fs::path refDir = renders / ("reference_" + std::to_string(refSamples));
+  const fs::path oneSample = renders / "eevee_1";
+  const json facts = scene.value("facts", json::object());
+  const bool moving = facts.value("camera_moves", false) || !facts.value("moving_objects", json::array()).empty() ||
+                      !facts.value("deforming_objects", json::array()).empty();
+
+  // Entries: the methods (none first), Blender's SMAA, then the curve.
+  std::vector<Entry> methods, curve;
+  for (const std::string& m : o.methods) {
+    Entry e;
+    e.name = m;
+    e.kind = "method";
+    std::string set = scene["inputs"].value(m, std::string("eevee_1"));
+    e.inputSet = set;
+    const json& plan = scene["plans"].contains(m) ? scene["plans"][m] : json::object();
+    e.temporal = plan.value("jitter", false);
+    methods.push_back(e);
+  }
+  {
+    Entry e;
+    e.name = "blender-smaa";
+    e.kind = "blender";
+    e.inputSet = "eevee_1";
+    methods.push_back(e);
+  }
+  for (int s : curveSamples) {
+    Entry e;
+    e.name = "eevee-" + std::to_string(s);
+    e.kind = "eevee";
+    e.samples = s;
+    e.inputSet = "eevee_" + std::to_string(s);
+    curve.push_back(e);
+  }
+
+  // 1. Run the library methods, frames in order, each in a child process so that a method that
+  // crashes is reported in the page instead of taking the evaluation down. Nothing in this process
+  // has used the thread pool yet, so each child starts its own.
+  for (Entry& e : methods) {
+    if (e.kind != "method") continue;
+    const fs::path errorFile = out / "methods" / e.name / "error.txt";
+    std::error_code ec;
+    fs::remove(errorFile, ec);
+    std::fflush(stdout);
+    std::fflush(stderr);
+    pid_t pid = fork();
+    if (pid < 0) ioError("cannot run method '" + e.name + "' (fork failed)");
+    if (pid == 0) {
+      int code = 0;
+      try {
+        cli::Progress progress("method " + e.name, int(frames.size()), o.quiet);
+        runMethod(e, o, frames, renders / e.inputSet, progress);
+      } catch (const std::exception& ex) {
+        try {
+          cli::makeDirectories(errorFile.parent_path().string());
+          cli::writeTextFile(errorFile.string(), ex.what());
+        } catch (...) {
+        }
+        code = 1;
+      }
+      std::fflush(nullptr);
+      _exit(code);
+    }
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (WIFSIGNALED(status)) {
+      e.error = std::string("crashed (signal ") + std::to_string(WTERMSIG(status)) + ": " + strsignal(WTERMSIG(status)) + ")";
+    } else if (WEXITSTATUS(status) != 0) {
+      std::ifstream in(errorFile);
+      std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      e.error = text.empty() ? "failed (exit " + std::to_string(WEXITSTATUS(status)) + ")" : text;
+    }
+    if (!e.error.empty())
+      std::fprintf(stderr, "crisp: method '%s' failed (reported in the page): %s\n", e.name.c_str(), e.error.c_str());
+  }
+
+  // 2. Measure. Every image is read once per entry; the reference frames are kept.
+  std::map<int, Image> refs;
+  for (int f : frames) refs[f] = readFrame((refDir / frameName(f)).string()).pass("color");
+
+  // Motion for W (the temporal error's warp) and the disocclusion mask.
+  std::map<int, Image> motions, masks;
+  std::string warp = "identity: nothing moves over the frames";
+  if (moving) {
+    warp = "identity: the scene moves but no motion vectors were available (the temporal error overstates)";
+    const fs::path jit = renders / "jittered";
+    if (fs::exists(jit / frameName(first))) {
+      std::unique_ptr<Frame> prev;
+      for (int f : frames) {
+        auto fr = std::make_unique<Frame>(readFrame((jit / frameName(f)).string()));
+        addMotion(*fr, jit, f, first, o.threads);
+        if (prev && fr->has("motion")) {
+          motions[f] = fr->pass("motion");
+          const Image* ids = fr->has("id") ? &fr->pass("id") : nullptr;
+          const Image* idsPrev = prev->has("id") ? &prev->pass("id") : nullptr;
+          const Image* depth = fr->has("depth") ? &fr->pass("depth") : nullptr;
+          const Image* depthPrev = prev->has("depth") ? &prev->pass("depth") : nullptr;
+          if ((ids && idsPrev) || (depth && depthPrev))
+            masks[f] = disocclusionMask(&motions[f], ids, idsPrev, depth, depthPrev, 0.1f, o.threads);
+          warp = "motion vectors of the jittered 1-sample frames (renderer or reconstructed); valid = inside the "
+                 "previous frame and not disoccluded (object ID / depth test)";
+        }
+        prev = std::move(fr);
+      }
+    }
+  }
+
+  const int mapFrame = frames[frames.size() / 2];
+  Image errorSum(width, height, 1);
+  const fs::path images = out / "images";
+  cli::makeDirectories((images / "full").string());
+  cli::makeDirectories((images / "maps").string());
+  std::map<std::string, std::map<int, Image>> kept;  // entry -> frame -> colour, for the crops
+  {
+    int total = int((methods.size() + curve.size()) * frames.size());
+    cli::Progress progress("measure", total, o.quiet);
+    auto measure = [&](Entry& e) {
+      std::map<int, double> renderS = renderTimes(renders / e.inputSet);
+      std::map<int, double> filterS;
+      fs::path dir;
+      if (e.kind == "method") {
+        dir = out / "methods" / e.name;
+        json t = readJson(dir / "times.json", false);
+        for (auto it = t.begin(); it != t.end(); ++it) filterS[std::stoi(it.key())] = it.value().get<double>();
+      } else if (e.kind == "blender") {
+        dir = renders / "blender-smaa";
+        filterS = renderTimes(dir);
+      } else {
+        dir = renders / e.inputSet;
+      }
+      Image previous;
+      for (int f : frames) {
+        FrameFigures ff;
+        ff.frame = f;
+        ff.renderS = renderS.count(f) ? renderS[f] : kNaN;
+        ff.filterS = e.kind == "eevee" ? 0.0 : (filterS.count(f) ? filterS[f] : kNaN);
+        fs::path file = dir / frameName(f);
+        ff.file = fs::relative(file, out).string();
+        if (!e.error.empty() || !fs::exists(file)) {
+          e.frames.push_back(ff);
+          progress.step(e.name + " frame " + std::to_string(f));
+          continue;
+        }
+        Image test = readFrame(file.string()).pass("color");
+        Image err, ssim, flip;
+        MetricMaps maps;
+        bool wantMaps = f == mapFrame && e.kind != "eevee";
+        if (e.name == "none" || wantMaps) maps.error = &err;
+        if (wantMaps) maps.ssim = &ssim, maps.flip = &flip;
+        Metrics m = compareImages(refs[f], test, nullptr, maps, o.threads);
+        ff.psnr = m.psnr, ff.ssim = m.ssim, ff.flip = m.flip, ff.rmse = m.rmse;
+        if (e.name == "none")
+          for (std::size_t i = 0; i < errorSum.data.size(); ++i) errorSum.data[i] += err.data[i];
+        if (wantMaps) {
+          writeImage((images / "full" / (e.name + ".png")).string(), test);
+          writeMap(images / "maps" / (e.name + "_error.png"), err, errorScale);
+          writeMap(images / "maps" / (e.name + "_ssim.png"), ssim, ssimScale);
+          writeMap(images / "maps" / (e.name + "_perceptual.png"), flip, flipScale);
+        }
+        if (!previous.empty()) {
+          int prevFrame = f - 1;
+          const Image* motion = motions.count(f) ? &motions[f] : nullptr;
+          const Image* mask = masks.count(f) ? &masks[f] : nullptr;
+          ff.temporalError = temporalError(test, previous, refs[f], refs[prevFrame], motion, mask, o.threads).value;
+        }
+        if (e.kind != "eevee") kept[e.name][f] = test;
+        previous = std::move(test);
+        e.frames.push_back(ff);
+        progress.step(e.name + " frame " + std::to_string(f));
+      }
+      std::vector<double> p, s, fl, te, rs, fs_, ts;
+      for (const FrameFigures& ff : e.frames) {
+        p.push_back(ff.psnr), s.push_back(ff.ssim), fl.push_back(ff.flip), te.push_back(ff.temporalError);
+        rs.push_back(ff.renderS), fs_.push_back(ff.filterS);
+      }
+      e.psnr = mean(p), e.ssim = mean(s), e.flip = mean(fl), e.temporalError = mean(te);
+      e.renderS = mean(rs), e.filterS = mean(fs_);
+      e.timeS = e.renderS + (std::isfinite(e.filterS) ? e.filterS : 0.0);
+      if (e.error.empty() && !std::isfinite(e.psnr)) e.error = "no output frames to measure";
+      if (!e.error.empty()) e.timeS = e.filterS = kNaN;  // a failed method has no time per frame
+    };
+    for (Entry& e : methods) measure(e);
+    for (Entry& e : curve) measure(e);
+  }
+  writeImage((images / "full" / "reference.png").string(), refs[mapFrame]);
+
+  // 3. Equivalent EEVEE samples and the Pareto front (time down, PSNR up) over methods and curve.
+  std::vector<int> cs;
+  std::vector<double> cp;
+  for (const Entry& e : curve)
+    if (std::isfinite(e.psnr)) cs.push_back(e.samples), cp.push_back(e.psnr);
+  for (Entry& e : methods) e.equivalentSamples = equivalentSamples(cs, cp, e.psnr, &e.equivalentNote);
+  for (Entry& e : curve) e.equivalentSamples = e.samples;
+  std::vector<Entry*> all;
+  for (Entry& e : methods) all.push_back(&e);
+  for (Entry& e : curve) all.push_back(&e);
+  for (Entry* a : all) {
+    if (!std::isfinite(a->psnr) || !std::isfinite(a->timeS)) continue;
+    a->pareto = true;
+    for (Entry* b : all)
+      if (b != a && std::isfinite(b->psnr) && std::isfinite(b->timeS) && b->timeS <= a->timeS &&
+          b->psnr >= a->psnr && (b->timeS < a->timeS || b->psnr > a->psnr))
+        a->pareto = false;
+  }
+
+  // 4. Crops at the most aliased places, every frame, for the page and its flip-book.
+  std::vector<Crop> crops = chooseCrops(errorSum, 3);
+  json cropsJson = json::array();
+  std::vector<std::string> cropEntries = {"reference"};
+  for (const Entry& e : methods)
+    if (kept.count(e.name)) cropEntries.push_back(e.name);
+  for (std::size_t k = 0; k < crops.size(); ++k) {
+    const Crop& c = crops[k];
+    json files = json::object();
+    for (const std::string& name : cropEntries) {
+      fs::path dir = images / "crops" / ("c" + std::to_string(k)) / name;
+      cli::makeDirectories(dir.string());
+      json list = json::array();
+      for (int f : frames) {
+        const Image* src = name == "reference" ? &refs[f] : (kept[name].count(f) ? &kept[name][f] : nullptr);
+        if (!src) continue;
+        fs::path p = dir / frameName(f, ".png");
+        writeImage(p.string(), crop(*src, c));
+        list.push_back(fs::relative(p, out).string());
+      }
+      files[name] = list;
+    }
+    cropsJson.push_back({{"x", c.x}, {"y", c.y}, {"size", c.size}, {"score", c.score}, {"files", files}});
+  }
+
+  // 5. Results.
+  json methodsJson = json::array(), curveJson = json::array();
+  for (const Entry& e : methods) methodsJson.push_back(figuresJson(e));
+  for (const Entry& e : curve) curveJson.push_back(figuresJson(e));
+  json refFiles = json::array();
+  for (int f : frames) refFiles.push_back(fs::relative(refDir / frameName(f), out).string());
+  std::map<int, double> refTimes = renderTimes(refDir);
+  std::vector<double> rt;
+  for (auto& kv : refTimes) rt.push_back(kv.second);
+  json sceneJson = {
+      {"name", scene.value("scene_label", scene.value("scene", std::string("scene")))},
+      {"blender_scene", scene.value("scene", std::string())},
+      {"resolution", {width, height}},
+      {"frames", {first, last}},
+      {"reference", {{"samples", refSamples}, {"time_s", mean(rt)}, {"files", refFiles}}},
+      {"methods", methodsJson},
+      {"eevee_curve", curveJson},
+      {"temporal_error_warp", warp},
+      {"smaa", scene.value("smaa", json::object())},
+      {"plans", scene.value("plans", json::object())},
+      {"facts", facts},
+      {"jitter_distribution", scene.value("jitter_distribution", std::string())},
+      {"map_frame", mapFrame},
+      {"crops", cropsJson},
+      {"images", {{"full", "images/full"}, {"maps", "images/maps"}}},
+  };
+  char crispVersion[32];
+  std::snprintf(crispVersion, sizeof crispVersion, "%d.%d.%d", CRISP_VERSION_MAJOR, CRISP_VERSION_MINOR,
+                CRISP_VERSION_PATCH);
+  double evalSeconds = std::chrono::duration<double>(Clock::now() - tStart).count();
+  json results = {
+      {"command", o.command},
+      {"versions", {{"crisp", crispVersion}, {"blender", scene.value("blender_version", std::string())},
+                    {"oiio", OIIO_VERSION_STRING}}},
+      {"machine", machine()},
+      {"threads", o.threads},
+      {"run_seconds", {{"blender", o.blenderSeconds}, {"methods_and_measures", evalSeconds}}},
+      {"metrics_note", "PSNR, SSIM, perceptual error (FLIP-style) and temporal error on display-encoded values "
+                       "(linear RGB clamped to [0,1], sRGB-encoded); time per frame = 1-sample render + filter"},
+      {"scenes", json::array({sceneJson})},
+  };
+  writeJson(out / "results.json", results);
+
+  std::ostringstream csv;
+  csv << "scene,kind,name,frame,psnr,ssim,perceptual_error,temporal_error,render_s,filter_s,time_s,"
+         "equivalent_eevee_samples,error\n";
+  auto row = [&](const Entry& e, const std::string& frame, double p, double s, double fl, double te, double r,
+                 double fi, double t, double eq) {
+    std::string err = e.error;
+    std::replace(err.begin(), err.end(), '"', '\'');
+    csv << sceneJson["name"].get<std::string>() << "," << e.kind << "," << e.name << "," << frame << ","
+        << csvNumber(p) << "," << csvNumber(s) << "," << csvNumber(fl) << "," << csvNumber(te) << "," << csvNumber(r)
+        << "," << csvNumber(fi) << "," << csvNumber(t) << "," << csvNumber(eq) << ",\"" << err << "\"\n";
+  };
+  for (const auto* list : {&methods, &curve})
+    for (const Entry& e : *list) {
+      row(e, "mean", e.psnr, e.ssim, e.flip, e.temporalError, e.renderS, e.filterS, e.timeS, e.equivalentSamples);
+      for (const FrameFigures& f : e.frames)
+        row(e, std::to_string(f.frame), f.psnr, f.ssim, f.flip, f.temporalError, f.renderS, f.filterS,
+            f.renderS + (std::isfinite(f.filterS) ? f.filterS : 0.0), kNaN);
+    }
+  cli::writeTextFile((out / "results.csv").string(), csv.str());
+  writeReport(o.outDir, results);
+  return 0;
+}
+
+}  // namespace crisp::eval

@@ -1,0 +1,187 @@
+# SPDX-License-Identifier: Apache-2.0
+"""End to end: `crisp eval` on a tiny still_life (96x54, 3 frames, reference 8 samples, curve 1,2,4) in
+real Blender, then:
+  * results.json has every method, blender-smaa and the EEVEE curve, in the issue's shape;
+  * each PSNR in it is recomputed here with numpy from the EXRs it points to (read through libcrisp's
+    C API with ctypes), display-encoded as metrics.h says;
+  * a second run resumes: nothing is re-rendered and the figures stay the same;
+  * report.html opens in headless Chromium with its self-check "OK" in the title, no console error,
+    and a screenshot that is not blank.
+Needs Blender, the built CLI and library (CRISP_BUILD_DIR) and Debian's chromium."""
+
+import ctypes
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+
+import numpy as np
+import pytest
+
+SOURCE = os.environ.get("CRISP_SOURCE_DIR") or os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+BUILD = os.environ.get("CRISP_BUILD_DIR") or os.path.join(SOURCE, "build")
+CRISP = os.path.join(BUILD, "bin", "crisp")
+LIBRARY = os.path.join(BUILD, "lib", "libcrisp.so")
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+ARGS = ["--scene", "still_life", "--resolution", "96x54", "--frames", "1-3", "--reference-samples", "8",
+        "--curve", "1,2,4"]
+
+pytestmark = [
+    pytest.mark.skipif(not os.path.isfile(CRISP), reason="crisp CLI not built at %s" % CRISP),
+    pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed"),
+]
+
+
+@pytest.fixture(scope="module")
+def run():
+    out = tempfile.mkdtemp(prefix="crisp_eval_")
+    p = subprocess.run([CRISP, "eval"] + ARGS + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                       timeout=600)
+    assert p.returncode == 0, p.stderr.decode()[-3000:]
+    yield out, p.stdout.decode(), p.stderr.decode()
+    shutil.rmtree(out, ignore_errors=True)
+
+
+class Lib:
+    """The three C API calls needed to read a frame's colour pass."""
+
+    def __init__(self):
+        self.lib = ctypes.CDLL(LIBRARY)
+        self.lib.crispNewContext.restype = ctypes.c_void_p
+        self.lib.crispLoadFrame.restype = ctypes.c_void_p
+        self.lib.crispLoadFrame.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
+        self.lib.crispGetFramePass.restype = ctypes.c_void_p
+        self.lib.crispGetFramePass.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_int)]
+        for f in ("crispGetFrameWidth", "crispGetFrameHeight"):
+            getattr(self.lib, f).argtypes = [ctypes.c_void_p]
+        self.lib.crispReleaseFrame.argtypes = [ctypes.c_void_p]
+        self.ctx = self.lib.crispNewContext()
+
+    def color(self, path):
+        frame = self.lib.crispLoadFrame(self.ctx, path.encode())
+        assert frame, "libcrisp could not load %s" % path
+        try:
+            w, h = self.lib.crispGetFrameWidth(frame), self.lib.crispGetFrameHeight(frame)
+            fmt = ctypes.c_int()
+            ptr = self.lib.crispGetFramePass(frame, b"color", ctypes.byref(fmt))
+            assert ptr and fmt.value == 4, "no RGBA colour in %s" % path  # CRISP_FORMAT_FLOAT4
+            return np.ctypeslib.as_array((ctypes.c_float * (w * h * 4)).from_address(ptr)).reshape(h, w, 4).copy()
+        finally:
+            self.lib.crispReleaseFrame(frame)
+
+
+def display(linear):
+    """metrics.h: linear RGB clamped to [0,1], sRGB-encoded (IEC 61966-2-1)."""
+    c = np.clip(linear[..., :3].astype(np.float64), 0.0, 1.0)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
+
+
+def psnr(ref, test):
+    mse = np.mean((display(ref) - display(test)) ** 2)
+    return 100.0 if mse == 0 else min(100.0, 10 * math.log10(1.0 / mse))
+
+
+def test_results_shape_and_every_entry(run):
+    out, stdout, _ = run
+    assert "report: " + os.path.join(out, "report.html") in stdout
+    r = json.load(open(os.path.join(out, "results.json")))
+    scene = r["scenes"][0]
+    assert scene["name"] == "still_life" and scene["resolution"] == [96, 54] and scene["frames"] == [1, 3]
+    names = [m["name"] for m in scene["methods"]]
+    assert names[0] == "none" and "blender-smaa" in names
+    listed = subprocess.run([CRISP, "help"], stdout=subprocess.PIPE).stdout.decode()
+    library = re.search(r"Methods: (.*)", listed).group(1).replace(",", " ").split()
+    assert set(library) <= set(names), "every library method is evaluated (or reported failed)"
+    for m in scene["methods"]:
+        assert {"psnr", "ssim", "temporal_error", "time_s"} <= set(m["mean"])
+        assert len(m["frames"]) == 3 and [f["frame"] for f in m["frames"]] == [1, 2, 3]
+        if m["error"]:
+            continue  # a failed method stays in the results with its reason
+        assert 5 < m["mean"]["psnr"] < 100 and 0 < m["mean"]["ssim"] <= 1
+        assert m["mean"]["time_s"] > 0 and m["frames"][0]["temporal_error"] is None
+        assert m["frames"][1]["temporal_error"] >= 0
+    assert [c["samples"] for c in scene["eevee_curve"]] == [1, 2, 4]
+    curve = scene["eevee_curve"]
+    assert all(c["time_s"] > 0 for c in curve)
+    assert curve[0]["psnr"] < curve[-1]["psnr"], "more EEVEE samples must get closer to the reference"
+    none = scene["methods"][0]
+    # The 'none' method copies the 1-sample frame: same figures as the curve's 1-sample point.
+    assert abs(none["mean"]["psnr"] - curve[0]["psnr"]) < 1e-9
+    assert abs(none["equivalent_eevee_samples"] - 1.0) < 1e-6
+    csv = open(os.path.join(out, "results.csv")).read().splitlines()
+    assert csv[0].startswith("scene,kind,name,frame,psnr") and len(csv) == 1 + 4 * (len(names) + len(curve))
+
+
+@pytest.mark.skipif(not os.path.isfile(LIBRARY), reason="libcrisp not built")
+def test_psnr_recomputed_from_the_files(run):
+    out, _, _ = run
+    lib = Lib()
+    scene = json.load(open(os.path.join(out, "results.json")))["scenes"][0]
+    refs = [lib.color(os.path.join(out, f)) for f in scene["reference"]["files"]]
+    checked = 0
+    for entry in scene["methods"] + scene["eevee_curve"]:
+        for i, f in enumerate(entry["frames"]):
+            if f["psnr"] is None:
+                continue
+            mine = psnr(refs[i], lib.color(os.path.join(out, f["file"])))
+            assert abs(mine - f["psnr"]) < 1e-3, (entry["name"], f["frame"], mine, f["psnr"])
+            checked += 1
+    assert checked >= 3 * 6
+
+
+def test_resume_redoes_nothing(run):
+    out, _, _ = run
+    before = {p: os.path.getmtime(os.path.join(dp, p)) for dp, _, fs in os.walk(os.path.join(out, "renders"))
+              for p in fs if p.endswith(".exr")}
+    first = json.load(open(os.path.join(out, "results.json")))["scenes"][0]
+    p = subprocess.run([CRISP, "eval"] + ARGS + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                       timeout=300)
+    assert p.returncode == 0, p.stderr.decode()[-2000:]
+    assert "done before" in p.stderr.decode()
+    after = {p: os.path.getmtime(os.path.join(dp, p)) for dp, _, fs in os.walk(os.path.join(out, "renders"))
+             for p in fs if p.endswith(".exr")}
+    assert before == after, "no render was redone"
+    second = json.load(open(os.path.join(out, "results.json")))["scenes"][0]
+    for a, b in zip(first["methods"], second["methods"]):
+        assert a["name"] == b["name"] and a["mean"]["psnr"] == b["mean"]["psnr"]
+
+
+def test_settings_of_another_run_are_refused(run):
+    out, _, _ = run
+    args = list(ARGS)
+    args[args.index("96x54")] = "64x36"
+    p = subprocess.run([CRISP, "eval"] + args + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert p.returncode == 2 and b"another scene or size" in p.stderr
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian chromium not installed")
+def test_report_opens_in_chromium(run):
+    out, _, _ = run
+    profile = tempfile.mkdtemp(prefix="crisp_chromium_")
+    flags = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             "--user-data-dir=" + profile, "--enable-logging=stderr", "--v=0", "--virtual-time-budget=3000"]
+    url = "file://" + os.path.join(out, "report.html")
+    try:
+        dom = subprocess.run(flags + ["--dump-dom", url], stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=120)
+        html = dom.stdout.decode()
+        title = re.search(r"<title>([^<]*)</title>", html).group(1)
+        assert title.startswith("crisp eval report: OK"), title
+        console = [l for l in dom.stderr.decode().splitlines() if "CONSOLE" in l]
+        assert not [l for l in console if "error" in l.lower() or "Uncaught" in l], console
+        assert html.count("<svg") >= 4 and "blender-smaa" in html and "EEVEE 4 spp" in html
+        shot = os.path.join(profile, "shot.png")
+        subprocess.run(flags + ["--screenshot=" + shot, "--window-size=1200,1600", url], stdout=subprocess.PIPE,
+                       stderr=subprocess.PIPE, timeout=120)
+        from skimage.io import imread
+        img = imread(shot)
+        assert img.shape[0] == 1600 and img.shape[1] == 1200
+        assert img[..., :3].std() > 20, "screenshot is blank"
+        # Charts drawn: the EEVEE curve's orange is on the page.
+        orange = (np.abs(img[..., 0].astype(int) - 255) < 30) & (np.abs(img[..., 1].astype(int) - 127) < 30) & (img[..., 2] < 60)
+        assert orange.sum() > 50
+    finally:
+        shutil.rmtree(profile, ignore_errors=True)
