@@ -12,6 +12,7 @@ std::unique_ptr<Filter> newFxaaFilter(Context&);
 std::unique_ptr<Filter> newRepairFilter(Context&);
 std::unique_ptr<Filter> newTaaFilter(Context&);
 std::unique_ptr<Filter> newPhlmFilter(Context&);
+std::unique_ptr<Filter> newRsaaFilter(Context&);
 
 namespace {
 struct Entry {
@@ -24,6 +25,7 @@ const Entry kFilters[] = {
     {"repair", newRepairFilter},
     {"taa", newTaaFilter},
     {"phlm", newPhlmFilter},
+    {"rsaa", newRsaaFilter},
 };
 }  // namespace
 

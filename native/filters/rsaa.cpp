@@ -1,0 +1,356 @@
+// SPDX-License-Identifier: Apache-2.0
+// "rsaa": resampling anti-aliasing (seed 003: Svoboda 2016 after Reshetov,
+// HPG 2012). See filters/rsaa.h for the steps, rsaa/sadp.h (eq. 2.1, 4.4.1),
+// rsaa/cluster.h (Algorithm 1, 2.3.3, 4.4.3) and rsaa/table_generator.h
+// (2.3.2) for the parts.
+//
+// Fast path: most pixels lie inside one polygon. For those the only work is
+// the "does any sample differ" test, which the fast path runs on 4 samples
+// at a time with SSE, computing exactly the scalar expressions of
+// rsaa::differs lane by lane (same operations, same order, -ffp-contract=off),
+// so the two paths agree bit for bit; every other pixel goes through the
+// same scalar resolve().
+#include "filters/rsaa.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <string>
+
+#include "core/color.h"
+#include "core/error.h"
+#include "core/filter.h"
+#include "core/parallel.h"
+#include "rsaa/offset_table.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace crisp::rsaa {
+
+void Kernel::allocate(int width, int height, const Settings& settings) {
+  width_ = width;
+  height_ = height;
+  settings_ = settings;
+  threshold2_ = settings.threshold * settings.threshold;
+  geometry_ = patternGeometry(kTablePattern);
+  colUx_.resize(std::size_t(width));
+  rowUy_.resize(std::size_t(height));
+  const Camera& c = settings.camera;
+  for (int x = 0; x < width; ++x) colUx_[std::size_t(x)] = float(rayUx(x + 0.5, width, c));
+  for (int y = 0; y < height; ++y) rowUy_[std::size_t(y)] = float(rayUy(y + 0.5, height, c));
+  // A sub-sample's ray terms are the centre's plus a constant step; the
+  // step is the ray-term difference of the offset (the ray terms are affine).
+  for (int k = 0; k < kSamples; ++k) {
+    dux_[k] = float(rayUx(0.5 + kTablePattern.x[k], width, c) - rayUx(0.5, width, c));
+    duy_[k] = float(rayUy(0.5 + kTablePattern.y[k], height, c) - rayUy(0.5, height, c));
+  }
+  staged_ = Image(width, height, 4);
+  masks_.assign(std::size_t(width) * std::size_t(height), 255);
+  halved_.assign(std::size_t(width) * std::size_t(height), 0);
+}
+
+long Kernel::resolvedCount() const {
+  long n = 0;
+  for (std::uint8_t m : masks_) n += m != 255;
+  return n;
+}
+
+Geo Kernel::centreGeo(const Inputs& in, int x, int y) const {
+  const float d = in.depth.pixel(x, y)[0];
+  const float* n = in.normal.pixel(x, y);
+  return makeGeo(d, n[0], n[1], n[2], colUx_[std::size_t(x)], rowUy_[std::size_t(y)], settings_.camera);
+}
+
+Geo Kernel::subGeo(const Inputs& in, int k, int x, int y) const {
+  const float* s = in.sub[k].pixel(x, y);
+  return makeGeo(s[3], s[0], s[1], s[2], colUx_[std::size_t(x)] + dux_[k], rowUy_[std::size_t(y)] + duy_[k],
+                 settings_.camera);
+}
+
+void Kernel::stage(const ImageView& color, int y0, int y1) {
+  const int c = color.channels();
+  for (int y = y0; y < y1; ++y) {
+    float* dst = staged_.at(0, y);
+    for (int x = 0; x < width_; ++x, dst += 4) {
+      const float* p = color.pixel(x, y);
+      dst[0] = sanitizeColor(p[0]);
+      dst[1] = sanitizeColor(c > 1 ? p[1] : p[0]);
+      dst[2] = sanitizeColor(c > 2 ? p[2] : p[0]);
+      dst[3] = c > 3 ? sanitizeColor(p[3]) : 1.0f;
+    }
+  }
+}
+
+// Bilinear fetch of the staged colour at pixel-index position (fx, fy)
+// (pixel (i, j)'s centre is at (i, j)), clamp-to-edge.
+void Kernel::fetch(float fx, float fy, float out[4]) const {
+  const float x0f = std::floor(fx), y0f = std::floor(fy);
+  const float tx = fx - x0f, ty = fy - y0f;
+  const int x0 = int(x0f), y0 = int(y0f);
+  const int xa = std::clamp(x0, 0, width_ - 1), xb = std::clamp(x0 + 1, 0, width_ - 1);
+  const int ya = std::clamp(y0, 0, height_ - 1), yb = std::clamp(y0 + 1, 0, height_ - 1);
+  const float* c00 = staged_.at(xa, ya);
+  const float* c10 = staged_.at(xb, ya);
+  const float* c01 = staged_.at(xa, yb);
+  const float* c11 = staged_.at(xb, yb);
+  for (int k = 0; k < 4; ++k) {
+    const float top = (1.0f - tx) * c00[k] + tx * c10[k];
+    const float bottom = (1.0f - tx) * c01[k] + tx * c11[k];
+    out[k] = (1.0f - ty) * top + ty * bottom;
+  }
+}
+
+void Kernel::resolve(const Inputs& in, int x, int y, const Geo& centre, const Geo* subs, float out[4]) {
+  float s[kSamples];
+  for (int k = 0; k < kSamples; ++k) s[k] = sadp(centre, subs[k]);
+  int mask = splitMask(s, settings_.threshold);  // Algorithm 1
+  const auto neighbour = [&](int k, Geo& g) {
+    const int nx = x + geometry_.neighbourDx[k], ny = y + geometry_.neighbourDy[k];
+    if (nx < 0 || ny < 0 || nx >= width_ || ny >= height_) return false;
+    g = centreGeo(in, nx, ny);
+    return true;
+  };
+  if (settings_.verification == Verification::Reassign) {
+    for (int k = 0; k < kSamples; ++k) {
+      if (mask & (1 << k)) continue;
+      Geo n;
+      if (neighbour(k, n) && !(sadp(subs[k], n) < s[k])) mask |= 1 << k;
+    }
+  }
+  float ox = kOffsetTable[mask][0], oy = kOffsetTable[mask][1];
+  bool halved = false;
+  if (settings_.verification == Verification::Halve && mask != 255) {
+    int f = -1;
+    for (int i = 0; i < kSamples && f < 0; ++i)
+      if (!(mask & (1 << geometry_.byDistance[i]))) f = geometry_.byDistance[i];
+    Geo n;
+    if (neighbour(f, n) && sadp(centre, n) >= 2.0f * s[f]) {
+      ox *= 0.5f;
+      oy *= 0.5f;
+      halved = true;
+    }
+  }
+  const std::size_t i = std::size_t(y) * std::size_t(width_) + std::size_t(x);
+  masks_[i] = std::uint8_t(mask);
+  halved_[i] = halved;
+  fetch(float(x) + ox, float(y) + oy, out);
+}
+
+namespace {
+
+#if defined(__SSE2__)
+inline __m128 absPs(__m128 v) { return _mm_andnot_ps(_mm_set1_ps(-0.0f), v); }
+
+// Lane-wise rsaa::differs(centre, sample) for 4 sub-samples given as their
+// float4 pixels (nx, ny, nz, depth); returns a 4-bit lane mask.
+template <bool Ortho>
+inline int differs4(const float* s0, const float* s1, const float* s2, const float* s3, const Geo& c,
+                    float ux, float uy, __m128 dux, __m128 duy, const Camera& cam, float threshold2) {
+  __m128 nx = _mm_loadu_ps(s0), ny = _mm_loadu_ps(s1), nz = _mm_loadu_ps(s2), d = _mm_loadu_ps(s3);
+  _MM_TRANSPOSE4_PS(nx, ny, nz, d);
+  const __m128 bg = _mm_cmpnlt_ps(d, _mm_set1_ps(kFarDepth));
+  if (c.background) return ~_mm_movemask_ps(bg) & 0xF;  // geometry differs from background
+  const __m128 sux = _mm_add_ps(_mm_set1_ps(ux), dux);
+  const __m128 suy = _mm_add_ps(_mm_set1_ps(uy), duy);
+  const __m128 px = Ortho ? sux : _mm_mul_ps(sux, d);
+  const __m128 py = Ortho ? suy : _mm_mul_ps(suy, d);
+  const __m128 pz = _mm_xor_ps(d, _mm_set1_ps(-0.0f));
+  const auto rot = [&](int r) {
+    return _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(cam.view[r][0]), nx), _mm_mul_ps(_mm_set1_ps(cam.view[r][1]), ny)),
+                      _mm_mul_ps(_mm_set1_ps(cam.view[r][2]), nz));
+  };
+  const __m128 snx = rot(0), sny = rot(1), snz = rot(2);
+  const __m128 rx = _mm_sub_ps(px, _mm_set1_ps(c.px));
+  const __m128 ry = _mm_sub_ps(py, _mm_set1_ps(c.py));
+  const __m128 rz = _mm_sub_ps(pz, _mm_set1_ps(c.pz));
+  const __m128 r2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(rx, rx), _mm_mul_ps(ry, ry)), _mm_mul_ps(rz, rz));
+  const __m128 apart = _mm_cmpgt_ps(r2, _mm_set1_ps(kSamePoint2 * (c.pz * c.pz)));
+  const __m128 da = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(c.nx), rx), _mm_mul_ps(_mm_set1_ps(c.ny), ry)),
+                               _mm_mul_ps(_mm_set1_ps(c.nz), rz));
+  const __m128 db = _mm_add_ps(_mm_add_ps(_mm_mul_ps(snx, rx), _mm_mul_ps(sny, ry)), _mm_mul_ps(snz, rz));
+  const __m128 dn = _mm_add_ps(absPs(da), absPs(db));
+  const __m128 far = _mm_cmpnlt_ps(_mm_mul_ps(dn, dn), _mm_mul_ps(_mm_set1_ps(threshold2), r2));
+  return _mm_movemask_ps(_mm_or_ps(bg, _mm_and_ps(apart, far)));
+}
+#endif
+
+}  // namespace
+
+void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd) {
+  const int outChannels = output.channels();
+  Geo subs[kSamples];
+  float colour[4];
+#if defined(__SSE2__)
+  const __m128 dux0 = _mm_setr_ps(dux_[0], dux_[1], dux_[2], dux_[3]);
+  const __m128 dux1 = _mm_setr_ps(dux_[4], dux_[5], dux_[6], dux_[7]);
+  const __m128 duy0 = _mm_setr_ps(duy_[0], duy_[1], duy_[2], duy_[3]);
+  const __m128 duy1 = _mm_setr_ps(duy_[4], duy_[5], duy_[6], duy_[7]);
+#else
+  simd = false;
+#endif
+  const Camera& cam = settings_.camera;
+  for (int y = y0; y < y1; ++y) {
+    for (int x = 0; x < width_; ++x) {
+      const Geo centre = centreGeo(in, x, y);
+      bool any = false;
+#if defined(__SSE2__)
+      if (simd) {
+        const float ux = colUx_[std::size_t(x)], uy = rowUy_[std::size_t(y)];
+        const float* p[kSamples];
+        for (int k = 0; k < kSamples; ++k) p[k] = in.sub[k].pixel(x, y);
+        const int bits = cam.orthographic
+                             ? differs4<true>(p[0], p[1], p[2], p[3], centre, ux, uy, dux0, duy0, cam, threshold2_) |
+                                   differs4<true>(p[4], p[5], p[6], p[7], centre, ux, uy, dux1, duy1, cam, threshold2_)
+                             : differs4<false>(p[0], p[1], p[2], p[3], centre, ux, uy, dux0, duy0, cam, threshold2_) |
+                                   differs4<false>(p[4], p[5], p[6], p[7], centre, ux, uy, dux1, duy1, cam, threshold2_);
+        any = bits != 0;
+        if (any)
+          for (int k = 0; k < kSamples; ++k) subs[k] = subGeo(in, k, x, y);
+      }
+#endif
+      if (!simd) {
+        for (int k = 0; k < kSamples; ++k) {
+          subs[k] = subGeo(in, k, x, y);
+          any = any || differs(centre, subs[k], threshold2_);
+        }
+      }
+      const std::size_t i = std::size_t(y) * std::size_t(width_) + std::size_t(x);
+      const float* src;
+      if (any) {
+        resolve(in, x, y, centre, subs, colour);
+        src = colour;
+      } else {
+        masks_[i] = 255;
+        halved_[i] = 0;
+        src = staged_.at(x, y);
+      }
+      float* o = output.pixel(x, y);
+      for (int k = 0; k < outChannels; ++k) o[k] = src[k];
+    }
+  }
+}
+
+void Kernel::run(const Inputs& in, const ImageView& output, bool reference, int numThreads) {
+  if (in.color.width != width_ || in.color.height != height_ || output.width != width_ || output.height != height_)
+    invalidArgument("rsaa: images are " + std::to_string(in.color.width) + "x" + std::to_string(in.color.height) +
+                    " but the kernel was allocated for " + std::to_string(width_) + "x" + std::to_string(height_));
+  if (reference) {
+    stage(in.color, 0, height_);
+    runRows(in, output, 0, height_, false);
+    return;
+  }
+  // The staged colour must be complete before any pixel fetches neighbours.
+  parallelRows(width_, height_, numThreads, [&](int y0, int y1) { stage(in.color, y0, y1); });
+  parallelRows(width_, height_, numThreads, [&](int y0, int y1) { runRows(in, output, y0, y1, true); });
+}
+
+}  // namespace crisp::rsaa
+
+// ---------------------------------------------------------------- filter --
+
+namespace crisp {
+namespace {
+
+// The parameter documentation (crisp help rsaa, crispGetFilterDoc).
+std::vector<ParamSpec> rsaaParams() {
+  return {
+      {"threshold", ParamType::Float, 0.2, 0.0, 2.0, nullptr,
+       "SADP at and above which a sub-sample counts as another polygon; a pixel none of whose 8 samples "
+       "reaches it keeps its colour. SADP is about the crease angle in radians for two faces meeting at an "
+       "edge (0.2 ~ 11 degrees) and ~2 across a depth jump; background vs geometry counts as 2",
+       "eq. 2.1, section 2.3.1, Algorithm 1"},
+      {"verification", ParamType::String, 0, 0, 0, "halve|reassign|none",
+       "offset verification: halve = halve the offset when the neighbouring centre it leans to has SADP >= "
+       "2x the farthest different sample's (4.4.3); reassign = a different sample must be more similar to "
+       "the neighbouring centre in its direction than to its own (2.3.3); none = table offset as is",
+       "sections 2.3.3, 4.4.3, figures 2.8, 5.5"},
+      {"orthographic", ParamType::Bool, 0, 0, 1, nullptr,
+       "orthographic camera (the sidecar's camera.projection[3][3] == 1); else perspective", "section 4.4.1"},
+      {"proj00", ParamType::Float, 1.0, 1e-6, 1e6, nullptr,
+       "camera.projection[0][0] (OpenGL-style, from the sidecar; cot(fov_x/2) for a perspective camera)",
+       "section 4.4.1"},
+      {"proj11", ParamType::Float, 1.0, 1e-6, 1e6, nullptr, "camera.projection[1][1]", "section 4.4.1"},
+      {"proj02", ParamType::Float, 0.0, -1e6, 1e6, nullptr,
+       "camera.projection[0][2] (lens shift incl. the frame's jitter; unused when orthographic)", "section 4.4.1"},
+      {"proj12", ParamType::Float, 0.0, -1e6, 1e6, nullptr, "camera.projection[1][2]", "section 4.4.1"},
+      {"view00", ParamType::Float, 1.0, -1e3, 1e3, nullptr,
+       "camera.view[0][0]: view00..view22 are the rotation part of the world->view matrix, used to bring the "
+       "world normals into the frame of the positions (identity by default: normals already in view space)",
+       "section 4.4.1"},
+      {"view01", ParamType::Float, 0.0, -1e3, 1e3, nullptr, "camera.view[0][1]", "section 4.4.1"},
+      {"view02", ParamType::Float, 0.0, -1e3, 1e3, nullptr, "camera.view[0][2]", "section 4.4.1"},
+      {"view10", ParamType::Float, 0.0, -1e3, 1e3, nullptr, "camera.view[1][0]", "section 4.4.1"},
+      {"view11", ParamType::Float, 1.0, -1e3, 1e3, nullptr, "camera.view[1][1]", "section 4.4.1"},
+      {"view12", ParamType::Float, 0.0, -1e3, 1e3, nullptr, "camera.view[1][2]", "section 4.4.1"},
+      {"view20", ParamType::Float, 0.0, -1e3, 1e3, nullptr, "camera.view[2][0]", "section 4.4.1"},
+      {"view21", ParamType::Float, 0.0, -1e3, 1e3, nullptr, "camera.view[2][1]", "section 4.4.1"},
+      {"view22", ParamType::Float, 1.0, -1e3, 1e3, nullptr, "camera.view[2][2]", "section 4.4.1"},
+      {"reference", ParamType::Bool, 0, 0, 1, nullptr,
+       "run the scalar reference path (one thread); bit-identical to the fast path", "section 4.4.2"},
+  };
+}
+
+constexpr const char* kSubRoles[rsaa::kSamples] = {"sub0", "sub1", "sub2", "sub3", "sub4", "sub5", "sub6", "sub7"};
+
+std::vector<ImageRole> rsaaRoles() {
+  std::vector<ImageRole> roles = {
+      {"color", true, 3, 4, false, "linear RGB(A) colour, 1 sample at the pixel centre"},
+      {"depth", true, 1, 4, false, "planar view depth at the pixel centre (channel 0; background >= 65504)"},
+      {"normal", true, 3, 4, false, "world-space normal at the pixel centre (xyz)"},
+      {"output", true, 3, 4, false, "filtered colour, same size (may be the colour buffer)"},
+  };
+  for (int k = 0; k < rsaa::kSamples; ++k)
+    roles.push_back({kSubRoles[k], true, 4, 4, false,
+                     "geometric sub-sample k (frame_NNNN_subK.exr) at the pattern's offset k: world normal xyz + "
+                     "planar depth in w (pattern, x right / y down: (-0.375,0.125) (0.125,0.375) (0.375,-0.125) "
+                     "(-0.125,-0.375) (-0.25,-0.25) (0.25,-0.25) (0.25,0.25) (-0.25,0.25) = the add-on's "
+                     "RSAA_PATTERN with y negated)"});
+  return roles;
+}
+
+class RsaaFilter final : public Filter {
+ public:
+  explicit RsaaFilter(Context& c) : Filter(c, rsaaParams(), rsaaRoles()) {}
+  const char* type() const override { return "rsaa"; }
+
+ protected:
+  void onCommit() override {
+    const ParamSet& p = params();
+    rsaa::Settings s;
+    s.threshold = p.getFloat("threshold");
+    const std::string& v = p.getString("verification");
+    s.verification = v == "none" ? rsaa::Verification::None
+                     : v == "reassign" ? rsaa::Verification::Reassign
+                                       : rsaa::Verification::Halve;
+    rsaa::Camera& cam = s.camera;
+    cam.orthographic = p.getBool("orthographic");
+    cam.proj00 = p.getFloat("proj00");
+    cam.proj11 = p.getFloat("proj11");
+    cam.proj02 = p.getFloat("proj02");
+    cam.proj12 = p.getFloat("proj12");
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) cam.view[r][c] = p.getFloat("view" + std::to_string(r) + std::to_string(c));
+    reference_ = p.getBool("reference");
+    kernel_.allocate(width(), height(), s);
+  }
+  void onExecute() override {
+    rsaa::Inputs in;
+    in.color = image("color");
+    in.depth = image("depth");
+    in.normal = image("normal");
+    for (int k = 0; k < rsaa::kSamples; ++k) in.sub[k] = image(kSubRoles[k]);
+    kernel_.run(in, image("output"), reference_, numThreads());
+  }
+
+ private:
+  bool reference_ = false;
+  rsaa::Kernel kernel_;
+};
+
+}  // namespace
+
+std::unique_ptr<Filter> newRsaaFilter(Context& c) { return std::make_unique<RsaaFilter>(c); }
+
+}  // namespace crisp

@@ -1,0 +1,84 @@
+// SPDX-License-Identifier: Apache-2.0
+// RSAA: resampling anti-aliasing from 8 geometric sub-samples per pixel
+// (seed 003 = Svoboda 2016, after Reshetov, HPG 2012; chapters 2.3 and 4.4).
+// A kernel that tests and benchmarks drive without the Filter interface.
+//
+// Per pixel:
+//  1. positions of the centre and the 8 sub-samples from planar depth and the
+//     camera (rsaa/sadp.h), normals rotated to view space;
+//  2. SADP of each sample against the centre (eq. 2.1); a pixel none of
+//     whose samples reaches the threshold keeps its colour (2.3.1, 2.3.4);
+//  3. otherwise the two-cluster split of Algorithm 1 gives the 8-bit mask,
+//     optionally verified (2.3.3 / 4.4.3, rsaa/cluster.h);
+//  4. the mask indexes the generated offset table (rsaa/offset_table.h) and
+//     the colour is fetched bilinearly at the pixel centre + offset (2.3,
+//     4.4.2), clamp-to-edge.
+// Conventions (core/conventions.h): rows top-down, offsets in pixels, y down.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/image.h"
+#include "rsaa/cluster.h"
+#include "rsaa/sadp.h"
+
+namespace crisp::rsaa {
+
+struct Settings {
+  float threshold = 0.2f;  // SADP at and above which a sample is on another polygon
+  Verification verification = Verification::Halve;
+  Camera camera;
+};
+
+// The images of one frame, all the same size.
+struct Inputs {
+  ImageView color;   // 3/4 channels, linear
+  ImageView depth;   // channel 0: planar depth (background >= kFarDepth)
+  ImageView normal;  // channels 0-2: world normal at the pixel centre
+  ImageView sub[kSamples];  // 4 channels: world normal xyz, planar depth of sub-sample k
+};
+
+class Kernel {
+ public:
+  // Allocates every buffer and the per-row/column ray terms (from
+  // Filter::onCommit; never in run()). The pattern is the shipped table's.
+  void allocate(int width, int height, const Settings& settings);
+  // reference = true: scalar path, one thread. false: rows in parallel with
+  // a 4-lane SSE test for the pixels that need no RSAA. Bit-identical output.
+  // output may be the colour buffer.
+  void run(const Inputs& in, const ImageView& output, bool reference, int numThreads);
+
+  // Results of the last run, for tests and reports.
+  const Image& staged() const { return staged_; }  // sanitised RGBA input
+  // Per pixel (row-major): the mask used (bit k = sample k on the centre's
+  // polygon, after verification); 255 where the pixel kept its colour.
+  const std::vector<std::uint8_t>& masks() const { return masks_; }
+  // Pixels whose offset was halved by Verification::Halve in the last run.
+  const std::vector<std::uint8_t>& halved() const { return halved_; }
+  long resolvedCount() const;  // pixels whose colour was resampled
+  const Settings& settings() const { return settings_; }
+
+ private:
+  struct Ray {
+    float ux, uy;
+  };
+  Geo centreGeo(const Inputs& in, int x, int y) const;
+  Geo subGeo(const Inputs& in, int k, int x, int y) const;
+  // Steps 2-4 for a pixel with at least one differing sample.
+  void resolve(const Inputs& in, int x, int y, const Geo& centre, const Geo* subs, float out[4]);
+  void runRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd);
+  void stage(const ImageView& color, int y0, int y1);
+  void fetch(float fx, float fy, float out[4]) const;
+
+  int width_ = 0, height_ = 0;
+  Settings settings_;
+  float threshold2_ = 0.0f;
+  PatternGeometry geometry_{};
+  std::vector<float> colUx_, rowUy_;
+  float dux_[kSamples] = {}, duy_[kSamples] = {};
+  Image staged_;
+  std::vector<std::uint8_t> masks_, halved_;
+};
+
+}  // namespace crisp::rsaa
