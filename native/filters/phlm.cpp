@@ -78,6 +78,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <type_traits>
 
 #include "core/color.h"
 #include "core/error.h"
@@ -85,6 +86,7 @@
 #include "core/parallel.h"
 #include "temporal/history_fetch.h"
 #include "temporal/jitter.h"
+#include "temporal/vec4.h"
 #include "temporal/velocity.h"
 
 namespace crisp::phlm {
@@ -162,11 +164,27 @@ inline void fetchBeta(const T* records, int w, int h, float x, float y, T* model
   const T* p10 = at(xb, ya);
   const T* p01 = at(xa, yb);
   const T* p11 = at(xb, yb);
-  const T tx = T(f.tx), ty = T(f.ty);
-  for (int i = 0; i < 12; ++i) {
-    const T top = p00[i] + (p10[i] - p00[i]) * tx;
-    const T bottom = p01[i] + (p11[i] - p01[i]) * tx;
-    model[kBeta + i] = top + (bottom - top) * ty;
+  if constexpr (std::is_same_v<T, float>) {
+    // Rows of 3 read as 4 lanes (lane 3 = the next scalar of the record, never
+    // used); rows stored in increasing order, the last one 3 lanes wide.
+    using temporal::Vec4;
+    Vec4 rows[4];
+    for (int j = 0; j < 4; ++j) {
+      const Vec4 a = temporal::load4(p00 + 3 * j), b = temporal::load4(p10 + 3 * j);
+      const Vec4 c = temporal::load4(p01 + 3 * j), d = temporal::load4(p11 + 3 * j);
+      const Vec4 top = a + (b - a) * f.tx;
+      const Vec4 bottom = c + (d - c) * f.tx;
+      rows[j] = top + (bottom - top) * f.ty;
+    }
+    for (int j = 0; j < 3; ++j) temporal::store4(model + kBeta + 3 * j, rows[j]);
+    std::memcpy(model + kBeta + 9, &rows[3], 3 * sizeof(float));
+  } else {
+    const T tx = T(f.tx), ty = T(f.ty);
+    for (int i = 0; i < 12; ++i) {
+      const T top = p00[i] + (p10[i] - p00[i]) * tx;
+      const T bottom = p01[i] + (p11[i] - p01[i]) * tx;
+      model[kBeta + i] = top + (bottom - top) * ty;
+    }
   }
 }
 
@@ -193,7 +211,11 @@ inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
   const int w = f.width, h = f.height;
   // 3x3 neighbourhood of this frame: box, average (the low-frequency colour),
   // tonemapped luminance range.
-  T lo[3], hi[3], sum[3] = {T(0), T(0), T(0)}, yMin = T(0), yMax = T(0), current[3];
+  // Four lanes at once (temporal/vec4.h): RGB and, in lane 3, the staged
+  // tonemapped luminance; min/max are exact and the sum runs in tap order, so
+  // every path gets the same bits.
+  using temporal::Vec4;
+  Vec4 boxLo, boxHi, boxSum, centre;
   float depth9[9];
   int tapX[9], tapY[9];
   for (int j = 0, i = 0; j < 3; ++j)
@@ -202,25 +224,22 @@ inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
       const int ty = Clamp ? std::clamp(y + j - 1, 0, h - 1) : y + j - 1;
       tapX[i] = tx;
       tapY[i] = ty;
-      const float* p = f.staged + (std::size_t(ty) * w + tx) * 4;
-      const T c[3] = {T(p[0]), T(p[1]), T(p[2])};
-      const T tonemapped = T(p[3]);
+      const Vec4 c = temporal::load4(f.staged + (std::size_t(ty) * w + tx) * 4);
       if (i == 0) {
-        for (int ch = 0; ch < 3; ++ch) lo[ch] = hi[ch] = c[ch];
-        yMin = yMax = tonemapped;
+        boxLo = boxHi = boxSum = c;
       } else {
-        for (int ch = 0; ch < 3; ++ch) {
-          lo[ch] = std::min(lo[ch], c[ch]);
-          hi[ch] = std::max(hi[ch], c[ch]);
-        }
-        yMin = std::min(yMin, tonemapped);
-        yMax = std::max(yMax, tonemapped);
+        boxLo = temporal::vmin(boxLo, c);
+        boxHi = temporal::vmax(boxHi, c);
+        boxSum += c;
       }
-      for (int ch = 0; ch < 3; ++ch) sum[ch] += c[ch];
-      if (i == 4)
-        for (int ch = 0; ch < 3; ++ch) current[ch] = c[ch];
+      if (i == 4) centre = c;
       if (f.depth) depth9[i] = f.depth[std::size_t(ty) * w + tx];
     }
+  const T lo[3] = {T(boxLo[0]), T(boxLo[1]), T(boxLo[2])};
+  const T hi[3] = {T(boxHi[0]), T(boxHi[1]), T(boxHi[2])};
+  const T sum[3] = {T(boxSum[0]), T(boxSum[1]), T(boxSum[2])};
+  const T current[3] = {T(centre[0]), T(centre[1]), T(centre[2])};
+  const T yMin = T(boxLo[3]), yMax = T(boxHi[3]);
 
   // Step 1: velocity (closest depth of the 3x3 when depth is given).
   float vx = 0.0f, vy = 0.0f;
