@@ -36,11 +36,12 @@ constexpr int kMaxPatchSize = 15;
 
 // ---- Step 1: grey image (eq. 2.1, Y row of YIQ) ---------------------------
 // Display encoding used for the grey image: sRGB encoding of the linear value
-// clamped to [0, 1]. Computed from a 16257-entry table indexed by the float's
-// top bits with linear interpolation inside each segment; it differs from
-// crisp::srgbEncode (core/color.h) by less than 3e-6 (tested), far below one
-// 8-bit display step (1/255), and costs no pow() per pixel.
-float srgbEncodeTable(float linear);
+// clamped to [0, 1] (NaN -> 0), computed without pow() or tables so that the
+// fast path vectorises it (see repair.cpp for the identities used). It
+// differs from the exact curve by < 3.1e-7 and from crisp::srgbEncode
+// (core/color.h) by < 1e-6 (tested), far below one 8-bit display step (1/255).
+// Both paths use it, so they stay bit-identical.
+float srgbEncodeFast(float linear);
 // Y = 0.299 R' + 0.587 G' + 0.114 B' of the display-encoded colour.
 float greyOf(float r, float g, float b);
 
@@ -50,8 +51,9 @@ float sobelMagnitude(const float n[3][3]);
 
 // ---- Step 3: threshold (eq. 3.1 with the definition of sigma) ------------
 // Statistics of the NON-ZERO gradient values, accumulated in double: each
-// row is summed left to right, then the row sums are added top to bottom, so
-// the result does not depend on the number of threads.
+// row in a fixed order (eight running sums over x mod 8, then the tail), then
+// the row sums top to bottom, so the result does not depend on the number of
+// threads or on the path.
 struct RowStats {
   double count = 0, sum = 0, sumSquares = 0;
 };
@@ -93,6 +95,12 @@ const Mask& maskFor(MaskKind kind);
 void smoothPixel(const Image& rgba, int x, int y, const Direction& d, const Mask& mask, float out[4]);
 
 // ---- The whole filter -----------------------------------------------------
+// Instruction set of the fast path's row loops (grey, sanitise, Sobel,
+// statistics). Auto: AVX2 when the CPU has it, else the x86-64 baseline
+// (SSE2). Every choice gives the same bits (tested).
+enum class RowIsa { Auto, Baseline };
+const char* rowIsaName(RowIsa isa);  // "avx2" or "sse2": what `isa` runs here
+
 class Kernel {
  public:
   // Allocates every buffer (called from Filter::onCommit, never in run()).
@@ -106,9 +114,12 @@ class Kernel {
   void run(const ImageView& color, const ImageView& output, const Settings& settings, bool reference,
            int numThreads);
 
+  // For tests: force the baseline row loops on an AVX2 machine.
+  void setRowIsa(RowIsa isa) { rowIsa_ = isa; }
+
   // Results of the last run, for tests and reports.
   const Image& staged() const { return staged_; }      // sanitised RGBA input
-  const Image& grey() const { return grey_; }          // step 1
+  const Image& grey() const { return grey_; }          // step 1 (reference path only: the fast path keeps 3 rows)
   const Image& gradient() const { return gradient_; }  // step 2 (before thresholding)
   const ThresholdStats& threshold() const { return stats_; }
   long edgeCount() const;  // pixels filtered in the last run
@@ -119,8 +130,16 @@ class Kernel {
   void runReference(const ImageView& color, const ImageView& output, const Settings& s);
   void runFast(const ImageView& color, const ImageView& output, const Settings& s, int numThreads);
 
+  // Rows per band of the fast path's first pass (grey, Sobel, statistics).
+  // Each band recomputes the 2 grey rows just outside it: 2/64 = 3% extra.
+  static constexpr int kBandRows = 64;
+
   int width_ = 0, height_ = 0;
   Image staged_, grey_, gradient_;
+  int bands_ = 0;
+  std::vector<float> bandScratch_;  // per band: 3 grey rows + 1 RGBA row
+  std::vector<char> bandSanitized_;  // per band: sanitising changed a value
+  RowIsa rowIsa_ = RowIsa::Auto;
   std::vector<RowStats> rowStats_;
   std::vector<long> rowEdges_;
   ThresholdStats stats_;

@@ -45,11 +45,12 @@ double maskedPsnr(const Image& reference, const Image& test, const Image& mask) 
 }
 
 Image runKernel(const Image& input, const Settings& s, bool reference = false, int threads = 0,
-                repair::Kernel* kernelOut = nullptr) {
+                repair::Kernel* kernelOut = nullptr, repair::RowIsa isa = repair::RowIsa::Auto) {
   Image out(input.width, input.height, 4);
   repair::Kernel local;
   repair::Kernel& k = kernelOut ? *kernelOut : local;
   k.allocate(input.width, input.height);
+  k.setRowIsa(isa);
   k.run(input.view(), out.view(), s, reference, threads);
   return out;
 }
@@ -113,19 +114,19 @@ Image randomImage(int w, int h, unsigned seed) {
 
 // ---- step 1 ----------------------------------------------------------------
 
-TEST(RepairGrey, TableEncodingMatchesSrgbEncode) {
+TEST(RepairGrey, FastEncodingMatchesSrgbEncode) {
   double worst = 0;
   for (int i = 0; i <= 200000; ++i) {
     const float v = float(i) / 200000.0f;
-    worst = std::max(worst, double(std::fabs(repair::srgbEncodeTable(v) - srgbEncode(v))));
+    worst = std::max(worst, double(std::fabs(repair::srgbEncodeFast(v) - srgbEncode(v))));
   }
   for (float v : {1e-30f, 1e-8f, 0.0031308f, 0.0031309f, 0.04f, 0.5f, 0.999999f}) 
-    worst = std::max(worst, double(std::fabs(repair::srgbEncodeTable(v) - srgbEncode(v))));
-  std::printf("[ repair ] table sRGB encoding: max |error| vs srgbEncode = %.3g\n", worst);
-  EXPECT_LT(worst, 3e-6);
-  EXPECT_EQ(repair::srgbEncodeTable(-1.0f), 0.0f);
-  EXPECT_EQ(repair::srgbEncodeTable(NAN), 0.0f);
-  EXPECT_EQ(repair::srgbEncodeTable(7.0f), 1.0f);
+    worst = std::max(worst, double(std::fabs(repair::srgbEncodeFast(v) - srgbEncode(v))));
+  std::printf("[ repair ] fast sRGB encoding: max |error| vs srgbEncode = %.3g\n", worst);
+  EXPECT_LT(worst, 1e-6);
+  EXPECT_EQ(repair::srgbEncodeFast(-1.0f), 0.0f);
+  EXPECT_EQ(repair::srgbEncodeFast(NAN), 0.0f);
+  EXPECT_EQ(repair::srgbEncodeFast(7.0f), 1.0f);
 }
 
 TEST(RepairGrey, IsYiqLumaOfDisplayEncodedColour) {
@@ -396,7 +397,8 @@ Strided stridedCopy(const Image& im, int channels, int pad, int rowPad) {
 TEST(RepairPaths, FastIsBitIdenticalToReference) {
   std::vector<Image> inputs;
   inputs.push_back(synth::renderCentre(synth::testChart(120, 80), 120, 80));
-  for (auto [w, h] : {std::pair{1, 1}, {2, 3}, {17, 9}, {9, 17}, {33, 20}, {5, 64}})
+  // 37x150: three bands of the fast path's first pass (grey rows recomputed at their edges).
+  for (auto [w, h] : {std::pair{1, 1}, {2, 3}, {17, 9}, {9, 17}, {33, 20}, {5, 64}, {37, 150}})
     inputs.push_back(randomImage(w, h, unsigned(w * 100 + h)));
   Image withBad = randomImage(31, 13, 3);
   withBad.data[5] = NAN;
@@ -415,12 +417,14 @@ TEST(RepairPaths, FastIsBitIdenticalToReference) {
             s.kappa = kappa;
             s.patchSize = n;
             const Image expected = runKernel(in, s, true, 1);
-            for (int threads : {0, 1, 2}) {
-              const Image fast = runKernel(in, s, false, threads);
-              ASSERT_EQ(std::memcmp(fast.data.data(), expected.data.data(), expected.data.size() * 4), 0)
-                  << in.width << "x" << in.height << " threads " << threads << " n " << n;
-              ++compared;
-            }
+            for (int threads : {0, 1, 2})
+              for (repair::RowIsa isa : {repair::RowIsa::Auto, repair::RowIsa::Baseline}) {
+                const Image fast = runKernel(in, s, false, threads, nullptr, isa);
+                ASSERT_EQ(std::memcmp(fast.data.data(), expected.data.data(), expected.data.size() * 4), 0)
+                    << in.width << "x" << in.height << " threads " << threads << " n " << n << " rows "
+                    << repair::rowIsaName(isa);
+                ++compared;
+              }
           }
   // Strided 3/4-channel views and in-place filtering.
   for (const Image& in : inputs) {
@@ -431,6 +435,7 @@ TEST(RepairPaths, FastIsBitIdenticalToReference) {
         Strided dst = stridedCopy(Image(in.width, in.height, 4), channels, pad + 1, rowPad);
         repair::Kernel k;
         k.allocate(in.width, in.height);
+        k.setRowIsa(pad == 1 ? repair::RowIsa::Baseline : repair::RowIsa::Auto);
         for (bool reference : {false, true}) {
           k.run(src.view, dst.view, Settings{}, reference, 0);
           Strided inPlace = stridedCopy(in, channels, pad, rowPad);
@@ -449,7 +454,8 @@ TEST(RepairPaths, FastIsBitIdenticalToReference) {
         }
       }
   }
-  std::printf("[ repair ] fast == reference on %ld configurations\n", compared);
+  std::printf("[ repair ] fast == reference on %ld configurations (row loops: %s and %s)\n", compared,
+              repair::rowIsaName(repair::RowIsa::Auto), repair::rowIsaName(repair::RowIsa::Baseline));
 }
 
 // ---- through the Filter interface ------------------------------------------------
