@@ -58,6 +58,7 @@ SIGNATURES = {
     "crispGetFramePasses": (_cp, [_vp]),
     "crispGetFramePass": (_vp, [_vp, _cp, ctypes.POINTER(_int)]),
     "crispWriteImage": (None, [_vp, _cp, _vp, _int, _sz, _sz, _sz, _sz]),
+    "crispReconstructFrameMotion": (None, [_vp, _vp, _cp, _cp]),
     "crispCompareImages": (None, [_vp, _vp, _vp, _int, _sz, _sz, _vp, ctypes.POINTER(Metrics)]),
 }
 # Calls that do not record errors (and crispGetError itself).
@@ -278,6 +279,12 @@ class Frame:
         ptr = call("crispGetFramePass", self.handle, _b(role), ctypes.byref(fmt))
         return ptr, fmt.value
 
+    def reconstruct_motion(self, context, previous_sidecar, next_sidecar=None):
+        """Adds a "motion" pass rebuilt from depth, IDs and the sidecars (this frame's own beside its
+        EXR, and the previous frame's): EEVEE 3.4 writes no Vector pass."""
+        call("crispReconstructFrameMotion", context.handle, self.handle, _b(previous_sidecar),
+             _b(next_sidecar) if next_sidecar else None)
+
     def pass_values(self, role):
         """The pass as a flat Python list (row 0 = top), and its channel count."""
         ptr, fmt = self.pass_pointer(role)
@@ -326,7 +333,25 @@ class FrameFilter:
         for k, v in (params or {}).items():
             self.filter.set_param(k, v)
         self._out = None
+        self._zero_motion = None
         self._shape = None
+        self._previous_sidecar = None
+
+    def _bind_motion(self, frame, input_path, present):
+        """Motion from the frame's Vector pass if it has one, else reconstructed from the previous
+        frame's sidecar; the first frame (nothing to reproject from) gets zero motion."""
+        sidecar = os.path.splitext(input_path)[0] + ".json"
+        previous, self._previous_sidecar = self._previous_sidecar, (sidecar if os.path.exists(sidecar) else None)
+        if "motion" not in present:
+            if previous is None or self._previous_sidecar is None:
+                w, h = frame.width, frame.height
+                if self._zero_motion is None or len(self._zero_motion) != w * h * 4:
+                    self._zero_motion = (ctypes.c_float * (w * h * 4))()
+                self.filter.set_image("motion", ctypes.addressof(self._zero_motion), FORMAT_FLOAT4, w, h)
+                return
+            frame.reconstruct_motion(self.context, previous)
+        ptr, fmt = frame.pass_pointer("motion")
+        self.filter.set_image("motion", ptr, fmt, frame.width, frame.height)
 
     def run(self, input_path, output_paths):
         """Loads one frame, filters it, writes it to each path (.exr and/or .png).
@@ -339,6 +364,9 @@ class FrameFilter:
                 self._shape = (w, h)
             present = set(frame.passes())
             for role in self.passes:
+                if role == "motion":
+                    self._bind_motion(frame, input_path, present)
+                    continue
                 if role not in present:
                     raise CrispError("%s has no '%s' pass (has: %s)" % (input_path, role, ", ".join(sorted(present))))
                 ptr, fmt = frame.pass_pointer(role)
