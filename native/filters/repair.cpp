@@ -74,6 +74,7 @@ typedef double D4 __attribute__((vector_size(32)));
 
 template <class F> CRISP_LANES_INLINE F splat(float c);
 template <> CRISP_LANES_INLINE float splat<float>(float c) { return c; }
+template <> CRISP_LANES_INLINE F4 splat<F4>(float c) { return F4{c, c, c, c}; }
 template <> CRISP_LANES_INLINE F8 splat<F8>(float c) { return F8{c, c, c, c, c, c, c, c}; }
 
 CRISP_LANES_INLINE std::int32_t bitsOf(float v) {
@@ -86,28 +87,45 @@ CRISP_LANES_INLINE float fromBits(std::int32_t b) {
   std::memcpy(&v, &b, 4);
   return v;
 }
-CRISP_LANES_INLINE I8 bitsOf(F8 v) { return (I8)v; }  // a vector cast reinterprets the bits
+CRISP_LANES_INLINE I4 bitsOf(F4 v) { return (I4)v; }  // a vector cast reinterprets the bits
+CRISP_LANES_INLINE F4 fromBits(I4 b) { return (F4)b; }
+CRISP_LANES_INLINE I8 bitsOf(F8 v) { return (I8)v; }
 CRISP_LANES_INLINE F8 fromBits(I8 b) { return (F8)b; }
 CRISP_LANES_INLINE float toFloat(std::int32_t i) { return float(i); }
+CRISP_LANES_INLINE F4 toFloat(I4 i) { return __builtin_convertvector(i, F4); }
 CRISP_LANES_INLINE F8 toFloat(I8 i) { return __builtin_convertvector(i, F8); }
 CRISP_LANES_INLINE std::int32_t truncateToInt(float v) { return std::int32_t(v); }
+CRISP_LANES_INLINE I4 truncateToInt(F4 v) { return __builtin_convertvector(v, I4); }
 CRISP_LANES_INLINE I8 truncateToInt(F8 v) { return __builtin_convertvector(v, I8); }
 
-CRISP_LANES_INLINE F8 load8(const float* p) {
-  F8 v;
+template <class V>
+CRISP_LANES_INLINE V loadV(const float* p) {
+  V v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-CRISP_LANES_INLINE void store8(float* p, F8 v) { std::memcpy(p, &v, sizeof v); }
+template <class V>
+CRISP_LANES_INLINE void storeV(float* p, V v) {
+  std::memcpy(p, &v, sizeof v);
+}
+
 CRISP_LANES_INLINE F4 load4(const float* p) {
   F4 v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
 
-// sqrt of 8 lanes: two correctly rounded SSE square roots (the same bits as
-// std::sqrt). GCC keeps std::sqrt scalar because of errno, hence the builtin.
-CRISP_LANES_INLINE F8 sqrt8(F8 v) {
+// Correctly rounded square roots (the same bits as std::sqrt). GCC keeps
+// std::sqrt scalar because of errno, hence the builtin.
+CRISP_LANES_INLINE F4 sqrtV(F4 v) {
+#if defined(__SSE__) && defined(__GNUC__) && !defined(__clang__)
+  return __builtin_ia32_sqrtps(v);
+#else
+  for (int i = 0; i < 4; ++i) v[i] = std::sqrt(v[i]);
+  return v;
+#endif
+}
+CRISP_LANES_INLINE F8 sqrtV(F8 v) {
 #if defined(__SSE__) && defined(__GNUC__) && !defined(__clang__)
   F4 lo, hi;
   std::memcpy(&lo, &v, 16);
@@ -182,31 +200,44 @@ CRISP_LANES_INLINE F greyT(F r, F g, F b) {
   return 0.299f * srgbEncodeT(r) + 0.587f * srgbEncodeT(g) + 0.114f * srgbEncodeT(b);
 }
 
-// Sanitised packed RGBA row -> grey row (8 pixels per step, scalar tail).
+// V = F4 (baseline: 16-byte vectors, native in SSE2) or F8 (AVX2). Lane i
+// computes what the scalar code computes for element i.
+template <class V>
+constexpr int kLanes = int(sizeof(V) / sizeof(float));
+
+// Sanitised packed RGBA row -> grey row (one vector of pixels per step,
+// scalar tail).
+template <class V>
 CRISP_LANES_INLINE void greyRowBody(const float* rgba, float* grey, int width) {
+  constexpr int L = kLanes<V>;
   int x = 0;
-  for (; x + 8 <= width; x += 8) {
+  for (; x + L <= width; x += L) {
     const float* p = rgba + 4 * x;
-    const F8 r = {p[0], p[4], p[8], p[12], p[16], p[20], p[24], p[28]};
-    const F8 g = {p[1], p[5], p[9], p[13], p[17], p[21], p[25], p[29]};
-    const F8 b = {p[2], p[6], p[10], p[14], p[18], p[22], p[26], p[30]};
-    store8(grey + x, greyT(r, g, b));
+    V r, g, b;
+    for (int i = 0; i < L; ++i) {
+      r[i] = p[4 * i];
+      g[i] = p[4 * i + 1];
+      b[i] = p[4 * i + 2];
+    }
+    storeV(grey + x, greyT(r, g, b));
   }
   for (; x < width; ++x) grey[x] = greyT(rgba[4 * x], rgba[4 * x + 1], rgba[4 * x + 2]);
 }
 
 // dst = sanitised src, n floats. Returns whether any value changed (NaN,
 // infinite or beyond kMaxColor).
+template <class V>
 CRISP_LANES_INLINE bool sanitizeRowBody(const float* src, float* dst, int n) {
-  I8 changed = {0, 0, 0, 0, 0, 0, 0, 0};
+  constexpr int L = kLanes<V>;
+  decltype(bitsOf(V{})) changed = {};
   int i = 0;
-  for (; i + 8 <= n; i += 8) {
-    const F8 v = load8(src + i), m = sanitizeT(v);
+  for (; i + L <= n; i += L) {
+    const V v = loadV<V>(src + i), m = sanitizeT(v);
     changed |= bitsOf(v) != bitsOf(m);
-    store8(dst + i, m);
+    storeV(dst + i, m);
   }
   bool any = false;
-  for (int k = 0; k < 8; ++k) any |= changed[k] != 0;
+  for (int k = 0; k < L; ++k) any |= changed[k] != 0;
   for (; i < n; ++i) {
     dst[i] = sanitizeT(src[i]);
     any |= bitsOf(dst[i]) != bitsOf(src[i]);
@@ -233,7 +264,9 @@ inline int clampIndex(int v, int n) { return v < 0 ? 0 : (v >= n ? n - 1 : v); }
 
 // Sobel magnitude of one row from the grey rows above, at and below it
 // (clamp-to-edge columns), the same arithmetic as sobelMagnitude.
+template <class V>
 CRISP_LANES_INLINE void sobelRowBody(const float* up, const float* mid, const float* down, float* out, int width) {
+  constexpr int L = kLanes<V>;
   auto at = [&](int x) {
     const int xl = clampIndex(x - 1, width), xr = clampIndex(x + 1, width);
     const float n[3][3] = {{up[xl], up[x], up[xr]}, {mid[xl], mid[x], mid[xr]}, {down[xl], down[x], down[xr]}};
@@ -241,13 +274,13 @@ CRISP_LANES_INLINE void sobelRowBody(const float* up, const float* mid, const fl
   };
   out[0] = at(0);
   int x = 1;
-  for (; x + 8 <= width - 1; x += 8) {
-    const F8 ul = load8(up + x - 1), uc = load8(up + x), ur = load8(up + x + 1);
-    const F8 ml = load8(mid + x - 1), mr = load8(mid + x + 1);
-    const F8 dl = load8(down + x - 1), dc = load8(down + x), dr = load8(down + x + 1);
-    const F8 gx = (ur + 2.0f * mr + dr) - (ul + 2.0f * ml + dl);
-    const F8 gy = (dl + 2.0f * dc + dr) - (ul + 2.0f * uc + ur);
-    store8(out + x, sqrt8(gx * gx + gy * gy));
+  for (; x + L <= width - 1; x += L) {
+    const V ul = loadV<V>(up + x - 1), uc = loadV<V>(up + x), ur = loadV<V>(up + x + 1);
+    const V ml = loadV<V>(mid + x - 1), mr = loadV<V>(mid + x + 1);
+    const V dl = loadV<V>(down + x - 1), dc = loadV<V>(down + x), dr = loadV<V>(down + x + 1);
+    const V gx = (ur + 2.0f * mr + dr) - (ul + 2.0f * ml + dl);
+    const V gy = (dl + 2.0f * dc + dr) - (ul + 2.0f * uc + ur);
+    storeV(out + x, sqrtV(gx * gx + gy * gy));
   }
   for (; x < width; ++x) out[x] = at(x);
 }
@@ -256,31 +289,29 @@ CRISP_LANES_INLINE void sobelRowBody(const float* up, const float* mid, const fl
 // ---------------------------------------------------------------- step 3 --
 
 // Eight running sums, lane k taking the values at x = k mod 8 (so that the
-// loop vectorises), added lane 0..7 at the end, then the tail left to right.
-// Zero gradient values add exactly 0 to the sums, so only the count needs
-// the mask (eq. 3.1 counts the non-black pixels only). Gradients are >= 0.
+// compiler can vectorise the loop without reordering a sum), added lane 0..7
+// at the end, then the tail left to right. Zero gradient values add exactly 0
+// to the sums, so only the count needs the test (eq. 3.1 counts the
+// non-black pixels only). Gradients are >= 0.
 namespace {
 CRISP_LANES_INLINE RowStats rowStatsBody(const float* row, int width) {
-  D4 sumLo = {0, 0, 0, 0}, sumHi = sumLo, sqLo = sumLo, sqHi = sumLo;
-  I8 count = {0, 0, 0, 0, 0, 0, 0, 0};
+  double sum[8] = {}, squares[8] = {};
+  long count[8] = {};
   int x = 0;
-  for (; x + 8 <= width; x += 8) {
-    const F8 z = load8(row + x);
-    count -= z != 0.0f;  // true lanes are -1
-    const F4 lo = {z[0], z[1], z[2], z[3]}, hi = {z[4], z[5], z[6], z[7]};
-    const D4 dlo = __builtin_convertvector(lo, D4), dhi = __builtin_convertvector(hi, D4);
-    sumLo += dlo;
-    sumHi += dhi;
-    sqLo += dlo * dlo;
-    sqHi += dhi * dhi;
-  }
+  for (; x + 8 <= width; x += 8)
+    for (int k = 0; k < 8; ++k) {
+      const double z = row[x + k];
+      count[k] += z != 0.0;
+      sum[k] += z;
+      squares[k] += z * z;
+    }
   RowStats s;
   long n = 0;
-  for (int k = 0; k < 8; ++k) n += count[k];
-  for (int k = 0; k < 4; ++k) s.sum += sumLo[k];
-  for (int k = 0; k < 4; ++k) s.sum += sumHi[k];
-  for (int k = 0; k < 4; ++k) s.sumSquares += sqLo[k];
-  for (int k = 0; k < 4; ++k) s.sumSquares += sqHi[k];
+  for (int k = 0; k < 8; ++k) {
+    n += count[k];
+    s.sum += sum[k];
+    s.sumSquares += squares[k];
+  }
   for (; x < width; ++x) {
     const double z = row[x];
     n += z != 0.0;
@@ -298,18 +329,20 @@ struct RowFunctions {
   void (*sobel)(const float* up, const float* mid, const float* down, float* out, int width);
   RowStats (*stats)(const float* row, int width);
 };
-void greyRowBase(const float* rgba, float* grey, int width) { greyRowBody(rgba, grey, width); }
-bool sanitizeRowBase(const float* src, float* dst, int n) { return sanitizeRowBody(src, dst, n); }
+void greyRowBase(const float* rgba, float* grey, int width) { greyRowBody<F4>(rgba, grey, width); }
+bool sanitizeRowBase(const float* src, float* dst, int n) { return sanitizeRowBody<F4>(src, dst, n); }
 void sobelRowBase(const float* up, const float* mid, const float* down, float* out, int width) {
-  sobelRowBody(up, mid, down, out, width);
+  sobelRowBody<F4>(up, mid, down, out, width);
 }
 RowStats rowStatsBase(const float* row, int width) { return rowStatsBody(row, width); }
 constexpr RowFunctions kBaseRows = {greyRowBase, sanitizeRowBase, sobelRowBase, rowStatsBase};
 #ifdef CRISP_REPAIR_HAS_AVX2_ROWS
-CRISP_REPAIR_AVX2 void greyRowAvx2(const float* rgba, float* grey, int width) { greyRowBody(rgba, grey, width); }
-CRISP_REPAIR_AVX2 bool sanitizeRowAvx2(const float* src, float* dst, int n) { return sanitizeRowBody(src, dst, n); }
+CRISP_REPAIR_AVX2 void greyRowAvx2(const float* rgba, float* grey, int width) { greyRowBody<F8>(rgba, grey, width); }
+CRISP_REPAIR_AVX2 bool sanitizeRowAvx2(const float* src, float* dst, int n) {
+  return sanitizeRowBody<F8>(src, dst, n);
+}
 CRISP_REPAIR_AVX2 void sobelRowAvx2(const float* up, const float* mid, const float* down, float* out, int width) {
-  sobelRowBody(up, mid, down, out, width);
+  sobelRowBody<F8>(up, mid, down, out, width);
 }
 CRISP_REPAIR_AVX2 RowStats rowStatsAvx2(const float* row, int width) { return rowStatsBody(row, width); }
 constexpr RowFunctions kAvx2Rows = {greyRowAvx2, sanitizeRowAvx2, sobelRowAvx2, rowStatsAvx2};

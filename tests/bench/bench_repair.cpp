@@ -1,80 +1,70 @@
 // SPDX-License-Identifier: Apache-2.0
 // REPAIR benchmarks: the whole filter (stage, grey, Sobel, threshold, slope,
-// rotated smoothing, output) through the Filter interface, on the synthetic
-// test chart, whose edge density is realistic (cost grows with the number of
-// edge pixels; the fraction is reported as the counter `edge_fraction`).
-// repair.floor.copy is the memory-copy floor in the same run: reading and
-// writing one RGBA float frame, which any filter must do at least once.
+// rotated smoothing, output) on the synthetic test chart, whose edge density
+// is realistic (cost grows with the number of edge pixels; the fraction is
+// reported as the counter `edge_fraction`).
+//  repair.fast.mt / .fast.st   the fast path through the Filter interface,
+//                              all threads / one thread
+//  repair.fast.st.sse2         the fast path on one thread with the x86-64
+//                              baseline row loops even where AVX2 exists
+//                              (repair::Kernel directly)
+//  repair.reference            the scalar reference path, one thread
+// The memory-copy floor of the same run is floor.memcpy_rgba (bench_floor.cpp).
 #include <benchmark/benchmark.h>
 
-#include <cstring>
-#include <map>
-#include <utility>
+#include <string>
 
-#include "core/context.h"
-#include "core/filter.h"
+#include "bench_common.h"
 #include "filters/repair.h"
-#include "synth/synthetic.h"
 
 namespace {
 
 using crisp::Image;
 
-const Image& chart(int width, int height) {
-  static std::map<std::pair<int, int>, Image> cache;
-  auto key = std::make_pair(width, height);
-  auto it = cache.find(key);
-  if (it == cache.end())
-    it = cache.emplace(key, crisp::synth::renderCentre(crisp::synth::testChart(width, height), width, height)).first;
-  return it->second;
+double edgeFraction(const Image& input, int threads) {
+  crisp::repair::Kernel kernel;
+  kernel.allocate(input.width, input.height);
+  Image scratch(input.width, input.height, 4);
+  kernel.run(input.view(), scratch.view(), crisp::repair::Settings{}, false, threads);
+  return double(kernel.edgeCount()) / (double(input.width) * input.height);
 }
 
 void runRepair(benchmark::State& state, int width, int height, int threads, bool reference) {
-  const Image& input = chart(width, height);
+  const Image& input = crisp::bench::testChartImage(width, height);
   Image output(width, height, 4);
   crisp::Context context;
-  context.setInt("numThreads", threads);
-  auto filter = crisp::createFilter(context, "repair");
-  filter->setImage("color", input.view());
-  filter->setImage("output", output.view());
-  filter->params().setBool("reference", reference);
-  filter->commit();
+  auto filter = crisp::bench::committedFilter(context, "repair", input, output, threads, reference);
+  crisp::bench::executeLoop(state, *filter, output);
+  state.counters["edge_fraction"] = edgeFraction(input, threads);
+  crisp::bench::setPixelRate(state, width, height);
+}
+
+void runBaselineRows(benchmark::State& state, int width, int height) {
+  const Image& input = crisp::bench::testChartImage(width, height);
+  Image output(width, height, 4);
+  crisp::repair::Kernel kernel;
+  kernel.allocate(width, height);
+  kernel.setRowIsa(crisp::repair::RowIsa::Baseline);
   for (auto _ : state) {
-    filter->execute();
+    kernel.run(input.view(), output.view(), crisp::repair::Settings{}, false, 1);
     benchmark::DoNotOptimize(output.data.data());
     benchmark::ClobberMemory();
   }
-  // Edge fraction of this input (same threshold as the default filter).
-  crisp::repair::Kernel kernel;
-  kernel.allocate(width, height);
-  Image scratch(width, height, 4);
-  kernel.run(input.view(), scratch.view(), crisp::repair::Settings{}, false, threads);
-  state.counters["edge_fraction"] = double(kernel.edgeCount()) / (double(width) * height);
-  state.counters["pixels_per_s"] = benchmark::Counter(double(width) * height, benchmark::Counter::kIsIterationInvariantRate);
-}
-
-void copyFloor(benchmark::State& state, int width, int height) {
-  const Image& input = chart(width, height);
-  Image output(width, height, 4);
-  for (auto _ : state) {
-    std::memcpy(output.data.data(), input.data.data(), input.data.size() * sizeof(float));
-    benchmark::ClobberMemory();
-  }
-  state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(input.data.size() * sizeof(float)) * 2);
+  state.counters["edge_fraction"] = edgeFraction(input, 1);
+  crisp::bench::setPixelRate(state, width, height);
 }
 
 void registerAll() {
-  const int sizes[2][2] = {{1920, 1080}, {64, 64}};
-  for (const auto& s : sizes) {
+  for (const auto& s : crisp::bench::kSizes) {
     const int w = s[0], h = s[1];
-    const std::string tag = "/" + std::to_string(w) + "x" + std::to_string(h);
+    const std::string tag = crisp::bench::sizeTag(w, h);
     benchmark::RegisterBenchmark(("repair.fast.mt" + tag).c_str(), [w, h](benchmark::State& st) { runRepair(st, w, h, 0, false); })
         ->Unit(benchmark::kMillisecond)->UseRealTime();
     benchmark::RegisterBenchmark(("repair.fast.st" + tag).c_str(), [w, h](benchmark::State& st) { runRepair(st, w, h, 1, false); })
         ->Unit(benchmark::kMillisecond)->UseRealTime();
-    benchmark::RegisterBenchmark(("repair.reference" + tag).c_str(), [w, h](benchmark::State& st) { runRepair(st, w, h, 1, true); })
+    benchmark::RegisterBenchmark(("repair.fast.st.sse2" + tag).c_str(), [w, h](benchmark::State& st) { runBaselineRows(st, w, h); })
         ->Unit(benchmark::kMillisecond)->UseRealTime();
-    benchmark::RegisterBenchmark(("repair.floor.copy" + tag).c_str(), [w, h](benchmark::State& st) { copyFloor(st, w, h); })
+    benchmark::RegisterBenchmark(("repair.reference" + tag).c_str(), [w, h](benchmark::State& st) { runRepair(st, w, h, 1, true); })
         ->Unit(benchmark::kMillisecond)->UseRealTime();
   }
 }
