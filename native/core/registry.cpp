@@ -11,6 +11,7 @@ std::unique_ptr<Filter> newNoneFilter(Context&);
 std::unique_ptr<Filter> newFxaaFilter(Context&);
 std::unique_ptr<Filter> newRepairFilter(Context&);
 std::unique_ptr<Filter> newTaaFilter(Context&);
+std::unique_ptr<Filter> newTaaImprovedFilter(Context&);
 std::unique_ptr<Filter> newPhlmFilter(Context&);
 std::unique_ptr<Filter> newRsaaFilter(Context&);
 
@@ -24,6 +25,7 @@ const Entry kFilters[] = {
     {"fxaa", newFxaaFilter},
     {"repair", newRepairFilter},
     {"taa", newTaaFilter},
+    {"taa-improved", newTaaImprovedFilter},
     {"phlm", newPhlmFilter},
     {"rsaa", newRsaaFilter},
 };

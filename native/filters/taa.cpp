@@ -555,9 +555,9 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
 // The filter.
 
 namespace crisp {
-namespace {
+namespace taa {
 
-std::vector<ParamSpec> taaParams() {
+std::vector<ParamSpec> parameterSpecs() {
   return {
       {"jitterX", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
        "this frame's sub-pixel sample offset in pixels, x right (set per frame from the sidecar's jitter)",
@@ -610,10 +610,36 @@ std::vector<ParamSpec> taaParams() {
   };
 }
 
+void readSettings(const ParamSet& p, const char* filterName, Settings& settings) {
+  settings.jitterX = p.getFloat("jitterX");
+  settings.jitterY = p.getFloat("jitterY");
+  settings.weighting =
+      p.getString("jitterWeighting") == "blackman-harris" ? JitterWeighting::BlackmanHarris : JitterWeighting::None;
+  settings.filterSize = p.getFloat("filterSize");
+  settings.historyFilter =
+      p.getString("historyFilter") == "bilinear" ? HistoryFilter::Bilinear : HistoryFilter::CatmullRom;
+  settings.clipSpace = p.getString("clipSpace") == "rgb" ? ClipSpace::Rgb : ClipSpace::YCoCg;
+  settings.feedbackMin = p.getFloat("feedbackMin");
+  settings.feedbackMax = p.getFloat("feedbackMax");
+  if (settings.feedbackMin > settings.feedbackMax)
+    invalidArgument(std::string("filter '") + filterName + "': parameter 'feedbackMin' (" +
+                    std::to_string(settings.feedbackMin) + ") must not exceed 'feedbackMax' (" +
+                    std::to_string(settings.feedbackMax) + ")");
+  settings.sharpen = p.getFloat("sharpen");
+  settings.staticAccumulation = p.getBool("staticAccumulation");
+  settings.maxSamples = p.getInt("maxSamples");
+  settings.staticClip = p.getBool("staticClip");
+  settings.depthTolerance = p.getFloat("depthTolerance");
+}
+
+}  // namespace taa
+
+namespace {
+
 class TaaFilter final : public Filter {
  public:
   explicit TaaFilter(Context& c)
-      : Filter(c, taaParams(),
+      : Filter(c, taa::parameterSpecs(),
                {{"color", true, 3, 4, false, "linear RGB(A) colour, 1 jittered sample per pixel"},
                 {"motion", false, 2, 4, false,
                  "motion vectors in pixels, previous - current, y down (absent: static scene, no reprojection)"},
@@ -625,24 +651,7 @@ class TaaFilter final : public Filter {
  protected:
   void onCommit() override {
     const ParamSet& p = params();
-    settings_.jitterX = p.getFloat("jitterX");
-    settings_.jitterY = p.getFloat("jitterY");
-    settings_.weighting = p.getString("jitterWeighting") == "blackman-harris" ? taa::JitterWeighting::BlackmanHarris
-                                                                              : taa::JitterWeighting::None;
-    settings_.filterSize = p.getFloat("filterSize");
-    settings_.historyFilter =
-        p.getString("historyFilter") == "bilinear" ? taa::HistoryFilter::Bilinear : taa::HistoryFilter::CatmullRom;
-    settings_.clipSpace = p.getString("clipSpace") == "rgb" ? taa::ClipSpace::Rgb : taa::ClipSpace::YCoCg;
-    settings_.feedbackMin = p.getFloat("feedbackMin");
-    settings_.feedbackMax = p.getFloat("feedbackMax");
-    if (settings_.feedbackMin > settings_.feedbackMax)
-      invalidArgument("filter 'taa': parameter 'feedbackMin' (" + std::to_string(settings_.feedbackMin) +
-                      ") must not exceed 'feedbackMax' (" + std::to_string(settings_.feedbackMax) + ")");
-    settings_.sharpen = p.getFloat("sharpen");
-    settings_.staticAccumulation = p.getBool("staticAccumulation");
-    settings_.maxSamples = p.getInt("maxSamples");
-    settings_.staticClip = p.getBool("staticClip");
-    settings_.depthTolerance = p.getFloat("depthTolerance");
+    taa::readSettings(p, "taa", settings_);
     reference_ = p.getBool("reference");
     // Re-committing for a new jitter keeps the history; a new size starts over.
     kernel_.allocate(width(), height(), hasImage("depth"));

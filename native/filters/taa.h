@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/image.h"
+#include "core/params.h"
 
 namespace crisp::taa {
 
@@ -55,6 +56,11 @@ struct Inputs {
   // (taa-improved). Null: the baseline's rounded box.
   const float* aliasedValue = nullptr;
 };
+
+// The "taa" parameter table and its reading into Settings (shared with
+// taa-improved, which adds its own parameters). filterName names errors.
+std::vector<ParamSpec> parameterSpecs();
+void readSettings(const ParamSet& p, const char* filterName, Settings& settings);
 
 class Kernel {
  public:

@@ -1,0 +1,369 @@
+// SPDX-License-Identifier: Apache-2.0
+// "taa-improved": seed 000 chapter IV (METHODS.md "Improved TAA"). Per pixel
+// an aliasedValue a in [0, 1] says how much TAA the pixel needs; the baseline
+// kernel (taa.cpp: same reprojection, history, clip, feedback, static
+// accumulation) then builds its moving-path clip box from it. Passes:
+//   1. luminance planes: lit l (colour), unlit u (albedo, Blender's DiffCol);
+//   2. Sobel magnitudes of l, u and depth, g = clamp01(0.3u + 0.7l + d)
+//      (eq. 4.9); without albedo g = clamp01(l + d) (lit only, full weight);
+//      sobel = sqrt(g^2 (3 - 2g)) (eq. 4.10 as printed: the square root of the
+//      smoothstep). Depth enters relative: |Sobel(depth)| / centre depth, so
+//      the term does not depend on scene units;
+//   3. stabilisation (§4.3.3): a one-channel TAA of the Sobel plane: bilinear
+//      fetch of last frame's stabilised value at p + motion(p), clamped (not
+//      clipped) to the 3x3 range of this frame's raw values, blended with the
+//      baseline's luma-difference feedback (feedbackMin/Max), no sharpen;
+//   4. aliasedValue (eqs. 4.1, 4.4-4.6, 4.12-4.14):
+//        modelAverage = #(3x3 taps whose object id != centre's) / 9 (eq. 4.1);
+//        depths of the 3x3 relative to the centre's: avg, min, max;
+//        m = min(|min - avg|, |max - avg|) (eq. 4.4), below depthThreshold
+//        both variances are 0; depthPV = (|1 - avg| / m)^2 (eq. 4.5);
+//        depthTPV = (|past - avg| / m)^4 (eq. 4.6), past = last frame's depth
+//        at the nearest pixel of p + motion(p), relative to the centre;
+//        sobelAvg = mix(sobelCross, sobel3x3, clamp01(modelAverage + sobel))
+//        (eqs. 4.12-4.13, averages of the stabilised plane);
+//        a = clamp01(sobelAvg + depthPV + depthTPV + modelAverage) (eq. 4.14);
+//   5. the baseline kernel with the aliasedValue plane: moving-path box
+//      mix(cross, 3x3, a) (eq. 4.15) shrunk to mix(current, box, a) (eq. 4.16);
+//      sharpen with eq. 4.17 ([0,-.25,0;-.25,2,-.25;0,-.25,0] = the eq. 3.1
+//      stencil at a quarter of the amount) or eq. 3.1.
+// Missing inputs: no `id` (the add-on leaves it out when one object is
+// visible) -> modelAverage from depth's background mask (object vs
+// background), or 0 without depth; no albedo -> lit luminance only; no depth
+// -> no depth Sobel, no (temporal) pseudo-variance; no motion -> static
+// (stabilisation and past depth read the same pixel).
+// Deliberate choice: the static accumulation path of the baseline is left as
+// it is (its convergence to the reference beats any box), so aliasedValue
+// steers only pixels on the feedback path (moving, or rejected static history).
+// With aliasedNeighbourhood and aliasedBoxSize both off the output is the
+// baseline's, bit for bit (tested).
+#include "filters/taa_improved.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "core/color.h"
+#include "core/error.h"
+#include "core/filter.h"
+#include "core/parallel.h"
+#include "temporal/history_fetch.h"
+#include "temporal/velocity.h"
+
+namespace crisp::taa_improved {
+
+namespace {
+
+inline float clamp01(float v) { return v > 0.0f ? (v < 1.0f ? v : 1.0f) : 0.0f; }  // NaN -> 0
+
+struct Plane {
+  const float* data;
+  int width, height;
+  float at(int x, int y) const {
+    return data[std::size_t(std::clamp(y, 0, height - 1)) * width + std::clamp(x, 0, width - 1)];
+  }
+};
+
+// |Sobel| of a clamp-to-edge sampled function (Sobel 1968; seed 000 §3.8).
+template <class At>
+inline float sobelMagnitude(At&& at, int x, int y) {
+  const float gx = (at(x + 1, y - 1) + 2.0f * at(x + 1, y) + at(x + 1, y + 1)) -
+                   (at(x - 1, y - 1) + 2.0f * at(x - 1, y) + at(x - 1, y + 1));
+  const float gy = (at(x - 1, y + 1) + 2.0f * at(x, y + 1) + at(x + 1, y + 1)) -
+                   (at(x - 1, y - 1) + 2.0f * at(x, y - 1) + at(x + 1, y - 1));
+  return std::sqrt(gx * gx + gy * gy);
+}
+
+inline float lumaOfView(const ImageView& v, int x, int y) {
+  const float* p = v.pixel(x, y);
+  const int c = v.channels();
+  return luminance709(sanitizeColor(p[0]), sanitizeColor(c > 1 ? p[1] : p[0]), sanitizeColor(c > 2 ? p[2] : p[0]));
+}
+
+inline void motionAt(const ImageView& motion, int x, int y, float& vx, float& vy) {
+  vx = vy = 0.0f;
+  if (!motion.ptr) return;
+  const float* m = motion.pixel(x, y);
+  vx = m[0];
+  vy = m[1];
+}
+
+}  // namespace
+
+void Kernel::allocate(int width, int height, bool withDepth) {
+  const bool sameShape = width == width_ && height == height_ && !aliased_.empty();
+  taa_.allocate(width, height, withDepth);
+  if (sameShape) return;
+  width_ = width;
+  height_ = height;
+  const std::size_t n = std::size_t(width) * height;
+  for (auto* v : {&lumaLit_, &lumaUnlit_, &sobelRaw_, &aliased_, &sobel_[0], &sobel_[1]}) v->assign(n, 0.0f);
+  reset();
+}
+
+void Kernel::reset() {
+  taa_.reset();
+  sobelValid_ = false;
+}
+
+std::size_t Kernel::bytesKeptBetweenFrames() const {
+  return taa_.bytesKeptBetweenFrames() + (sobel_[0].size() + sobel_[1].size()) * sizeof(float);
+}
+
+std::size_t Kernel::bytesScratch() const {
+  return taa_.bytesScratch() + (lumaLit_.size() + lumaUnlit_.size() + sobelRaw_.size() + aliased_.size()) * sizeof(float);
+}
+
+void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThreads) {
+  if (in.color.width != width_ || in.color.height != height_)
+    invalidData("taa-improved: colour is " + std::to_string(in.color.width) + "x" + std::to_string(in.color.height) +
+                " but the filter was committed for " + std::to_string(width_) + "x" + std::to_string(height_));
+  const int w = width_, h = height_;
+  const int threads = reference ? 1 : numThreads;
+  const bool hasHistory = taa_.framesSinceReset() > 0;
+  const bool useAlbedo = s.sobelUnlit && in.albedo.ptr;
+  const bool useDepth = in.depth.ptr != nullptr;
+  auto depthAt = [&](int x, int y) {
+    return temporal::sanitizeDepth(in.depth.pixel(std::clamp(x, 0, w - 1), std::clamp(y, 0, h - 1))[0]);
+  };
+  const Plane lit{lumaLit_.data(), w, h}, unlit{lumaUnlit_.data(), w, h}, raw{sobelRaw_.data(), w, h};
+  const int next = 1 - current_;
+  const bool stabilise = s.sobelStabilise && hasHistory && sobelValid_;
+
+  if (s.sobel) {
+    // Pass 1: luminance planes.
+    parallelRows(w, h, threads, [&](int y0, int y1) {
+      for (int y = y0; y < y1; ++y)
+        for (int x = 0; x < w; ++x) {
+          lumaLit_[std::size_t(y) * w + x] = lumaOfView(in.color, x, y);
+          if (useAlbedo) lumaUnlit_[std::size_t(y) * w + x] = lumaOfView(in.albedo, x, y);
+        }
+    });
+    // Pass 2: mixed, smoothstepped Sobel (eqs. 4.9-4.10).
+    parallelRows(w, h, threads, [&](int y0, int y1) {
+      for (int y = y0; y < y1; ++y)
+        for (int x = 0; x < w; ++x) {
+          const float l = sobelMagnitude([&](int i, int j) { return lit.at(i, j); }, x, y);
+          float g = useAlbedo ? 0.3f * sobelMagnitude([&](int i, int j) { return unlit.at(i, j); }, x, y) + 0.7f * l : l;
+          if (useDepth && s.sobelDepth) g += sobelMagnitude(depthAt, x, y) / depthAt(x, y);
+          g = clamp01(g);
+          sobelRaw_[std::size_t(y) * w + x] = std::sqrt(g * g * (3.0f - 2.0f * g));
+        }
+    });
+    // Pass 3: one-channel TAA with clamping, no sharpen (§4.3.3).
+    parallelRows(w, h, threads, [&](int y0, int y1) {
+      const float* previous = sobel_[current_].data();
+      for (int y = y0; y < y1; ++y)
+        for (int x = 0; x < w; ++x) {
+          const float c = raw.at(x, y);
+          float result = c;
+          float vx, vy;
+          motionAt(in.motion, x, y, vx, vy);
+          const float qx = float(x) + vx, qy = float(y) + vy;
+          if (stabilise && temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h)) {
+            const temporal::Footprint fp = temporal::footprintOf(qx, qy);
+            const Plane prev{previous, w, h};
+            const float top = prev.at(fp.x0, fp.y0) + (prev.at(fp.x0 + 1, fp.y0) - prev.at(fp.x0, fp.y0)) * fp.tx;
+            const float bottom =
+                prev.at(fp.x0, fp.y0 + 1) + (prev.at(fp.x0 + 1, fp.y0 + 1) - prev.at(fp.x0, fp.y0 + 1)) * fp.tx;
+            float hist = top + (bottom - top) * fp.ty;
+            float lo = c, hi = c;
+            for (int j = -1; j <= 1; ++j)
+              for (int i = -1; i <= 1; ++i) {
+                lo = std::min(lo, raw.at(x + i, y + j));
+                hi = std::max(hi, raw.at(x + i, y + j));
+              }
+            hist = std::clamp(hist, lo, hi);
+            const float diff = std::clamp(std::fabs(hist - c) / std::max(std::max(hist, c), 0.2f), 0.0f, 1.0f);
+            const float k = s.base.feedbackMin + (s.base.feedbackMax - s.base.feedbackMin) * (1.0f - diff) * (1.0f - diff);
+            result = hist + (c - hist) * (1.0f - k);
+          }
+          sobel_[next][std::size_t(y) * w + x] = std::isfinite(result) ? result : c;
+        }
+    });
+  }
+
+  // Pass 4: aliasedValue (eqs. 4.1, 4.4-4.6, 4.12-4.14).
+  const float* pastDepth = taa_.previousDepth();
+  const Plane sob{sobel_[next].data(), w, h};
+  parallelRows(w, h, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < w; ++x) {
+        float sobelCentre = 0.0f, sobelAvg = 0.0f;
+        float model = 0.0f;
+        if (s.modelAverage && (in.id.ptr || useDepth)) {
+          auto objectAt = [&](int i, int j) -> std::uint32_t {
+            const int cx = std::clamp(i, 0, w - 1), cy = std::clamp(j, 0, h - 1);
+            if (in.id.ptr) return in.id.uintAt(cx, cy);
+            return isBackgroundDepth(in.depth.pixel(cx, cy)[0]) ? 0u : 1u;  // object vs background
+          };
+          const std::uint32_t centre = objectAt(x, y);
+          int differ = 0;
+          for (int j = -1; j <= 1; ++j)
+            for (int i = -1; i <= 1; ++i) differ += objectAt(x + i, y + j) != centre;
+          model = float(differ) / 9.0f;
+        }
+        if (s.sobel) {
+          sobelCentre = sob.at(x, y);
+          float sum9 = 0.0f;
+          for (int j = -1; j <= 1; ++j)
+            for (int i = -1; i <= 1; ++i) sum9 += sob.at(x + i, y + j);
+          const float sumCross = sob.at(x, y - 1) + sob.at(x - 1, y) + sobelCentre + sob.at(x + 1, y) + sob.at(x, y + 1);
+          const float avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
+          const float t = clamp01(model + sobelCentre);
+          sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
+        }
+        float depthPV = 0.0f, depthTPV = 0.0f;
+        if (useDepth && (s.depthVariance || s.temporalDepthVariance)) {
+          const float dc = depthAt(x, y);
+          float lo = 1.0f, hi = 1.0f, sum = 0.0f;
+          for (int j = -1; j <= 1; ++j)
+            for (int i = -1; i <= 1; ++i) {
+              const float d = depthAt(x + i, y + j) / dc;  // relative to the centre
+              lo = std::min(lo, d);
+              hi = std::max(hi, d);
+              sum += d;
+            }
+          const float avg = sum / 9.0f;
+          const float m = std::min(std::fabs(lo - avg), std::fabs(hi - avg));
+          if (m >= s.depthThreshold) {
+            if (s.depthVariance) depthPV = std::pow(std::fabs(1.0f - avg) / m, 2.0f);
+            if (s.temporalDepthVariance && pastDepth) {
+              float vx, vy;
+              motionAt(in.motion, x, y, vx, vy);
+              const float qx = float(x) + vx, qy = float(y) + vy;
+              if (temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h)) {
+                const int px = std::clamp(int(temporal::floorExact(qx + 0.5f)), 0, w - 1);
+                const int py = std::clamp(int(temporal::floorExact(qy + 0.5f)), 0, h - 1);
+                const float past = pastDepth[std::size_t(py) * w + px] / dc;
+                depthTPV = std::pow(std::fabs(past - avg) / m, 4.0f);
+              }
+            }
+          }
+        }
+        const float a = sobelAvg + depthPV + depthTPV + model;
+        // Non-finite (cannot happen with sanitised inputs): full TAA, the baseline's box.
+        aliased_[std::size_t(y) * w + x] = std::isnan(a) ? 1.0f : clamp01(a);
+      }
+  });
+
+  // Pass 5: the baseline kernel, steered.
+  taa::Settings base = s.base;
+  base.aliasedNeighbourhood = s.aliasedNeighbourhood;
+  base.aliasedBoxSize = s.aliasedBoxSize;
+  base.sharpen = s.normalizedSharpen ? 0.25f * s.sharpen : s.sharpen;
+  taa::Inputs tin;
+  tin.color = in.color;
+  tin.motion = in.motion;
+  tin.depth = in.depth;
+  tin.output = in.output;
+  tin.aliasedValue = (s.aliasedNeighbourhood || s.aliasedBoxSize) ? aliased_.data() : nullptr;
+  taa_.run(tin, base, reference, numThreads);
+  if (s.sobel) {
+    current_ = next;
+    sobelValid_ = true;
+  } else {
+    sobelValid_ = false;
+  }
+}
+
+}  // namespace crisp::taa_improved
+
+// ---------------------------------------------------------------------------
+// The filter.
+
+namespace crisp {
+namespace {
+
+std::vector<ParamSpec> improvedParams() {
+  std::vector<ParamSpec> specs = taa::parameterSpecs();
+  for (ParamSpec& p : specs)
+    if (std::string(p.name) == "sharpen")
+      p.meaning = "amount of the output sharpen: eq. 4.17's normalised kernel (normalizedSharpen) or eq. 3.1's; the "
+                  "history stays unsharpened; clamped to the 5-tap range";
+  const std::vector<ParamSpec> extra = {
+      {"sobel", ParamType::Bool, 1, 0, 1, nullptr, "Sobel edges of lit/unlit luminance and depth in aliasedValue",
+       "seed 000 §4.3.3, eqs. 4.9-4.10"},
+      {"sobelUnlit", ParamType::Bool, 1, 0, 1, nullptr,
+       "include the unlit luminance (image 'albedo') in the Sobel mix g = 0.3u + 0.7l + d", "seed 000 eq. 4.9"},
+      {"sobelDepth", ParamType::Bool, 1, 0, 1, nullptr, "include the depth Sobel (relative to the centre depth)",
+       "seed 000 eq. 4.9"},
+      {"sobelStabilise", ParamType::Bool, 1, 0, 1, nullptr,
+       "stabilise the Sobel plane over time with a one-channel TAA (clamp, no sharpen)", "seed 000 §4.3.3"},
+      {"modelAverage", ParamType::Bool, 1, 0, 1, nullptr,
+       "fraction of 3x3 neighbours with another object id (image 'id'; without it, object vs background from depth)",
+       "seed 000 §4.3.1, eq. 4.1"},
+      {"depthVariance", ParamType::Bool, 1, 0, 1, nullptr, "depth pseudo-variance (|d - avg| / m)^2",
+       "seed 000 §4.3.2, eqs. 4.4-4.5"},
+      {"temporalDepthVariance", ParamType::Bool, 1, 0, 1, nullptr,
+       "temporal depth pseudo-variance (|d_prev - avg| / m)^4", "seed 000 §4.3.2, eq. 4.6"},
+      {"depthThreshold", ParamType::Float, 0.002, 0.0, 1.0, nullptr,
+       "m (eq. 4.4, relative to the centre depth) below which both pseudo-variances are 0", "seed 000 §4.3.2"},
+      {"aliasedNeighbourhood", ParamType::Bool, 1, 0, 1, nullptr,
+       "clip box colours mix(cross, 3x3, aliasedValue) instead of the rounded box", "seed 000 §4.3.4, eq. 4.15"},
+      {"aliasedBoxSize", ParamType::Bool, 1, 0, 1, nullptr,
+       "shrink the clip box toward the current colour: mix(current, box, aliasedValue)", "seed 000 §4.3.4, eq. 4.16"},
+      {"normalizedSharpen", ParamType::Bool, 1, 0, 1, nullptr,
+       "sharpen with [0,-.25,0;-.25,2,-.25;0,-.25,0] (eq. 4.17) instead of [0,-1,0;-1,5,-1;0,-1,0] (eq. 3.1)",
+       "seed 000 §4.3.5"},
+  };
+  specs.insert(specs.end() - 1, extra.begin(), extra.end());  // keep `reference` last
+  return specs;
+}
+
+class TaaImprovedFilter final : public Filter {
+ public:
+  explicit TaaImprovedFilter(Context& c)
+      : Filter(c, improvedParams(),
+               {{"color", true, 3, 4, false, "linear RGB(A) colour, 1 jittered sample per pixel"},
+                {"motion", false, 2, 4, false,
+                 "motion vectors in pixels, previous - current, y down (absent: static scene, no reprojection)"},
+                {"depth", false, 1, 4, false,
+                 "planar depth (channel 0): closest-depth velocity, disocclusion, depth Sobel and pseudo-variances"},
+                {"id", false, 1, 1, true, "object ids (Cryptomatte hash): modelAverage (eq. 4.1)"},
+                {"albedo", false, 3, 4, false, "unlit colour (Blender's DiffCol): unlit luminance Sobel"},
+                {"output", true, 3, 4, false, "anti-aliased linear colour; alpha passes through"}}) {}
+  const char* type() const override { return "taa-improved"; }
+  void reset() override { kernel_.reset(); }
+
+ protected:
+  void onCommit() override {
+    const ParamSet& p = params();
+    taa::readSettings(p, "taa-improved", settings_.base);
+    settings_.sharpen = p.getFloat("sharpen");
+    settings_.sobel = p.getBool("sobel");
+    settings_.sobelUnlit = p.getBool("sobelUnlit");
+    settings_.sobelDepth = p.getBool("sobelDepth");
+    settings_.sobelStabilise = p.getBool("sobelStabilise");
+    settings_.modelAverage = p.getBool("modelAverage");
+    settings_.depthVariance = p.getBool("depthVariance");
+    settings_.temporalDepthVariance = p.getBool("temporalDepthVariance");
+    settings_.depthThreshold = p.getFloat("depthThreshold");
+    settings_.aliasedNeighbourhood = p.getBool("aliasedNeighbourhood");
+    settings_.aliasedBoxSize = p.getBool("aliasedBoxSize");
+    settings_.normalizedSharpen = p.getBool("normalizedSharpen");
+    reference_ = p.getBool("reference");
+    kernel_.allocate(width(), height(), hasImage("depth"));
+  }
+  void onExecute() override {
+    taa_improved::Inputs in;
+    in.color = image("color");
+    if (hasImage("motion")) in.motion = image("motion");
+    if (hasImage("depth")) in.depth = image("depth");
+    if (hasImage("id")) in.id = image("id");
+    if (hasImage("albedo")) in.albedo = image("albedo");
+    in.output = image("output");
+    kernel_.run(in, settings_, reference_, numThreads());
+  }
+
+ private:
+  taa_improved::Settings settings_;
+  bool reference_ = false;
+  taa_improved::Kernel kernel_;
+};
+
+}  // namespace
+
+std::unique_ptr<Filter> newTaaImprovedFilter(Context& c) { return std::make_unique<TaaImprovedFilter>(c); }
+
+}  // namespace crisp
