@@ -205,6 +205,45 @@ CRISP_LANES_INLINE F greyT(F r, F g, F b) {
 template <class V>
 constexpr int kLanes = int(sizeof(V) / sizeof(float));
 
+// R, G and B of L packed RGBA pixels as three vectors, by in-lane unpacks
+// (a 4 x 4 transpose per 128 bits) instead of one insert per value. F4: pixel
+// order; F8: pixels 0 2 4 6 1 3 5 7 (pixelOrder restores 0..7).
+#if defined(__GNUC__) && !defined(__clang__)
+CRISP_LANES_INLINE void deinterleaveRgb(const float* p, F4& r, F4& g, F4& b) {
+  const F4 a0 = loadV<F4>(p), a1 = loadV<F4>(p + 4), a2 = loadV<F4>(p + 8), a3 = loadV<F4>(p + 12);
+  const F4 t0 = __builtin_shuffle(a0, a1, I4{0, 4, 1, 5}), t1 = __builtin_shuffle(a0, a1, I4{2, 6, 3, 7});
+  const F4 t2 = __builtin_shuffle(a2, a3, I4{0, 4, 1, 5}), t3 = __builtin_shuffle(a2, a3, I4{2, 6, 3, 7});
+  r = __builtin_shuffle(t0, t2, I4{0, 1, 4, 5});
+  g = __builtin_shuffle(t0, t2, I4{2, 3, 6, 7});
+  b = __builtin_shuffle(t1, t3, I4{0, 1, 4, 5});
+}
+CRISP_LANES_INLINE F4 pixelOrder(F4 v) { return v; }
+CRISP_LANES_INLINE void deinterleaveRgb(const float* p, F8& r, F8& g, F8& b) {
+  const F8 a0 = loadV<F8>(p), a1 = loadV<F8>(p + 8), a2 = loadV<F8>(p + 16), a3 = loadV<F8>(p + 24);
+  const I8 lo = {0, 8, 1, 9, 4, 12, 5, 13}, hi = {2, 10, 3, 11, 6, 14, 7, 15};
+  const F8 t0 = __builtin_shuffle(a0, a1, lo), t1 = __builtin_shuffle(a0, a1, hi);
+  const F8 t2 = __builtin_shuffle(a2, a3, lo), t3 = __builtin_shuffle(a2, a3, hi);
+  const I8 lo2 = {0, 1, 8, 9, 4, 5, 12, 13}, hi2 = {2, 3, 10, 11, 6, 7, 14, 15};
+  r = __builtin_shuffle(t0, t2, lo2);
+  g = __builtin_shuffle(t0, t2, hi2);
+  b = __builtin_shuffle(t1, t3, lo2);
+}
+CRISP_LANES_INLINE F8 pixelOrder(F8 v) { return __builtin_shuffle(v, I8{0, 4, 1, 5, 2, 6, 3, 7}); }
+#else
+template <class V>
+CRISP_LANES_INLINE void deinterleaveRgb(const float* p, V& r, V& g, V& b) {
+  for (int i = 0; i < kLanes<V>; ++i) {
+    r[i] = p[4 * i];
+    g[i] = p[4 * i + 1];
+    b[i] = p[4 * i + 2];
+  }
+}
+template <class V>
+CRISP_LANES_INLINE V pixelOrder(V v) {
+  return v;
+}
+#endif
+
 // Sanitised packed RGBA row -> grey row (one vector of pixels per step,
 // scalar tail).
 template <class V>
@@ -214,12 +253,8 @@ CRISP_LANES_INLINE void greyRowBody(const float* rgba, float* grey, int width) {
   for (; x + L <= width; x += L) {
     const float* p = rgba + 4 * x;
     V r, g, b;
-    for (int i = 0; i < L; ++i) {
-      r[i] = p[4 * i];
-      g[i] = p[4 * i + 1];
-      b[i] = p[4 * i + 2];
-    }
-    storeV(grey + x, greyT(r, g, b));
+    deinterleaveRgb(p, r, g, b);
+    storeV(grey + x, pixelOrder(greyT(r, g, b)));
   }
   for (; x < width; ++x) grey[x] = greyT(rgba[4 * x], rgba[4 * x + 1], rgba[4 * x + 2]);
 }
