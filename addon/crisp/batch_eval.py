@@ -156,10 +156,13 @@ def main(argv):
         if missing:
             eval_renders.warm_up(scene, os.path.join(out, "warmup"))
         t_last[0] = time.perf_counter()
-        for s in curve:
-            eval_renders.render_curve_set(scene, frames, os.path.join(out, "eevee_%d" % s), s, step)
-        for name, the_plan in sets.items():
-            eval_renders.render_input_set(scene, the_plan, frames, os.path.join(out, name), args.jitter, step)
+        # Frame by frame across the curve and the input sets, so that load from other processes on a
+        # shared machine spreads over every sample count instead of skewing one of them.
+        for f in frames:
+            for s in curve:
+                eval_renders.render_curve_set(scene, [f], os.path.join(out, "eevee_%d" % s), s, step)
+            for name, the_plan in sets.items():
+                eval_renders.render_input_set(scene, the_plan, [f], os.path.join(out, name), args.jitter, step)
         eval_renders.render_curve_set(scene, frames, os.path.join(out, "reference_%d" % args.reference_samples),
                                       args.reference_samples, step)
         eval_renders.render_smaa_set(frames, os.path.join(out, "eevee_1"), os.path.join(out, "blender-smaa"),

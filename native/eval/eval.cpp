@@ -80,6 +80,14 @@ double mean(const std::vector<double>& v) {
   return n ? s / n : kNaN;
 }
 
+double median(std::vector<double> v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return kNaN;
+  std::sort(v.begin(), v.end());
+  std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 // Per-frame render seconds of one render set (renders/<set>/times.json).
 std::map<int, double> renderTimes(const fs::path& dir) {
   std::map<int, double> t;
@@ -482,7 +490,9 @@ int run(const Options& o) {
         rs.push_back(ff.renderS), fs_.push_back(ff.filterS);
       }
       e.psnr = mean(p), e.ssim = mean(s), e.flip = mean(fl), e.temporalError = mean(te);
-      e.renderS = mean(rs), e.filterS = mean(fs_);
+      // Times: the median over frames, so a burst of load from other processes on a shared machine
+      // does not move a whole figure (every per-frame time is in the results too).
+      e.renderS = median(rs), e.filterS = median(fs_);
       e.timeS = e.renderS + (std::isfinite(e.filterS) ? e.filterS : 0.0);
       if (e.error.empty() && !std::isfinite(e.psnr)) e.error = "no output frames to measure";
       if (!e.error.empty()) e.timeS = e.filterS = kNaN;  // a failed method has no time per frame
@@ -574,7 +584,8 @@ int run(const Options& o) {
       {"threads", o.threads},
       {"run_seconds", {{"blender", o.blenderSeconds}, {"methods_and_measures", evalSeconds}}},
       {"metrics_note", "PSNR, SSIM, perceptual error (FLIP-style) and temporal error on display-encoded values "
-                       "(linear RGB clamped to [0,1], sRGB-encoded); time per frame = 1-sample render + filter"},
+                       "(linear RGB clamped to [0,1], sRGB-encoded), means over frames; time per frame = 1-sample render + filter, "
+                       "each the median over frames"},
       {"scenes", json::array({sceneJson})},
   };
   writeJson(out / "results.json", results);

@@ -62,11 +62,11 @@ function niceTicks(lo, hi, n) {
   return out;
 }
 function logTicks(lo, hi) {
-  for (const ks of [[1, 2, 5], [1, 1.5, 2, 3, 4, 5, 6, 7, 8, 9]]) {
+  for (const ks of [[1, 2, 5], [1, 1.5, 2, 3, 5, 7]]) {
     const out = [];
     for (let e = Math.floor(Math.log10(lo)); e <= Math.ceil(Math.log10(hi)); e++)
       for (const k of ks) { const v = +(k * Math.pow(10, e)).toPrecision(6); if (v >= lo && v <= hi) out.push(v); }
-    if (out.length >= 4 || ks.length > 3) return out.length >= 3 ? out : niceTicks(lo, hi, 6).filter(v => v > 0);
+    if (out.length >= 3 || ks.length > 3) return out.length >= 3 ? out : niceTicks(lo, hi, 6).filter(v => v > 0);
   }
 }
 function tickLabel(v) { return v >= 1 ? +v.toPrecision(3) + " s" : +(v * 1000).toPrecision(3) + " ms"; }
@@ -95,15 +95,24 @@ function chart(title, xlabel, ylabel, series, opt) {
   s += `<rect x="${L}" y="${T}" width="${W - L - Rm}" height="${H - T - B}" fill="none" stroke="#999"/>`;
   s += `<text x="${(L + W - Rm) / 2}" y="${H - 8}" text-anchor="middle">${esc(xlabel)}</text>`;
   s += `<text transform="translate(14 ${(T + H - B) / 2}) rotate(-90)" text-anchor="middle">${esc(ylabel)}</text>`;
+  const placed = [];
   for (const se of series) {
     const p = se.points.filter(q => fin(q.x) && fin(q.y) && (!opt.logx || q.x > 0));
     if (se.line && p.length > 1)
       s += `<polyline fill="none" stroke="${se.colour}" stroke-width="${se.width || 2}" ${se.dash ? `stroke-dasharray="${se.dash}"` : ""} points="${p.map(q => X(q.x) + "," + Y(q.y)).join(" ")}"/>`;
     if (se.marker !== false)
       for (const q of p) {
+        // Labels: first free spot among a few offsets, so close points stay readable.
+        const lw = 6.2 * String(q.label || "").length, px = X(q.x), py = Y(q.y);
+        let spot = null;
+        for (const [dx, dy] of [[7, -6], [7, 12], [-7 - lw, -6], [-7 - lw, 12], [7, -18], [7, 24], [-7 - lw, -18], [-7 - lw, 24]]) {
+          const box = {x: px + dx, y: py + dy - 10, w: lw, h: 12};
+          if (!placed.some(b => box.x < b.x + b.w && b.x < box.x + box.w && box.y < b.y + b.h && b.y < box.y + box.h)) { spot = box; break; }
+        }
+        if (q.label && spot) { placed.push(spot); q.lx = spot.x; q.ly = spot.y + 10; }
         if (q.ring) s += `<circle cx="${X(q.x)}" cy="${Y(q.y)}" r="8" fill="none" stroke="#000" stroke-width="1.5"/>`;
         s += `<circle cx="${X(q.x)}" cy="${Y(q.y)}" r="${se.r || 4.5}" fill="${se.colour}"><title>${esc(q.label || se.name)}: ${q.x.toPrecision(4)}, ${q.y.toPrecision(4)}</title></circle>`;
-        if (q.label) s += `<text x="${X(q.x) + 7}" y="${Y(q.y) - 6}">${esc(q.label)}</text>`;
+        if (q.label && q.lx !== undefined) s += `<text x="${q.lx}" y="${q.ly}">${esc(q.label)}</text>`;
       }
   }
   if (opt.legend !== false) {
@@ -128,7 +137,7 @@ function tradeoff(key, label, up) {
   series.push({name: "Pareto front", colour: "#000", line: true, dash: "5 4", width: 1, marker: false, legend: "Pareto front", points: front});
   for (const m of ok) series.push({name: m.name, colour: colour[m.name], legend: m.name,
     points: [{x: m.mean.time_s, y: m.mean[key], label: m.name, ring: on.has(m.name)}]});
-  return chart(label + " against run time per frame", "time per frame (1-sample render + filter), log scale", label, series, {logx: true});
+  return chart(label + " against time per frame", "time per frame (1-sample render + filter), log scale", label + (up ? " (higher is better)" : " (lower is better)"), series, {logx: true});
 }
 function perFrame(key, label) {
   const series = ok.map(m => ({name: m.name, colour: colour[m.name], line: true, r: 3, legend: m.name,
@@ -142,14 +151,14 @@ h(`<h1>Crisp: anti-aliasing error against run time</h1>
 <p class="sub">Scene <b>${esc(S.name)}</b>, ${S.resolution[0]}&times;${S.resolution[1]}, frames ${S.frames[0]}–${S.frames[1]},
 reference = EEVEE ${S.reference.samples} samples (${fmt(S.reference.time_s, 2)} s per frame).
 Every method filters the 1-sample render; time per frame = that render + the filter.</p>` +
-  (failed.length ? `<p class="err">Failed: ${failed.map(m => esc(m.name) + " (" + esc(m.error) + ")").join("; ")}</p>` : ""));
+  (failed.length ? `<p class="err">Failed (details in the table): ${failed.map(m => esc(m.name) + " (" + esc(m.error.length > 90 ? m.error.slice(0, 90) + "…" : m.error) + ")").join("; ")}</p>` : ""));
 
 let rows = "";
 const best = Math.max(...ok.map(m => m.mean.psnr));
 for (const m of S.methods) {
   rows += `<tr class="${m.error ? "fail" : (m.mean.psnr === best ? "best" : "")}"><td class="l"><i style="display:inline-block;width:10px;height:10px;background:${colour[m.name]}"></i> ${esc(m.name)}${m.temporal ? " <small>(temporal)</small>" : ""}</td>
 <td>${fmt(m.mean.psnr, 2)}</td><td>${fmt(m.mean.ssim, 4)}</td><td>${fmt(m.mean.perceptual_error, 4)}</td><td>${fmt(m.mean.temporal_error, 5)}</td>
-<td>${ms(m.mean.render_s)}</td><td>${ms(m.mean.filter_s)}</td><td>${ms(m.mean.time_s)}</td><td>${eq(m)}</td><td>${m.pareto ? "&#9679;" : ""}</td>
+<td>${m.error ? "–" : ms(m.mean.render_s)}</td><td>${ms(m.mean.filter_s)}</td><td>${ms(m.mean.time_s)}</td><td>${eq(m)}</td><td>${m.pareto ? "&#9679;" : ""}</td>
 <td class="l">${m.error ? "<span class=err>FAILED: " + esc(m.error) + "</span>" : esc(m.input)}</td></tr>`;
 }
 let crow = "";
@@ -157,12 +166,12 @@ for (const c of S.eevee_curve)
   crow += `<tr><td class="l">EEVEE ${c.samples} spp</td><td>${fmt(c.psnr, 2)}</td><td>${fmt(c.ssim, 4)}</td><td>${fmt(c.perceptual_error, 4)}</td><td>${fmt(c.temporal_error, 5)}</td><td>${ms(c.time_s)}</td><td></td><td>${ms(c.time_s)}</td><td>${c.samples}</td><td>${c.pareto ? "&#9679;" : ""}</td><td class="l">${esc(c.input)}</td></tr>`;
 const THEAD = `<tr><th class="l">method</th><th>PSNR dB</th><th>SSIM</th><th>perceptual error</th><th>temporal error</th><th>render ms</th><th>filter ms</th><th>time/frame ms</th><th>equivalent EEVEE samples</th><th>Pareto</th><th class="l">input / status</th></tr>`;
 h(`<h2>Headline</h2><table id="headline">${THEAD}${rows}${crow}</table>
-<p class="sub">Means over the frames. Higher PSNR/SSIM is better; lower perceptual error (FLIP-style, 0–1) and temporal error are better.
+<p class="sub">Error figures: means over the frames; times: medians over the frames (per-frame values below and in results.json). Higher PSNR/SSIM is better; lower perceptual error (FLIP-style, 0–1) and temporal error are better.
 "Equivalent EEVEE samples": the sample count at which EEVEE's own curve reaches the method's PSNR (log<sub>2</sub> samples interpolated linearly against PSNR).
 Pareto: no other point (method or EEVEE sample count) is both faster and higher in PSNR.</p>`);
 
-h(`<h2>Error against run time</h2><div class="charts"><div class="chart">${tradeoff("psnr", "PSNR (dB), higher is better", true)}</div>
-<div class="chart">${tradeoff("perceptual_error", "perceptual error, lower is better", false)}</div></div>
+h(`<h2>Error against run time</h2><div class="charts"><div class="chart">${tradeoff("psnr", "PSNR (dB)", true)}</div>
+<div class="chart">${tradeoff("perceptual_error", "perceptual error", false)}</div></div>
 <p class="sub">Orange line: EEVEE at 1, 2, 4, … samples. Dots: methods. Rings and the dashed line: the Pareto front of each chart (nothing else is both faster and better).</p>`);
 
 h(`<h2>Per frame</h2><div class="charts"><div class="chart">${perFrame("psnr", "PSNR (dB)")}</div>
