@@ -364,8 +364,12 @@ TEST(PhlmStability, SingleFireflyOnPanFades) {
       EXPECT_GT(diff, 1.0);
     } else {
       EXPECT_LT(diff, 0.2) << "frame " << t;
-      if (t >= kFirefly + 15) EXPECT_LT(diff, 0.01) << "frame " << t;
-      if (t >= kFirefly + 30) EXPECT_LT(diff, 1e-5) << "frame " << t;
+      if (t >= kFirefly + 15) {
+        EXPECT_LT(diff, 0.01) << "frame " << t;
+      }
+      if (t >= kFirefly + 30) {
+        EXPECT_LT(diff, 1e-5) << "frame " << t;
+      }
     }
   }
 }
