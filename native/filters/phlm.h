@@ -13,6 +13,8 @@
 //    when the scene is static (no motion image: updated in place, no
 //    reprojection work). float: 100 bytes per pixel per buffer.
 //  * with depth: two float depth planes (this frame's and the previous one).
+// So at 1920x1080 (float): 207 MB static, 415 MB with motion, 431 MB with
+// motion and depth (test Phlm.MemoryKeptBetweenFrames, bench counter kept_MB).
 // Scratch (bytesScratch): the staged, sanitised frame (RGB + tonemapped
 // luminance, float) and two counters per row.
 #pragma once
