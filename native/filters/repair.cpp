@@ -87,16 +87,16 @@ CRISP_LANES_INLINE float fromBits(std::int32_t b) {
   std::memcpy(&v, &b, 4);
   return v;
 }
-CRISP_LANES_INLINE I4 bitsOf(F4 v) { return (I4)v; }  // a vector cast reinterprets the bits
-CRISP_LANES_INLINE F4 fromBits(I4 b) { return (F4)b; }
-CRISP_LANES_INLINE I8 bitsOf(F8 v) { return (I8)v; }
-CRISP_LANES_INLINE F8 fromBits(I8 b) { return (F8)b; }
+CRISP_LANES_INLINE I4 bitsOf(const F4& v) { return (I4)v; }  // a vector cast reinterprets the bits
+CRISP_LANES_INLINE F4 fromBits(const I4& b) { return (F4)b; }
+CRISP_LANES_INLINE I8 bitsOf(const F8& v) { return (I8)v; }
+CRISP_LANES_INLINE F8 fromBits(const I8& b) { return (F8)b; }
 CRISP_LANES_INLINE float toFloat(std::int32_t i) { return float(i); }
-CRISP_LANES_INLINE F4 toFloat(I4 i) { return __builtin_convertvector(i, F4); }
-CRISP_LANES_INLINE F8 toFloat(I8 i) { return __builtin_convertvector(i, F8); }
+CRISP_LANES_INLINE F4 toFloat(const I4& i) { return __builtin_convertvector(i, F4); }
+CRISP_LANES_INLINE F8 toFloat(const I8& i) { return __builtin_convertvector(i, F8); }
 CRISP_LANES_INLINE std::int32_t truncateToInt(float v) { return std::int32_t(v); }
-CRISP_LANES_INLINE I4 truncateToInt(F4 v) { return __builtin_convertvector(v, I4); }
-CRISP_LANES_INLINE I8 truncateToInt(F8 v) { return __builtin_convertvector(v, I8); }
+CRISP_LANES_INLINE I4 truncateToInt(const F4& v) { return __builtin_convertvector(v, I4); }
+CRISP_LANES_INLINE I8 truncateToInt(const F8& v) { return __builtin_convertvector(v, I8); }
 
 template <class V>
 CRISP_LANES_INLINE V loadV(const float* p) {
@@ -105,7 +105,7 @@ CRISP_LANES_INLINE V loadV(const float* p) {
   return v;
 }
 template <class V>
-CRISP_LANES_INLINE void storeV(float* p, V v) {
+CRISP_LANES_INLINE void storeV(float* p, const V& v) {
   std::memcpy(p, &v, sizeof v);
 }
 
@@ -117,35 +117,25 @@ CRISP_LANES_INLINE F4 load4(const float* p) {
 
 // Correctly rounded square roots (the same bits as std::sqrt). GCC keeps
 // std::sqrt scalar because of errno, hence the builtin.
-CRISP_LANES_INLINE F4 sqrtV(F4 v) {
+CRISP_LANES_INLINE void sqrtInPlace(F4& v) {
 #if defined(__SSE__) && defined(__GNUC__) && !defined(__clang__)
-  return __builtin_ia32_sqrtps(v);
+  v = __builtin_ia32_sqrtps(v);
 #else
   for (int i = 0; i < 4; ++i) v[i] = std::sqrt(v[i]);
-  return v;
 #endif
 }
-CRISP_LANES_INLINE F8 sqrtV(F8 v) {
-#if defined(__SSE__) && defined(__GNUC__) && !defined(__clang__)
-  F4 lo, hi;
-  std::memcpy(&lo, &v, 16);
-  std::memcpy(&hi, reinterpret_cast<const char*>(&v) + 16, 16);
-  lo = __builtin_ia32_sqrtps(lo);
-  hi = __builtin_ia32_sqrtps(hi);
-  F8 r;
-  std::memcpy(&r, &lo, 16);
-  std::memcpy(reinterpret_cast<char*>(&r) + 16, &hi, 16);
-  return r;
-#else
-  for (int i = 0; i < 8; ++i) v[i] = std::sqrt(v[i]);
-  return v;
-#endif
+CRISP_LANES_INLINE void sqrtInPlace(F8& v) {
+  F4 half[2];
+  std::memcpy(half, &v, sizeof v);
+  sqrtInPlace(half[0]);
+  sqrtInPlace(half[1]);
+  std::memcpy(&v, half, sizeof v);
 }
 
 // Same values as crisp::sanitizeColor (core/color.h): NaN -> 0,
 // +-Inf -> +-kMaxColor, written as selects so that it vectorises.
 template <class F>
-CRISP_LANES_INLINE F sanitizeT(F v) {
+CRISP_LANES_INLINE F sanitizeT(const F& v) {
   F m = v < -kMaxColor ? splat<F>(-kMaxColor) : v;
   m = kMaxColor < m ? splat<F>(kMaxColor) : m;
   return v == v ? m : splat<F>(0.0f);
@@ -168,7 +158,7 @@ namespace {
 // (tested against crisp::srgbEncode: < 1e-6), far below one 8-bit display
 // step (1/255). Branch-free: clamping and the linear toe are selects.
 template <class F>
-CRISP_LANES_INLINE F srgbEncodeT(F x) {
+CRISP_LANES_INLINE F srgbEncodeT(const F& x) {
   using I = decltype(bitsOf(x));
   F v = x > 0.0f ? x : splat<F>(0.0f);  // NaN -> 0
   v = v < 1.0f ? v : splat<F>(1.0f);
@@ -196,7 +186,7 @@ CRISP_LANES_INLINE F srgbEncodeT(F x) {
 
 // Eq. 2.1, Y row, on the display-encoded colour.
 template <class F>
-CRISP_LANES_INLINE F greyT(F r, F g, F b) {
+CRISP_LANES_INLINE F greyT(const F& r, const F& g, const F& b) {
   return 0.299f * srgbEncodeT(r) + 0.587f * srgbEncodeT(g) + 0.114f * srgbEncodeT(b);
 }
 
@@ -217,7 +207,7 @@ CRISP_LANES_INLINE void deinterleaveRgb(const float* p, F4& r, F4& g, F4& b) {
   g = __builtin_shuffle(t0, t2, I4{2, 3, 6, 7});
   b = __builtin_shuffle(t1, t3, I4{0, 1, 4, 5});
 }
-CRISP_LANES_INLINE F4 pixelOrder(F4 v) { return v; }
+CRISP_LANES_INLINE F4 pixelOrder(const F4& v) { return v; }
 CRISP_LANES_INLINE void deinterleaveRgb(const float* p, F8& r, F8& g, F8& b) {
   const F8 a0 = loadV<F8>(p), a1 = loadV<F8>(p + 8), a2 = loadV<F8>(p + 16), a3 = loadV<F8>(p + 24);
   const I8 lo = {0, 8, 1, 9, 4, 12, 5, 13}, hi = {2, 10, 3, 11, 6, 14, 7, 15};
@@ -228,7 +218,7 @@ CRISP_LANES_INLINE void deinterleaveRgb(const float* p, F8& r, F8& g, F8& b) {
   g = __builtin_shuffle(t0, t2, hi2);
   b = __builtin_shuffle(t1, t3, lo2);
 }
-CRISP_LANES_INLINE F8 pixelOrder(F8 v) { return __builtin_shuffle(v, I8{0, 4, 1, 5, 2, 6, 3, 7}); }
+CRISP_LANES_INLINE F8 pixelOrder(const F8& v) { return __builtin_shuffle(v, I8{0, 4, 1, 5, 2, 6, 3, 7}); }
 #else
 template <class V>
 CRISP_LANES_INLINE void deinterleaveRgb(const float* p, V& r, V& g, V& b) {
@@ -239,7 +229,7 @@ CRISP_LANES_INLINE void deinterleaveRgb(const float* p, V& r, V& g, V& b) {
   }
 }
 template <class V>
-CRISP_LANES_INLINE V pixelOrder(V v) {
+CRISP_LANES_INLINE V pixelOrder(const V& v) {
   return v;
 }
 #endif
@@ -315,7 +305,9 @@ CRISP_LANES_INLINE void sobelRowBody(const float* up, const float* mid, const fl
     const V dl = loadV<V>(down + x - 1), dc = loadV<V>(down + x), dr = loadV<V>(down + x + 1);
     const V gx = (ur + 2.0f * mr + dr) - (ul + 2.0f * ml + dl);
     const V gy = (dl + 2.0f * dc + dr) - (ul + 2.0f * uc + ur);
-    storeV(out + x, sqrtV(gx * gx + gy * gy));
+    V z = gx * gx + gy * gy;
+    sqrtInPlace(z);
+    storeV(out + x, z);
   }
   for (; x < width; ++x) out[x] = at(x);
 }
