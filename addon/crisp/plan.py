@@ -27,7 +27,7 @@ METHOD_PASSES = {
     "repair": ("color",),
     "taa": ("color", "motion", "depth"),
     "taa-improved": ("color", "depth", "id", "albedo", "motion"),
-    "phlm": ("color", "motion"),
+    "phlm": ("color", "motion", "depth"),
     "rsaa": ("color", "depth", "normal", "subsamples"),
 }
 STATIC_METHODS = tuple(METHOD_PASSES)
@@ -42,6 +42,7 @@ USE = {
     ("taa-improved", "id"): "modelAverage: fraction of 3x3 neighbours with another object ID (eq. 4.1)",
     ("taa-improved", "albedo"): "unlit luminance term of the Sobel edge measure",
     ("phlm", "motion"): "reprojects the per-pixel linear models",
+    ("phlm", "depth"): "closest-depth velocity and the disocclusion reset of the models",
     ("rsaa", "depth"): "positions for the SADP similarity",
     ("rsaa", "normal"): "normals for the SADP similarity",
     ("rsaa", "subsamples"): "8 geometric sub-samples per pixel (depth + normal at sub-pixel offsets)",

@@ -39,7 +39,7 @@ def test_static_scene_drops_motion_and_taa_depth():
 
 def test_renderer_vector_pass_is_used_when_it_exists():
     p = plan.make_plan("phlm", facts(moving_objects=["A"], renderer_motion_pass=True))
-    assert p.passes == ["color", "motion"]
+    assert p.passes == ["color", "depth", "motion"]  # phlm also reads depth (disocclusion)
     assert p.motion_source == "renderer"
     assert "use_pass_vector" in p.render_flags()
 
