@@ -371,7 +371,9 @@ TEST(RsaaVerification, EachModeFixesTheThinTriangle) {
       ASSERT_NE(mask, 255) << "the construction must trigger RSAA";
       EXPECT_GT(kOffsetTable[mask][0], 0.1f) << "the offset must lean towards the background neighbour";
     }
-    if (m == 2) EXPECT_TRUE(k.halved()[3 * 7 + 3]);
+    if (m == 2) {
+      EXPECT_TRUE(k.halved()[3 * 7 + 3]);
+    }
   }
   EXPECT_GT(red[0], 0.2);
   EXPECT_LT(red[1], 0.02);

@@ -131,7 +131,9 @@ TEST(RsaaTable, EntriesMakeGeometricSense) {
     oneLine += t.source[m] == OffsetSource::OneLine;
     twoLines += t.source[m] == OffsetSource::TwoLines;
     fallback += t.source[m] == OffsetSource::Fallback;
-    if (t.source[m] == OffsetSource::OneLine) EXPECT_LT(t.rmsError[m], 0.1) << "mask " << m;
+    if (t.source[m] == OffsetSource::OneLine) {
+      EXPECT_LT(t.rmsError[m], 0.1) << "mask " << m;
+    }
   }
   std::printf("[ rsaa ] table: %d one-line, %d two-line, %d fallback masks\n", oneLine, twoLines, fallback);
   EXPECT_GT(oneLine, 16);

@@ -188,7 +188,9 @@ TEST(Taa, CameraCutLeavesNoGhost) {
                                 int(callReset), taa, one);
       // No ghost: never worse than the plain 1-sample frame.
       EXPECT_GE(taa, one - 0.5) << "frame " << t;
-      if (callReset && t == cut) EXPECT_EQ(out.data, f.color.data);  // bootstrap = current
+      if (callReset && t == cut) {
+        EXPECT_EQ(out.data, f.color.data);  // bootstrap = current
+      }
     }
   }
 }
