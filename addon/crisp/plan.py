@@ -139,8 +139,8 @@ def make_plan(method, facts):
                 reasons[p] = ("%s move: %s; this renderer has no Vector pass, so the library reconstructs it "
                               "from depth, the camera matrices and the object transforms in the sidecars"
                               % (movers(), use))
-        elif p == "depth" and method == "taa" and not moving:
-            skipped[p] = "taa reads depth only to pick the closest velocity, and nothing moves"
+        elif p == "depth" and method in ("taa", "phlm") and not moving:
+            skipped[p] = "%s reads depth only for velocity and disocclusion, and nothing moves" % method
         elif p == "id" and single:
             skipped[p] = ("%d visible object: an object/background mask follows from depth"
                           % len(facts.visible_objects))
