@@ -5,10 +5,13 @@
 #include <benchmark/benchmark.h>
 
 #include <cstring>
-#include <string>
 #include <vector>
 
+#include "bench_common.h"
+
 namespace {
+
+namespace bench = crisp::bench;
 
 void memcpyRgba(benchmark::State& state, int width, int height) {
   const std::size_t floats = std::size_t(width) * std::size_t(height) * 4;
@@ -23,13 +26,10 @@ void memcpyRgba(benchmark::State& state, int width, int height) {
 }
 
 void registerAll() {
-  const int sizes[2][2] = {{1920, 1080}, {64, 64}};
-  for (const auto& s : sizes) {
+  for (const auto& s : bench::kSizes) {
     const int w = s[0], h = s[1];
-    benchmark::RegisterBenchmark(("floor.memcpy_rgba/" + std::to_string(w) + "x" + std::to_string(h)).c_str(),
-                                 [w, h](benchmark::State& st) { memcpyRgba(st, w, h); })
-        ->Unit(benchmark::kMillisecond)
-        ->UseRealTime();
+    bench::registerTimed("floor.memcpy_rgba" + bench::sizeTag(w, h),
+                         [w, h](benchmark::State& st) { memcpyRgba(st, w, h); });
   }
 }
 

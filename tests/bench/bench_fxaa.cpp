@@ -10,78 +10,57 @@
 #include <map>
 #include <random>
 #include <string>
-#include <tuple>
+#include <utility>
 
-#include "core/context.h"
-#include "core/filter.h"
+#include "bench_common.h"
 #include "filters/fxaa.h"
-#include "synth/synthetic.h"
 
 namespace {
 
+namespace bench = crisp::bench;
 using crisp::Image;
 
-const Image& input(int width, int height, bool noise) {
-  static std::map<std::tuple<int, int, bool>, Image> cache;
-  auto key = std::make_tuple(width, height, noise);
+// Uniform noise in [0, 1), alpha included, built once per size.
+const Image& noiseImage(int width, int height) {
+  static std::map<std::pair<int, int>, Image> cache;
+  auto key = std::make_pair(width, height);
   auto it = cache.find(key);
   if (it != cache.end()) return it->second;
-  Image im;
-  if (noise) {
-    im = Image(width, height, 4, 1.0f);
-    std::mt19937 rng(7);
-    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
-    for (float& v : im.data) v = unit(rng);
-  } else {
-    im = crisp::synth::renderCentre(crisp::synth::testChart(width, height), width, height);
-  }
+  Image im(width, height, 4, 1.0f);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  for (float& v : im.data) v = unit(rng);
   return cache.emplace(key, std::move(im)).first->second;
 }
 
-void runFxaa(benchmark::State& state, int width, int height, int threads, bool reference, bool noise) {
-  const Image& in = input(width, height, noise);
+// One benchmark: threads (0 = all), the scalar reference path or the fast
+// one, test chart or noise.
+struct Variant {
+  const char* name;
+  int threads;
+  bool reference, noise;
+};
+
+void runFxaa(benchmark::State& state, int width, int height, const Variant& v) {
+  const Image& in = v.noise ? noiseImage(width, height) : bench::testChartImage(width, height);
   Image output(width, height, 4);
   crisp::Context context;
-  context.setInt("numThreads", threads);
-  auto filter = crisp::createFilter(context, "fxaa");
-  filter->setImage("color", in.view());
-  filter->setImage("output", output.view());
-  filter->params().setBool("reference", reference);
-  filter->commit();
-  for (auto _ : state) {
-    filter->execute();
-    benchmark::DoNotOptimize(output.data.data());
-    benchmark::ClobberMemory();
-  }
+  auto filter = bench::committedFilter(context, "fxaa", in, output, v.threads, v.reference);
+  bench::executeLoop(state, *filter, output);
   crisp::fxaa::Workspace ws;
   ws.allocate(width, height);
-  crisp::fxaa::runFast(in.view(), output.view(), crisp::fxaa::Settings{}, ws, threads);
+  crisp::fxaa::runFast(in.view(), output.view(), crisp::fxaa::Settings{}, ws, v.threads);
   state.counters["searched_fraction"] = double(ws.searchedPixels()) / (double(width) * height);
-  state.counters["pixels_per_s"] =
-      benchmark::Counter(double(width) * height, benchmark::Counter::kIsIterationInvariantRate);
+  bench::setPixelRate(state, width, height);
 }
 
 void registerAll() {
-  const int sizes[2][2] = {{1920, 1080}, {64, 64}};
-  for (const auto& s : sizes) {
-    const int w = s[0], h = s[1];
-    const std::string tag = "/" + std::to_string(w) + "x" + std::to_string(h);
-    struct Variant {
-      const char* name;
-      int threads;
-      bool reference, noise;
-    };
-    const Variant variants[] = {{"fxaa.fast.mt", 0, false, false},
-                                {"fxaa.fast.st", 1, false, false},
-                                {"fxaa.reference", 1, true, false},
-                                {"fxaa.fast.mt.noise", 0, false, true},
-                                {"fxaa.fast.st.noise", 1, false, true}};
-    for (const Variant& v : variants)
-      benchmark::RegisterBenchmark((v.name + tag).c_str(),
-                                   [w, h, v](benchmark::State& st) { runFxaa(st, w, h, v.threads, v.reference, v.noise); })
-          ->Unit(benchmark::kMillisecond)
-          ->UseRealTime();
-  }
+  const Variant variants[] = {{"fxaa.fast.mt", 0, false, false},
+                              {"fxaa.fast.st", 1, false, false},
+                              {"fxaa.reference", 1, true, false},
+                              {"fxaa.fast.mt.noise", 0, false, true},
+                              {"fxaa.fast.st.noise", 1, false, true}};
+  bench::registerVariants(variants, runFxaa);
 }
 
 const bool registered = (registerAll(), true);

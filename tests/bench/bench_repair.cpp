@@ -19,6 +19,7 @@
 
 namespace {
 
+namespace bench = crisp::bench;
 using crisp::Image;
 
 double edgeFraction(const Image& input, int threads) {
@@ -30,17 +31,17 @@ double edgeFraction(const Image& input, int threads) {
 }
 
 void runRepair(benchmark::State& state, int width, int height, int threads, bool reference) {
-  const Image& input = crisp::bench::testChartImage(width, height);
+  const Image& input = bench::testChartImage(width, height);
   Image output(width, height, 4);
   crisp::Context context;
-  auto filter = crisp::bench::committedFilter(context, "repair", input, output, threads, reference);
-  crisp::bench::executeLoop(state, *filter, output);
+  auto filter = bench::committedFilter(context, "repair", input, output, threads, reference);
+  bench::executeLoop(state, *filter, output);
   state.counters["edge_fraction"] = edgeFraction(input, threads);
-  crisp::bench::setPixelRate(state, width, height);
+  bench::setPixelRate(state, width, height);
 }
 
 void runBaselineRows(benchmark::State& state, int width, int height) {
-  const Image& input = crisp::bench::testChartImage(width, height);
+  const Image& input = bench::testChartImage(width, height);
   Image output(width, height, 4);
   crisp::repair::Kernel kernel;
   kernel.allocate(width, height);
@@ -51,21 +52,17 @@ void runBaselineRows(benchmark::State& state, int width, int height) {
     benchmark::ClobberMemory();
   }
   state.counters["edge_fraction"] = edgeFraction(input, 1);
-  crisp::bench::setPixelRate(state, width, height);
+  bench::setPixelRate(state, width, height);
 }
 
 void registerAll() {
-  for (const auto& s : crisp::bench::kSizes) {
+  for (const auto& s : bench::kSizes) {
     const int w = s[0], h = s[1];
-    const std::string tag = crisp::bench::sizeTag(w, h);
-    benchmark::RegisterBenchmark(("repair.fast.mt" + tag).c_str(), [w, h](benchmark::State& st) { runRepair(st, w, h, 0, false); })
-        ->Unit(benchmark::kMillisecond)->UseRealTime();
-    benchmark::RegisterBenchmark(("repair.fast.st" + tag).c_str(), [w, h](benchmark::State& st) { runRepair(st, w, h, 1, false); })
-        ->Unit(benchmark::kMillisecond)->UseRealTime();
-    benchmark::RegisterBenchmark(("repair.fast.st.sse2" + tag).c_str(), [w, h](benchmark::State& st) { runBaselineRows(st, w, h); })
-        ->Unit(benchmark::kMillisecond)->UseRealTime();
-    benchmark::RegisterBenchmark(("repair.reference" + tag).c_str(), [w, h](benchmark::State& st) { runRepair(st, w, h, 1, true); })
-        ->Unit(benchmark::kMillisecond)->UseRealTime();
+    const std::string tag = bench::sizeTag(w, h);
+    bench::registerTimed("repair.fast.mt" + tag, [w, h](benchmark::State& st) { runRepair(st, w, h, 0, false); });
+    bench::registerTimed("repair.fast.st" + tag, [w, h](benchmark::State& st) { runRepair(st, w, h, 1, false); });
+    bench::registerTimed("repair.fast.st.sse2" + tag, [w, h](benchmark::State& st) { runBaselineRows(st, w, h); });
+    bench::registerTimed("repair.reference" + tag, [w, h](benchmark::State& st) { runRepair(st, w, h, 1, true); });
   }
 }
 

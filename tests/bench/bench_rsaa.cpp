@@ -13,14 +13,13 @@
 #include <string>
 #include <utility>
 
-#include "core/context.h"
-#include "core/filter.h"
+#include "bench_common.h"
 #include "filters/rsaa.h"
 #include "rsaa/offset_table.h"
-#include "synth/synthetic.h"
 
 namespace {
 
+namespace bench = crisp::bench;
 using crisp::Image;
 namespace rsaa = crisp::rsaa;
 
@@ -64,22 +63,15 @@ void runRsaa(benchmark::State& state, int width, int height, int threads, bool r
   const Frame& f = frame(width, height);
   Image output(width, height, 4);
   crisp::Context context;
-  context.setInt("numThreads", threads);
-  auto filter = crisp::createFilter(context, "rsaa");
+  auto filter = bench::newFilter(context, "rsaa", output, threads, reference);
   filter->setImage("color", f.color.view());
   filter->setImage("depth", f.depth.view());
   filter->setImage("normal", f.normal.view());
   for (int k = 0; k < rsaa::kSamples; ++k) filter->setImage("sub" + std::to_string(k), f.sub[k].view());
-  filter->setImage("output", output.view());
-  filter->params().setBool("reference", reference);
   filter->params().setFloat("proj00", 1.0f);
   filter->params().setFloat("proj11", float(width) / float(height));
   filter->commit();
-  for (auto _ : state) {
-    filter->execute();
-    benchmark::DoNotOptimize(output.data.data());
-    benchmark::ClobberMemory();
-  }
+  bench::executeLoop(state, *filter, output);
   rsaa::Kernel kernel;
   rsaa::Settings settings;
   settings.camera.proj11 = float(width) / float(height);
@@ -92,7 +84,7 @@ void runRsaa(benchmark::State& state, int width, int height, int threads, bool r
   Image scratch(width, height, 4);
   kernel.run(in, scratch.view(), false, threads);
   state.counters["resolved_fraction"] = double(kernel.resolvedCount()) / (double(width) * height);
-  state.counters["pixels_per_s"] = benchmark::Counter(double(width) * height, benchmark::Counter::kIsIterationInvariantRate);
+  bench::setPixelRate(state, width, height);
 }
 
 // Reads every input float once and writes the output: the memory floor.
@@ -115,18 +107,13 @@ void readFloor(benchmark::State& state, int width, int height) {
 }
 
 void registerAll() {
-  const int sizes[2][2] = {{1920, 1080}, {64, 64}};
-  for (const auto& s : sizes) {
+  for (const auto& s : bench::kSizes) {
     const int w = s[0], h = s[1];
-    const std::string tag = "/" + std::to_string(w) + "x" + std::to_string(h);
-    benchmark::RegisterBenchmark(("rsaa.fast.mt" + tag).c_str(), [w, h](benchmark::State& st) { runRsaa(st, w, h, 0, false); })
-        ->Unit(benchmark::kMillisecond)->UseRealTime();
-    benchmark::RegisterBenchmark(("rsaa.fast.st" + tag).c_str(), [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false); })
-        ->Unit(benchmark::kMillisecond)->UseRealTime();
-    benchmark::RegisterBenchmark(("rsaa.reference" + tag).c_str(), [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, true); })
-        ->Unit(benchmark::kMillisecond)->UseRealTime();
-    benchmark::RegisterBenchmark(("rsaa.floor.read" + tag).c_str(), [w, h](benchmark::State& st) { readFloor(st, w, h); })
-        ->Unit(benchmark::kMillisecond)->UseRealTime();
+    const std::string tag = bench::sizeTag(w, h);
+    bench::registerTimed("rsaa.fast.mt" + tag, [w, h](benchmark::State& st) { runRsaa(st, w, h, 0, false); });
+    bench::registerTimed("rsaa.fast.st" + tag, [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false); });
+    bench::registerTimed("rsaa.reference" + tag, [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, true); });
+    bench::registerTimed("rsaa.floor.read" + tag, [w, h](benchmark::State& st) { readFloor(st, w, h); });
   }
 }
 
