@@ -6,21 +6,21 @@
 //  metrics.ssim    the same + SSIM
 //  metrics.flip    flipErrorMap alone, on already encoded frames
 //  metrics.compare everything (what `crisp compare` runs per frame)
-//  .st = 1 thread, .mt = all threads. metrics.floor.copy is the memory-copy
-//  floor in the same run: reading both RGBA float frames and writing one.
+//  .st = 1 thread, .mt = all threads. The memory-copy floor of the same run
+//  is floor.memcpy_rgba (bench_floor.cpp).
 #include <benchmark/benchmark.h>
 
-#include <cstring>
 #include <map>
 #include <string>
 #include <utility>
 
+#include "bench_common.h"
 #include "metrics/flip.h"
 #include "metrics/metrics.h"
-#include "synth/synthetic.h"
 
 namespace {
 
+namespace bench = crisp::bench;
 using crisp::Image;
 
 struct Pair {
@@ -32,20 +32,14 @@ const Pair& frames(int width, int height) {
   auto key = std::make_pair(width, height);
   auto it = cache.find(key);
   if (it == cache.end()) {
-    const crisp::synth::Scene scene = crisp::synth::testChart(width, height);
     Pair p;
-    p.reference = crisp::synth::renderCentre(scene, width, height);
-    p.test = crisp::synth::renderCentre(scene, width, height, 0.3f, -0.2f);
+    p.reference = bench::testChartImage(width, height);
+    p.test = crisp::synth::renderCentre(crisp::synth::testChart(width, height), width, height, 0.3f, -0.2f);
     p.referenceSrgb = crisp::displayEncode(p.reference);
     p.testSrgb = crisp::displayEncode(p.test);
     it = cache.emplace(key, std::move(p)).first;
   }
   return it->second;
-}
-
-void pixelRate(benchmark::State& state, int width, int height) {
-  state.counters["pixels_per_s"] =
-      benchmark::Counter(double(width) * height, benchmark::Counter::kIsIterationInvariantRate);
 }
 
 void runCompare(benchmark::State& state, int width, int height, int threads, bool ssim, bool flip) {
@@ -57,7 +51,7 @@ void runCompare(benchmark::State& state, int width, int height, int threads, boo
     crisp::Metrics m = crisp::compareImages(p.reference, p.test, nullptr, {}, threads, options);
     benchmark::DoNotOptimize(m);
   }
-  pixelRate(state, width, height);
+  bench::setPixelRate(state, width, height);
 }
 
 void runFlip(benchmark::State& state, int width, int height, int threads) {
@@ -66,44 +60,23 @@ void runFlip(benchmark::State& state, int width, int height, int threads) {
     Image map = crisp::flipErrorMap(p.referenceSrgb, p.testSrgb, 67.0f, threads);
     benchmark::DoNotOptimize(map.data.data());
   }
-  pixelRate(state, width, height);
-}
-
-void copyFloor(benchmark::State& state, int width, int height) {
-  const Pair& p = frames(width, height);
-  Image output(width, height, 4);
-  const std::size_t bytes = p.reference.data.size() * sizeof(float);
-  for (auto _ : state) {
-    std::memcpy(output.data.data(), p.reference.data.data(), bytes);
-    benchmark::ClobberMemory();
-    std::memcpy(output.data.data(), p.test.data.data(), bytes);
-    benchmark::ClobberMemory();
-  }
-  state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(bytes) * 4);
+  bench::setPixelRate(state, width, height);
 }
 
 void registerAll() {
-  const int sizes[2][2] = {{1920, 1080}, {64, 64}};
-  for (const auto& s : sizes) {
+  for (const auto& s : bench::kSizes) {
     const int w = s[0], h = s[1];
-    const std::string tag = "/" + std::to_string(w) + "x" + std::to_string(h);
+    const std::string tag = bench::sizeTag(w, h);
     for (int threads : {1, 0}) {
       const std::string mode = threads == 1 ? ".st" : ".mt";
-      benchmark::RegisterBenchmark(("metrics.psnr" + mode + tag).c_str(),
-                                   [=](benchmark::State& st) { runCompare(st, w, h, threads, false, false); })
-          ->Unit(benchmark::kMillisecond)->UseRealTime();
-      benchmark::RegisterBenchmark(("metrics.ssim" + mode + tag).c_str(),
-                                   [=](benchmark::State& st) { runCompare(st, w, h, threads, true, false); })
-          ->Unit(benchmark::kMillisecond)->UseRealTime();
-      benchmark::RegisterBenchmark(("metrics.flip" + mode + tag).c_str(),
-                                   [=](benchmark::State& st) { runFlip(st, w, h, threads); })
-          ->Unit(benchmark::kMillisecond)->UseRealTime();
-      benchmark::RegisterBenchmark(("metrics.compare" + mode + tag).c_str(),
-                                   [=](benchmark::State& st) { runCompare(st, w, h, threads, true, true); })
-          ->Unit(benchmark::kMillisecond)->UseRealTime();
+      bench::registerTimed("metrics.psnr" + mode + tag,
+                           [=](benchmark::State& st) { runCompare(st, w, h, threads, false, false); });
+      bench::registerTimed("metrics.ssim" + mode + tag,
+                           [=](benchmark::State& st) { runCompare(st, w, h, threads, true, false); });
+      bench::registerTimed("metrics.flip" + mode + tag, [=](benchmark::State& st) { runFlip(st, w, h, threads); });
+      bench::registerTimed("metrics.compare" + mode + tag,
+                           [=](benchmark::State& st) { runCompare(st, w, h, threads, true, true); });
     }
-    benchmark::RegisterBenchmark(("metrics.floor.copy" + tag).c_str(), [=](benchmark::State& st) { copyFloor(st, w, h); })
-        ->Unit(benchmark::kMillisecond)->UseRealTime();
   }
 }
 
