@@ -16,47 +16,15 @@
 #include "filters/phlm.h"
 #include "metrics/metrics.h"
 #include "synth/moving.h"
+#include "temporal_test_util.h"
 
 using namespace crisp;
 
+using test::allFinite;
+using test::psnr;
+using Driver = test::TemporalDriver;
+
 namespace {
-
-CompareOptions cheap() {
-  CompareOptions o;
-  o.ssim = false;
-  o.flip = false;
-  return o;
-}
-double psnr(const Image& ref, const Image& test) { return compareImages(ref, test, nullptr, {}, 1, cheap()).psnr; }
-
-struct Driver {
-  Context context;
-  std::unique_ptr<Filter> filter;
-  Image output;
-  explicit Driver(const char* type, int threads = 1) {
-    context.setInt("numThreads", threads);
-    filter = createFilter(context, type);
-  }
-  const Image& run(const synth::FrameData& f, bool motion, bool depth) {
-    if (output.width != f.color.width) output = Image(f.color.width, f.color.height, 4);
-    filter->setImage("color", f.color.view());
-    if (motion) filter->setImage("motion", f.motion.view()); else filter->unsetImage("motion");
-    if (depth) filter->setImage("depth", f.depth.view()); else filter->unsetImage("depth");
-    filter->setImage("output", output.view());
-    filter->params().setFloat("jitterX", f.jitter.x);
-    filter->params().setFloat("jitterY", f.jitter.y);
-    filter->markDirty();
-    filter->commit();
-    filter->execute();
-    return output;
-  }
-};
-
-bool allFinite(const Image& im) {
-  for (float v : im.data)
-    if (!std::isfinite(v)) return false;
-  return true;
-}
 
 // The paper's update (eqs. 6-7) in plain form, double.
 struct PaperRls {
@@ -184,13 +152,9 @@ TEST(Phlm, StaticSceneConverges) {
 // frames on mean PSNR after warm-up (taa's figure printed beside it).
 TEST(Phlm, MovingSequencesBeatOneSampleAfterWarmUp) {
   const int w = 48, h = 40, frames = 48, warmUp = 8;
-  struct Case {
-    const char* name;
-    synth::Sequence seq;
-  } cases[] = {{"edge 30deg v=(0.7,0.3)", synth::movingEdgeSequence(w, h, 30.0f, 0.7f, 0.3f)},
-               {"ghosting disk v=(1.3,0)", synth::ghostingSequence(w, h, 8.0f, 1.3f, 0.0f)},
-               {"disocclusion bar v=1", synth::disocclusionSequence(w, h, 1.0f)}};
-  for (const Case& c : cases) {
+  std::vector<test::MovingCase> cases = test::movingEdgeAndDisk(w, h);
+  cases.push_back({"disocclusion bar v=1", synth::disocclusionSequence(w, h, 1.0f)});
+  for (const test::MovingCase& c : cases) {
     Driver phlm("phlm"), taa("taa");
     double sumPhlm = 0, sumTaa = 0, sumOne = 0;
     for (int t = 0; t < frames; ++t) {

@@ -18,48 +18,19 @@
 #include "metrics/metrics.h"
 #include "synth/moving.h"
 #include "temporal/color_space.h"
+#include "temporal_test_util.h"
 
 using namespace crisp;
 
+using test::allFinite;
+using test::psnr;
+
 namespace {
 
-CompareOptions cheap() {
-  CompareOptions o;
-  o.ssim = false;
-  o.flip = false;
-  return o;
-}
-double psnr(const Image& ref, const Image& test) { return compareImages(ref, test, nullptr, {}, 1, cheap()).psnr; }
-
-struct Driver {
-  Context context;
-  std::unique_ptr<Filter> filter;
-  Image output;
-  explicit Driver(int threads = 1) {
-    context.setInt("numThreads", threads);
-    filter = createFilter(context, "taa");
-  }
-  // Runs one frame; motion/depth only when asked.
-  const Image& run(const synth::FrameData& f, bool motion, bool depth) {
-    if (output.width != f.color.width) output = Image(f.color.width, f.color.height, 4);
-    filter->setImage("color", f.color.view());
-    if (motion) filter->setImage("motion", f.motion.view()); else filter->unsetImage("motion");
-    if (depth) filter->setImage("depth", f.depth.view()); else filter->unsetImage("depth");
-    filter->setImage("output", output.view());
-    filter->params().setFloat("jitterX", f.jitter.x);
-    filter->params().setFloat("jitterY", f.jitter.y);
-    filter->markDirty();
-    filter->commit();
-    filter->execute();
-    return output;
-  }
+// The "taa" filter on `threads` threads.
+struct Driver : test::TemporalDriver {
+  explicit Driver(int threads = 1) : TemporalDriver("taa", threads) {}
 };
-
-bool allFinite(const Image& im) {
-  for (float v : im.data)
-    if (!std::isfinite(v)) return false;
-  return true;
-}
 
 }  // namespace
 
@@ -136,12 +107,7 @@ TEST(Taa, BlackmanHarrisJitterConvergesToEeveeStyleReference) {
 // mean PSNR after warm-up, for both history filters.
 TEST(Taa, MovingSequencesBeatOneSampleAfterWarmUp) {
   const int w = 48, h = 40, frames = 48, warmUp = 8;
-  struct Case {
-    const char* name;
-    synth::Sequence seq;
-  } cases[] = {{"edge 30deg v=(0.7,0.3)", synth::movingEdgeSequence(w, h, 30.0f, 0.7f, 0.3f)},
-               {"ghosting disk v=(1.3,0)", synth::ghostingSequence(w, h, 8.0f, 1.3f, 0.0f)}};
-  for (const Case& c : cases) {
+  for (const test::MovingCase& c : test::movingEdgeAndDisk(w, h)) {
     std::vector<synth::FrameData> input;
     for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(c.seq, w, h, t, {}));
     for (const char* filter : {"catmull-rom", "bilinear"}) {

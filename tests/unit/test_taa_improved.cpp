@@ -18,52 +18,15 @@
 #include "filters/taa_improved.h"
 #include "metrics/metrics.h"
 #include "synth/moving.h"
+#include "temporal_test_util.h"
 
 using namespace crisp;
 
+using test::allFinite;
+using test::psnr;
+using Driver = test::TemporalDriver;
+
 namespace {
-
-CompareOptions cheap() {
-  CompareOptions o;
-  o.ssim = false;
-  o.flip = false;
-  return o;
-}
-double psnr(const Image& ref, const Image& test) { return compareImages(ref, test, nullptr, {}, 1, cheap()).psnr; }
-
-struct Driver {
-  Context context;
-  std::unique_ptr<Filter> filter;
-  Image output;
-  Driver(const char* type, int threads = 1) {
-    context.setInt("numThreads", threads);
-    filter = createFilter(context, type);
-  }
-  const Image& run(const synth::FrameData& f, bool motion = true, bool depth = true, bool id = true,
-                   const Image* albedo = nullptr) {
-    if (output.width != f.color.width) output = Image(f.color.width, f.color.height, 4);
-    filter->setImage("color", f.color.view());
-    if (motion) filter->setImage("motion", f.motion.view()); else filter->unsetImage("motion");
-    if (depth) filter->setImage("depth", f.depth.view()); else filter->unsetImage("depth");
-    if (std::string(filter->type()) == "taa-improved") {
-      if (id) filter->setImage("id", f.id.view()); else filter->unsetImage("id");
-      if (albedo) filter->setImage("albedo", albedo->view()); else filter->unsetImage("albedo");
-    }
-    filter->setImage("output", output.view());
-    filter->params().setFloat("jitterX", f.jitter.x);
-    filter->params().setFloat("jitterY", f.jitter.y);
-    filter->markDirty();
-    filter->commit();
-    filter->execute();
-    return output;
-  }
-};
-
-bool allFinite(const Image& im) {
-  for (float v : im.data)
-    if (!std::isfinite(v)) return false;
-  return true;
-}
 
 // Mean squared error over the pixels where the reference or either output
 // differs from the static background: the moving disk and its trail.

@@ -1,0 +1,79 @@
+// SPDX-License-Identifier: Apache-2.0
+// Set-up shared by the temporal filter tests (test_taa.cpp,
+// test_taa_improved.cpp, test_phlm.cpp): PSNR alone, a finite check, the
+// common moving sequences, and a driver feeding the frames of synth/moving.h
+// to a filter one at a time.
+#pragma once
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/context.h"
+#include "core/filter.h"
+#include "metrics/metrics.h"
+#include "synth/moving.h"
+
+namespace crisp::test {
+
+// PSNR on one thread, with SSIM and FLIP off (not read, and slow).
+inline double psnr(const Image& ref, const Image& test) {
+  CompareOptions options;
+  options.ssim = false;
+  options.flip = false;
+  return compareImages(ref, test, nullptr, {}, 1, options).psnr;
+}
+
+inline bool allFinite(const Image& im) {
+  for (float v : im.data)
+    if (!std::isfinite(v)) return false;
+  return true;
+}
+
+// A named moving sequence of synth/moving.h.
+struct MovingCase {
+  const char* name;
+  synth::Sequence seq;
+};
+
+// The moving sequences every temporal filter is measured on (exact motion and
+// depth): an edge at 30 degrees and the ghosting disk, both moving.
+inline std::vector<MovingCase> movingEdgeAndDisk(int width, int height) {
+  return {{"edge 30deg v=(0.7,0.3)", synth::movingEdgeSequence(width, height, 30.0f, 0.7f, 0.3f)},
+          {"ghosting disk v=(1.3,0)", synth::ghostingSequence(width, height, 8.0f, 1.3f, 0.0f)}};
+}
+
+// A temporal filter of `type` on `threads` threads, driven as a caller drives
+// it: each run() points it at one frame (the auxiliary images only when
+// asked; id and albedo only for taa-improved, the one filter that reads
+// them), sets that frame's jitter, re-commits and executes.
+struct TemporalDriver {
+  Context context;
+  std::unique_ptr<Filter> filter;
+  Image output;
+  explicit TemporalDriver(const char* type, int threads = 1) {
+    context.setInt("numThreads", threads);
+    filter = createFilter(context, type);
+  }
+  const Image& run(const synth::FrameData& f, bool motion = true, bool depth = true, bool id = true,
+                   const Image* albedo = nullptr) {
+    if (output.width != f.color.width) output = Image(f.color.width, f.color.height, 4);
+    filter->setImage("color", f.color.view());
+    if (motion) filter->setImage("motion", f.motion.view()); else filter->unsetImage("motion");
+    if (depth) filter->setImage("depth", f.depth.view()); else filter->unsetImage("depth");
+    if (std::string(filter->type()) == "taa-improved") {
+      if (id) filter->setImage("id", f.id.view()); else filter->unsetImage("id");
+      if (albedo) filter->setImage("albedo", albedo->view()); else filter->unsetImage("albedo");
+    }
+    filter->setImage("output", output.view());
+    filter->params().setFloat("jitterX", f.jitter.x);
+    filter->params().setFloat("jitterY", f.jitter.y);
+    filter->markDirty();
+    filter->commit();
+    filter->execute();
+    return output;
+  }
+};
+
+}  // namespace crisp::test
