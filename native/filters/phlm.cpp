@@ -447,7 +447,9 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.staged = staged_.data.data();
   f.color = in.color;
   f.depth = depthNow;
-  f.previousDepth = hasDepth && previousDepthValid_ ? depth_[1 - nextDepth].data() : nullptr;
+  // No motion image: nothing moves, nothing is disoccluded; a depth test would
+  // only reset silhouettes whose jittered depth flips between frames.
+  f.previousDepth = hasDepth && moving && previousDepthValid_ ? depth_[1 - nextDepth].data() : nullptr;
   f.motion = in.motion;
   f.hasHistory = frames_ > 0;
   f.previous = models_[current_].data();

@@ -491,7 +491,11 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   Frame f;
   f.width = width_;
   f.height = height_;
-  f.previousDepth = hasDepth && previousDepthValid_ && frames_ > 0 ? depth_[current_].data() : nullptr;
+  // Without a motion image nothing moves, so nothing can be disoccluded: the
+  // depth test would only reset silhouette pixels whose jittered depth flips
+  // between object and background from frame to frame.
+  f.previousDepth =
+      hasDepth && in.motion.ptr && previousDepthValid_ && frames_ > 0 ? depth_[current_].data() : nullptr;
   f.color = in.color;
   f.motion = in.motion;
   f.depth = in.depth;
