@@ -67,7 +67,7 @@ int runCompare(const ParsedArgs& args) {
     all.push_back(m);
     std::printf("%-28.28s %-28.28s %10.3e %9.3f %9.3f %8.5f %8.5f\n", fileStem(refs[i]).c_str(),
                 fileStem(tests[i]).c_str(), m.mse, m.psnr, m.snr, m.ssim, m.flip);
-    frames << (i ? ",\n    " : "\n    ") << "{\"reference\": " << jsonString(refs[i]) << ", \"test\": " << jsonString(tests[i])
+    frames << (i ? ",\n    " : "\n    ") << "{\"reference\": " << jsonQuote(refs[i]) << ", \"test\": " << jsonQuote(tests[i])
            << ", " << figuresJson(m) << ", \"pixels\": " << m.pixels << "}";
     if (!mapsDir.empty()) {
       const std::string base = joinPath(mapsDir, fileStem(tests[i]));

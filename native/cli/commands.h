@@ -6,6 +6,7 @@
 
 #include "cli/options.h"
 #include "core/filter.h"
+#include "core/params.h"  // jsonQuote
 #include "io/frame.h"
 
 namespace crisp::cli {
@@ -31,7 +32,6 @@ std::string joinPath(const std::string& dir, const std::string& name);
 std::string executableDir();
 
 // Minimal JSON output.
-std::string jsonString(const std::string& s);
 std::string jsonNumber(double v);
 
 }  // namespace crisp::cli

@@ -54,28 +54,6 @@ std::string fileStem(const std::string& path) { return fs::path(path).stem().str
 
 std::string joinPath(const std::string& dir, const std::string& name) { return (fs::path(dir) / name).string(); }
 
-std::string jsonString(const std::string& s) {
-  std::string o = "\"";
-  for (unsigned char c : s) {
-    switch (c) {
-      case '"': o += "\\\""; break;
-      case '\\': o += "\\\\"; break;
-      case '\n': o += "\\n"; break;
-      case '\t': o += "\\t"; break;
-      case '\r': o += "\\r"; break;
-      default:
-        if (c < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\u%04x", c);
-          o += buf;
-        } else {
-          o += char(c);
-        }
-    }
-  }
-  return o + "\"";
-}
-
 std::string jsonNumber(double v) {
   if (!std::isfinite(v)) return "null";
   char buf[32];
