@@ -14,6 +14,7 @@
 #include "metrics/flip.h"
 #include "metrics/metrics.h"
 #include "synth/synthetic.h"
+#include "test_util.h"
 
 using namespace crisp;
 
@@ -143,20 +144,12 @@ TEST(Flip, IndependentOfThreadCount) {
 }
 
 TEST(Flip, BadInput) {
-  auto code = [](const std::function<void()>& f) {
-    try {
-      f();
-    } catch (const Exception& e) {
-      return e.code();
-    }
-    return CRISP_ERROR_NONE;
-  };
   const Image a(8, 8, 3), b(8, 9, 3), rgba(8, 8, 4);
-  EXPECT_EQ(code([&] { flipErrorMap(a, b); }), CRISP_ERROR_INVALID_DATA);
-  EXPECT_EQ(code([&] { flipErrorMap(a, rgba); }), CRISP_ERROR_INVALID_DATA);
-  EXPECT_EQ(code([&] { flipErrorMap(Image(), Image()); }), CRISP_ERROR_INVALID_DATA);
+  EXPECT_EQ(test::errorCode([&] { flipErrorMap(a, b); }), CRISP_ERROR_INVALID_DATA);
+  EXPECT_EQ(test::errorCode([&] { flipErrorMap(a, rgba); }), CRISP_ERROR_INVALID_DATA);
+  EXPECT_EQ(test::errorCode([&] { flipErrorMap(Image(), Image()); }), CRISP_ERROR_INVALID_DATA);
   for (float ppd : {0.0f, -5.0f, std::nanf(""), 5000.0f})
-    EXPECT_EQ(code([&] { flipErrorMap(a, a, ppd); }), CRISP_ERROR_INVALID_ARGUMENT) << ppd;
+    EXPECT_EQ(test::errorCode([&] { flipErrorMap(a, a, ppd); }), CRISP_ERROR_INVALID_ARGUMENT) << ppd;
   try {
     flipErrorMap(a, b);
   } catch (const Exception& e) {

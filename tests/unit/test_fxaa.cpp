@@ -20,6 +20,7 @@
 #include "filters/fxaa.h"
 #include "metrics/metrics.h"
 #include "synth/synthetic.h"
+#include "test_util.h"
 
 using namespace crisp;
 
@@ -84,22 +85,11 @@ bool sameBits(const std::vector<float>& a, const std::vector<float>& b) {
 }
 
 // PSNR of the display-encoded (clamped, sRGB) RGB over mask > 0, by the
-// library's metric, cross-checked against a direct computation here.
+// library's metric, cross-checked against the direct computation of
+// test::maskedPsnr.
 double edgePsnr(const Image& ref, const Image& test, const Image& mask) {
-  double sum = 0.0;
-  long n = 0;
-  for (int y = 0; y < ref.height; ++y)
-    for (int x = 0; x < ref.width; ++x) {
-      if (*mask.at(x, y) <= 0.0f) continue;
-      for (int k = 0; k < 3; ++k) {
-        const double d = double(srgbEncode(ref.at(x, y)[k])) - double(srgbEncode(test.at(x, y)[k]));
-        sum += d * d;
-      }
-      n += 3;
-    }
-  const double local = 10.0 * std::log10(1.0 / (sum / double(n)));
   const double psnr = compareImages(ref, test, &mask).psnr;
-  EXPECT_NEAR(psnr, local, 1e-3);
+  EXPECT_NEAR(psnr, test::maskedPsnr(ref, test, mask), 1e-3);
   return psnr;
 }
 
@@ -206,10 +196,7 @@ TEST(Fxaa, FastPathIsBitIdenticalOnStridedViews) {
 // FXAA must bring edge pixels closer to the 16x16 box-filtered reference.
 TEST(Fxaa, RaisesEdgePsnrOnTestChart) {
   const int w = 192, h = 128;
-  const synth::Scene scene = synth::testChart(w, h);
-  const Image one = synth::renderCentre(scene, w, h);
-  const Image ref = synth::renderSupersampled(scene, w, h, 16);
-  const Image mask = synth::edgePixels(scene, w, h, 16);
+  const auto [one, ref, mask] = test::renderEdgeFrames(synth::testChart(w, h), w, h);
   ASSERT_GT(count(mask), 500);
   const Image out = runPacked(one, fxaa::Settings{}, false);
   const double before = edgePsnr(ref, one, mask), after = edgePsnr(ref, out, mask);
@@ -224,9 +211,7 @@ TEST(Fxaa, RaisesEdgePsnrOnEdgesAtManyAngles) {
   int measured = 0;
   for (float angle = 2.0f; angle < 180.0f; angle += 11.0f) {
     const synth::Scene scene = synth::edgeScene(w, h, angle, 0.3f);
-    const Image one = synth::renderCentre(scene, w, h);
-    const Image ref = synth::renderSupersampled(scene, w, h, 16);
-    const Image mask = synth::edgePixels(scene, w, h, 16);
+    const auto [one, ref, mask] = test::renderEdgeFrames(scene, w, h);
     if (count(mask) < 20) continue;
     const Image out = runPacked(one, fxaa::Settings{}, false);
     const double before = edgePsnr(ref, one, mask), after = edgePsnr(ref, out, mask);

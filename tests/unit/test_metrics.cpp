@@ -17,6 +17,7 @@
 #include "core/error.h"
 #include "metrics/metrics.h"
 #include "metrics/power_table.h"
+#include "test_util.h"
 
 using namespace crisp;
 
@@ -285,28 +286,21 @@ TEST(Metrics, SizeMismatchNamesBothSizes) {
 }
 
 TEST(Metrics, BadInputIsInvalidData) {
-  auto code = [](const std::function<void()>& f) {
-    try {
-      f();
-    } catch (const Exception& e) {
-      return e.code();
-    }
-    return CRISP_ERROR_NONE;
-  };
   const Image rgb(8, 8, 3, 0.5f), rgba(8, 8, 4, 0.5f), grey(8, 8, 1, 0.5f);
-  EXPECT_EQ(code([&] { compareImages(rgb, rgba); }), CRISP_ERROR_INVALID_DATA);  // channel mismatch
-  EXPECT_EQ(code([&] { compareImages(grey, grey); }), CRISP_ERROR_INVALID_DATA);
-  EXPECT_EQ(code([&] { compareImages(Image(), Image()); }), CRISP_ERROR_INVALID_DATA);
+  EXPECT_EQ(test::errorCode([&] { compareImages(rgb, rgba); }), CRISP_ERROR_INVALID_DATA);  // channel mismatch
+  EXPECT_EQ(test::errorCode([&] { compareImages(grey, grey); }), CRISP_ERROR_INVALID_DATA);
+  EXPECT_EQ(test::errorCode([&] { compareImages(Image(), Image()); }), CRISP_ERROR_INVALID_DATA);
   const Image wrongMask(8, 7, 1, 1.0f), twoChannelMask(8, 8, 2, 1.0f), emptyMask(8, 8, 1, 0.0f);
-  EXPECT_EQ(code([&] { compareImages(rgb, rgb, &wrongMask); }), CRISP_ERROR_INVALID_DATA);
-  EXPECT_EQ(code([&] { compareImages(rgb, rgb, &twoChannelMask); }), CRISP_ERROR_INVALID_DATA);
-  EXPECT_EQ(code([&] { compareImages(rgb, rgb, &emptyMask); }), CRISP_ERROR_INVALID_DATA);
-  EXPECT_EQ(code([&] { displayEncode(grey); }), CRISP_ERROR_INVALID_DATA);
+  EXPECT_EQ(test::errorCode([&] { compareImages(rgb, rgb, &wrongMask); }), CRISP_ERROR_INVALID_DATA);
+  EXPECT_EQ(test::errorCode([&] { compareImages(rgb, rgb, &twoChannelMask); }), CRISP_ERROR_INVALID_DATA);
+  EXPECT_EQ(test::errorCode([&] { compareImages(rgb, rgb, &emptyMask); }), CRISP_ERROR_INVALID_DATA);
+  EXPECT_EQ(test::errorCode([&] { displayEncode(grey); }), CRISP_ERROR_INVALID_DATA);
   Image ssimMap;
   CompareOptions noSsim;
   noSsim.ssim = false;
-  EXPECT_EQ(code([&] { compareImages(rgb, rgb, nullptr, MetricMaps{nullptr, &ssimMap, nullptr}, 0, noSsim); }),
-            CRISP_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(
+      test::errorCode([&] { compareImages(rgb, rgb, nullptr, MetricMaps{nullptr, &ssimMap, nullptr}, 0, noSsim); }),
+      CRISP_ERROR_INVALID_ARGUMENT);
 }
 
 TEST(Metrics, NonFiniteAndTinyImages) {

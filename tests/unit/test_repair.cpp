@@ -19,6 +19,7 @@
 #include "core/filter.h"
 #include "filters/repair.h"
 #include "synth/synthetic.h"
+#include "test_util.h"
 
 using namespace crisp;
 using repair::AngleEstimator;
@@ -26,23 +27,6 @@ using repair::MaskKind;
 using repair::Settings;
 
 namespace {
-
-// PSNR on display-encoded values (sRGB of clamped linear RGB) over mask > 0,
-// computed here so this test does not depend on metrics.cpp.
-double maskedPsnr(const Image& reference, const Image& test, const Image& mask) {
-  double squared = 0;
-  long count = 0;
-  for (int y = 0; y < reference.height; ++y)
-    for (int x = 0; x < reference.width; ++x) {
-      if (!(*mask.at(x, y) > 0)) continue;
-      for (int k = 0; k < 3; ++k) {
-        const double d = double(srgbEncode(reference.at(x, y)[k])) - double(srgbEncode(test.at(x, y)[k]));
-        squared += d * d;
-      }
-      count += 3;
-    }
-  return 10.0 * std::log10(1.0 / (squared / double(count)));
-}
 
 Image runKernel(const Image& input, const Settings& s, bool reference = false, int threads = 0,
                 repair::Kernel* kernelOut = nullptr, repair::RowIsa isa = repair::RowIsa::Auto) {
@@ -302,19 +286,16 @@ TEST(RepairMask, RotationFollowsTheEdgeDirection) {
 
 TEST(RepairQuality, RaisesEdgePsnrOnChartAndSingleEdges) {
   const int W = 180, H = 120;
-  const synth::Scene chart = synth::testChart(W, H);
-  const Image one = synth::renderCentre(chart, W, H);
-  const Image reference = synth::renderSupersampled(chart, W, H, 16);
-  const Image edges = synth::edgePixels(chart, W, H, 16);
+  const auto [one, reference, edges] = test::renderEdgeFrames(synth::testChart(W, H), W, H);
   const Image all(W, H, 1, 1.0f);
-  const double before = maskedPsnr(reference, one, edges);
+  const double before = test::maskedPsnr(reference, one, edges);
   for (MaskKind m : {MaskKind::Gauss5, MaskKind::Box3}) {
     Settings s;
     s.mask = m;
     repair::Kernel k;
     const Image out = runKernel(one, s, false, 0, &k);
-    const double gain = maskedPsnr(reference, out, edges) - before;
-    const double wholeGain = maskedPsnr(reference, out, all) - maskedPsnr(reference, one, all);
+    const double gain = test::maskedPsnr(reference, out, edges) - before;
+    const double wholeGain = test::maskedPsnr(reference, out, all) - test::maskedPsnr(reference, one, all);
     std::printf("[ repair ] chart %dx%d mask %s: edge-pixel PSNR %.2f -> %.2f dB (%+.2f), whole image %+.2f dB, "
                 "%.1f%% pixels filtered\n",
                 W, H, m == MaskKind::Gauss5 ? "gauss5" : "box3", before, before + gain, gain, wholeGain,
@@ -328,10 +309,8 @@ TEST(RepairQuality, RaisesEdgePsnrOnChartAndSingleEdges) {
   std::string line;
   for (double angle = 4; angle < 180; angle += 16) {
     const synth::Scene scene = synth::edgeScene(size, size, float(angle), 0.3f);
-    const Image in = synth::renderCentre(scene, size, size);
-    const Image ref = synth::renderSupersampled(scene, size, size, 16);
-    const Image mask = synth::edgePixels(scene, size, size, 16);
-    const double gain = maskedPsnr(ref, runKernel(in, Settings{}), mask) - maskedPsnr(ref, in, mask);
+    const auto [in, ref, mask] = test::renderEdgeFrames(scene, size, size);
+    const double gain = test::maskedPsnr(ref, runKernel(in, Settings{}), mask) - test::maskedPsnr(ref, in, mask);
     char buf[32];
     std::snprintf(buf, sizeof buf, " %g:%+.2f", angle, gain);
     line += buf;

@@ -24,6 +24,7 @@
 #include "filters/rsaa.h"
 #include "rsaa/offset_table.h"
 #include "synth/synthetic.h"
+#include "test_util.h"
 
 using namespace crisp;
 using namespace crisp::rsaa;
@@ -123,21 +124,6 @@ Image runKernel(const Frame& f, const Settings& settings, bool reference, int th
   Image out(f.color.width, f.color.height, 4);
   k.run(f.inputs(), out.view(), reference, threads);
   return out;
-}
-
-// Squared error on display-encoded RGB (sRGB of clamped linear) over mask > 0.
-double maskedSquaredError(const Image& reference, const Image& test, const Image& mask, long& count) {
-  double squared = 0;
-  for (int y = 0; y < reference.height; ++y)
-    for (int x = 0; x < reference.width; ++x) {
-      if (!(*mask.at(x, y) > 0)) continue;
-      for (int k = 0; k < 3; ++k) {
-        const double d = double(srgbEncode(reference.at(x, y)[k])) - double(srgbEncode(test.at(x, y)[k]));
-        squared += d * d;
-        ++count;
-      }
-    }
-  return squared;
 }
 
 double psnr(double squared, long count) { return count ? 10.0 * std::log10(double(count) / std::max(squared, 1e-20)) : 0.0; }
@@ -260,13 +246,13 @@ TEST(RsaaEdges, BeatOneSampleByAtLeast6dBAtEveryAngle) {
       for (float off : offsets) {
         const Frame f = render(edgeGeometry(24, float(a), off, kind));
         long c = 0;
-        sq1 += maskedSquaredError(f.reference, f.color, f.edges, c);
+        sq1 += test::maskedSquaredError(f.reference, f.color, f.edges, c);
         for (int m = 0; m < 3; ++m) {
           Settings s;
           s.camera = edgeGeometry(24, float(a), off, kind).camera;
           s.verification = modes[m];
           long cr = 0;
-          sqR[m] += maskedSquaredError(f.reference, runKernel(f, s, false), f.edges, cr);
+          sqR[m] += test::maskedSquaredError(f.reference, runKernel(f, s, false), f.edges, cr);
         }
         count += c;
       }
@@ -500,6 +486,6 @@ TEST(RsaaLimits, TextureAliasingOnOnePlaneIsUntouched) {
   EXPECT_EQ(k.resolvedCount(), 0);
   expectSameBits(out, f.color, "checkerboard");
   long c = 0;
-  const double sq = maskedSquaredError(f.reference, out, f.edges, c);
+  const double sq = test::maskedSquaredError(f.reference, out, f.edges, c);
   std::printf("[ rsaa ] texture checkerboard on one plane: edge-pixel PSNR %.2f dB, unchanged by RSAA\n", psnr(sq, c));
 }
