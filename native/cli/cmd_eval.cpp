@@ -32,13 +32,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path addonDir() {
-  if (const char* env = std::getenv("CRISP_ADDON_DIR")) return env;
-  for (fs::path p : {fs::path(CRISP_SOURCE_DIR) / "addon", fs::path(executableDir()) / ".." / "share" / "crisp" / "addon"})
-    if (fs::exists(p / "crisp" / "batch_eval.py")) return p;
-  fail(CRISP_ERROR_IO, "cannot find the add-on's eval driver (addon/crisp/batch_eval.py); set CRISP_ADDON_DIR");
-}
-
 std::vector<std::string> splitList(const std::string& text) {
   std::vector<std::string> out;
   std::stringstream s(text);
@@ -165,17 +158,7 @@ int runEval(const ParsedArgs& args) {
     if (*end || v < 1 || v > 65536) throw UsageError("--curve expects sample counts like 1,2,4,8; got '" + c + "'");
   }
 
-  const fs::path addon = addonDir();
-  std::vector<std::string> cmd = {args.getOr("blender", "blender"), "-b"};
-  std::string sceneScript;
-  if (fs::path(scene).extension() == ".blend") {
-    if (!fs::is_regular_file(scene)) fail(CRISP_ERROR_IO, "scene file '" + scene + "' does not exist");
-    cmd.push_back(fs::absolute(scene).string());
-  } else if (fs::is_regular_file(addon.parent_path() / "test_scenes" / (scene + ".py"))) {
-    sceneScript = scene;
-  } else {
-    throw UsageError("--scene '" + scene + "' is neither a .blend file nor a bundled test scene (see test_scenes/)");
-  }
+  std::vector<std::string> cmd = blenderDriverCommand(args, "batch_eval.py");
   makeDirectories(outDir.string());
   const fs::path renders = outDir / "renders", logs = outDir / "logs";
   makeDirectories(renders.string());
@@ -192,15 +175,8 @@ int runEval(const ParsedArgs& args) {
   }
   writeTextFile(settings.string(), want.dump() + "\n");
 
-  for (const char* a : {"--factory-startup", "--python-exit-code", "1", "--python"}) cmd.push_back(a);
-  cmd.push_back((addon / "crisp" / "batch_eval.py").string());
-  cmd.push_back("--");
   cmd.push_back("-o");
   cmd.push_back(renders.string());
-  if (!sceneScript.empty()) {
-    cmd.push_back("--scene-script");
-    cmd.push_back(sceneScript);
-  }
   std::string methodList;
   for (const std::string& m : methods) methodList += (methodList.empty() ? "" : ",") + m;
   cmd.insert(cmd.end(), {"--methods", methodList, "--reference-samples", std::to_string(refSamples), "--curve", curve});

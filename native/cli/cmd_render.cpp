@@ -19,54 +19,11 @@ namespace crisp::cli {
 
 namespace fs = std::filesystem;
 
-namespace {
-
-// The add-on folder: $CRISP_ADDON_DIR, else the source tree this CLI was
-// built from, else <prefix>/share/crisp/addon beside an installed binary.
-fs::path addonDir() {
-  if (const char* env = std::getenv("CRISP_ADDON_DIR")) return env;
-  for (fs::path p : {fs::path(CRISP_SOURCE_DIR) / "addon", fs::path(executableDir()) / ".." / "share" / "crisp" / "addon"})
-    if (fs::exists(p / "crisp" / "batch.py")) return p;
-  fail(CRISP_ERROR_IO, "cannot find the add-on's batch driver (addon/crisp/batch.py); set CRISP_ADDON_DIR");
-}
-
-fs::path sceneScriptsDir() { return addonDir().parent_path() / "test_scenes"; }
-
-std::string bundledScenes() {
-  std::string names;
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator(sceneScriptsDir(), ec)) {
-    std::string stem = e.path().stem().string();
-    if (e.path().extension() == ".py" && stem != "common") names += (names.empty() ? "" : ", ") + stem;
-  }
-  return names;
-}
-
-}  // namespace
-
 int runRender(const ParsedArgs& args) {
   if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
-  const std::string scene = args.get("scene");
-  const fs::path addon = addonDir();
-  std::vector<std::string> cmd = {args.getOr("blender", "blender"), "-b"};
-  std::string sceneScript;
-  if (fs::path(scene).extension() == ".blend") {
-    if (!fs::is_regular_file(scene)) fail(CRISP_ERROR_IO, "scene file '" + scene + "' does not exist");
-    cmd.push_back(scene);
-  } else if (fs::is_regular_file(sceneScriptsDir() / (scene + ".py"))) {
-    sceneScript = scene;
-  } else {
-    throw UsageError("--scene '" + scene + "' is neither a .blend file nor a bundled test scene (" + bundledScenes() + ")");
-  }
-  for (const char* a : {"--factory-startup", "--python-exit-code", "1", "--python"}) cmd.push_back(a);
-  cmd.push_back((addon / "crisp" / "batch.py").string());
-  cmd.push_back("--");
+  std::vector<std::string> cmd = blenderDriverCommand(args, "batch.py");
   cmd.push_back("-o");
   cmd.push_back(args.get("output"));
-  if (!sceneScript.empty()) {
-    cmd.push_back("--scene-script");
-    cmd.push_back(sceneScript);
-  }
   for (const char* opt : {"frames", "method", "samples", "reference-samples", "resolution", "threads"})
     if (args.has(opt)) {
       cmd.push_back(std::string("--") + opt);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "cli/options.h"
 #include "core/filter.h"
@@ -28,6 +29,10 @@ void writeTextFile(const std::string& path, const std::string& text);
 void makeDirectories(const std::string& path);
 std::string fileStem(const std::string& path);
 std::string joinPath(const std::string& dir, const std::string& name);
+// The command line running addon/crisp/<script> in headless Blender on the
+// --scene of args (a .blend to open, or a bundled test scene to build); it ends
+// after "--" with the driver's scene arguments, callers append the rest.
+std::vector<std::string> blenderDriverCommand(const ParsedArgs& args, const std::string& script);
 // Folder of the running executable (/proc/self/exe).
 std::string executableDir();
 
