@@ -23,27 +23,36 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// For a method that reads "motion", an input without a motion pass but with
-// an add-on sidecar (frame_NNNN.json) gets motion reconstructed from its depth
-// and the sidecars of the previous input (and of the next one, for zw) in the
-// order given; the first input gets zero motion.
-void addReconstructedMotion(const Filter& filter, Frame& frame, const std::vector<std::string>& inputs,
-                            std::size_t index, int numThreads) {
+// Whether motion should be rebuilt for this run: the method reads "motion",
+// every input has an add-on sidecar (frame_NNNN.json) and something moves over
+// the inputs. A still sequence gets no motion pass at all, as the pass plan
+// decides, so temporal filters take their static path.
+bool rebuildsMotion(const Filter& filter, const std::vector<std::string>& inputs) {
   const auto& roles = filter.roles();
   const bool readsMotion = std::any_of(roles.begin(), roles.end(),
                                        [](const ImageRole& r) { return std::strcmp(r.name, "motion") == 0; });
+  if (!readsMotion) return false;
+  std::vector<std::string> sidecars;
   std::error_code ec;
-  if (!readsMotion || frame.has("motion") || !fs::is_regular_file(sidecarPathFor(frame.path), ec)) return;
+  for (const std::string& in : inputs) {
+    sidecars.push_back(sidecarPathFor(in));
+    if (!fs::is_regular_file(sidecars.back(), ec)) return false;
+  }
+  return !sequenceIsStill(sidecars);
+}
+
+// An input without a motion pass gets motion reconstructed from its depth and
+// the sidecars of the previous input (and of the next one, for zw) in the
+// order given; the first input gets zero motion.
+void addReconstructedMotion(Frame& frame, const std::vector<std::string>& inputs, std::size_t index,
+                            int numThreads) {
+  if (frame.has("motion")) return;
   if (index == 0) {
     frame.passes["motion"] = Image(frame.width, frame.height, 4, 0.0f);
     return;
   }
-  const std::string previous = sidecarPathFor(inputs[index - 1]);
-  if (!fs::is_regular_file(previous, ec)) return;
-  std::string next;
-  if (index + 1 < inputs.size() && fs::is_regular_file(sidecarPathFor(inputs[index + 1]), ec))
-    next = sidecarPathFor(inputs[index + 1]);
-  reconstructFrameMotion(frame, previous, next, numThreads);
+  const std::string next = index + 1 < inputs.size() ? sidecarPathFor(inputs[index + 1]) : std::string();
+  reconstructFrameMotion(frame, sidecarPathFor(inputs[index - 1]), next, numThreads);
 }
 
 }  // namespace
@@ -79,12 +88,13 @@ int runFilter(const ParsedArgs& args) {
         throw UsageError("output for '" + in + "' would overwrite an input file; choose another -o folder");
   }
 
+  const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
   Image output;
   Progress progress("filter " + std::string(filter->type()), int(args.positional.size()), args.has("quiet"));
   for (std::size_t i = 0; i < args.positional.size(); ++i) {
     const std::string& in = args.positional[i];
     Frame frame = readFrame(in);
-    addReconstructedMotion(*filter, frame, args.positional, i, context.numThreads());
+    if (rebuildMotion) addReconstructedMotion(frame, args.positional, i, context.numThreads());
     bindFrame(*filter, frame);
     if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
     filter->setImage("output", output.view());

@@ -31,10 +31,7 @@
 #include "io/frame.h"
 #include "metrics/metrics.h"
 #include "metrics/temporal_error.h"
-#if __has_include("motion/reconstruct.h")
 #include "motion/reconstruct.h"
-#define CRISP_EVAL_HAS_RECONSTRUCT 1
-#endif
 
 namespace crisp::eval {
 
@@ -115,20 +112,17 @@ bool readJitter(const fs::path& exr, double& x, double& y) {
   return true;
 }
 
-// Motion for the frames of a render set that has depth (renders/jittered): the
-// renderer's pass, else reconstructed from depth and the sidecars when the
-// library has the reconstruction. Empty when neither.
-void addMotion(Frame& frame, const fs::path& inputDir, int f, int firstFrame, int threads) {
-  if (frame.has("motion") || f == firstFrame || !frame.has("depth")) return;
-#ifdef CRISP_EVAL_HAS_RECONSTRUCT
+// Motion for the frames of a render set that has depth (renders/jittered) of a
+// scene where something moves: the renderer's pass, else reconstructed from
+// depth and the sidecars. A still scene gets none, as its pass plan says, so
+// the temporal filters take their static path.
+void addMotion(Frame& frame, const fs::path& inputDir, int f, int firstFrame, bool sceneMoves, int threads) {
+  if (!sceneMoves || frame.has("motion") || f == firstFrame || !frame.has("depth")) return;
   fs::path prev = inputDir / frameName(f - 1, ".json");
   if (fs::exists(prev)) reconstructFrameMotion(frame, prev.string(), "", threads);
-#else
-  (void)inputDir, (void)threads;
-#endif
 }
 
-void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const fs::path& inputDir,
+void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const fs::path& inputDir, bool sceneMoves,
                cli::Progress& progress) {
   const fs::path dir = fs::path(o.outDir) / "methods" / e.name;
   cli::makeDirectories(dir.string());
@@ -149,7 +143,7 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
     }
     const fs::path in = inputDir / frameName(f);
     Frame frame = readFrame(in.string());
-    addMotion(frame, inputDir, f, frames.front(), o.threads);
+    addMotion(frame, inputDir, f, frames.front(), sceneMoves, o.threads);
     cli::bindFrame(*filter, frame);
     if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
     filter->setImage("output", output.view());
@@ -364,7 +358,7 @@ int run(const Options& o) {
       int code = 0;
       try {
         cli::Progress progress("method " + e.name, int(frames.size()), o.quiet);
-        runMethod(e, o, frames, renders / e.inputSet, progress);
+        runMethod(e, o, frames, renders / e.inputSet, moving, progress);
       } catch (const std::exception& ex) {
         try {
           cli::makeDirectories(errorFile.parent_path().string());
@@ -404,7 +398,7 @@ int run(const Options& o) {
       std::unique_ptr<Frame> prev;
       for (int f : frames) {
         auto fr = std::make_unique<Frame>(readFrame((jit / frameName(f)).string()));
-        addMotion(*fr, jit, f, first, o.threads);
+        addMotion(*fr, jit, f, first, moving, o.threads);
         if (prev && fr->has("motion")) {
           motions[f] = fr->pass("motion");
           const Image* ids = fr->has("id") ? &fr->pass("id") : nullptr;

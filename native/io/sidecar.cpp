@@ -137,4 +137,20 @@ std::string sidecarPathFor(const std::string& framePath) {
   return framePath.substr(0, dot) + ".json";
 }
 
+bool sameCameraAndObjects(const Sidecar& a, const Sidecar& b) {
+  if (a.view.m != b.view.m || a.projectionUnjittered.m != b.projectionUnjittered.m || a.objects.size() != b.objects.size())
+    return false;
+  for (const auto& [hash, object] : a.objects) {
+    const SidecarObject* other = b.object(hash);
+    if (!other || other->world.m != object.world.m) return false;
+  }
+  return true;
+}
+
+bool sequenceIsStill(const std::vector<std::string>& sidecarPaths) {
+  for (std::size_t i = 1; i < sidecarPaths.size(); ++i)
+    if (!sameCameraAndObjects(readSidecar(sidecarPaths[i - 1]), readSidecar(sidecarPaths[i]))) return false;
+  return true;
+}
+
 }  // namespace crisp

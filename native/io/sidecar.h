@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "motion/matrix.h"
 
@@ -49,5 +50,12 @@ Sidecar parseSidecar(const std::string& text, const std::string& path);
 // The sidecar path of a frame file: the same path with the extension replaced
 // by ".json" (frame_0003.exr -> frame_0003.json).
 std::string sidecarPathFor(const std::string& framePath);
+
+// True when the two frames have the same camera (view and unjittered
+// projection) and the same objects at the same world matrices: nothing moves
+// between them, so they need no motion vectors (jitter is not motion).
+bool sameCameraAndObjects(const Sidecar& a, const Sidecar& b);
+// The same over a sequence of sidecar files (consecutive pairs).
+bool sequenceIsStill(const std::vector<std::string>& sidecarPaths);
 
 }  // namespace crisp

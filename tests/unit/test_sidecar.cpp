@@ -170,3 +170,20 @@ TEST(Sidecar, PathOfAFrame) {
   EXPECT_EQ(sidecarPathFor("dir.d/frame"), "dir.d/frame.json");
   EXPECT_EQ(sidecarPathFor("/a/.hidden"), "/a/.hidden.json");
 }
+
+TEST(Sidecar, StillFramesDifferOnlyInJitter) {
+  Json a = addonSidecar(), b = addonSidecar();
+  b["frame"] = 3;
+  b["jitter"]["x"] = -0.3;  // jitter and its shifted projection are not motion
+  b["camera"]["projection"][0][2] = -0.006;
+  EXPECT_TRUE(sameCameraAndObjects(parseSidecar(a.dump(), "a.json"), parseSidecar(b.dump(), "b.json")));
+  Json moved = b;
+  moved["objects"]["a8fce865"]["matrix_world"][0][3] = 0.01;
+  EXPECT_FALSE(sameCameraAndObjects(parseSidecar(a.dump(), "a.json"), parseSidecar(moved.dump(), "m.json")));
+  Json panned = b;
+  panned["camera"]["view"][0][3] = 0.5;
+  EXPECT_FALSE(sameCameraAndObjects(parseSidecar(a.dump(), "a.json"), parseSidecar(panned.dump(), "p.json")));
+  Json gone = b;
+  gone["objects"] = Json::object();
+  EXPECT_FALSE(sameCameraAndObjects(parseSidecar(a.dump(), "a.json"), parseSidecar(gone.dump(), "g.json")));
+}
