@@ -52,6 +52,12 @@ class OperatorTest(unittest.TestCase):
         self.assertIn("2 frames", s.last_compare)
         self.assertEqual(scene.render.engine, "CYCLES", "the user's engine was not restored")
         self.assertIn("Crisp Result", bpy.data.node_groups)
+        # Still-frame preview: the current frame's filtered PNG becomes an image Blender can show.
+        scene.frame_set(2)
+        self.assertEqual(bpy.ops.crisp.preview(), {"FINISHED"})
+        shown = [i for i in bpy.data.images if i.filepath.endswith("frame_0002.png")]
+        self.assertEqual(len(shown), 1)
+        self.assertEqual(tuple(shown[0].size), (64, 36))
 
     def test_compare_without_reference_says_what_is_missing(self):
         scene = harness.build_scene("still_life")
