@@ -198,9 +198,11 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
     const float* r1 = f.previousDepth + std::size_t(std::clamp(fp.y0 + 1, 0, h - 1)) * w;
     const float d = nb.tapDepth, tol = f.depthTolerance;
     const bool useX1 = fp.tx != 0.0f, useY1 = fp.ty != 0.0f;
-    valid = temporal::sameSurfaceDepth(d, r0[xa], tol) | (useX1 & temporal::sameSurfaceDepth(d, r0[xb], tol)) |
-            (useY1 & temporal::sameSurfaceDepth(d, r1[xa], tol)) |
-            (useX1 & useY1 & temporal::sameSurfaceDepth(d, r1[xb], tol));
+    // 0/1 integers, combined without short-circuit branches.
+    const int x1 = useX1, y1 = useY1;
+    valid = (int(temporal::sameSurfaceDepth(d, r0[xa], tol)) | (x1 & int(temporal::sameSurfaceDepth(d, r0[xb], tol))) |
+             (y1 & int(temporal::sameSurfaceDepth(d, r1[xa], tol))) |
+             (x1 & y1 & int(temporal::sameSurfaceDepth(d, r1[xb], tol)))) != 0;
   }
 
   Vec4 hist = temporal::splat(0.0f);
