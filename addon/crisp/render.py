@@ -291,13 +291,9 @@ def frame_name(frame, ext=".exr"):
     return "frame_%04d%s" % (frame, ext)
 
 
-def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distribution="blackman-harris",
-                  view_layer=None, on_frame=None, should_cancel=None, engine=None):
-    """Renders `frames` of `scene` into out_dir/frame_NNNN.exr + .json with the plan's passes.
-
-    on_frame(frame, info) is called after each frame (info: dict with render_s, paths); it may raise to
-    stop. should_cancel() -> True stops after the current frame. Returns the list of infos. The scene
-    is restored on return, error or cancel. engine: None (EEVEE) or 'CYCLES' (see CYCLES_SETTINGS)."""
+def _checked_inputs(scene, frames, view_layer):
+    """What every render needs before it touches the scene: a supported Blender, a camera, a frame, and
+    a view layer of this scene. Returns (frames as a list, view layer)."""
     check_blender_version()
     if scene.camera is None:
         raise RenderError("scene '%s' has no camera: set one (Scene properties > Camera)" % scene.name)
@@ -307,6 +303,17 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
     view_layer = view_layer or bpy.context.view_layer
     if view_layer.name not in scene.view_layers:
         view_layer = scene.view_layers[0]
+    return frames, view_layer
+
+
+def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distribution="blackman-harris",
+                  view_layer=None, on_frame=None, should_cancel=None, engine=None):
+    """Renders `frames` of `scene` into out_dir/frame_NNNN.exr + .json with the plan's passes.
+
+    on_frame(frame, info) is called after each frame (info: dict with render_s, paths); it may raise to
+    stop. should_cancel() -> True stops after the current frame. Returns the list of infos. The scene
+    is restored on return, error or cancel. engine: None (EEVEE) or 'CYCLES' (see CYCLES_SETTINGS)."""
+    frames, view_layer = _checked_inputs(scene, frames, view_layer)
     engine = engine or eevee_engine(scene)
     os.makedirs(out_dir, exist_ok=True)
     infos = []
@@ -391,13 +398,7 @@ def render_reference(scene, frames, out_dir, samples, view_layer=None, on_frame=
     """The same frames with `samples` EEVEE samples, no jitter, colour only, into out_dir/frame_NNNN.exr
     (plain RGBA float EXR). Returns [{frame, render_s, exr}]. Hook for the sample curve (issue 3 item 5):
     call this once per sample count and keep each render_s."""
-    check_blender_version()
-    if scene.camera is None:
-        raise RenderError("scene '%s' has no camera: set one (Scene properties > Camera)" % scene.name)
-    frames = list(frames)
-    if not frames:
-        raise RenderError("no frames to render (empty frame range)")
-    view_layer = view_layer or bpy.context.view_layer
+    frames, view_layer = _checked_inputs(scene, frames, view_layer)
     engine = eevee_engine(scene)
     os.makedirs(out_dir, exist_ok=True)
     infos = []
