@@ -511,21 +511,11 @@ namespace crisp {
 namespace {
 
 std::vector<ParamSpec> phlmParams() {
-  return {
-      {"jitterX", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
-       "this frame's sub-pixel sample offset in pixels, x right (used by jitterWeighting only; the sample is never "
-       "resampled)",
-       "seed 002 §5.2 (jittered sampling); seed 000 appendix B"},
-      {"jitterY", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
-       "this frame's sample offset in pixels, y DOWN (negate Blender's / the sidecar's y-up value)",
-       "seed 002 §5.2; seed 000 appendix B"},
-      {"jitterWeighting", ParamType::String, 0, 0, 0, "none|blackman-harris",
-       "weight w of each frame's sample in the RLS (measurement variance 1/w): none = 1; blackman-harris = a "
-       "Blackman-Harris filter of width filterSize at the jitter (for uniformly drawn jitter)",
-       "seed 002 §5.2 static case (weighted moving average); METHODS.md Jitter and references"},
-      {"filterSize", ParamType::Float, 1.5, 0.01, 4.0, nullptr,
-       "width in pixels of the Blackman-Harris pixel filter used by jitterWeighting (EEVEE's filter_size)",
-       "BLENDER.md Sampling and jitter"},
+  std::vector<ParamSpec> specs = temporal::jitterParamSpecs(
+      "weight w of each frame's sample in the RLS (measurement variance 1/w): none = 1; blackman-harris = a "
+      "Blackman-Harris filter of width filterSize at the jitter (for uniformly drawn jitter)",
+      "seed 002 §5.2 static case (weighted moving average); METHODS.md Jitter and references");
+  specs.insert(specs.end(), {
       {"lambda", ParamType::Float, 0.998, 0.5, 0.99999, nullptr,
        "RLS forgetting factor: weight of the previous frames' evidence", "seed 002 eqs. 6-7"},
       {"initialCovariance", ParamType::Float, 1000.0, 1e-3, 1e6, nullptr,
@@ -556,7 +546,8 @@ std::vector<ParamSpec> phlmParams() {
       {"reference", ParamType::Bool, 0, 0, 1, nullptr,
        "run the scalar reference path (one thread, clamped taps everywhere); bit-identical to the fast path",
        "phlm.cpp"},
-  };
+  });
+  return specs;
 }
 
 class PhlmFilter final : public Filter {

@@ -564,22 +564,12 @@ namespace crisp {
 namespace taa {
 
 std::vector<ParamSpec> parameterSpecs() {
-  return {
-      {"jitterX", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
-       "this frame's sub-pixel sample offset in pixels, x right (set per frame from the sidecar's jitter)",
-       "seed 000 §3.6.1 and appendix B; seed 004 Halton"},
-      {"jitterY", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
-       "this frame's sample offset in pixels, y DOWN (the library convention: negate the sidecar's / Blender's "
-       "y-up value)",
-       "seed 000 §3.6.1 and appendix B"},
-      {"jitterWeighting", ParamType::String, 0, 0, 0, "none|blackman-harris",
-       "weight of each frame's sample in the static accumulation: none = the jitter already follows the wanted "
-       "pixel filter (EEVEE's Blackman-Harris draw -> EEVEE's reference; uniform -> box); blackman-harris = "
-       "weight uniformly drawn jitter by a Blackman-Harris filter of width filterSize",
-       "METHODS.md Jitter and references; BLENDER.md Sampling and jitter"},
-      {"filterSize", ParamType::Float, 1.5, 0.01, 4.0, nullptr,
-       "width in pixels of the Blackman-Harris pixel filter used by jitterWeighting (EEVEE's filter_size)",
-       "BLENDER.md Sampling and jitter"},
+  std::vector<ParamSpec> specs = temporal::jitterParamSpecs(
+      "weight of each frame's sample in the static accumulation: none = the jitter already follows the wanted "
+      "pixel filter (EEVEE's Blackman-Harris draw -> EEVEE's reference; uniform -> box); blackman-harris = "
+      "weight uniformly drawn jitter by a Blackman-Harris filter of width filterSize",
+      "METHODS.md Jitter and references; BLENDER.md Sampling and jitter");
+  specs.insert(specs.end(), {
       {"historyFilter", ParamType::String, 0, 0, 0, "catmull-rom|bilinear",
        "filtered fetch of the reprojected history; Catmull-Rom's negative lobes are clamped to the 2x2 range",
        "seed 000 §3.6.3; Karis 2014"},
@@ -613,7 +603,8 @@ std::vector<ParamSpec> parameterSpecs() {
       {"reference", ParamType::Bool, 0, 0, 1, nullptr,
        "run the scalar reference path (one thread, clamped taps everywhere); bit-identical to the fast path",
        "this file"},
-  };
+  });
+  return specs;
 }
 
 void readSettings(const ParamSet& p, const char* filterName, Settings& settings) {

@@ -71,4 +71,21 @@ float blackmanHarrisWeight(float x, float y, float width) {
   return float(blackmanHarrisWindow(tx) * blackmanHarrisWindow(ty) / (kA0 * kA0));
 }
 
+std::vector<ParamSpec> jitterParamSpecs(const char* weightMeaning, const char* weightSource) {
+  return {
+      {"jitterX", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
+       "this frame's sub-pixel sample offset in pixels, x right (set per frame from the sidecar's jitter; the "
+       "sample is never resampled)",
+       "seed 000 §3.6.1 and appendix B; seed 002 §5.2; seed 004 Halton"},
+      {"jitterY", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
+       "this frame's sample offset in pixels, y DOWN (the library convention: negate the sidecar's / Blender's "
+       "y-up value)",
+       "seed 000 §3.6.1 and appendix B; seed 002 §5.2"},
+      {"jitterWeighting", ParamType::String, 0, 0, 0, "none|blackman-harris", weightMeaning, weightSource},
+      {"filterSize", ParamType::Float, 1.5, 0.01, 4.0, nullptr,
+       "width in pixels of the Blackman-Harris pixel filter used by jitterWeighting (EEVEE's filter_size)",
+       "BLENDER.md Sampling and jitter"},
+  };
+}
+
 }  // namespace crisp::temporal

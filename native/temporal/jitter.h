@@ -13,7 +13,18 @@
 // the taa filter's jitterX / jitterY expect.
 #pragma once
 
+#include <vector>
+
+#include "core/params.h"
+
 namespace crisp::temporal {
+
+// The per-frame jitter parameters every temporal filter takes: jitterX,
+// jitterY, jitterWeighting, filterSize. weightMeaning and weightSource say what
+// the Blackman-Harris sample weight does in that filter; pass string literals
+// (the specs keep the pointers).
+std::vector<ParamSpec> jitterParamSpecs(const char* weightMeaning, const char* weightSource);
+
 
 // Radical inverse of index in base (index >= 1 gives a value in (0, 1)).
 double radicalInverse(unsigned index, unsigned base);
