@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "core/filter.h"
 #include "io/frame.h"
+#include "io/subsamples.h"
 #include "metrics/metrics.h"
 #include "motion/reconstruct.h"
 #include "crisp/crisp.h"
@@ -345,6 +346,19 @@ void crispReconstructFrameMotion(CrispContext context, CrispFrame frame, const c
     need(frame, "frame");
     crisp::reconstructFrameMotion(frame->frame, nameOf(previousSidecar, "previous sidecar"),
                                   nextSidecar ? std::string(nextSidecar) : std::string(), context->ctx.numThreads());
+    frame->passes = frame->frame.passList();
+  });
+}
+
+void crispAttachFrameSubsamples(CrispContext context, CrispFrame frame, CrispFilter filter) {
+  guardedVoid([&] {
+    need(context, "context");
+    need(frame, "frame");
+    if (filter) {
+      crisp::attachRsaaInputs(*filter->filter, frame->frame);
+    } else if (!frame->frame.has(crisp::subsamplePass(0))) {
+      crisp::attachSubsamples(frame->frame, crisp::sidecarPathFor(frame->frame.path));
+    }
     frame->passes = frame->frame.passList();
   });
 }

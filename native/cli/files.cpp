@@ -9,6 +9,8 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "io/sidecar.h"
+#include "io/subsamples.h"
 
 namespace crisp::cli {
 
@@ -62,6 +64,9 @@ std::string jsonNumber(double v) {
 }
 
 void bindFrame(Filter& filter, const Frame& frame) {
+  // The callers own the frame (a local from readFrame); the sub-samples are
+  // added to it so they live as long as the frame the filter is bound to.
+  if (readsSubsamples(filter)) attachRsaaInputs(filter, const_cast<Frame&>(frame));
   for (const ImageRole& role : filter.roles()) {
     std::string name = role.name;
     if (name == "output") continue;

@@ -489,3 +489,176 @@ TEST(RsaaLimits, TextureAliasingOnOnePlaneIsUntouched) {
   const double sq = test::maskedSquaredError(f.reference, out, f.edges, c);
   std::printf("[ rsaa ] texture checkerboard on one plane: edge-pixel PSNR %.2f dB, unchanged by RSAA\n", psnr(sq, c));
 }
+
+// ---- sub-sample files (io/subsamples.h): what crisp filter / eval / the add-on read ----------------
+
+#include <OpenImageIO/imageio.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "io/frame.h"
+#include "io/sidecar.h"
+#include "io/subsamples.h"
+
+namespace {
+namespace rsaa_io {
+
+namespace fs = std::filesystem;
+
+// A Blender-style multilayer EXR (ViewLayer.Combined/Depth/Normal) of w x h
+// whose depth is base + x and normal (0, 0, 1) turned by `tilt` about x.
+void writeGeometryExr(const std::string& path, int w, int h, float base, float tilt) {
+  const std::vector<std::string> names = {"ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B",
+                                          "ViewLayer.Combined.A", "ViewLayer.Depth.Z",    "ViewLayer.Normal.X",
+                                          "ViewLayer.Normal.Y",   "ViewLayer.Normal.Z"};
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out);
+  OIIO::ImageSpec spec(w, h, int(names.size()), OIIO::TypeDesc::FLOAT);
+  spec.channelnames = names;
+  spec.alpha_channel = -1;
+  ASSERT_TRUE(out->open(path, spec)) << out->geterror();
+  std::vector<float> data;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (float v : {0.5f, 0.5f, 0.5f, 1.0f, base + float(x), 0.0f, -std::sin(tilt), std::cos(tilt)}) data.push_back(v);
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, data.data())) << out->geterror();
+  ASSERT_TRUE(out->close());
+}
+
+std::string sidecarText(const std::string& subsamples, bool camera = true) {
+  const std::string cam =
+      R"("camera": {"view": [[1,0,0,0],[0,0.6,0.8,0],[0,-0.8,0.6,-5],[0,0,0,1]],
+                    "projection": [[2.5,0,0.01,0],[0,4.0,-0.02,0],[0,0,-1,-0.2],[0,0,-1,0]],
+                    "projection_unjittered": [[2.5,0,0,0],[0,4.0,0,0],[0,0,-1,-0.2],[0,0,-1,0]]},)";
+  return R"({"frame": 1, "render_settings": {"resolution": [6, 4]}, "jitter": {"x": 0, "y": 0},)" +
+         (camera ? cam : std::string()) + R"("objects": {})" + (subsamples.empty() ? "" : ", " + subsamples) + "}";
+}
+
+// The add-on's list for the library pattern (y up in the file).
+std::string subsampleList(int count = kSamples, float nudge = 0.0f) {
+  std::string s = "\"subsamples\": [";
+  for (int k = 0; k < count; ++k) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "%s{\"offset\": [%g, %g], \"file\": \"frame_0001_sub%d.exr\", \"render_s\": 0.25}",
+                  k ? ", " : "", double(kTablePattern.x[k] + (k == 3 ? nudge : 0.0f)), double(-kTablePattern.y[k]), k);
+    s += buf;
+  }
+  return s + "]";
+}
+
+class RsaaFiles : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir = fs::temp_directory_path() / ("crisp_rsaa_io_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    frame = (dir / "frame_0001.exr").string();
+    writeGeometryExr(frame, 6, 4, 10.0f, 0.0f);
+    for (int k = 0; k < kSamples; ++k)
+      writeGeometryExr((dir / ("frame_0001_sub" + std::to_string(k) + ".exr")).string(), 6, 4, 20.0f + float(k), 0.1f * float(k));
+    writeSidecar(sidecarText(subsampleList()));
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+  void writeSidecar(const std::string& text) { std::ofstream((dir / "frame_0001.json").string()) << text; }
+  // attachSubsamples must fail with `code` and a message holding `needle`.
+  void expectAttachError(CrispError code, const std::string& needle) {
+    crisp::Frame f = readFrame(frame);
+    try {
+      attachSubsamples(f, sidecarPathFor(frame));
+      ADD_FAILURE() << "no error, expected one about " << needle;
+    } catch (const Exception& e) {
+      EXPECT_EQ(e.code(), code) << e.what();
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  }
+  fs::path dir;
+  std::string frame;
+};
+
+TEST_F(RsaaFiles, AttachPacksNormalAndDepthOfEverySubsample) {
+  crisp::Frame f = readFrame(frame);
+  attachSubsamples(f, sidecarPathFor(frame));
+  for (int k = 0; k < kSamples; ++k) {
+    ASSERT_TRUE(f.has(subsamplePass(k)));
+    const Image& s = f.pass(subsamplePass(k));
+    ASSERT_EQ(s.channels, 4);
+    for (int y = 0; y < 4; ++y)
+      for (int x = 0; x < 6; ++x) {
+        EXPECT_EQ(s.at(x, y)[3], 20.0f + float(k) + float(x));  // depth in w
+        EXPECT_FLOAT_EQ(s.at(x, y)[2], std::cos(0.1f * float(k)));
+        EXPECT_FLOAT_EQ(s.at(x, y)[1], -std::sin(0.1f * float(k)));
+      }
+  }
+  const std::vector<SubsampleEntry> list = readSubsampleList(sidecarPathFor(frame));
+  EXPECT_EQ(list[5].renderSeconds, 0.25);
+}
+
+TEST_F(RsaaFiles, CameraParamsComeFromTheSidecar) {
+  const auto params = rsaaCameraParams(readSidecar(sidecarPathFor(frame)));
+  std::map<std::string, double> p(params.begin(), params.end());
+  EXPECT_EQ(p["orthographic"], 0.0);
+  EXPECT_EQ(p["proj00"], 2.5);
+  EXPECT_EQ(p["proj11"], 4.0);
+  EXPECT_EQ(p["proj02"], 0.01);  // the jittered projection: the frame as rendered
+  EXPECT_EQ(p["proj12"], -0.02);
+  EXPECT_EQ(p["view12"], 0.8);
+  EXPECT_EQ(p["view21"], -0.8);
+  // Through a real filter: the parameters are set and the filter must commit again.
+  Context context;
+  auto filter = createFilter(context, "rsaa");
+  crisp::Frame f = readFrame(frame);
+  attachRsaaInputs(*filter, f);
+  EXPECT_TRUE(f.has("sub7"));
+  EXPECT_FLOAT_EQ(filter->params().getFloat("proj11"), 4.0f);
+  EXPECT_FLOAT_EQ(filter->params().getFloat("view11"), 0.6f);
+  auto fxaa = createFilter(context, "fxaa");
+  EXPECT_THROW(attachRsaaInputs(*fxaa, f), Exception);
+}
+
+TEST_F(RsaaFiles, MissingSubsampleFileIsAnIoErrorNamingIt) {
+  fs::remove(dir / "frame_0001_sub6.exr");
+  expectAttachError(CRISP_ERROR_IO, "frame_0001_sub6.exr");
+}
+
+TEST_F(RsaaFiles, WrongSizeNamesBothFiles) {
+  writeGeometryExr((dir / "frame_0001_sub2.exr").string(), 5, 4, 1.0f, 0.0f);
+  expectAttachError(CRISP_ERROR_INVALID_DATA, "is 5x4 but frame");
+}
+
+TEST_F(RsaaFiles, SubsampleWithoutDepthIsNamed) {
+  auto out = OIIO::ImageOutput::create((dir / "frame_0001_sub1.exr").string());
+  OIIO::ImageSpec spec(6, 4, 3, OIIO::TypeDesc::FLOAT);
+  std::vector<float> grey(6 * 4 * 3, 0.5f);
+  ASSERT_TRUE(out->open((dir / "frame_0001_sub1.exr").string(), spec));
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, grey.data()));
+  out->close();
+  expectAttachError(CRISP_ERROR_INVALID_DATA, "has no 'depth' pass");
+}
+
+TEST_F(RsaaFiles, NoListWrongCountOrPatternAreNamed) {
+  writeSidecar(sidecarText(""));
+  expectAttachError(CRISP_ERROR_INVALID_DATA, "not rendered for rsaa");
+  writeSidecar(sidecarText(subsampleList(7)));
+  expectAttachError(CRISP_ERROR_INVALID_DATA, "list of 8 entries");
+  writeSidecar(sidecarText(subsampleList(kSamples, 0.125f)));
+  expectAttachError(CRISP_ERROR_INVALID_DATA, "subsamples[3].offset");
+  fs::remove(dir / "frame_0001.json");
+  expectAttachError(CRISP_ERROR_IO, "frame_0001.json");
+}
+
+TEST_F(RsaaFiles, SidecarWithoutCameraIsNamed) {
+  writeSidecar(sidecarText(subsampleList(), false));
+  try {
+    rsaaCameraParams(readSidecar(sidecarPathFor(frame)));
+    ADD_FAILURE() << "no error";
+  } catch (const Exception& e) {
+    EXPECT_NE(std::string(e.what()).find("camera"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace rsaa_io
+}  // namespace

@@ -143,6 +143,17 @@ CRISP_API void* crispGetFramePass(CrispFrame frame, const char* role, CrispForma
 // Threads: the context's numThreads.
 CRISP_API void crispReconstructFrameMotion(CrispContext context, CrispFrame frame, const char* previousSidecar,
                                            const char* nextSidecar);
+// RSAA (issue 5): reads the 8 geometric sub-sample files that the frame's
+// sidecar (its path with ".json") lists under "subsamples" into the frame as
+// passes "sub0".."sub7" (float4: world normal xyz, planar depth in w; the
+// rsaa filter's roles of the same names) and, when filter is not NULL, sets
+// the filter's camera parameters (orthographic, proj00, proj11, proj02,
+// proj12, view00..view22) from the sidecar's camera. CRISP_ERROR_INVALID_DATA
+// or CRISP_ERROR_IO naming the sidecar or file: no "subsamples" list, a
+// pattern other than the one the offset table was built for, a missing or
+// unreadable file, another size than the frame, no Depth/Normal pass, no
+// camera matrices.
+CRISP_API void crispAttachFrameSubsamples(CrispContext context, CrispFrame frame, CrispFilter filter);
 
 // Writes an image (RGB or RGBA float view) to `path`; the type comes from the
 // extension (.exr: float RGBA; .png: 8-bit sRGB-encoded). Writes to a

@@ -1,0 +1,183 @@
+// SPDX-License-Identifier: Apache-2.0
+// RSAA's geometric sub-samples of a frame (issue 5, seed 003 section 4.4):
+// the Blender add-on (addon/crisp/render.py, _render_subsamples) renders 8
+// depth + normal images frame_NNNN_subK.exr at the RSAA pattern's offsets and
+// lists them in the frame's sidecar:
+//   "subsamples": [{"offset": [x, y] (pixels, x right, y UP), "file": "frame_0001_sub0.exr", "render_s": ..}, ..]
+// attachSubsamples() reads them into the frame as passes sub0..sub7 (float4:
+// world normal xyz, planar depth in w; the rsaa filter's roles) and
+// rsaaCameraParams() gives the filter's camera parameters from the sidecar.
+//
+// Header-only so that crisp_core, the CLI and libcrisp get it without a
+// build-file change (native/CMakeLists.txt is shared).
+#pragma once
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "core/filter.h"
+#include "io/frame.h"
+#include "io/sidecar.h"
+#include "rsaa/offset_table.h"
+
+namespace crisp {
+
+// Pass names of the sub-samples in a Frame, in the pattern's order.
+inline std::string subsamplePass(int k) { return "sub" + std::to_string(k); }
+
+// One sub-sample file as the sidecar lists it.
+struct SubsampleEntry {
+  double offsetX = 0.0, offsetY = 0.0;  // pixels, x right, y UP (the add-on's convention)
+  std::string file;                     // path (resolved against the sidecar's folder)
+  double renderSeconds = 0.0;           // time Blender took for it (0 if not recorded)
+};
+
+// The sidecar's "subsamples" list, checked: 8 entries whose offsets are the
+// pattern the shipped offset table was generated for (rsaa::kTablePattern,
+// library y down = the add-on's y negated). Throws CRISP_ERROR_INVALID_DATA
+// naming the sidecar and what is wrong (no list: the frame was not rendered
+// for rsaa).
+inline std::vector<SubsampleEntry> readSubsampleList(const std::string& sidecarPath) {
+  std::ifstream in(sidecarPath, std::ios::binary);
+  if (!in) ioError("cannot open sidecar '" + sidecarPath + "' (rsaa reads the sub-sample list and camera from it)");
+  std::ostringstream text;
+  text << in.rdbuf();
+  nlohmann::json root;
+  try {
+    root = nlohmann::json::parse(text.str());
+  } catch (const nlohmann::json::parse_error& e) {
+    invalidData("sidecar '" + sidecarPath + "' is not valid JSON (" + e.what() + ")");
+  }
+  const auto bad = [&](const std::string& what) { invalidData("sidecar '" + sidecarPath + "': " + what); };
+  if (!root.is_object() || !root.contains("subsamples"))
+    bad("has no 'subsamples' list: the frame was not rendered for rsaa (crisp render --method rsaa renders the 8 "
+        "geometric sub-samples frame_NNNN_sub0..7.exr)");
+  const nlohmann::json& list = root["subsamples"];
+  if (!list.is_array() || list.size() != std::size_t(rsaa::kSamples))
+    bad("'subsamples' is not a list of " + std::to_string(rsaa::kSamples) + " entries");
+  std::string dir;
+  const std::size_t slash = sidecarPath.find_last_of('/');
+  if (slash != std::string::npos) dir = sidecarPath.substr(0, slash + 1);
+  std::vector<SubsampleEntry> out;
+  for (int k = 0; k < rsaa::kSamples; ++k) {
+    const nlohmann::json& e = list[std::size_t(k)];
+    const std::string key = "subsamples[" + std::to_string(k) + "]";
+    if (!e.is_object() || !e.contains("file") || !e["file"].is_string()) bad("key '" + key + ".file' is missing");
+    if (!e.contains("offset") || !e["offset"].is_array() || e["offset"].size() != 2 || !e["offset"][0].is_number() ||
+        !e["offset"][1].is_number())
+      bad("key '" + key + ".offset' is not [x, y]");
+    SubsampleEntry s;
+    s.offsetX = e["offset"][0].get<double>();
+    s.offsetY = e["offset"][1].get<double>();
+    const std::string file = e["file"].get<std::string>();
+    s.file = !file.empty() && file[0] == '/' ? file : dir + file;
+    if (e.contains("render_s") && e["render_s"].is_number()) s.renderSeconds = e["render_s"].get<double>();
+    // The offset table was fitted for one pattern; another pattern's samples would get wrong offsets.
+    if (std::fabs(s.offsetX - rsaa::kTablePattern.x[k]) > 1e-6 || std::fabs(-s.offsetY - rsaa::kTablePattern.y[k]) > 1e-6) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "%s.offset is (%g, %g) but the offset table was built for (%g, %g) (x right, y up)",
+                    key.c_str(), s.offsetX, s.offsetY, double(rsaa::kTablePattern.x[k]), double(-rsaa::kTablePattern.y[k]));
+      bad(buf);
+    }
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+// Reads the sub-sample files listed in `sidecarPath` into frame.passes
+// sub0..sub7 (float4: normal xyz, depth). Each file must hold Depth and
+// Normal passes at the frame's size. Throws naming the file.
+inline void attachSubsamples(Frame& frame, const std::string& sidecarPath) {
+  const std::vector<SubsampleEntry> list = readSubsampleList(sidecarPath);
+  for (int k = 0; k < rsaa::kSamples; ++k) {
+    const std::string& file = list[std::size_t(k)].file;
+    std::ifstream probe(file, std::ios::binary);
+    if (!probe)
+      ioError("sub-sample " + std::to_string(k) + " '" + file + "' (listed in '" + sidecarPath +
+              "') does not exist or cannot be read; render the frame again with crisp render --method rsaa");
+    const Frame sub = readFrame(file);
+    if (sub.width != frame.width || sub.height != frame.height)
+      invalidData("sub-sample " + std::to_string(k) + " '" + file + "' is " + std::to_string(sub.width) + "x" +
+                  std::to_string(sub.height) + " but frame '" + frame.path + "' is " + std::to_string(frame.width) + "x" +
+                  std::to_string(frame.height));
+    for (const char* role : {"depth", "normal"})
+      if (!sub.has(role))
+        invalidData("sub-sample " + std::to_string(k) + " '" + file + "' has no '" + role + "' pass (has: " +
+                    sub.passList() + ")");
+    const Image& depth = sub.pass("depth");
+    const Image& normal = sub.pass("normal");
+    Image packed(frame.width, frame.height, 4);
+    const std::size_t n = std::size_t(frame.width) * std::size_t(frame.height);
+    for (std::size_t i = 0; i < n; ++i) {
+      float* p = packed.data.data() + 4 * i;
+      const float* nrm = normal.data.data() + std::size_t(normal.channels) * i;
+      p[0] = nrm[0];
+      p[1] = nrm[1];
+      p[2] = nrm[2];
+      p[3] = depth.data[std::size_t(depth.channels) * i];
+    }
+    frame.passes[subsamplePass(k)] = std::move(packed);
+  }
+}
+
+// The rsaa filter's camera parameters from a sidecar: projection terms
+// (jitter included, as the frame was rendered) and the rotation rows of the
+// world->view matrix. Orthographic when projection[3][3] == 1.
+inline std::vector<std::pair<std::string, double>> rsaaCameraParams(const Sidecar& s) {
+  const auto& P = s.projection.m;
+  const bool ortho = P[3][3] == 1.0;
+  if (P[0][0] == 0.0 || P[1][1] == 0.0)
+    invalidData("sidecar '" + s.path + "': camera.projection has a zero focal term ([0][0] or [1][1])");
+  std::vector<std::pair<std::string, double>> out = {
+      {"orthographic", ortho ? 1.0 : 0.0}, {"proj00", P[0][0]}, {"proj11", P[1][1]},
+      {"proj02", ortho ? 0.0 : P[0][2]},   {"proj12", ortho ? 0.0 : P[1][2]},
+  };
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out.push_back({"view" + std::to_string(r) + std::to_string(c), s.view.m[r][c]});
+  return out;
+}
+
+// Sets the rsaa filter's camera parameters from the frame's sidecar (its
+// path with ".json"); marks the filter dirty only when a value changes, so a
+// sequence from one camera commits once.
+inline bool readsSubsamples(const Filter& filter) {
+  for (const ImageRole& role : filter.roles())
+    if (subsamplePass(0) == role.name) return true;
+  return false;
+}
+
+inline void applyRsaaCamera(Filter& filter, const Frame& frame) {
+  if (!readsSubsamples(filter))
+    invalidArgument(std::string("filter '") + filter.type() + "' reads no geometric sub-samples (only rsaa does)");
+  bool changed = false;
+  ParamSet& p = filter.params();
+  for (const auto& [name, value] : rsaaCameraParams(readSidecar(sidecarPathFor(frame.path)))) {
+    if (name == "orthographic") {
+      if (p.getBool(name) != (value != 0.0)) {
+        p.setBool(name, value != 0.0);
+        changed = true;
+      }
+    } else if (p.getFloat(name) != float(value)) {
+      p.setFloat(name, float(value));
+      changed = true;
+    }
+  }
+  if (changed) filter.markDirty();
+}
+
+// Everything rsaa needs beyond the frame's own passes: the sub-samples (if
+// not attached yet) and the camera.
+inline void attachRsaaInputs(Filter& filter, Frame& frame) {
+  if (!frame.has(subsamplePass(0))) attachSubsamples(frame, sidecarPathFor(frame.path));
+  applyRsaaCamera(filter, frame);
+}
+
+}  // namespace crisp
