@@ -59,6 +59,7 @@ SIGNATURES = {
     "crispGetFramePass": (_vp, [_vp, _cp, ctypes.POINTER(_int)]),
     "crispWriteImage": (None, [_vp, _cp, _vp, _int, _sz, _sz, _sz, _sz]),
     "crispReconstructFrameMotion": (None, [_vp, _vp, _cp, _cp]),
+    "crispAttachFrameSubsamples": (None, [_vp, _vp, _vp]),
     "crispCompareImages": (None, [_vp, _vp, _vp, _int, _sz, _sz, _vp, ctypes.POINTER(Metrics)]),
 }
 # Calls that do not record errors (and crispGetError itself).
@@ -285,6 +286,12 @@ class Frame:
         call("crispReconstructFrameMotion", context.handle, self.handle, _b(previous_sidecar),
              _b(next_sidecar) if next_sidecar else None)
 
+    def attach_subsamples(self, context, frame_filter=None):
+        """RSAA: adds passes sub0..sub7 from the frame_NNNN_subK.exr files its sidecar lists and, with
+        a filter, sets the filter's camera parameters from the sidecar (crispAttachFrameSubsamples)."""
+        call("crispAttachFrameSubsamples", context.handle, self.handle,
+             frame_filter.handle if frame_filter is not None else None)
+
     def pass_values(self, role):
         """The pass as a flat Python list (row 0 = top), and its channel count."""
         ptr, fmt = self.pass_pointer(role)
@@ -323,13 +330,21 @@ def compare_images(context, reference_path, test_path):
         return {n: getattr(m, n) for n, _ in Metrics._fields_}
 
 
+SUBSAMPLE_PASSES = tuple("sub%d" % k for k in range(8))
+
+
 class FrameFilter:
     """Filters a sequence of frames with one filter object (so temporal history carries over)."""
 
     def __init__(self, method, params=None, threads=0, passes=("color",)):
         self.context = Context(threads)
+        if method == "rsaa" and "subsamples" not in passes:
+            # The plan rendered no geometry (no visible object, no geometric edge): colour as is.
+            method = "none"
         self.filter = Filter(self.context, method)
         self.passes = [p for p in passes if p != "subsamples"]
+        # RSAA's geometric sub-samples: separate files listed in each frame's sidecar.
+        self.subsamples = "subsamples" in passes
         for k, v in (params or {}).items():
             self.filter.set_param(k, v)
         self._out = None
@@ -362,6 +377,9 @@ class FrameFilter:
             if self._shape != (w, h):
                 self._out = (ctypes.c_float * (w * h * 4))()
                 self._shape = (w, h)
+            if self.subsamples:
+                frame.attach_subsamples(self.context, self.filter)
+                self.passes += [p for p in SUBSAMPLE_PASSES if p not in self.passes]
             present = set(frame.passes())
             for role in self.passes:
                 if role == "motion":

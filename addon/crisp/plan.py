@@ -139,6 +139,9 @@ def make_plan(method, facts):
                 reasons[p] = ("%s move: %s; this renderer has no Vector pass, so the library reconstructs it "
                               "from depth, the camera matrices and the object transforms in the sidecars"
                               % (movers(), use))
+        elif method == "rsaa" and p != "color" and not facts.visible_objects:
+            # Nothing to render: no geometry, no geometric edges; rsaa keeps every pixel's colour.
+            skipped[p] = "no visible object: no geometric edges, so rsaa keeps every colour and renders no geometry"
         elif p == "depth" and method in ("taa", "phlm") and not moving:
             skipped[p] = "%s reads depth only for velocity and disocclusion, and nothing moves" % method
         elif p == "id" and single:
