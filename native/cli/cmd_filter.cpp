@@ -1,16 +1,23 @@
 // SPDX-License-Identifier: Apache-2.0
 // crisp filter --method NAME [--set K=V]... INPUT... -o OUTDIR [--png]
+//              [--frames A-B [--preroll N]] [--resume]
 // Inputs are filtered in the order given (temporal methods keep history
 // between them) and each result goes to OUTDIR/<input name>.exr. Methods that
 // read motion get it reconstructed for inputs with add-on sidecars and no
-// motion pass (addReconstructedMotion).
+// motion pass (addReconstructedMotion). A chunk (--frames, positions among the
+// inputs, 1-based) writes only its own frames; --preroll filters N earlier
+// inputs first to warm the history (frame_range.h). Decisions about the whole
+// sequence (motion rebuilt or not, output names) still look at every input, so
+// every chunk of one sequence makes the same ones.
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <set>
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/frame_range.h"
 #include "cli/progress.h"
 #include "core/error.h"
 #include "core/filter.h"
@@ -88,11 +95,30 @@ int runFilter(const ParsedArgs& args) {
         throw UsageError("output for '" + in + "' would overwrite an input file; choose another -o folder");
   }
 
+  const int count = int(args.positional.size());
+  const FrameRange chunk = args.has("frames") ? parseFrameRange("frames", args.get("frames"), 1) : FrameRange{1, count};
+  if (chunk.last > count)
+    throw UsageError("--frames " + args.get("frames") + " reaches past the last input (" + std::to_string(count) +
+                     " given; frames are 1-based positions among the inputs)");
+  const int preroll = parseIntOption(args, "preroll", 0, 0, 1000000);
+  auto isComplete = [&](int position) {
+    const std::string base = joinPath(outDir, fileStem(args.positional[std::size_t(position - 1)]));
+    std::error_code ec;
+    return fs::is_regular_file(base + ".exr", ec) && (!png || fs::is_regular_file(base + ".png", ec));
+  };
+  const ChunkRun run = planChunk(chunk, preroll, 1, args.has("resume"), isComplete);
+  if (run.nothingToDo()) {
+    if (!args.has("quiet"))
+      std::printf("filter: every output of frames %d-%d exists; nothing to do\n", chunk.first, chunk.last);
+    return 0;
+  }
+
   const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
   Image output;
-  Progress progress("filter " + std::string(filter->type()), int(args.positional.size()), args.has("quiet"));
-  for (std::size_t i = 0; i < args.positional.size(); ++i) {
+  Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, args.has("quiet"));
+  for (std::size_t i = std::size_t(run.start - 1); i < std::size_t(run.last); ++i) {
     const std::string& in = args.positional[i];
+    const bool write = int(i) + 1 >= run.first;
     Frame frame = readFrame(in);
     if (rebuildMotion) addReconstructedMotion(frame, args.positional, i, context.numThreads());
     bindFrame(*filter, frame);
@@ -103,6 +129,10 @@ int runFilter(const ParsedArgs& args) {
       filter->execute();
     } catch (const Exception& e) {
       throw Exception(e.code(), "'" + in + "': " + e.what());
+    }
+    if (!write) {
+      progress.step(fileStem(in) + " (pre-roll)");
+      continue;
     }
     const std::string base = joinPath(outDir, fileStem(in));
     writeImage(base + ".exr", output);
