@@ -2,13 +2,22 @@
 """Headless Crisp driver, run inside Blender (this is what `crisp render` runs):
 
     blender -b [SCENE.blend] --factory-startup --python-exit-code 1 --python <repo>/addon/crisp/batch.py -- \\
-        -o OUTDIR [--frames A-B] [--method NAME] [--set K=V ...] [--samples 1] [--reference-samples N]
-        [--resolution WxH] [--scene-script test_scenes/NAME.py | NAME] [--plan-only] [--no-filter]
-        [--no-png] [--threads N] [--library PATH] [--jitter blackman-harris|uniform] [--engine eevee|cycles]
+        -o OUTDIR [--frames A-B] [--preroll N] [--shot A-B] [--resume] [--method NAME] [--set K=V ...]
+        [--samples 1] [--reference-samples N] [--resolution WxH] [--scene-script test_scenes/NAME.py | NAME]
+        [--plan-only] [--no-filter] [--no-png] [--threads N] [--library PATH] [--jitter blackman-harris|uniform]
+        [--engine eevee|cycles]
 
 Arguments (after Blender's `--`):
   -o, --output OUTDIR      where everything goes (created; must be writable)
   --frames A-B | A         frame range (default: the scene's)
+  --preroll N              a farm chunk: first render and filter the N frames before --frames (not
+                           before the shot's first frame) to warm the temporal history; they are
+                           rendered to a temporary folder, deleted afterwards, and never written to
+                           input/ or filtered/ (an input already in input/ is read instead)
+  --shot A-B | A           the whole shot a chunk belongs to (default with --preroll: the scene's
+                           range): the pass plan is made over it and pre-roll stops at its start;
+                           results go to run_AAAA-BBBB.json instead of run.json
+  --resume                 start at the first frame whose input or outputs are missing
   --method NAME            none, fxaa, repair, taa, taa-improved, phlm, rsaa (default fxaa)
   --set K=V                a filter parameter, typed by the library's parameter table; repeatable
   --samples N              EEVEE samples of the input frames (default 1)
@@ -52,6 +61,9 @@ def make_parser():
     p = argparse.ArgumentParser(prog="batch.py", description="Crisp headless render driver (inside Blender)")
     p.add_argument("-o", "--output", required=True)
     p.add_argument("--frames", default="")
+    p.add_argument("--preroll", type=int, default=0)
+    p.add_argument("--shot", default="")
+    p.add_argument("--resume", action="store_true")
     p.add_argument("--method", default="fxaa")
     p.add_argument("--set", dest="params", action="append", default=[], metavar="K=V")
     p.add_argument("--samples", type=int, default=1)
@@ -99,6 +111,8 @@ def main(argv):
         os.environ["CRISP_LIBRARY"] = os.path.abspath(args.library)
     if args.samples < 1 or args.reference_samples < 0:
         fail(2, "--samples must be >= 1 and --reference-samples >= 0")
+    if args.preroll < 0:
+        fail(2, "--preroll must be >= 0 frames, got %d" % args.preroll)
     if args.jitter not in render.JITTER_DISTRIBUTIONS:
         fail(2, "unknown --jitter '%s' (known: %s)" % (args.jitter, ", ".join(render.JITTER_DISTRIBUTIONS)))
     if args.engine not in render.ENGINES:
@@ -127,10 +141,13 @@ def main(argv):
 
     try:
         frames = pipeline.parse_frames(args.frames, scene)
+        # A chunk of a shot: the shot given, or the scene's range when only a pre-roll is asked for.
+        shot = pipeline.parse_frames(args.shot, scene) if args.shot or args.preroll else None
         pipeline.run(scene, args.method, frames, os.path.abspath(args.output), params=params,
                      samples=args.samples, reference_samples=args.reference_samples, plan_only=args.plan_only,
                      filter_frames=not args.no_filter, threads=args.threads, jitter_distribution=args.jitter,
-                     write_png=not args.no_png, log=lambda s: print(s, flush=True), engine_name=args.engine)
+                     write_png=not args.no_png, log=lambda s: print(s, flush=True), engine_name=args.engine,
+                     preroll=args.preroll, shot=shot, resume=args.resume)
     except pipeline.InputError as e:
         fail(2, str(e))
     except render.RenderError as e:

@@ -6,11 +6,22 @@ OUTDIR/run.json. Layout:
     OUTDIR/input/frame_NNNN.exr (+ .json sidecar, + _subK.exr for RSAA)
     OUTDIR/filtered/frame_NNNN.exr (+ .png)
     OUTDIR/reference/frame_NNNN.exr          (when reference_samples > 0)
-    OUTDIR/run.json
+    OUTDIR/run.json                          (run_AAAA-BBBB.json for a chunk of a shot)
+
+A farm chunk (issue 8, docs/farm.md) writes frames A..B of a shot and first renders and filters the
+`preroll` frames before A (never before the shot's first frame) to warm the temporal history. Those
+pre-roll inputs go to a private temporary folder that is deleted afterwards (an input already in
+OUTDIR/input/ is read from there instead of rendered again), so input/ and filtered/ hold exactly the
+frames some chunk owns and two chunks never write the same file. The pass plan of a chunk is made
+over the whole shot so every chunk renders the same passes. With `resume`, a run starts at the
+chunk's first frame with a missing output and takes its pre-roll before that frame.
 """
 
+import itertools
 import json
 import os
+import shutil
+import tempfile
 import time
 
 import bpy
@@ -77,14 +88,57 @@ def _write_json(path, data):
     os.replace(tmp, path)
 
 
+def chunk_run(frames, shot_first, preroll, is_complete=None):
+    """(pre-roll frames, frames to write) of a chunk: with is_complete (resume) the frames to write start
+    at the first frame that is not complete, and the pre-roll is the `preroll` frames before that one,
+    never before shot_first (a sequential run of the shot starts there)."""
+    todo = list(frames)
+    if is_complete is not None:
+        while todo and is_complete(todo[0]):
+            todo.pop(0)
+    first = todo[0] if todo else frames[-1] + 1
+    return list(range(max(shot_first, first - max(preroll, 0)), first)) if todo else [], todo
+
+
+def _input_complete(input_dir, f):
+    # render.py writes the EXR before its sidecar, both renamed into place: a sidecar means both are whole.
+    return all(os.path.isfile(os.path.join(input_dir, render.frame_name(f, ext))) for ext in (".exr", ".json"))
+
+
+def _reusable_input(scene, engine, input_dir, f, the_plan, samples, jitter_distribution):
+    """Whether input/frame f was rendered as this run would render it (same passes, size, samples and
+    jitter), so a pre-roll can read it instead of rendering it again; stale or foreign inputs are not."""
+    if not _input_complete(input_dir, f):
+        return False
+    try:
+        with open(os.path.join(input_dir, render.frame_name(f, ".json"))) as fh:
+            side = json.load(fh)
+        jitter = side["jitter"]
+        settings = side["render_settings"]
+        return (side["passes"] == list(the_plan.passes) and settings["samples"] == samples
+                and settings["engine"] == engine and settings["resolution"] == list(render.render_size(scene))
+                and jitter["distribution"] == (jitter_distribution if the_plan.jitter else "none"))
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+
+
 def run(scene, method, frames, out_dir, params=None, samples=1, reference_samples=0, plan_only=False,
         filter_frames=True, threads=0, jitter_distribution="blackman-harris", write_png=True, log=print,
-        view_layer=None, should_cancel=None, engine_name="eevee"):
+        view_layer=None, should_cancel=None, engine_name="eevee", preroll=0, shot=None, resume=False):
     """Returns the run.json dictionary (also written to out_dir/run.json). engine_name: 'eevee', or
-    'cycles' to render the same frames with Cycles (cheap settings, its own Vector pass) for checks."""
+    'cycles' to render the same frames with Cycles (cheap settings, its own Vector pass) for checks.
+    A chunk of a shot: shot (a range holding frames; the plan is made over it), preroll (frames before
+    the chunk filtered but not written), resume (start at the first frame with a missing output); the
+    result then goes to run_AAAA-BBBB.json so concurrent chunks never write the same file."""
     frames = list(frames)
     if not frames:
         raise InputError("no frames to render (empty frame range)")
+    if preroll < 0:
+        raise InputError("pre-roll must be >= 0 frames, got %d" % preroll)
+    shot = list(shot) if shot is not None else None
+    if shot is not None and (not shot or frames[0] < shot[0] or frames[-1] > shot[-1]):
+        raise InputError("frames %d-%d are not inside the shot %s" % (
+            frames[0], frames[-1], "%d-%d" % (shot[0], shot[-1]) if shot else "(empty)"))
     render.check_blender_version()
     if scene.camera is None:
         raise InputError("scene '%s' has no camera: add one and set it as the scene camera" % scene.name)
@@ -95,7 +149,7 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         log("note: the scene's engine is %s; Crisp renders with EEVEE and puts %s back afterwards"
             % (user_engine, user_engine))
     engine = render.render_engine(scene, engine_name)
-    the_plan, facts = scene_plan(scene, method, frames, view_layer, engine_name)
+    the_plan, facts = scene_plan(scene, method, shot or frames, view_layer, engine_name)
     log(the_plan.describe())
     result = {"blender_version": bpy.app.version_string, "method": method, "params": dict(params or {}),
               "scene": scene.name, "frames_requested": [frames[0], frames[-1]], "samples": samples,
@@ -109,7 +163,7 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     if native._lib is not None or (filter_frames and not plan_only):
         ok, text = native.status()
         result["library"] = text
-    run_json = os.path.join(out_dir, "run.json")
+    run_json = os.path.join(out_dir, "run.json" if shot is None else "run_%04d-%04d.json" % (frames[0], frames[-1]))
     if plan_only:
         _write_json(run_json, result)
         return result
@@ -133,18 +187,59 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         log("frame %d: render %.3f s%s" % (f, info["render_s"], ", load %.3f s, filter %.3f s, write %.3f s" % (
             entry["load_s"], entry["filter_s"], entry["write_s"]) if "filter_s" in entry else ""))
 
+    reference_dir = os.path.join(out_dir, "reference")
+
+    def is_complete(f):
+        outs = [os.path.join(reference_dir, render.frame_name(f))] if reference_samples else []
+        if frame_filter is not None:
+            outs += [os.path.join(filtered_dir, render.frame_name(f, ext)) for ext in ((".exr", ".png") if write_png
+                                                                                     else (".exr",))]
+        return _input_complete(input_dir, f) and all(os.path.isfile(p) for p in outs)
+
+    # Pre-roll warms temporal history: nothing to warm without a filter or for a spatial method.
+    warms = frame_filter is not None and method in plan_mod.TEMPORAL_METHODS
+    preroll_frames, todo = chunk_run(frames, (shot or frames)[0], preroll if warms else 0,
+                                     is_complete if resume else None)
+    reused = [f for f in preroll_frames if _reusable_input(scene, engine, input_dir, f, the_plan, samples,
+                                                                     jitter_distribution)]
+    result["chunk"] = {"shot": [shot[0], shot[-1]] if shot else None, "preroll": preroll,
+                       "preroll_frames": [preroll_frames[0], preroll_frames[-1]] if preroll_frames else None,
+                       "preroll_reused": reused, "resumed_at": todo[0] if resume and todo else None}
+    if not todo:
+        log("every output of frames %d-%d exists; nothing to do" % (frames[0], frames[-1]))
+
+    def on_preroll(f, info):
+        frame_filter.run(info["exr"], [])
+        log("frame %d: pre-roll (filtered, not written)" % f)
+
     t0 = time.perf_counter()
+    preroll_dir = None
     try:
-        render.render_frames(scene, the_plan, frames, input_dir, samples=samples,
-                             jitter_distribution=jitter_distribution, view_layer=view_layer,
-                             on_frame=on_frame, should_cancel=should_cancel,
-                             engine=engine if engine == "CYCLES" else None)
+        # Contiguous and in order, so the history sees them as a sequential run would.
+        for from_input, group in itertools.groupby(preroll_frames, key=lambda f: f in reused):
+            group = list(group)
+            if from_input:
+                for f in group:
+                    on_preroll(f, {"exr": os.path.join(input_dir, render.frame_name(f))})
+                continue
+            preroll_dir = preroll_dir or tempfile.mkdtemp(prefix="crisp-preroll-")
+            render.render_frames(scene, the_plan, group, preroll_dir, samples=samples,
+                                 jitter_distribution=jitter_distribution, view_layer=view_layer,
+                                 on_frame=on_preroll, should_cancel=should_cancel,
+                                 engine=engine if engine == "CYCLES" else None)
+        if todo:
+            render.render_frames(scene, the_plan, todo, input_dir, samples=samples,
+                                 jitter_distribution=jitter_distribution, view_layer=view_layer,
+                                 on_frame=on_frame, should_cancel=should_cancel,
+                                 engine=engine if engine == "CYCLES" else None)
     finally:
         if frame_filter is not None:
             frame_filter.close()
+        if preroll_dir:
+            shutil.rmtree(preroll_dir, ignore_errors=True)
     result["total_s"] = round(time.perf_counter() - t0, 3)
-    if reference_samples:
-        ref = render.render_reference(scene, frames, os.path.join(out_dir, "reference"), reference_samples,
+    if reference_samples and todo:
+        ref = render.render_reference(scene, todo, reference_dir, reference_samples,
                                       view_layer=view_layer, should_cancel=should_cancel)
         result["reference"] = {"samples": reference_samples,
                                "frames": [{"frame": r["frame"], "render_s": round(r["render_s"], 4)} for r in ref]}

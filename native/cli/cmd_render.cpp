@@ -2,7 +2,8 @@
 // crisp render --scene SCENE -o OUTDIR [...]: runs headless Blender with the
 // add-on's batch driver (addon/crisp/batch.py), which renders 1-sample frames
 // with exactly the passes the method needs, filters them through libcrisp and
-// writes OUTDIR/{input,filtered,reference}/ and OUTDIR/run.json.
+// writes OUTDIR/{input,filtered,reference}/ and OUTDIR/run.json. A farm
+// chunk (--preroll, --shot, --resume) is handled by batch.py as well.
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -24,7 +25,8 @@ int runRender(const ParsedArgs& args) {
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch.py");
   cmd.push_back("-o");
   cmd.push_back(args.get("output"));
-  for (const char* opt : {"frames", "method", "samples", "reference-samples", "resolution", "threads"})
+  for (const char* opt :
+       {"frames", "preroll", "shot", "method", "samples", "reference-samples", "resolution", "threads"})
     if (args.has(opt)) {
       cmd.push_back(std::string("--") + opt);
       cmd.push_back(args.get(opt));
@@ -34,6 +36,7 @@ int runRender(const ParsedArgs& args) {
     cmd.push_back(kv);
   }
   if (args.has("plan")) cmd.push_back("--plan-only");
+  if (args.has("resume")) cmd.push_back("--resume");
   const fs::path library = fs::path(executableDir()) / ".." / "lib" / "libcrisp.so";
   if (fs::exists(library)) {
     cmd.push_back("--library");
