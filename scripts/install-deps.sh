@@ -11,6 +11,7 @@ packages=(
   clang libclang-rt-14-dev
   python3 python3-numpy python3-skimage python3-pytest
   blender xvfb xauth chromium
+  nodejs
   "$@"
 )
 

@@ -1,0 +1,126 @@
+// SPDX-License-Identifier: Apache-2.0
+// Flamenco 3 job type "crisp-render": renders a shot with Crisp on a render
+// farm. The shot is split into contiguous chunks; each chunk is one task that
+// runs `crisp render` on a worker, which renders the chunk's 1-sample frames in
+// Blender, filters them with libcrisp and writes OUTDIR/input/ and
+// OUTDIR/filtered/. A temporal method (taa, taa-improved, phlm) carries
+// history from frame to frame, so each task first renders and filters
+// `preroll` frames before its chunk (not written; never before the shot's
+// first frame): the chunks then need no other chunk's history and run on any
+// worker in any order, so they have no dependencies on each other.
+//
+// Install: copy this file into the `scripts` folder next to the
+// flamenco-manager executable and restart the Manager (see flamenco/README.md
+// and docs/farm.md). Flamenco's job-compiler API used here: the JOB_TYPE
+// settings table, compileJob(job), author.Task(name, type),
+// author.Command("exec", {exe, args}), task.addCommand, job.addTask.
+
+const CRISP_METHODS = ["taa", "taa-improved", "phlm", "fxaa", "repair", "none"];
+const CRISP_TEMPORAL_METHODS = ["taa", "taa-improved", "phlm"];
+
+const JOB_TYPE = {
+  label: "Crisp Render (chunked, with pre-roll)",
+  description: "1-sample EEVEE frames anti-aliased by Crisp, rendered in chunks that warm their temporal history",
+  settings: [
+    // Filled in by the Flamenco add-on with the path of the submitted .blend file.
+    { key: "blendfile", type: "string", required: true, visible: "web",
+      description: "Path of the .blend file to render (as the workers see it)" },
+    { key: "frames", type: "string", required: true,
+      eval: "f'{C.scene.frame_start}-{C.scene.frame_end}'",
+      evalInfo: { showLinkButton: true, description: "Scene frame range" },
+      description: "The shot: one contiguous range A-B (temporal history runs through it)" },
+    { key: "method", type: "string", required: true, default: "taa", choices: CRISP_METHODS,
+      description: "Crisp filter to run on every frame" },
+    { key: "chunk_size", type: "int32", default: 50, required: true,
+      description: "Frames written per task" },
+    { key: "preroll", type: "int32", default: 16, required: true,
+      description: "Frames rendered and filtered before each chunk to warm the temporal history (not written)" },
+    { key: "output_dir", type: "string", subtype: "dir_path", required: true,
+      description: "Shared folder for input/, filtered/ and one run_AAAA-BBBB.json per chunk" },
+    { key: "resolution", type: "string", default: "",
+      description: "Render size WxH (empty: the scene's)" },
+    { key: "filter_params", type: "string", default: "",
+      description: "Filter parameters, KEY=VALUE separated by spaces (see `crisp help METHOD`)" },
+    { key: "crisp_exe", type: "string", default: "crisp", visible: "submission",
+      description: "The crisp executable on the workers (a path, or a Manager variable such as {crisp})" },
+    { key: "blender_exe", type: "string", default: "{blender}", visible: "hidden",
+      description: "Blender on the workers, handed to crisp render --blender" },
+  ],
+};
+
+function crispFail(message) {
+  throw new Error("crisp-render: " + message);
+}
+
+// "A-B" or "A" (whitespace allowed; Blender's frames are >= 0) -> {first, last}; anything else is an error
+// that names the setting, so the Manager shows why the job was refused.
+function crispParseShot(text) {
+  const found = /^\s*(\d+)\s*(?:-\s*(\d+)\s*)?$/.exec(String(text === undefined ? "" : text));
+  if (!found)
+    crispFail("setting 'frames' must be one contiguous range A-B (or a single frame A, frames >= 0), got '" +
+              text + "'; submit one job per range");
+  const first = parseInt(found[1], 10);
+  const last = found[2] === undefined ? first : parseInt(found[2], 10);
+  if (last < first) crispFail("setting 'frames' " + text + " is empty (end before start)");
+  return { first: first, last: last };
+}
+
+function crispWholeNumber(settings, key, lowest) {
+  const value = settings[key];
+  if (typeof value !== "number" || !isFinite(value) || Math.floor(value) !== value || value < lowest)
+    crispFail("setting '" + key + "' must be a whole number >= " + lowest + ", got '" + value + "'");
+  return value;
+}
+
+function crispText(settings, key) {
+  const value = settings[key];
+  if (typeof value !== "string" || value.trim() === "") crispFail("setting '" + key + "' is empty");
+  return value;
+}
+
+// The chunks of a shot: contiguous, in order, covering it once; each with the
+// first frame of its pre-roll (the pre-roll never reaches before the shot).
+function crispChunks(shot, chunkSize, preroll) {
+  const chunks = [];
+  for (let first = shot.first; first <= shot.last; first += chunkSize) {
+    const last = Math.min(first + chunkSize - 1, shot.last);
+    chunks.push({ first: first, last: last, prerollFirst: Math.max(shot.first, first - preroll) });
+  }
+  return chunks;
+}
+
+function compileJob(job) {
+  const settings = job.settings;
+  const shot = crispParseShot(settings.frames);
+  const chunkSize = crispWholeNumber(settings, "chunk_size", 1);
+  const method = crispText(settings, "method");
+  if (CRISP_METHODS.indexOf(method) < 0)
+    crispFail("setting 'method' must be one of " + CRISP_METHODS.join(", ") + ", got '" + method + "'");
+  // A spatial method has no history to warm: its chunks need no pre-roll.
+  const temporal = CRISP_TEMPORAL_METHODS.indexOf(method) >= 0;
+  const preroll = temporal ? crispWholeNumber(settings, "preroll", 0) : 0;
+  const blendfile = crispText(settings, "blendfile");
+  const outputDir = crispText(settings, "output_dir");
+  const crispExe = crispText(settings, "crisp_exe");
+  const resolution = settings.resolution ? String(settings.resolution).trim() : "";
+  if (resolution !== "" && !/^\d+x\d+$/.test(resolution))
+    crispFail("setting 'resolution' must be WxH (e.g. 1920x1080) or empty, got '" + resolution + "'");
+  const params = settings.filter_params ? String(settings.filter_params).trim().split(/\s+/) : [];
+  for (const kv of params)
+    if (kv.indexOf("=") <= 0) crispFail("setting 'filter_params' needs KEY=VALUE items, got '" + kv + "'");
+
+  const shotText = shot.first + "-" + shot.last;
+  for (const chunk of crispChunks(shot, chunkSize, preroll)) {
+    const args = ["render", "--scene", blendfile, "--method", method,
+                  "--frames", chunk.first + "-" + chunk.last,
+                  "--shot", shotText, "--preroll", String(chunk.first - chunk.prerollFirst),
+                  // A task the Manager re-queues (worker lost, task failed) continues where it stopped.
+                  "--resume", "-o", outputDir];
+    if (settings.blender_exe) args.push("--blender", String(settings.blender_exe));
+    if (resolution !== "") args.push("--resolution", resolution);
+    for (const kv of params) args.push("--set", kv);
+    const task = author.Task("crisp-" + chunk.first + "-" + chunk.last, "blender");
+    task.addCommand(author.Command("exec", { exe: crispExe, args: args }));
+    job.addTask(task);
+  }
+}

@@ -1,0 +1,174 @@
+// SPDX-License-Identifier: Apache-2.0
+// The Flamenco job type flamenco/crisp-render.js under Node.js (18 or later):
+// the script runs in a fresh context with a stub of Flamenco's job-compiler API
+// (author.Task, author.Command, task.addCommand/addDependency, job.addTask,
+// print), as the Manager's JavaScript engine runs it, and the tasks it makes
+// are checked: chunk frame ranges cover the shot once and in order, pre-roll
+// frames, the crisp command lines, no dependencies between chunks, and clear
+// errors for bad settings. Usage: node test_job_type.mjs [path/to/crisp-render.js]
+import assert from "node:assert/strict";
+import fs from "node:fs";
+import path from "node:path";
+import { fileURLToPath } from "node:url";
+import vm from "node:vm";
+
+const here = path.dirname(fileURLToPath(import.meta.url));
+const scriptPath = process.argv[2] || path.join(here, "..", "..", "flamenco", "crisp-render.js");
+const source = fs.readFileSync(scriptPath, "utf8");
+
+// Flamenco's API, as far as a job compiler sees it: tasks carry their commands
+// and dependencies; the job collects tasks.
+function flamencoStub() {
+  const author = {
+    Task(name, type) {
+      return {
+        name, type, commands: [], dependencies: [],
+        addCommand(cmd) { this.commands.push(cmd); },
+        addDependency(task) { this.dependencies.push(task); },
+      };
+    },
+    Command(name, parameters) { return { name, parameters }; },
+  };
+  return { author, print: () => {} };
+}
+
+// Loads the script (a fresh context per job, like the Manager) and compiles a
+// job whose settings are the JOB_TYPE defaults overridden by `settings`.
+function compile(settings) {
+  const context = vm.createContext(flamencoStub());
+  vm.runInContext(source + "\n;globalThis.__jobType = JOB_TYPE;", context, { filename: scriptPath });
+  const defaults = {};
+  for (const s of context.__jobType.settings) if (s.default !== undefined) defaults[s.key] = s.default;
+  const job = { settings: { ...defaults, ...settings }, tasks: [], addTask(t) { this.tasks.push(t); } };
+  context.compileJob(job);
+  return job.tasks;
+}
+
+// The value following `flag` in an argument list (undefined if absent).
+function flagValue(args, flag) {
+  const i = args.indexOf(flag);
+  return i < 0 ? undefined : args[i + 1];
+}
+
+function range(text) {
+  const [a, b] = text.split("-").map(Number);
+  return { first: a, last: b };
+}
+
+const base = { blendfile: "/farm/shots/sh010.blend", frames: "1-100", output_dir: "/farm/out/sh010",
+               method: "taa", chunk_size: 30, preroll: 16 };
+const tests = [];
+const test = (name, fn) => tests.push({ name, fn });
+
+test("JOB_TYPE declares every setting compileJob reads, with valid types", () => {
+  const context = vm.createContext(flamencoStub());
+  vm.runInContext(source + "\n;globalThis.__jobType = JOB_TYPE;", context);
+  const keys = context.__jobType.settings.map((s) => s.key);
+  for (const k of ["blendfile", "frames", "method", "chunk_size", "preroll", "output_dir", "crisp_exe"])
+    assert.ok(keys.includes(k), "missing setting " + k);
+  for (const s of context.__jobType.settings) {
+    assert.ok(["string", "int32", "float", "bool"].includes(s.type), s.key + ": type " + s.type);
+    if (s.visible !== undefined) assert.ok(["visible", "hidden", "submission", "web"].includes(s.visible), s.key);
+  }
+  assert.equal(typeof context.compileJob, "function");
+});
+
+test("chunks cover the shot once, in order, with pre-roll clamped at the shot's start", () => {
+  const tasks = compile(base);
+  assert.equal(tasks.length, 4);  // 1-30, 31-60, 61-90, 91-100
+  let next = 1;
+  for (const t of tasks) {
+    assert.equal(t.type, "blender");
+    assert.equal(t.commands.length, 1);
+    const { name, parameters } = t.commands[0];
+    assert.equal(name, "exec");
+    assert.equal(parameters.exe, "crisp");
+    const args = parameters.args;
+    assert.ok(args.every((a) => typeof a === "string"), "all arguments are strings");
+    assert.equal(args[0], "render");
+    const chunk = range(flagValue(args, "--frames"));
+    assert.equal(chunk.first, next);
+    assert.ok(chunk.last >= chunk.first && chunk.last - chunk.first + 1 <= 30);
+    next = chunk.last + 1;
+    assert.equal(t.name, `crisp-${chunk.first}-${chunk.last}`);
+    assert.equal(Number(flagValue(args, "--preroll")), Math.min(16, chunk.first - 1));
+    assert.equal(flagValue(args, "--shot"), "1-100");
+    assert.equal(flagValue(args, "--scene"), base.blendfile);
+    assert.equal(flagValue(args, "--method"), "taa");
+    assert.equal(flagValue(args, "-o"), base.output_dir);
+    assert.equal(flagValue(args, "--blender"), "{blender}");  // the Manager's variable, expanded per worker
+    assert.ok(args.includes("--resume"), "a re-queued task resumes");
+    assert.deepEqual(t.dependencies, [], "chunks are independent: pre-roll replaces the previous chunk's history");
+  }
+  assert.equal(next, 101);
+});
+
+test("a chunk larger than the shot gives one task without pre-roll", () => {
+  const tasks = compile({ ...base, frames: "5-12", chunk_size: 50 });
+  assert.equal(tasks.length, 1);
+  const args = tasks[0].commands[0].parameters.args;
+  assert.equal(flagValue(args, "--frames"), "5-12");
+  assert.equal(flagValue(args, "--preroll"), "0");
+  assert.equal(flagValue(args, "--shot"), "5-12");
+});
+
+test("pre-roll longer than the frames before a chunk reaches back to the shot's first frame only", () => {
+  const tasks = compile({ ...base, frames: "101-110", chunk_size: 3, preroll: 5 });
+  const got = Array.from(tasks, (t) => [flagValue(t.commands[0].parameters.args, "--frames"),
+                                Number(flagValue(t.commands[0].parameters.args, "--preroll"))]);
+  assert.deepEqual(got, [["101-103", 0], ["104-106", 3], ["107-109", 5], ["110-110", 5]]);
+});
+
+test("a single frame, frame 0 and spaces are accepted", () => {
+  assert.equal(flagValue(compile({ ...base, frames: " 7 " })[0].commands[0].parameters.args, "--frames"), "7-7");
+  const tasks = compile({ ...base, frames: "0 - 7", chunk_size: 4, preroll: 2 });
+  assert.deepEqual(Array.from(tasks, (t) => flagValue(t.commands[0].parameters.args, "--frames")), ["0-3", "4-7"]);
+  assert.equal(flagValue(tasks[1].commands[0].parameters.args, "--preroll"), "2");
+});
+
+test("spatial methods get no pre-roll (no history to warm)", () => {
+  for (const method of ["fxaa", "repair", "none"])
+    for (const t of compile({ ...base, method }))
+      assert.equal(flagValue(t.commands[0].parameters.args, "--preroll"), "0", method);
+});
+
+test("optional settings reach the command line", () => {
+  const [t] = compile({ ...base, frames: "1-4", resolution: "640x360", filter_params: "feedbackMin=0.8  sharpen=0.2",
+                        crisp_exe: "/opt/crisp/bin/crisp" });
+  const args = t.commands[0].parameters.args;
+  assert.equal(t.commands[0].parameters.exe, "/opt/crisp/bin/crisp");
+  assert.equal(flagValue(args, "--resolution"), "640x360");
+  assert.deepEqual(Array.from(args).filter((a, i) => args[i - 1] === "--set"), ["feedbackMin=0.8", "sharpen=0.2"]);
+});
+
+test("bad settings raise an error naming the setting", () => {
+  const bad = [
+    [{ frames: "1-10,20-30" }, /'frames' must be one contiguous range/],
+    [{ frames: "20-10" }, /'frames' 20-10 is empty/],
+    [{ frames: "-4-3" }, /'frames' must be one contiguous range/],
+    [{ frames: "" }, /'frames'/],
+    [{ chunk_size: 0 }, /'chunk_size' must be a whole number >= 1/],
+    [{ chunk_size: 2.5 }, /'chunk_size'/],
+    [{ preroll: -1 }, /'preroll' must be a whole number >= 0/],
+    [{ method: "smaa" }, /'method' must be one of/],
+    [{ output_dir: "  " }, /'output_dir' is empty/],
+    [{ blendfile: undefined }, /'blendfile' is empty/],
+    [{ resolution: "big" }, /'resolution' must be WxH/],
+    [{ filter_params: "sharpen" }, /'filter_params' needs KEY=VALUE/],
+  ];
+  for (const [override, message] of bad)
+    assert.throws(() => compile({ ...base, ...override }), message, JSON.stringify(override));
+});
+
+let failed = 0;
+for (const { name, fn } of tests) {
+  try {
+    fn();
+    console.log("ok   " + name);
+  } catch (e) {
+    failed++;
+    console.log("FAIL " + name + "\n" + (e && e.stack ? e.stack : e));
+  }
+}
+console.log(`${tests.length - failed}/${tests.length} passed`);
+process.exit(failed ? 1 : 0);
