@@ -50,8 +50,9 @@ float blackmanHarrisWindow(float t) {
   float a = 2.0 * 3.14159265358979 * t;
   return 0.35875 - 0.48829 * cos(a) + 0.14128 * cos(2.0 * a) - 0.01168 * cos(3.0 * a);
 }
-float blackmanHarrisWeight(float x, float y, float width) {
-  if (!(width > 0.0)) return 1.0;
+float blackmanHarrisWeight(float x, float y, float filterSize) {
+  if (!(filterSize > 0.0)) return 1.0;
+  float width = 2.0 * filterSize;  // the window spans [-filterSize, filterSize]
   float tx = x / width + 0.5, ty = y / width + 0.5;
   return blackmanHarrisWindow(tx) * blackmanHarrisWindow(ty) / (0.35875 * 0.35875);
 }

@@ -55,7 +55,7 @@ FrameData renderFrame(const Sequence& seq, int width, int height, int frame, con
     f.jitter = temporal::jitterForFrame(frame, temporal::JitterDistribution::Uniform, 1.0f, options.period);
   else if (options.jitter == JitterKind::BlackmanHarris)
     f.jitter =
-        temporal::jitterForFrame(frame, temporal::JitterDistribution::BlackmanHarris, options.filterWidth, options.period);
+        temporal::jitterForFrame(frame, temporal::JitterDistribution::BlackmanHarris, options.filterSize, options.period);
   const SceneState& s = seq.stateAt(frame);
   f.color = Image(width, height, 4, 1.0f);
   f.motion = Image(width, height, 2);
@@ -82,7 +82,7 @@ FrameData renderFrame(const Sequence& seq, int width, int height, int frame, con
   } else if (options.reference == ReferenceKind::BlackmanHarris) {
     // n x n stratified points over the filter's support, weighted by the window.
     const int n = options.referenceSamples;
-    const float w = options.filterWidth;
+    const float w = 2.0f * options.filterSize;  // window spans [-filterSize, filterSize]
     std::vector<float> offsets(n), weights(n);
     double total = 0.0;
     for (int i = 0; i < n; ++i) {

@@ -12,7 +12,8 @@
 //  * reference: RGBA, the frame (shapes at their position of this frame, no
 //    motion blur) filtered per pixel with n x n stratified samples: a box over
 //    the pixel (16 x 16 = coverage exact to 1/256), or a Blackman-Harris filter
-//    `filterWidth` pixels wide (EEVEE's reference, BLENDER.md).
+//    of EEVEE's filter_size `filterSize` (support [-filterSize, filterSize],
+//    temporal/jitter.h).
 // The geometry passes come from the same jittered sample as the colour, as in
 // a jittered render whose passes all share its one sample.
 #pragma once
@@ -54,7 +55,7 @@ enum class ReferenceKind { None, Box, BlackmanHarris };
 
 struct FrameOptions {
   JitterKind jitter = JitterKind::Uniform;
-  float filterWidth = 1.5f;  // Blackman-Harris width for jitter and reference
+  float filterSize = 1.5f;  // EEVEE filter_size of the jitter and reference (half width of the window)
   int period = 16;           // Halton points cycled through
   ReferenceKind reference = ReferenceKind::Box;
   int referenceSamples = 16;  // n of the n x n reference samples

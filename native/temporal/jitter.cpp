@@ -47,7 +47,7 @@ double blackmanHarrisInverse(double u, double width) {
   return (0.5 * (lo + hi) - 0.5) * width;
 }
 
-Jitter jitterForFrame(int frame, JitterDistribution distribution, float width, int period) {
+Jitter jitterForFrame(int frame, JitterDistribution distribution, float filterSize, int period) {
   if (period < 1) period = 1;
   const int m = ((frame % period) + period) % period;
   const unsigned index = unsigned(m) + 1u;
@@ -56,17 +56,18 @@ Jitter jitterForFrame(int frame, JitterDistribution distribution, float width, i
   if (distribution == JitterDistribution::Uniform) {
     x = u - 0.5;
     yUp = v - 0.5;
-  } else if (width <= 1e-6f) {
+  } else if (filterSize <= 1e-6f) {
     x = yUp = 0.0;
   } else {
-    x = blackmanHarrisInverse(u, width);
-    yUp = blackmanHarrisInverse(v, width);
+    x = blackmanHarrisInverse(u, 2.0 * filterSize);
+    yUp = blackmanHarrisInverse(v, 2.0 * filterSize);
   }
   return Jitter{float(x), float(-yUp)};
 }
 
-float blackmanHarrisWeight(float x, float y, float width) {
-  if (!(width > 0.0f)) return 1.0f;
+float blackmanHarrisWeight(float x, float y, float filterSize) {
+  if (!(filterSize > 0.0f)) return 1.0f;
+  const double width = 2.0 * double(filterSize);  // the window spans [-filterSize, filterSize]
   const double tx = double(x) / width + 0.5, ty = double(y) / width + 0.5;
   return float(blackmanHarrisWindow(tx) * blackmanHarrisWindow(ty) / (kA0 * kA0));
 }
@@ -83,7 +84,7 @@ std::vector<ParamSpec> jitterParamSpecs(const char* weightMeaning, const char* w
        "seed 000 §3.6.1 and appendix B; seed 002 §5.2"},
       {"jitterWeighting", ParamType::String, 0, 0, 0, "none|blackman-harris", weightMeaning, weightSource},
       {"filterSize", ParamType::Float, 1.5, 0.01, 4.0, nullptr,
-       "width in pixels of the Blackman-Harris pixel filter used by jitterWeighting (EEVEE's filter_size)",
+       "EEVEE's filter_size: the Blackman-Harris pixel filter of jitterWeighting spans [-filterSize, filterSize] px",
        "BLENDER.md Sampling and jitter"},
   };
 }

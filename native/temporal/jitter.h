@@ -6,6 +6,13 @@
 // converges to EEVEE's many-sample reference (METHODS.md, "Jitter and
 // references").
 //
+// EEVEE's filter_size s is the window's HALF width: EEVEE 3.x maps its Halton
+// points through a Blackman-Harris inverse CDF spread over [-s, s] pixels
+// (eevee_temporal_sampling.c: table scaled to [-2, 2], times filter_size, then
+// applied as an NDC translation, i.e. halved in pixels). Measured: the mean of
+// eight 1-sample renders jittered over [-s, s] matches EEVEE's 8-sample render
+// to 31.6 dB, over [-s/2, s/2] to 23.6 dB (still_life 240x135).
+//
 // Convention: offsets are in PIXELS in the library's convention (x right,
 // y DOWN, conventions.h): the sample of pixel (i, j) sits at
 // (i + 0.5 + x, j + 0.5 + y). Blender's camera shift and the add-on's sidecar
@@ -48,18 +55,20 @@ struct Jitter {
 // Jitter of frame `frame` as the add-on draws it (addon/crisp/render.py
 // jitter_offset): Halton(2,3) point number (frame mod period) + 1; Uniform =
 // the point minus 0.5 (inside the pixel); BlackmanHarris = each coordinate
-// through the inverse CDF of a window `width` pixels wide (EEVEE's
-// filter_size, default 1.5). y is returned in the library convention (y down).
+// through the inverse CDF of a window spanning [-filterSize, filterSize]
+// (EEVEE's filter_size, default 1.5). y is returned in the library convention
+// (y down).
 // The add-on integrates the CDF with a 1024-step trapezoid table; the closed
 // form here should differ from it only by that table's interpolation error
 // (expected ~1e-6 px; not yet cross-checked against the add-on by a test).
-Jitter jitterForFrame(int frame, JitterDistribution distribution, float width = 1.5f, int period = 16);
+Jitter jitterForFrame(int frame, JitterDistribution distribution, float filterSize = 1.5f, int period = 16);
 
-// Relative weight of a sample at offset (x, y) under a separable
-// Blackman-Harris pixel filter `width` pixels wide, normalised so that its
-// mean over uniform offsets in [-width/2, width/2]^2 is 1 (0 outside). Used
+// Relative weight of a sample at offset (x, y) under EEVEE's separable
+// Blackman-Harris pixel filter of size filterSize (support [-filterSize,
+// filterSize]^2), normalised so that its mean over uniform offsets on that
+// support is 1 (0 outside). Used
 // to weight uniformly jittered samples so their weighted average converges to
 // the Blackman-Harris-filtered image.
-float blackmanHarrisWeight(float x, float y, float width);
+float blackmanHarrisWeight(float x, float y, float filterSize);
 
 }  // namespace crisp::temporal
