@@ -78,6 +78,15 @@ int runFilter(const ParsedArgs& args) {
     filter->params().setFromText(kv.substr(0, eq), kv.substr(eq + 1));
   }
 
+  // The chunk to write (default: every input) and its pre-roll, checked before anything is written.
+  const int count = int(args.positional.size());
+  const FrameRange chunk =
+      args.has("frames") ? parseFrameRange("frames", args.get("frames"), 1) : FrameRange{1, count};
+  if (chunk.last > count)
+    throw UsageError("--frames " + args.get("frames") + " reaches past the last input (" + std::to_string(count) +
+                     " given; frames are 1-based positions among the inputs)");
+  const int preroll = parseIntOption(args, "preroll", 0, 0, 1000000);
+
   // Refuse before writing anything: outputs that would collide or overwrite an input.
   std::set<std::string> stems;
   std::set<fs::path> inputs;
@@ -95,12 +104,6 @@ int runFilter(const ParsedArgs& args) {
         throw UsageError("output for '" + in + "' would overwrite an input file; choose another -o folder");
   }
 
-  const int count = int(args.positional.size());
-  const FrameRange chunk = args.has("frames") ? parseFrameRange("frames", args.get("frames"), 1) : FrameRange{1, count};
-  if (chunk.last > count)
-    throw UsageError("--frames " + args.get("frames") + " reaches past the last input (" + std::to_string(count) +
-                     " given; frames are 1-based positions among the inputs)");
-  const int preroll = parseIntOption(args, "preroll", 0, 0, 1000000);
   auto isComplete = [&](int position) {
     const std::string base = joinPath(outDir, fileStem(args.positional[std::size_t(position - 1)]));
     std::error_code ec;

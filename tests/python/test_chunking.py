@@ -1,0 +1,222 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Chunked processing for render farms (issue 8) on real Blender renders: spinning_cube at 64x36,
+frames 1-8, rendered once by `crisp render --method taa-improved` (whose passes every method can
+read; its filtered/ is the sequential taa-improved result of the add-on's filter path).
+
+  * `crisp filter --frames A-B --preroll N` over the inputs: chunks whose pre-roll reaches back to
+    the first frame equal one sequential run bit for bit, for taa, taa-improved, phlm and fxaa (a
+    spatial method needs no pre-roll at all); a shorter pre-roll is not bit-exact (the history is
+    younger; docs/farm.md has the measured table) but closer to sequential than none;
+  * `--resume` starts at the first missing output, leaves complete outputs untouched and, with its
+    pre-roll taken before that frame, writes what an uninterrupted run writes;
+  * `crisp render --frames A-B --preroll N --shot S-E`: chunks rendered out of order into one output
+    folder equal the sequential render; pre-roll frames never reach input/ or filtered/; a resumed
+    chunk reads its pre-roll from input/ instead of rendering it again.
+
+`python3 tests/python/test_chunking.py --measure [OUTDIR] [--scene NAME:FRAMES:CHUNK_START]...
+[--prerolls 0,1,2,...]` prints the pre-roll table of docs/farm.md (chunked against sequential for each
+pre-roll length, per method, on moving and still scenes).
+Needs Blender and the built CLI and library (CRISP_BUILD_DIR)."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from test_eval_e2e import CRISP, LIBRARY, Lib, psnr  # noqa: E402  (reads EXRs through libcrisp's C API)
+
+SIZE = "64x36"
+SHOT = (1, 8)
+TEMPORAL = ("taa", "taa-improved", "phlm")
+
+pytestmark = [
+    pytest.mark.skipif(not os.path.isfile(CRISP), reason="crisp CLI not built at %s" % CRISP),
+    pytest.mark.skipif(not os.path.isfile(LIBRARY), reason="libcrisp not built at %s" % LIBRARY),
+    pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed"),
+]
+
+
+def crisp(*args, ok=True):
+    p = subprocess.run([CRISP, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                       timeout=300)
+    if ok:
+        assert p.returncode == 0, p.stderr[-3000:] + p.stdout[-2000:]
+    return p
+
+
+def frame(f, ext=".exr"):
+    return "frame_%04d%s" % (f, ext)
+
+
+def render(out, frames, method="taa-improved", *extra):
+    return crisp("render", "--scene", "spinning_cube", "--resolution", SIZE, "--frames", "%d-%d" % frames,
+                 "--method", method, "--quiet", "-o", out, *extra)
+
+
+@pytest.fixture(scope="module")
+def lib():
+    return Lib()
+
+
+@pytest.fixture(scope="module")
+def shot(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sequential")
+    render(out, SHOT)
+    inputs = [str(out / "input" / frame(f)) for f in range(SHOT[0], SHOT[1] + 1)]
+    assert all(os.path.isfile(p) for p in inputs)
+    return out, inputs
+
+
+def filter_chunks(inputs, method, out, chunks, preroll, *extra):
+    for a, b in chunks:
+        crisp("filter", "--method", method, "--frames", "%d-%d" % (a, b), "--preroll", preroll, "--quiet",
+              *extra, "-o", out, *inputs)
+
+
+def max_diff(lib, a_dir, b_dir, frames):
+    """Largest |a - b| of any colour channel over the frames (0.0: bit-identical colours)."""
+    def colour(d, f):
+        return lib.color(os.path.join(d, frame(f)))
+    return max(float(np.max(np.abs(colour(a_dir, f) - colour(b_dir, f)))) for f in frames)
+
+
+def mean_psnr(lib, a_dir, b_dir, frames):
+    return np.mean([psnr(lib.color(os.path.join(a_dir, frame(f))), lib.color(os.path.join(b_dir, frame(f))))
+                    for f in frames])
+
+
+@pytest.mark.parametrize("method", TEMPORAL + ("fxaa",))
+def test_filter_chunks_equal_sequential(shot, lib, tmp_path, method):
+    _, inputs = shot
+    seq, full, short = tmp_path / "seq", tmp_path / "full", tmp_path / "short"
+    crisp("filter", "--method", method, "--quiet", "-o", seq, *inputs)
+    chunks = [(1, 3), (4, 6), (7, 8)]
+    filter_chunks(inputs, method, full, chunks, 6)  # every chunk's pre-roll reaches frame 1
+    frames = range(1, 9)
+    assert sorted(os.listdir(full)) == [frame(f) for f in frames]
+    assert max_diff(lib, seq, full, frames) == 0.0
+    if method == "fxaa":  # no history: no pre-roll needed
+        filter_chunks(inputs, method, short, chunks, 0)
+        assert max_diff(lib, seq, short, frames) == 0.0
+        return
+    # A pre-roll short of frame 1 leaves the history younger than a sequential run's: not bit-exact
+    # (docs/farm.md has the measured table), but closer to sequential than a cold chunk.
+    cold = tmp_path / "cold"
+    filter_chunks(inputs, method, short, [(5, 8)], 2)
+    filter_chunks(inputs, method, cold, [(5, 8)], 0)
+    assert sorted(os.listdir(short)) == [frame(f) for f in range(5, 9)]  # pre-roll inputs 3, 4 not written
+    assert max_diff(lib, seq, cold, range(5, 9)) > 0.0  # history matters
+    assert mean_psnr(lib, seq, short, range(5, 9)) > mean_psnr(lib, seq, cold, range(5, 9))
+
+
+def test_filter_resume_at_first_missing_output(shot, lib, tmp_path):
+    _, inputs = shot
+    seq, out = tmp_path / "seq", tmp_path / "out"
+    crisp("filter", "--method", "taa", "--quiet", "--png", "-o", seq, *inputs)
+    filter_chunks(inputs, "taa", out, [(1, 8)], 0, "--png")
+    # An interrupted run: outputs are renamed into place, so 1-4 are whole, 5 lost its PNG, 6-8 missing.
+    os.remove(out / frame(5, ".png"))
+    for f in (6, 7, 8):
+        for ext in (".exr", ".png"):
+            os.remove(out / frame(f, ext))
+    kept = {f: os.stat(out / frame(f)).st_mtime_ns for f in range(1, 5)}
+    p = crisp("filter", "--method", "taa", "--frames", "1-8", "--preroll", "8", "--resume", "--png", "-o", out, *inputs)
+    assert "1/8 frame_0001 (pre-roll)" in p.stderr and "4/8 frame_0004 (pre-roll)" in p.stderr, p.stderr
+    assert "5/8 frame_0005 (" in p.stderr and "frame_0005 (pre-roll)" not in p.stderr  # written again
+    assert {f: os.stat(out / frame(f)).st_mtime_ns for f in range(1, 5)} == kept
+    assert max_diff(lib, seq, out, range(1, 9)) == 0.0  # pre-roll 8 before frame 5 reaches frame 1
+    again = crisp("filter", "--method", "taa", "--frames", "1-8", "--resume", "--png", "-o", out, *inputs)
+    assert "nothing to do" in again.stdout
+
+
+def test_filter_chunk_errors(shot, tmp_path):
+    _, inputs = shot
+    for frames, message in (("7-9", "reaches past the last input (8 given"), ("0-3", "--frames expects A-B"),
+                            ("5-2", "--frames expects A-B"), ("x", "--frames expects A-B")):
+        p = crisp("filter", "--method", "taa", "--frames", frames, "-o", tmp_path, *inputs, ok=False)
+        assert p.returncode == 2 and message in p.stderr, p.stderr
+    p = crisp("filter", "--method", "taa", "--preroll", "-1", "-o", tmp_path, *inputs, ok=False)
+    assert p.returncode == 2 and "--preroll" in p.stderr
+    assert not os.listdir(tmp_path)
+
+
+def test_render_chunks_equal_sequential_and_resume(shot, lib, tmp_path):
+    seq, _ = shot
+    out = tmp_path / "chunked"
+    # The second chunk first: its pre-roll (6, clipped to frames 1-4) is rendered to a temporary folder.
+    render(out, (5, 8), "taa-improved", "--shot", "1-8", "--preroll", "6")
+    assert sorted(os.listdir(out / "filtered")) == [frame(f, e) for f in range(5, 9) for e in (".exr", ".png")]
+    assert sorted(os.listdir(out / "input")) == [frame(f, e) for f in range(5, 9) for e in (".exr", ".json")]
+    assert not os.path.exists(out / "run.json") and os.path.isfile(out / "run_0005-0008.json")
+    render(out, (1, 4), "taa-improved", "--shot", "1-8", "--preroll", "4")
+    assert max_diff(lib, seq / "filtered", out / "filtered", range(1, 9)) == 0.0
+    assert max_diff(lib, seq / "input", out / "input", range(1, 9)) == 0.0
+
+    # Resume: frame 7 lost its filtered EXR; 5 and 6 stay, the pre-roll 1-6 is read from input/.
+    os.remove(out / "filtered" / frame(7))
+    kept = os.stat(out / "filtered" / frame(6)).st_mtime_ns
+    render(out, (5, 8), "taa-improved", "--shot", "1-8", "--preroll", "6", "--resume")
+    result = json.loads((out / "run_0005-0008.json").read_text())
+    assert result["chunk"]["resumed_at"] == 7 and result["chunk"]["preroll_frames"] == [1, 6]
+    assert result["chunk"]["preroll_reused"] == [1, 2, 3, 4, 5, 6]
+    assert [e["frame"] for e in result["frames"]] == [7, 8]
+    assert os.stat(out / "filtered" / frame(6)).st_mtime_ns == kept
+    assert max_diff(lib, seq / "filtered", out / "filtered", range(7, 9)) == 0.0
+
+
+# ---- the pre-roll table (not a test) ---------------------------------------------------------------
+
+MEASURE_SCENES = (("camera_dolly", 24, 21), ("spinning_cube", 24, 21), ("still_life", 48, 41))
+
+
+def measure(out_dir, scenes=MEASURE_SCENES, prerolls=(0, 1, 2, 4, 8, 16, 32), chunk=4):
+    """Per scene (name, frames rendered, chunk start) and method: the chunk's frames filtered with
+    each pre-roll length against one sequential run from frame 1; each cell is max |difference|
+    (linear RGB) / lowest PSNR in dB (display-encoded, as metrics.h) over the chunk's frames."""
+    lib = Lib()
+    print("| scene | method | chunk | " + " | ".join("pre-roll %d" % p for p in prerolls) + " |")
+    print("|---|---|---|" + "---|" * len(prerolls))
+    for scene, n, start in scenes:
+        base = os.path.join(out_dir, scene)
+        if not os.path.isfile(os.path.join(base, "input", frame(n, ".json"))):
+            crisp("render", "--scene", scene, "--resolution", SIZE, "--frames", "1-%d" % n, "--method",
+                  "taa-improved", "--quiet", "-o", base)
+        inputs = [os.path.join(base, "input", frame(f)) for f in range(1, n + 1)]
+        frames = range(start, start + chunk)
+        for method in TEMPORAL:
+            seq = os.path.join(base, method, "seq")
+            crisp("filter", "--method", method, "--quiet", "-o", seq, *inputs)
+            row = []
+            for p in prerolls:
+                if p >= start - 1:  # reaches frame 1: the sequential run itself
+                    row.append("=")
+                    continue
+                d = os.path.join(base, method, "p%d" % p)
+                filter_chunks(inputs, method, d, [(start, start + chunk - 1)], p)
+                worst = min(psnr(lib.color(os.path.join(seq, frame(f))), lib.color(os.path.join(d, frame(f))))
+                            for f in frames)
+                row.append("%.3f / %.1f" % (max_diff(lib, seq, d, frames), worst))
+            print("| %s | %s | %d-%d | %s |" % (scene, method, start, start + chunk - 1, " | ".join(row)), flush=True)
+
+
+if __name__ == "__main__":
+    # --measure [OUTDIR] [--scene NAME:FRAMES:CHUNK_START]... [--prerolls 0,1,2,...]
+    argv, scenes, prerolls, out = sys.argv[1:], [], None, None
+    while argv:
+        a = argv.pop(0)
+        if a == "--scene":
+            name, n, start = argv.pop(0).split(":")
+            scenes.append((name, int(n), int(start)))
+        elif a == "--prerolls":
+            prerolls = tuple(int(p) for p in argv.pop(0).split(","))
+        elif a != "--measure":
+            out = a
+    if "--measure" in sys.argv:
+        measure(out or tempfile.mkdtemp(prefix="crisp_preroll_"), tuple(scenes) or MEASURE_SCENES,
+                prerolls or (0, 1, 2, 4, 8, 16, 32))
