@@ -20,7 +20,6 @@ namespace crisp::cli {
 struct FrameRange {
   int first = 0;
   int last = 0;  // inclusive
-  int count() const { return last - first + 1; }
 };
 
 // The frames one run processes: [start, first) are pre-roll (filtered, not
@@ -29,7 +28,6 @@ struct ChunkRun {
   int start = 0;
   int first = 0;
   int last = 0;
-  int prerollFrames() const { return first - start; }
   bool nothingToDo() const { return first > last; }
 };
 
