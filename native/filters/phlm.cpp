@@ -85,6 +85,7 @@
 #include "core/filter.h"
 #include "core/parallel.h"
 #include "temporal/history_fetch.h"
+#include "temporal/rows.h"
 #include "temporal/jitter.h"
 #include "temporal/vec4.h"
 #include "temporal/velocity.h"
@@ -338,21 +339,6 @@ inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
   if (f.output.channels() > 3) o[3] = f.color.channels() > 3 ? sanitizeColor(f.color.pixel(x, y)[3]) : 1.0f;
 }
 
-// Per-pixel function over rows [y0, y1): clamped taps on the border, unclamped
-// inside (fast path), or clamped everywhere (reference).
-template <class Fn>
-void rowsWithBorder(int width, int height, int y0, int y1, bool clampAll, Fn&& fn) {
-  for (int y = y0; y < y1; ++y) {
-    if (clampAll || y == 0 || y == height - 1 || width < 3) {
-      for (int x = 0; x < width; ++x) fn(std::true_type{}, x, y);
-    } else {
-      fn(std::true_type{}, 0, y);
-      for (int x = 1; x < width - 1; ++x) fn(std::false_type{}, x, y);
-      fn(std::true_type{}, width - 1, y);
-    }
-  }
-}
-
 }  // namespace
 
 template <class T>
@@ -482,7 +468,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
 
   auto pixelRows = [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) rowStats[2 * y] = rowStats[2 * y + 1] = 0;
-    rowsWithBorder(width_, height_, y0, y1, reference, [&](auto clamp, int x, int y) {
+    temporal::rowsWithBorder(width_, height_, y0, y1, reference, [&](auto clamp, int x, int y) {
       phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], rowStats[2 * y + 1]);
     });
   };

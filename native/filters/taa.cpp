@@ -83,6 +83,7 @@
 #include "core/parallel.h"
 #include "temporal/color_space.h"
 #include "temporal/history_fetch.h"
+#include "temporal/rows.h"
 #include "temporal/jitter.h"
 #include "temporal/neighbourhood.h"
 #include "temporal/vec4.h"
@@ -188,11 +189,13 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
   // Step 8: is there usable history at p + v?
   const float qx = float(x) + vx, qy = float(y) + vy;
   bool valid = f.hasHistory && temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h);
+  // The reprojected position's taps, shared by the depth test and the fetch.
+  temporal::Footprint fp{};
+  if (valid && (moving || f.previousDepth)) fp = temporal::footprintOf(qx, qy);
   if (valid && f.previousDepth) {
     // Disocclusion: some tap of the bilinear footprint with non-zero weight
     // must hold the surface whose velocity we follow (depth is compared,
     // never interpolated). Evaluated without branches.
-    const temporal::Footprint fp = temporal::footprintOf(qx, qy);
     const int xa = std::clamp(fp.x0, 0, w - 1), xb = std::clamp(fp.x0 + 1, 0, w - 1);
     const float* r0 = f.previousDepth + std::size_t(std::clamp(fp.y0, 0, h - 1)) * w;
     const float* r1 = f.previousDepth + std::size_t(std::clamp(fp.y0 + 1, 0, h - 1)) * w;
@@ -210,7 +213,8 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
     if (!moving)
       hist = temporal::load4(f.previous.at(x, y));  // exact: no filtering at zero motion
     else if (f.filter == HistoryFilter::CatmullRom)
-      hist = temporal::fetchCatmullRom4(f.previous, qx, qy);
+      hist = temporal::footprintInterior4x4(fp, w, h) ? temporal::fetchCatmullRomAt4<false>(f.previous, fp)
+                                                      : temporal::fetchCatmullRomAt4<true>(f.previous, fp);
     else
       hist = temporal::fetchBilinear4(f.previous, qx, qy);
   }
@@ -311,9 +315,11 @@ struct BandScratch {
   float* depth[3];   // width + 2
   float* columnMin;  // (width + 2) x 4: column reductions of the current row
   float* columnMax;
+  float* tap;        // width: the current row's closest-depth taps (int bits, read and written by memcpy)
+  float* tapDepth;   // width: their depths
 };
 
-inline std::size_t bandFloats(int width) { return std::size_t(width + 2) * (3 * 4 + 3 + 8); }
+inline std::size_t bandFloats(int width) { return std::size_t(width + 2) * (3 * 4 + 3 + 8 + 2); }
 
 BandScratch bandScratch(float* base, int width) {
   const std::size_t row = std::size_t(width + 2);
@@ -322,6 +328,8 @@ BandScratch bandScratch(float* base, int width) {
   for (int i = 0; i < 3; ++i) s.depth[i] = base + 12 * row + i * row;
   s.columnMin = base + 15 * row;
   s.columnMax = base + 19 * row;
+  s.tap = base + 23 * row;
+  s.tapDepth = base + 24 * row;
   return s;
 }
 
@@ -368,9 +376,8 @@ void fastRows(const Frame& f, const BandScratch& s, int y0, int y1, float* depth
       temporal::store4(s.columnMin + 4 * i, c.min);
       temporal::store4(s.columnMax + 4 * i, c.max);
     }
-    const float* d0 = s.depth[up];
     const float* d1 = s.depth[mid];
-    const float* d2 = s.depth[down];
+    if (followDepth) temporal::closestDepthTapsRow(s.depth[up], d1, s.depth[down], w, s.tap, s.tapDepth);
     for (int x = 0; x < w; ++x) {
       const int i = x + 1;
       Neighbourhood nb;
@@ -381,9 +388,8 @@ void fastRows(const Frame& f, const BandScratch& s, int y0, int y1, float* depth
       temporal::boxesFromColumns4(column(i - 1), column(i), column(i + 1), temporal::load4(s1 + 4 * (i - 1)),
                                   temporal::load4(s1 + 4 * (i + 1)), nb.box3x3, nb.cross);
       if (followDepth) {
-        const float depth9[9] = {d0[i - 1], d0[i], d0[i + 1], d1[i - 1], d1[i], d1[i + 1], d2[i - 1], d2[i], d2[i + 1]};
-        nb.tap = temporal::closestDepthTap(depth9);
-        nb.tapDepth = depth9[nb.tap];
+        std::memcpy(&nb.tap, s.tap + x, sizeof(int));
+        nb.tapDepth = s.tapDepth[x];
       } else {
         nb.tap = 4;
         nb.tapDepth = f.depth.ptr ? d1[i] : kBackgroundDepth;
@@ -422,21 +428,6 @@ inline void sharpenPixel(const Frame& f, float amount, int x, int y) {
     result[ch] = std::clamp(sharpened, lo, hi);
   }
   storeOutput(f.output, x, y, toRgb4(Vec4{result[0], result[1], result[2], 0.0f}, f.space, alphaOf(f.color, x, y)));
-}
-
-// Runs a per-pixel function over rows [y0, y1): clamped taps on the border,
-// unclamped inside (fast path), or clamped everywhere (reference).
-template <class Fn>
-void rowsWithBorder(int width, int height, int y0, int y1, bool clampAll, Fn&& fn) {
-  for (int y = y0; y < y1; ++y) {
-    if (clampAll || y == 0 || y == height - 1 || width < 3) {
-      for (int x = 0; x < width; ++x) fn(std::true_type{}, x, y);
-    } else {
-      fn(std::true_type{}, 0, y);
-      for (int x = 1; x < width - 1; ++x) fn(std::false_type{}, x, y);
-      fn(std::true_type{}, width - 1, y);
-    }
-  }
 }
 
 // Row bands of the fast path: enough to keep the threads busy, few enough
@@ -540,7 +531,7 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   if (!f.writeOutput) {
     const float amount = s.sharpen;
     auto sharpenRows = [&](int y0, int y1) {
-      rowsWithBorder(width_, height_, y0, y1, reference, [&](auto clamp, int x, int y) {
+      temporal::rowsWithBorder(width_, height_, y0, y1, reference, [&](auto clamp, int x, int y) {
         sharpenPixel<decltype(clamp)::value>(f, amount, x, y);
       });
     };

@@ -70,21 +70,30 @@ inline void catmullRomWeights(float t, float w[4]) {
   w[3] = t * t * (-0.5f + 0.5f * t);
 }
 
+// True when the 4x4 Catmull-Rom footprint at f lies inside the image, so
+// clamp-to-edge addressing changes no tap.
+inline bool footprintInterior4x4(const Footprint& f, int width, int height) {
+  return f.x0 >= 1 && f.y0 >= 1 && f.x0 + 2 < width && f.y0 + 2 < height;
+}
+
 // Catmull-Rom fetch (16 taps, separable) of the first 3 channels. Negative-lobe
 // clamping: the result is clamped per channel to the range of the 4 central
 // (bilinear) taps, so the sharpening lobes cannot ring past the local colours
 // (no overshoot, no negative colour from positive history). out[3] = the
-// carried channel of the nearest tap.
-inline Vec4 fetchCatmullRom4(const HistoryImage& h, float x, float y) {
-  const Footprint f = footprintOf(x, y);
+// carried channel of the nearest tap. fetchCatmullRomAt4 takes a footprint
+// already computed (footprintOf); Clamp = false is for footprints known to be
+// interior (footprintInterior4x4): the same taps without the clamps, so the
+// same bits.
+template <bool Clamp>
+inline Vec4 fetchCatmullRomAt4(const HistoryImage& h, const Footprint& f) {
   float wx[4], wy[4];
   catmullRomWeights(f.tx, wx);
   catmullRomWeights(f.ty, wy);
   int xs[4];
-  for (int i = 0; i < 4; ++i) xs[i] = std::clamp(f.x0 - 1 + i, 0, h.width - 1);
+  for (int i = 0; i < 4; ++i) xs[i] = Clamp ? std::clamp(f.x0 - 1 + i, 0, h.width - 1) : f.x0 - 1 + i;
   Vec4 acc = splat(0.0f), lo = splat(0.0f), hi = splat(0.0f);
   for (int j = 0; j < 4; ++j) {
-    const float* row = h.at(0, std::clamp(f.y0 - 1 + j, 0, h.height - 1));
+    const float* row = h.at(0, Clamp ? std::clamp(f.y0 - 1 + j, 0, h.height - 1) : f.y0 - 1 + j);
     const Vec4 t0 = load4(row + 4 * xs[0]), t1 = load4(row + 4 * xs[1]);
     const Vec4 t2 = load4(row + 4 * xs[2]), t3 = load4(row + 4 * xs[3]);
     const Vec4 r = ((t0 * wx[0] + t1 * wx[1]) + t2 * wx[2]) + t3 * wx[3];
@@ -98,8 +107,12 @@ inline Vec4 fetchCatmullRom4(const HistoryImage& h, float x, float y) {
     }
   }
   Vec4 out = vmin(vmax(acc, lo), hi);
-  out[3] = h.at(f.tx < 0.5f ? xs[1] : xs[2], std::clamp(f.ty < 0.5f ? f.y0 : f.y0 + 1, 0, h.height - 1))[3];
+  const int carriedY = f.ty < 0.5f ? f.y0 : f.y0 + 1;
+  out[3] = h.at(f.tx < 0.5f ? xs[1] : xs[2], Clamp ? std::clamp(carriedY, 0, h.height - 1) : carriedY)[3];
   return out;
+}
+inline Vec4 fetchCatmullRom4(const HistoryImage& h, float x, float y) {
+  return fetchCatmullRomAt4<true>(h, footprintOf(x, y));
 }
 inline void fetchCatmullRom(const HistoryImage& h, float x, float y, float out[4]) {
   store4(out, fetchCatmullRom4(h, x, y));

@@ -5,8 +5,10 @@
 #pragma once
 
 #include <cmath>
+#include <cstring>
 
 #include "core/conventions.h"
+#include "temporal/vec4.h"
 
 namespace crisp::temporal {
 
@@ -30,11 +32,47 @@ inline int closestDepthTap(const float depth9[9]) {
   return best;
 }
 
+// closestDepthTap for `width` consecutive pixels of a row, four at a time:
+// up/middle/down are the depth rows above, at and below, padded by one pixel
+// on each side (pixel x's 3x3 is columns x .. x + 2). The same comparisons in
+// the same order per lane, so the same taps as closestDepthTap.
+// tap receives int bits (memcpy), so a float scratch row can hold them.
+inline void closestDepthTapsRow(const float* up, const float* middle, const float* down, int width, float* tap,
+                                float* tapDepth) {
+  typedef int Int4 __attribute__((vector_size(16)));
+  const float* rows[3] = {up, middle, down};
+  int x = 0;
+  for (; x + 4 <= width; x += 4) {
+    Vec4 bestDepth = load4(middle + x + 1);
+    Int4 best = {4, 4, 4, 4};
+    for (int i = 0; i < 9; ++i) {
+      const Vec4 d = load4(rows[i / 3] + x + i % 3);
+      const Int4 closer = d < bestDepth;
+      best = closer ? Int4{i, i, i, i} : best;
+      bestDepth = closer ? d : bestDepth;
+    }
+    std::memcpy(tap + x, &best, sizeof best);
+    store4(tapDepth + x, bestDepth);
+  }
+  for (; x < width; ++x) {
+    const float depth9[9] = {up[x],     up[x + 1],     up[x + 2],   middle[x], middle[x + 1],
+                             middle[x + 2], down[x], down[x + 1], down[x + 2]};
+    const int best = closestDepthTap(depth9);
+    std::memcpy(tap + x, &best, sizeof best);
+    tapDepth[x] = depth9[best];
+  }
+}
+
 // Two depths belong to the same surface when they differ by at most
 // `tolerance` times the nearer one (relative, as depth precision is).
 // Background matches background.
+// fmin written as a select (GCC calls libm's fminf otherwise, a call per
+// tap): the same value as std::fmin for every input, NaN included (the other
+// operand wins); of +0 and -0 either may be returned, which the product and
+// comparison below cannot tell apart.
 inline bool sameSurfaceDepth(float a, float b, float tolerance) {
-  return std::fabs(a - b) <= tolerance * std::fmin(a, b);
+  const float nearer = (b < a || a != a) ? b : a;
+  return std::fabs(a - b) <= tolerance * nearer;
 }
 
 // A motion vector usable for reprojection: finite.
