@@ -48,6 +48,7 @@
 #include "core/filter.h"
 #include "core/parallel.h"
 #include "temporal/history_fetch.h"
+#include "temporal/rows.h"
 #include "temporal/velocity.h"
 
 namespace crisp::taa_improved {
@@ -56,11 +57,15 @@ namespace {
 
 inline float clamp01(float v) { return v > 0.0f ? (v < 1.0f ? v : 1.0f) : 0.0f; }  // NaN -> 0
 
+// A packed float plane read with clamp-to-edge addressing; at<false> skips
+// the clamps for taps known to be inside (temporal::rowsWithBorder).
 struct Plane {
   const float* data;
   int width, height;
+  template <bool Clamp = true>
   float at(int x, int y) const {
-    return data[std::size_t(std::clamp(y, 0, height - 1)) * width + std::clamp(x, 0, width - 1)];
+    if constexpr (Clamp) return data[std::size_t(std::clamp(y, 0, height - 1)) * width + std::clamp(x, 0, width - 1)];
+    return data[std::size_t(y) * width + x];
   }
 };
 
@@ -123,8 +128,14 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   const bool hasHistory = taa_.framesSinceReset() > 0;
   const bool useAlbedo = s.sobelUnlit && in.albedo.ptr;
   const bool useDepth = in.depth.ptr != nullptr;
-  auto depthAt = [&](int x, int y) {
-    return temporal::sanitizeDepth(in.depth.pixel(std::clamp(x, 0, w - 1), std::clamp(y, 0, h - 1))[0]);
+  // Taps of 3x3 stencils: clamped on the border (and on the reference path),
+  // direct inside (temporal::rowsWithBorder); the same taps either way.
+  auto depthAt = [&](auto clamp, int x, int y) {
+    if constexpr (decltype(clamp)::value) {
+      x = std::clamp(x, 0, w - 1);
+      y = std::clamp(y, 0, h - 1);
+    }
+    return temporal::sanitizeDepth(in.depth.pixel(x, y)[0]);
   };
   const Plane lit{lumaLit_.data(), w, h}, unlit{lumaUnlit_.data(), w, h}, raw{sobelRaw_.data(), w, h};
   const int next = 1 - current_;
@@ -141,45 +152,47 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
     });
     // Pass 2: mixed, smoothstepped Sobel (eqs. 4.9-4.10).
     parallelRows(w, h, threads, [&](int y0, int y1) {
-      for (int y = y0; y < y1; ++y)
-        for (int x = 0; x < w; ++x) {
-          const float l = sobelMagnitude([&](int i, int j) { return lit.at(i, j); }, x, y);
-          float g = useAlbedo ? 0.3f * sobelMagnitude([&](int i, int j) { return unlit.at(i, j); }, x, y) + 0.7f * l : l;
-          if (useDepth && s.sobelDepth) g += sobelMagnitude(depthAt, x, y) / depthAt(x, y);
-          g = clamp01(g);
-          sobelRaw_[std::size_t(y) * w + x] = std::sqrt(g * g * (3.0f - 2.0f * g));
-        }
+      temporal::rowsWithBorder(w, h, y0, y1, reference, [&](auto clamp, int x, int y) {
+        constexpr bool C = decltype(clamp)::value;
+        const float l = sobelMagnitude([&](int i, int j) { return lit.at<C>(i, j); }, x, y);
+        float g = l;
+        if (useAlbedo) g = 0.3f * sobelMagnitude([&](int i, int j) { return unlit.at<C>(i, j); }, x, y) + 0.7f * l;
+        if (useDepth && s.sobelDepth)
+          g += sobelMagnitude([&](int i, int j) { return depthAt(clamp, i, j); }, x, y) / depthAt(clamp, x, y);
+        g = clamp01(g);
+        sobelRaw_[std::size_t(y) * w + x] = std::sqrt(g * g * (3.0f - 2.0f * g));
+      });
     });
     // Pass 3: one-channel TAA with clamping, no sharpen (§4.3.3).
     parallelRows(w, h, threads, [&](int y0, int y1) {
       const float* previous = sobel_[current_].data();
-      for (int y = y0; y < y1; ++y)
-        for (int x = 0; x < w; ++x) {
-          const float c = raw.at(x, y);
-          float result = c;
-          float vx, vy;
-          motionAt(in.motion, x, y, vx, vy);
-          const float qx = float(x) + vx, qy = float(y) + vy;
-          if (stabilise && temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h)) {
-            const temporal::Footprint fp = temporal::footprintOf(qx, qy);
-            const Plane prev{previous, w, h};
-            const float top = prev.at(fp.x0, fp.y0) + (prev.at(fp.x0 + 1, fp.y0) - prev.at(fp.x0, fp.y0)) * fp.tx;
-            const float bottom =
-                prev.at(fp.x0, fp.y0 + 1) + (prev.at(fp.x0 + 1, fp.y0 + 1) - prev.at(fp.x0, fp.y0 + 1)) * fp.tx;
-            float hist = top + (bottom - top) * fp.ty;
-            float lo = c, hi = c;
-            for (int j = -1; j <= 1; ++j)
-              for (int i = -1; i <= 1; ++i) {
-                lo = std::min(lo, raw.at(x + i, y + j));
-                hi = std::max(hi, raw.at(x + i, y + j));
-              }
-            hist = std::clamp(hist, lo, hi);
-            const float diff = std::clamp(std::fabs(hist - c) / std::max(std::max(hist, c), 0.2f), 0.0f, 1.0f);
-            const float k = s.base.feedbackMin + (s.base.feedbackMax - s.base.feedbackMin) * (1.0f - diff) * (1.0f - diff);
-            result = hist + (c - hist) * (1.0f - k);
-          }
-          sobel_[next][std::size_t(y) * w + x] = std::isfinite(result) ? result : c;
+      temporal::rowsWithBorder(w, h, y0, y1, reference, [&](auto clamp, int x, int y) {
+        constexpr bool C = decltype(clamp)::value;
+        const float c = raw.at<C>(x, y);
+        float result = c;
+        float vx, vy;
+        motionAt(in.motion, x, y, vx, vy);
+        const float qx = float(x) + vx, qy = float(y) + vy;
+        if (stabilise && temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h)) {
+          const temporal::Footprint fp = temporal::footprintOf(qx, qy);
+          const Plane prev{previous, w, h};
+          const float top = prev.at(fp.x0, fp.y0) + (prev.at(fp.x0 + 1, fp.y0) - prev.at(fp.x0, fp.y0)) * fp.tx;
+          const float bottom =
+              prev.at(fp.x0, fp.y0 + 1) + (prev.at(fp.x0 + 1, fp.y0 + 1) - prev.at(fp.x0, fp.y0 + 1)) * fp.tx;
+          float hist = top + (bottom - top) * fp.ty;
+          float lo = c, hi = c;
+          for (int j = -1; j <= 1; ++j)
+            for (int i = -1; i <= 1; ++i) {
+              lo = std::min(lo, raw.at<C>(x + i, y + j));
+              hi = std::max(hi, raw.at<C>(x + i, y + j));
+            }
+          hist = std::clamp(hist, lo, hi);
+          const float diff = std::clamp(std::fabs(hist - c) / std::max(std::max(hist, c), 0.2f), 0.0f, 1.0f);
+          const float k = s.base.feedbackMin + (s.base.feedbackMax - s.base.feedbackMin) * (1.0f - diff) * (1.0f - diff);
+          result = hist + (c - hist) * (1.0f - k);
         }
+        sobel_[next][std::size_t(y) * w + x] = std::isfinite(result) ? result : c;
+      });
     });
   }
 
@@ -187,64 +200,65 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   const float* pastDepth = taa_.previousDepth();
   const Plane sob{sobel_[next].data(), w, h};
   parallelRows(w, h, threads, [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y)
-      for (int x = 0; x < w; ++x) {
-        float sobelCentre = 0.0f, sobelAvg = 0.0f;
-        float model = 0.0f;
-        if (s.modelAverage && (in.id.ptr || useDepth)) {
-          auto objectAt = [&](int i, int j) -> std::uint32_t {
-            const int cx = std::clamp(i, 0, w - 1), cy = std::clamp(j, 0, h - 1);
-            if (in.id.ptr) return in.id.uintAt(cx, cy);
-            return isBackgroundDepth(in.depth.pixel(cx, cy)[0]) ? 0u : 1u;  // object vs background
-          };
-          const std::uint32_t centre = objectAt(x, y);
-          int differ = 0;
-          for (int j = -1; j <= 1; ++j)
-            for (int i = -1; i <= 1; ++i) differ += objectAt(x + i, y + j) != centre;
-          model = float(differ) / 9.0f;
-        }
-        if (s.sobel) {
-          sobelCentre = sob.at(x, y);
-          float sum9 = 0.0f;
-          for (int j = -1; j <= 1; ++j)
-            for (int i = -1; i <= 1; ++i) sum9 += sob.at(x + i, y + j);
-          const float sumCross = sob.at(x, y - 1) + sob.at(x - 1, y) + sobelCentre + sob.at(x + 1, y) + sob.at(x, y + 1);
-          const float avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
-          const float t = clamp01(model + sobelCentre);
-          sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
-        }
-        float depthPV = 0.0f, depthTPV = 0.0f;
-        if (useDepth && (s.depthVariance || s.temporalDepthVariance)) {
-          const float dc = depthAt(x, y);
-          float lo = 1.0f, hi = 1.0f, sum = 0.0f;
-          for (int j = -1; j <= 1; ++j)
-            for (int i = -1; i <= 1; ++i) {
-              const float d = depthAt(x + i, y + j) / dc;  // relative to the centre
-              lo = std::min(lo, d);
-              hi = std::max(hi, d);
-              sum += d;
-            }
-          const float avg = sum / 9.0f;
-          const float m = std::min(std::fabs(lo - avg), std::fabs(hi - avg));
-          if (m >= s.depthThreshold) {
-            if (s.depthVariance) depthPV = std::pow(std::fabs(1.0f - avg) / m, 2.0f);
-            if (s.temporalDepthVariance && pastDepth) {
-              float vx, vy;
-              motionAt(in.motion, x, y, vx, vy);
-              const float qx = float(x) + vx, qy = float(y) + vy;
-              if (temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h)) {
-                const int px = std::clamp(int(temporal::floorExact(qx + 0.5f)), 0, w - 1);
-                const int py = std::clamp(int(temporal::floorExact(qy + 0.5f)), 0, h - 1);
-                const float past = pastDepth[std::size_t(py) * w + px] / dc;
-                depthTPV = std::pow(std::fabs(past - avg) / m, 4.0f);
-              }
+    temporal::rowsWithBorder(w, h, y0, y1, reference, [&](auto clamp, int x, int y) {
+      constexpr bool C = decltype(clamp)::value;
+      float sobelCentre = 0.0f, sobelAvg = 0.0f;
+      float model = 0.0f;
+      if (s.modelAverage && (in.id.ptr || useDepth)) {
+        auto objectAt = [&](int i, int j) -> std::uint32_t {
+          const int cx = C ? std::clamp(i, 0, w - 1) : i, cy = C ? std::clamp(j, 0, h - 1) : j;
+          if (in.id.ptr) return in.id.uintAt(cx, cy);
+          return isBackgroundDepth(in.depth.pixel(cx, cy)[0]) ? 0u : 1u;  // object vs background
+        };
+        const std::uint32_t centre = objectAt(x, y);
+        int differ = 0;
+        for (int j = -1; j <= 1; ++j)
+          for (int i = -1; i <= 1; ++i) differ += objectAt(x + i, y + j) != centre;
+        model = float(differ) / 9.0f;
+      }
+      if (s.sobel) {
+        sobelCentre = sob.at<C>(x, y);
+        float sum9 = 0.0f;
+        for (int j = -1; j <= 1; ++j)
+          for (int i = -1; i <= 1; ++i) sum9 += sob.at<C>(x + i, y + j);
+        const float sumCross =
+            sob.at<C>(x, y - 1) + sob.at<C>(x - 1, y) + sobelCentre + sob.at<C>(x + 1, y) + sob.at<C>(x, y + 1);
+        const float avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
+        const float t = clamp01(model + sobelCentre);
+        sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
+      }
+      float depthPV = 0.0f, depthTPV = 0.0f;
+      if (useDepth && (s.depthVariance || s.temporalDepthVariance)) {
+        const float dc = depthAt(clamp, x, y);
+        float lo = 1.0f, hi = 1.0f, sum = 0.0f;
+        for (int j = -1; j <= 1; ++j)
+          for (int i = -1; i <= 1; ++i) {
+            const float d = depthAt(clamp, x + i, y + j) / dc;  // relative to the centre
+            lo = std::min(lo, d);
+            hi = std::max(hi, d);
+            sum += d;
+          }
+        const float avg = sum / 9.0f;
+        const float m = std::min(std::fabs(lo - avg), std::fabs(hi - avg));
+        if (m >= s.depthThreshold) {
+          if (s.depthVariance) depthPV = std::pow(std::fabs(1.0f - avg) / m, 2.0f);
+          if (s.temporalDepthVariance && pastDepth) {
+            float vx, vy;
+            motionAt(in.motion, x, y, vx, vy);
+            const float qx = float(x) + vx, qy = float(y) + vy;
+            if (temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h)) {
+              const int px = std::clamp(int(temporal::floorExact(qx + 0.5f)), 0, w - 1);
+              const int py = std::clamp(int(temporal::floorExact(qy + 0.5f)), 0, h - 1);
+              const float past = pastDepth[std::size_t(py) * w + px] / dc;
+              depthTPV = std::pow(std::fabs(past - avg) / m, 4.0f);
             }
           }
         }
-        const float a = sobelAvg + depthPV + depthTPV + model;
-        // Non-finite (cannot happen with sanitised inputs): full TAA, the baseline's box.
-        aliased_[std::size_t(y) * w + x] = std::isnan(a) ? 1.0f : clamp01(a);
       }
+      const float a = sobelAvg + depthPV + depthTPV + model;
+      // Non-finite (cannot happen with sanitised inputs): full TAA, the baseline's box.
+      aliased_[std::size_t(y) * w + x] = std::isnan(a) ? 1.0f : clamp01(a);
+    });
   });
 
   // Pass 5: the baseline kernel, steered.
