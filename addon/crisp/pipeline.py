@@ -57,8 +57,9 @@ def check_output_dir(out_dir):
     """Creates out_dir if needed and proves it writable, or raises InputError naming it."""
     try:
         os.makedirs(out_dir, exist_ok=True)
-        probe = os.path.join(out_dir, ".crisp_write_test")
-        with open(probe, "w") as f:
+        # A probe of its own: farm chunks check one shared folder at the same time.
+        fd, probe = tempfile.mkstemp(prefix=".crisp_write_test", dir=out_dir)
+        with os.fdopen(fd, "w") as f:
             f.write("ok")
         os.remove(probe)
     except OSError as e:
