@@ -170,7 +170,22 @@ inline int differs4(const float* s0, const float* s1, const float* s2, const flo
   const __m128 da = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(c.nx), rx), _mm_mul_ps(_mm_set1_ps(c.ny), ry)),
                                _mm_mul_ps(_mm_set1_ps(c.nz), rz));
   const __m128 db = _mm_add_ps(_mm_add_ps(_mm_mul_ps(snx, rx), _mm_mul_ps(sny, ry)), _mm_mul_ps(snz, rz));
-  const __m128 dn = _mm_add_ps(absPs(da), absPs(db));
+  // rsaa::certainDot lane by lane: the sample's view-ray terms and depth tolerance.
+  const __m128 zero = _mm_setzero_ps();
+  const __m128 svx = Ortho ? zero : sux, svy = Ortho ? zero : suy;
+  const __m128 power = _mm_and_ps(d, _mm_castsi128_ps(_mm_set1_epi32(0x7F800000)));
+  const __m128 ulp = _mm_max_ps(_mm_set1_ps(5.9604645e-8f), _mm_mul_ps(power, _mm_set1_ps(0.0009765625f)));
+  const __m128 stol = _mm_mul_ps(_mm_set1_ps(cam.depthUlps), ulp);
+  const auto slack = [&](__m128 nx_, __m128 ny_, __m128 nz_, __m128 vx, __m128 vy, __m128 tol) {
+    return _mm_mul_ps(absPs(_mm_sub_ps(_mm_add_ps(_mm_mul_ps(nx_, vx), _mm_mul_ps(ny_, vy)), nz_)), tol);
+  };
+  const __m128 cnx = _mm_set1_ps(c.nx), cny = _mm_set1_ps(c.ny), cnz = _mm_set1_ps(c.nz);
+  const __m128 cvx = _mm_set1_ps(c.vx), cvy = _mm_set1_ps(c.vy), ctol = _mm_set1_ps(c.tolerance);
+  const __m128 slackA = _mm_add_ps(slack(cnx, cny, cnz, cvx, cvy, ctol), slack(cnx, cny, cnz, svx, svy, stol));
+  const __m128 slackB = _mm_add_ps(slack(snx, sny, snz, cvx, cvy, ctol), slack(snx, sny, snz, svx, svy, stol));
+  const __m128 ea = _mm_max_ps(zero, _mm_sub_ps(absPs(da), slackA));
+  const __m128 eb = _mm_max_ps(zero, _mm_sub_ps(absPs(db), slackB));
+  const __m128 dn = _mm_add_ps(ea, eb);
   const __m128 far = _mm_cmpnlt_ps(_mm_mul_ps(dn, dn), _mm_mul_ps(_mm_set1_ps(threshold2), r2));
   return _mm_movemask_ps(_mm_or_ps(bg, _mm_and_ps(apart, far)));
 }
@@ -287,6 +302,12 @@ std::vector<ParamSpec> rsaaParams() {
       {"view20", ParamType::Float, 0.0, -1e3, 1e3, nullptr, "camera.view[2][0]", "section 4.4.1"},
       {"view21", ParamType::Float, 0.0, -1e3, 1e3, nullptr, "camera.view[2][1]", "section 4.4.1"},
       {"view22", ParamType::Float, 1.0, -1e3, 1e3, nullptr, "camera.view[2][2]", "section 4.4.1"},
+      {"depthUlps", ParamType::Float, 1.0, 0.0, 64.0, nullptr,
+       "depth precision in units in the last place of a half float at that depth: depth differences up to "
+       "this are taken as 0 in SADP. Blender 3.4's EEVEE writes Depth as half floats, so two points of one "
+       "plane a fraction of a pixel apart differ by up to ~1 ulp and would otherwise count as a step; 0 = "
+       "exact (float) depths",
+       "eq. 2.1 (input precision)"},
       {"reference", ParamType::Bool, 0, 0, 1, nullptr,
        "run the scalar reference path (one thread); bit-identical to the fast path", "section 4.4.2"},
   };
@@ -330,6 +351,7 @@ class RsaaFilter final : public Filter {
     cam.proj11 = p.getFloat("proj11");
     cam.proj02 = p.getFloat("proj02");
     cam.proj12 = p.getFloat("proj12");
+    cam.depthUlps = p.getFloat("depthUlps");
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) cam.view[r][c] = p.getFloat("view" + std::to_string(r) + std::to_string(c));
     reference_ = p.getBool("reference");

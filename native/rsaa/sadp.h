@@ -9,7 +9,10 @@
 // sees both in one frame.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include "core/conventions.h"
 
@@ -30,12 +33,32 @@ struct Camera {
   float proj00 = 1.0f, proj11 = 1.0f;  // focal terms (both non-zero)
   float proj02 = 0.0f, proj12 = 0.0f;  // lens shift (perspective)
   float view[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};  // rotation rows of world->view
+  // Precision of the depth images, in units in the last place of a half
+  // float at that depth (halfUlp): Blender 3.4's EEVEE writes its Depth pass
+  // as half floats, so two points of one plane a fraction of a pixel apart
+  // can differ by a whole ulp (0.004 at depth 5), which SADP would read as
+  // a step. 0 = exact depths (synthetic input).
+  float depthUlps = 0.0f;
 };
+
+// The spacing of half floats around depth d: 2^(floor(log2 d) - 10), at least
+// 2^-24 (the smallest half subnormal step). Exact bit operations, so the SIMD
+// path can repeat them.
+inline float halfUlp(float d) {
+  std::uint32_t bits;
+  std::memcpy(&bits, &d, 4);
+  bits &= 0x7F800000u;  // 2^floor(log2 |d|)
+  float power;
+  std::memcpy(&power, &bits, 4);
+  return std::max(power * 0.0009765625f, 5.9604645e-8f);
+}
 
 // A point seen by the camera: view-space position and normal.
 struct Geo {
   float px = 0, py = 0, pz = 0;
   float nx = 0, ny = 0, nz = 0;
+  float vx = 0, vy = 0;  // view-ray terms: d(position)/d(depth) = (vx, vy, -1)
+  float tolerance = 0;   // depth uncertainty: Camera::depthUlps x halfUlp(depth)
   bool background = true;
 };
 
@@ -63,10 +86,26 @@ inline Geo makeGeo(float depth, float wx, float wy, float wz, float ux, float uy
   g.px = c.orthographic ? ux : ux * depth;
   g.py = c.orthographic ? uy : uy * depth;
   g.pz = -depth;
+  g.vx = c.orthographic ? 0.0f : ux;
+  g.vy = c.orthographic ? 0.0f : uy;
+  g.tolerance = c.depthUlps * halfUlp(depth);
   g.nx = (c.view[0][0] * wx + c.view[0][1] * wy) + c.view[0][2] * wz;
   g.ny = (c.view[1][0] * wx + c.view[1][1] * wy) + c.view[1][2] * wz;
   g.nz = (c.view[2][0] * wx + c.view[2][1] * wy) + c.view[2][2] * wz;
   return g;
+}
+
+// How much a point's depth uncertainty can change n.r: the point moves along
+// its view ray v = (ux, uy, -1) (perspective; (0, 0, -1) orthographic) by up
+// to its tolerance, so n.p changes by up to |n.v| x tolerance.
+inline float dotSlack(float nx, float ny, float nz, const Geo& p) {
+  return std::fabs((nx * p.vx + ny * p.vy) - nz) * p.tolerance;
+}
+
+// |n.r| reduced by what the two points' depth uncertainties allow (never
+// below 0): on one plane, stored half-float depths then give 0 as exact ones do.
+inline float certainDot(float dot, float nx, float ny, float nz, const Geo& a, const Geo& b) {
+  return std::max(std::fabs(dot) - (dotSlack(nx, ny, nz, a) + dotSlack(nx, ny, nz, b)), 0.0f);
 }
 
 // Eq. 2.1: sadp(n1, n2, r) = (|n1.r| + |n2.r|) / |r|, r = p2 - p1. 0 on one
@@ -80,7 +119,7 @@ inline float sadp(const Geo& a, const Geo& b) {
   if (!(r2 > kSamePoint2 * (a.pz * a.pz))) return 0.0f;
   const float da = (a.nx * rx + a.ny * ry) + a.nz * rz;
   const float db = (b.nx * rx + b.ny * ry) + b.nz * rz;
-  const float s = (std::fabs(da) + std::fabs(db)) / std::sqrt(r2);
+  const float s = (certainDot(da, a.nx, a.ny, a.nz, a, b) + certainDot(db, b.nx, b.ny, b.nz, a, b)) / std::sqrt(r2);
   return s == s ? s : kDifferentSadp;
 }
 
@@ -95,7 +134,7 @@ inline bool differs(const Geo& a, const Geo& b, float threshold2) {
   if (!(r2 > kSamePoint2 * (a.pz * a.pz))) return false;
   const float da = (a.nx * rx + a.ny * ry) + a.nz * rz;
   const float db = (b.nx * rx + b.ny * ry) + b.nz * rz;
-  const float dn = std::fabs(da) + std::fabs(db);
+  const float dn = certainDot(da, a.nx, a.ny, a.nz, a, b) + certainDot(db, b.nx, b.ny, b.nz, a, b);
   return !(dn * dn < threshold2 * r2);
 }
 

@@ -467,6 +467,51 @@ TEST(RsaaFilter, RunsThroughTheFilterInterfaceAndChecksItsImages) {
   EXPECT_NE(filter->doc().find("sub7"), std::string::npos);
 }
 
+// Blender 3.4's EEVEE writes Depth as half floats: on a tilted plane at
+// depth ~5, neighbouring sub-samples differ by whole half-float steps, which
+// exact SADP reads as creases everywhere. With depthUlps = 1 (the filter's
+// default) no pixel inside the plane is resampled; a real depth step still is.
+TEST(RsaaDepthPrecision, HalfFloatDepthOnOnePlaneIsNotAnEdge) {
+  GeoScene s;
+  s.width = s.height = 48;
+  Plane p, far;
+  p.n[0] = 0.2, p.n[1] = 0.5, p.n[2] = std::sqrt(1 - 0.29);
+  p.q[2] = -5.0;
+  far.q[2] = -9.0;
+  s.planes = {p, far};
+  s.region = [](double x, double) { return x < 30.3 ? 0 : 1; };
+  s.colours = {{0.8f, 0.8f, 0.8f}, {0.1f, 0.1f, 0.1f}};
+  Frame f = render(s);
+  const auto toHalf = [](float& d) {  // round to the nearest half float (normal range)
+    const float q = halfUlp(d);
+    d = std::nearbyint(d / q) * q;
+  };
+  for (int y = 0; y < s.height; ++y)
+    for (int x = 0; x < s.width; ++x) {
+      toHalf(*f.depth.at(x, y));
+      for (int k = 0; k < kSamples; ++k) toHalf(f.sub[k].at(x, y)[3]);
+    }
+  const auto resolvedBefore = [&](float ulps, int column) {
+    Settings settings;
+    settings.camera = s.camera;
+    settings.camera.depthUlps = ulps;
+    Kernel k;
+    const Image fast = runKernel(f, settings, false, 2, &k);
+    expectSameBits(fast, runKernel(f, settings, true), "half depth");
+    long n = 0;
+    for (int y = 0; y < s.height; ++y)
+      for (int x = 0; x < column; ++x) n += k.masks()[std::size_t(y) * std::size_t(s.width) + std::size_t(x)] != 255;
+    return std::pair<long, long>(n, k.resolvedCount());
+  };
+  const auto exact = resolvedBefore(0.0f, 29);
+  const auto tolerant = resolvedBefore(1.0f, 29);
+  std::printf("[ rsaa ] half-float depth, plane pixels resampled: exact %ld, depthUlps=1 %ld (all: %ld)\n", exact.first,
+              tolerant.first, tolerant.second);
+  EXPECT_GT(exact.first, 20);  // the problem is real
+  EXPECT_EQ(tolerant.first, 0);
+  EXPECT_GE(tolerant.second, 48);  // the depth step at x = 30.3 is still found on every row
+}
+
 // What RSAA cannot fix (docs/rsaa.md): colour edges inside one polygon
 // (texture, shading) have SADP 0 everywhere, so an aliased checkerboard on a
 // tilted plane comes out exactly as it went in.
