@@ -85,6 +85,17 @@ def main(argv):
         sys.path.insert(0, os.path.dirname(path))
         runpy.run_path(path, run_name="__main__")
     scene = bpy.context.scene
+    # An experiment knob (issue 5): EEVEE's pixel filter (render.filter_size, px) for every render of
+    # the run. The 1-sample frames do not depend on it (their one sample sits on the pixel centre);
+    # the reference and the curve do: EEVEE spreads its samples over +-filter_size px with
+    # Blackman-Harris weights, while rsaa resamples towards the colour covered by the pixel's own
+    # square. CRISP_EVAL_FILTER_SIZE=0.5 gives a reference close to that target.
+    filter_size = os.environ.get("CRISP_EVAL_FILTER_SIZE", "")
+    if filter_size:
+        try:
+            scene.render.filter_size = float(filter_size)
+        except ValueError:
+            fail(2, "bad CRISP_EVAL_FILTER_SIZE '%s' (pixels, e.g. 0.5)" % filter_size)
     if args.resolution:
         try:
             w, h = (int(v) for v in args.resolution.lower().split("x"))

@@ -11,7 +11,8 @@ Layout under RENDERDIR (OUTDIR/renders):
     jittered/frame_NNNN.exr    1 sample, per-frame jitter, the union of the temporal methods' passes
                                (+ .json sidecar)
     unjittered/frame_NNNN.exr  1 sample, no jitter, the union of the other methods' passes, only
-                               when some of them need more than colour
+                               when some of them need more than colour; with rsaa also the 8
+                               geometry renders frame_NNNN_subK.exr listed in the sidecar
     reference_N/frame_NNNN.exr the reference (N EEVEE samples)
     blender-smaa/frame_NNNN.exr  eevee_1 through Image -> Anti-Aliasing -> Composite
     <set>/times.json           {"NNNN": wall seconds of that frame's render}
@@ -92,10 +93,12 @@ def group_plans(scene, methods, frames):
     for jitter, members in groups.items():
         passes = []
         for p in members:
-            passes += [q for q in p.passes if q not in passes and q != "subsamples"]
+            passes += [q for q in p.passes if q not in passes]
         if not members or (not jitter and passes == ["color"]):
             continue  # colour-only, unjittered: the curve's 1-sample frames are exactly these
-        order = ["color", "depth", "normal", "motion", "id", "albedo"]
+        # "subsamples" (rsaa): render.render_frames adds the geometry renders frame_NNNN_subK.exr and
+        # lists them, with their render times, in each frame's sidecar (eval reports those times apart).
+        order = ["color", "depth", "normal", "motion", "id", "albedo", "subsamples"]
         passes.sort(key=order.index)
         reasons = {}
         for p in members:

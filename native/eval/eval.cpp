@@ -29,6 +29,7 @@
 #include "core/filter.h"
 #include "crisp/crisp.h"
 #include "io/frame.h"
+#include "io/subsamples.h"
 #include "metrics/metrics.h"
 #include "metrics/temporal_error.h"
 #include "motion/reconstruct.h"
@@ -172,6 +173,56 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   }
 }
 
+// ---- RSAA: geometric-edge pixels and the extra geometry renders (issue 5) -------------------------
+
+// Thresholds of "another surface" between two geometric samples of one pixel.
+constexpr float kEdgeDepthJump = 0.05f;   // relative planar depth difference
+constexpr float kEdgeCreaseCos = 0.9397f; // cos(20 deg): normals further apart are a crease
+
+// Geometric-edge pixels of a frame (1 = edge) from the geometry of rsaa's input set: the pixel-centre
+// depth and normal and the 8 geometric sub-samples, i.e. 9 points inside the pixel's square. A pixel
+// is an edge pixel when some sub-sample lies on another surface than the centre: background against
+// geometry, a planar depth differing by more than 5 %, or normals more than 20 degrees apart. This
+// is the geometry at 9x the 1-sample density, independent of RSAA's own SADP test and threshold.
+Image geometricEdgeMask(const Frame& frame) {
+  const Image& depth = frame.pass("depth");
+  const Image& normal = frame.pass("normal");
+  Image mask(frame.width, frame.height, 1);
+  for (int y = 0; y < frame.height; ++y)
+    for (int x = 0; x < frame.width; ++x) {
+      const float d = depth.at(x, y)[0];
+      const float* n = normal.at(x, y);
+      bool edge = false;
+      for (int k = 0; k < 8 && !edge; ++k) {
+        const float* s = frame.pass(subsamplePass(k)).at(x, y);
+        const bool bg = isBackgroundDepth(d), sbg = isBackgroundDepth(s[3]);
+        if (bg || sbg) {
+          edge = bg != sbg;
+          continue;
+        }
+        const float dot = n[0] * s[0] + n[1] * s[1] + n[2] * s[2];
+        edge = std::fabs(s[3] - d) > kEdgeDepthJump * std::fmin(d, s[3]) || !(dot >= kEdgeCreaseCos);
+      }
+      mask.at(x, y)[0] = edge ? 1.0f : 0.0f;
+    }
+  return mask;
+}
+
+// Seconds Blender spent on a frame's 8 geometry renders (the sidecar's subsamples[].render_s).
+double geometryRenderSeconds(const fs::path& exr) {
+  fs::path side = exr;
+  side.replace_extension(".json");
+  double total = 0;
+  for (const SubsampleEntry& s : readSubsampleList(side.string())) total += s.renderSeconds;
+  return total;
+}
+
+// Per-entry figures beyond FrameFigures: PSNR over the geometric-edge pixels and, for rsaa, the
+// geometry render seconds (frame -> value).
+struct EdgeFigures {
+  std::map<int, double> edgePsnr, geometryS;
+};
+
 // ---- measuring -----------------------------------------------------------------------------------
 
 Image crop(const Image& img, const Crop& c) {
@@ -248,18 +299,31 @@ json machine() {
           {"os", std::string(u.sysname) + " " + u.release + " " + u.machine}};
 }
 
-json figuresJson(const Entry& e) {
+double valueAt(const std::map<int, double>& m, int f) {
+  auto it = m.find(f);
+  return it == m.end() ? kNaN : it->second;
+}
+
+json figuresJson(const Entry& e, const EdgeFigures& x) {
   json frames = json::array();
-  for (const FrameFigures& f : e.frames)
+  for (const FrameFigures& f : e.frames) {
+    const double geo = valueAt(x.geometryS, f.frame);
     frames.push_back({{"frame", f.frame}, {"psnr", f.psnr}, {"ssim", f.ssim}, {"perceptual_error", f.flip},
                       {"rmse", f.rmse}, {"temporal_error", f.temporalError}, {"render_s", f.renderS},
-                      {"filter_s", f.filterS}, {"time_s", f.renderS + (std::isfinite(f.filterS) ? f.filterS : 0.0)},
+                      {"filter_s", f.filterS},
+                      {"time_s", f.renderS + (std::isfinite(f.filterS) ? f.filterS : 0.0) + (std::isfinite(geo) ? geo : 0.0)},
+                      {"psnr_geometric_edges", valueAt(x.edgePsnr, f.frame)}, {"geometry_render_s", geo},
                       {"file", f.file}});
+  }
+  std::vector<double> edge, geo;
+  for (const auto& kv : x.edgePsnr) edge.push_back(kv.second);
+  for (const auto& kv : x.geometryS) geo.push_back(kv.second);
   json j = {{"name", e.name}, {"kind", e.kind}, {"samples", e.samples}, {"input", e.inputSet},
             {"temporal", e.temporal}, {"error", e.error.empty() ? json(nullptr) : json(e.error)},
             {"mean", {{"psnr", e.psnr}, {"ssim", e.ssim}, {"perceptual_error", e.flip},
                       {"temporal_error", e.temporalError}, {"time_s", e.timeS}, {"render_s", e.renderS},
-                      {"filter_s", e.filterS}}},
+                      {"filter_s", e.filterS}, {"psnr_geometric_edges", mean(edge)},
+                      {"geometry_render_s", median(geo)}}},
             {"equivalent_eevee_samples", e.equivalentSamples},
             {"equivalent_note", e.equivalentNote}, {"pareto", e.pareto}, {"frames", frames}};
   if (e.kind == "eevee") {  // the issue's flat shape for curve points
@@ -415,11 +479,49 @@ int run(const Options& o) {
     }
   }
 
+  // Geometric-edge pixels (geometricEdgeMask) where some method's input set has the geometric
+  // sub-samples (rsaa): the PSNR over them is a figure of every entry.
+  std::map<int, Image> edgeMasks;
+  std::string edgeNote = "no method rendered geometric sub-samples (rsaa), so no geometric-edge figures";
+  std::set<std::string> geometrySets;
+  for (const Entry& e : methods) {
+    const json plan = scene["plans"].value(e.name, json::object());
+    const json passes = plan.value("passes", json::array());
+    if (std::find(passes.begin(), passes.end(), "subsamples") != passes.end()) geometrySets.insert(e.inputSet);
+  }
+  if (!geometrySets.empty()) {
+    const fs::path dir = renders / *geometrySets.begin();
+    try {
+      for (int f : frames) {
+        Frame fr = readFrame((dir / frameName(f)).string());
+        attachSubsamples(fr, sidecarPathFor(fr.path));
+        Image m = geometricEdgeMask(fr);
+        double n = 0;
+        for (float v : m.data) n += v;
+        if (n > 0) edgeMasks[f] = std::move(m);
+      }
+      edgeNote = "pixels whose 9 geometric samples (centre + the 8 rsaa sub-samples of " + dir.filename().string() +
+                 ") do not all lie on the centre's surface: background vs geometry, planar depth differing by "
+                 "more than 5 %, or normals more than 20 degrees apart";
+    } catch (const std::exception& ex) {
+      edgeMasks.clear();
+      edgeNote = std::string("no geometric-edge figures: ") + ex.what();
+      std::fprintf(stderr, "crisp: %s\n", edgeNote.c_str());
+    }
+  }
+  std::map<std::string, EdgeFigures> edgeFigures;
+
   const int mapFrame = frames[frames.size() / 2];
   Image errorSum(width, height, 1);
   const fs::path images = out / "images";
   cli::makeDirectories((images / "full").string());
   cli::makeDirectories((images / "maps").string());
+  if (edgeMasks.count(mapFrame)) {
+    Image rgb(width, height, 3);
+    for (std::size_t i = 0; i < edgeMasks[mapFrame].data.size(); ++i)
+      for (int c = 0; c < 3; ++c) rgb.data[3 * i + std::size_t(c)] = edgeMasks[mapFrame].data[i];
+    writeImage((images / "maps" / "geometric_edges.png").string(), rgb);
+  }
   std::map<std::string, std::map<int, Image>> kept;  // entry -> frame -> colour, for the crops
   {
     int total = int((methods.size() + curve.size()) * frames.size());
@@ -459,6 +561,13 @@ int run(const Options& o) {
         if (wantMaps) maps.ssim = &ssim, maps.flip = &flip;
         Metrics m = compareImages(refs[f], test, nullptr, maps, o.threads);
         ff.psnr = m.psnr, ff.ssim = m.ssim, ff.flip = m.flip, ff.rmse = m.rmse;
+        if (edgeMasks.count(f)) {
+          CompareOptions cheap;
+          cheap.ssim = cheap.flip = false;
+          edgeFigures[e.name].edgePsnr[f] = compareImages(refs[f], test, &edgeMasks[f], {}, o.threads, cheap).psnr;
+        }
+        if (e.kind == "method" && geometrySets.count(e.inputSet) && e.name == "rsaa")
+          edgeFigures[e.name].geometryS[f] = geometryRenderSeconds(renders / e.inputSet / frameName(f));
         if (e.name == "none")
           for (std::size_t i = 0; i < errorSum.data.size(); ++i) errorSum.data[i] += err.data[i];
         if (wantMaps) {
@@ -488,6 +597,12 @@ int run(const Options& o) {
       // does not move a whole figure (every per-frame time is in the results too).
       e.renderS = median(rs), e.filterS = median(fs_);
       e.timeS = e.renderS + (std::isfinite(e.filterS) ? e.filterS : 0.0);
+      {  // rsaa's 8 geometry renders are part of its cost per frame (reported apart too)
+        std::vector<double> geo;
+        for (const auto& kv : edgeFigures[e.name].geometryS) geo.push_back(kv.second);
+        const double g = median(geo);
+        if (std::isfinite(g)) e.timeS += g;
+      }
       if (e.error.empty() && !std::isfinite(e.psnr)) e.error = "no output frames to measure";
       if (!e.error.empty()) e.timeS = e.filterS = kNaN;  // a failed method has no time per frame
     };
@@ -542,8 +657,8 @@ int run(const Options& o) {
 
   // 5. Results.
   json methodsJson = json::array(), curveJson = json::array();
-  for (const Entry& e : methods) methodsJson.push_back(figuresJson(e));
-  for (const Entry& e : curve) curveJson.push_back(figuresJson(e));
+  for (const Entry& e : methods) methodsJson.push_back(figuresJson(e, edgeFigures[e.name]));
+  for (const Entry& e : curve) curveJson.push_back(figuresJson(e, edgeFigures[e.name]));
   json refFiles = json::array();
   for (int f : frames) refFiles.push_back(fs::relative(refDir / frameName(f), out).string());
   std::map<int, double> refTimes = renderTimes(refDir);
@@ -558,6 +673,7 @@ int run(const Options& o) {
       {"methods", methodsJson},
       {"eevee_curve", curveJson},
       {"temporal_error_warp", warp},
+      {"geometric_edges", {{"definition", edgeNote}, {"frames_with_edges", int(edgeMasks.size())}}},
       {"smaa", scene.value("smaa", json::object())},
       {"plans", scene.value("plans", json::object())},
       {"facts", facts},
@@ -578,8 +694,8 @@ int run(const Options& o) {
       {"threads", o.threads},
       {"run_seconds", {{"blender", o.blenderSeconds}, {"methods_and_measures", evalSeconds}}},
       {"metrics_note", "PSNR, SSIM, perceptual error (FLIP-style) and temporal error on display-encoded values "
-                       "(linear RGB clamped to [0,1], sRGB-encoded), means over frames; time per frame = 1-sample render + filter, "
-                       "each the median over frames"},
+                       "(linear RGB clamped to [0,1], sRGB-encoded), means over frames; time per frame = 1-sample render + filter "
+                       "(+ rsaa's geometry renders, also given apart as geometry_render_s), each the median over frames"},
       {"scenes", json::array({sceneJson})},
   };
   writeJson(out / "results.json", results);

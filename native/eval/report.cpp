@@ -169,6 +169,15 @@ h(`<h2>Headline</h2><table id="headline">${THEAD}${rows}${crow}</table>
 <p class="sub">Error figures: means over the frames; times: medians over the frames (per-frame values below and in results.json). Higher PSNR/SSIM is better; lower perceptual error (FLIP-style, 0–1) and temporal error are better.
 "Equivalent EEVEE samples": the sample count at which EEVEE's own curve reaches the method's PSNR (log<sub>2</sub> samples interpolated linearly against PSNR).
 Pareto: no other point (method or EEVEE sample count) is both faster and higher in PSNR.</p>`);
+if (S.geometric_edges && S.geometric_edges.frames_with_edges > 0) {
+  let erow = "";
+  for (const m of S.methods.concat(S.eevee_curve)) {
+    const mean = m.mean || {};
+    erow += `<tr><td class="l">${m.kind === "eevee" ? "EEVEE " + m.samples + " spp" : esc(m.name)}</td><td>${fmt(mean.psnr, 2)}</td><td>${fmt(mean.psnr_geometric_edges, 2)}</td><td>${ms(mean.geometry_render_s)}</td><td>${m.kind === "eevee" ? "" : ms(mean.filter_s)}</td></tr>`;
+  }
+  h(`<h2>Geometric edges</h2><table id="edges"><tr><th class="l">method</th><th>PSNR dB (all pixels)</th><th>PSNR dB (geometric-edge pixels)</th><th>geometry renders ms</th><th>filter ms</th></tr>${erow}</table>
+<p class="sub">Geometric-edge pixels: ${esc(S.geometric_edges.definition)} (map: images/maps/geometric_edges.png). Geometry renders: rsaa's 8 extra depth + normal renders per frame, reported apart from the filter and included in its time per frame above.</p>`);
+}
 
 h(`<h2>Error against run time</h2><div class="charts"><div class="chart">${tradeoff("psnr", "PSNR (dB)", true)}</div>
 <div class="chart">${tradeoff("perceptual_error", "perceptual error", false)}</div></div>
