@@ -84,6 +84,7 @@
 #include "core/error.h"
 #include "core/filter.h"
 #include "core/parallel.h"
+#include "core/row_stage.h"
 #include "temporal/history_fetch.h"
 #include "temporal/rows.h"
 #include "temporal/jitter.h"
@@ -406,21 +407,18 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   const bool hasDepth = in.depth.ptr != nullptr;
   const int nextDepth = frames_ % 2;
   float* depthNow = hasDepth ? depth_[nextDepth].data() : nullptr;
-  const int colorChannels = in.color.channels();
 
   auto stageRows = [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y)
+    for (int y = y0; y < y1; ++y) {
+      stageColorRow(in.color, y, staged_.at(0, y));  // sanitised RGB (core/row_stage.h); lane 3 replaced below
       for (int x = 0; x < width_; ++x) {
-        const float* p = in.color.pixel(x, y);
         float* d = staged_.at(x, y);
-        d[0] = sanitizeColor(p[0]);
-        d[1] = sanitizeColor(colorChannels > 1 ? p[1] : p[0]);
-        d[2] = sanitizeColor(colorChannels > 2 ? p[2] : p[0]);
         // The luminance range of §5.1 (Delta, l) on tonemapped YCgCo luminance.
         const float luma = 0.25f * std::max(d[0], 0.0f) + 0.5f * std::max(d[1], 0.0f) + 0.25f * std::max(d[2], 0.0f);
         d[3] = luma / (1.0f + luma);
-        if (hasDepth) depthNow[std::size_t(y) * width_ + x] = temporal::sanitizeDepth(in.depth.pixel(x, y)[0]);
       }
+      if (hasDepth) stageDepthRow(in.depth, y, depthNow + std::size_t(y) * width_);
+    }
   };
   if (reference) stageRows(0, height_);
   else parallelRows(width_, height_, threads, stageRows);

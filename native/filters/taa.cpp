@@ -81,6 +81,7 @@
 #include "core/error.h"
 #include "core/filter.h"
 #include "core/parallel.h"
+#include "core/row_stage.h"
 #include "temporal/color_space.h"
 #include "temporal/history_fetch.h"
 #include "temporal/rows.h"
@@ -335,20 +336,22 @@ BandScratch bandScratch(float* base, int width) {
 
 // Stages image row y into ring slot y % 3 (and this frame's depth plane when
 // the row belongs to the band).
+// The same values as stagePixel, a row at a time (core/row_stage.h).
 void stageRow(const Frame& f, const BandScratch& s, int y, float* depthNow) {
-  const int w = f.width, cc = f.color.channels();
+  const int w = f.width;
   float* dst = s.staged[y % 3];
-  const char* src = static_cast<const char*>(f.color.ptr) + std::size_t(y) * f.color.rowStride;
-  const std::size_t stride = f.color.pixelStride;
-  for (int x = 0; x < w; ++x)
-    temporal::store4(dst + 4 * (x + 1), stagePixel(reinterpret_cast<const float*>(src + x * stride), cc, f.space));
+  stageColorRow(f.color, y, dst + 4);
+  if (f.space == ClipSpace::YCoCg)
+    for (int x = 1; x <= w; ++x) {
+      const Vec4 v = temporal::load4(dst + 4 * x);
+      const Float3 c = temporal::rgbToYCoCg({{v[0], v[1], v[2]}});
+      temporal::store4(dst + 4 * x, Vec4{c[0], c[1], c[2], v[3]});
+    }
   std::memcpy(dst, dst + 4, 4 * sizeof(float));
   std::memcpy(dst + 4 * (w + 1), dst + 4 * w, 4 * sizeof(float));
   if (!f.depth.ptr) return;
   float* d = s.depth[y % 3];
-  const char* dsrc = static_cast<const char*>(f.depth.ptr) + std::size_t(y) * f.depth.rowStride;
-  for (int x = 0; x < w; ++x)
-    d[x + 1] = temporal::sanitizeDepth(*reinterpret_cast<const float*>(dsrc + x * f.depth.pixelStride));
+  stageDepthRow(f.depth, y, d + 1);
   d[0] = d[1];
   d[w + 1] = d[w];
   if (depthNow) std::memcpy(depthNow + std::size_t(y) * w, d + 1, std::size_t(w) * sizeof(float));

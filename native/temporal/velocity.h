@@ -8,13 +8,15 @@
 #include <cstring>
 
 #include "core/conventions.h"
+#include "core/row_stage.h"
 #include "temporal/vec4.h"
 
 namespace crisp::temporal {
 
 // Depth as the temporal filters use it: non-finite and far values read as
 // background (conventions.h), so comparisons never see NaN.
-inline float sanitizeDepth(float d) { return isBackgroundDepth(d) || std::isnan(d) ? kBackgroundDepth : d; }
+// (core/row_stage.h's sanitizedDepth, which stages whole rows.)
+inline float sanitizeDepth(float d) { return sanitizedDepth(d); }
 
 // depth9: sanitised depths of the 3x3 block in row order (index 4 = centre).
 // Returns the index of the closest (smallest) depth; the centre wins ties,
