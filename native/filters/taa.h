@@ -86,6 +86,11 @@ class Kernel {
   const float* previousDepth() const {
     return frames_ > 0 && previousDepthValid_ && !depth_[current_].empty() ? depth_[current_].data() : nullptr;
   }
+  // The plane the next run() writes its sanitised depth into (width x height),
+  // or null without depth planes. A caller may stage this frame's depth into
+  // it before run() (taa-improved does, to read it in its own passes); run()
+  // overwrites it with the same values.
+  float* nextDepthPlane() { return depth_[1 - current_].empty() ? nullptr : depth_[1 - current_].data(); }
 
  private:
   int width_ = 0, height_ = 0;

@@ -42,20 +42,26 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <type_traits>
 
 #include "core/color.h"
 #include "core/error.h"
 #include "core/filter.h"
 #include "core/parallel.h"
+#include "core/row_stage.h"
 #include "temporal/history_fetch.h"
 #include "temporal/rows.h"
+#include "temporal/vec4.h"
 #include "temporal/velocity.h"
 
 namespace crisp::taa_improved {
 
 namespace {
 
-inline float clamp01(float v) { return v > 0.0f ? (v < 1.0f ? v : 1.0f) : 0.0f; }  // NaN -> 0
+inline float clamp01(float v) {  // NaN -> 0; two selects (vectorisable)
+  const float below = v < 1.0f ? v : 1.0f;
+  return v > 0.0f ? below : 0.0f;
+}
 
 // A packed float plane read with clamp-to-edge addressing; at<false> skips
 // the clamps for taps known to be inside (temporal::rowsWithBorder).
@@ -77,6 +83,51 @@ inline float sobelMagnitude(At&& at, int x, int y) {
   const float gy = (at(x - 1, y + 1) + 2.0f * at(x, y + 1) + at(x + 1, y + 1)) -
                    (at(x - 1, y - 1) + 2.0f * at(x, y - 1) + at(x + 1, y - 1));
   return std::sqrt(gx * gx + gy * gy);
+}
+
+// Pass 2 on the interior pixels x in [1, w - 2] of a row whose neighbours
+// above and below exist: sobelMagnitude's arithmetic, in its order, on
+// direct taps of packed planes (row pointers at the current row, stride w),
+// four pixels per step (temporal/vec4.h: lane-wise IEEE operations and
+// correctly rounded square roots, so the same bits as the per-pixel code),
+// then the remaining pixels one by one with the same template.
+template <class V, bool Unlit, bool Depth>
+inline V sobelMixed(const float* lit, const float* unlit, const float* depth, int w, int x) {
+  auto load = [](const float* p) {
+    if constexpr (std::is_same_v<V, float>) return *p;
+    else return temporal::load4(p);
+  };
+  auto root = [](V v) {
+    if constexpr (std::is_same_v<V, float>) return std::sqrt(v);
+    else return temporal::vsqrt(v);
+  };
+  auto sobelAt = [&](const float* p) {
+    const float* up = p - w;
+    const float* down = p + w;
+    const V gx = (load(up + x + 1) + 2.0f * load(p + x + 1) + load(down + x + 1)) -
+                 (load(up + x - 1) + 2.0f * load(p + x - 1) + load(down + x - 1));
+    const V gy = (load(down + x - 1) + 2.0f * load(down + x) + load(down + x + 1)) -
+                 (load(up + x - 1) + 2.0f * load(up + x) + load(up + x + 1));
+    return root(gx * gx + gy * gy);
+  };
+  const V l = sobelAt(lit);
+  V g = l;
+  if constexpr (Unlit) g = 0.3f * sobelAt(unlit) + 0.7f * l;
+  if constexpr (Depth) g += sobelAt(depth) / load(depth + x);
+  if constexpr (std::is_same_v<V, float>) {
+    g = clamp01(g);
+  } else {  // clamp01 per lane
+    const V below = g < 1.0f ? g : temporal::splat(1.0f);
+    g = g > 0.0f ? below : temporal::splat(0.0f);
+  }
+  return root(g * g * (3.0f - 2.0f * g));
+}
+template <bool Unlit, bool Depth>
+void sobelInteriorRow(const float* lit, const float* unlit, const float* depth, int w, float* out) {
+  int x = 1;
+  for (; x + 4 <= w - 1; x += 4)
+    temporal::store4(out + x, sobelMixed<temporal::Vec4, Unlit, Depth>(lit, unlit, depth, w, x));
+  for (; x < w - 1; ++x) out[x] = sobelMixed<float, Unlit, Depth>(lit, unlit, depth, w, x);
 }
 
 inline float lumaOfView(const ImageView& v, int x, int y) {
@@ -128,40 +179,55 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   const bool hasHistory = taa_.framesSinceReset() > 0;
   const bool useAlbedo = s.sobelUnlit && in.albedo.ptr;
   const bool useDepth = in.depth.ptr != nullptr;
-  // Taps of 3x3 stencils: clamped on the border (and on the reference path),
-  // direct inside (temporal::rowsWithBorder); the same taps either way.
-  auto depthAt = [&](auto clamp, int x, int y) {
-    if constexpr (decltype(clamp)::value) {
-      x = std::clamp(x, 0, w - 1);
-      y = std::clamp(y, 0, h - 1);
-    }
-    return temporal::sanitizeDepth(in.depth.pixel(x, y)[0]);
-  };
+  // This frame's sanitised depth, staged once in pass 1 into the plane the
+  // baseline kernel stages it into anyway (taa::Kernel::nextDepthPlane).
+  float* depthPlane = useDepth ? taa_.nextDepthPlane() : nullptr;
+  if (useDepth && !depthPlane)
+    invalidData("taa-improved: image 'depth' given but the kernel was allocated without depth");
+  // Taps of 3x3 stencils are clamped on the border (and on the reference
+  // path) and direct inside (temporal::rowsWithBorder): the same taps either way.
+  const Plane dep{depthPlane, w, h};
+  auto depthAt = [&](auto clamp, int x, int y) { return dep.at<decltype(clamp)::value>(x, y); };
   const Plane lit{lumaLit_.data(), w, h}, unlit{lumaUnlit_.data(), w, h}, raw{sobelRaw_.data(), w, h};
   const int next = 1 - current_;
   const bool stabilise = s.sobelStabilise && hasHistory && sobelValid_;
 
+  // Pass 1: luminance planes (with the Sobel) and the depth plane.
+  parallelRows(w, h, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      if (useDepth) stageDepthRow(in.depth, y, depthPlane + std::size_t(y) * w);
+      if (!s.sobel) continue;
+      for (int x = 0; x < w; ++x) {
+        lumaLit_[std::size_t(y) * w + x] = lumaOfView(in.color, x, y);
+        if (useAlbedo) lumaUnlit_[std::size_t(y) * w + x] = lumaOfView(in.albedo, x, y);
+      }
+    }
+  });
   if (s.sobel) {
-    // Pass 1: luminance planes.
-    parallelRows(w, h, threads, [&](int y0, int y1) {
-      for (int y = y0; y < y1; ++y)
-        for (int x = 0; x < w; ++x) {
-          lumaLit_[std::size_t(y) * w + x] = lumaOfView(in.color, x, y);
-          if (useAlbedo) lumaUnlit_[std::size_t(y) * w + x] = lumaOfView(in.albedo, x, y);
-        }
-    });
     // Pass 2: mixed, smoothstepped Sobel (eqs. 4.9-4.10).
+    const bool sobelOfDepth = useDepth && s.sobelDepth;
+    auto sobelPixel = [&](int x, int y) {  // clamped taps: the border and the reference path
+      const float l = sobelMagnitude([&](int i, int j) { return lit.at(i, j); }, x, y);
+      float g = l;
+      if (useAlbedo) g = 0.3f * sobelMagnitude([&](int i, int j) { return unlit.at(i, j); }, x, y) + 0.7f * l;
+      if (sobelOfDepth) g += sobelMagnitude([&](int i, int j) { return dep.at(i, j); }, x, y) / dep.at(x, y);
+      g = clamp01(g);
+      sobelRaw_[std::size_t(y) * w + x] = std::sqrt(g * g * (3.0f - 2.0f * g));
+    };
+    auto interior = useAlbedo ? (sobelOfDepth ? sobelInteriorRow<true, true> : sobelInteriorRow<true, false>)
+                              : (sobelOfDepth ? sobelInteriorRow<false, true> : sobelInteriorRow<false, false>);
     parallelRows(w, h, threads, [&](int y0, int y1) {
-      temporal::rowsWithBorder(w, h, y0, y1, reference, [&](auto clamp, int x, int y) {
-        constexpr bool C = decltype(clamp)::value;
-        const float l = sobelMagnitude([&](int i, int j) { return lit.at<C>(i, j); }, x, y);
-        float g = l;
-        if (useAlbedo) g = 0.3f * sobelMagnitude([&](int i, int j) { return unlit.at<C>(i, j); }, x, y) + 0.7f * l;
-        if (useDepth && s.sobelDepth)
-          g += sobelMagnitude([&](int i, int j) { return depthAt(clamp, i, j); }, x, y) / depthAt(clamp, x, y);
-        g = clamp01(g);
-        sobelRaw_[std::size_t(y) * w + x] = std::sqrt(g * g * (3.0f - 2.0f * g));
-      });
+      for (int y = y0; y < y1; ++y) {
+        if (reference || y == 0 || y == h - 1 || w < 3) {
+          for (int x = 0; x < w; ++x) sobelPixel(x, y);
+          continue;
+        }
+        const std::size_t row = std::size_t(y) * w;
+        sobelPixel(0, y);
+        interior(lumaLit_.data() + row, lumaUnlit_.data() + row, sobelOfDepth ? depthPlane + row : nullptr, w,
+                 sobelRaw_.data() + row);
+        sobelPixel(w - 1, y);
+      }
     });
     // Pass 3: one-channel TAA with clamping, no sharpen (§4.3.3).
     parallelRows(w, h, threads, [&](int y0, int y1) {
@@ -199,66 +265,159 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   // Pass 4: aliasedValue (eqs. 4.1, 4.4-4.6, 4.12-4.14).
   const float* pastDepth = taa_.previousDepth();
   const Plane sob{sobel_[next].data(), w, h};
-  parallelRows(w, h, threads, [&](int y0, int y1) {
-    temporal::rowsWithBorder(w, h, y0, y1, reference, [&](auto clamp, int x, int y) {
-      constexpr bool C = decltype(clamp)::value;
-      float sobelCentre = 0.0f, sobelAvg = 0.0f;
-      float model = 0.0f;
-      if (s.modelAverage && (in.id.ptr || useDepth)) {
-        auto objectAt = [&](int i, int j) -> std::uint32_t {
-          const int cx = C ? std::clamp(i, 0, w - 1) : i, cy = C ? std::clamp(j, 0, h - 1) : j;
-          if (in.id.ptr) return in.id.uintAt(cx, cy);
-          return isBackgroundDepth(in.depth.pixel(cx, cy)[0]) ? 0u : 1u;  // object vs background
-        };
-        const std::uint32_t centre = objectAt(x, y);
-        int differ = 0;
-        for (int j = -1; j <= 1; ++j)
-          for (int i = -1; i <= 1; ++i) differ += objectAt(x + i, y + j) != centre;
-        model = float(differ) / 9.0f;
+  const bool modelOn = s.modelAverage && (in.id.ptr || useDepth);
+  const bool depthStats = useDepth && (s.depthVariance || s.temporalDepthVariance);
+  // Eqs. 4.5-4.6 where m passes the threshold (few pixels: depth edges).
+  auto depthVariances = [&](int x, int y, float avg, float m, float dc, float& depthPV, float& depthTPV) {
+    if (s.depthVariance) depthPV = std::pow(std::fabs(1.0f - avg) / m, 2.0f);
+    if (s.temporalDepthVariance && pastDepth) {
+      float vx, vy;
+      motionAt(in.motion, x, y, vx, vy);
+      const float qx = float(x) + vx, qy = float(y) + vy;
+      if (temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h)) {
+        const int px = std::clamp(int(temporal::floorExact(qx + 0.5f)), 0, w - 1);
+        const int py = std::clamp(int(temporal::floorExact(qy + 0.5f)), 0, h - 1);
+        const float past = pastDepth[std::size_t(py) * w + px] / dc;
+        depthTPV = std::pow(std::fabs(past - avg) / m, 4.0f);
       }
-      if (s.sobel) {
-        sobelCentre = sob.at<C>(x, y);
-        float sum9 = 0.0f;
-        for (int j = -1; j <= 1; ++j)
-          for (int i = -1; i <= 1; ++i) sum9 += sob.at<C>(x + i, y + j);
-        const float sumCross =
-            sob.at<C>(x, y - 1) + sob.at<C>(x - 1, y) + sobelCentre + sob.at<C>(x + 1, y) + sob.at<C>(x, y + 1);
-        const float avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
-        const float t = clamp01(model + sobelCentre);
-        sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
-      }
-      float depthPV = 0.0f, depthTPV = 0.0f;
-      if (useDepth && (s.depthVariance || s.temporalDepthVariance)) {
-        const float dc = depthAt(clamp, x, y);
-        float lo = 1.0f, hi = 1.0f, sum = 0.0f;
-        for (int j = -1; j <= 1; ++j)
-          for (int i = -1; i <= 1; ++i) {
-            const float d = depthAt(clamp, x + i, y + j) / dc;  // relative to the centre
-            lo = std::min(lo, d);
-            hi = std::max(hi, d);
-            sum += d;
-          }
-        const float avg = sum / 9.0f;
-        const float m = std::min(std::fabs(lo - avg), std::fabs(hi - avg));
-        if (m >= s.depthThreshold) {
-          if (s.depthVariance) depthPV = std::pow(std::fabs(1.0f - avg) / m, 2.0f);
-          if (s.temporalDepthVariance && pastDepth) {
-            float vx, vy;
-            motionAt(in.motion, x, y, vx, vy);
-            const float qx = float(x) + vx, qy = float(y) + vy;
-            if (temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h)) {
-              const int px = std::clamp(int(temporal::floorExact(qx + 0.5f)), 0, w - 1);
-              const int py = std::clamp(int(temporal::floorExact(qy + 0.5f)), 0, h - 1);
-              const float past = pastDepth[std::size_t(py) * w + px] / dc;
-              depthTPV = std::pow(std::fabs(past - avg) / m, 4.0f);
-            }
-          }
+    }
+  };
+  auto aliasedPixel = [&](auto clamp, int x, int y) {
+    constexpr bool C = decltype(clamp)::value;
+    float sobelCentre = 0.0f, sobelAvg = 0.0f;
+    float model = 0.0f;
+    if (modelOn) {
+      auto objectAt = [&](int i, int j) -> std::uint32_t {
+        const int cx = C ? std::clamp(i, 0, w - 1) : i, cy = C ? std::clamp(j, 0, h - 1) : j;
+        if (in.id.ptr) return in.id.uintAt(cx, cy);
+        return isBackgroundDepth(dep.at<false>(cx, cy)) ? 0u : 1u;  // object vs background (same test on sanitised)
+      };
+      const std::uint32_t centre = objectAt(x, y);
+      int differ = 0;
+      for (int j = -1; j <= 1; ++j)
+        for (int i = -1; i <= 1; ++i) differ += objectAt(x + i, y + j) != centre;
+      model = float(differ) / 9.0f;
+    }
+    if (s.sobel) {
+      sobelCentre = sob.at<C>(x, y);
+      float sum9 = 0.0f;
+      for (int j = -1; j <= 1; ++j)
+        for (int i = -1; i <= 1; ++i) sum9 += sob.at<C>(x + i, y + j);
+      const float sumCross =
+          sob.at<C>(x, y - 1) + sob.at<C>(x - 1, y) + sobelCentre + sob.at<C>(x + 1, y) + sob.at<C>(x, y + 1);
+      const float avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
+      const float t = clamp01(model + sobelCentre);
+      sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
+    }
+    float depthPV = 0.0f, depthTPV = 0.0f;
+    if (depthStats) {
+      const float dc = depthAt(clamp, x, y);
+      float lo = 1.0f, hi = 1.0f, sum = 0.0f;
+      for (int j = -1; j <= 1; ++j)
+        for (int i = -1; i <= 1; ++i) {
+          const float d = depthAt(clamp, x + i, y + j) / dc;  // relative to the centre
+          lo = std::min(lo, d);
+          hi = std::max(hi, d);
+          sum += d;
         }
+      const float avg = sum / 9.0f;
+      const float m = std::min(std::fabs(lo - avg), std::fabs(hi - avg));
+      if (m >= s.depthThreshold) depthVariances(x, y, avg, m, dc, depthPV, depthTPV);
+    }
+    const float a = sobelAvg + depthPV + depthTPV + model;
+    // Non-finite (cannot happen with sanitised inputs): full TAA, the baseline's box.
+    aliased_[std::size_t(y) * w + x] = std::isnan(a) ? 1.0f : clamp01(a);
+  };
+  // aliasedPixel for the four interior pixels x .. x + 3 of row y, lane-wise
+  // (temporal/vec4.h): the same operations in the same order per lane, so the
+  // same bits; eqs. 4.5-4.6 per lane where needed. Ids must be packed.
+  auto aliasedInterior4 = [&](int x, int y) {
+    using temporal::Vec4;
+    typedef int Int4 __attribute__((vector_size(16)));
+    const Vec4 zero = temporal::splat(0.0f);
+    auto clamp01v = [&](Vec4 v) {
+      const Vec4 below = v < 1.0f ? v : temporal::splat(1.0f);
+      return v > 0.0f ? below : zero;
+    };
+    Vec4 model = zero;
+    if (modelOn) {
+      Int4 differ = {0, 0, 0, 0};
+      if (in.id.ptr) {
+        auto ids = [&](int i, int j) {
+          const char* row = static_cast<const char*>(in.id.ptr) + std::size_t(y + j) * in.id.rowStride;
+          Int4 v;
+          std::memcpy(&v, row + 4 * std::size_t(x + i), sizeof v);
+          return v;
+        };
+        const Int4 centre = ids(0, 0);
+        for (int j = -1; j <= 1; ++j)
+          for (int i = -1; i <= 1; ++i) differ -= ids(i, j) != centre;  // a true lane is -1
+      } else {
+        auto background = [&](int i, int j) {  // isBackgroundDepth per lane: -1 background, 0 object
+          const Vec4 d = temporal::load4(depthPlane + std::size_t(y + j) * w + x + i);
+          return ~(d < kFarDepth);
+        };
+        const Int4 centre = background(0, 0);
+        for (int j = -1; j <= 1; ++j)
+          for (int i = -1; i <= 1; ++i) differ -= background(i, j) != centre;
       }
-      const float a = sobelAvg + depthPV + depthTPV + model;
-      // Non-finite (cannot happen with sanitised inputs): full TAA, the baseline's box.
-      aliased_[std::size_t(y) * w + x] = std::isnan(a) ? 1.0f : clamp01(a);
-    });
+      model = __builtin_convertvector(differ, Vec4) / 9.0f;
+    }
+    Vec4 sobelAvg = zero;
+    if (s.sobel) {
+      const float* r[3] = {sob.data + std::size_t(y - 1) * w, sob.data + std::size_t(y) * w,
+                           sob.data + std::size_t(y + 1) * w};
+      const Vec4 centre = temporal::load4(r[1] + x);
+      Vec4 sum9 = zero;
+      for (int j = 0; j < 3; ++j)
+        for (int i = -1; i <= 1; ++i) sum9 += temporal::load4(r[j] + x + i);
+      const Vec4 sumCross = temporal::load4(r[0] + x) + temporal::load4(r[1] + x - 1) + centre +
+                            temporal::load4(r[1] + x + 1) + temporal::load4(r[2] + x);
+      const Vec4 avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
+      const Vec4 t = clamp01v(model + centre);
+      sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
+    }
+    Vec4 depthPV = zero, depthTPV = zero;
+    if (depthStats) {
+      const Vec4 dc = temporal::load4(depthPlane + std::size_t(y) * w + x);
+      Vec4 lo = temporal::splat(1.0f), hi = temporal::splat(1.0f), sum = zero;
+      for (int j = -1; j <= 1; ++j)
+        for (int i = -1; i <= 1; ++i) {
+          const Vec4 d = temporal::load4(depthPlane + std::size_t(y + j) * w + x + i) / dc;
+          lo = temporal::vmin(lo, d);
+          hi = temporal::vmax(hi, d);
+          sum += d;
+        }
+      const Vec4 avg = sum / 9.0f;
+      const Vec4 m = temporal::vmin(temporal::vfabs(lo - avg), temporal::vfabs(hi - avg));
+      for (int k = 0; k < 4; ++k)
+        if (m[k] >= s.depthThreshold) {
+          float pv = 0.0f, tpv = 0.0f;
+          depthVariances(x + k, y, avg[k], m[k], dc[k], pv, tpv);
+          depthPV[k] = pv;
+          depthTPV[k] = tpv;
+        }
+    }
+    const Vec4 a = sobelAvg + depthPV + depthTPV + model;
+    temporal::store4(aliased_.data() + std::size_t(y) * w + x, a != a ? temporal::splat(1.0f) : clamp01v(a));
+  };
+  const bool vectorRows = !reference && (!in.id.ptr || in.id.pixelStride == 4);
+  parallelRows(w, h, threads, [&](int y0, int y1) {
+    if (!vectorRows) {
+      temporal::rowsWithBorder(w, h, y0, y1, reference, aliasedPixel);
+      return;
+    }
+    for (int y = y0; y < y1; ++y) {
+      if (y == 0 || y == h - 1 || w < 3) {
+        for (int x = 0; x < w; ++x) aliasedPixel(std::true_type{}, x, y);
+        continue;
+      }
+      aliasedPixel(std::true_type{}, 0, y);
+      int x = 1;
+      for (; x + 4 <= w - 1; x += 4) aliasedInterior4(x, y);
+      for (; x < w - 1; ++x) aliasedPixel(std::false_type{}, x, y);
+      aliasedPixel(std::true_type{}, w - 1, y);
+    }
   });
 
   // Pass 5: the baseline kernel, steered.
