@@ -83,6 +83,24 @@ void Kernel::stage(const ImageView& color, int y0, int y1) {
   }
 }
 
+// The sanitised RGBA colour of pixel (x, y): from the input itself when the
+// output does not overlap it (no staging pass: a third less memory traffic),
+// else from the staged copy. Both give the same values (stage() applies the
+// same expressions).
+void Kernel::texel(int x, int y, float out[4]) const {
+  if (!direct_) {
+    const float* p = staged_.at(x, y);
+    for (int k = 0; k < 4; ++k) out[k] = p[k];
+    return;
+  }
+  const int c = direct_->channels();
+  const float* p = direct_->pixel(x, y);
+  out[0] = sanitizeColor(p[0]);
+  out[1] = sanitizeColor(c > 1 ? p[1] : p[0]);
+  out[2] = sanitizeColor(c > 2 ? p[2] : p[0]);
+  out[3] = c > 3 ? sanitizeColor(p[3]) : 1.0f;
+}
+
 // Bilinear fetch of the staged colour at pixel-index position (fx, fy)
 // (pixel (i, j)'s centre is at (i, j)), clamp-to-edge.
 void Kernel::fetch(float fx, float fy, float out[4]) const {
@@ -91,10 +109,11 @@ void Kernel::fetch(float fx, float fy, float out[4]) const {
   const int x0 = int(x0f), y0 = int(y0f);
   const int xa = std::clamp(x0, 0, width_ - 1), xb = std::clamp(x0 + 1, 0, width_ - 1);
   const int ya = std::clamp(y0, 0, height_ - 1), yb = std::clamp(y0 + 1, 0, height_ - 1);
-  const float* c00 = staged_.at(xa, ya);
-  const float* c10 = staged_.at(xb, ya);
-  const float* c01 = staged_.at(xa, yb);
-  const float* c11 = staged_.at(xb, yb);
+  float c00[4], c10[4], c01[4], c11[4];
+  texel(xa, ya, c00);
+  texel(xb, ya, c10);
+  texel(xa, yb, c01);
+  texel(xb, yb, c11);
   for (int k = 0; k < 4; ++k) {
     const float top = (1.0f - tx) * c00[k] + tx * c10[k];
     const float bottom = (1.0f - tx) * c01[k] + tx * c11[k];
@@ -239,7 +258,8 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
       } else {
         masks_[i] = 255;
         halved_[i] = 0;
-        src = staged_.at(x, y);
+        texel(x, y, colour);
+        src = colour;
       }
       float* o = output.pixel(x, y);
       for (int k = 0; k < outChannels; ++k) o[k] = src[k];
@@ -251,6 +271,23 @@ void Kernel::run(const Inputs& in, const ImageView& output, bool reference, int 
   if (in.color.width != width_ || in.color.height != height_ || output.width != width_ || output.height != height_)
     invalidArgument("rsaa: images are " + std::to_string(in.color.width) + "x" + std::to_string(in.color.height) +
                     " but the kernel was allocated for " + std::to_string(width_) + "x" + std::to_string(height_));
+  // Staging is needed only when the output overwrites colour that later pixels still fetch.
+  const auto span = [](const ImageView& v) {
+    const char* begin = static_cast<const char*>(v.ptr);
+    return std::pair<const char*, const char*>(begin, begin + v.rowStride * std::size_t(v.height - 1) +
+                                                          v.pixelStride * std::size_t(v.width));
+  };
+  const auto [cb, ce] = span(in.color);
+  const auto [ob, oe] = span(output);
+  direct_ = (oe <= cb || ce <= ob) ? &in.color : nullptr;
+  if (direct_) {
+    if (reference)
+      runRows(in, output, 0, height_, false);
+    else
+      parallelRows(width_, height_, numThreads, [&](int y0, int y1) { runRows(in, output, y0, y1, true); });
+    direct_ = nullptr;
+    return;
+  }
   if (reference) {
     stage(in.color, 0, height_);
     runRows(in, output, 0, height_, false);

@@ -50,7 +50,7 @@ class Kernel {
   void run(const Inputs& in, const ImageView& output, bool reference, int numThreads);
 
   // Results of the last run, for tests and reports.
-  const Image& staged() const { return staged_; }  // sanitised RGBA input
+  const Image& staged() const { return staged_; }  // sanitised RGBA input (only when output overlaps colour)
   // Per pixel (row-major): the mask used (bit k = sample k on the centre's
   // polygon, after verification); 255 where the pixel kept its colour.
   const std::vector<std::uint8_t>& masks() const { return masks_; }
@@ -70,6 +70,7 @@ class Kernel {
   void runRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd);
   void stage(const ImageView& color, int y0, int y1);
   void fetch(float fx, float fy, float out[4]) const;
+  void texel(int x, int y, float out[4]) const;
 
   int width_ = 0, height_ = 0;
   Settings settings_;
@@ -78,6 +79,7 @@ class Kernel {
   std::vector<float> colUx_, rowUy_;
   float dux_[kSamples] = {}, duy_[kSamples] = {};
   Image staged_;
+  const ImageView* direct_ = nullptr;  // the input colour during run() when the output does not overlap it
   std::vector<std::uint8_t> masks_, halved_;
 };
 
