@@ -66,10 +66,8 @@ PASSES = {
     "repair_resolve": ("repair", "REPAIR_RESOLVE_PASS", "repairResolvePass", (("VEC4", "fragColor"),)),
     "taa_resolve": ("taa", "TAA_RESOLVE_PASS", "taaResolvePass", (("VEC4", "historyOut"), ("VEC4", "fragColor"))),
     "taa_sharpen": ("taa", "TAA_SHARPEN_PASS", "taaSharpenPass", (("VEC4", "fragColor"),)),
-    # Viewport preview (common.glsl only): the colour-managed view decoded to linear by the sRGB curve,
-    # and the filtered texture drawn at a pixel offset as linear values: the 3D view's region framebuffer
-    # in 3.4 is sRGB and encodes on write (measured by tests/blender_gui/test_viewport_preview.py: an
-    # explicit encode here doubled the encoding, +0.24 on flat grey).
+    # Viewport preview (common.glsl only): the colour-managed view decoded to linear by the sRGB curve, and
+    # the filtered texture drawn at a pixel offset for the 3D view's overlay buffer (see DISPLAY_SOURCE).
     "decode": (None, "DECODE_PASS", "decodePass", (("VEC4", "fragColor"),)),
     "display": (None, "DISPLAY_PASS", "displayPass", (("VEC4", "fragColor"),)),
 }
@@ -82,9 +80,16 @@ void decodePass() {
 }
 #endif
 #ifdef DISPLAY_PASS
+// A POST_PIXEL handler draws into the 3D view's overlay buffer. Blender (3.4, and 4.x) merges it over the
+// view in "display linear" space, defined as display value ^ 2.2 (the OCIO display shader: overlay merge,
+// then pow(1 / 2.2)); the buffer is sRGB8 and encodes/decodes exactly around storage. So the display value
+// v = srgbEncode(filtered) is written as v ^ 2.2, and shows as v (up to 8-bit rounding). Measured by
+// tests/blender_gui/test_viewport_preview.py: writing the linear value instead showed flat areas up to
+// 5/255 too bright in the darks.
 void displayPass() {
   vec4 c = texelFetch(colorImage, fragmentPixel() - offset, 0);
-  fragColor = vec4(c.rgb, 1.0);
+  vec3 v = vec3(srgbEncode(c.r), srgbEncode(c.g), srgbEncode(c.b));
+  fragColor = vec4(pow(v, vec3(2.2)), 1.0);
 }
 #endif
 """
@@ -314,7 +319,8 @@ class GpuFilter:
 
 
 def draw_display(texture, width, height, x=0, y=0):
-    """Draws `texture` (linear RGBA) into the bound (sRGB-encoding) framebuffer's pixels [x, x+width) x [y, y+height)."""
+    """Draws `texture` (linear RGBA) into the bound framebuffer's pixels [x, x+width) x [y, y+height), opaque, as
+    the 3D view's overlay buffer wants it (DISPLAY_PASS)."""
     sh = shader("display")
     batch = _fullscreen_batch(sh)
     gpu.state.viewport_set(x, y, width, height)

@@ -8,14 +8,24 @@ region. For taa the projection is jittered by Halton(2,3) (uniform inside the pi
 history is kept between redraws and reset when the view matrix, projection, size or method changes;
 while the history holds fewer than ACCUMULATE_FRAMES frames the preview asks for another redraw.
 Motion vectors and depth are not available to an add-on in the viewport (BLENDER.md), so taa runs its
-static path: moving the view restarts the accumulation.
+static path: moving the view, editing the scene or changing frame restarts the accumulation.
 
 When off, no handler is installed (the viewport does not pay anything). Where the gpu module is not
 available (background mode) switching it on switches it back off with a message.
 
+Measured on Blender 3.4.1 (llvmpipe) by tests/blender_gui/test_viewport_preview.py:
+* draw_view3d inside the handler leaves another framebuffer bound than the region's: drawing the result
+  there showed nothing (the "black preview"). The region's framebuffer is pushed before and popped after.
+* The region framebuffer a POST_PIXEL handler sees is the overlay buffer (the shaded scene is composited
+  under it later), so the preview draws opaque pixels. The offscreen image is the composited view with
+  the 3D overlays (grid, outlines) and is colour-managed (display values, so decoded by the sRGB curve);
+  the region framebuffer encodes to sRGB on write.
+* Everything the region draws before POST_PIXEL (the view name text, the navigation gizmo) is covered
+  while the preview is on; 3D overlays are in the offscreen image and are filtered with the scene.
+
 Differences from the filters on final renders: the input is the colour-managed viewport image decoded
 by the sRGB curve (equal to linear light with the Standard view transform; with Filmic it is Filmic's
-output), and the preview covers the overlays drawn before it (grid, outlines).
+output).
 """
 
 import bpy
@@ -33,6 +43,7 @@ class _State:
     offscreen = None
     offscreen_size = None
     decoded = None       # gpu_filters.Target: the linear input
+    stack_guard = None   # a 4x4 offscreen bound around the work to restore the region's framebuffer
     view_key = None
     frame = 0            # taa: index into the Halton sequence
     drawing = False      # re-entrancy guard (draw_view3d inside a draw handler)
@@ -67,10 +78,11 @@ def halton_jitter(frame, period=ACCUMULATE_FRAMES):
     return radical_inverse(i, 2) - 0.5, radical_inverse(i, 3) - 0.5
 
 
-def jittered_projection(projection, dx, dy, width, height):
-    """projection moved by (dx, dy) pixels on screen: a translation of 2 dx / width in NDC after the
-    perspective divide, i.e. T @ P (works for perspective and orthographic views)."""
-    return Matrix.Translation((2.0 * dx / width, 2.0 * dy / height, 0.0)) @ projection
+def jittered_projection(projection, sx, sy, width, height):
+    """projection whose pixel centres sample the view at (+sx, +sy) pixels (x right, y up): the image is
+    moved by (-sx, -sy) pixels, a translation of -2 sx / width in NDC after the perspective divide, i.e.
+    T @ P (works for perspective and orthographic views)."""
+    return Matrix.Translation((-2.0 * sx / width, -2.0 * sy / height, 0.0)) @ projection
 
 
 def _settings(context):
@@ -125,14 +137,36 @@ def _draw_preview(context):
     from . import gpu_filters
 
     t0 = time.perf_counter()
-    settings = _settings(context)
     region, space, rv3d = context.region, context.space_data, context.region_data
     if region is None or rv3d is None or space is None or space.type != "VIEW_3D":
         return
     width, height = region.width, region.height
     if width < 4 or height < 4:
         return
-    method = settings.method
+    # The result must be drawn into the framebuffer bound when the handler starts (the region's). Creating
+    # framebuffers and draw_view3d bind others and do not restore it (Blender 3.4): drawing after them
+    # went elsewhere, the "black preview". Binding a small offscreen pushes the region's framebuffer on
+    # the GPU framebuffer stack; leaving the `with` pops and binds it again.
+    blend = gpu.state.blend_get()
+    with _State.stack_guard.bind():
+        out, filt, method = _filter_view(context, region, space, rv3d, width, height)
+    gpu.state.blend_set("NONE")
+    gpu.state.depth_test_set("NONE")
+    gpu_filters.draw_display(out, width, height)
+    gpu.state.blend_set(blend)
+    if method == "taa" and filt.frames < ACCUMULATE_FRAMES and not bpy.app.timers.is_registered(_tag_redraw):
+        bpy.app.timers.register(_tag_redraw, first_interval=0.0)
+    _State.last_ms = 1000.0 * (time.perf_counter() - t0)
+
+
+def _filter_view(context, region, space, rv3d, width, height):
+    """Renders the view (jittered for taa) into the offscreen buffer and filters it; returns (output
+    texture, filter, method)."""
+    import gpu
+
+    from . import gpu_filters
+
+    method = _settings(context).method
     filt = _State.filters.get(method)
     if filt is None:
         filt = _State.filters[method] = gpu_filters.GpuFilter(method)
@@ -146,11 +180,11 @@ def _draw_preview(context):
         _State.frame = 0
         filt.reset()
     if method == "taa":
-        dx, dy = halton_jitter(_State.frame)
+        sx, sy = halton_jitter(_State.frame)
         _State.frame += 1
-        # Offscreen rows are bottom-up (y up), the shaders' y is the texture row: jitterY = dy.
-        filt.set_params({"jitterX": dx, "jitterY": dy})
-        projection = jittered_projection(projection, dx, dy, width, height)
+        # The shaders' y is the texture row and offscreen row 0 is the bottom: their y is up, like sy.
+        filt.set_params({"jitterX": sx, "jitterY": sy})
+        projection = jittered_projection(projection, sx, sy, width, height)
 
     if _State.offscreen_size != (width, height):
         if _State.offscreen is not None:
@@ -158,22 +192,29 @@ def _draw_preview(context):
         _State.offscreen = gpu.types.GPUOffScreen(width, height, format="RGBA32F")
         _State.decoded = gpu_filters.Target(width, height)
         _State.offscreen_size = (width, height)
-    blend = gpu.state.blend_get()
     _State.offscreen.draw_view3d(context.scene, context.view_layer, space, region, view, projection,
                                  do_color_management=True)
     gpu_filters.run_pass("decode", _State.decoded, {"colorImage": _State.offscreen.texture_color})
-    out = filt.run(_State.decoded.texture, width, height)
-    gpu.state.blend_set("NONE")
-    gpu_filters.draw_display(out, width, height)
-    gpu.state.blend_set(blend)
-    if method == "taa" and filt.frames < ACCUMULATE_FRAMES and not bpy.app.timers.is_registered(_tag_redraw):
-        bpy.app.timers.register(_tag_redraw, first_interval=0.0)
-    _State.last_ms = 1000.0 * (time.perf_counter() - t0)
+    return filt.run(_State.decoded.texture, width, height), filt, method
+
+
+def _on_scene_change(*_args):
+    """An edit, a selection or a frame change: taa's history no longer matches the scene (there are no
+    motion vectors to reproject it), so it restarts."""
+    if not _State.drawing:
+        _State.view_key = None
+
+
+_SCENE_HANDLERS = (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post)
 
 
 def _install():
     if _State.handle is None:
+        import gpu
+        _State.stack_guard = gpu.types.GPUOffScreen(4, 4)  # see _draw_preview
         _State.handle = bpy.types.SpaceView3D.draw_handler_add(_draw, (), "WINDOW", "POST_PIXEL")
+        for handlers in _SCENE_HANDLERS:
+            handlers.append(_on_scene_change)
         _State.view_key = None
     _tag_redraw()
 
@@ -182,10 +223,14 @@ def _remove():
     if _State.handle is not None:
         bpy.types.SpaceView3D.draw_handler_remove(_State.handle, "WINDOW")
         _State.handle = None
+        for handlers in _SCENE_HANDLERS:
+            if _on_scene_change in handlers:
+                handlers.remove(_on_scene_change)
     _State.filters = {}
-    if _State.offscreen is not None:
-        _State.offscreen.free()
-    _State.offscreen = _State.offscreen_size = _State.decoded = None
+    for offscreen in (_State.offscreen, _State.stack_guard):
+        if offscreen is not None:
+            offscreen.free()
+    _State.offscreen = _State.offscreen_size = _State.decoded = _State.stack_guard = None
     _State.view_key = None
     try:
         _tag_redraw()
@@ -229,7 +274,14 @@ def is_active():
 
 
 def last_draw_ms():
+    """CPU time of the last preview redraw (the GPU may still be working when it ends)."""
     return _State.last_ms
+
+
+def accumulated_frames():
+    """taa: redraws accumulated in the history since its last reset (0 for the spatial methods)."""
+    filt = _State.filters.get("taa")
+    return filt.frames if filt is not None and _State.handle is not None else 0
 
 
 class CrispViewportSettings(bpy.types.PropertyGroup):

@@ -1,0 +1,240 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+# xvfb-screen: 640x400x24
+"""The viewport preview (addon/crisp/viewport.py) on a real 3D view under Xvfb, read back as the user sees
+it (screenshot of the window after a redraw and buffer swap): the still_life test scene through its
+camera in solid shading, the 3D view alone in the window (640x400). With the preview on, each method must
+change the pixels on edges of the unfiltered view (edges: its 3x3 luma range) and leave its flat areas
+(7x7 range) alone, must not be black or shifted, taa must accumulate redraws and restart when the view
+changes; switched off, no handler and no buffers remain and the view is the unfiltered one again. In
+background mode the toggle must switch itself off with a message."""
+
+import os
+import subprocess
+import sys
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import gui_harness  # noqa: E402
+
+import bpy  # noqa: E402
+import numpy as np  # noqa: E402  (python3-numpy)
+from mathutils import Vector  # noqa: E402
+
+import harness  # noqa: E402  (tests/blender: build_scene)
+import crisp  # noqa: E402
+from crisp import viewport  # noqa: E402
+
+EDGE_RANGE = 0.1      # 3x3 luma range (display values) that makes a pixel an edge pixel
+FLAT_RANGE = 0.02     # 7x7 luma range below which a pixel is far from any edge
+CHANGED = 1.5 / 255   # a display value differing by more is "changed" (the window is 8-bit)
+TAA_REDRAWS = 8
+SCREENSHOT = os.path.join("/dev/shm" if os.path.isdir("/dev/shm") else "/tmp",
+                          "crisp_viewport_preview_%d.png" % os.getpid())
+
+# Before the splash screen opens (it would cover the view in the screenshots).
+bpy.context.preferences.view.show_splash = False
+
+
+def view3d():
+    area = next(a for a in bpy.context.screen.areas if a.type == "VIEW_3D")
+    region = next(r for r in area.regions if r.type == "WINDOW")
+    return area, region
+
+
+def maximise_view():
+    """The 3D view alone in the window, without header and tool regions (runs before the tests, from a
+    timer: the new screen is in place by the time they start)."""
+    area, _ = view3d()
+    with bpy.context.temp_override(window=bpy.context.window, area=area):
+        bpy.ops.screen.screen_full_area(use_hide_panels=True)
+
+
+def redraw(n=1):
+    area, region = view3d()
+    with bpy.context.temp_override(window=bpy.context.window, area=area, region=region):
+        bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=n)
+
+
+def screenshot():
+    """Redraws the window once and returns the 3D view as shown: float RGB display values, row 0 at the
+    bottom."""
+    area, region = view3d()
+    redraw(1)
+    with bpy.context.temp_override(window=bpy.context.window, area=area, region=region):
+        bpy.ops.screen.screenshot_area(filepath=SCREENSHOT)
+    image = bpy.data.images.load(SCREENSHOT)
+    try:
+        w, h = image.size
+        px = np.empty(w * h * 4, dtype=np.float32)
+        image.pixels.foreach_get(px)
+    finally:
+        bpy.data.images.remove(image)
+        os.remove(SCREENSHOT)
+    return px.reshape(h, w, 4)[..., :3].astype(np.float64)
+
+
+def luma_plane(rgb):
+    return 0.2126 * rgb[..., 0] + 0.7152 * rgb[..., 1] + 0.0722 * rgb[..., 2]
+
+
+def local_range(plane, radius):
+    """Max - min of the plane over a (2 radius + 1)^2 window, clamp-to-edge."""
+    p = np.pad(plane, radius, mode="edge")
+    h, w = plane.shape
+    win = [p[dy:dy + h, dx:dx + w] for dy in range(2 * radius + 1) for dx in range(2 * radius + 1)]
+    return np.max(win, axis=0) - np.min(win, axis=0)
+
+
+def look_through_camera(space, camera, distance=5.0):
+    """The user view set to the camera's position, direction and lens (not the camera view itself: its
+    passepartout is drawn by the region, not by draw_view3d, so the preview would differ there)."""
+    bpy.context.view_layer.update()  # the camera's constraints are evaluated here
+    rv3d = space.region_3d
+    rv3d.view_perspective = "PERSP"
+    rotation = camera.matrix_world.to_quaternion()
+    rv3d.view_rotation = rotation.inverted()  # viewquat: world to view
+    rv3d.view_distance = distance
+    rv3d.view_location = camera.matrix_world.translation + rotation @ Vector((0.0, 0.0, -distance))
+    space.lens = camera.data.lens
+
+
+class ViewportPreview(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        os.environ.setdefault("CRISP_LIBRARY", gui_harness.LIBRARY)
+        crisp.register()
+        bpy.context.preferences.system.viewport_aa = "OFF"  # the unfiltered view must be aliased
+        harness.build_scene("still_life")
+        area, region = view3d()
+        cls.size = (region.width, region.height)
+        space = area.spaces.active
+        space.shading.type = "SOLID"
+        space.overlay.show_overlays = False
+        space.show_gizmo = False
+        look_through_camera(space, bpy.context.scene.camera)
+        cls.space = space
+        cls.settings = bpy.context.window_manager.crisp_viewport
+        cls.settings.enabled = False
+        cls.base = screenshot()
+        if os.environ.get("CRISP_DUMP_DIR"):
+            np.save(os.path.join(os.environ["CRISP_DUMP_DIR"], "base.npy"), cls.base)
+        plane = luma_plane(cls.base)
+        cls.edge = local_range(plane, 1) > EDGE_RANGE
+        cls.flat = (local_range(plane, 3) < FLAT_RANGE) & ~cls.edge
+        print("view %dx%d: %d edge pixels, %d flat pixels" % (cls.size + (cls.edge.sum(), cls.flat.sum())),
+              file=sys.stderr)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.settings.enabled = False
+        crisp.unregister()
+
+    def setUp(self):
+        self.assertEqual(self.base.shape[:2], self.size[::-1], "the screenshot must be the 3D view alone")
+        self.assertGreater(int(self.edge.sum()), 500, "the test scene must show edges")
+        self.assertGreater(int(self.flat.sum()), 20000, "the test scene must have flat areas")
+
+    def switch_on(self, method):
+        self.settings.method = method
+        self.settings.enabled = True
+        self.assertTrue(viewport.is_active(), self.settings.status)
+
+    def switch_off(self):
+        self.settings.enabled = False
+        self.assertFalse(viewport.is_active())
+        self.assertEqual(self.settings.status, "", "no error may have switched the preview off")
+
+    def check_filtered(self, method, shown):
+        """shown: the view with the preview on. Edges change, flat areas do not, nothing moves."""
+        if os.environ.get("CRISP_DUMP_DIR"):
+            np.save(os.path.join(os.environ["CRISP_DUMP_DIR"], method.split()[0] + ".npy"), shown)
+        diff = np.abs(shown - self.base).max(axis=2)
+        changed = diff > CHANGED
+        edge_frac, flat_frac = changed[self.edge].mean(), changed[self.flat].mean()
+        # Against the view moved by one pixel: the unmoved one must match best on the edges (a mirrored,
+        # shifted or black preview does not).
+        err = {}
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                moved = np.roll(self.base, (dy, dx), axis=(0, 1))
+                err[(dx, dy)] = np.abs(shown - moved).max(axis=2)[self.edge].mean()
+        print("preview %s: %.1f%% of edge pixels changed, %.3f%% of flat pixels (worst %.4f); mean |diff| %.5f; "
+              "edge error unmoved %.4f, best moved %.4f"
+              % (method, 100 * edge_frac, 100 * flat_frac, float(diff[self.flat].max()), float(diff.mean()),
+                 err[(0, 0)], min(v for k, v in err.items() if k != (0, 0))), file=sys.stderr)
+        self.assertGreater(float(shown.max()), 0.5, method + ": the preview must not be black")
+        self.assertLess(abs(float(shown.mean() - self.base.mean())), 0.01, method + ": the mean must not move")
+        self.assertGreater(edge_frac, 0.2, method + " must change the edges")
+        self.assertLess(flat_frac, 0.002, method + " must leave flat areas alone")
+        self.assertEqual(min(err, key=err.get), (0, 0), method + ": the preview must not be moved or mirrored")
+
+    def test_fxaa(self):
+        self.switch_on("fxaa")
+        shown = screenshot()
+        self.switch_off()
+        self.check_filtered("fxaa", shown)
+
+    def test_repair(self):
+        self.switch_on("repair")
+        shown = screenshot()
+        self.switch_off()
+        self.check_filtered("repair", shown)
+
+    def test_taa_accumulates_and_restarts(self):
+        self.switch_on("taa")
+        redraw(TAA_REDRAWS)
+        shown = screenshot()
+        frames = viewport.accumulated_frames()
+        self.assertGreaterEqual(frames, TAA_REDRAWS, "taa must keep its history between redraws")
+        # A view change (zoom) restarts the accumulation.
+        rv3d = self.space.region_3d
+        distance = rv3d.view_distance
+        rv3d.view_distance = distance * 1.01
+        try:
+            redraw(1)
+            self.assertEqual(viewport.accumulated_frames(), 1, "a view change must reset the history")
+        finally:
+            rv3d.view_distance = distance
+        self.switch_off()
+        self.check_filtered("taa (%d redraws)" % frames, shown)
+
+    def test_z_off_restores_view(self):
+        """Runs last: after on/off cycles, no handler and no buffers remain and the view is unfiltered."""
+        before = screenshot()
+        self.switch_on("fxaa")
+        redraw(1)
+        self.switch_off()
+        self.assertIsNone(viewport._State.handle)
+        self.assertIsNone(viewport._State.offscreen)
+        self.assertFalse(viewport.is_active())
+        after = screenshot()
+        for label, a, b in (("before and after", before, after), ("first and after", self.base, after)):
+            diff = np.abs(a - b).max(axis=2)
+            print("preview off, %s: %d pixels differ, by up to %.1f/255" % (label, (diff > 0).sum(), 255 * diff.max()),
+                  file=sys.stderr)
+        self.assertLessEqual(float(np.abs(after - before).max()), 0.5 / 255,
+                             "with the preview off the view must be the unfiltered one")
+
+    def test_background_mode_switches_off(self):
+        """Blender without a window: switching the preview on switches it back off with a message."""
+        script = ("import sys; sys.path.insert(0, %r); import bpy, crisp; crisp.register(); "
+                  "s = bpy.context.window_manager.crisp_viewport; s.enabled = True; "
+                  "from crisp import viewport; "
+                  "print('CRISP_RESULT', s.enabled, viewport.is_active(), repr(s.status))" % gui_harness.ADDON_DIR)
+        p = subprocess.run([bpy.app.binary_path, "-b", "--factory-startup", "--python-exit-code", "1",
+                            "--python-expr", script], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           env=dict(os.environ), timeout=120)
+        out = p.stdout.decode("utf-8", "replace")
+        line = next((l for l in out.splitlines() if l.startswith("CRISP_RESULT")), None)
+        self.assertIsNotNone(line, out)
+        self.assertTrue(line.startswith("CRISP_RESULT False False "), line)
+        self.assertIn("background mode", line)
+
+
+def start():
+    maximise_view()
+    gui_harness.run(ViewportPreview, delay=0.5)
+
+
+if __name__ == "__main__":
+    bpy.app.timers.register(start, first_interval=0.5)
