@@ -26,6 +26,10 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#define CRISP_RSAA_AVX2 1
+#endif
 
 namespace crisp::rsaa {
 
@@ -210,7 +214,87 @@ inline int differs4(const float* s0, const float* s1, const float* s2, const flo
 }
 #endif
 
+#if defined(CRISP_RSAA_AVX2)
+// The same test for all 8 sub-samples at once in 8 AVX lanes (lane k =
+// sample k), chosen at run time on CPUs with AVX2. Lane by lane the same
+// operations in the same order as rsaa::differs; no FMA (-ffp-contract=off
+// and no fmadd intrinsics), so results are bit-identical to the scalar path.
+#define CRISP_AVX2 __attribute__((target("avx2")))
+CRISP_AVX2 inline __m256 abs8(__m256 v) { return _mm256_andnot_ps(_mm256_set1_ps(-0.0f), v); }
+CRISP_AVX2 inline __m256 set8(float v) { return _mm256_set1_ps(v); }
+// Two float4 pixels in the low and high halves.
+CRISP_AVX2 inline __m256 pair8(const float* lo, const float* hi) {
+  return _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(lo)), _mm_loadu_ps(hi), 1);
+}
+// |(nx vx + ny vy) - nz| tolerance (rsaa::dotSlack).
+CRISP_AVX2 inline __m256 slack8(__m256 nx, __m256 ny, __m256 nz, __m256 vx, __m256 vy, __m256 tol) {
+  return _mm256_mul_ps(abs8(_mm256_sub_ps(_mm256_add_ps(_mm256_mul_ps(nx, vx), _mm256_mul_ps(ny, vy)), nz)), tol);
+}
+CRISP_AVX2 inline __m256 dot8(__m256 ax, __m256 ay, __m256 az, __m256 bx, __m256 by, __m256 bz) {
+  return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ax, bx), _mm256_mul_ps(ay, by)), _mm256_mul_ps(az, bz));
+}
+
+template <bool Ortho>
+CRISP_AVX2 int differs8(const float* const* p, const Geo& c, float ux, float uy, const float* dux, const float* duy,
+                        const Camera& cam, float threshold2) {
+  const __m256 r0 = pair8(p[0], p[4]), r1 = pair8(p[1], p[5]), r2_ = pair8(p[2], p[6]), r3 = pair8(p[3], p[7]);
+  const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1);
+  const __m256 t2 = _mm256_unpacklo_ps(r2_, r3), t3 = _mm256_unpackhi_ps(r2_, r3);
+  // Lanes 0-3 = samples 0-3, lanes 4-7 = samples 4-7.
+  const __m256 nx = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0));
+  const __m256 ny = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2));
+  const __m256 nz = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0));
+  const __m256 d = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2));
+  const __m256 bg = _mm256_cmp_ps(d, set8(kFarDepth), _CMP_NLT_UQ);
+  if (c.background) return ~_mm256_movemask_ps(bg) & 0xFF;
+  const __m256 sux = _mm256_add_ps(set8(ux), _mm256_loadu_ps(dux));
+  const __m256 suy = _mm256_add_ps(set8(uy), _mm256_loadu_ps(duy));
+  const __m256 px = Ortho ? sux : _mm256_mul_ps(sux, d);
+  const __m256 py = Ortho ? suy : _mm256_mul_ps(suy, d);
+  const __m256 pz = _mm256_xor_ps(d, set8(-0.0f));
+  const __m256 snx = dot8(set8(cam.view[0][0]), set8(cam.view[0][1]), set8(cam.view[0][2]), nx, ny, nz);
+  const __m256 sny = dot8(set8(cam.view[1][0]), set8(cam.view[1][1]), set8(cam.view[1][2]), nx, ny, nz);
+  const __m256 snz = dot8(set8(cam.view[2][0]), set8(cam.view[2][1]), set8(cam.view[2][2]), nx, ny, nz);
+  const __m256 rx = _mm256_sub_ps(px, set8(c.px));
+  const __m256 ry = _mm256_sub_ps(py, set8(c.py));
+  const __m256 rz = _mm256_sub_ps(pz, set8(c.pz));
+  const __m256 r2 = dot8(rx, ry, rz, rx, ry, rz);
+  const __m256 apart = _mm256_cmp_ps(r2, set8(kSamePoint2 * (c.pz * c.pz)), _CMP_GT_OQ);
+  const __m256 cnx = set8(c.nx), cny = set8(c.ny), cnz = set8(c.nz);
+  const __m256 da = dot8(cnx, cny, cnz, rx, ry, rz);
+  const __m256 db = dot8(snx, sny, snz, rx, ry, rz);
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 svx = Ortho ? zero : sux, svy = Ortho ? zero : suy;
+  const __m256 power = _mm256_and_ps(d, _mm256_castsi256_ps(_mm256_set1_epi32(0x7F800000)));
+  const __m256 ulp = _mm256_max_ps(set8(5.9604645e-8f), _mm256_mul_ps(power, set8(0.0009765625f)));
+  const __m256 stol = _mm256_mul_ps(set8(cam.depthUlps), ulp);
+  const __m256 cvx = set8(c.vx), cvy = set8(c.vy), ctol = set8(c.tolerance);
+  const __m256 slackA = _mm256_add_ps(slack8(cnx, cny, cnz, cvx, cvy, ctol), slack8(cnx, cny, cnz, svx, svy, stol));
+  const __m256 slackB = _mm256_add_ps(slack8(snx, sny, snz, cvx, cvy, ctol), slack8(snx, sny, snz, svx, svy, stol));
+  const __m256 ea = _mm256_max_ps(zero, _mm256_sub_ps(abs8(da), slackA));
+  const __m256 eb = _mm256_max_ps(zero, _mm256_sub_ps(abs8(db), slackB));
+  const __m256 dn = _mm256_add_ps(ea, eb);
+  const __m256 far = _mm256_cmp_ps(_mm256_mul_ps(dn, dn), _mm256_mul_ps(set8(threshold2), r2), _CMP_NLT_UQ);
+  return _mm256_movemask_ps(_mm256_or_ps(bg, _mm256_and_ps(apart, far)));
+}
+
+#endif
+
+std::atomic<int> gSimdLanes{0};  // setSimdLanesForTesting
+
+bool useAvx2() {
+#if defined(CRISP_RSAA_AVX2)
+  static const bool has = __builtin_cpu_supports("avx2");
+  const int lanes = gSimdLanes.load(std::memory_order_relaxed);
+  return has && lanes != 4;
+#else
+  return false;
+#endif
+}
+
 }  // namespace
+
+void setSimdLanesForTesting(int lanes) { gSimdLanes.store(lanes, std::memory_order_relaxed); }
 
 void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd) {
   const int outChannels = output.channels();
@@ -225,6 +309,9 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
   simd = false;
 #endif
   const Camera& cam = settings_.camera;
+#if defined(CRISP_RSAA_AVX2)
+  const bool avx2 = simd && useAvx2();
+#endif
   for (int y = y0; y < y1; ++y) {
     for (int x = 0; x < width_; ++x) {
       const Geo centre = centreGeo(in, x, y);
@@ -234,11 +321,18 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
         const float ux = colUx_[std::size_t(x)], uy = rowUy_[std::size_t(y)];
         const float* p[kSamples];
         for (int k = 0; k < kSamples; ++k) p[k] = in.sub[k].pixel(x, y);
-        const int bits = cam.orthographic
-                             ? differs4<true>(p[0], p[1], p[2], p[3], centre, ux, uy, dux0, duy0, cam, threshold2_) |
-                                   differs4<true>(p[4], p[5], p[6], p[7], centre, ux, uy, dux1, duy1, cam, threshold2_)
-                             : differs4<false>(p[0], p[1], p[2], p[3], centre, ux, uy, dux0, duy0, cam, threshold2_) |
-                                   differs4<false>(p[4], p[5], p[6], p[7], centre, ux, uy, dux1, duy1, cam, threshold2_);
+        int bits;
+#if defined(CRISP_RSAA_AVX2)
+        if (avx2)
+          bits = cam.orthographic ? differs8<true>(p, centre, ux, uy, dux_, duy_, cam, threshold2_)
+                                  : differs8<false>(p, centre, ux, uy, dux_, duy_, cam, threshold2_);
+        else
+#endif
+          bits = cam.orthographic
+                     ? differs4<true>(p[0], p[1], p[2], p[3], centre, ux, uy, dux0, duy0, cam, threshold2_) |
+                           differs4<true>(p[4], p[5], p[6], p[7], centre, ux, uy, dux1, duy1, cam, threshold2_)
+                     : differs4<false>(p[0], p[1], p[2], p[3], centre, ux, uy, dux0, duy0, cam, threshold2_) |
+                           differs4<false>(p[4], p[5], p[6], p[7], centre, ux, uy, dux1, duy1, cam, threshold2_);
         any = bits != 0;
         if (any)
           for (int k = 0; k < kSamples; ++k) subs[k] = subGeo(in, k, x, y);

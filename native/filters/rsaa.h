@@ -39,6 +39,11 @@ struct Inputs {
   ImageView sub[kSamples];  // 4 channels: world normal xyz, planar depth of sub-sample k
 };
 
+// The fast path tests 8 sub-samples in one AVX2 step where the CPU has AVX2,
+// else in two SSE steps; both bit-identical to the scalar reference. Tests
+// force the SSE path with 4 (0 = choose by CPU). Not for concurrent use.
+void setSimdLanesForTesting(int lanes);
+
 class Kernel {
  public:
   // Allocates every buffer and the per-row/column ray terms (from

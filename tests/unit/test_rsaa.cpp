@@ -390,10 +390,12 @@ TEST(RsaaPaths, FastEqualsReferenceOnEdgesAndAnyCamera) {
         Kernel kr, kf;
         const Image ref = runKernel(f, settings, true, 1, &kr);
         for (int threads : {1, 2, 3}) {
+          setSimdLanesForTesting(threads == 3 ? 4 : 0);  // the SSE path too where AVX2 is used
           const Image fast = runKernel(f, settings, false, threads, &kf);
           expectSameBits(ref, fast, "edge scene");
           EXPECT_EQ(kr.masks(), kf.masks());
         }
+        setSimdLanesForTesting(0);
         // Orthographic and a rotated view change the numbers, not the agreement.
         settings.camera.orthographic = true;
         settings.camera.view[0][0] = settings.camera.view[1][1] = 0.8f;
@@ -425,15 +427,23 @@ TEST(RsaaPaths, GarbageInputIsSafeAndIdentical) {
     for (std::size_t i = 0; i < f.sub[k].data.size(); ++i)
       f.sub[k].data[i] = (i % 4 == 3) ? value(3.0f, 10.0f) : value(1.0f, 0.0f);
   }
-  for (int m = 0; m < 3; ++m) {
-    Settings settings;
-    settings.verification = Verification(m);
-    settings.camera.proj00 = 1.7f, settings.camera.proj11 = 3.1f, settings.camera.proj02 = 0.01f;
-    const Image ref = runKernel(f, settings, true, 1);
-    const Image fast = runKernel(f, settings, false, 2);
-    expectSameBits(ref, fast, "garbage");
-    for (float v : fast.data) ASSERT_TRUE(std::isfinite(v));
-  }
+  // Both fast paths (AVX2 where the CPU has it, SSE forced), exact and half-float depth precision.
+  for (int lanes : {0, 4})
+    for (float ulps : {0.0f, 1.0f, 3.0f})
+      for (int m = 0; m < 3; ++m) {
+        setSimdLanesForTesting(lanes);
+        Settings settings;
+        settings.verification = Verification(m);
+        settings.camera.proj00 = 1.7f, settings.camera.proj11 = 3.1f, settings.camera.proj02 = 0.01f;
+        settings.camera.depthUlps = ulps;
+        const Image ref = runKernel(f, settings, true, 1);
+        const Image fast = runKernel(f, settings, false, 2);
+        expectSameBits(ref, fast, "garbage");
+        for (float v : fast.data) ASSERT_TRUE(std::isfinite(v));
+        settings.camera.orthographic = true;
+        expectSameBits(runKernel(f, settings, true, 1), runKernel(f, settings, false, 2), "garbage, ortho");
+      }
+  setSimdLanesForTesting(0);
 }
 
 // ------------------------------------------------------------ filter --
