@@ -86,6 +86,7 @@
 #include "core/parallel.h"
 #include "core/row_stage.h"
 #include "temporal/history_fetch.h"
+#include "temporal/isa.h"
 #include "temporal/rows.h"
 #include "temporal/jitter.h"
 #include "temporal/vec4.h"
@@ -119,13 +120,13 @@ struct Frame {
 
 // YCgCo luminance (R + 2G + B) / 4 (§5.1).
 template <class T>
-inline T lumaYCgCo(const T c[3]) {
+CRISP_PHLM_INLINE T lumaYCgCo(const T c[3]) {
   return T(0.25) * c[0] + T(0.5) * c[1] + T(0.25) * c[2];
 }
 
 // The feature space: c / (1 + Y(c)) of the colour clamped to >= 0.
 template <class T>
-inline void toFeature(const T c[3], T out[3]) {
+CRISP_PHLM_INLINE void toFeature(const T c[3], T out[3]) {
   T p[3];
   for (int k = 0; k < 3; ++k) p[k] = std::max(c[k], T(0));
   const T scale = T(1) / (T(1) + lumaYCgCo(p));
@@ -135,7 +136,7 @@ inline void toFeature(const T c[3], T out[3]) {
 // Bilinear fetch of the feature z of the previous records at (x, y), clamp to
 // edge (temporal/history_fetch.h's footprint and addressing).
 template <class T>
-inline void fetchFeature(const T* records, int w, int h, float x, float y, T z[3]) {
+CRISP_PHLM_INLINE void fetchFeature(const T* records, int w, int h, float x, float y, T z[3]) {
   const temporal::Footprint f = temporal::footprintOf(x, y);
   const int xa = std::clamp(f.x0, 0, w - 1), xb = std::clamp(f.x0 + 1, 0, w - 1);
   const int ya = std::clamp(f.y0, 0, h - 1), yb = std::clamp(f.y0 + 1, 0, h - 1);
@@ -157,7 +158,7 @@ inline void fetchFeature(const T* records, int w, int h, float x, float y, T z[3
 // models' predictions for this pixel's x (§6: the models live in textures
 // read with bilinear filtering). P stays the nearest model's.
 template <class T>
-inline void fetchBeta(const T* records, int w, int h, float x, float y, T* model) {
+CRISP_PHLM_INLINE void fetchBeta(const T* records, int w, int h, float x, float y, T* model) {
   const temporal::Footprint f = temporal::footprintOf(x, y);
   const int xa = std::clamp(f.x0, 0, w - 1), xb = std::clamp(f.x0 + 1, 0, w - 1);
   const int ya = std::clamp(f.y0, 0, h - 1), yb = std::clamp(f.y0 + 1, 0, h - 1);
@@ -198,7 +199,7 @@ inline void fetchBeta(const T* records, int w, int h, float x, float y, T* model
 // not in the other (the float32 and float64 paths would part ways). The
 // output is clamped to the exact box afterwards.
 template <class T>
-inline T rayEntry(const T f[3], const T y[3], const T lo[3], const T hi[3]) {
+CRISP_PHLM_INLINE T rayEntry(const T f[3], const T y[3], const T lo[3], const T hi[3]) {
   T t = T(0);
   for (int c = 0; c < 3; ++c) {
     const T slack = T(1e-3) * (hi[c] - lo[c]) + T(1e-5) * std::max(std::fabs(lo[c]), std::fabs(hi[c]));
@@ -208,8 +209,10 @@ inline T rayEntry(const T f[3], const T y[3], const T lo[3], const T hi[3]) {
   return std::min(t, T(1));
 }
 
+// Always inlined: into both copies of the row loop (temporal/isa.h).
 template <class T, bool Clamp>
-inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets, long& boxResets) {
+__attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
+                                                     long& boxResets) {
   const int w = f.width, h = f.height;
   // 3x3 neighbourhood of this frame: box, average (the low-frequency colour),
   // tonemapped luminance range.
@@ -340,6 +343,27 @@ inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
   if (f.output.channels() > 3) o[3] = f.color.channels() > 3 ? sanitizeColor(f.color.pixel(x, y)[3]) : 1.0f;
 }
 
+// Rows [y0, y1), counting the resets per row; two copies (temporal/isa.h).
+template <class T>
+__attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y0, int y1, bool reference,
+                                                        long* rowStats) {
+  for (int y = y0; y < y1; ++y) rowStats[2 * y] = rowStats[2 * y + 1] = 0;
+  temporal::rowsWithBorder(f.width, f.height, y0, y1, reference,
+                           [&](auto clamp, int x, int y) __attribute__((always_inline)) {
+                             phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], rowStats[2 * y + 1]);
+                           });
+}
+template <class T>
+void phlmRowsBaseline(const Frame<T>& f, int y0, int y1, bool reference, long* rowStats) {
+  phlmRowsBody(f, y0, y1, reference, rowStats);
+}
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+template <class T>
+CRISP_TEMPORAL_AVX2 void phlmRowsAvx2(const Frame<T>& f, int y0, int y1, bool reference, long* rowStats) {
+  phlmRowsBody(f, y0, y1, reference, rowStats);
+}
+#endif
+
 }  // namespace
 
 template <class T>
@@ -464,14 +488,12 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.depthTolerance = s.depthTolerance;
   long* rowStats = rowStats_.data();
 
-  auto pixelRows = [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y) rowStats[2 * y] = rowStats[2 * y + 1] = 0;
-    temporal::rowsWithBorder(width_, height_, y0, y1, reference, [&](auto clamp, int x, int y) {
-      phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], rowStats[2 * y + 1]);
-    });
-  };
-  if (reference) pixelRows(0, height_);
-  else parallelRows(width_, height_, threads, pixelRows);
+  auto pixelRows = phlmRowsBaseline<T>;
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+  if (!reference && temporal::useAvx2()) pixelRows = phlmRowsAvx2<T>;
+#endif
+  if (reference) pixelRows(f, 0, height_, true, rowStats);
+  else parallelRows(width_, height_, threads, [&](int y0, int y1) { pixelRows(f, y0, y1, false, rowStats); });
 
   stats_ = {};
   for (int y = 0; y < height_; ++y) {

@@ -38,6 +38,9 @@
 
 #include <cmath>
 
+// Always inlined: into both copies of phlm's row loop (temporal/isa.h).
+#define CRISP_PHLM_INLINE __attribute__((always_inline)) inline
+
 namespace crisp::phlm {
 
 constexpr int kDims = 4;          // x = [1, zR, zG, zB]
@@ -52,7 +55,7 @@ inline constexpr int uIndex(int i, int j) { return kU + j * (j - 1) / 2 + i; }
 // Reset (seed 002 §6 "Initialization"): intercept = colour, slopes 0,
 // P = diag(p0, ps, ps, ps) (the paper: p0 = ps = 1000; see phlm.cpp).
 template <class T>
-inline void resetModel(T* m, const T colour[3], T p0, T ps) {
+CRISP_PHLM_INLINE void resetModel(T* m, const T colour[3], T p0, T ps) {
   for (int c = 0; c < 3; ++c) m[kBeta + c] = colour[c];
   for (int i = 3; i < 12; ++i) m[kBeta + i] = T(0);
   for (int i = 0; i < 6; ++i) m[kU + i] = T(0);
@@ -62,7 +65,7 @@ inline void resetModel(T* m, const T colour[3], T p0, T ps) {
 
 // f = beta' x (eq. 4).
 template <class T>
-inline void predict(const T* m, const T x[kDims], T f[3]) {
+CRISP_PHLM_INLINE void predict(const T* m, const T x[kDims], T f[3]) {
   for (int c = 0; c < 3; ++c) {
     T s = m[kBeta + c] * x[0];
     for (int j = 1; j < kDims; ++j) s += m[kBeta + 3 * j + c] * x[j];
@@ -76,7 +79,7 @@ inline void predict(const T* m, const T x[kDims], T f[3]) {
 // receives K = P h / (r + h'P h) (the old P). Returns 1 / (r + h'P h).
 // One division per row: the reciprocal of alpha_j serves row j and j + 1.
 template <class T>
-inline T biermanUpdate(T* m, const T h[kDims], int first, T r, T inverseR, T* gain) {
+CRISP_PHLM_INLINE T biermanUpdate(T* m, const T h[kDims], int first, T r, T inverseR, T* gain) {
   T f[kDims], v[kDims], b[kDims];
   for (int j = first; j < kDims; ++j) {
     T s = h[j];
@@ -107,13 +110,13 @@ inline T biermanUpdate(T* m, const T h[kDims], int first, T r, T inverseR, T* ga
 
 // Exponential forgetting (eq. 7's 1/lambda): P <- P / lambda.
 template <class T>
-inline void forget(T* m, T inverseLambda) {
+CRISP_PHLM_INLINE void forget(T* m, T inverseLambda) {
   for (int j = 0; j < kDims; ++j) m[kD + j] *= inverseLambda;
 }
 
 // Point 3 above: information w = 1 / variance on axis k, beta unchanged.
 template <class T>
-inline void regularise(T* m, int axis, T variance, T inverseVariance) {
+CRISP_PHLM_INLINE void regularise(T* m, int axis, T variance, T inverseVariance) {
   T h[kDims] = {T(0), T(0), T(0), T(0)};
   h[axis] = T(1);
   biermanUpdate(m, h, axis, variance, inverseVariance, static_cast<T*>(nullptr));
@@ -124,7 +127,7 @@ inline void regularise(T* m, int axis, T variance, T inverseVariance) {
 // g = x'K = x'P x / (1/w + x'P x) in [0, 1): the updated prediction is
 // beta'x + g e, a convex combination of the prediction and y.
 template <class T>
-inline T rlsUpdate(T* m, const T x[kDims], const T e[3], T variance, T inverseVariance) {
+CRISP_PHLM_INLINE T rlsUpdate(T* m, const T x[kDims], const T e[3], T variance, T inverseVariance) {
   T k[kDims];
   const T inverseAlpha = biermanUpdate(m, x, 0, variance, inverseVariance, k);
   for (int j = 0; j < kDims; ++j)

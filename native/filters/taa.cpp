@@ -84,6 +84,7 @@
 #include "core/row_stage.h"
 #include "temporal/color_space.h"
 #include "temporal/history_fetch.h"
+#include "temporal/isa.h"
 #include "temporal/rows.h"
 #include "temporal/jitter.h"
 #include "temporal/neighbourhood.h"
@@ -361,7 +362,8 @@ void stageRow(const Frame& f, const BandScratch& s, int y, float* depthNow) {
 // staged once per band, plus one halo row above and below), the 3x3 and
 // cross boxes from shared column reductions (3 min + 3 max per column instead
 // of 9 + 9 per pixel), the same per-pixel core.
-void fastRows(const Frame& f, const BandScratch& s, int y0, int y1, float* depthNow) {
+__attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const BandScratch& s, int y0, int y1,
+                                                      float* depthNow) {
   const int w = f.width, h = f.height;
   const bool followDepth = f.depth.ptr && f.motion.ptr;
   if (y0 > 0) stageRow(f, s, y0 - 1, nullptr);
@@ -401,6 +403,16 @@ void fastRows(const Frame& f, const BandScratch& s, int y0, int y1, float* depth
     }
   }
 }
+
+// The row loop's two copies (temporal/isa.h): the baseline and AVX2.
+void fastRowsBaseline(const Frame& f, const BandScratch& s, int y0, int y1, float* depthNow) {
+  fastRowsBody(f, s, y0, y1, depthNow);
+}
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+CRISP_TEMPORAL_AVX2 void fastRowsAvx2(const Frame& f, const BandScratch& s, int y0, int y1, float* depthNow) {
+  fastRowsBody(f, s, y0, y1, depthNow);
+}
+#endif
 
 inline float alphaOf(const ImageView& color, int x, int y) {
   return color.channels() > 3 ? sanitizeColor(color.pixel(x, y)[3]) : 1.0f;
@@ -522,6 +534,10 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
     // Band b covers rows [b h / bands, (b + 1) h / bands) and owns scratch b;
     // parallelRows hands out bands (a virtual image one band per row).
     const int bands = bands_;
+    auto fastRows = fastRowsBaseline;
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+    if (temporal::useAvx2()) fastRows = fastRowsAvx2;
+#endif
     parallelRows(8192, bands, numThreads, [&](int b0, int b1) {
       for (int b = b0; b < b1; ++b) {
         const BandScratch scratch = bandScratch(bandScratch_.data() + std::size_t(b) * bandFloats(width_), width_);

@@ -10,9 +10,10 @@ namespace crisp::temporal {
 // image, clamp = std::true_type where a 3x3 stencil at (x, y) may leave the
 // image (border pixels; everywhere when clampAll, the reference paths) and
 // std::false_type inside, so interior pixels read their taps without clamps
-// (the same taps, so the same bits).
+// (the same taps, so the same bits). Always inlined, so a row loop compiled
+// for AVX2 (temporal/isa.h) keeps its pixel code in that copy.
 template <class Fn>
-void rowsWithBorder(int width, int height, int y0, int y1, bool clampAll, Fn&& fn) {
+__attribute__((always_inline)) inline void rowsWithBorder(int width, int height, int y0, int y1, bool clampAll, Fn&& fn) {
   for (int y = y0; y < y1; ++y) {
     if (clampAll || y == 0 || y == height - 1 || width < 3) {
       for (int x = 0; x < width; ++x) fn(std::true_type{}, x, y);

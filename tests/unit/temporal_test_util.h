@@ -14,6 +14,7 @@
 #include "core/filter.h"
 #include "metrics/metrics.h"
 #include "synth/moving.h"
+#include "temporal/isa.h"
 
 namespace crisp::test {
 
@@ -24,6 +25,17 @@ inline double psnr(const Image& ref, const Image& test) {
   options.flip = false;
   return compareImages(ref, test, nullptr, {}, 1, options).psnr;
 }
+
+// Selects the temporal kernels' fast-path copy (temporal/isa.h) for its
+// lifetime: fast-equals-reference tests run once per copy.
+struct FastPathIsa {
+  explicit FastPathIsa(temporal::Isa isa) { temporal::setFastPathIsa(isa); }
+  ~FastPathIsa() { temporal::setFastPathIsa(temporal::Isa::Auto); }
+  FastPathIsa(const FastPathIsa&) = delete;
+  FastPathIsa& operator=(const FastPathIsa&) = delete;
+};
+// Both copies: AVX2 (when the CPU has it) and the SSE2 baseline.
+constexpr temporal::Isa kFastPathIsas[2] = {temporal::Isa::Auto, temporal::Isa::Baseline};
 
 inline bool allFinite(const Image& im) {
   for (float v : im.data)

@@ -197,7 +197,9 @@ TEST(Phlm, CameraCutLeavesNoGhost) {
 TEST(Phlm, ReferencePathEqualsFastPath) {
   const int w = 64, h = 48;
   const synth::Sequence seq = synth::ghostingSequence(w, h, 9.0f, 1.3f, 0.4f);
-  for (int mode = 0; mode < 2; ++mode) {  // 0: motion + depth, 1: static (in place)
+  for (int run = 0; run < 4; ++run) {
+    const int mode = run % 2;  // 0: motion + depth, 1: static (in place)
+    const test::FastPathIsa isa(test::kFastPathIsas[run / 2]);
     phlm::Kernel<float> fast, reference;
     fast.allocate(w, h, mode == 0, mode == 0);
     reference.allocate(w, h, mode == 0, mode == 0);
@@ -216,9 +218,9 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
       in.output = outReference.view();
       reference.run(in, s, true, 1);
       ASSERT_EQ(0, std::memcmp(outFast.data.data(), outReference.data.data(), outFast.data.size() * sizeof(float)))
-          << "frame " << t << " mode " << mode;
+          << "frame " << t << " mode " << mode << " " << temporal::fastPathIsaName();
       ASSERT_EQ(0, std::memcmp(fast.record(0, 0), reference.record(0, 0), sizeof(float) * phlm::kRecord * w * h))
-          << "frame " << t << " mode " << mode;
+          << "frame " << t << " mode " << mode << " " << temporal::fastPathIsaName();
     }
   }
 }

@@ -309,7 +309,9 @@ TEST(Taa, ReferencePathEqualsFastPath) {
     float sharpen;
     bool depth;
   } configs[] = {{"catmull-rom", "ycocg", 0.0f, true}, {"bilinear", "rgb", 0.5f, true}, {"catmull-rom", "rgb", 1.0f, false}};
-  for (const Config& c : configs) {
+  for (int run = 0; run < 6; ++run) {
+    const Config& c = configs[run % 3];
+    const test::FastPathIsa isa(test::kFastPathIsas[run / 3]);
     Driver ref(1), fast(2);
     for (Driver* d : {&ref, &fast}) {
       d->filter->params().setString("historyFilter", c.filter);
@@ -322,7 +324,7 @@ TEST(Taa, ReferencePathEqualsFastPath) {
       const Image& a = ref.run(f, true, c.depth);
       const Image& b = fast.run(f, true, c.depth);
       ASSERT_EQ(0, std::memcmp(a.data.data(), b.data.data(), a.data.size() * sizeof(float)))
-          << c.filter << " " << c.space << " frame " << t;
+          << c.filter << " " << c.space << " frame " << t << " " << temporal::fastPathIsaName();
     }
   }
 }
@@ -402,7 +404,9 @@ TEST(Taa, SharpenRaisesEdgeContrastOnly) {
 TEST(Taa, ReferencePathEqualsFastPathAcrossBands) {
   const int w = 53, h = 131;  // 4 bands of ~33 rows
   synth::Sequence seq = synth::ghostingSequence(w, h, 11.0f, 2.3f, 0.9f);
-  for (int mode = 0; mode < 3; ++mode) {
+  for (int run = 0; run < 6; ++run) {
+    const int mode = run % 3;
+    const test::FastPathIsa isa(test::kFastPathIsas[run / 3]);
     const bool motion = mode < 2, depth = mode == 0;
     Driver ref(1), fast(4);
     ref.filter->params().setBool("reference", true);
@@ -412,7 +416,7 @@ TEST(Taa, ReferencePathEqualsFastPathAcrossBands) {
       const Image& a = ref.run(f, motion, depth);
       const Image& b = fast.run(f, motion, depth);
       ASSERT_EQ(0, std::memcmp(a.data.data(), b.data.data(), a.data.size() * sizeof(float)))
-          << "mode " << mode << " frame " << t;
+          << "mode " << mode << " frame " << t << " " << temporal::fastPathIsaName();
     }
   }
 }

@@ -253,6 +253,8 @@ TEST(TaaImproved, AliasedValuePlanesFastEqualsReference) {
       }
       const bool possible = c.depth || std::string(only) == "all" || std::string(only) == "sobel" ||
                             (std::string(only) == "modelAverage" && c.id);
-      if (possible) EXPECT_TRUE(steered) << c.name << ", " << only;
+      if (possible) {
+        EXPECT_TRUE(steered) << c.name << ", " << only;
+      }
     }
 }
