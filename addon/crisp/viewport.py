@@ -14,14 +14,15 @@ When off, no handler is installed (the viewport does not pay anything). Where th
 available (background mode) switching it on switches it back off with a message.
 
 Measured on Blender 3.4.1 (llvmpipe) by tests/blender_gui/test_viewport_preview.py:
-* draw_view3d inside the handler leaves another framebuffer bound than the region's: drawing the result
-  there showed nothing (the "black preview"). The region's framebuffer is pushed before and popped after.
-* The region framebuffer a POST_PIXEL handler sees is the overlay buffer (the shaded scene is composited
-  under it later), so the preview draws opaque pixels. The offscreen image is the composited view with
-  the 3D overlays (grid, outlines) and is colour-managed (display values, so decoded by the sRGB curve);
-  the region framebuffer encodes to sRGB on write.
+* Creating framebuffers and draw_view3d inside the handler leave another framebuffer bound than the
+  region's: drawing the result there showed nothing (the "black preview"). See _draw_preview.
+* The framebuffer a POST_PIXEL handler draws into is the view's overlay buffer, merged over the shaded
+  view in "display linear" space (display value ^ 2.2), so the result is written opaque in that space
+  (gpu_filters DISPLAY_PASS). The offscreen image is the composited, colour-managed view (display values,
+  decoded by the sRGB curve before filtering) with the 3D overlays (grid, outlines), which are filtered
+  with the scene.
 * Everything the region draws before POST_PIXEL (the view name text, the navigation gizmo) is covered
-  while the preview is on; 3D overlays are in the offscreen image and are filtered with the scene.
+  while the preview is on, and so is the camera view's passepartout (draw_view3d does not draw it).
 
 Differences from the filters on final renders: the input is the colour-managed viewport image decoded
 by the sRGB curve (equal to linear light with the Standard view transform; with Filmic it is Filmic's

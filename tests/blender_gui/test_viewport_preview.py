@@ -206,6 +206,7 @@ class ViewportPreview(unittest.TestCase):
         self.switch_off()
         self.assertIsNone(viewport._State.handle)
         self.assertIsNone(viewport._State.offscreen)
+        self.assertNotIn(viewport._on_scene_change, bpy.app.handlers.depsgraph_update_post)
         self.assertFalse(viewport.is_active())
         after = screenshot()
         for label, a, b in (("before and after", before, after), ("first and after", self.base, after)):
