@@ -112,6 +112,12 @@ void registerAll() {
     const std::string tag = bench::sizeTag(w, h);
     bench::registerTimed("rsaa.fast.mt" + tag, [w, h](benchmark::State& st) { runRsaa(st, w, h, 0, false); });
     bench::registerTimed("rsaa.fast.st" + tag, [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false); });
+    // The SSE fast path on a CPU where the AVX2 one would be chosen (same output).
+    bench::registerTimed("rsaa.fast.sse.st" + tag, [w, h](benchmark::State& st) {
+      rsaa::setSimdLanesForTesting(4);
+      runRsaa(st, w, h, 1, false);
+      rsaa::setSimdLanesForTesting(0);
+    });
     bench::registerTimed("rsaa.reference" + tag, [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, true); });
     bench::registerTimed("rsaa.floor.read" + tag, [w, h](benchmark::State& st) { readFloor(st, w, h); });
   }
