@@ -294,6 +294,26 @@ class CrispViewportSettings(bpy.types.PropertyGroup):
     status: bpy.props.StringProperty(name="Status", default="")
 
 
+def smoothing_hint(context):
+    """What already anti-aliases the view the preview filters (the preview then shows less than the filter
+    does to a 1-sample render), or None."""
+    shading = getattr(context.space_data, "shading", None)
+    if shading is None:
+        return None
+    engine = context.scene.render.engine
+    if shading.type in ("SOLID", "WIREFRAME"):
+        aa = context.preferences.system.viewport_aa
+    elif shading.type == "RENDERED" and engine == "BLENDER_WORKBENCH":
+        aa = context.scene.display.viewport_aa
+    elif shading.type == "MATERIAL" or (shading.type == "RENDERED" and engine.startswith("BLENDER_EEVEE")):
+        if context.scene.eevee.taa_samples != 1:
+            return "EEVEE viewport samples smooth the view: set them to 1"
+        return None
+    else:
+        return None
+    return None if aa == "OFF" else "Viewport anti-aliasing is on (%s): set No Anti-Aliasing" % aa
+
+
 class CRISP_PT_viewport(bpy.types.Panel):
     bl_label = "Crisp Preview"
     bl_space_type = "VIEW_3D"
@@ -311,6 +331,9 @@ class CRISP_PT_viewport(bpy.types.Panel):
             row.label(text=s.status, icon="ERROR")
         elif is_active():
             layout.label(text="%.1f ms per redraw" % _State.last_ms)
+        hint = smoothing_hint(context)
+        if hint:
+            layout.label(text=hint, icon="INFO")
 
 
 def _header_toggle(self, context):

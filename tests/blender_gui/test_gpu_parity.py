@@ -22,8 +22,8 @@ W, H = 128, 96
 # operation, so what is left is float rounding of different functions (pow/sqrt/atan approximations,
 # possible fma contraction, float vs double statistics), i.e. ~1e-6 of values in [0, 2]. A decision
 # flipped by one ulp at a threshold (FXAA's contrast/search ends, REPAIR's edge threshold T, the angle
-# fold) moves one pixel by up to the local contrast; such values ("flipped": beyond the method's max tolerance) must stay
-# under FLIP_FRACTION, and all other values must meet TOLERANCES.
+# fold) moves one pixel by up to the local contrast; such values ("flipped": beyond the method's max
+# tolerance) must stay under FLIP_FRACTION, and all other values must meet TOLERANCES.
 # Measured on llvmpipe (Mesa 22.3): fxaa <= 7.1e-6 / 8e-9, repair <= 6.7e-6 / 1.4e-8 (one case with
 # 0.05% flipped values), taa <= 7.2e-7 / 5e-10 (static: bit-identical); tolerances ~3x above.
 TOLERANCES = {

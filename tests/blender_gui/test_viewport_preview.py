@@ -216,6 +216,18 @@ class ViewportPreview(unittest.TestCase):
         self.assertLessEqual(float(np.abs(after - before).max()), 0.5 / 255,
                              "with the preview off the view must be the unfiltered one")
 
+    def test_smoothing_hint(self):
+        """The panel says when the view is already anti-aliased by Blender (solid shading: the preference)."""
+        area, region = view3d()
+        prefs = bpy.context.preferences.system
+        with bpy.context.temp_override(window=bpy.context.window, area=area, region=region):
+            self.assertIsNone(viewport.smoothing_hint(bpy.context))
+            prefs.viewport_aa = "FXAA"
+            try:
+                self.assertIn("FXAA", viewport.smoothing_hint(bpy.context) or "")
+            finally:
+                prefs.viewport_aa = "OFF"
+
     def test_background_mode_switches_off(self):
         """Blender without a window: switching the preview on switches it back off with a message."""
         script = ("import sys; sys.path.insert(0, %r); import bpy, crisp; crisp.register(); "
