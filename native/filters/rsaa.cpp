@@ -284,7 +284,7 @@ std::atomic<int> gSimdLanes{0};  // setSimdLanesForTesting
 
 bool useAvx2() {
 #if defined(CRISP_RSAA_AVX2)
-  static const bool has = __builtin_cpu_supports("avx2");
+  static const bool has = (__builtin_cpu_init(), __builtin_cpu_supports("avx2") != 0);
   const int lanes = gSimdLanes.load(std::memory_order_relaxed);
   return has && lanes != 4;
 #else

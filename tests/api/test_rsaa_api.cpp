@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -66,6 +67,16 @@ class RsaaApi : public ::testing::Test {
               "objects": {})"
         << (withList ? ", \"subsamples\": [" + list + "]" : std::string()) << "}";
   }
+  // crispAttachFrameSubsamples with a new filter of `type` must fail with `expected`, naming each needle.
+  void expectAttachError(const char* type, CrispError expected, std::initializer_list<const char*> needles) {
+    CrispFilter filter = crispNewFilter(context, type);
+    crispAttachFrameSubsamples(context, frame, filter);
+    CrispError code;
+    const std::string msg = lastError(&code);
+    EXPECT_EQ(code, expected) << msg;
+    for (const char* n : needles) EXPECT_NE(msg.find(n), std::string::npos) << msg;
+    crispReleaseFilter(filter);
+  }
   fs::path dir;
   CrispContext context = nullptr;
   CrispFrame frame = nullptr;
@@ -93,26 +104,13 @@ TEST_F(RsaaApi, SidecarMissingOrWithoutListIsNamed) {
 
 TEST_F(RsaaApi, SubsampleWithoutGeometryIsNamedAndTheFrameKeepsItsPasses) {
   writeSidecar(true);
-  CrispFilter filter = crispNewFilter(context, "rsaa");
-  crispAttachFrameSubsamples(context, frame, filter);
-  CrispError code;
-  const std::string msg = lastError(&code);
-  EXPECT_EQ(code, CRISP_ERROR_INVALID_DATA) << msg;
-  EXPECT_NE(msg.find("frame_0001_sub0.exr"), std::string::npos) << msg;
-  EXPECT_NE(msg.find("'depth'"), std::string::npos) << msg;
+  expectAttachError("rsaa", CRISP_ERROR_INVALID_DATA, {"frame_0001_sub0.exr", "'depth'"});
   EXPECT_STREQ(crispGetFramePasses(frame), "color");
-  crispReleaseFilter(filter);
 }
 
 TEST_F(RsaaApi, OnlyRsaaTakesTheCamera) {
   writeSidecar(true);
-  CrispFilter fxaa = crispNewFilter(context, "fxaa");
-  crispAttachFrameSubsamples(context, frame, fxaa);
-  CrispError code;
-  const std::string msg = lastError(&code);
-  EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT) << msg;
-  EXPECT_NE(msg.find("fxaa"), std::string::npos) << msg;
-  crispReleaseFilter(fxaa);
+  expectAttachError("fxaa", CRISP_ERROR_INVALID_ARGUMENT, {"fxaa"});
 }
 
 }  // namespace
