@@ -9,8 +9,10 @@
 // sample weight, and, only when the filter is committed with depth, two float
 // depth planes (this frame's and the previous frame's). Scratch
 // (bytesScratch): per row band of the fast path, three staged rows (RGBA,
-// the clip space), three depth rows and the column min/max of the 3x3 box;
-// the current frame is staged on the fly, never as a whole image.
+// the clip space), three depth rows, the column min/max of the 3x3 box and
+// the row's closest-depth taps; the current frame is staged on the fly
+// (core/row_stage.h), never as a whole image. The fast row loop has an SSE2
+// and an AVX2 copy (temporal/isa.h), both bit-identical to the reference.
 #pragma once
 
 #include <cstddef>
