@@ -94,9 +94,10 @@ inline std::vector<SubsampleEntry> readSubsampleList(const std::string& sidecarP
 
 // Reads the sub-sample files listed in `sidecarPath` into frame.passes
 // sub0..sub7 (float4: normal xyz, depth). Each file must hold Depth and
-// Normal passes at the frame's size. Throws naming the file.
+// Normal passes at the frame's size. Throws naming the file; the frame is unchanged then.
 inline void attachSubsamples(Frame& frame, const std::string& sidecarPath) {
   const std::vector<SubsampleEntry> list = readSubsampleList(sidecarPath);
+  std::vector<Image> packedAll;  // the frame changes only when every file is good
   for (int k = 0; k < rsaa::kSamples; ++k) {
     const std::string& file = list[std::size_t(k)].file;
     std::ifstream probe(file, std::ios::binary);
@@ -124,8 +125,9 @@ inline void attachSubsamples(Frame& frame, const std::string& sidecarPath) {
       p[2] = nrm[2];
       p[3] = depth.data[std::size_t(depth.channels) * i];
     }
-    frame.passes[subsamplePass(k)] = std::move(packed);
+    packedAll.push_back(std::move(packed));
   }
+  for (int k = 0; k < rsaa::kSamples; ++k) frame.passes[subsamplePass(k)] = std::move(packedAll[std::size_t(k)]);
 }
 
 // The rsaa filter's camera parameters from a sidecar: projection terms
@@ -176,6 +178,8 @@ inline void applyRsaaCamera(Filter& filter, const Frame& frame) {
 // Everything rsaa needs beyond the frame's own passes: the sub-samples (if
 // not attached yet) and the camera.
 inline void attachRsaaInputs(Filter& filter, Frame& frame) {
+  if (!readsSubsamples(filter))
+    invalidArgument(std::string("filter '") + filter.type() + "' reads no geometric sub-samples (only rsaa does)");
   if (!frame.has(subsamplePass(0))) attachSubsamples(frame, sidecarPathFor(frame.path));
   applyRsaaCamera(filter, frame);
 }
