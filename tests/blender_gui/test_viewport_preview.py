@@ -73,6 +73,14 @@ def screenshot():
     return px.reshape(h, w, 4)[..., :3].astype(np.float64)
 
 
+def local_extremes(rgb, radius):
+    """Per-channel min and max of rgb over a (2 radius + 1)^2 window, clamp-to-edge."""
+    p = np.pad(rgb, ((radius, radius), (radius, radius), (0, 0)), mode="edge")
+    h, w = rgb.shape[:2]
+    win = [p[dy:dy + h, dx:dx + w] for dy in range(2 * radius + 1) for dx in range(2 * radius + 1)]
+    return np.min(win, axis=0), np.max(win, axis=0)
+
+
 def luma_plane(rgb):
     return 0.2126 * rgb[..., 0] + 0.7152 * rgb[..., 1] + 0.0722 * rgb[..., 2]
 
@@ -153,20 +161,25 @@ class ViewportPreview(unittest.TestCase):
         edge_frac, flat_frac = changed[self.edge].mean(), changed[self.flat].mean()
         # Against the view moved by one pixel: the unmoved one must match best on the edges (a mirrored,
         # shifted or black preview does not).
+        # The filters blend neighbouring pixels: a value outside the 5x5 range of the unfiltered view is
+        # invented (wrong colour management, garbage).
+        lo, hi = local_extremes(self.base, 2)
+        inside = ((shown >= lo - 2 / 255) & (shown <= hi + 2 / 255)).all(axis=2).mean()
         err = {}
         for dy in (-1, 0, 1):
             for dx in (-1, 0, 1):
                 moved = np.roll(self.base, (dy, dx), axis=(0, 1))
                 err[(dx, dy)] = np.abs(shown - moved).max(axis=2)[self.edge].mean()
         print("preview %s: %.1f%% of edge pixels changed, %.3f%% of flat pixels (worst %.4f); mean |diff| %.5f; "
-              "edge error unmoved %.4f, best moved %.4f"
+              "edge error unmoved %.4f, best moved %.4f; %.3f%% inside the 5x5 range"
               % (method, 100 * edge_frac, 100 * flat_frac, float(diff[self.flat].max()), float(diff.mean()),
-                 err[(0, 0)], min(v for k, v in err.items() if k != (0, 0))), file=sys.stderr)
+                 err[(0, 0)], min(v for k, v in err.items() if k != (0, 0)), 100 * inside), file=sys.stderr)
         self.assertGreater(float(shown.max()), 0.5, method + ": the preview must not be black")
         self.assertLess(abs(float(shown.mean() - self.base.mean())), 0.01, method + ": the mean must not move")
         self.assertGreater(edge_frac, 0.2, method + " must change the edges")
         self.assertLess(flat_frac, 0.002, method + " must leave flat areas alone")
         self.assertEqual(min(err, key=err.get), (0, 0), method + ": the preview must not be moved or mirrored")
+        self.assertGreater(inside, 0.99, method + ": values must come from the neighbourhood")
 
     def test_fxaa(self):
         self.switch_on("fxaa")
