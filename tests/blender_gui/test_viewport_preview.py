@@ -184,7 +184,14 @@ class ViewportPreview(unittest.TestCase):
     def test_fxaa(self):
         self.switch_on("fxaa")
         shown = screenshot()
+        # The preview's input: the unfiltered 1-sample view (not smoothed by Blender: ONE_SAMPLE), to the
+        # 8-bit rounding and dither of the window.
+        seen = np.asarray(viewport._State.offscreen.texture_color.read().to_list(), dtype=np.float64)[..., :3]
         self.switch_off()
+        input_diff = np.abs(seen - self.base).max(axis=2)
+        print("preview input: %.3f%% of edge pixels and %.3f%% of all differ from the view by > 3/255"
+              % (100 * (input_diff[self.edge] > 3 / 255).mean(), 100 * (input_diff > 3 / 255).mean()), file=sys.stderr)
+        self.assertLess(float((input_diff[self.edge] > 3 / 255).mean()), 0.01, "the preview must filter the raw view")
         self.check_filtered("fxaa", shown)
 
     def test_repair(self):
@@ -229,17 +236,15 @@ class ViewportPreview(unittest.TestCase):
         self.assertLessEqual(float(np.abs(after - before).max()), 0.5 / 255,
                              "with the preview off the view must be the unfiltered one")
 
-    def test_smoothing_hint(self):
-        """The panel says when the view is already anti-aliased by Blender (solid shading: the preference)."""
-        area, region = view3d()
-        prefs = bpy.context.preferences.system
-        with bpy.context.temp_override(window=bpy.context.window, area=area, region=region):
-            self.assertIsNone(viewport.smoothing_hint(bpy.context))
-            prefs.viewport_aa = "FXAA"
-            try:
-                self.assertIn("FXAA", viewport.smoothing_hint(bpy.context) or "")
-            finally:
-                prefs.viewport_aa = "OFF"
+    def test_one_sample_settings(self):
+        """While on, the scene's own viewport anti-aliasing (which draw_view3d would apply) is off and EEVEE
+        draws 1 sample; switching off restores the values."""
+        scene = bpy.context.scene
+        scene.display.viewport_aa, scene.eevee.taa_samples = "FXAA", 16
+        self.switch_on("fxaa")
+        self.assertEqual((scene.display.viewport_aa, scene.eevee.taa_samples), ("OFF", 1))
+        self.switch_off()
+        self.assertEqual((scene.display.viewport_aa, scene.eevee.taa_samples), ("FXAA", 16))
 
     def test_background_mode_switches_off(self):
         """Blender without a window: switching the preview on switches it back off with a message."""
