@@ -22,9 +22,11 @@ inline void stageColorRow(const ImageView& color, int y, float* rgba) {
   if (c == 4 && color.pixelStride == 16) {
     // Packed RGBA: one element-wise pass the compiler vectorises.
     const float* p = reinterpret_cast<const float*>(src);
-    for (int i = 0; i < 4 * w; ++i) {
-      const float v = p[i];
-      rgba[i] = v != v ? 0.0f : (v < -kMaxColor ? -kMaxColor : (kMaxColor < v ? kMaxColor : v));
+    for (int i = 0; i < 4 * w; ++i) {  // sanitizeColor as three selects
+      float v = p[i];
+      v = v == v ? v : 0.0f;
+      v = v < -kMaxColor ? -kMaxColor : v;
+      rgba[i] = kMaxColor < v ? kMaxColor : v;
     }
     return;
   }

@@ -337,8 +337,9 @@ BandScratch bandScratch(float* base, int width) {
 
 // Stages image row y into ring slot y % 3 (and this frame's depth plane when
 // the row belongs to the band).
-// The same values as stagePixel, a row at a time (core/row_stage.h).
-void stageRow(const Frame& f, const BandScratch& s, int y, float* depthNow) {
+// The same values as stagePixel, a row at a time (core/row_stage.h); inlined
+// into both copies of the row loop.
+__attribute__((always_inline)) inline void stageRow(const Frame& f, const BandScratch& s, int y, float* depthNow) {
   const int w = f.width;
   float* dst = s.staged[y % 3];
   stageColorRow(f.color, y, dst + 4);
