@@ -100,7 +100,7 @@ def look_through_camera(space, camera, distance=5.0):
     rv3d = space.region_3d
     rv3d.view_perspective = "PERSP"
     rotation = camera.matrix_world.to_quaternion()
-    rv3d.view_rotation = rotation.inverted()  # viewquat: world to view
+    rv3d.view_rotation = rotation
     rv3d.view_distance = distance
     rv3d.view_location = camera.matrix_world.translation + rotation @ Vector((0.0, 0.0, -distance))
     space.lens = camera.data.lens
@@ -240,11 +240,15 @@ class ViewportPreview(unittest.TestCase):
         """While on, the scene's own viewport anti-aliasing (which draw_view3d would apply) is off and EEVEE
         draws 1 sample; switching off restores the values."""
         scene = bpy.context.scene
-        scene.display.viewport_aa, scene.eevee.taa_samples = "FXAA", 16
-        self.switch_on("fxaa")
-        self.assertEqual((scene.display.viewport_aa, scene.eevee.taa_samples), ("OFF", 1))
-        self.switch_off()
-        self.assertEqual((scene.display.viewport_aa, scene.eevee.taa_samples), ("FXAA", 16))
+        before = (scene.display.viewport_aa, scene.eevee.taa_samples)
+        scene.display.viewport_aa, scene.eevee.taa_samples = "8", 16
+        try:
+            self.switch_on("fxaa")
+            self.assertEqual((scene.display.viewport_aa, scene.eevee.taa_samples), ("OFF", 1))
+            self.switch_off()
+            self.assertEqual((scene.display.viewport_aa, scene.eevee.taa_samples), ("8", 16))
+        finally:
+            scene.display.viewport_aa, scene.eevee.taa_samples = before
 
     def test_background_mode_switches_off(self):
         """Blender without a window: switching the preview on switches it back off with a message."""
