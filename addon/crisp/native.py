@@ -347,6 +347,8 @@ class FrameFilter:
         self.subsamples = "subsamples" in passes
         for k, v in (params or {}).items():
             self.filter.set_param(k, v)
+        # Temporal filters take each frame's sub-pixel jitter from its sidecar, as `crisp filter` does.
+        self._takes_jitter = any(p["name"] == "jitterX" for p in self.filter.info()["params"])
         self._out = None
         self._zero_motion = None
         self._shape = None
@@ -367,6 +369,16 @@ class FrameFilter:
             frame.reconstruct_motion(self.context, previous)
         ptr, fmt = frame.pass_pointer("motion")
         self.filter.set_image("motion", ptr, fmt, frame.width, frame.height)
+
+    def _bind_jitter(self, input_path):
+        """jitterX / jitterY of this frame from its sidecar (y up there, down in the library)."""
+        sidecar = os.path.splitext(input_path)[0] + ".json"
+        if not os.path.exists(sidecar):
+            return
+        with open(sidecar) as fh:
+            jitter = json.load(fh).get("jitter") or {}
+        self.filter.set_param("jitterX", float(jitter.get("x", 0.0)))
+        self.filter.set_param("jitterY", -float(jitter.get("y", 0.0)))
 
     def run(self, input_path, output_paths):
         """Loads one frame, filters it, writes it to each path (.exr and/or .png).
@@ -390,6 +402,8 @@ class FrameFilter:
                 ptr, fmt = frame.pass_pointer(role)
                 self.filter.set_image(role, ptr, fmt, w, h)
             self.filter.set_image("output", ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)
+            if self._takes_jitter:
+                self._bind_jitter(input_path)
             t1 = time.perf_counter()
             self.filter.commit()
             self.filter.execute()

@@ -21,8 +21,11 @@ int runEval(const ParsedArgs& args);
 int runBench(const ParsedArgs& args, const char* argv0);
 
 // Points every image role the filter declares at the frame's pass of that
-// name, if the frame has it. Errors from commit name the file.
-void bindFrame(Filter& filter, const Frame& frame);
+// name, if the frame has it. Errors from commit name the file. With an add-on
+// sidecar beside the frame it also adds what the sidecar holds for the filter:
+// rsaa's sub-samples and camera (attached to the frame, so they live as long
+// as it does) and a temporal filter's jitterX / jitterY.
+void bindFrame(Filter& filter, Frame& frame);
 
 // File helpers: text written through a temporary file renamed into place.
 void writeTextFile(const std::string& path, const std::string& text);

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -63,10 +64,34 @@ std::string jsonNumber(double v) {
   return buf;
 }
 
-void bindFrame(Filter& filter, const Frame& frame) {
-  // The callers own the frame (a local from readFrame); the sub-samples are
-  // added to it so they live as long as the frame the filter is bound to.
-  if (readsSubsamples(filter)) attachRsaaInputs(filter, const_cast<Frame&>(frame));
+namespace {
+
+bool hasParam(const Filter& f, const char* name) {
+  for (const ParamSpec& s : f.params().specs())
+    if (std::strcmp(s.name, name) == 0) return true;
+  return false;
+}
+
+// This frame's sub-pixel jitter from its sidecar, for filters that take it
+// (the sidecar's y is up, the library's down). Re-commit only on a change.
+void bindJitter(Filter& filter, const Frame& frame) {
+  if (!hasParam(filter, "jitterX") || !hasParam(filter, "jitterY")) return;
+  const std::string side = sidecarPathFor(frame.path);
+  std::error_code ec;
+  if (!fs::is_regular_file(side, ec)) return;
+  const Sidecar s = readSidecar(side);
+  const float x = float(s.jitterX), y = float(-s.jitterY);
+  if (filter.params().getFloat("jitterX") == x && filter.params().getFloat("jitterY") == y) return;
+  filter.params().setFloat("jitterX", x);
+  filter.params().setFloat("jitterY", y);
+  filter.markDirty();
+}
+
+}  // namespace
+
+void bindFrame(Filter& filter, Frame& frame) {
+  if (readsSubsamples(filter)) attachRsaaInputs(filter, frame);
+  bindJitter(filter, frame);
   for (const ImageRole& role : filter.roles()) {
     std::string name = role.name;
     if (name == "output") continue;

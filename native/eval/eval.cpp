@@ -96,23 +96,6 @@ std::map<int, double> renderTimes(const fs::path& dir) {
 
 // ---- the methods ---------------------------------------------------------------------------------
 
-bool hasParam(const Filter& f, const char* name) {
-  for (const ParamSpec& s : f.params().specs())
-    if (std::string(s.name) == name) return true;
-  return false;
-}
-
-// Sub-pixel jitter of a frame from its sidecar: pixels, x right, y UP (render.py).
-bool readJitter(const fs::path& exr, double& x, double& y) {
-  fs::path side = exr;
-  side.replace_extension(".json");
-  json j = readJson(side, false);
-  if (!j.contains("jitter")) return false;
-  x = j["jitter"].value("x", 0.0);
-  y = j["jitter"].value("y", 0.0);
-  return true;
-}
-
 // Motion for the frames of a render set that has depth (renders/jittered) of a
 // scene where something moves: the renderer's pass, else reconstructed from
 // depth and the sidecars. A still scene gets none, as its pass plan says, so
@@ -135,7 +118,6 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   Context context;
   context.setInt("numThreads", o.threads);
   std::unique_ptr<Filter> filter = createFilter(context, e.name);
-  const bool jitterParams = hasParam(*filter, "jitterX") && hasParam(*filter, "jitterY");
   Image output;
   for (int f : frames) {
     if (!e.temporal ? done(f) : allDone) {
@@ -148,15 +130,6 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
     cli::bindFrame(*filter, frame);
     if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
     filter->setImage("output", output.view());
-    double jx = 0, jy = 0;
-    if (jitterParams && readJitter(in, jx, jy)) {
-      // Library y is down, the sidecar's y is up.
-      if (filter->params().getFloat("jitterX") != float(jx) || filter->params().getFloat("jitterY") != float(-jy)) {
-        filter->params().setFloat("jitterX", float(jx));
-        filter->params().setFloat("jitterY", float(-jy));
-        filter->markDirty();
-      }
-    }
     auto t0 = Clock::now();
     try {
       if (!filter->committed()) filter->commit();

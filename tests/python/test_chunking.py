@@ -18,6 +18,7 @@ read; its filtered/ is the sequential taa-improved result of the add-on's filter
 pre-roll length, per method, on moving and still scenes).
 Needs Blender and the built CLI and library (CRISP_BUILD_DIR)."""
 
+import importlib.util
 import json
 import os
 import shutil
@@ -29,7 +30,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_eval_e2e import CRISP, LIBRARY, Lib, psnr  # noqa: E402  (reads EXRs through libcrisp's C API)
+from test_eval_e2e import CRISP, LIBRARY, SOURCE, Lib, psnr  # noqa: E402  (reads EXRs through libcrisp's C API)
 
 SIZE = "64x36"
 SHOT = (1, 8)
@@ -230,3 +231,26 @@ if __name__ == "__main__":
     if "--measure" in sys.argv:
         measure(out or tempfile.mkdtemp(prefix="crisp_preroll_"), tuple(scenes) or MEASURE_SCENES,
                 prerolls or (0, 1, 2, 4, 8, 16, 32))
+
+
+def test_cli_and_addon_take_each_frames_jitter_from_its_sidecar(shot, lib, tmp_path):
+    """`crisp filter` and the add-on's FrameFilter both give temporal filters each frame's jitter from
+    its sidecar: with the Blackman-Harris sample weighting (which reads the jitter) their outputs are
+    bit-identical, and differ from the unweighted run (equal jitter everywhere would weight all
+    frames alike, which is the unweighted running average)."""
+    _, inputs = shot
+    crisp("filter", "--method", "taa", "--set", "jitterWeighting=blackman-harris", "--quiet",
+          "-o", tmp_path / "cli", *inputs)
+    crisp("filter", "--method", "taa", "--quiet", "-o", tmp_path / "plain", *inputs)
+    os.environ["CRISP_LIBRARY"] = LIBRARY
+    # addon/crisp/native.py is pure ctypes; load it alone (the package's __init__ needs bpy).
+    spec = importlib.util.spec_from_file_location("crisp_native", os.path.join(SOURCE, "addon", "crisp", "native.py"))
+    native = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(native)
+    ff = native.FrameFilter("taa", {"jitterWeighting": "blackman-harris"}, 0, ("color", "depth", "motion"))
+    os.makedirs(tmp_path / "addon")
+    for path in inputs:
+        ff.run(path, [str(tmp_path / "addon" / os.path.basename(path))])
+    frames = range(SHOT[0], SHOT[1] + 1)
+    assert max_diff(lib, tmp_path / "cli", tmp_path / "addon", frames) == 0.0
+    assert max_diff(lib, tmp_path / "cli", tmp_path / "plain", frames) > 0.0

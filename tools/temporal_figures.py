@@ -1,0 +1,158 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Issue 4's figures from `crisp eval` output folders: per scene and method, the means over the frames
+after a warm-up (PSNR, SSIM, perceptual error, temporal error), the distance to EEVEE at 8 samples,
+the bars of issue 4, and on a scene with a moving object a ghosting error.
+
+Ghosting error (seed 000's ghosting protocol, measured where ghosts live): the mean absolute error,
+on display-encoded values, over the pixels whose reference changed by more than 0.1 in the previous
+`--trail` frames: the background just uncovered by a moving object and the object's new position.
+A method that keeps stale history there (a ghost trail) scores high.
+
+Runs inside Blender (for its EXR reader, which reads the zip-compressed files crisp writes):
+    blender -b --factory-startup --python tools/temporal_figures.py -- [--warmup 8] [--trail 8]
+        [--json OUT.json] EVALDIR...
+Prints a Markdown table per scene."""
+
+import argparse
+import json
+import math
+import os
+import sys
+
+import bpy
+import numpy as np
+
+TEMPORAL = ("taa", "taa-improved", "phlm")
+
+
+def read_rgb(path, cache={}):
+    if path not in cache:
+        img = bpy.data.images.load(path, check_existing=False)
+        w, h = img.size
+        a = np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4)[..., :3]
+        bpy.data.images.remove(img)
+        cache.clear() if len(cache) > 64 else None
+        cache[path] = a
+    return cache[path]
+
+
+def encode(a):
+    a = np.clip(a, 0.0, 1.0)
+    return np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)
+
+
+def mean_after(rows, key, warmup):
+    vals = [r[key] for r in rows if r["frame"] > warmup and r.get(key) is not None]
+    return sum(vals) / len(vals) if vals else float("nan")
+
+
+def ghosting_error(evaldir, files, ref_dir, frames, warmup, trail):
+    """Mean |out - ref| (display-encoded) over recently changed reference pixels, frames after warm-up."""
+    total, count = 0.0, 0
+    for i, f in enumerate(frames):
+        if f <= warmup or i < trail:
+            continue
+        ref = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % f)))
+        changed = np.zeros(ref.shape[:2], dtype=bool)
+        for k in range(1, trail + 1):
+            prev = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % frames[i - k])))
+            changed |= np.abs(ref - prev).max(axis=2) > 0.1
+        if not changed.any():
+            continue
+        out = encode(read_rgb(os.path.join(evaldir, files[f])))
+        err = np.abs(out - ref).mean(axis=2)
+        total += float(err[changed].sum())
+        count += int(changed.sum())
+    return total / count if count else float("nan")
+
+
+def summarize(evaldir, warmup, trail):
+    with open(os.path.join(evaldir, "results.json")) as fh:
+        results = json.load(fh)
+    out = []
+    for scene in results["scenes"]:
+        ref_dir = os.path.join(evaldir, "renders", "reference_%d" % scene["reference"]["samples"]) \
+            if isinstance(scene.get("reference"), dict) and "samples" in scene["reference"] else None
+        if ref_dir is None or not os.path.isdir(ref_dir):
+            ref_dir = next(os.path.join(evaldir, "renders", d) for d in sorted(os.listdir(os.path.join(evaldir, "renders")))
+                           if d.startswith("reference_"))
+        moving = "nothing moves" not in str(scene.get("temporal_error_warp", ""))
+        rows = []
+        for m in scene["methods"] + scene["eevee_curve"]:
+            frames = [r["frame"] for r in m["frames"]]
+            files = {r["frame"]: r["file"] for r in m["frames"]}
+            row = {"name": m["name"], "kind": m["kind"], "samples": m.get("samples", 1)}
+            for key in ("psnr", "ssim", "perceptual_error", "temporal_error", "filter_s", "time_s"):
+                row[key] = mean_after(m["frames"], key, warmup)
+            row["ghosting_error"] = ghosting_error(evaldir, files, ref_dir, frames, warmup, trail) if moving else None
+            rows.append(row)
+        out.append({"scene": scene["name"], "resolution": scene["resolution"], "frames": scene["frames"],
+                    "reference": os.path.basename(ref_dir), "warmup": warmup, "trail": trail, "rows": rows,
+                    "bars": bars(rows)})
+    return out
+
+
+def bars(rows):
+    by = {r["name"]: r for r in rows}
+    res = {}
+    for m in TEMPORAL:
+        if m not in by:
+            continue
+        r = by[m]
+        for base in ("none", "blender-smaa"):
+            if base in by:
+                res["%s beats %s on PSNR" % (m, base)] = r["psnr"] > by[base]["psnr"]
+                res["%s beats %s on temporal error" % (m, base)] = r["temporal_error"] < by[base]["temporal_error"]
+    if "taa" in by and "taa-improved" in by and by["taa"]["ghosting_error"] is not None:
+        res["taa-improved less ghosting than taa"] = by["taa-improved"]["ghosting_error"] < by["taa"]["ghosting_error"]
+    if "taa" in by and "phlm" in by:
+        res["phlm >= taa on PSNR"] = by["phlm"]["psnr"] >= by["taa"]["psnr"]
+        res["phlm <= taa on temporal error"] = by["phlm"]["temporal_error"] <= by["taa"]["temporal_error"]
+    return res
+
+
+def fmt(v, spec):
+    return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, spec)
+
+
+def markdown(summary):
+    lines = []
+    for s in summary:
+        lines.append("### %s (%s, frames %s, %s; means over frames > %d)" % (
+            s["scene"], "x".join(map(str, s["resolution"])), "-".join(map(str, s["frames"])), s["reference"], s["warmup"]))
+        lines.append("")
+        eevee8 = next((r for r in s["rows"] if r["name"] == "eevee-8"), None)
+        lines.append("| method | PSNR | SSIM | perceptual | temporal err | ghosting err | dB to EEVEE 8 | filter ms |")
+        lines.append("|---|---|---|---|---|---|---|---|")
+        for r in s["rows"]:
+            gap = (r["psnr"] - eevee8["psnr"]) if eevee8 else None
+            lines.append("| %s | %s | %s | %s | %s | %s | %s | %s |" % (
+                r["name"], fmt(r["psnr"], ".2f"), fmt(r["ssim"], ".4f"), fmt(r["perceptual_error"], ".4f"),
+                fmt(r["temporal_error"], ".4f"), fmt(r["ghosting_error"], ".4f"), fmt(gap, "+.2f"),
+                fmt(r["filter_s"] * 1000 if r["filter_s"] == r["filter_s"] else None, ".1f")))
+        lines.append("")
+        for k, v in s["bars"].items():
+            lines.append("- %s: %s" % (k, "yes" if v else "**NO**"))
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    p = argparse.ArgumentParser(prog="temporal_figures.py")
+    p.add_argument("evaldirs", nargs="+")
+    p.add_argument("--warmup", type=int, default=8, help="frames left out of the means (default 8)")
+    p.add_argument("--trail", type=int, default=8, help="frames of reference change the ghosting mask covers")
+    p.add_argument("--json", default="")
+    a = p.parse_args(argv)
+    summary = []
+    for d in a.evaldirs:
+        summary += summarize(d, a.warmup, a.trail)
+    print(markdown(summary))
+    if a.json:
+        with open(a.json + ".tmp", "w") as fh:
+            json.dump(summary, fh, indent=1)
+        os.replace(a.json + ".tmp", a.json)
+
+
+main()
