@@ -18,8 +18,7 @@ out=${1:-out/main}
 start=$SECONDS
 scripts/install-deps.sh
 scripts/build.sh release --target crisp_cli crisp >/dev/null
-# rsaa is left out until its geometric sub-samples are wired into the pipeline (issue 5).
 build/bin/crisp eval --scene still_life --frames 1-8 --resolution 480x270 --reference-samples 64 \
-  --methods none,fxaa,repair,taa,taa-improved,phlm -o "$out"
+  --methods none,fxaa,repair,rsaa,taa,taa-improved,phlm -o "$out"
 echo "main job finished in $((SECONDS - start)) s"
 echo "report: $(realpath "$out/report.html")"
