@@ -36,6 +36,7 @@
 #include <cstring>
 
 #include "core/color.h"
+#include "core/cpu.h"
 #include "core/error.h"
 #include "core/filter.h"
 #include "core/parallel.h"
@@ -374,18 +375,6 @@ CRISP_REPAIR_AVX2 void sobelRowAvx2(const float* up, const float* mid, const flo
 CRISP_REPAIR_AVX2 RowStats rowStatsAvx2(const float* row, int width) { return rowStatsBody(row, width); }
 constexpr RowFunctions kAvx2Rows = {greyRowAvx2, sanitizeRowAvx2, sobelRowAvx2, rowStatsAvx2};
 #endif
-
-bool cpuHasAvx2() {
-#ifdef CRISP_REPAIR_HAS_AVX2_ROWS
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has;
-#else
-  return false;
-#endif
-}
 
 const RowFunctions& rowFunctions(RowIsa isa) {
 #ifdef CRISP_REPAIR_HAS_AVX2_ROWS

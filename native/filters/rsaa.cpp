@@ -18,6 +18,7 @@
 #include <string>
 
 #include "core/color.h"
+#include "core/cpu.h"
 #include "core/error.h"
 #include "core/filter.h"
 #include "core/parallel.h"
@@ -284,9 +285,8 @@ std::atomic<int> gSimdLanes{0};  // setSimdLanesForTesting
 
 bool useAvx2() {
 #if defined(CRISP_RSAA_AVX2)
-  static const bool has = (__builtin_cpu_init(), __builtin_cpu_supports("avx2") != 0);
   const int lanes = gSimdLanes.load(std::memory_order_relaxed);
-  return has && lanes != 4;
+  return cpuHasAvx2() && lanes != 4;
 #else
   return false;
 #endif

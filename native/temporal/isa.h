@@ -9,6 +9,8 @@
 
 #include <atomic>
 
+#include "core/cpu.h"
+
 namespace crisp::temporal {
 
 enum class Isa { Auto, Baseline };  // Auto: AVX2 when the CPU has it
@@ -20,11 +22,7 @@ enum class Isa { Auto, Baseline };  // Auto: AVX2 when the CPU has it
 
 inline bool cpuHasAvx2() {
 #ifdef CRISP_TEMPORAL_HAS_AVX2
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has;
+  return crisp::cpuHasAvx2();
 #else
   return false;
 #endif
