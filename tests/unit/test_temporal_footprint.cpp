@@ -27,10 +27,29 @@ struct StillRun {
   std::vector<Image> outputs;
 };
 
+constexpr int kW = 40, kH = 28, kFrames = 24;
+constexpr float kAngles[] = {0.0f, 17.0f, 63.0f};
+
+// kFrames of a still, high-contrast edge (dark 0.05, light 0.8) at angleDeg,
+// 1 sample per pixel jittered like EEVEE (Blackman-Harris over +-1.5 px), with
+// the Blackman-Harris reference.
+std::vector<synth::FrameData> stillEdgeFrames(float angleDeg) {
+  synth::FrameOptions opt;
+  opt.jitter = synth::JitterKind::BlackmanHarris;
+  opt.filterSize = 1.5f;  // EEVEE's default: samples over +-1.5 px
+  opt.reference = synth::ReferenceKind::BlackmanHarris;
+  opt.period = kFrames;
+  const synth::Sequence seq = synth::movingEdgeSequence(kW, kH, angleDeg, 0.0f, 0.0f);
+  std::vector<synth::FrameData> input;
+  for (int t = 0; t < kFrames; ++t) input.push_back(synth::renderFrame(seq, kW, kH, t, opt));
+  return input;
+}
+
+// method on the frames with one boolean parameter set (fast or reference path).
 StillRun filterStill(const char* method, const std::vector<synth::FrameData>& frames, const Image& reference,
-                bool staticClip, bool referencePath) {
+                     const char* flag, bool value, bool referencePath) {
   test::TemporalDriver d(method, referencePath ? 1 : 2);
-  d.filter->params().setBool("staticClip", staticClip);
+  d.filter->params().setBool(flag, value);
   d.filter->params().setBool("reference", referencePath);
   StillRun r;
   for (const synth::FrameData& f : frames) {
@@ -44,22 +63,14 @@ StillRun filterStill(const char* method, const std::vector<synth::FrameData>& fr
 }  // namespace
 
 TEST(TemporalFootprint, StillEdgeUnderWideJitterConvergesWithoutDrops) {
-  const int w = 40, h = 28, frames = 24, warmUp = 6;
-  synth::FrameOptions opt;
-  opt.jitter = synth::JitterKind::BlackmanHarris;
-  opt.filterSize = 1.5f;  // EEVEE's default: samples over +-1.5 px
-  opt.reference = synth::ReferenceKind::BlackmanHarris;
-  opt.period = frames;
-  for (float angle : {0.0f, 17.0f, 63.0f}) {
-    // A still, high-contrast edge (dark 0.05, light 0.8).
-    const synth::Sequence seq = synth::movingEdgeSequence(w, h, angle, 0.0f, 0.0f);
-    std::vector<synth::FrameData> input;
-    for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, opt));
+  const int frames = kFrames, warmUp = 6;
+  for (float angle : kAngles) {
+    const std::vector<synth::FrameData> input = stillEdgeFrames(angle);
     const Image& reference = input[0].reference;
     for (const char* method : {"taa", "taa-improved"}) {
-      const StillRun clip = filterStill(method, input, reference, true, false);
-      const StillRun pure = filterStill(method, input, reference, false, false);
-      const StillRun scalar = filterStill(method, input, reference, true, true);
+      const StillRun clip = filterStill(method, input, reference, "staticClip", true, false);
+      const StillRun pure = filterStill(method, input, reference, "staticClip", false, false);
+      const StillRun scalar = filterStill(method, input, reference, "staticClip", true, true);
       double worstGap = 0.0;
       for (int t = warmUp; t < frames; ++t) {
         worstGap = std::max(worstGap, pure.psnr[t] - clip.psnr[t]);
@@ -84,30 +95,15 @@ TEST(TemporalFootprint, StillEdgeUnderWideJitterConvergesWithoutDrops) {
 // edges its models survive the box correction, so it ends close to taa's pure
 // accumulation, well above the paper's 3x3 box; both paths agree bit for bit.
 TEST(TemporalFootprint, PhlmFootprintBoxKeepsConvergedModels) {
-  const int w = 40, h = 28, frames = 24;
-  synth::FrameOptions opt;
-  opt.jitter = synth::JitterKind::BlackmanHarris;
-  opt.filterSize = 1.5f;
-  opt.reference = synth::ReferenceKind::BlackmanHarris;
-  opt.period = frames;
-  for (float angle : {0.0f, 17.0f, 63.0f}) {
-    const synth::Sequence seq = synth::movingEdgeSequence(w, h, angle, 0.0f, 0.0f);
-    std::vector<synth::FrameData> input;
-    for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, opt));
+  const int frames = kFrames;
+  for (float angle : kAngles) {
+    const std::vector<synth::FrameData> input = stillEdgeFrames(angle);
     const Image& reference = input[0].reference;
     auto runPhlm = [&](bool footprint, bool referencePath) {
-      test::TemporalDriver d("phlm", referencePath ? 1 : 2);
-      d.filter->params().setBool("footprintBox", footprint);
-      d.filter->params().setBool("reference", referencePath);
-      StillRun r;
-      for (const synth::FrameData& f : input) {
-        r.outputs.push_back(d.run(f, false, false, false));
-        r.psnr.push_back(test::psnr(reference, r.outputs.back()));
-      }
-      return r;
+      return filterStill("phlm", input, reference, "footprintBox", footprint, referencePath);
     };
     const StillRun paper = runPhlm(false, false), wide = runPhlm(true, false), scalar = runPhlm(true, true);
-    const StillRun pure = filterStill("taa", input, reference, false, false);
+    const StillRun pure = filterStill("taa", input, reference, "staticClip", false, false);
     for (int t = 0; t < frames; ++t)
       ASSERT_EQ(0, std::memcmp(wide.outputs[t].data.data(), scalar.outputs[t].data.data(),
                                wide.outputs[t].data.size() * sizeof(float)))
