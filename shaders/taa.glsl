@@ -219,8 +219,11 @@ void taaResolvePass() {
     bool staticPixel = staticAccumulation != 0 && !moving && hist.w > 0.0;
     float excess = 0.0;
     if (staticPixel && staticClip != 0) {
-      MinMax4 box = mark > 0.0 ? box3x3 : footprintBox(box3x3, x, y, clipSpace);
-      clipTowardCentre4(hist, box.lo, box.hi, excess);
+      clipTowardCentre4(hist, box3x3.lo, box3x3.hi, excess);
+      if (excess > 1.0 && !(mark > 0.0)) {
+        MinMax4 box = footprintBox(box3x3, x, y, clipSpace);
+        clipTowardCentre4(hist, box.lo, box.hi, excess);
+      }
     }
     if (staticPixel && (staticClip == 0 || !(excess > 1.0))) {
       result = hist + (current - hist) * (weight / weightSum);

@@ -123,7 +123,6 @@ struct Frame {
   float sampleWeight;          // w of this frame's sample
   float feedbackMin, feedbackMax;
   bool staticAccumulation, staticClip;
-  bool footprintBoxes;         // the static test will run: fast rows gather 5x5 column reductions
   std::uint8_t* feedbackSinceReset;    // Kernel::feedbackSinceReset_, read and written in place
   float maxSamples;
   float depthTolerance;
@@ -261,9 +260,14 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
     // went through the feedback path (a trail behind a moving object, a
     // clipped firefly: plausible colours of the footprint, but wrong) keeps
     // the 3x3 box.
+    // The footprint box contains the 3x3 box: it is gathered only for
+    // history outside the 3x3 box (the same decision, at a fraction of the cost).
     if (staticPixel && f.staticClip) {
-      const temporal::MinMax4 box = feedbackSinceReset ? nb.box3x3 : footprintBox();
-      temporal::clipTowardCentre4(hist, box.min, box.max, &excess);
+      temporal::clipTowardCentre4(hist, nb.box3x3.min, nb.box3x3.max, &excess);
+      if (excess > 1.0f && !feedbackSinceReset) {
+        const temporal::MinMax4 box = footprintBox();
+        temporal::clipTowardCentre4(hist, box.min, box.max, &excess);
+      }
     }
     if (staticPixel && (!f.staticClip || !(excess > 1.0f))) {
       // Running average, weight w/W, in linear light.
@@ -432,13 +436,20 @@ void fastRows(const Frame& f, const BandScratch& s, int y0, int y1, float* depth
           temporal::load4(s0 + 4 * i), temporal::load4(s1 + 4 * i), temporal::load4(s2 + 4 * i));
       temporal::store4(s.columnMin + 4 * i, c.min);
       temporal::store4(s.columnMax + 4 * i, c.max);
-      if (!f.footprintBoxes) continue;
-      temporal::TwoExtremes4 e = temporal::twoExtremesOf(temporal::load4(sUp2 + 4 * i), temporal::load4(s0 + 4 * i));
-      temporal::addTap(e, temporal::load4(s1 + 4 * i));
-      temporal::addTap(e, temporal::load4(s2 + 4 * i));
-      temporal::addTap(e, temporal::load4(sDown2 + 4 * i));
-      std::memcpy(s.columnExtremes + 16 * i, &e, sizeof e);
     }
+    // The 5-row column extremes, gathered for the whole row when its first
+    // pixel takes the footprint test (never in a row where everything moves).
+    bool extremesReady = false;
+    auto gatherExtremes = [&] {
+      for (int i = 0; i < w + 2; ++i) {
+        temporal::TwoExtremes4 e = temporal::twoExtremesOf(temporal::load4(sUp2 + 4 * i), temporal::load4(s0 + 4 * i));
+        temporal::addTap(e, temporal::load4(s1 + 4 * i));
+        temporal::addTap(e, temporal::load4(s2 + 4 * i));
+        temporal::addTap(e, temporal::load4(sDown2 + 4 * i));
+        std::memcpy(s.columnExtremes + 16 * i, &e, sizeof e);
+      }
+      extremesReady = true;
+    };
     const float* d1 = s.depth[mid];
     if (followDepth) temporal::closestDepthTapsRow(s.depth[up], d1, s.depth[down], w, s.tap, s.tapDepth);
     for (int x = 0; x < w; ++x) {
@@ -458,6 +469,7 @@ void fastRows(const Frame& f, const BandScratch& s, int y0, int y1, float* depth
         nb.tapDepth = f.depth.ptr ? d1[i] : kBackgroundDepth;
       }
       resolvePixel(f, x, y, nb, [&] {
+        if (!extremesReady) gatherExtremes();
         // Columns x - 2 .. x + 2, clamped as the reference's taps are (padding
         // column 0 / w + 1 = the edge pixel, so index -1 reads it again).
         auto column = [&](int k) {
@@ -582,7 +594,6 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   f.feedbackMax = s.feedbackMax;
   f.staticAccumulation = s.staticAccumulation;
   f.staticClip = s.staticClip;
-  f.footprintBoxes = s.staticAccumulation && s.staticClip && frames_ > 0;
   f.feedbackSinceReset = feedbackSinceReset_.data();
   f.maxSamples = float(std::max(1, s.maxSamples));
   f.depthTolerance = s.depthTolerance;
