@@ -10,13 +10,17 @@
 //                       historyImage (the previous history, RGBA32F, colour in
 //                       the clip space + signed sample weight), motionImage
 //                       (optional, hasMotion; pixels, previous - current, the
-//                       texture's y) -> out vec4 historyOut (location 0),
-//                       out vec4 fragColor (location 1, the output unless sharpening)
+//                       texture's y), markImage (R32F: taa.cpp's
+//                       feedbackSinceReset of that history, 0/1)
+//                       -> out vec4 historyOut (location 0),
+//                       out vec4 fragColor (location 1, the output unless sharpening),
+//                       out float markOut (location 2, the mark of historyOut)
 //     = taa.cpp referencePixel + resolvePixel without depth and aliasedValue;
 //  2. TAA_SHARPEN_PASS  historyImage (the history just written), colorImage
 //                       (alpha) -> out vec4 fragColor = taa.cpp sharpenPixel<true>.
-// History ping-pongs between two textures kept by gpu_filters.py between
-// redraws (the C++ Kernel's history_[2]); hasHistory = 0 is Kernel::reset().
+// History and mark ping-pong between two texture pairs kept by gpu_filters.py
+// between redraws (the C++ Kernel's history_[2]; its feedbackSinceReset_ plane
+// is updated in place there); hasHistory = 0 is Kernel::reset().
 //
 // Parameters (taa.cpp table; enum-valued ones as ints):
 //   jitterX 0, jitterY 0 (pixels, the texture's x and y),
@@ -80,6 +84,18 @@ void columnFirstBoxes4(vec4 taps[9], out MinMax4 box3x3, out MinMax4 cross) {
   vec4 rmin = vmin(vmin(taps[2], taps[5]), taps[8]), rmax = vmax(vmax(taps[2], taps[5]), taps[8]);
   box3x3 = MinMax4(vmin(vmin(lmin, cmin), rmin), vmax(vmax(lmax, cmax), rmax));
   cross = MinMax4(vmin(vmin(taps[3], cmin), taps[5]), vmax(vmax(taps[3], cmax), taps[5]));
+}
+
+// ---- temporal/neighbourhood.h TwoExtremes4 ---------------------------------
+struct TwoExtremes4 {
+  vec4 max1, max2, min1, min2;
+};
+TwoExtremes4 twoExtremesOf(vec4 a, vec4 b) { return TwoExtremes4(vmax(a, b), vmin(a, b), vmin(a, b), vmax(a, b)); }
+void addTap(inout TwoExtremes4 e, vec4 v) {
+  e.max2 = vmax(e.max2, vmin(e.max1, v));
+  e.max1 = vmax(e.max1, v);
+  e.min2 = vmin(e.min2, vmax(e.min1, v));
+  e.min1 = vmin(e.min1, v);
 }
 
 // ---- temporal/neighbourhood.h clipTowardCentre4 ----------------------------
@@ -148,6 +164,15 @@ vec4 fetchCatmullRom4(float x, float y) {
 bool finiteMotion(float mx, float my) { return finiteValue(mx) && finiteValue(my); }
 
 #ifdef TAA_RESOLVE_PASS
+// taa.cpp footprintBox of the reference path: the 3x3 box united with the 5x5
+// box of second-largest / second-smallest values (clamped taps, row order).
+MinMax4 footprintBox(MinMax4 box3x3, int x, int y, int space) {
+  TwoExtremes4 e = twoExtremesOf(stagePixel(fetchClamped(colorImage, x - 2, y - 2), space),
+                                 stagePixel(fetchClamped(colorImage, x - 1, y - 2), space));
+  for (int i = 2; i < 25; ++i) addTap(e, stagePixel(fetchClamped(colorImage, x + i % 5 - 2, y + i / 5 - 2), space));
+  return MinMax4(vmin(box3x3.lo, e.min2), vmax(box3x3.hi, e.max2));
+}
+
 // taa.cpp referencePixel + resolvePixel (no depth, no aliasedValue).
 void taaResolvePass() {
   ivec2 p = fragmentPixel();
@@ -189,14 +214,22 @@ void taaResolvePass() {
   vec4 result = current;
   float newWeight = weight;
   bool reset = !valid || !(weightSum > 0.0);
+  float mark = texelFetch(markImage, p, 0).r;  // feedbackSinceReset
   if (!reset) {
     bool staticPixel = staticAccumulation != 0 && !moving && hist.w > 0.0;
     float excess = 0.0;
-    if (staticPixel) clipTowardCentre4(hist, box3x3.lo, box3x3.hi, excess);
+    if (staticPixel && staticClip != 0) {
+      clipTowardCentre4(hist, box3x3.lo, box3x3.hi, excess);
+      if (excess > 1.0 && !(mark > 0.0)) {
+        MinMax4 box = footprintBox(box3x3, x, y, clipSpace);
+        clipTowardCentre4(hist, box.lo, box.hi, excess);
+      }
+    }
     if (staticPixel && (staticClip == 0 || !(excess > 1.0))) {
       result = hist + (current - hist) * (weight / weightSum);
       newWeight = min(weightSum, float(max(1, maxSamples)));
     } else {
+      mark = 1.0;  // kept until a reset
       vec4 lo = 0.5 * (box3x3.lo + cross.lo);
       vec4 hi = 0.5 * (box3x3.hi + cross.hi);
       vec4 clipped = clipTowardCentre4(hist, lo, hi, excess);
@@ -214,9 +247,11 @@ void taaResolvePass() {
   if (reset) {
     result = current;
     newWeight = weight;
+    mark = 0.0;
   }
   result.w = moving ? -newWeight : newWeight;
   historyOut = result;
+  markOut = mark;
   if (reset) {
     vec4 c = sanitizeColor4(texelFetch(colorImage, p, 0));  // the input itself, not its YCoCg round trip
     fragColor = vec4(c.rgb, alpha);

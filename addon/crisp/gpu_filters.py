@@ -49,7 +49,7 @@ FILES = {
         "push": (("FLOAT", "kappa"), ("INT", "patchSize"), ("INT", "mask"), ("INT", "angleEstimator")),
     },
     "taa": {
-        "samplers": ("colorImage", "historyImage", "motionImage"),
+        "samplers": ("colorImage", "historyImage", "motionImage", "markImage"),
         "push": (("FLOAT", "jitterX"), ("FLOAT", "jitterY"), ("INT", "jitterWeighting"), ("FLOAT", "filterSize"),
                  ("INT", "historyFilter"), ("INT", "clipSpace"), ("FLOAT", "feedbackMin"),
                  ("FLOAT", "feedbackMax"), ("FLOAT", "sharpen"), ("INT", "staticAccumulation"),
@@ -64,7 +64,8 @@ PASSES = {
     "repair_stats": ("repair", "REPAIR_STATS_PASS", "repairStatsPass", (("VEC4", "statsOut"),)),
     "repair_reduce": ("repair", "REPAIR_REDUCE_PASS", "repairReducePass", (("VEC4", "statsOut"),)),
     "repair_resolve": ("repair", "REPAIR_RESOLVE_PASS", "repairResolvePass", (("VEC4", "fragColor"),)),
-    "taa_resolve": ("taa", "TAA_RESOLVE_PASS", "taaResolvePass", (("VEC4", "historyOut"), ("VEC4", "fragColor"))),
+    "taa_resolve": ("taa", "TAA_RESOLVE_PASS", "taaResolvePass",
+                    (("VEC4", "historyOut"), ("VEC4", "fragColor"), ("FLOAT", "markOut"))),
     "taa_sharpen": ("taa", "TAA_SHARPEN_PASS", "taaSharpenPass", (("VEC4", "fragColor"),)),
     # Viewport preview (common.glsl only): the colour-managed view decoded to linear by the sRGB curve, and
     # the filtered texture drawn at a pixel offset for the 3D view's overlay buffer (see DISPLAY_SOURCE).
@@ -263,10 +264,12 @@ class GpuFilter:
                 if w == 1 and h == 1:
                     break
         elif self.method == "taa":
-            # history[i] and the output share a framebuffer (MRT: history at slot 0, output at slot 1).
+            # history[i], the output and mark[i] share a framebuffer (MRT: history at slot 0, output at
+            # slot 1, mark at slot 2: taa.cpp's feedbackSinceReset, which picks the box of the static test).
             self.history_tex = [gpu.types.GPUTexture((width, height), format="RGBA32F") for _ in range(2)]
-            self.history_fb = [gpu.types.GPUFrameBuffer(color_slots=(t, self.output.texture))
-                               for t in self.history_tex]
+            self.mark_tex = [gpu.types.GPUTexture((width, height), format="R32F") for _ in range(2)]
+            self.history_fb = [gpu.types.GPUFrameBuffer(color_slots=(t, self.output.texture, m))
+                               for t, m in zip(self.history_tex, self.mark_tex)]
             self.current = 0
             self.zero_motion = gpu.types.GPUTexture((width, height), format="RGBA32F")
 
@@ -302,11 +305,13 @@ class GpuFilter:
         target = Target.__new__(Target)
         target.width, target.height = width, height
         target.framebuffer = self.history_fb[nxt]
-        samplers = {"colorImage": color, "historyImage": previous, "motionImage": motion or self.zero_motion}
+        samplers = {"colorImage": color, "historyImage": previous, "motionImage": motion or self.zero_motion,
+                    "markImage": self.mark_tex[self.current]}
         run_pass("taa_resolve", target, samplers, _constants("taa", p))
         if float(p["sharpen"]) > 0.0:
             run_pass("taa_sharpen", self.output, {"colorImage": color, "historyImage": self.history_tex[nxt],
-                                                  "motionImage": self.zero_motion}, _constants("taa", p))
+                                                  "motionImage": self.zero_motion, "markImage": self.mark_tex[nxt]},
+                     _constants("taa", p))
         self.current = nxt
         self.frames += 1
 

@@ -40,6 +40,22 @@
 //    HDR range, and l, Delta are tonemapped luminances in [0, 1) (the paper's
 //    a, b were tuned on LDR values).
 //  * "Low-frequency colour" = the 3x3 box average of this frame.
+//  * Box (footprintBox = true, a deviation from lines 13-19, which use the
+//    3x3 colour box): where nothing in the 5x5 moves, the correction and the
+//    output clamp use the footprint box, the 3x3 box united with the 5x5 box
+//    of second-largest /
+//    second-smallest values per channel (taa.cpp: one firefly does not widen
+//    it). With samples jittered over +-filterSize = +-1.5 px (EEVEE's draw,
+//    docs/sampling.md) a converged model next to an edge predicts a mix over
+//    the whole footprint, which one frame's 3x3 (samples at [-1, 1] px
+//    shifted by the jitter) misses: still_life frame 8 fell 31.0 -> 27.0 dB
+//    on such box resets (30.7 dB with footprintBox). Where something moves
+//    nearby, the 3x3 box stays (a trail must not hide in the wider box).
+//    Off by default: the output then no longer always lies in the current
+//    3x3 box, which test_phlm_stability.cpp asserts, and a slow change of a
+//    still gradient lags more (the wider box accepts older values). Using the
+//    footprint box for the correction only does not help (27.2 dB): the
+//    output clamp to the 3x3 box throws the converged value away as well.
 //  * l = distance of the feature's luminance to [Ymin, Ymax] of the 3x3 (0
 //    inside), Delta = Ymax - Ymin. We read alpha as the weight of the CURRENT
 //    low-frequency colour (alpha = 0 would freeze a feature that lies in range,
@@ -71,6 +87,7 @@
 // | featureA | float | 0.125 | [0, 10] | a of phi | §5.1 |
 // | featureB | float | 0.25 | [0, 10] | b of phi | §5.1 |
 // | featureAlphaMin | float | 0.05 | [0, 1] | floor of the feature's current weight | this file |
+// | footprintBox | bool | false | - | still pixels: 3x3 box united with the 5x5 values seen twice | docs/sampling.md |
 // | depthTolerance | float | 0.05 | [0, 10] | relative depth change still the same surface | this file |
 // | reference | bool | false | - | scalar reference path | this file |
 #include "filters/phlm.h"
@@ -89,6 +106,7 @@
 #include "temporal/isa.h"
 #include "temporal/rows.h"
 #include "temporal/jitter.h"
+#include "temporal/neighbourhood.h"
 #include "temporal/vec4.h"
 #include "temporal/velocity.h"
 
@@ -112,6 +130,7 @@ struct Frame {
   T inverseLambda, regulariserVariance[kDims], regulariserWeight[kDims], sampleVariance, sampleWeight, p0, ps;
   bool update;                 // sample weight > 0
   bool bilinearBeta;           // reproject beta bilinearly (else nearest)
+  bool footprintBox;           // still pixels use the footprint box (header, "Box")
   T boxResetScale;             // P after a box correction = boxResetScale * P0
   int axis;                    // regularised axis of this frame
   T featureA, featureB, featureAlphaMin;
@@ -209,6 +228,28 @@ CRISP_PHLM_INLINE T rayEntry(const T f[3], const T y[3], const T lo[3], const T 
   return std::min(t, T(1));
 }
 
+// Tap i (row-major) of the 5x5 around (x, y), clamped to the image in every
+// path (the fast path's unclamped interior is only one pixel deep).
+template <class T>
+inline temporal::Vec4 stagedTap(const Frame<T>& f, int x, int y, int i) {
+  const int tx = std::clamp(x + i % 5 - 2, 0, f.width - 1), ty = std::clamp(y + i / 5 - 2, 0, f.height - 1);
+  return temporal::load4(f.staged + (std::size_t(ty) * f.width + tx) * 4);
+}
+
+// Nothing in the 5x5 around (x, y) moves (no motion image: a still scene), so
+// every colour of the footprint box belongs to still surfaces and a
+// reprojected trail of a moving object cannot hide in it.
+template <class T>
+inline bool stillFootprint(const Frame<T>& f, int x, int y) {
+  if (!f.motion.ptr) return true;
+  for (int i = 0; i < 25; ++i) {
+    const int tx = std::clamp(x + i % 5 - 2, 0, f.width - 1), ty = std::clamp(y + i / 5 - 2, 0, f.height - 1);
+    const float* m = f.motion.pixel(tx, ty);
+    if (m[0] != 0.0f || m[1] != 0.0f) return false;
+  }
+  return true;
+}
+
 // Always inlined: into both copies of the row loop (temporal/isa.h).
 template <class T, bool Clamp>
 __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
@@ -240,8 +281,8 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
       if (i == 4) centre = c;
       if (f.depth) depth9[i] = f.depth[std::size_t(ty) * w + tx];
     }
-  const T lo[3] = {T(boxLo[0]), T(boxLo[1]), T(boxLo[2])};
-  const T hi[3] = {T(boxHi[0]), T(boxHi[1]), T(boxHi[2])};
+  T lo[3] = {T(boxLo[0]), T(boxLo[1]), T(boxLo[2])};
+  T hi[3] = {T(boxHi[0]), T(boxHi[1]), T(boxHi[2])};
   const T sum[3] = {T(boxSum[0]), T(boxSum[1]), T(boxSum[2])};
   const T current[3] = {T(centre[0]), T(centre[1]), T(centre[2])};
   const T yMin = T(boxLo[3]), yMax = T(boxHi[3]);
@@ -256,6 +297,17 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     vy = m[1];
   }
   const bool moving = vx != 0.0f || vy != 0.0f;
+  if (f.footprintBox && !moving && stillFootprint(f, x, y)) {
+    // The box of the correction and of the output clamp: the footprint box
+    // (header, "Box"), the 3x3 box united with the 5x5's second extremes.
+    temporal::TwoExtremes4 e = temporal::twoExtremesOf(stagedTap(f, x, y, 0), stagedTap(f, x, y, 1));
+    for (int i = 2; i < 25; ++i) temporal::addTap(e, stagedTap(f, x, y, i));
+    const Vec4 footLo = temporal::vmin(boxLo, e.min2), footHi = temporal::vmax(boxHi, e.max2);
+    for (int c = 0; c < 3; ++c) {
+      lo[c] = T(footLo[c]);
+      hi[c] = T(footHi[c]);
+    }
+  }
   bool valid = f.hasHistory && temporal::finiteMotion(vx, vy);
   const float px = float(x) + vx, py = float(y) + vy;
   if (valid) valid = temporal::onScreen(px, py, w, h);
@@ -480,6 +532,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.sampleWeight = f.update ? T(weight) : T(1);
   f.axis = frames_ % kDims;
   f.bilinearBeta = s.modelFetch == ModelFetch::Bilinear;
+  f.footprintBox = s.footprintBox;
   f.boxResetScale = T(s.boxResetCovariance) / f.p0;
   if (!(f.boxResetScale > T(0))) invalidArgument("phlm: parameter 'boxResetCovariance' must be > 0");
   f.featureA = T(s.featureA);
@@ -532,6 +585,11 @@ std::vector<ParamSpec> phlmParams() {
        "ps: variance of the 3 feature slopes at initialisation/reset and their bound (the paper: 1000 for all; "
        "smaller keeps the fit from explaining flicker with tiny feature changes)",
        "seed 002 §6 (deviation, phlm.cpp); phlm_rls.h"},
+      {"footprintBox", ParamType::Bool, 0, 0, 1, nullptr,
+       "where nothing in the 5x5 moves, correct and clamp against the 3x3 box united with the 5x5 values seen "
+       "twice: keeps converged models next to edges under jitter over +-1.5 px; false = the 3x3 box (the paper; "
+       "the output then always lies in the current 3x3 box)",
+       "seed 002 Alg. 1 lines 13-19 (deviation, phlm.cpp); docs/sampling.md"},
       {"boxResetCovariance", ParamType::Float, 1000.0, 1e-4, 1e6, nullptr,
        "intercept variance of the model reset to the box-corrected prediction (Algorithm 1 line 18); the slope "
        "variances are scaled alike. = initialCovariance: the paper (the output then follows y); small: the "
@@ -580,6 +638,7 @@ class PhlmFilter final : public Filter {
     settings_.initialCovariance = p.getFloat("initialCovariance");
     settings_.slopeCovariance = p.getFloat("slopeCovariance");
     settings_.boxResetCovariance = p.getFloat("boxResetCovariance");
+    settings_.footprintBox = p.getBool("footprintBox");
     settings_.featureA = p.getFloat("featureA");
     settings_.featureB = p.getFloat("featureB");
     settings_.featureAlphaMin = p.getFloat("featureAlphaMin");

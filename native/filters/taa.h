@@ -16,6 +16,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "core/image.h"
@@ -100,6 +101,11 @@ class Kernel {
   std::vector<float> bandScratch_;  // bands_ x scratchFloatsPerBand()
   std::size_t scratchFloatsPerBand() const;
   Image history_[2];
+  // 1 where the history went through the feedback path (moving, or static
+  // history rejected) since its last reset: such history is tested against
+  // the 3x3 box only, the rest against the footprint box. Read and written in
+  // place (each pixel touches only its own entry).
+  std::vector<std::uint8_t> feedbackSinceReset_;
   std::vector<float> depth_[2];
   int current_ = 0;           // index of the history written last
   int frames_ = 0;            // frames since reset; 0 = no history

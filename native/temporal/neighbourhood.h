@@ -143,6 +143,26 @@ inline ColorBox4 roundedBox4(const ColorBox4& a, const ColorBox4& b) {
   return {0.5f * (a.min + b.min), 0.5f * (a.max + b.max), 0.5f * (a.avg + b.avg)};
 }
 
+// The two largest and two smallest values per lane of a set of taps (a value
+// present twice is both; taps repeated by clamp-to-edge count as often as
+// they are read). Exact: the result does not depend on the order of the taps.
+struct TwoExtremes4 {
+  Vec4 max1, max2, min1, min2;
+};
+inline TwoExtremes4 twoExtremesOf(Vec4 a, Vec4 b) { return {vmax(a, b), vmin(a, b), vmin(a, b), vmax(a, b)}; }
+inline void addTap(TwoExtremes4& e, Vec4 v) {
+  e.max2 = vmax(e.max2, vmin(e.max1, v));
+  e.max1 = vmax(e.max1, v);
+  e.min2 = vmin(e.min2, vmax(e.min1, v));
+  e.min1 = vmin(e.min1, v);
+}
+inline void mergeExtremes(TwoExtremes4& e, const TwoExtremes4& o) {
+  e.max2 = vmax(vmin(e.max1, o.max1), vmax(e.max2, o.max2));
+  e.max1 = vmax(e.max1, o.max1);
+  e.min2 = vmin(vmax(e.min1, o.min1), vmin(e.min2, o.min2));
+  e.min1 = vmin(e.min1, o.min1);
+}
+
 // clipTowardCentre on lanes 0-2; lane 3 of the result is p's. *excess as above.
 inline Vec4 clipTowardCentre4(Vec4 p, Vec4 min, Vec4 max, float* excess) {
   const Vec4 centre = 0.5f * (max + min);
