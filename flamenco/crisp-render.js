@@ -15,7 +15,7 @@
 // settings table, compileJob(job), author.Task(name, type),
 // author.Command("exec", {exe, args}), task.addCommand, job.addTask.
 
-const CRISP_METHODS = ["taa", "taa-improved", "phlm", "fxaa", "repair", "none"];
+const CRISP_METHODS = ["taa", "taa-improved", "phlm", "fxaa", "repair", "rsaa", "none"];
 const CRISP_TEMPORAL_METHODS = ["taa", "taa-improved", "phlm"];
 
 const JOB_TYPE = {

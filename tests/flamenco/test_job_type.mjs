@@ -127,7 +127,7 @@ test("a single frame, frame 0 and spaces are accepted", () => {
 });
 
 test("spatial methods get no pre-roll (no history to warm)", () => {
-  for (const method of ["fxaa", "repair", "none"])
+  for (const method of ["fxaa", "repair", "rsaa", "none"])
     for (const t of compile({ ...base, method }))
       assert.equal(flagValue(t.commands[0].parameters.args, "--preroll"), "0", method);
 });
