@@ -30,7 +30,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_eval_e2e import CRISP, LIBRARY, SOURCE, Lib, psnr  # noqa: E402  (reads EXRs through libcrisp's C API)
+from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, psnr  # noqa: E402  (reads EXRs through libcrisp's C API)
 
 SIZE = "64x36"
 SHOT = (1, 8)

@@ -9,9 +9,7 @@ real Blender, then:
     and a screenshot that is not blank.
 Needs Blender, the built CLI and library (CRISP_BUILD_DIR) and Debian's chromium."""
 
-import ctypes
 import json
-import math
 import os
 import re
 import shutil
@@ -21,10 +19,8 @@ import tempfile
 import numpy as np
 import pytest
 
-SOURCE = os.environ.get("CRISP_SOURCE_DIR") or os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-BUILD = os.environ.get("CRISP_BUILD_DIR") or os.path.join(SOURCE, "build")
-CRISP = os.path.join(BUILD, "bin", "crisp")
-LIBRARY = os.path.join(BUILD, "lib", "libcrisp.so")
+from crisp_test_util import CRISP, LIBRARY, Lib, psnr
+
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 ARGS = ["--scene", "still_life", "--resolution", "96x54", "--frames", "1-3", "--reference-samples", "8",
         "--curve", "1,2,4"]
@@ -43,45 +39,6 @@ def run():
     assert p.returncode == 0, p.stderr.decode()[-3000:]
     yield out, p.stdout.decode(), p.stderr.decode()
     shutil.rmtree(out, ignore_errors=True)
-
-
-class Lib:
-    """The three C API calls needed to read a frame's colour pass."""
-
-    def __init__(self):
-        self.lib = ctypes.CDLL(LIBRARY)
-        self.lib.crispNewContext.restype = ctypes.c_void_p
-        self.lib.crispLoadFrame.restype = ctypes.c_void_p
-        self.lib.crispLoadFrame.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
-        self.lib.crispGetFramePass.restype = ctypes.c_void_p
-        self.lib.crispGetFramePass.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_int)]
-        for f in ("crispGetFrameWidth", "crispGetFrameHeight"):
-            getattr(self.lib, f).argtypes = [ctypes.c_void_p]
-        self.lib.crispReleaseFrame.argtypes = [ctypes.c_void_p]
-        self.ctx = self.lib.crispNewContext()
-
-    def color(self, path):
-        frame = self.lib.crispLoadFrame(self.ctx, path.encode())
-        assert frame, "libcrisp could not load %s" % path
-        try:
-            w, h = self.lib.crispGetFrameWidth(frame), self.lib.crispGetFrameHeight(frame)
-            fmt = ctypes.c_int()
-            ptr = self.lib.crispGetFramePass(frame, b"color", ctypes.byref(fmt))
-            assert ptr and fmt.value == 4, "no RGBA colour in %s" % path  # CRISP_FORMAT_FLOAT4
-            return np.ctypeslib.as_array((ctypes.c_float * (w * h * 4)).from_address(ptr)).reshape(h, w, 4).copy()
-        finally:
-            self.lib.crispReleaseFrame(frame)
-
-
-def display(linear):
-    """metrics.h: linear RGB clamped to [0,1], sRGB-encoded (IEC 61966-2-1)."""
-    c = np.clip(linear[..., :3].astype(np.float64), 0.0, 1.0)
-    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
-
-
-def psnr(ref, test):
-    mse = np.mean((display(ref) - display(test)) ** 2)
-    return 100.0 if mse == 0 else min(100.0, 10 * math.log10(1.0 / mse))
 
 
 def test_results_shape_and_every_entry(run):

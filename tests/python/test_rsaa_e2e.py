@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_eval_e2e import CRISP, LIBRARY, SOURCE, Lib, display  # noqa: E402
+from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, display  # noqa: E402
 
 sys.path.insert(0, os.path.join(SOURCE, "addon", "crisp"))
 import plan  # noqa: E402

@@ -1,0 +1,54 @@
+# SPDX-License-Identifier: Apache-2.0
+"""What the Python tests share: where the build is, and reading a frame's colour through libcrisp's C
+API with ctypes (an independent path to the pixels, not the add-on's native.py), with the PSNR of
+metrics.h on top. Not a test module (CTest runs tests/python/test_*.py)."""
+
+import ctypes
+import math
+import os
+
+import numpy as np
+
+SOURCE = os.environ.get("CRISP_SOURCE_DIR") or os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+BUILD = os.environ.get("CRISP_BUILD_DIR") or os.path.join(SOURCE, "build")
+CRISP = os.path.join(BUILD, "bin", "crisp")
+LIBRARY = os.path.join(BUILD, "lib", "libcrisp.so")
+
+
+class Lib:
+    """The three C API calls needed to read a frame's colour pass."""
+
+    def __init__(self):
+        self.lib = ctypes.CDLL(LIBRARY)
+        self.lib.crispNewContext.restype = ctypes.c_void_p
+        self.lib.crispLoadFrame.restype = ctypes.c_void_p
+        self.lib.crispLoadFrame.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
+        self.lib.crispGetFramePass.restype = ctypes.c_void_p
+        self.lib.crispGetFramePass.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_int)]
+        for f in ("crispGetFrameWidth", "crispGetFrameHeight"):
+            getattr(self.lib, f).argtypes = [ctypes.c_void_p]
+        self.lib.crispReleaseFrame.argtypes = [ctypes.c_void_p]
+        self.ctx = self.lib.crispNewContext()
+
+    def color(self, path):
+        frame = self.lib.crispLoadFrame(self.ctx, path.encode())
+        assert frame, "libcrisp could not load %s" % path
+        try:
+            w, h = self.lib.crispGetFrameWidth(frame), self.lib.crispGetFrameHeight(frame)
+            fmt = ctypes.c_int()
+            ptr = self.lib.crispGetFramePass(frame, b"color", ctypes.byref(fmt))
+            assert ptr and fmt.value == 4, "no RGBA colour in %s" % path  # CRISP_FORMAT_FLOAT4
+            return np.ctypeslib.as_array((ctypes.c_float * (w * h * 4)).from_address(ptr)).reshape(h, w, 4).copy()
+        finally:
+            self.lib.crispReleaseFrame(frame)
+
+
+def display(linear):
+    """metrics.h: linear RGB clamped to [0,1], sRGB-encoded (IEC 61966-2-1)."""
+    c = np.clip(linear[..., :3].astype(np.float64), 0.0, 1.0)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
+
+
+def psnr(ref, test):
+    mse = np.mean((display(ref) - display(test)) ** 2)
+    return 100.0 if mse == 0 else min(100.0, 10 * math.log10(1.0 / mse))
