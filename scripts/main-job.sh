@@ -7,7 +7,8 @@
 # OUTDIR/report.html (+ results.json, results.csv, images/).
 #
 # Size chosen for a 2-core machine without a GPU (EEVEE on software OpenGL,
-# ~0.5 s per sample per 480x270 frame): 480x270, frames 1-8, reference 64
+# ~0.5 s per sample per 480x270 frame): 480x270, frames 1-16 (seed 000's static
+# protocol: 16 frames, then compare), reference 64
 # samples; about 5-7 minutes of rendering. For final figures use
 # --reference-samples 256 and the scene's whole range. Rerunning resumes:
 # finished renders and method frames are kept.
@@ -18,7 +19,7 @@ out=${1:-out/main}
 start=$SECONDS
 scripts/install-deps.sh
 scripts/build.sh release --target crisp_cli crisp >/dev/null
-build/bin/crisp eval --scene still_life --frames 1-8 --resolution 480x270 --reference-samples 64 \
+build/bin/crisp eval --scene still_life --frames 1-16 --resolution 480x270 --reference-samples 64 \
   --methods none,fxaa,repair,rsaa,taa,taa-improved,phlm -o "$out"
 echo "main job finished in $((SECONDS - start)) s"
 echo "report: $(realpath "$out/report.html")"
