@@ -51,9 +51,11 @@
 //    shifted by the jitter) misses: still_life frame 8 fell 31.0 -> 27.0 dB
 //    on such box resets (30.7 dB with footprintBox). Where something moves
 //    nearby, the 3x3 box stays (a trail must not hide in the wider box).
-//    Off by default: the output then no longer always lies in the current
-//    3x3 box, which test_phlm_stability.cpp asserts, and a slow change of a
-//    still gradient lags more (the wider box accepts older values). Using the
+//    On by default (since 2026-11-22). The output of a still pixel then lies
+//    in its 5x5 colour range rather than its 3x3 one (the bound
+//    test_phlm_stability.cpp checks for such pixels), and a slow change of a
+//    still gradient lags more (the wider box accepts older values); false
+//    restores the paper's 3x3 box everywhere. Using the
 //    footprint box for the correction only does not help (27.2 dB): the
 //    output clamp to the 3x3 box throws the converged value away as well.
 //  * l = distance of the feature's luminance to [Ymin, Ymax] of the 3x3 (0
@@ -87,7 +89,7 @@
 // | featureA | float | 0.125 | [0, 10] | a of phi | §5.1 |
 // | featureB | float | 0.25 | [0, 10] | b of phi | §5.1 |
 // | featureAlphaMin | float | 0.05 | [0, 1] | floor of the feature's current weight | this file |
-// | footprintBox | bool | false | - | still pixels: 3x3 box united with the 5x5 values seen twice | docs/sampling.md |
+// | footprintBox | bool | true | - | still pixels: 3x3 box united with the 5x5 values seen twice | docs/sampling.md |
 // | depthTolerance | float | 0.05 | [0, 10] | relative depth change still the same surface | this file |
 // | reference | bool | false | - | scalar reference path | this file |
 #include "filters/phlm.h"
@@ -585,7 +587,7 @@ std::vector<ParamSpec> phlmParams() {
        "ps: variance of the 3 feature slopes at initialisation/reset and their bound (the paper: 1000 for all; "
        "smaller keeps the fit from explaining flicker with tiny feature changes)",
        "seed 002 §6 (deviation, phlm.cpp); phlm_rls.h"},
-      {"footprintBox", ParamType::Bool, 0, 0, 1, nullptr,
+      {"footprintBox", ParamType::Bool, 1, 0, 1, nullptr,
        "where nothing in the 5x5 moves, correct and clamp against the 3x3 box united with the 5x5 values seen "
        "twice: keeps converged models next to edges under jitter over +-1.5 px; false = the 3x3 box (the paper; "
        "the output then always lies in the current 3x3 box)",

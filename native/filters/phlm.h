@@ -44,7 +44,7 @@ struct Settings {
   float depthTolerance = 0.05f;  // relative depth difference still the same surface
   ModelFetch modelFetch = ModelFetch::Bilinear;
   double boxResetCovariance = 1000.0;  // intercept variance after a box correction (P scaled from P0)
-  bool footprintBox = false;  // still pixels: correct/clamp against the footprint box (phlm.cpp header)
+  bool footprintBox = true;  // still pixels: correct/clamp against the footprint box (phlm.cpp header)
 };
 
 struct Inputs {

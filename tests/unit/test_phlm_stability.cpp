@@ -124,10 +124,21 @@ Checker runScenario(const Scenario& sc, const phlm::Settings& s, int frames = kF
     c.reprojectionResets += k32.lastStats().reprojectionResets;
     for (int y = 0; y < kH; ++y)
       for (int x = 0; x < kW; ++x) {
+        // The bound: this frame's 3x3 colour range, or, for a still pixel with
+        // footprintBox (phlm.cpp header, "Box": nothing in its 5x5 moves), the
+        // 5x5 range that contains its footprint box: the documented exception.
+        bool still = true;
+        if (sc.motion)
+          for (int dy = -2; dy <= 2 && still; ++dy)
+            for (int dx = -2; dx <= 2 && still; ++dx) {
+              const float* m = in.motion.at(std::clamp(x + dx, 0, kW - 1), std::clamp(y + dy, 0, kH - 1));
+              still = m[0] == 0.0f && m[1] == 0.0f;
+            }
+        const int r = s.footprintBox && still ? 2 : 1;
         float lo[3], hi[3];
         for (int ch = 0; ch < 3; ++ch) lo[ch] = hi[ch] = sanitizeColor(in.color.at(x, y)[ch]);
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dx = -1; dx <= 1; ++dx) {
+        for (int dy = -r; dy <= r; ++dy)
+          for (int dx = -r; dx <= r; ++dx) {
             const float* p = in.color.at(std::clamp(x + dx, 0, kW - 1), std::clamp(y + dy, 0, kH - 1));
             for (int ch = 0; ch < 3; ++ch) {
               lo[ch] = std::min(lo[ch], sanitizeColor(p[ch]));
