@@ -14,6 +14,7 @@ Runs inside Blender (for its EXR reader, which reads the zip-compressed files cr
 Prints a Markdown table per scene."""
 
 import argparse
+import functools
 import json
 import math
 import os
@@ -25,15 +26,13 @@ import numpy as np
 TEMPORAL = ("taa", "taa-improved", "phlm")
 
 
-def read_rgb(path, cache={}):
-    if path not in cache:
-        img = bpy.data.images.load(path, check_existing=False)
-        w, h = img.size
-        a = np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4)[..., :3]
-        bpy.data.images.remove(img)
-        cache.clear() if len(cache) > 64 else None
-        cache[path] = a
-    return cache[path]
+@functools.lru_cache(maxsize=64)  # the ghosting mask reads each reference frame `trail` times
+def read_rgb(path):
+    img = bpy.data.images.load(path, check_existing=False)
+    w, h = img.size
+    a = np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4)[..., :3]
+    bpy.data.images.remove(img)
+    return a
 
 
 def encode(a):
