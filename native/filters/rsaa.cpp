@@ -52,8 +52,12 @@ void Kernel::allocate(int width, int height, const Settings& settings) {
     duy_[k] = float(rayUy(0.5 + kTablePattern.y[k], height, c) - rayUy(0.5, height, c));
   }
   staged_ = Image(width, height, 4);
-  masks_.assign(std::size_t(width) * std::size_t(height), 255);
-  halved_.assign(std::size_t(width) * std::size_t(height), 0);
+  const std::size_t n = std::size_t(width) * std::size_t(height);
+  masks_.assign(n, 255);
+  halved_.assign(n, 0);
+  geometric_.assign(n, 0);
+  textured_.assign(n, 0);
+  if (settings.textureAA == TextureAA::Fxaa) fxaa_.allocate(width, height);
 }
 
 long Kernel::resolvedCount() const {
@@ -309,6 +313,7 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
   simd = false;
 #endif
   const Camera& cam = settings_.camera;
+  const bool textureFxaa = settings_.textureAA == TextureAA::Fxaa;
 #if defined(CRISP_RSAA_AVX2)
   const bool avx2 = simd && useAvx2();
 #endif
@@ -345,20 +350,64 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
         }
       }
       const std::size_t i = std::size_t(y) * std::size_t(width_) + std::size_t(x);
-      const float* src;
+      geometric_[i] = any;
       if (any) {
         resolve(in, x, y, centre, subs, colour);
-        src = colour;
       } else {
         masks_[i] = 255;
         halved_[i] = 0;
+        if (textureFxaa) continue;  // the output holds FXAA's colour; guardRows decides
         texel(x, y, colour);
-        src = colour;
       }
       float* o = output.pixel(x, y);
-      for (int k = 0; k < outChannels; ++k) o[k] = src[k];
+      for (int k = 0; k < outChannels; ++k) o[k] = colour[k];
     }
   }
+}
+
+// FXAA may move a pixel's colour towards one of its 4 neighbours (its final
+// bilinear fetch is at most one pixel across the edge it found). A pixel keeps
+// FXAA's colour only when that cannot mix two surfaces:
+//  * no pixel of its 3x3 neighbourhood is geometric (RSAA's classification:
+//    some sub-sample on another polygon), and
+//  * its centre and each 4-neighbour's centre are one surface (rsaa::differs
+//    on the two centres), which catches an edge that passes between two
+//    centres in the strip the sub-samples (|offset| <= 0.375 px) do not see.
+// The second test runs only where FXAA changed the colour (a few % of pixels).
+void Kernel::guardRows(const Inputs& in, const ImageView& output, int y0, int y1) {
+  const int outChannels = output.channels();
+  static constexpr int kNeighbour4[4][2] = {{-1, 0}, {1, 0}, {0, -1}, {0, 1}};
+  for (int y = y0; y < y1; ++y)
+    for (int x = 0; x < width_; ++x) {
+      const std::size_t i = std::size_t(y) * std::size_t(width_) + std::size_t(x);
+      textured_[i] = 0;
+      if (geometric_[i]) continue;  // RSAA's result
+      float colour[4];
+      texel(x, y, colour);
+      float* o = output.pixel(x, y);
+      bool changed = false;
+      for (int k = 0; k < outChannels; ++k) changed = changed || o[k] != colour[k];
+      if (!changed) continue;
+      bool guarded = false;
+      for (int yy = std::max(y - 1, 0); yy <= std::min(y + 1, height_ - 1) && !guarded; ++yy)
+        for (int xx = std::max(x - 1, 0); xx <= std::min(x + 1, width_ - 1); ++xx)
+          guarded = guarded || geometric_[std::size_t(yy) * std::size_t(width_) + std::size_t(xx)];
+      if (!guarded) {
+        const Geo centre = centreGeo(in, x, y);
+        for (const auto& d : kNeighbour4) {
+          const int nx = x + d[0], ny = y + d[1];
+          if (nx < 0 || ny < 0 || nx >= width_ || ny >= height_) continue;
+          if (differs(centre, centreGeo(in, nx, ny), threshold2_)) {
+            guarded = true;
+            break;
+          }
+        }
+      }
+      if (guarded)
+        for (int k = 0; k < outChannels; ++k) o[k] = colour[k];
+      else
+        textured_[i] = 1;
+    }
 }
 
 void Kernel::run(const Inputs& in, const ImageView& output, bool reference, int numThreads) {
@@ -374,22 +423,27 @@ void Kernel::run(const Inputs& in, const ImageView& output, bool reference, int 
   const auto [cb, ce] = span(in.color);
   const auto [ob, oe] = span(output);
   direct_ = (oe <= cb || ce <= ob) ? &in.color : nullptr;
-  if (direct_) {
+  const auto rows = [&](auto&& body) {
     if (reference)
-      runRows(in, output, 0, height_, false);
+      body(0, height_);
     else
-      parallelRows(width_, height_, numThreads, [&](int y0, int y1) { runRows(in, output, y0, y1, true); });
-    direct_ = nullptr;
-    return;
-  }
-  if (reference) {
-    stage(in.color, 0, height_);
-    runRows(in, output, 0, height_, false);
-    return;
-  }
+      parallelRows(width_, height_, numThreads, body);
+  };
   // The staged colour must be complete before any pixel fetches neighbours.
-  parallelRows(width_, height_, numThreads, [&](int y0, int y1) { stage(in.color, y0, y1); });
-  parallelRows(width_, height_, numThreads, [&](int y0, int y1) { runRows(in, output, y0, y1, true); });
+  if (!direct_) rows([&](int y0, int y1) { stage(in.color, y0, y1); });
+  const bool textureFxaa = settings_.textureAA == TextureAA::Fxaa;
+  if (textureFxaa) {
+    // FXAA of the whole (sanitised) colour into the output; runRows then
+    // overwrites the geometric pixels and guardRows the ones FXAA must not touch.
+    const ImageView source = direct_ ? in.color : staged_.view();
+    if (reference)
+      fxaa::runReference(source, output, settings_.fxaa, fxaa_);
+    else
+      fxaa::runFast(source, output, settings_.fxaa, fxaa_, numThreads);
+  }
+  rows([&](int y0, int y1) { runRows(in, output, y0, y1, !reference); });
+  if (textureFxaa) rows([&](int y0, int y1) { guardRows(in, output, y0, y1); });
+  direct_ = nullptr;
 }
 
 }  // namespace crisp::rsaa
@@ -439,6 +493,12 @@ std::vector<ParamSpec> rsaaParams() {
        "plane a fraction of a pixel apart differ by up to ~1 ulp and would otherwise count as a step; 0 = "
        "exact (float) depths",
        "eq. 2.1 (input precision)"},
+      {"textureAA", ParamType::String, 0, 0, 0, "fxaa|none",
+       "what handles the pixels geometry does not resolve (texture, shading and shadow edges, which SADP cannot "
+       "see): fxaa = the library's FXAA (filters/fxaa.h, its defaults) on every pixel that is not geometric, "
+       "unless a geometric pixel is in its 3x3 neighbourhood or its centre and a 4-neighbour's centre differ "
+       "(so FXAA never blends across a geometric edge); none = those pixels keep their colour (the thesis' RSAA)",
+       "product extension beyond seed 003 (RSAA + post-process AA, like MSAA + FXAA); docs/rsaa.md"},
       {"reference", ParamType::Bool, 0, 0, 1, nullptr,
        "run the scalar reference path (one thread); bit-identical to the fast path", "section 4.4.2"},
   };
@@ -485,6 +545,7 @@ class RsaaFilter final : public Filter {
     cam.depthUlps = p.getFloat("depthUlps");
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) cam.view[r][c] = p.getFloat("view" + std::to_string(r) + std::to_string(c));
+    s.textureAA = p.getString("textureAA") == "none" ? rsaa::TextureAA::None : rsaa::TextureAA::Fxaa;
     reference_ = p.getBool("reference");
     kernel_.allocate(width(), height(), s);
   }

@@ -13,6 +13,11 @@
 //  4. the mask indexes the generated offset table (rsaa/offset_table.h) and
 //     the colour is fetched bilinearly at the pixel centre + offset (2.3,
 //     4.4.2), clamp-to-edge.
+//  5. textureAA = fxaa (a product extension beyond seed 003, like MSAA combined
+//     with a post-process AA): pixels RSAA does not resolve from geometry take
+//     the library's FXAA (filters/fxaa.h) result, unless FXAA could have
+//     blended them across a geometric edge (see Kernel::guardRows); those
+//     keep their colour.
 // Conventions (core/conventions.h): rows top-down, offsets in pixels, y down.
 #pragma once
 
@@ -20,15 +25,24 @@
 #include <vector>
 
 #include "core/image.h"
+#include "filters/fxaa.h"
 #include "rsaa/cluster.h"
 #include "rsaa/sadp.h"
 
 namespace crisp::rsaa {
 
+// What handles the pixels geometry does not resolve (texture and shading
+// edges, which SADP cannot see): nothing (the thesis' RSAA) or FXAA.
+enum class TextureAA { None, Fxaa };
+
 struct Settings {
   float threshold = 0.2f;  // SADP at and above which a sample is on another polygon
   Verification verification = Verification::Halve;
   Camera camera;
+  // The kernel defaults to the thesis' algorithm; the filter's parameter
+  // textureAA defaults to fxaa.
+  TextureAA textureAA = TextureAA::None;
+  fxaa::Settings fxaa;  // FXAA's own defaults
 };
 
 // The images of one frame, all the same size.
@@ -61,6 +75,12 @@ class Kernel {
   const std::vector<std::uint8_t>& masks() const { return masks_; }
   // Pixels whose offset was halved by Verification::Halve in the last run.
   const std::vector<std::uint8_t>& halved() const { return halved_; }
+  // Per pixel: 1 = some sub-sample is on another polygon (RSAA's own edge
+  // classification; these pixels get RSAA's result).
+  const std::vector<std::uint8_t>& geometric() const { return geometric_; }
+  // Per pixel, textureAA = fxaa: 1 = the output is FXAA's colour (FXAA changed
+  // it and no geometric edge is near); 0 otherwise.
+  const std::vector<std::uint8_t>& textured() const { return textured_; }
   long resolvedCount() const;  // pixels whose colour was resampled
   const Settings& settings() const { return settings_; }
 
@@ -73,6 +93,9 @@ class Kernel {
   // Steps 2-4 for a pixel with at least one differing sample.
   void resolve(const Inputs& in, int x, int y, const Geo& centre, const Geo* subs, float out[4]);
   void runRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd);
+  // textureAA = fxaa, after runRows on the whole image: restores the colour
+  // of every pixel FXAA must not touch.
+  void guardRows(const Inputs& in, const ImageView& output, int y0, int y1);
   void stage(const ImageView& color, int y0, int y1);
   void fetch(float fx, float fy, float out[4]) const;
   void texel(int x, int y, float out[4]) const;
@@ -85,7 +108,8 @@ class Kernel {
   float dux_[kSamples] = {}, duy_[kSamples] = {};
   Image staged_;
   const ImageView* direct_ = nullptr;  // the input colour during run() when the output does not overlap it
-  std::vector<std::uint8_t> masks_, halved_;
+  std::vector<std::uint8_t> masks_, halved_, geometric_, textured_;
+  fxaa::Workspace fxaa_;
 };
 
 }  // namespace crisp::rsaa

@@ -466,10 +466,13 @@ TEST(RsaaFilter, RunsThroughTheFilterInterfaceAndChecksItsImages) {
   filter->params().setFloat("proj11", 2.0f);
   EXPECT_THROW(filter->params().setFloat("proj00", 0.0f), Exception);
   EXPECT_THROW(filter->params().setString("verification", "sometimes"), Exception);
+  EXPECT_THROW(filter->params().setString("textureAA", "smaa"), Exception);
+  EXPECT_EQ(filter->params().getString("textureAA"), "fxaa");  // the default
   filter->commit();
   filter->execute();
   Settings settings;
   settings.camera = s.camera;
+  settings.textureAA = TextureAA::Fxaa;
   const Image expect = runKernel(f, settings, true, 1);
   for (int y = 0; y < 16; ++y)
     for (int x = 0; x < 16; ++x)
@@ -543,6 +546,163 @@ TEST(RsaaLimits, TextureAliasingOnOnePlaneIsUntouched) {
   long c = 0;
   const double sq = test::maskedSquaredError(f.reference, out, f.edges, c);
   std::printf("[ rsaa ] texture checkerboard on one plane: edge-pixel PSNR %.2f dB, unchanged by RSAA\n", psnr(sq, c));
+}
+
+// ------------------------------------------------- textureAA = fxaa --
+// A product extension beyond seed 003 (docs/rsaa.md): FXAA handles the pixels
+// geometry does not resolve, never across a geometric edge.
+
+namespace {
+
+Image runFxaaAlone(const Image& color) {
+  fxaa::Workspace ws;
+  ws.allocate(color.width, color.height);
+  Image out(color.width, color.height, 4);
+  fxaa::runReference(color.view(), out.view(), fxaa::Settings(), ws);
+  return out;
+}
+
+Settings textureSettings(const GeoScene& s, TextureAA t) {
+  Settings settings;
+  settings.camera = s.camera;
+  settings.textureAA = t;
+  return settings;
+}
+
+long count(const std::vector<std::uint8_t>& v) {
+  long n = 0;
+  for (std::uint8_t b : v) n += b != 0;
+  return n;
+}
+
+// A checkerboard of `colours[0]`/`colours[1]` squares (`cell` px) on plane A
+// (slightly tilted), optionally cut by the analytic edge of edgeGeometry
+// against a plane / background of colour `colours[2]`: texture and geometry.
+GeoScene texturedScene(int size, double cell, bool withEdge, int kind = 0) {
+  GeoScene s = edgeGeometry(size, 27.0f, 0.3f, kind);
+  Plane a;
+  a.n[0] = 0.15, a.n[1] = -0.1, a.n[2] = std::sqrt(1 - 0.0325);
+  const Plane b = s.planes[1];
+  const auto edge = s.region;
+  s.region = [edge, cell, withEdge](double x, double y) {
+    if (withEdge && edge(x, y) == 1) return 2;
+    return (int(std::floor(x / cell)) + int(std::floor(y / cell))) & 1;
+  };
+  s.planes = {a, a, b};
+  s.colours = {{0.75f, 0.7f, 0.6f}, {0.08f, 0.1f, 0.12f}, {0.3f, 0.5f, 0.9f}};
+  return s;
+}
+
+}  // namespace
+
+// Colour edges on flat geometry: textureAA = fxaa gives FXAA's result on every
+// pixel (no pixel is geometric, no centre pair differs), none leaves them.
+TEST(RsaaTextureAA, TextureOnFlatGeometryGetsFxaaOnlyWithFxaa) {
+  const GeoScene s = texturedScene(32, 2.6, false);
+  const Frame f = render(s);
+  Kernel kn, kf;
+  const Image none = runKernel(f, textureSettings(s, TextureAA::None), false, 2, &kn);
+  const Image withFxaa = runKernel(f, textureSettings(s, TextureAA::Fxaa), false, 2, &kf);
+  expectSameBits(none, f.color, "textureAA=none");
+  EXPECT_EQ(count(kf.geometric()), 0);
+  expectSameBits(withFxaa, runFxaaAlone(f.color), "textureAA=fxaa = FXAA");
+  const long textured = count(kf.textured());
+  EXPECT_GT(textured, 100);
+  const double before = test::maskedPsnr(f.reference, none, f.edges);
+  const double after = test::maskedPsnr(f.reference, withFxaa, f.edges);
+  std::printf("[ rsaa ] texture edges on one plane: %.2f dB (none) -> %.2f dB (fxaa), %ld pixels FXAA'd\n", before,
+              after, textured);
+  EXPECT_GT(after, before + 1.0);
+}
+
+// Where every colour edge is a geometric edge, FXAA changes nothing: every
+// pixel it would touch is geometric, next to a geometric pixel, or has a
+// 4-neighbour on another surface. Same bits as textureAA = none.
+TEST(RsaaTextureAA, GeometricEdgesKeepRsaasResult) {
+  for (int kind = 0; kind < 3; ++kind)
+    for (int a = 0; a < 180; a += 17) {
+      const GeoScene s = edgeGeometry(24, float(a), 0.23f, kind);
+      const Frame f = render(s, 4);
+      Kernel kf;
+      const Image none = runKernel(f, textureSettings(s, TextureAA::None), false, 2);
+      const Image withFxaa = runKernel(f, textureSettings(s, TextureAA::Fxaa), false, 2, &kf);
+      expectSameBits(none, withFxaa, "edge scene");
+      EXPECT_EQ(count(kf.textured()), 0) << "angle " << a << ", kind " << kind;
+      // The test can fail: FXAA alone changes the edge.
+      const Image alone = runFxaaAlone(f.color);
+      EXPECT_NE(std::memcmp(alone.data.data(), f.color.data.data(), alone.data.size() * sizeof(float)), 0);
+    }
+}
+
+// An edge exactly on a pixel boundary passes between the sub-samples of both
+// pixels (|offset| <= 0.375): no pixel is geometric, so a 3x3 rule alone would
+// let FXAA blur the (exact) 1-sample edge; the centre-pair test keeps it.
+TEST(RsaaTextureAA, EdgeBetweenTheSubSamplesIsGuarded) {
+  for (int kind = 0; kind < 3; kind += 1) {
+    GeoScene s = edgeGeometry(24, 90.0f, 0.0f, kind);
+    s.region = [](double x, double) { return x < 12.0 ? 0 : 1; };
+    const Frame f = render(s, 4);
+    Kernel kf;
+    const Image withFxaa = runKernel(f, textureSettings(s, TextureAA::Fxaa), false, 2, &kf);
+    EXPECT_EQ(count(kf.geometric()), 0) << kind;
+    const Image alone = runFxaaAlone(f.color);
+    long blurred = 0;
+    for (int y = 0; y < 24; ++y) blurred += alone.at(11, y)[0] != f.color.at(11, y)[0];
+    EXPECT_GT(blurred, 10) << kind;  // FXAA alone would change the boundary column
+    if (kind == 2) continue;  // a 40-degree crease through the boundary: centres 1 px apart on two faces
+    expectSameBits(withFxaa, f.color, "edge on the pixel boundary");
+  }
+}
+
+// Texture and geometry together: geometric pixels and their neighbours get
+// exactly RSAA's (textureAA = none) colour, texture pixels away from the edge
+// FXAA's, and the whole image improves. Fast == reference, in place too.
+TEST(RsaaTextureAA, TextureAndGeometryFastEqualsReference) {
+  for (int kind = 0; kind < 3; ++kind) {
+    const GeoScene s = texturedScene(40, 3.3, true, kind);
+    const Frame f = render(s, 8);
+    Kernel kn, kf;
+    const Image none = runKernel(f, textureSettings(s, TextureAA::None), true, 1, &kn);
+    const Image ref = runKernel(f, textureSettings(s, TextureAA::Fxaa), true, 1, &kf);
+    EXPECT_GT(count(kf.geometric()), 20);
+    EXPECT_GT(count(kf.textured()), 50);
+    const Image alone = runFxaaAlone(f.color);
+    long nearGeometry = 0;
+    for (int y = 0; y < 40; ++y)
+      for (int x = 0; x < 40; ++x) {
+        bool near = false;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int xx = std::clamp(x + dx, 0, 39), yy = std::clamp(y + dy, 0, 39);
+            near = near || kf.geometric()[std::size_t(yy * 40 + xx)];
+          }
+        const float* expect = near ? none.at(x, y) : kf.textured()[std::size_t(y * 40 + x)] ? alone.at(x, y)
+                                                                                             : f.color.at(x, y);
+        nearGeometry += near;
+        for (int c = 0; c < 4; ++c) ASSERT_EQ(ref.at(x, y)[c], expect[c]) << x << "," << y << " kind " << kind;
+      }
+    EXPECT_GT(nearGeometry, 60);
+    Image all(40, 40, 1);
+    for (auto& v : all.data) v = 1.0f;
+    const double pNone = test::maskedPsnr(f.reference, none, all), pFxaa = test::maskedPsnr(f.reference, ref, all);
+    std::printf("[ rsaa ] checker + geometric edge (kind %d): whole image %.2f dB (none) -> %.2f dB (fxaa)\n", kind,
+                pNone, pFxaa);
+    EXPECT_GT(pFxaa, pNone + 0.5);
+    for (int threads : {1, 2, 3}) {
+      setSimdLanesForTesting(threads == 3 ? 4 : 0);
+      expectSameBits(ref, runKernel(f, textureSettings(s, TextureAA::Fxaa), false, threads), "fast");
+    }
+    setSimdLanesForTesting(0);
+    // In place (output = colour buffer): staged colour, same result.
+    Frame inPlace = f;
+    Kernel k;
+    k.allocate(40, 40, textureSettings(s, TextureAA::Fxaa));
+    k.run(inPlace.inputs(), inPlace.color.view(), false, 2);
+    expectSameBits(ref, inPlace.color, "in place, fast");
+    inPlace.color = f.color;
+    k.run(inPlace.inputs(), inPlace.color.view(), true, 1);
+    expectSameBits(ref, inPlace.color, "in place, reference");
+  }
 }
 
 // ---- sub-sample files (io/subsamples.h): what crisp filter / eval / the add-on read ----------------
