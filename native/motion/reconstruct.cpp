@@ -49,6 +49,15 @@ bool objectChange(const SidecarObject& cur, const Sidecar& other, std::uint32_t 
 
 // Pixel position (x right, y DOWN, pixel centres at +0.5) of a clip-space
 // point, or false if it is on/behind the camera plane or not finite.
+// A still point's vector is exactly 0: its chains (other frame's view times
+// the inverse of this one's) multiply out to the identity only up to double
+// rounding, ~1e-10 px, and the temporal filters keep their exact static path
+// (running average, no resampling) for velocity exactly 0 only. Measured on the
+// ghosting scene before this: half the still wall's pixels had |v| < 1e-3 px
+// but not 0, took the feedback blend, and flickered. 1e-6 px is far below any
+// motion that matters (depth is half-float: ~1e-3 px of error anyway).
+double snapStill(double v) { return std::fabs(v) < 1e-6 ? 0.0 : v; }
+
 bool toPixel(const Vec4d& clip, int width, int height, double& px, double& py) {
   if (!(clip.w > kMinCameraDepth)) return false;
   px = (clip.x / clip.w + 1.0) * 0.5 * width;
@@ -191,8 +200,8 @@ FrameMotion reconstructMotion(const Image& depth, const Image* ids, const Sideca
         if (!toPrevious->valid) {
           flags |= kMotionUnmatchedObject;
         } else if (toPixel(toPrevious->toClip * point, W, H, px, py)) {
-          m[0] = float(px - cx);
-          m[1] = float(py - cy);
+          m[0] = float(snapStill(px - cx));
+          m[1] = float(snapStill(py - cy));
           flags |= kMotionPreviousValid;
         } else {
           flags |= kMotionInvalidPoint;
@@ -201,8 +210,8 @@ FrameMotion reconstructMotion(const Image& depth, const Image* ids, const Sideca
           if (!toNext->valid) {
             flags |= kMotionUnmatchedObject;
           } else if (toPixel(toNext->toClip * point, W, H, px, py)) {
-            m[2] = float(cx - px);
-            m[3] = float(cy - py);
+            m[2] = float(snapStill(cx - px));
+            m[3] = float(snapStill(cy - py));
             flags |= kMotionNextValid;
           } else {
             flags |= kMotionInvalidPoint;

@@ -398,3 +398,18 @@ TEST(Motion, ReconstructFrameMotionReadsTheSidecarsFromDisk) {
   }
   fs::remove_all(dir);
 }
+
+// A still point gets a vector of exactly 0, not the ~1e-10 px that the chain
+// (other view times this camera's world matrix) leaves in double rounding: the
+// temporal filters keep their exact static path for velocity 0 only (measured on
+// the ghosting scene: half the still wall's pixels had |v| in (0, 1e-3) px).
+TEST(Motion, StillPointsGetExactlyZero) {
+  const double s = 1.8;
+  const Mat4 camera = translation(0.3, -7.0, 2.0) * rotationZ(0.7);  // not exact in binary
+  const Sidecar prev = sidecar(camera, perspective(s, -0.41, 0.13), perspective(s), -0.41, 0.13);
+  const Sidecar cur = sidecar(camera, perspective(s, 0.37, -0.28), perspective(s), 0.37, -0.28);
+  const FrameMotion fm = reconstructMotion(rampDepth(), nullptr, cur, prev, &prev, "still", 1);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      for (int c = 0; c < 4; ++c) ASSERT_EQ(fm.motion.at(x, y)[c], 0.0f) << x << "," << y << " c" << c;
+}
