@@ -141,11 +141,28 @@ int runEval(const ParsedArgs& args) {
   std::vector<std::string> methods;
   std::vector<std::string> asked = args.has("methods") ? splitList(args.get("methods")) : filterTypes();
   methods.push_back("none");
+  std::vector<std::string> rendered = {"none"};  // library methods whose inputs Blender renders
   for (const std::string& m : asked) {
     if (m == "blender-smaa") continue;  // always measured
-    if (std::find(filterTypes().begin(), filterTypes().end(), m) == filterTypes().end())
-      throw UsageError("--methods: unknown method '" + m + "' (known: " + filterTypesJoined() + ", blender-smaa)");
+    eval::MethodSpec spec;
+    try {
+      spec = eval::parseMethodSpec(m);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--methods: ") + e.what());
+    }
+    if (std::find(filterTypes().begin(), filterTypes().end(), spec.method) == filterTypes().end())
+      throw UsageError("--methods: unknown method '" + spec.method + "' (known: " + filterTypesJoined() +
+                       ", blender-smaa)");
+    // Bad parameters are refused now, before anything is rendered.
+    Context context;
+    std::unique_ptr<Filter> probe = createFilter(context, spec.method);
+    try {
+      for (const auto& [key, value] : spec.params) probe->params().setFromText(key, value);
+    } catch (const Exception& e) {
+      throw UsageError("--methods '" + m + "': " + e.what());
+    }
     if (std::find(methods.begin(), methods.end(), m) == methods.end()) methods.push_back(m);
+    if (std::find(rendered.begin(), rendered.end(), spec.method) == rendered.end()) rendered.push_back(spec.method);
   }
   std::string curve = args.getOr("curve", "");
   if (curve.empty()) {  // 1, 2, 4, ... below the reference's count
@@ -178,7 +195,7 @@ int runEval(const ParsedArgs& args) {
   cmd.push_back("-o");
   cmd.push_back(renders.string());
   std::string methodList;
-  for (const std::string& m : methods) methodList += (methodList.empty() ? "" : ",") + m;
+  for (const std::string& m : rendered) methodList += (methodList.empty() ? "" : ",") + m;
   cmd.insert(cmd.end(), {"--methods", methodList, "--reference-samples", std::to_string(refSamples), "--curve", curve});
   for (const char* opt : {"frames", "resolution"})
     if (args.has(opt)) {

@@ -53,7 +53,7 @@ const std::vector<OptionSpec>& options() {
       {"synth", "output", 'o', "OUTDIR", false, true, "output folder (created if missing)"},
       {"eval", "scene", 0, "SCENE", false, true, "a .blend file, or the name of a bundled test scene (default scene: still_life)"},
       {"eval", "frames", 0, "A-B", false, false, "frame range (default: the scene's)"},
-      {"eval", "methods", 'm', "LIST", false, false, "comma-separated methods (default: every library method); none and blender-smaa are always measured"},
+      {"eval", "methods", 'm', "LIST", false, false, "comma-separated methods (default: every library method); none and blender-smaa are always measured; METHOD:KEY=VALUE[:KEY=VALUE...] measures a parameter setting beside the defaults (e.g. taa,taa:feedbackMin=0.8)"},
       {"eval", "resolution", 0, "WxH", false, false, "override the render size"},
       {"eval", "reference-samples", 0, "N", false, false, "EEVEE samples of the reference (default 64; 256 for final figures)"},
       {"eval", "curve", 0, "LIST", false, false, "EEVEE sample counts of the curve (default 1,2,4,... up to 16, below the reference)"},

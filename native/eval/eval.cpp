@@ -40,6 +40,23 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
+MethodSpec parseMethodSpec(const std::string& spec) {
+  MethodSpec out;
+  size_t start = 0, colon = spec.find(':');
+  out.method = spec.substr(0, colon);
+  if (out.method.empty()) throw std::invalid_argument("method '" + spec + "' has no name before ':'");
+  while (colon != std::string::npos) {
+    start = colon + 1;
+    colon = spec.find(':', start);
+    const std::string kv = spec.substr(start, colon == std::string::npos ? std::string::npos : colon - start);
+    const size_t eq = kv.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == kv.size())
+      throw std::invalid_argument("method '" + spec + "': expected KEY=VALUE after ':', got '" + kv + "'");
+    out.params.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+  }
+  return out;
+}
+
 namespace {
 
 std::string frameName(int f, const char* ext = ".exr") {
@@ -96,6 +113,7 @@ std::map<int, double> renderTimes(const fs::path& dir) {
 
 // ---- the methods ---------------------------------------------------------------------------------
 
+
 // Motion for the frames of a render set that has depth (renders/jittered) of a
 // scene where something moves: the renderer's pass, else reconstructed from
 // depth and the sidecars. A still scene gets none, as its pass plan says, so
@@ -117,7 +135,8 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   if (!allDone && e.temporal) times = json::object();
   Context context;
   context.setInt("numThreads", o.threads);
-  std::unique_ptr<Filter> filter = createFilter(context, e.name);
+  std::unique_ptr<Filter> filter = createFilter(context, e.method);
+  for (const auto& [key, value] : parseMethodSpec(e.name).params) filter->params().setFromText(key, value);
   Image output;
   for (int f : frames) {
     if (!e.temporal ? done(f) : allDone) {
@@ -356,23 +375,24 @@ int run(const Options& o) {
   for (const std::string& m : o.methods) {
     Entry e;
     e.name = m;
+    e.method = parseMethodSpec(m).method;
     e.kind = "method";
-    std::string set = scene["inputs"].value(m, std::string("eevee_1"));
+    std::string set = scene["inputs"].value(e.method, std::string("eevee_1"));
     e.inputSet = set;
-    const json& plan = scene["plans"].contains(m) ? scene["plans"][m] : json::object();
+    const json& plan = scene["plans"].contains(e.method) ? scene["plans"][e.method] : json::object();
     e.temporal = plan.value("jitter", false);
     methods.push_back(e);
   }
   {
     Entry e;
-    e.name = "blender-smaa";
+    e.name = e.method = "blender-smaa";
     e.kind = "blender";
     e.inputSet = "eevee_1";
     methods.push_back(e);
   }
   for (int s : curveSamples) {
     Entry e;
-    e.name = "eevee-" + std::to_string(s);
+    e.name = e.method = "eevee-" + std::to_string(s);
     e.kind = "eevee";
     e.samples = s;
     e.inputSet = "eevee_" + std::to_string(s);
@@ -458,7 +478,7 @@ int run(const Options& o) {
   std::string edgeNote = "no method rendered geometric sub-samples (rsaa), so no geometric-edge figures";
   std::set<std::string> geometrySets;
   for (const Entry& e : methods) {
-    const json plan = scene["plans"].value(e.name, json::object());
+    const json plan = scene["plans"].value(e.method, json::object());
     const json passes = plan.value("passes", json::array());
     if (std::find(passes.begin(), passes.end(), "subsamples") != passes.end()) geometrySets.insert(e.inputSet);
   }
@@ -539,7 +559,7 @@ int run(const Options& o) {
           cheap.ssim = cheap.flip = false;
           edgeFigures[e.name].edgePsnr[f] = compareImages(refs[f], test, &edgeMasks[f], {}, o.threads, cheap).psnr;
         }
-        if (e.kind == "method" && geometrySets.count(e.inputSet) && e.name == "rsaa")
+        if (e.kind == "method" && geometrySets.count(e.inputSet) && e.method == "rsaa")
           edgeFigures[e.name].geometryS[f] = geometryRenderSeconds(renders / e.inputSet / frameName(f));
         if (e.name == "none")
           for (std::size_t i = 0; i < errorSum.data.size(); ++i) errorSum.data[i] += err.data[i];

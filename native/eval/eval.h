@@ -6,6 +6,7 @@
 
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -17,7 +18,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 struct Options {
   std::string outDir;                // OUTDIR
   std::string renderDir;             // OUTDIR/renders, Blender's output (scene.json inside)
-  std::vector<std::string> methods;  // library methods, in the order given
+  std::vector<std::string> methods;  // method specs (parseMethodSpec), in the order given
   int threads = 0;
   bool quiet = false;
   std::string command;               // the exact command line, for the page
@@ -32,9 +33,20 @@ struct FrameFigures {
   std::string file;  // the image measured, relative to OUTDIR
 };
 
+// A method as `crisp eval --methods` names it: a library method, optionally with parameters,
+// "taa:feedbackMin=0.7:sharpen=0.2", so that settings can be compared side by side in one report.
+struct MethodSpec {
+  std::string method;                                       // library filter type ("taa")
+  std::vector<std::pair<std::string, std::string>> params;  // in the order given
+};
+// Splits a spec at ':' into the method and KEY=VALUE pairs; throws std::invalid_argument naming
+// the malformed part. Does not check the method or the keys (the library does, when they are set).
+MethodSpec parseMethodSpec(const std::string& spec);
+
 // One line of the results: a library method, Blender's SMAA, or a point of EEVEE's curve.
 struct Entry {
-  std::string name;
+  std::string name;      // as given: the spec of a method ("taa:feedbackMin=0.7")
+  std::string method;    // the library method (kind "method"), else the name
   std::string kind;      // "method" | "blender" | "eevee"
   int samples = 1;       // EEVEE samples of its input
   std::string inputSet;  // renders/<set> its input came from

@@ -114,6 +114,35 @@ def test_settings_of_another_run_are_refused(run):
     assert p.returncode == 2 and b"another scene or size" in p.stderr
 
 
+def test_method_variants_share_the_renders(run):
+    """`--methods taa:KEY=VALUE:...` measures parameter settings side by side on the same renders; a bad
+    spec or parameter is refused before Blender starts."""
+    out, _, _ = run
+    variant = "taa:feedbackMin=0.3:feedbackMax=0.4"
+    before = {p: os.path.getmtime(os.path.join(dp, p)) for dp, _, fs in os.walk(os.path.join(out, "renders"))
+              for p in fs if p.endswith(".exr")}
+    p = subprocess.run([CRISP, "eval"] + ARGS + ["--methods", "taa," + variant, "-o", out], stdout=subprocess.PIPE,
+                       stderr=subprocess.PIPE, timeout=300)
+    assert p.returncode == 0, p.stderr.decode()[-2000:]
+    after = {p: os.path.getmtime(os.path.join(dp, p)) for dp, _, fs in os.walk(os.path.join(out, "renders"))
+             for p in fs if p.endswith(".exr")}
+    assert before == after, "a variant reuses its method's renders"
+    scene = json.load(open(os.path.join(out, "results.json")))["scenes"][0]
+    entries = {m["name"]: m for m in scene["methods"]}
+    assert {"none", "taa", variant} <= set(entries) and not entries[variant]["error"]
+    assert entries[variant]["input"] == entries["taa"]["input"]
+    lib = Lib()
+    a = lib.color(os.path.join(out, "methods", "taa", "frame_0003.exr"))
+    b = lib.color(os.path.join(out, "methods", variant, "frame_0003.exr"))
+    assert np.abs(a - b).max() > 1e-4, "the variant's parameters reached the filter"
+    for spec, message in (("taa:bogus=1", b"bogus"), ("taa:feedbackMin", b"expected KEY=VALUE"),
+                          ("taa:feedbackMin=2", b"feedbackMin"), ("nosuch:x=1", b"unknown method 'nosuch'")):
+        p = subprocess.run([CRISP, "eval"] + ARGS + ["--methods", spec, "-o", out], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, timeout=60)
+        assert p.returncode == 2 and message in p.stderr, (spec, p.stderr.decode()[-500:])
+        assert b"rendering in Blender" not in p.stderr, "refused before Blender starts"
+
+
 @pytest.mark.skipif(CHROMIUM is None, reason="Debian chromium not installed")
 def test_report_opens_in_chromium(run):
     out, _, _ = run
