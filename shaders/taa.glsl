@@ -27,7 +27,8 @@
 //   jitterWeighting 0 = none / 1 = blackman-harris, filterSize 1.5,
 //   historyFilter 0 = catmull-rom / 1 = bilinear, clipSpace 0 = ycocg / 1 = rgb,
 //   feedbackMin 0.88, feedbackMax 0.97, sharpen 0, staticAccumulation 1,
-//   maxSamples 128, staticClip 1. (depthTolerance: no depth here.)
+//   maxSamples 128, staticClip 1, unjitter 0 = none / 1 = nearest /
+//   2 = blackman-harris (default 2). (depthTolerance: no depth here.)
 //
 // Not in this version, on purpose: depth (closest-depth velocity and the
 // disocclusion test) and the aliasedValue plane of taa-improved. The viewport
@@ -163,13 +164,41 @@ vec4 fetchCatmullRom4(float x, float y) {
 // temporal/velocity.h finiteMotion.
 bool finiteMotion(float mx, float my) { return finiteValue(mx) && finiteValue(my); }
 
+// taa.cpp shiftedSource: the input index tap q of the shifted image reads.
+int shiftedSource(int q, int size, int shift) { return clampIndex(clampIndex(q, size) - shift, size); }
+
+// taa.cpp setUnjitter: the shift (std::lround: halves away from zero, clamped
+// to +-2) and the normalised 3x3 weights of this frame's jitter.
+int unjitterShift(float j) {
+  if (unjitter == 0) return 0;
+  int s = int(sign(j) * floor(abs(j) + 0.5));
+  return s < -2 ? -2 : (s > 2 ? 2 : s);
+}
+void unjitterWeights(int sx, int sy, out float weights[9]) {
+  float dx = jitterX - float(sx), dy = jitterY - float(sy);
+  float sum = 0.0;
+  for (int i = 0; i < 9; ++i) {
+    weights[i] = unjitter == 2 ? blackmanHarrisWeight(float(i % 3 - 1) + dx, float(i / 3 - 1) + dy, filterSize) : 0.0;
+    sum += weights[i];
+  }
+  if (!(sum > 0.0)) {
+    for (int i = 0; i < 9; ++i) weights[i] = 0.0;
+    weights[4] = 1.0;
+    sum = 1.0;
+  }
+  for (int i = 0; i < 9; ++i) weights[i] /= sum;
+}
+
 #ifdef TAA_RESOLVE_PASS
 // taa.cpp footprintBox of the reference path: the 3x3 box united with the 5x5
 // box of second-largest / second-smallest values (clamped taps, row order).
-MinMax4 footprintBox(MinMax4 box3x3, int x, int y, int space) {
-  TwoExtremes4 e = twoExtremesOf(stagePixel(fetchClamped(colorImage, x - 2, y - 2), space),
-                                 stagePixel(fetchClamped(colorImage, x - 1, y - 2), space));
-  for (int i = 2; i < 25; ++i) addTap(e, stagePixel(fetchClamped(colorImage, x + i % 5 - 2, y + i / 5 - 2), space));
+vec4 shiftedTap(int x, int y, int sx, int sy, int space) {
+  ivec2 size = textureSize(colorImage, 0);
+  return stagePixel(texelFetch(colorImage, ivec2(shiftedSource(x, size.x, sx), shiftedSource(y, size.y, sy)), 0), space);
+}
+MinMax4 footprintBox(MinMax4 box3x3, int x, int y, int sx, int sy, int space) {
+  TwoExtremes4 e = twoExtremesOf(shiftedTap(x - 2, y - 2, sx, sy, space), shiftedTap(x - 1, y - 2, sx, sy, space));
+  for (int i = 2; i < 25; ++i) addTap(e, shiftedTap(x + i % 5 - 2, y + i / 5 - 2, sx, sy, space));
   return MinMax4(vmin(box3x3.lo, e.min2), vmax(box3x3.hi, e.max2));
 }
 
@@ -179,17 +208,26 @@ void taaResolvePass() {
   int x = p.x, y = p.y;
   ivec2 size = textureSize(colorImage, 0);
   int w = size.x, h = size.y;
+  int sx = unjitterShift(jitterX), sy = unjitterShift(jitterY);
   vec4 taps[9];
-  for (int i = 0; i < 9; ++i) taps[i] = stagePixel(fetchClamped(colorImage, x + i % 3 - 1, y + i / 3 - 1), clipSpace);
+  for (int i = 0; i < 9; ++i) taps[i] = shiftedTap(x + i % 3 - 1, y + i / 3 - 1, sx, sy, clipSpace);
   MinMax4 box3x3, cross;
   columnFirstBoxes4(taps, box3x3, cross);
-  vec4 current = taps[4];
+  vec4 current = unjitter != 0 ? stagePixel(texelFetch(colorImage, p, 0), clipSpace) : taps[4];
+  vec4 currentMoving = taps[4];
+  if (unjitter != 0) {
+    float uw[9];
+    unjitterWeights(sx, sy, uw);
+    currentMoving = taps[4] * uw[4];
+    for (int i = 0; i < 9; ++i)
+      if (i != 4) currentMoving = currentMoving + taps[i] * uw[i];
+  }
   float alpha = current.w;
 
-  // Step 3: velocity of the centre (no depth to follow).
+  // Step 3: velocity of the centre's tap (no depth to follow).
   float vx = 0.0, vy = 0.0;
   if (hasMotion != 0) {
-    vec4 m = texelFetch(motionImage, p, 0);
+    vec4 m = texelFetch(motionImage, ivec2(shiftedSource(x, w, sx), shiftedSource(y, h, sy)), 0);
     vx = m.x;
     vy = m.y;
   }
@@ -221,7 +259,7 @@ void taaResolvePass() {
     if (staticPixel && staticClip != 0) {
       clipTowardCentre4(hist, box3x3.lo, box3x3.hi, excess);
       if (excess > 1.0 && !(mark > 0.0)) {
-        MinMax4 box = footprintBox(box3x3, x, y, clipSpace);
+        MinMax4 box = footprintBox(box3x3, x, y, sx, sy, clipSpace);
         clipTowardCentre4(hist, box.lo, box.hi, excess);
       }
     }
@@ -233,26 +271,27 @@ void taaResolvePass() {
       vec4 lo = 0.5 * (box3x3.lo + cross.lo);
       vec4 hi = 0.5 * (box3x3.hi + cross.hi);
       vec4 clipped = clipTowardCentre4(hist, lo, hi, excess);
-      float l0 = lumaOf(clipped, clipSpace), l1 = lumaOf(current, clipSpace);
+      float l0 = lumaOf(clipped, clipSpace), l1 = lumaOf(currentMoving, clipSpace);
       float diff = clamp(abs(l0 - l1) / max(max(l0, l1), 0.2), 0.0, 1.0);
       float unbiased = (1.0 - diff) * (1.0 - diff);
       float k = feedbackMin + (feedbackMax - feedbackMin) * unbiased;
       float mixWeight = max(1.0 - k, weight / weightSum);
-      result = clipped + (current - clipped) * mixWeight;
+      result = clipped + (currentMoving - clipped) * mixWeight;
       newWeight = 1.0 - k > 0.0 ? min(weightSum, 1.0 / (1.0 - k)) : weightSum;
       newWeight = min(newWeight, float(max(1, maxSamples)));
     }
     reset = !(finiteValue(result.x) && finiteValue(result.y) && finiteValue(result.z));  // never a non-finite history
   }
+  bool resetToMoving = unjitter != 0 && moving;  // taa.cpp: a moving pixel restarts unjittered
   if (reset) {
-    result = current;
+    result = resetToMoving ? currentMoving : current;
     newWeight = weight;
     mark = 0.0;
   }
   result.w = moving ? -newWeight : newWeight;
   historyOut = result;
   markOut = mark;
-  if (reset) {
+  if (reset && !resetToMoving) {
     vec4 c = sanitizeColor4(texelFetch(colorImage, p, 0));  // the input itself, not its YCoCg round trip
     fragColor = vec4(c.rgb, alpha);
   } else {

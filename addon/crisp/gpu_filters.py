@@ -28,13 +28,15 @@ CHOICES = {
     "jitterWeighting": ("none", "blackman-harris"),
     "historyFilter": ("catmull-rom", "bilinear"),
     "clipSpace": ("ycocg", "rgb"),
+    "unjitter": ("none", "nearest", "blackman-harris"),
 }
 DEFAULTS = {
     "fxaa": {"edgeThreshold": 0.166, "edgeThresholdMin": 0.0833, "subpix": 0.75},
     "repair": {"kappa": 0.0, "patchSize": 5, "mask": "gauss5", "angleEstimator": "regression"},
     "taa": {"jitterX": 0.0, "jitterY": 0.0, "jitterWeighting": "none", "filterSize": 1.5,
             "historyFilter": "catmull-rom", "clipSpace": "ycocg", "feedbackMin": 0.88, "feedbackMax": 0.97,
-            "sharpen": 0.0, "staticAccumulation": True, "maxSamples": 128, "staticClip": True},
+            "sharpen": 0.0, "staticAccumulation": True, "maxSamples": 128, "staticClip": True,
+            "unjitter": "blackman-harris"},
 }
 
 # Resources of each GLSL file (declared for every pass of the file) and each pass's macro, entry and
@@ -53,7 +55,8 @@ FILES = {
         "push": (("FLOAT", "jitterX"), ("FLOAT", "jitterY"), ("INT", "jitterWeighting"), ("FLOAT", "filterSize"),
                  ("INT", "historyFilter"), ("INT", "clipSpace"), ("FLOAT", "feedbackMin"),
                  ("FLOAT", "feedbackMax"), ("FLOAT", "sharpen"), ("INT", "staticAccumulation"),
-                 ("INT", "maxSamples"), ("INT", "staticClip"), ("INT", "hasHistory"), ("INT", "hasMotion")),
+                 ("INT", "maxSamples"), ("INT", "staticClip"), ("INT", "unjitter"), ("INT", "hasHistory"),
+                 ("INT", "hasMotion")),
     },
 }
 PASSES = {

@@ -174,7 +174,10 @@ TEST(Taa, HugeZeroAndInvalidMotion) {
       g.motion.data[i] = (i / 2) % 3 == 0 ? 1e30f : (i / 2) % 3 == 1 ? -5000.0f : std::nanf("");
       g.motion.data[i + 1] = (i / 2) % 5 == 0 ? INFINITY : 0.25f;
     }
-    EXPECT_EQ(huge.run(g, true, false).data, f.color.data) << "frame " << t;  // every pixel reset to current
+    // Every pixel reset to its own sample (unjitter off: with it, a moving
+    // pixel restarts from its unjittered colour; UnjitterSteadiesMovingEdges).
+    huge.filter->params().setString("unjitter", "none");
+    EXPECT_EQ(huge.run(g, true, false).data, f.color.data) << "frame " << t;
     const Image& a = zero.run(f, true, false);  // motion image all zero
     const Image& b = none.run(f, false, false);
     EXPECT_EQ(a.data, b.data) << "frame " << t;
@@ -309,9 +312,15 @@ TEST(Taa, ReferencePathEqualsFastPath) {
     float sharpen;
     bool depth;
   } configs[] = {{"catmull-rom", "ycocg", 0.0f, true}, {"bilinear", "rgb", 0.5f, true}, {"catmull-rom", "rgb", 1.0f, false}};
-  for (int run = 0; run < 6; ++run) {
+  // Uniform jitter keeps unjitter's shift at 0; Blackman-Harris jitter over
+  // +-1.5 and +-2.5 px shifts the 3x3 by up to 2 px (borders included).
+  synth::FrameOptions jitters[3];
+  jitters[1].jitter = jitters[2].jitter = synth::JitterKind::BlackmanHarris;
+  jitters[2].filterSize = 2.5f;
+  for (int run = 0; run < 18; ++run) {
     const Config& c = configs[run % 3];
-    const test::FastPathIsa isa(test::kFastPathIsas[run / 3]);
+    const test::FastPathIsa isa(test::kFastPathIsas[run / 3 % 2]);
+    const synth::FrameOptions& jitter = jitters[run / 6];
     Driver ref(1), fast(2);
     for (Driver* d : {&ref, &fast}) {
       d->filter->params().setString("historyFilter", c.filter);
@@ -320,11 +329,12 @@ TEST(Taa, ReferencePathEqualsFastPath) {
     }
     ref.filter->params().setBool("reference", true);
     for (int t = 0; t < 12; ++t) {
-      synth::FrameData f = synth::renderFrame(seq, w, h, t, {});
+      synth::FrameData f = synth::renderFrame(seq, w, h, t, jitter);
       const Image& a = ref.run(f, true, c.depth);
       const Image& b = fast.run(f, true, c.depth);
       ASSERT_EQ(0, std::memcmp(a.data.data(), b.data.data(), a.data.size() * sizeof(float)))
-          << c.filter << " " << c.space << " frame " << t << " " << temporal::fastPathIsaName();
+          << c.filter << " " << c.space << " jitter " << run / 6 << " frame " << t << " "
+          << temporal::fastPathIsaName();
     }
   }
 }
@@ -404,19 +414,65 @@ TEST(Taa, SharpenRaisesEdgeContrastOnly) {
 TEST(Taa, ReferencePathEqualsFastPathAcrossBands) {
   const int w = 53, h = 131;  // 4 bands of ~33 rows
   synth::Sequence seq = synth::ghostingSequence(w, h, 11.0f, 2.3f, 0.9f);
-  for (int run = 0; run < 6; ++run) {
+  synth::FrameOptions wide;  // unjitter shifts the 3x3 across band borders too
+  wide.jitter = synth::JitterKind::BlackmanHarris;
+  wide.filterSize = 2.5f;
+  for (int run = 0; run < 12; ++run) {
     const int mode = run % 3;
-    const test::FastPathIsa isa(test::kFastPathIsas[run / 3]);
+    const test::FastPathIsa isa(test::kFastPathIsas[run / 3 % 2]);
     const bool motion = mode < 2, depth = mode == 0;
     Driver ref(1), fast(4);
     ref.filter->params().setBool("reference", true);
     for (int t = 0; t < 6; ++t) {
-      synth::FrameData f = synth::renderFrame(seq, w, h, t, {});
+      synth::FrameData f = synth::renderFrame(seq, w, h, t, run < 6 ? synth::FrameOptions{} : wide);
       if (t == 3) f.color.at(w / 2, 32)[1] = std::numeric_limits<float>::quiet_NaN();  // on a band border
       const Image& a = ref.run(f, motion, depth);
       const Image& b = fast.run(f, motion, depth);
       ASSERT_EQ(0, std::memcmp(a.data.data(), b.data.data(), a.data.size() * sizeof(float)))
           << "mode " << mode << " frame " << t << " " << temporal::fastPathIsaName();
     }
+  }
+}
+
+// Unjitter (taa.cpp "Jitter"): with EEVEE-wide jitter (+-1.5 px), a moving
+// pixel's own sample jumps across edges from frame to frame, and so does the
+// box that clips its history. The unjittered current colour (the 3x3 around
+// the sample nearest the centre, weighted by the pixel filter) must give
+// moving edges both a higher PSNR and less flicker: mean |(out_t - out_t-1) -
+// (ref_t - ref_t-1)| (METHODS.md's temporal error without the warp, which
+// cancels for the same sequence).
+TEST(Taa, UnjitterSteadiesMovingEdges) {
+  const int w = 48, h = 40, frames = 40, warmUp = 8;
+  synth::FrameOptions opt;
+  opt.jitter = synth::JitterKind::BlackmanHarris;
+  opt.reference = synth::ReferenceKind::BlackmanHarris;
+  for (const test::MovingCase& c : test::movingEdgeAndDisk(w, h)) {
+    std::vector<synth::FrameData> input;
+    for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(c.seq, w, h, t, opt));
+    double meanPsnr[2] = {0, 0}, flicker[2] = {0, 0};
+    const char* modes[2] = {"none", "blackman-harris"};
+    for (int m = 0; m < 2; ++m) {
+      Driver d;
+      d.filter->params().setString("unjitter", modes[m]);
+      Image previous;
+      for (int t = 0; t < frames; ++t) {
+        const Image& out = d.run(input[t], true, true);
+        ASSERT_TRUE(allFinite(out));
+        if (t >= warmUp) {
+          meanPsnr[m] += psnr(input[t].reference, out) / (frames - warmUp);
+          double sum = 0;
+          for (std::size_t i = 0; i < out.data.size(); ++i)
+            if (i % 4 != 3)
+              sum += std::fabs((out.data[i] - previous.data[i]) -
+                               (input[t].reference.data[i] - input[t - 1].reference.data[i]));
+          flicker[m] += sum / (double(w) * h * 3) / (frames - warmUp);
+        }
+        previous = out;
+      }
+    }
+    std::printf("%s, BH jitter +-1.5 px: mean PSNR unjitter none %.2f / blackman-harris %.2f dB; flicker %.5f / "
+                "%.5f\n", c.name, meanPsnr[0], meanPsnr[1], flicker[0], flicker[1]);
+    EXPECT_GT(meanPsnr[1], meanPsnr[0] + 0.5) << c.name;
+    EXPECT_LT(flicker[1], 0.8 * flicker[0]) << c.name;
   }
 }
