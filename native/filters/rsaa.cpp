@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 #include "core/color.h"
@@ -283,6 +284,114 @@ CRISP_AVX2 int differs8(const float* const* p, const Geo& c, float ux, float uy,
   return _mm256_movemask_ps(_mm256_or_ps(bg, _mm256_and_ps(apart, far)));
 }
 
+
+// The same test for 8 consecutive pixels at once (lane j = pixel x + j), one
+// sub-sample at a time: the pixel-parallel layout needs no per-pixel
+// broadcasts or scalar set-up, and the centre's geometry is computed once per
+// 8 pixels. Lane by lane the operations of rsaa::makeGeo and rsaa::differs in
+// their order (no FMA), so the result is bit-identical to the scalar path.
+struct Centre8 {
+  __m256 px, py, pz, nx, ny, nz, vx, vy, tol, bg, samePoint, selfSlack;
+};
+
+// makeGeo for 8 centres from their depth, world normal and ray terms. Lanes
+// whose depth is background hold garbage; bg marks them (differs8pix ignores them).
+template <bool Ortho>
+CRISP_AVX2 inline Centre8 centre8(__m256 d, __m256 wx, __m256 wy, __m256 wz, __m256 ux, __m256 uy, const Camera& cam) {
+  Centre8 c;
+  c.bg = _mm256_cmp_ps(d, set8(kFarDepth), _CMP_NLT_UQ);
+  c.px = Ortho ? ux : _mm256_mul_ps(ux, d);
+  c.py = Ortho ? uy : _mm256_mul_ps(uy, d);
+  c.pz = _mm256_xor_ps(d, set8(-0.0f));
+  c.vx = Ortho ? _mm256_setzero_ps() : ux;
+  c.vy = Ortho ? _mm256_setzero_ps() : uy;
+  const __m256 power = _mm256_and_ps(d, _mm256_castsi256_ps(_mm256_set1_epi32(0x7F800000)));
+  const __m256 ulp = _mm256_max_ps(set8(5.9604645e-8f), _mm256_mul_ps(power, set8(0.0009765625f)));
+  c.tol = _mm256_mul_ps(set8(cam.depthUlps), ulp);
+  c.nx = dot8(set8(cam.view[0][0]), set8(cam.view[0][1]), set8(cam.view[0][2]), wx, wy, wz);
+  c.ny = dot8(set8(cam.view[1][0]), set8(cam.view[1][1]), set8(cam.view[1][2]), wx, wy, wz);
+  c.nz = dot8(set8(cam.view[2][0]), set8(cam.view[2][1]), set8(cam.view[2][2]), wx, wy, wz);
+  c.samePoint = _mm256_mul_ps(set8(kSamePoint2), _mm256_mul_ps(c.pz, c.pz));
+  c.selfSlack = slack8(c.nx, c.ny, c.nz, c.vx, c.vy, c.tol);  // dotSlack(centre normal, centre)
+  return c;
+}
+
+// rsaa::differs(centre j, sample k of pixel j) for the 8 pixels whose sample-k
+// float4s start at `row` (16 bytes apart); sux/suy are the samples' ray terms.
+template <bool Ortho>
+CRISP_AVX2 inline __m256 differs8pix(const char* row, const Centre8& c, __m256 sux, __m256 suy, const Camera& cam,
+                                     __m256 threshold2) {
+  const auto at = [row](int j) { return reinterpret_cast<const float*>(row + 16 * j); };
+  const __m256 r0 = pair8(at(0), at(4)), r1 = pair8(at(1), at(5)), r2_ = pair8(at(2), at(6)), r3 = pair8(at(3), at(7));
+  const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1);
+  const __m256 t2 = _mm256_unpacklo_ps(r2_, r3), t3 = _mm256_unpackhi_ps(r2_, r3);
+  const __m256 nx = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0));
+  const __m256 ny = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2));
+  const __m256 nz = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0));
+  const __m256 d = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2));
+  const __m256 bg = _mm256_cmp_ps(d, set8(kFarDepth), _CMP_NLT_UQ);
+  const __m256 px = Ortho ? sux : _mm256_mul_ps(sux, d);
+  const __m256 py = Ortho ? suy : _mm256_mul_ps(suy, d);
+  const __m256 pz = _mm256_xor_ps(d, set8(-0.0f));
+  const __m256 snx = dot8(set8(cam.view[0][0]), set8(cam.view[0][1]), set8(cam.view[0][2]), nx, ny, nz);
+  const __m256 sny = dot8(set8(cam.view[1][0]), set8(cam.view[1][1]), set8(cam.view[1][2]), nx, ny, nz);
+  const __m256 snz = dot8(set8(cam.view[2][0]), set8(cam.view[2][1]), set8(cam.view[2][2]), nx, ny, nz);
+  const __m256 rx = _mm256_sub_ps(px, c.px);
+  const __m256 ry = _mm256_sub_ps(py, c.py);
+  const __m256 rz = _mm256_sub_ps(pz, c.pz);
+  const __m256 r2 = dot8(rx, ry, rz, rx, ry, rz);
+  const __m256 apart = _mm256_cmp_ps(r2, c.samePoint, _CMP_GT_OQ);
+  const __m256 da = dot8(c.nx, c.ny, c.nz, rx, ry, rz);
+  const __m256 db = dot8(snx, sny, snz, rx, ry, rz);
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 svx = Ortho ? zero : sux, svy = Ortho ? zero : suy;
+  const __m256 power = _mm256_and_ps(d, _mm256_castsi256_ps(_mm256_set1_epi32(0x7F800000)));
+  const __m256 ulp = _mm256_max_ps(set8(5.9604645e-8f), _mm256_mul_ps(power, set8(0.0009765625f)));
+  const __m256 stol = _mm256_mul_ps(set8(cam.depthUlps), ulp);
+  const __m256 slackA = _mm256_add_ps(c.selfSlack, slack8(c.nx, c.ny, c.nz, svx, svy, stol));
+  const __m256 slackB = _mm256_add_ps(slack8(snx, sny, snz, c.vx, c.vy, c.tol), slack8(snx, sny, snz, svx, svy, stol));
+  const __m256 ea = _mm256_max_ps(zero, _mm256_sub_ps(abs8(da), slackA));
+  const __m256 eb = _mm256_max_ps(zero, _mm256_sub_ps(abs8(db), slackB));
+  const __m256 dn = _mm256_add_ps(ea, eb);
+  const __m256 far = _mm256_cmp_ps(_mm256_mul_ps(dn, dn), _mm256_mul_ps(threshold2, r2), _CMP_NLT_UQ);
+  // Background centre: differs iff the sample is geometry; else background
+  // sample, or apart and far.
+  return _mm256_or_ps(_mm256_xor_ps(c.bg, bg), _mm256_andnot_ps(c.bg, _mm256_and_ps(apart, far)));
+}
+
+// rsaa::differs of any sample, as an 8-bit lane mask, for pixels x..x+7 of row y.
+template <bool Ortho>
+CRISP_AVX2 int anyDiffers8(const Inputs& in, int x, int y, const float* colUx, float uy, const float* dux,
+                           const float* duy, const Camera& cam, float threshold2) {
+  alignas(32) float d[8], wx[8], wy[8], wz[8];
+  for (int j = 0; j < 8; ++j) {
+    d[j] = in.depth.pixel(x + j, y)[0];
+    const float* n = in.normal.pixel(x + j, y);
+    wx[j] = n[0], wy[j] = n[1], wz[j] = n[2];
+  }
+  const __m256 ux = _mm256_loadu_ps(colUx + x);
+  const Centre8 c = centre8<Ortho>(_mm256_load_ps(d), _mm256_load_ps(wx), _mm256_load_ps(wy), _mm256_load_ps(wz), ux,
+                                   set8(uy), cam);
+  const __m256 t2 = set8(threshold2);
+  __m256 any = _mm256_setzero_ps();
+  for (int k = 0; k < kSamples; ++k) {
+    const char* row = reinterpret_cast<const char*>(in.sub[k].pixel(x, y));
+    any = _mm256_or_ps(any, differs8pix<Ortho>(row, c, _mm256_add_ps(ux, set8(dux[k])), set8(uy + duy[k]), cam, t2));
+  }
+  return _mm256_movemask_ps(any);
+}
+
+// sanitizeColor of 8 packed RGBA pixels (32 floats) from src to dst: NaN -> 0,
+// then clamp to +-kMaxColor, as std::clamp does (the bounds are finite, so
+// max/min give the same values).
+CRISP_AVX2 inline void sanitizeCopy8(const float* src, float* dst) {
+  const __m256 lo = set8(-kMaxColor), hi = set8(kMaxColor);
+  for (int j = 0; j < 32; j += 8) {
+    const __m256 v = _mm256_loadu_ps(src + j);
+    const __m256 finiteOrInf = _mm256_and_ps(v, _mm256_cmp_ps(v, v, _CMP_ORD_Q));
+    _mm256_storeu_ps(dst + j, _mm256_min_ps(_mm256_max_ps(finiteOrInf, lo), hi));
+  }
+}
 #endif
 
 std::atomic<int> gSimdLanes{0};  // setSimdLanesForTesting
@@ -317,8 +426,57 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
 #if defined(CRISP_RSAA_AVX2)
   const bool avx2 = simd && useAvx2();
 #endif
+#if defined(CRISP_RSAA_AVX2)
+  // 8 pixels at a time where the sub-samples are packed float4 (as the
+  // library's frames and the C API's usual images are).
+  bool chunks = avx2;
+  for (int k = 0; k < kSamples; ++k) chunks = chunks && in.sub[k].pixelStride == 16;
+#endif
   for (int y = y0; y < y1; ++y) {
-    for (int x = 0; x < width_; ++x) {
+    int x = 0;
+#if defined(CRISP_RSAA_AVX2)
+    if (chunks) {
+      const float uy = rowUy_[std::size_t(y)];
+      for (; x + 8 <= width_; x += 8) {
+        const int bits = cam.orthographic
+                             ? anyDiffers8<true>(in, x, y, colUx_.data(), uy, dux_, duy_, cam, threshold2_)
+                             : anyDiffers8<false>(in, x, y, colUx_.data(), uy, dux_, duy_, cam, threshold2_);
+        const std::size_t i0 = std::size_t(y) * std::size_t(width_) + std::size_t(x);
+        if (bits == 0) {  // most chunks: all 8 pixels inside one polygon
+          std::memset(&geometric_[i0], 0, 8);
+          std::memset(&halved_[i0], 0, 8);
+          std::memset(&masks_[i0], 255, 8);
+          if (textureFxaa) continue;
+          const float* src = direct_ ? (direct_->pixelStride == 16 && direct_->channels() == 4 ? direct_->pixel(x, y)
+                                                                                                 : nullptr)
+                                     : staged_.at(x, y);
+          if (src && outChannels == 4 && output.pixelStride == 16) {
+            sanitizeCopy8(src, output.pixel(x, y));
+            continue;
+          }
+        }
+        for (int j = 0; j < 8; ++j) {
+          const int xj = x + j;
+          const std::size_t i = std::size_t(y) * std::size_t(width_) + std::size_t(xj);
+          const bool any = (bits >> j) & 1;
+          geometric_[i] = any;
+          if (any) {
+            const Geo centre = centreGeo(in, xj, y);
+            for (int k = 0; k < kSamples; ++k) subs[k] = subGeo(in, k, xj, y);
+            resolve(in, xj, y, centre, subs, colour);
+          } else {
+            masks_[i] = 255;
+            halved_[i] = 0;
+            if (textureFxaa) continue;
+            texel(xj, y, colour);
+          }
+          float* o = output.pixel(xj, y);
+          for (int c = 0; c < outChannels; ++c) o[c] = colour[c];
+        }
+      }
+    }
+#endif
+    for (; x < width_; ++x) {
       const Geo centre = centreGeo(in, x, y);
       bool any = false;
 #if defined(__SSE2__)

@@ -5,7 +5,10 @@
 // so edge density is realistic; the fraction of resampled pixels is the
 // counter `resolved_fraction`. rsaa.floor.read is the memory floor of the
 // same run: reading every input once (colour, depth, normal, 8 float4
-// sub-sample images) and writing the output.
+// sub-sample images) and writing the output. rsaa.* run the filter's default
+// (textureAA = fxaa), rsaa.none.* the thesis' RSAA alone (textureAA = none);
+// rsaa.fxaa-part.mt is the FXAA kernel alone on the same colour, the part
+// textureAA adds.
 #include <benchmark/benchmark.h>
 
 #include <map>
@@ -14,6 +17,7 @@
 #include <utility>
 
 #include "bench_common.h"
+#include "filters/fxaa.h"
 #include "filters/rsaa.h"
 #include "rsaa/offset_table.h"
 
@@ -59,11 +63,13 @@ const Frame& frame(int width, int height) {
   return f;
 }
 
-void runRsaa(benchmark::State& state, int width, int height, int threads, bool reference) {
+void runRsaa(benchmark::State& state, int width, int height, int threads, bool reference,
+             const char* textureAA = "fxaa") {
   const Frame& f = frame(width, height);
   Image output(width, height, 4);
   crisp::Context context;
   auto filter = bench::newFilter(context, "rsaa", output, threads, reference);
+  filter->params().setString("textureAA", textureAA);
   filter->setImage("color", f.color.view());
   filter->setImage("depth", f.depth.view());
   filter->setImage("normal", f.normal.view());
@@ -84,6 +90,19 @@ void runRsaa(benchmark::State& state, int width, int height, int threads, bool r
   Image scratch(width, height, 4);
   kernel.run(in, scratch.view(), false, threads);
   state.counters["resolved_fraction"] = double(kernel.resolvedCount()) / (double(width) * height);
+  bench::setPixelRate(state, width, height);
+}
+
+// The FXAA kernel alone on the frame's colour (what textureAA = fxaa adds).
+void runFxaaPart(benchmark::State& state, int width, int height) {
+  const Frame& f = frame(width, height);
+  Image output(width, height, 4);
+  crisp::fxaa::Workspace ws;
+  ws.allocate(width, height);
+  for (auto _ : state) {
+    crisp::fxaa::runFast(f.color.view(), output.view(), crisp::fxaa::Settings(), ws, 0);
+    benchmark::DoNotOptimize(output.data.data());
+  }
   bench::setPixelRate(state, width, height);
 }
 
@@ -119,6 +138,13 @@ void registerAll() {
       rsaa::setSimdLanesForTesting(0);
     });
     bench::registerTimed("rsaa.reference" + tag, [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, true); });
+    bench::registerTimed("rsaa.none.fast.mt" + tag,
+                         [w, h](benchmark::State& st) { runRsaa(st, w, h, 0, false, "none"); });
+    bench::registerTimed("rsaa.none.fast.st" + tag,
+                         [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none"); });
+    bench::registerTimed("rsaa.none.reference" + tag,
+                         [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, true, "none"); });
+    bench::registerTimed("rsaa.fxaa-part.mt" + tag, [w, h](benchmark::State& st) { runFxaaPart(st, w, h); });
     bench::registerTimed("rsaa.floor.read" + tag, [w, h](benchmark::State& st) { readFloor(st, w, h); });
   }
 }

@@ -446,6 +446,37 @@ TEST(RsaaPaths, GarbageInputIsSafeAndIdentical) {
   setSimdLanesForTesting(0);
 }
 
+// Flat geometry (no pixel needs RSAA) under garbage colour: the fast path's
+// 8-pixel copy of unresolved pixels sanitises exactly as the reference does,
+// with and without staging (in place), for both textureAA modes.
+TEST(RsaaPaths, GarbageColourOnFlatGeometryIsIdentical) {
+  GeoScene s;
+  s.width = 43, s.height = 9;
+  Plane p;
+  p.n[0] = 0.2, p.n[2] = std::sqrt(1 - 0.04);
+  s.planes = {p};
+  s.colours = {{0.5f, 0.5f, 0.5f}};
+  s.region = [](double, double) { return 0; };
+  Frame f = render(s, 1);
+  std::mt19937 g(11);
+  const float specials[] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
+                            -std::numeric_limits<float>::infinity(), -0.0f, 1e30f, -1e30f, 65504.0f, -65504.0f};
+  for (auto& v : f.color.data) v = g() % 3 ? std::uniform_real_distribution<float>(-2, 2)(g) : specials[g() % 8];
+  for (TextureAA t : {TextureAA::None, TextureAA::Fxaa}) {
+    Settings settings;
+    settings.camera = s.camera;
+    settings.textureAA = t;
+    Kernel k;
+    const Image ref = runKernel(f, settings, true, 1, &k);
+    EXPECT_EQ(k.resolvedCount(), 0);
+    expectSameBits(ref, runKernel(f, settings, false, 2), "garbage colour");
+    Frame inPlace = f;
+    k.run(inPlace.inputs(), inPlace.color.view(), false, 2);
+    expectSameBits(ref, inPlace.color, "garbage colour, in place");
+    for (float v : ref.data) ASSERT_TRUE(std::isfinite(v));
+  }
+}
+
 // ------------------------------------------------------------ filter --
 
 TEST(RsaaFilter, RunsThroughTheFilterInterfaceAndChecksItsImages) {
