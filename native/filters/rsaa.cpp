@@ -392,6 +392,20 @@ CRISP_AVX2 inline void sanitizeCopy8(const float* src, float* dst) {
     _mm256_storeu_ps(dst + j, _mm256_min_ps(_mm256_max_ps(finiteOrInf, lo), hi));
   }
 }
+
+// True when the 8 packed RGBA output pixels equal the sanitised colour (src),
+// i.e. FXAA left all of them alone (the scalar test compares channel by
+// channel with !=; so does this, -0 == 0 included).
+CRISP_AVX2 inline bool unchanged8(const float* src, const float* out) {
+  const __m256 lo = set8(-kMaxColor), hi = set8(kMaxColor);
+  __m256 neq = _mm256_setzero_ps();
+  for (int j = 0; j < 32; j += 8) {
+    const __m256 v = _mm256_loadu_ps(src + j);
+    const __m256 clean = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(v, _mm256_cmp_ps(v, v, _CMP_ORD_Q)), lo), hi);
+    neq = _mm256_or_ps(neq, _mm256_cmp_ps(clean, _mm256_loadu_ps(out + j), _CMP_NEQ_UQ));
+  }
+  return _mm256_testz_ps(neq, neq);
+}
 #endif
 
 std::atomic<int> gSimdLanes{0};  // setSimdLanesForTesting
@@ -532,12 +546,28 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
 //    on the two centres), which catches an edge that passes between two
 //    centres in the strip the sub-samples (|offset| <= 0.375 px) do not see.
 // The second test runs only where FXAA changed the colour (a few % of pixels).
-void Kernel::guardRows(const Inputs& in, const ImageView& output, int y0, int y1) {
+void Kernel::guardRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd) {
   const int outChannels = output.channels();
   static constexpr int kNeighbour4[4][2] = {{-1, 0}, {1, 0}, {0, -1}, {0, 1}};
+#if defined(CRISP_RSAA_AVX2)
+  // Fast path: skip 8 pixels at once when FXAA left all of them alone (most
+  // of the image); the others take the scalar test below.
+  const bool chunks = simd && useAvx2() && outChannels == 4 && output.pixelStride == 16 &&
+                      (!direct_ || (direct_->channels() == 4 && direct_->pixelStride == 16));
+#else
+  (void)simd;
+#endif
   for (int y = y0; y < y1; ++y)
     for (int x = 0; x < width_; ++x) {
       const std::size_t i = std::size_t(y) * std::size_t(width_) + std::size_t(x);
+#if defined(CRISP_RSAA_AVX2)
+      if (chunks && x % 8 == 0 && x + 8 <= width_ &&
+          unchanged8(direct_ ? direct_->pixel(x, y) : staged_.at(x, y), output.pixel(x, y))) {
+        std::memset(&textured_[i], 0, 8);
+        x += 7;
+        continue;
+      }
+#endif
       textured_[i] = 0;
       if (geometric_[i]) continue;  // RSAA's result
       float colour[4];
@@ -600,7 +630,7 @@ void Kernel::run(const Inputs& in, const ImageView& output, bool reference, int 
       fxaa::runFast(source, output, settings_.fxaa, fxaa_, numThreads);
   }
   rows([&](int y0, int y1) { runRows(in, output, y0, y1, !reference); });
-  if (textureFxaa) rows([&](int y0, int y1) { guardRows(in, output, y0, y1); });
+  if (textureFxaa) rows([&](int y0, int y1) { guardRows(in, output, y0, y1, !reference); });
   direct_ = nullptr;
 }
 
