@@ -71,10 +71,17 @@
 //    beta'x after the update (eq. 8) in exact arithmetic and is a convex
 //    combination of two points of the box: the output lies in the 3x3 colour
 //    box of the current frame (a final clamp absorbs rounding).
-//  * Jitter: like "taa", the current sample is never resampled; jitterX/Y
-//    only set the sample weight w when jitterWeighting = blackman-harris
-//    (weighted least squares: measurement variance 1/w), the "weighted moving
-//    average" of §5.2's static special case.
+//  * Jitter: like "taa" (taa.cpp "Jitter"), a still pixel's measurement y is
+//    its own sample, never resampled; jitterX/Y set its weight w when
+//    jitterWeighting = blackman-harris (weighted least squares: measurement
+//    variance 1/w), the "weighted moving average" of §5.2's static special
+//    case. A moving pixel's y is the unjittered mix of the 3x3 around the
+//    sample nearest its centre (unjitter, temporal/jitter.h; a deviation from
+//    the paper, which renders without jitter): with EEVEE's +-1.5 px jitter
+//    its own sample jumps across edges from frame to frame and the fit
+//    follows the jumps. The 3x3 (box, average, luminance range, followed
+//    tap) is read around that sample for every pixel; the box is widened to
+//    contain y.
 //
 // Parameters (also `crisp help phlm` / crispGetFilterDoc):
 // | name | type | default | range | meaning | source |
@@ -90,6 +97,7 @@
 // | featureB | float | 0.25 | [0, 10] | b of phi | §5.1 |
 // | featureAlphaMin | float | 0.05 | [0, 1] | floor of the feature's current weight | this file |
 // | footprintBox | bool | true | - | still pixels: 3x3 box united with the 5x5 values seen twice | docs/sampling.md |
+// | unjitter | string | blackman-harris | blackman-harris, nearest, none | moving pixels' measurement | temporal/jitter.h |
 // | depthTolerance | float | 0.05 | [0, 10] | relative depth change still the same surface | this file |
 // | reference | bool | false | - | scalar reference path | this file |
 #include "filters/phlm.h"
@@ -137,6 +145,7 @@ struct Frame {
   int axis;                    // regularised axis of this frame
   T featureA, featureB, featureAlphaMin;
   float depthTolerance;
+  temporal::Unjitter unjitter;  // the 3x3 is read around the sample nearest the centre (header, "Jitter")
 };
 
 // YCgCo luminance (R + 2G + B) / 4 (§5.1).
@@ -234,7 +243,8 @@ CRISP_PHLM_INLINE T rayEntry(const T f[3], const T y[3], const T lo[3], const T 
 // path (the fast path's unclamped interior is only one pixel deep).
 template <class T>
 inline temporal::Vec4 stagedTap(const Frame<T>& f, int x, int y, int i) {
-  const int tx = std::clamp(x + i % 5 - 2, 0, f.width - 1), ty = std::clamp(y + i / 5 - 2, 0, f.height - 1);
+  const int tx = temporal::shiftedSource(x + i % 5 - 2, f.width, f.unjitter.shiftX);
+  const int ty = temporal::shiftedSource(y + i / 5 - 2, f.height, f.unjitter.shiftY);
   return temporal::load4(f.staged + (std::size_t(ty) * f.width + tx) * 4);
 }
 
@@ -245,7 +255,8 @@ template <class T>
 inline bool stillFootprint(const Frame<T>& f, int x, int y) {
   if (!f.motion.ptr) return true;
   for (int i = 0; i < 25; ++i) {
-    const int tx = std::clamp(x + i % 5 - 2, 0, f.width - 1), ty = std::clamp(y + i / 5 - 2, 0, f.height - 1);
+    const int tx = temporal::shiftedSource(x + i % 5 - 2, f.width, f.unjitter.shiftX);
+    const int ty = temporal::shiftedSource(y + i / 5 - 2, f.height, f.unjitter.shiftY);
     const float* m = f.motion.pixel(tx, ty);
     if (m[0] != 0.0f || m[1] != 0.0f) return false;
   }
@@ -263,16 +274,21 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   // tonemapped luminance; min/max are exact and the sum runs in tap order, so
   // every path gets the same bits.
   using temporal::Vec4;
-  Vec4 boxLo, boxHi, boxSum, centre;
+  // With unjitter the taps are those of the shifted image (header, "Jitter");
+  // shiftedSource is the reference's clamp, so every path reads the same taps.
+  Vec4 boxLo, boxHi, boxSum, centre, taps[9];
   float depth9[9];
   int tapX[9], tapY[9];
+  const int sx = f.unjitter.shiftX, sy = f.unjitter.shiftY;
+  const bool clampTaps = Clamp || sx != 0 || sy != 0;
   for (int j = 0, i = 0; j < 3; ++j)
     for (int k = 0; k < 3; ++k, ++i) {
-      const int tx = Clamp ? std::clamp(x + k - 1, 0, w - 1) : x + k - 1;
-      const int ty = Clamp ? std::clamp(y + j - 1, 0, h - 1) : y + j - 1;
+      const int tx = clampTaps ? temporal::shiftedSource(x + k - 1, w, sx) : x + k - 1;
+      const int ty = clampTaps ? temporal::shiftedSource(y + j - 1, h, sy) : y + j - 1;
       tapX[i] = tx;
       tapY[i] = ty;
       const Vec4 c = temporal::load4(f.staged + (std::size_t(ty) * w + tx) * 4);
+      taps[i] = c;
       if (i == 0) {
         boxLo = boxHi = boxSum = c;
       } else {
@@ -286,7 +302,6 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   T lo[3] = {T(boxLo[0]), T(boxLo[1]), T(boxLo[2])};
   T hi[3] = {T(boxHi[0]), T(boxHi[1]), T(boxHi[2])};
   const T sum[3] = {T(boxSum[0]), T(boxSum[1]), T(boxSum[2])};
-  const T current[3] = {T(centre[0]), T(centre[1]), T(centre[2])};
   const T yMin = T(boxLo[3]), yMax = T(boxHi[3]);
 
   // Step 1: velocity (closest depth of the 3x3 when depth is given).
@@ -299,6 +314,19 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     vy = m[1];
   }
   const bool moving = vx != 0.0f || vy != 0.0f;
+  // The measurement y: a still pixel's own sample; a moving one's unjittered
+  // mix of the 3x3 (the centre tap without unjitter).
+  Vec4 sample = centre;
+  if (f.unjitter.enabled) {
+    if (moving) {
+      sample = taps[4] * f.unjitter.weights[4];
+      for (int i = 0; i < 9; ++i)
+        if (i != 4) sample += taps[i] * f.unjitter.weights[i];
+    } else {
+      sample = temporal::load4(f.staged + (std::size_t(y) * w + x) * 4);
+    }
+  }
+  const T current[3] = {T(sample[0]), T(sample[1]), T(sample[2])};
   if (f.footprintBox && !moving && stillFootprint(f, x, y)) {
     // The box of the correction and of the output clamp: the footprint box
     // (header, "Box"), the 3x3 box united with the 5x5's second extremes.
@@ -309,6 +337,13 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
       lo[c] = T(footLo[c]);
       hi[c] = T(footHi[c]);
     }
+  }
+  // The correction needs y inside the box (lines 13-17): a still pixel's own
+  // sample lies outside a 3x3 shifted by 2, and a weighted mix can pass a
+  // face by rounding. Without unjitter y is a tap and this changes nothing.
+  for (int c = 0; c < 3; ++c) {
+    lo[c] = std::min(lo[c], current[c]);
+    hi[c] = std::max(hi[c], current[c]);
   }
   bool valid = f.hasHistory && temporal::finiteMotion(vx, vy);
   const float px = float(x) + vx, py = float(y) + vy;
@@ -535,6 +570,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.axis = frames_ % kDims;
   f.bilinearBeta = s.modelFetch == ModelFetch::Bilinear;
   f.footprintBox = s.footprintBox;
+  f.unjitter = temporal::unjitterFor(s.unjitter, s.jitterX, s.jitterY, s.filterSize);
   f.boxResetScale = T(s.boxResetCovariance) / f.p0;
   if (!(f.boxResetScale > T(0))) invalidArgument("phlm: parameter 'boxResetCovariance' must be > 0");
   f.featureA = T(s.featureA);
@@ -641,6 +677,7 @@ class PhlmFilter final : public Filter {
     settings_.slopeCovariance = p.getFloat("slopeCovariance");
     settings_.boxResetCovariance = p.getFloat("boxResetCovariance");
     settings_.footprintBox = p.getBool("footprintBox");
+    settings_.unjitter = temporal::parseUnjitterMode(p.getString("unjitter"));
     settings_.featureA = p.getFloat("featureA");
     settings_.featureB = p.getFloat("featureB");
     settings_.featureAlphaMin = p.getFloat("featureAlphaMin");

@@ -24,6 +24,7 @@
 
 #include "core/image.h"
 #include "filters/phlm_rls.h"
+#include "temporal/jitter.h"
 
 namespace crisp::phlm {
 
@@ -45,6 +46,7 @@ struct Settings {
   ModelFetch modelFetch = ModelFetch::Bilinear;
   double boxResetCovariance = 1000.0;  // intercept variance after a box correction (P scaled from P0)
   bool footprintBox = true;  // still pixels: correct/clamp against the footprint box (phlm.cpp header)
+  temporal::UnjitterMode unjitter = temporal::UnjitterMode::BlackmanHarris;  // phlm.cpp header, "Jitter"
 };
 
 struct Inputs {

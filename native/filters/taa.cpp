@@ -213,13 +213,6 @@ inline temporal::MinMax4 footprintBox(const temporal::MinMax4& box3x3, const tem
 constexpr int kTapDx[9] = {-1, 0, 1, -1, 0, 1, -1, 0, 1};
 constexpr int kTapDy[9] = {-1, -1, -1, 0, 0, 0, 1, 1, 1};
 
-// The input row/column that tap q of the shifted image reads (Frame::shiftX/Y):
-// the shifted image is clamped to its edge like the input, then shifted, then
-// clamped again, the way the fast path stages it (a shifted, edge-padded row).
-inline int shiftedSource(int q, int size, int shift) {
-  return std::clamp(std::clamp(q, 0, size - 1) - shift, 0, size - 1);
-}
-
 // Row `px` (w pixels of `comps` floats) shifted in place: px'[q] = px[clamp(q - shift)].
 inline void shiftRowInPlace(float* px, int w, int comps, int shift) {
   if (shift > 0)
@@ -243,8 +236,8 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
   // Step 3: velocity of the followed tap (clamped to the image, as the taps are).
   float vx = 0.0f, vy = 0.0f;
   if (f.motion.ptr) {
-    const float* m = f.motion.pixel(shiftedSource(x + kTapDx[nb.tap], w, f.shiftX),
-                                    shiftedSource(y + kTapDy[nb.tap], h, f.shiftY));
+    const float* m = f.motion.pixel(temporal::shiftedSource(x + kTapDx[nb.tap], w, f.shiftX),
+                                    temporal::shiftedSource(y + kTapDy[nb.tap], h, f.shiftY));
     vx = m[0];
     vy = m[1];
   }
@@ -381,7 +374,7 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
   float depth9[9];
   // Without unjitter the shift is 0 and shiftedSource a plain clamp.
   for (int i = 0; i < 9; ++i) {
-    const int tx = shiftedSource(x + kTapDx[i], w, f.shiftX), ty = shiftedSource(y + kTapDy[i], h, f.shiftY);
+    const int tx = temporal::shiftedSource(x + kTapDx[i], w, f.shiftX), ty = temporal::shiftedSource(y + kTapDy[i], h, f.shiftY);
     taps[i] = stagePixel(f.color.pixel(tx, ty), cc, f.space);
     depth9[i] = f.depth.ptr ? temporal::sanitizeDepth(f.depth.pixel(tx, ty)[0]) : kBackgroundDepth;
   }
@@ -399,7 +392,7 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
   if (depthNow) depthNow[std::size_t(y) * w + x] = depth9[4];
   resolvePixel(f, x, y, nb, [&] {
     auto tap = [&](int i) {
-      const int tx = shiftedSource(x + i % 5 - 2, w, f.shiftX), ty = shiftedSource(y + i / 5 - 2, h, f.shiftY);
+      const int tx = temporal::shiftedSource(x + i % 5 - 2, w, f.shiftX), ty = temporal::shiftedSource(y + i / 5 - 2, h, f.shiftY);
       return stagePixel(f.color.pixel(tx, ty), cc, f.space);
     };
     temporal::TwoExtremes4 e = temporal::twoExtremesOf(tap(0), tap(1));
@@ -637,30 +630,6 @@ std::size_t Kernel::bytesKeptBetweenFrames() const {
 
 std::size_t Kernel::bytesScratch() const { return bandScratch_.size() * sizeof(float); }
 
-// The shift and weights of Frame's unjitter for this frame's jitter j: the
-// sample of pixel p - shift sits at p + (j - shift), the nearest to p's centre
-// (|j - shift| <= 0.5 for |j| <= 2.5); tap q of its 3x3 at q + j - shift,
-// weighted by EEVEE's Blackman-Harris pixel filter there (Karis 2014's
-// reconstruction of the current frame at the unjittered centre).
-void setUnjitter(Frame& f, const Settings& s) {
-  f.unjitter = s.unjitter != Unjitter::None;
-  f.shiftX = f.unjitter ? std::clamp(int(std::lround(s.jitterX)), -2, 2) : 0;
-  f.shiftY = f.unjitter ? std::clamp(int(std::lround(s.jitterY)), -2, 2) : 0;
-  const float dx = s.jitterX - float(f.shiftX), dy = s.jitterY - float(f.shiftY);
-  float sum = 0.0f;
-  for (int i = 0; i < 9; ++i) {
-    f.unjitterWeights[i] = s.unjitter == Unjitter::BlackmanHarris
-                               ? temporal::blackmanHarrisWeight(float(kTapDx[i]) + dx, float(kTapDy[i]) + dy, s.filterSize)
-                               : 0.0f;
-    sum += f.unjitterWeights[i];
-  }
-  if (!(sum > 0.0f)) {  // nearest, or a filter too narrow to reach any tap
-    std::fill(f.unjitterWeights, f.unjitterWeights + 9, 0.0f);
-    f.unjitterWeights[4] = sum = 1.0f;
-  }
-  for (float& wgt : f.unjitterWeights) wgt /= sum;
-}
-
 void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThreads) {
   if (in.color.width != width_ || in.color.height != height_)
     invalidData("taa: colour is " + std::to_string(in.color.width) + "x" + std::to_string(in.color.height) +
@@ -704,7 +673,11 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   f.aliased = in.aliasedValue;
   f.aliasedNeighbourhood = s.aliasedNeighbourhood;
   f.aliasedBoxSize = s.aliasedBoxSize;
-  setUnjitter(f, s);
+  const temporal::Unjitter unjitter = temporal::unjitterFor(s.unjitter, s.jitterX, s.jitterY, s.filterSize);
+  f.unjitter = unjitter.enabled;
+  f.shiftX = unjitter.shiftX;
+  f.shiftY = unjitter.shiftY;
+  std::copy(unjitter.weights, unjitter.weights + 9, f.unjitterWeights);
 
   if (reference) {
     for (int y = 0; y < height_; ++y)
@@ -790,12 +763,6 @@ std::vector<ParamSpec> parameterSpecs() {
        "relative depth difference between the followed surface and the previous depth still counted as the same "
        "surface (larger: disocclusion reset)",
        "this file"},
-      {"unjitter", ParamType::String, 0, 0, 0, "blackman-harris|nearest|none",
-       "current colour of moving pixels: blackman-harris = this frame's 3x3 around the sample nearest the pixel "
-       "centre, weighted by the pixel filter at the unjittered centre; nearest = that sample; none = the pixel's "
-       "own jittered sample (flickers by up to +-filterSize px where history is clipped). Still pixels always "
-       "average their own samples",
-       "METHODS.md TAA baseline (unjittered current colour); Karis 2014"},
       {"reference", ParamType::Bool, 0, 0, 1, nullptr,
        "run the scalar reference path (one thread, clamped taps everywhere); bit-identical to the fast path",
        "this file"},
@@ -823,10 +790,7 @@ void readSettings(const ParamSet& p, const char* filterName, Settings& settings)
   settings.maxSamples = p.getInt("maxSamples");
   settings.staticClip = p.getBool("staticClip");
   settings.depthTolerance = p.getFloat("depthTolerance");
-  const std::string unjitter = p.getString("unjitter");
-  settings.unjitter = unjitter == "none"      ? Unjitter::None
-                      : unjitter == "nearest" ? Unjitter::Nearest
-                                              : Unjitter::BlackmanHarris;
+  settings.unjitter = temporal::parseUnjitterMode(p.getString("unjitter"));
 }
 
 }  // namespace taa

@@ -21,14 +21,13 @@
 
 #include "core/image.h"
 #include "core/params.h"
+#include "temporal/jitter.h"
 
 namespace crisp::taa {
 
 enum class HistoryFilter { CatmullRom, Bilinear };
 enum class ClipSpace { YCoCg, Rgb };
 enum class JitterWeighting { None, BlackmanHarris };
-// The current colour of the moving (feedback) path: see taa.cpp "Jitter".
-enum class Unjitter { None, Nearest, BlackmanHarris };
 
 struct Settings {
   float jitterX = 0.0f;  // this frame's sample offset, pixels, x right
@@ -44,7 +43,7 @@ struct Settings {
   int maxSamples = 128;       // cap of the running average's sample count (weighted units)
   bool staticClip = true;     // clip history in static pixels too (rejects cuts, fireflies, light changes)
   float depthTolerance = 0.05f;  // relative depth difference still the same surface
-  Unjitter unjitter = Unjitter::BlackmanHarris;
+  temporal::UnjitterMode unjitter = temporal::UnjitterMode::BlackmanHarris;  // taa.cpp "Jitter"
   // Steering by a per-pixel aliasedValue plane (Inputs::aliasedValue; seed 000
   // §4.3.4, used by taa-improved): the moving path's box is
   // mix(cross, 3x3, a) (eq. 4.15) instead of the rounded box, and/or shrunk

@@ -75,8 +75,8 @@ float blackmanHarrisWeight(float x, float y, float filterSize) {
 std::vector<ParamSpec> jitterParamSpecs(const char* weightMeaning, const char* weightSource) {
   return {
       {"jitterX", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
-       "this frame's sub-pixel sample offset in pixels, x right (set per frame from the sidecar's jitter; the "
-       "sample is never resampled)",
+       "this frame's sub-pixel sample offset in pixels, x right (set per frame from the sidecar's jitter; a "
+       "still pixel's sample is never resampled, a moving pixel's is unjittered, see unjitter)",
        "seed 000 §3.6.1 and appendix B; seed 002 §5.2; seed 004 Halton"},
       {"jitterY", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
        "this frame's sample offset in pixels, y DOWN (the library convention: negate the sidecar's / Blender's "
@@ -86,7 +86,39 @@ std::vector<ParamSpec> jitterParamSpecs(const char* weightMeaning, const char* w
       {"filterSize", ParamType::Float, 1.5, 0.01, 4.0, nullptr,
        "EEVEE's filter_size: the Blackman-Harris pixel filter of jitterWeighting spans [-filterSize, filterSize] px",
        "BLENDER.md Sampling and jitter"},
+      {"unjitter", ParamType::String, 0, 0, 0, "blackman-harris|nearest|none",
+       "current colour of moving pixels (and of still ones whose history was rejected): blackman-harris = this "
+       "frame's 3x3 around the sample nearest the pixel centre, weighted by the pixel filter at the unjittered "
+       "centre; nearest = that sample; none = the pixel's own jittered sample (jumps by up to +-filterSize px from "
+       "frame to frame). Still pixels always average their own samples",
+       "METHODS.md TAA baseline (unjittered current colour); Karis 2014"},
   };
+}
+
+UnjitterMode parseUnjitterMode(const std::string& name) {
+  return name == "none" ? UnjitterMode::None : name == "nearest" ? UnjitterMode::Nearest : UnjitterMode::BlackmanHarris;
+}
+
+Unjitter unjitterFor(UnjitterMode mode, float jitterX, float jitterY, float filterSize) {
+  Unjitter u;
+  if (mode == UnjitterMode::None) return u;
+  u.enabled = true;
+  u.shiftX = std::clamp(int(std::lround(jitterX)), -2, 2);
+  u.shiftY = std::clamp(int(std::lround(jitterY)), -2, 2);
+  const float dx = jitterX - float(u.shiftX), dy = jitterY - float(u.shiftY);
+  float sum = 0.0f;
+  for (int i = 0; i < 9; ++i) {
+    u.weights[i] = mode == UnjitterMode::BlackmanHarris
+                       ? blackmanHarrisWeight(float(i % 3 - 1) + dx, float(i / 3 - 1) + dy, filterSize)
+                       : 0.0f;
+    sum += u.weights[i];
+  }
+  if (!(sum > 0.0f)) {  // nearest, or a filter too narrow to reach any tap
+    std::fill(u.weights, u.weights + 9, 0.0f);
+    u.weights[4] = sum = 1.0f;
+  }
+  for (float& w : u.weights) w /= sum;
+  return u;
 }
 
 }  // namespace crisp::temporal

@@ -20,6 +20,7 @@
 // the taa filter's jitterX / jitterY expect.
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "core/params.h"
@@ -27,7 +28,7 @@
 namespace crisp::temporal {
 
 // The per-frame jitter parameters every temporal filter takes: jitterX,
-// jitterY, jitterWeighting, filterSize. weightMeaning and weightSource say what
+// jitterY, jitterWeighting, filterSize, unjitter. weightMeaning and weightSource say what
 // the Blackman-Harris sample weight does in that filter; pass string literals
 // (the specs keep the pointers).
 std::vector<ParamSpec> jitterParamSpecs(const char* weightMeaning, const char* weightSource);
@@ -70,5 +71,32 @@ Jitter jitterForFrame(int frame, JitterDistribution distribution, float filterSi
 // to weight uniformly jittered samples so their weighted average converges to
 // the Blackman-Harris-filtered image.
 float blackmanHarrisWeight(float x, float y, float filterSize);
+
+// The unjittered current colour of a moving pixel (parameter `unjitter`;
+// METHODS.md "unjittered current colour"; Karis 2014). With jitter j the
+// sample of pixel p sits at p + j; the sample nearest p's centre is that of
+// pixel p - shift, shift = round(j) (halves away from zero) clamped to +-2, so
+// |j - shift| <= 0.5 for |j| <= 2.5. Tap i (row order) of the 3x3 around it
+// sits at (i % 3 - 1, i / 3 - 1) + j - shift from p's centre and is weighted by
+// the Blackman-Harris pixel filter there (weights normalised; nearest: the
+// centre tap alone). Averaged over jitter phases the weighted taps again give
+// the filtered pixel, without the frame-to-frame jumps of p's own sample.
+enum class UnjitterMode { None, Nearest, BlackmanHarris };
+UnjitterMode parseUnjitterMode(const std::string& name);  // the parameter's values
+struct Unjitter {
+  bool enabled = false;
+  int shiftX = 0, shiftY = 0;
+  float weights[9] = {0, 0, 0, 0, 1, 0, 0, 0, 0};
+};
+Unjitter unjitterFor(UnjitterMode mode, float jitterX, float jitterY, float filterSize);
+
+// The input index that index q of the shifted image reads: clamped to the
+// image, shifted, clamped again (how the fast paths stage a shifted,
+// edge-padded row; the reference paths read the same taps).
+inline int shiftedSource(int q, int size, int shift) {
+  const int c = q < 0 ? 0 : (q >= size ? size - 1 : q);
+  const int s = c - shift;
+  return s < 0 ? 0 : (s >= size ? size - 1 : s);
+}
 
 }  // namespace crisp::temporal

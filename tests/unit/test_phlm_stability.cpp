@@ -375,7 +375,9 @@ TEST(PhlmStability, SingleFireflyOnPanFades) {
       EXPECT_GT(diff, 1.0);
     } else {
       EXPECT_LT(diff, 0.2) << "frame " << t;
-      if (t >= kFirefly + 15) {
+      // 20 frames: unjitter's moving measurement mixes the 3x3, so the
+      // firefly reaches 9 models at a fraction of its value (15 without it).
+      if (t >= kFirefly + 20) {
         EXPECT_LT(diff, 0.01) << "frame " << t;
       }
       if (t >= kFirefly + 30) {
