@@ -58,6 +58,7 @@ void Kernel::allocate(int width, int height, const Settings& settings) {
   halved_.assign(n, 0);
   geometric_.assign(n, 0);
   textured_.assign(n, 0);
+  rowGuarded_.assign(std::size_t(height), 0);
   if (settings.textureAA == TextureAA::Fxaa) fxaa_.allocate(width, height);
 }
 
@@ -534,6 +535,16 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
       float* o = output.pixel(x, y);
       for (int k = 0; k < outChannels; ++k) o[k] = colour[k];
     }
+    // textureAA = fxaa, fast path: guard the row above while its rows are in
+    // cache, once its neighbours above and below are classified (both in this
+    // band); run() guards the first and last row of each band afterwards.
+    if (textureFxaa && simd) {
+      rowGuarded_[std::size_t(y)] = 0;
+      if (y - 1 > y0) {
+        guardRows(in, output, y - 1, y, true);
+        rowGuarded_[std::size_t(y - 1)] = 1;
+      }
+    }
   }
 }
 
@@ -630,7 +641,15 @@ void Kernel::run(const Inputs& in, const ImageView& output, bool reference, int 
       fxaa::runFast(source, output, settings_.fxaa, fxaa_, numThreads);
   }
   rows([&](int y0, int y1) { runRows(in, output, y0, y1, !reference); });
-  if (textureFxaa) rows([&](int y0, int y1) { guardRows(in, output, y0, y1, !reference); });
+  if (textureFxaa) {
+    if (reference)
+      guardRows(in, output, 0, height_, false);
+    else  // the rows runRows could not guard (first and last of its bands)
+      parallelRows(width_, height_, numThreads, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y)
+          if (!rowGuarded_[std::size_t(y)]) guardRows(in, output, y, y + 1, true);
+      });
+  }
   direct_ = nullptr;
 }
 

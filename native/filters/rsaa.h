@@ -110,6 +110,7 @@ class Kernel {
   Image staged_;
   const ImageView* direct_ = nullptr;  // the input colour during run() when the output does not overlap it
   std::vector<std::uint8_t> masks_, halved_, geometric_, textured_;
+  std::vector<std::uint8_t> rowGuarded_;  // per row: guarded inside runRows (fast path)
   fxaa::Workspace fxaa_;
 };
 

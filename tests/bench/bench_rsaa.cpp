@@ -17,6 +17,7 @@
 #include <utility>
 
 #include "bench_common.h"
+#include "core/parallel.h"
 #include "filters/fxaa.h"
 #include "filters/rsaa.h"
 #include "rsaa/offset_table.h"
@@ -106,22 +107,27 @@ void runFxaaPart(benchmark::State& state, int width, int height) {
   bench::setPixelRate(state, width, height);
 }
 
-// Reads every input float once and writes the output: the memory floor.
-void readFloor(benchmark::State& state, int width, int height) {
+// Reads every input float once and writes the output: the memory floor, on
+// one thread or (threads = 0) on all cores through parallelRows as the filter.
+void readFloor(benchmark::State& state, int width, int height, int threads = 1) {
   const Frame& f = frame(width, height);
   Image output(width, height, 4);
   const std::size_t n = std::size_t(width) * std::size_t(height);
-  std::size_t bytes = 0;
-  for (auto _ : state) {
-    bytes = 0;
-    for (std::size_t i = 0; i < n; ++i) {
+  const auto rows = [&](int y0, int y1) {
+    for (std::size_t i = std::size_t(y0) * std::size_t(width); i < std::size_t(y1) * std::size_t(width); ++i) {
       float s = f.depth.data[i] + f.normal.data[3 * i];
       for (int k = 0; k < rsaa::kSamples; ++k) s += f.sub[k].data[4 * i + 3] + f.sub[k].data[4 * i];
       for (int c = 0; c < 4; ++c) output.data[4 * i + std::size_t(c)] = f.color.data[4 * i + std::size_t(c)] + s;
     }
+  };
+  for (auto _ : state) {
+    if (threads == 1)
+      rows(0, height);
+    else
+      crisp::parallelRows(width, height, threads, rows);
     benchmark::ClobberMemory();
   }
-  bytes = n * (4 * 4 + 4 + 12 + rsaa::kSamples * 16 + 4 * 4);
+  const std::size_t bytes = n * (4 * 4 + 4 + 12 + rsaa::kSamples * 16 + 4 * 4);
   state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(bytes));
 }
 
@@ -146,6 +152,7 @@ void registerAll() {
                          [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, true, "none"); });
     bench::registerTimed("rsaa.fxaa-part.mt" + tag, [w, h](benchmark::State& st) { runFxaaPart(st, w, h); });
     bench::registerTimed("rsaa.floor.read" + tag, [w, h](benchmark::State& st) { readFloor(st, w, h); });
+    bench::registerTimed("rsaa.floor.read.mt" + tag, [w, h](benchmark::State& st) { readFloor(st, w, h, 0); });
   }
 }
 

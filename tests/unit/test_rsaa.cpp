@@ -688,9 +688,13 @@ TEST(RsaaTextureAA, EdgeBetweenTheSubSamplesIsGuarded) {
 // Texture and geometry together: geometric pixels and their neighbours get
 // exactly RSAA's (textureAA = none) colour, texture pixels away from the edge
 // FXAA's, and the whole image improves. Fast == reference, in place too.
+// 200 x 200 runs in several row bands on 2-3 threads (parallelRows gives a
+// thread at least 8192 pixels): the rows at band boundaries are guarded
+// after the bands, the others inside them.
 TEST(RsaaTextureAA, TextureAndGeometryFastEqualsReference) {
-  for (int kind = 0; kind < 3; ++kind) {
-    const GeoScene s = texturedScene(40, 3.3, true, kind);
+  for (int kind = 0; kind < 4; ++kind) {
+    const int size = kind == 3 ? 200 : 40;
+    const GeoScene s = texturedScene(size, 3.3, true, kind % 3);
     const Frame f = render(s, 8);
     Kernel kn, kf;
     const Image none = runKernel(f, textureSettings(s, TextureAA::None), true, 1, &kn);
@@ -699,21 +703,21 @@ TEST(RsaaTextureAA, TextureAndGeometryFastEqualsReference) {
     EXPECT_GT(count(kf.textured()), 50);
     const Image alone = runFxaaAlone(f.color);
     long nearGeometry = 0;
-    for (int y = 0; y < 40; ++y)
-      for (int x = 0; x < 40; ++x) {
+    for (int y = 0; y < size; ++y)
+      for (int x = 0; x < size; ++x) {
         bool near = false;
         for (int dy = -1; dy <= 1; ++dy)
           for (int dx = -1; dx <= 1; ++dx) {
-            const int xx = std::clamp(x + dx, 0, 39), yy = std::clamp(y + dy, 0, 39);
-            near = near || kf.geometric()[std::size_t(yy * 40 + xx)];
+            const int xx = std::clamp(x + dx, 0, size - 1), yy = std::clamp(y + dy, 0, size - 1);
+            near = near || kf.geometric()[std::size_t(yy * size + xx)];
           }
-        const float* expect = near ? none.at(x, y) : kf.textured()[std::size_t(y * 40 + x)] ? alone.at(x, y)
+        const float* expect = near ? none.at(x, y) : kf.textured()[std::size_t(y * size + x)] ? alone.at(x, y)
                                                                                              : f.color.at(x, y);
         nearGeometry += near;
         for (int c = 0; c < 4; ++c) ASSERT_EQ(ref.at(x, y)[c], expect[c]) << x << "," << y << " kind " << kind;
       }
     EXPECT_GT(nearGeometry, 60);
-    Image all(40, 40, 1);
+    Image all(size, size, 1);
     for (auto& v : all.data) v = 1.0f;
     const double pNone = test::maskedPsnr(f.reference, none, all), pFxaa = test::maskedPsnr(f.reference, ref, all);
     std::printf("[ rsaa ] checker + geometric edge (kind %d): whole image %.2f dB (none) -> %.2f dB (fxaa)\n", kind,
@@ -727,7 +731,7 @@ TEST(RsaaTextureAA, TextureAndGeometryFastEqualsReference) {
     // In place (output = colour buffer): staged colour, same result.
     Frame inPlace = f;
     Kernel k;
-    k.allocate(40, 40, textureSettings(s, TextureAA::Fxaa));
+    k.allocate(size, size, textureSettings(s, TextureAA::Fxaa));
     k.run(inPlace.inputs(), inPlace.color.view(), false, 2);
     expectSameBits(ref, inPlace.color, "in place, fast");
     inPlace.color = f.color;
