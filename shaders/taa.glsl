@@ -202,6 +202,18 @@ MinMax4 footprintBox(MinMax4 box3x3, int x, int y, int sx, int sy, int space) {
   return MinMax4(vmin(box3x3.lo, e.min2), vmax(box3x3.hi, e.max2));
 }
 
+// taa.cpp stillFootprint: nothing in the (shifted) 5x5 moves.
+bool stillFootprint(int x, int y, int sx, int sy) {
+  if (hasMotion == 0) return true;
+  ivec2 size = textureSize(motionImage, 0);
+  for (int i = 0; i < 25; ++i) {
+    vec4 m = texelFetch(motionImage, ivec2(shiftedSource(x + i % 5 - 2, size.x, sx),
+                                           shiftedSource(y + i / 5 - 2, size.y, sy)), 0);
+    if (m.x != 0.0 || m.y != 0.0) return false;
+  }
+  return true;
+}
+
 // taa.cpp referencePixel + resolvePixel (no depth, no aliasedValue).
 void taaResolvePass() {
   ivec2 p = fragmentPixel();
@@ -258,7 +270,7 @@ void taaResolvePass() {
     float excess = 0.0;
     if (staticPixel && staticClip != 0) {
       clipTowardCentre4(hist, box3x3.lo, box3x3.hi, excess);
-      if (excess > 1.0 && !(mark > 0.0)) {
+      if (excess > 1.0 && !(mark > 0.0) && stillFootprint(x, y, sx, sy)) {
         MinMax4 box = footprintBox(box3x3, x, y, sx, sy, clipSpace);
         clipTowardCentre4(hist, box.lo, box.hi, excess);
       }
@@ -282,16 +294,16 @@ void taaResolvePass() {
     }
     reset = !(finiteValue(result.x) && finiteValue(result.y) && finiteValue(result.z));  // never a non-finite history
   }
-  bool resetToMoving = unjitter != 0 && moving;  // taa.cpp: a moving pixel restarts unjittered
+  bool resetUnjittered = unjitter != 0 && (moving || hasHistory == 0);  // taa.cpp resolvePixel
   if (reset) {
-    result = resetToMoving ? currentMoving : current;
+    result = resetUnjittered ? currentMoving : current;
     newWeight = weight;
     mark = 0.0;
   }
   result.w = moving ? -newWeight : newWeight;
   historyOut = result;
   markOut = mark;
-  if (reset && !resetToMoving) {
+  if (reset && !resetUnjittered) {
     vec4 c = sanitizeColor4(texelFetch(colorImage, p, 0));  // the input itself, not its YCoCg round trip
     fragColor = vec4(c.rgb, alpha);
   } else {

@@ -208,6 +208,15 @@ class GpuParity(unittest.TestCase):
                   for (img, params), (jx, jy) in zip(moving_frames(5, 0.6, 0.35), jitters)]
         self.check("taa 5 frames moving unjitter", "taa", frames, {})
 
+    def test_taa_half_still_footprint(self):
+        # The top half still, the bottom half moving: static pixels near the boundary must not use the
+        # footprint box (taa.cpp stillFootprint), the rest must.
+        frames = []
+        for k, (img, params) in enumerate(taa_frames(6)):
+            motion = [0.0, 0.0, 0.0, 0.0] * (W * (H // 2)) + [0.4, -0.3, 0.0, 0.0] * (W * (H - H // 2))
+            frames.append((img, dict(params, motion=motion)))
+        self.check("taa 6 frames half still", "taa", frames, {})
+
 
 if __name__ == "__main__":
     gui_harness.run(GpuParity)

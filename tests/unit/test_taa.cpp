@@ -46,15 +46,18 @@ TEST(Taa, StaticAccumulationConvergesToBoxReference) {
   std::vector<synth::FrameData> input;
   for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, opt));
   const double oneSample = psnr(reference, input[0].color);
-  for (bool staticClip : {true, false}) {
+  for (int run = 0; run < 4; ++run) {
+    const bool staticClip = run % 2 == 0, unjitter = run >= 2;
     Driver d;
     d.filter->params().setBool("staticClip", staticClip);
+    d.filter->params().setString("unjitter", unjitter ? "blackman-harris" : "none");
     std::vector<double> p(frames + 1);
     for (int t = 0; t < frames; ++t) p[t + 1] = psnr(reference, d.run(input[t], false, false));
-    std::printf("static chart %dx%d, uniform jitter, staticClip=%d: PSNR 1-sample %.2f; TAA after 1/4/16/64 frames "
-                "%.2f/%.2f/%.2f/%.2f dB\n",
-                w, h, int(staticClip), oneSample, p[1], p[4], p[16], p[64]);
-    EXPECT_EQ(p[1], oneSample);  // first frame: bootstrap = the current frame
+    std::printf("static chart %dx%d, uniform jitter, staticClip=%d unjitter=%d: PSNR 1-sample %.2f; TAA after "
+                "1/4/16/64 frames %.2f/%.2f/%.2f/%.2f dB\n",
+                w, h, int(staticClip), int(unjitter), oneSample, p[1], p[4], p[16], p[64]);
+    // First frame: the bootstrap is the current frame (unjitter: its unjittered mix).
+    if (!unjitter) EXPECT_EQ(p[1], oneSample);
     EXPECT_GT(p[4], p[1] + 2.0);
     EXPECT_GT(p[16], p[4] + 1.0);
     EXPECT_GT(p[64], p[16]);
@@ -155,7 +158,8 @@ TEST(Taa, CameraCutLeavesNoGhost) {
       // No ghost: never worse than the plain 1-sample frame.
       EXPECT_GE(taa, one - 0.5) << "frame " << t;
       if (callReset && t == cut) {
-        EXPECT_EQ(out.data, f.color.data);  // bootstrap = current
+        Driver fresh;  // after reset(): exactly a new filter's first frame (the bootstrap)
+        EXPECT_EQ(out.data, fresh.run(f, true, true).data);
       }
     }
   }
@@ -216,7 +220,9 @@ TEST(Taa, DisocclusionResetsRevealedBackground) {
 
 // NaN, +-Inf and HDR fireflies in colour, motion and depth: outputs stay
 // finite and inside the 3x3 range of the (sanitised) current frame (clip in
-// RGB, no sharpen: every path is a convex mix of values inside that box).
+// RGB, no sharpen: every path is a convex mix of values inside that box);
+// inside the 5x5 range where nothing in the 5x5 moves (the static test's
+// footprint box, taa.cpp "Deliberate choices").
 TEST(Taa, NonFiniteAndFireflyInputsGiveBoundedOutputs) {
   const int w = 32, h = 24;
   synth::Sequence seq = synth::ghostingSequence(w, h, 6.0f, 1.5f, 0.5f);
@@ -238,9 +244,16 @@ TEST(Taa, NonFiniteAndFireflyInputsGiveBoundedOutputs) {
       for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x)
           for (int c = 0; c < 3; ++c) {
+            bool still = true;
+            for (int dy = -2; dy <= 2; ++dy)
+              for (int dx = -2; dx <= 2; ++dx) {
+                const float* m = f.motion.at(std::clamp(x + dx, 0, w - 1), std::clamp(y + dy, 0, h - 1));
+                still &= m[0] == 0.0f && m[1] == 0.0f;
+              }
+            const int r = still ? 2 : 1;
             float lo = INFINITY, hi = -INFINITY;
-            for (int dy = -1; dy <= 1; ++dy)
-              for (int dx = -1; dx <= 1; ++dx) {
+            for (int dy = -r; dy <= r; ++dy)
+              for (int dx = -r; dx <= r; ++dx) {
                 const float v = sanitizeColor(f.color.at(std::clamp(x + dx, 0, w - 1), std::clamp(y + dy, 0, h - 1))[c]);
                 lo = std::min(lo, v);
                 hi = std::max(hi, v);
@@ -282,7 +295,7 @@ TEST(Taa, SingleFireflyFadesWithinOneFrame) {
   }
 }
 
-// reset() forgets the history: the next output is the current frame.
+// reset() forgets the history: the next output is a new filter's first frame.
 TEST(Taa, ResetAndRecommitKeepOrForgetHistory) {
   const int w = 24, h = 16;
   synth::Sequence seq = synth::staticChartSequence(w, h);
@@ -291,10 +304,15 @@ TEST(Taa, ResetAndRecommitKeepOrForgetHistory) {
   synth::FrameData f = synth::renderFrame(seq, w, h, 6, {});
   EXPECT_NE(d.run(f, false, false).data, f.color.data);  // re-commit for a new jitter keeps history
   d.filter->reset();
-  EXPECT_EQ(d.run(f, false, false).data, f.color.data);
+  Driver fresh, freshSmall;  // a forgotten history gives exactly a new filter's first frame
+  EXPECT_EQ(d.run(f, false, false).data, fresh.run(f, false, false).data);
   // A new size starts over too.
   synth::FrameData g = synth::renderFrame(synth::staticChartSequence(20, 12), 20, 12, 3, {});
+  EXPECT_EQ(d.run(g, false, false).data, freshSmall.run(g, false, false).data);
+  d.filter->params().setString("unjitter", "none");  // without unjitter the bootstrap is the frame itself
+  d.filter->reset();
   EXPECT_EQ(d.run(g, false, false).data, g.color.data);
+  d.filter->params().setString("unjitter", "blackman-harris");
   // Parameter checks.
   d.filter->params().setFloat("feedbackMin", 0.99f);
   EXPECT_THROW(d.run(g, false, false), Exception);
