@@ -5,11 +5,15 @@
 // (2.3.2) for the parts.
 //
 // Fast path: most pixels lie inside one polygon. For those the only work is
-// the "does any sample differ" test, which the fast path runs on 4 samples
-// at a time with SSE, computing exactly the scalar expressions of
-// rsaa::differs lane by lane (same operations, same order, -ffp-contract=off),
-// so the two paths agree bit for bit; every other pixel goes through the
-// same scalar resolve().
+// the "does any sample differ" test. With AVX2 and packed float4 sub-samples
+// it runs on 8 consecutive pixels at once, one sub-sample after the other
+// (anyDiffers8: the centre's geometry once per 8 pixels, no per-pixel
+// broadcasts); else per pixel on its 8 samples (differs8, AVX2) or 4 at a
+// time (differs4, SSE). Every SIMD lane computes exactly the scalar
+// expressions of rsaa::makeGeo / rsaa::differs (same operations, same order,
+// -ffp-contract=off), so all paths agree bit for bit; every pixel with a
+// differing sample goes through the same scalar resolve(). textureAA = fxaa
+// runs the FXAA kernel first and guards each row inside the row pass.
 #include "filters/rsaa.h"
 
 #include <algorithm>
@@ -364,15 +368,35 @@ CRISP_AVX2 inline __m256 differs8pix(const char* row, const Centre8& c, __m256 s
 template <bool Ortho>
 CRISP_AVX2 int anyDiffers8(const Inputs& in, int x, int y, const float* colUx, float uy, const float* dux,
                            const float* duy, const Camera& cam, float threshold2) {
-  alignas(32) float d[8], wx[8], wy[8], wz[8];
-  for (int j = 0; j < 8; ++j) {
-    d[j] = in.depth.pixel(x + j, y)[0];
-    const float* n = in.normal.pixel(x + j, y);
-    wx[j] = n[0], wy[j] = n[1], wz[j] = n[2];
+  __m256 d, wx, wy, wz;
+  if (in.depth.pixelStride == 4) {
+    d = _mm256_loadu_ps(in.depth.pixel(x, y));
+  } else {
+    alignas(32) float g[8];
+    for (int j = 0; j < 8; ++j) g[j] = in.depth.pixel(x + j, y)[0];
+    d = _mm256_load_ps(g);
+  }
+  if (in.normal.pixelStride == 12) {
+    // 8 packed xyz normals (24 floats) to x, y, z lanes: blends pick each
+    // component's 8 values from the 3 loads, a permutation puts them in order.
+    const float* n = in.normal.pixel(x, y);
+    const __m256 m0 = _mm256_loadu_ps(n), m1 = _mm256_loadu_ps(n + 8), m2 = _mm256_loadu_ps(n + 16);
+    wx = _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(m0, m1, 0x92), m2, 0x24),
+                                  _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5));
+    wy = _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(m0, m1, 0x24), m2, 0x49),
+                                  _mm256_setr_epi32(1, 4, 7, 2, 5, 0, 3, 6));
+    wz = _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(m0, m1, 0x49), m2, 0x92),
+                                  _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7));
+  } else {
+    alignas(32) float gx[8], gy[8], gz[8];
+    for (int j = 0; j < 8; ++j) {
+      const float* n = in.normal.pixel(x + j, y);
+      gx[j] = n[0], gy[j] = n[1], gz[j] = n[2];
+    }
+    wx = _mm256_load_ps(gx), wy = _mm256_load_ps(gy), wz = _mm256_load_ps(gz);
   }
   const __m256 ux = _mm256_loadu_ps(colUx + x);
-  const Centre8 c = centre8<Ortho>(_mm256_load_ps(d), _mm256_load_ps(wx), _mm256_load_ps(wy), _mm256_load_ps(wz), ux,
-                                   set8(uy), cam);
+  const Centre8 c = centre8<Ortho>(d, wx, wy, wz, ux, set8(uy), cam);
   const __m256 t2 = set8(threshold2);
   __m256 any = _mm256_setzero_ps();
   for (int k = 0; k < kSamples; ++k) {

@@ -53,9 +53,10 @@ struct Inputs {
   ImageView sub[kSamples];  // 4 channels: world normal xyz, planar depth of sub-sample k
 };
 
-// The fast path tests 8 sub-samples in one AVX2 step where the CPU has AVX2,
-// else in two SSE steps; both bit-identical to the scalar reference. Tests
-// force the SSE path with 4 (0 = choose by CPU). Not for concurrent use.
+// The fast path tests 8 pixels (one sub-sample each) or 8 sub-samples of one
+// pixel per AVX2 step where the CPU has AVX2, else 4 sub-samples per SSE
+// step; all bit-identical to the scalar reference. Tests force the SSE path
+// with 4 (0 = choose by CPU). Not for concurrent use.
 void setSimdLanesForTesting(int lanes);
 
 class Kernel {
@@ -64,7 +65,7 @@ class Kernel {
   // Filter::onCommit; never in run()). The pattern is the shipped table's.
   void allocate(int width, int height, const Settings& settings);
   // reference = true: scalar path, one thread. false: rows in parallel with
-  // a 4-lane SSE test for the pixels that need no RSAA. Bit-identical output.
+  // the SIMD test for the pixels that need no RSAA. Bit-identical output.
   // output may be the colour buffer.
   void run(const Inputs& in, const ImageView& output, bool reference, int numThreads);
 

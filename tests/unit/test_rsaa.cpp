@@ -446,6 +446,89 @@ TEST(RsaaPaths, GarbageInputIsSafeAndIdentical) {
   setSimdLanesForTesting(0);
 }
 
+// Depth and normal as 4-channel images (the roles allow 1..4 and 3..4): the
+// fast path gathers them pixel by pixel instead of loading packed rows; same
+// result as the packed images and as the reference.
+TEST(RsaaPaths, FourChannelDepthAndNormalGiveTheSameResult) {
+  const GeoScene s = edgeGeometry(37, 23.0f, 0.41f, 2);
+  const Frame f = render(s, 4);
+  Frame wide = f;
+  wide.depth = Image(37, 37, 4);
+  wide.normal = Image(37, 37, 4);
+  for (int y = 0; y < 37; ++y)
+    for (int x = 0; x < 37; ++x) {
+      wide.depth.at(x, y)[0] = *f.depth.at(x, y);
+      for (int c = 0; c < 3; ++c) wide.normal.at(x, y)[c] = f.normal.at(x, y)[c];
+    }
+  Settings settings;
+  settings.camera = s.camera;
+  const Image packed = runKernel(f, settings, false, 2);
+  expectSameBits(packed, runKernel(f, settings, true, 1), "packed, fast vs reference");
+  expectSameBits(packed, runKernel(wide, settings, false, 2), "4-channel, fast");
+  expectSameBits(packed, runKernel(wide, settings, true, 1), "4-channel, reference");
+}
+
+// Every pixel on its own plane (random tilt up to ~35 degrees, random depth),
+// its sub-samples on the same plane: no pixel is geometric, but any mix-up of
+// centre depths or normals between the SIMD lanes makes pixels differ. Packed
+// and 4-channel depth/normal, perspective and orthographic.
+TEST(RsaaPaths, PerPixelPlanesCatchLaneMixUps) {
+  const int W = 45, H = 7;
+  Camera cam;
+  cam.proj00 = 1.5f, cam.proj11 = 2.5f;
+  std::mt19937 g(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (bool ortho : {false, true}) {
+    cam.orthographic = ortho;
+    Frame f;
+    f.color = Image(W, H, 4);
+    f.depth = Image(W, H, 1);
+    f.normal = Image(W, H, 3);
+    for (auto& v : f.color.data) v = 0.5f;
+    for (int k = 0; k < kSamples; ++k) f.sub[k] = Image(W, H, 4);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        double n[3] = {0.6 * u(g), 0.6 * u(g), 1.0};
+        const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        for (double& c : n) c /= len;
+        const double d0 = 8.0 + 4.0 * (u(g) + 1.0);
+        // The plane through the centre's point at depth d0: n.p = n.q.
+        const auto depthAt = [&](double px, double py) {
+          const double ux = rayUx(px, W, cam), uy = rayUy(py, H, cam);
+          const double ux0 = rayUx(x + 0.5, W, cam), uy0 = rayUy(y + 0.5, H, cam);
+          const double nq = ortho ? n[0] * ux0 + n[1] * uy0 - n[2] * d0 : (n[0] * ux0 + n[1] * uy0 - n[2]) * d0;
+          return ortho ? (n[0] * ux + n[1] * uy - nq) / n[2] : nq / (n[0] * ux + n[1] * uy - n[2]);
+        };
+        *f.depth.at(x, y) = float(depthAt(x + 0.5, y + 0.5));
+        for (int c = 0; c < 3; ++c) f.normal.at(x, y)[c] = float(n[c]);
+        for (int k = 0; k < kSamples; ++k) {
+          float* p = f.sub[k].at(x, y);
+          for (int c = 0; c < 3; ++c) p[c] = float(n[c]);
+          p[3] = float(depthAt(x + 0.5 + kTablePattern.x[k], y + 0.5 + kTablePattern.y[k]));
+        }
+      }
+    Frame wide = f;
+    wide.depth = Image(W, H, 4);
+    wide.normal = Image(W, H, 4);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        wide.depth.at(x, y)[0] = *f.depth.at(x, y);
+        for (int c = 0; c < 3; ++c) wide.normal.at(x, y)[c] = f.normal.at(x, y)[c];
+      }
+    Settings settings;
+    settings.camera = cam;
+    for (const Frame* frame : {&f, &wide}) {
+      Kernel kr, kf;
+      const Image ref = runKernel(*frame, settings, true, 1, &kr);
+      const Image fast = runKernel(*frame, settings, false, 2, &kf);
+      EXPECT_EQ(kr.resolvedCount(), 0) << "ortho " << ortho;
+      EXPECT_EQ(kf.geometric(), kr.geometric()) << "ortho " << ortho;
+      EXPECT_EQ(std::count(kf.geometric().begin(), kf.geometric().end(), 1), 0) << "ortho " << ortho;
+      expectSameBits(ref, fast, "per-pixel planes");
+    }
+  }
+}
+
 // Flat geometry (no pixel needs RSAA) under garbage colour: the fast path's
 // 8-pixel copy of unresolved pixels sanitises exactly as the reference does,
 // with and without staging (in place), for both textureAA modes.
