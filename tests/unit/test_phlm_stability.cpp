@@ -72,7 +72,11 @@ struct Checker {
 
 template <class T>
 void checkState(const phlm::Kernel<T>& k, const phlm::Settings& s, int t, const char* name, Checker& c) {
-  const double bound = (s.initialCovariance + 3.0 * s.slopeCovariance) / std::pow(s.lambda, 3) * (1.0 + 1e-4);
+  // Regularised forgetting bounds P by P0 / (lambda^3 c), c for moving frames
+  // forgetting with lambdaMoving (phlm.cpp, "Stabilised RLS").
+  const double l3 = std::pow(s.lambda, 3), lm = s.lambdaMoving;
+  const double cMoving = std::min(1.0, (1.0 - lm) / (1.0 - lm * l3));
+  const double bound = (s.initialCovariance + 3.0 * s.slopeCovariance) / (l3 * cMoving) * (1.0 + 1e-4);
   for (int y = 0; y < kH; ++y)
     for (int x = 0; x < kW; ++x) {
       const T* m = k.record(x, y);
