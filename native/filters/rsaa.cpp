@@ -226,10 +226,11 @@ inline int differs4(const float* s0, const float* s1, const float* s2, const flo
 #endif
 
 #if defined(CRISP_RSAA_AVX2)
-// The same test for all 8 sub-samples at once in 8 AVX lanes (lane k =
-// sample k), chosen at run time on CPUs with AVX2. Lane by lane the same
-// operations in the same order as rsaa::differs; no FMA (-ffp-contract=off
-// and no fmadd intrinsics), so results are bit-identical to the scalar path.
+// AVX2 (chosen at run time on CPUs that have it): rsaa::differs in 8 lanes,
+// either 8 sub-samples of one pixel (differs8) or one sub-sample of 8
+// consecutive pixels (anyDiffers8). Lane by lane the same operations in the
+// same order as rsaa::makeGeo / rsaa::differs; no FMA (-ffp-contract=off and
+// no fmadd intrinsics), so results are bit-identical to the scalar path.
 #define CRISP_AVX2 __attribute__((target("avx2")))
 CRISP_AVX2 inline __m256 abs8(__m256 v) { return _mm256_andnot_ps(_mm256_set1_ps(-0.0f), v); }
 CRISP_AVX2 inline __m256 set8(float v) { return _mm256_set1_ps(v); }
@@ -244,63 +245,29 @@ CRISP_AVX2 inline __m256 slack8(__m256 nx, __m256 ny, __m256 nz, __m256 vx, __m2
 CRISP_AVX2 inline __m256 dot8(__m256 ax, __m256 ay, __m256 az, __m256 bx, __m256 by, __m256 bz) {
   return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ax, bx), _mm256_mul_ps(ay, by)), _mm256_mul_ps(az, bz));
 }
-
-template <bool Ortho>
-CRISP_AVX2 int differs8(const float* const* p, const Geo& c, float ux, float uy, const float* dux, const float* duy,
-                        const Camera& cam, float threshold2) {
-  const __m256 r0 = pair8(p[0], p[4]), r1 = pair8(p[1], p[5]), r2_ = pair8(p[2], p[6]), r3 = pair8(p[3], p[7]);
-  const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1);
-  const __m256 t2 = _mm256_unpacklo_ps(r2_, r3), t3 = _mm256_unpackhi_ps(r2_, r3);
-  // Lanes 0-3 = samples 0-3, lanes 4-7 = samples 4-7.
-  const __m256 nx = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0));
-  const __m256 ny = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2));
-  const __m256 nz = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0));
-  const __m256 d = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2));
-  const __m256 bg = _mm256_cmp_ps(d, set8(kFarDepth), _CMP_NLT_UQ);
-  if (c.background) return ~_mm256_movemask_ps(bg) & 0xFF;
-  const __m256 sux = _mm256_add_ps(set8(ux), _mm256_loadu_ps(dux));
-  const __m256 suy = _mm256_add_ps(set8(uy), _mm256_loadu_ps(duy));
-  const __m256 px = Ortho ? sux : _mm256_mul_ps(sux, d);
-  const __m256 py = Ortho ? suy : _mm256_mul_ps(suy, d);
-  const __m256 pz = _mm256_xor_ps(d, set8(-0.0f));
-  const __m256 snx = dot8(set8(cam.view[0][0]), set8(cam.view[0][1]), set8(cam.view[0][2]), nx, ny, nz);
-  const __m256 sny = dot8(set8(cam.view[1][0]), set8(cam.view[1][1]), set8(cam.view[1][2]), nx, ny, nz);
-  const __m256 snz = dot8(set8(cam.view[2][0]), set8(cam.view[2][1]), set8(cam.view[2][2]), nx, ny, nz);
-  const __m256 rx = _mm256_sub_ps(px, set8(c.px));
-  const __m256 ry = _mm256_sub_ps(py, set8(c.py));
-  const __m256 rz = _mm256_sub_ps(pz, set8(c.pz));
-  const __m256 r2 = dot8(rx, ry, rz, rx, ry, rz);
-  const __m256 apart = _mm256_cmp_ps(r2, set8(kSamePoint2 * (c.pz * c.pz)), _CMP_GT_OQ);
-  const __m256 cnx = set8(c.nx), cny = set8(c.ny), cnz = set8(c.nz);
-  const __m256 da = dot8(cnx, cny, cnz, rx, ry, rz);
-  const __m256 db = dot8(snx, sny, snz, rx, ry, rz);
-  const __m256 zero = _mm256_setzero_ps();
-  const __m256 svx = Ortho ? zero : sux, svy = Ortho ? zero : suy;
+// The rotation of rsaa::makeGeo: world normal -> view space, row r.
+CRISP_AVX2 inline __m256 rotate8(const Camera& cam, int r, __m256 x, __m256 y, __m256 z) {
+  return dot8(set8(cam.view[r][0]), set8(cam.view[r][1]), set8(cam.view[r][2]), x, y, z);
+}
+// halfUlp(d) x depthUlps (rsaa::makeGeo's tolerance).
+CRISP_AVX2 inline __m256 tolerance8(__m256 d, const Camera& cam) {
   const __m256 power = _mm256_and_ps(d, _mm256_castsi256_ps(_mm256_set1_epi32(0x7F800000)));
   const __m256 ulp = _mm256_max_ps(set8(5.9604645e-8f), _mm256_mul_ps(power, set8(0.0009765625f)));
-  const __m256 stol = _mm256_mul_ps(set8(cam.depthUlps), ulp);
-  const __m256 cvx = set8(c.vx), cvy = set8(c.vy), ctol = set8(c.tolerance);
-  const __m256 slackA = _mm256_add_ps(slack8(cnx, cny, cnz, cvx, cvy, ctol), slack8(cnx, cny, cnz, svx, svy, stol));
-  const __m256 slackB = _mm256_add_ps(slack8(snx, sny, snz, cvx, cvy, ctol), slack8(snx, sny, snz, svx, svy, stol));
-  const __m256 ea = _mm256_max_ps(zero, _mm256_sub_ps(abs8(da), slackA));
-  const __m256 eb = _mm256_max_ps(zero, _mm256_sub_ps(abs8(db), slackB));
-  const __m256 dn = _mm256_add_ps(ea, eb);
-  const __m256 far = _mm256_cmp_ps(_mm256_mul_ps(dn, dn), _mm256_mul_ps(set8(threshold2), r2), _CMP_NLT_UQ);
-  return _mm256_movemask_ps(_mm256_or_ps(bg, _mm256_and_ps(apart, far)));
+  return _mm256_mul_ps(set8(cam.depthUlps), ulp);
 }
 
-
-// The same test for 8 consecutive pixels at once (lane j = pixel x + j), one
-// sub-sample at a time: the pixel-parallel layout needs no per-pixel
-// broadcasts or scalar set-up, and the centre's geometry is computed once per
-// 8 pixels. Lane by lane the operations of rsaa::makeGeo and rsaa::differs in
-// their order (no FMA), so the result is bit-identical to the scalar path.
+// The centre side of rsaa::differs in 8 lanes.
 struct Centre8 {
   __m256 px, py, pz, nx, ny, nz, vx, vy, tol, bg, samePoint, selfSlack;
 };
 
+CRISP_AVX2 inline void finishCentre8(Centre8& c) {
+  c.samePoint = _mm256_mul_ps(set8(kSamePoint2), _mm256_mul_ps(c.pz, c.pz));
+  c.selfSlack = slack8(c.nx, c.ny, c.nz, c.vx, c.vy, c.tol);  // dotSlack(centre normal, centre)
+}
+
 // makeGeo for 8 centres from their depth, world normal and ray terms. Lanes
-// whose depth is background hold garbage; bg marks them (differs8pix ignores them).
+// whose depth is background hold garbage; bg marks them (differsLanes ignores them).
 template <bool Ortho>
 CRISP_AVX2 inline Centre8 centre8(__m256 d, __m256 wx, __m256 wy, __m256 wz, __m256 ux, __m256 uy, const Camera& cam) {
   Centre8 c;
@@ -310,37 +277,49 @@ CRISP_AVX2 inline Centre8 centre8(__m256 d, __m256 wx, __m256 wy, __m256 wz, __m
   c.pz = _mm256_xor_ps(d, set8(-0.0f));
   c.vx = Ortho ? _mm256_setzero_ps() : ux;
   c.vy = Ortho ? _mm256_setzero_ps() : uy;
-  const __m256 power = _mm256_and_ps(d, _mm256_castsi256_ps(_mm256_set1_epi32(0x7F800000)));
-  const __m256 ulp = _mm256_max_ps(set8(5.9604645e-8f), _mm256_mul_ps(power, set8(0.0009765625f)));
-  c.tol = _mm256_mul_ps(set8(cam.depthUlps), ulp);
-  c.nx = dot8(set8(cam.view[0][0]), set8(cam.view[0][1]), set8(cam.view[0][2]), wx, wy, wz);
-  c.ny = dot8(set8(cam.view[1][0]), set8(cam.view[1][1]), set8(cam.view[1][2]), wx, wy, wz);
-  c.nz = dot8(set8(cam.view[2][0]), set8(cam.view[2][1]), set8(cam.view[2][2]), wx, wy, wz);
-  c.samePoint = _mm256_mul_ps(set8(kSamePoint2), _mm256_mul_ps(c.pz, c.pz));
-  c.selfSlack = slack8(c.nx, c.ny, c.nz, c.vx, c.vy, c.tol);  // dotSlack(centre normal, centre)
+  c.tol = tolerance8(d, cam);
+  c.nx = rotate8(cam, 0, wx, wy, wz);
+  c.ny = rotate8(cam, 1, wx, wy, wz);
+  c.nz = rotate8(cam, 2, wx, wy, wz);
+  finishCentre8(c);
   return c;
 }
 
-// rsaa::differs(centre j, sample k of pixel j) for the 8 pixels whose sample-k
-// float4s start at `row` (16 bytes apart); sux/suy are the samples' ray terms.
-template <bool Ortho>
-CRISP_AVX2 inline __m256 differs8pix(const char* row, const Centre8& c, __m256 sux, __m256 suy, const Camera& cam,
-                                     __m256 threshold2) {
-  const auto at = [row](int j) { return reinterpret_cast<const float*>(row + 16 * j); };
-  const __m256 r0 = pair8(at(0), at(4)), r1 = pair8(at(1), at(5)), r2_ = pair8(at(2), at(6)), r3 = pair8(at(3), at(7));
+// One scalar centre in all 8 lanes.
+CRISP_AVX2 inline Centre8 broadcastCentre8(const Geo& g) {
+  Centre8 c;
+  c.bg = _mm256_castsi256_ps(_mm256_set1_epi32(g.background ? -1 : 0));
+  c.px = set8(g.px), c.py = set8(g.py), c.pz = set8(g.pz);
+  c.nx = set8(g.nx), c.ny = set8(g.ny), c.nz = set8(g.nz);
+  c.vx = set8(g.vx), c.vy = set8(g.vy), c.tol = set8(g.tolerance);
+  finishCentre8(c);
+  return c;
+}
+
+// 8 float4 pixels (lane j = p[j]: world normal xyz, depth) as 4 vectors.
+CRISP_AVX2 inline void load8x4(const float* const* p, __m256& nx, __m256& ny, __m256& nz, __m256& d) {
+  const __m256 r0 = pair8(p[0], p[4]), r1 = pair8(p[1], p[5]), r2 = pair8(p[2], p[6]), r3 = pair8(p[3], p[7]);
   const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1);
-  const __m256 t2 = _mm256_unpacklo_ps(r2_, r3), t3 = _mm256_unpackhi_ps(r2_, r3);
-  const __m256 nx = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0));
-  const __m256 ny = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2));
-  const __m256 nz = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0));
-  const __m256 d = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2));
+  const __m256 t2 = _mm256_unpacklo_ps(r2, r3), t3 = _mm256_unpackhi_ps(r2, r3);
+  // Lanes 0-3 = p[0..3], lanes 4-7 = p[4..7].
+  nx = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0));
+  ny = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2));
+  nz = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0));
+  d = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2));
+}
+
+// rsaa::differs(centre, sample) lane by lane for samples given as their
+// float4s (lane j = p[j]) with ray terms sux, suy; all-ones lanes differ.
+template <bool Ortho>
+CRISP_AVX2 inline __m256 differsLanes(const float* const* p, const Centre8& c, __m256 sux, __m256 suy,
+                                      const Camera& cam, __m256 threshold2) {
+  __m256 nx, ny, nz, d;
+  load8x4(p, nx, ny, nz, d);
   const __m256 bg = _mm256_cmp_ps(d, set8(kFarDepth), _CMP_NLT_UQ);
   const __m256 px = Ortho ? sux : _mm256_mul_ps(sux, d);
   const __m256 py = Ortho ? suy : _mm256_mul_ps(suy, d);
   const __m256 pz = _mm256_xor_ps(d, set8(-0.0f));
-  const __m256 snx = dot8(set8(cam.view[0][0]), set8(cam.view[0][1]), set8(cam.view[0][2]), nx, ny, nz);
-  const __m256 sny = dot8(set8(cam.view[1][0]), set8(cam.view[1][1]), set8(cam.view[1][2]), nx, ny, nz);
-  const __m256 snz = dot8(set8(cam.view[2][0]), set8(cam.view[2][1]), set8(cam.view[2][2]), nx, ny, nz);
+  const __m256 snx = rotate8(cam, 0, nx, ny, nz), sny = rotate8(cam, 1, nx, ny, nz), snz = rotate8(cam, 2, nx, ny, nz);
   const __m256 rx = _mm256_sub_ps(px, c.px);
   const __m256 ry = _mm256_sub_ps(py, c.py);
   const __m256 rz = _mm256_sub_ps(pz, c.pz);
@@ -348,11 +327,10 @@ CRISP_AVX2 inline __m256 differs8pix(const char* row, const Centre8& c, __m256 s
   const __m256 apart = _mm256_cmp_ps(r2, c.samePoint, _CMP_GT_OQ);
   const __m256 da = dot8(c.nx, c.ny, c.nz, rx, ry, rz);
   const __m256 db = dot8(snx, sny, snz, rx, ry, rz);
+  // rsaa::certainDot lane by lane: the sample's view-ray terms and depth tolerance.
   const __m256 zero = _mm256_setzero_ps();
   const __m256 svx = Ortho ? zero : sux, svy = Ortho ? zero : suy;
-  const __m256 power = _mm256_and_ps(d, _mm256_castsi256_ps(_mm256_set1_epi32(0x7F800000)));
-  const __m256 ulp = _mm256_max_ps(set8(5.9604645e-8f), _mm256_mul_ps(power, set8(0.0009765625f)));
-  const __m256 stol = _mm256_mul_ps(set8(cam.depthUlps), ulp);
+  const __m256 stol = tolerance8(d, cam);
   const __m256 slackA = _mm256_add_ps(c.selfSlack, slack8(c.nx, c.ny, c.nz, svx, svy, stol));
   const __m256 slackB = _mm256_add_ps(slack8(snx, sny, snz, c.vx, c.vy, c.tol), slack8(snx, sny, snz, svx, svy, stol));
   const __m256 ea = _mm256_max_ps(zero, _mm256_sub_ps(abs8(da), slackA));
@@ -362,6 +340,15 @@ CRISP_AVX2 inline __m256 differs8pix(const char* row, const Centre8& c, __m256 s
   // Background centre: differs iff the sample is geometry; else background
   // sample, or apart and far.
   return _mm256_or_ps(_mm256_xor_ps(c.bg, bg), _mm256_andnot_ps(c.bg, _mm256_and_ps(apart, far)));
+}
+
+// All 8 sub-samples of one pixel (lane k = sample k, float4 at p[k]) against its centre.
+template <bool Ortho>
+CRISP_AVX2 int differs8(const float* const* p, const Geo& c, float ux, float uy, const float* dux, const float* duy,
+                        const Camera& cam, float threshold2) {
+  const __m256 sux = _mm256_add_ps(set8(ux), _mm256_loadu_ps(dux));
+  const __m256 suy = _mm256_add_ps(set8(uy), _mm256_loadu_ps(duy));
+  return _mm256_movemask_ps(differsLanes<Ortho>(p, broadcastCentre8(c), sux, suy, cam, set8(threshold2)));
 }
 
 // rsaa::differs of any sample, as an 8-bit lane mask, for pixels x..x+7 of row y.
@@ -400,8 +387,9 @@ CRISP_AVX2 int anyDiffers8(const Inputs& in, int x, int y, const float* colUx, f
   const __m256 t2 = set8(threshold2);
   __m256 any = _mm256_setzero_ps();
   for (int k = 0; k < kSamples; ++k) {
-    const char* row = reinterpret_cast<const char*>(in.sub[k].pixel(x, y));
-    any = _mm256_or_ps(any, differs8pix<Ortho>(row, c, _mm256_add_ps(ux, set8(dux[k])), set8(uy + duy[k]), cam, t2));
+    const float* row = in.sub[k].pixel(x, y);  // packed float4
+    const float* p[8] = {row, row + 4, row + 8, row + 12, row + 16, row + 20, row + 24, row + 28};
+    any = _mm256_or_ps(any, differsLanes<Ortho>(p, c, _mm256_add_ps(ux, set8(dux[k])), set8(uy + duy[k]), cam, t2));
   }
   return _mm256_movemask_ps(any);
 }
