@@ -225,14 +225,13 @@ void taaResolvePass() {
   for (int i = 0; i < 9; ++i) taps[i] = shiftedTap(x + i % 3 - 1, y + i / 3 - 1, sx, sy, clipSpace);
   MinMax4 box3x3, cross;
   columnFirstBoxes4(taps, box3x3, cross);
-  vec4 current = unjitter != 0 ? stagePixel(texelFetch(colorImage, p, 0), clipSpace) : taps[4];
-  vec4 currentMoving = taps[4];
+  vec4 current = taps[4];  // taa.cpp: the unjittered mix, or the centre tap without unjitter
   if (unjitter != 0) {
     float uw[9];
     unjitterWeights(sx, sy, uw);
-    currentMoving = taps[4] * uw[4];
+    current = taps[4] * uw[4];
     for (int i = 0; i < 9; ++i)
-      if (i != 4) currentMoving = currentMoving + taps[i] * uw[i];
+      if (i != 4) current = current + taps[i] * uw[i];
   }
   float alpha = current.w;
 
@@ -283,27 +282,26 @@ void taaResolvePass() {
       vec4 lo = 0.5 * (box3x3.lo + cross.lo);
       vec4 hi = 0.5 * (box3x3.hi + cross.hi);
       vec4 clipped = clipTowardCentre4(hist, lo, hi, excess);
-      float l0 = lumaOf(clipped, clipSpace), l1 = lumaOf(currentMoving, clipSpace);
+      float l0 = lumaOf(clipped, clipSpace), l1 = lumaOf(current, clipSpace);
       float diff = clamp(abs(l0 - l1) / max(max(l0, l1), 0.2), 0.0, 1.0);
       float unbiased = (1.0 - diff) * (1.0 - diff);
       float k = feedbackMin + (feedbackMax - feedbackMin) * unbiased;
       float mixWeight = max(1.0 - k, weight / weightSum);
-      result = clipped + (currentMoving - clipped) * mixWeight;
+      result = clipped + (current - clipped) * mixWeight;
       newWeight = 1.0 - k > 0.0 ? min(weightSum, 1.0 / (1.0 - k)) : weightSum;
       newWeight = min(newWeight, float(max(1, maxSamples)));
     }
     reset = !(finiteValue(result.x) && finiteValue(result.y) && finiteValue(result.z));  // never a non-finite history
   }
-  bool resetUnjittered = unjitter != 0 && (moving || hasHistory == 0);  // taa.cpp resolvePixel
   if (reset) {
-    result = resetUnjittered ? currentMoving : current;
+    result = current;
     newWeight = weight;
     mark = 0.0;
   }
   result.w = moving ? -newWeight : newWeight;
   historyOut = result;
   markOut = mark;
-  if (reset && !resetUnjittered) {
+  if (reset && unjitter == 0) {
     vec4 c = sanitizeColor4(texelFetch(colorImage, p, 0));  // the input itself, not its YCoCg round trip
     fragColor = vec4(c.rgb, alpha);
   } else {

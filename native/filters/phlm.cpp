@@ -340,17 +340,13 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     vy = m[1];
   }
   const bool moving = vx != 0.0f || vy != 0.0f;
-  // The measurement y: a still pixel's own sample; a moving one's unjittered
-  // mix of the 3x3 (the centre tap without unjitter).
+  // The measurement y: the unjittered mix of the 3x3 (the centre tap without
+  // unjitter).
   Vec4 sample = centre;
   if (f.unjitter.enabled) {
-    if (moving) {
-      sample = taps[4] * f.unjitter.weights[4];
-      for (int i = 0; i < 9; ++i)
-        if (i != 4) sample += taps[i] * f.unjitter.weights[i];
-    } else {
-      sample = temporal::load4(f.staged + (std::size_t(y) * w + x) * 4);
-    }
+    sample = taps[4] * f.unjitter.weights[4];
+    for (int i = 0; i < 9; ++i)
+      if (i != 4) sample += taps[i] * f.unjitter.weights[i];
   }
   const T current[3] = {T(sample[0]), T(sample[1]), T(sample[2])};
   if (f.footprintBox && !moving && stillFootprint(f, x, y)) {

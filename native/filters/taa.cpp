@@ -210,8 +210,7 @@ inline Vec4 toRgb4(Vec4 c, ClipSpace space, float alpha) {
 
 // What the per-pixel core needs from the 3x3 block, however it was gathered.
 struct Neighbourhood {
-  Vec4 current;                  // this pixel's own sample, staged (static path, resets of static pixels)
-  Vec4 currentMoving;            // the moving path's current colour (= current without unjitter)
+  Vec4 current;                  // staged: the unjittered mix, or the centre tap without unjitter
   temporal::MinMax4 box3x3, cross;
   int tap;                       // followed tap (closest depth; 4 = centre), row order
   float tapDepth;                // its sanitised depth (with depth only)
@@ -259,7 +258,6 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
                                                         FootprintBox&& footprintBox) {
   const int w = f.width, h = f.height;
   const Vec4 current = nb.current;
-  const Vec4 currentMoving = nb.currentMoving;
   const float alpha = current[3];
 
   // Step 3: velocity of the followed tap (clamped to the image, as the taps are).
@@ -354,17 +352,17 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
         hi = 0.5f * (nb.box3x3.max + nb.cross.max);
       }
       if (f.aliased && f.aliasedBoxSize) {
-        lo = currentMoving * (1.0f - a) + lo * a;
-        hi = currentMoving * (1.0f - a) + hi * a;
+        lo = current * (1.0f - a) + lo * a;
+        hi = current * (1.0f - a) + hi * a;
       }
       const Vec4 clipped = temporal::clipTowardCentre4(hist, lo, hi, &excess);
       // Step 6: luma-difference feedback on the clipped history.
-      const float l0 = lumaOf(clipped, f.space), l1 = lumaOf(currentMoving, f.space);
+      const float l0 = lumaOf(clipped, f.space), l1 = lumaOf(current, f.space);
       const float diff = std::clamp(std::fabs(l0 - l1) / std::max(std::max(l0, l1), 0.2f), 0.0f, 1.0f);
       const float unbiased = (1.0f - diff) * (1.0f - diff);
       const float k = f.feedbackMin + (f.feedbackMax - f.feedbackMin) * unbiased;
       const float mixWeight = std::max(1.0f - k, weight / weightSum);
-      result = clipped + (currentMoving - clipped) * mixWeight;
+      result = clipped + (current - clipped) * mixWeight;
       // The effective sample count of an exponential blend is about 1/(1-k).
       newWeight = 1.0f - k > 0.0f ? std::min(weightSum, 1.0f / (1.0f - k)) : weightSum;
       newWeight = std::min(newWeight, f.maxSamples);
@@ -372,23 +370,15 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
     // Guard: never let a non-finite value into the history.
     reset = !(std::isfinite(result[0]) && std::isfinite(result[1]) && std::isfinite(result[2]));
   }
-  // A moving pixel restarts from the unjittered colour, and so does every
-  // pixel of the first frame: a still pixel's running average then starts
-  // from the filtered mix (weight w) and its own samples outweigh it within a
-  // few frames. still_life (480x270, 64-sample reference): frame 1 20.89 ->
-  // 24.48 dB, frame 16 32.30 -> 32.27 dB. A still pixel reset later
-  // (disocclusion next to a moving object) restarts from its own sample: the
-  // mix would carry the object's colour into the running average.
-  const bool resetUnjittered = f.unjitter && (moving || !f.hasHistory);
   if (reset) {
-    result = resetUnjittered ? currentMoving : current;
+    result = current;
     newWeight = weight;
     feedbackSinceReset = 0;
   }
   result[3] = moving ? -newWeight : newWeight;  // sign: was this pixel static this frame
   temporal::store4(f.history + (std::size_t(y) * w + x) * 4, result);
   if (!f.writeOutput) return;
-  if (reset && !resetUnjittered) {
+  if (reset && !f.unjitter) {
     // Reset to current: the input colour itself (sanitised), not its YCoCg
     // round trip, which can differ in the last bit.
     const float* p = f.color.pixel(x, y);
@@ -413,12 +403,11 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
     depth9[i] = f.depth.ptr ? temporal::sanitizeDepth(f.depth.pixel(tx, ty)[0]) : kBackgroundDepth;
   }
   Neighbourhood nb;
-  nb.current = f.unjitter ? stagePixel(f.color.pixel(x, y), cc, f.space) : taps[4];
-  nb.currentMoving = taps[4];
+  nb.current = taps[4];
   if (f.unjitter) {
-    nb.currentMoving = taps[4] * f.unjitterWeights[4];
+    nb.current = taps[4] * f.unjitterWeights[4];
     for (int i = 0; i < 9; ++i)
-      if (i != 4) nb.currentMoving = nb.currentMoving + taps[i] * f.unjitterWeights[i];
+      if (i != 4) nb.current = nb.current + taps[i] * f.unjitterWeights[i];
   }
   temporal::columnFirstBoxes4(taps, nb.box3x3, nb.cross);
   nb.tap = (f.depth.ptr && f.motion.ptr) ? temporal::closestDepthTap(depth9) : 4;
@@ -542,16 +531,12 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
       const int i = x + 1;
       Neighbourhood nb;
       nb.current = temporal::load4(s1 + 4 * i);
-      nb.currentMoving = nb.current;
       if (f.unjitter) {
-        // As the reference: the pixel's own sample, and the weighted 3x3 of the
-        // shifted image in the reference's order (centre first).
-        nb.current = stagePixel(f.color.pixel(x, y), f.color.channels(), f.space);
+        // As the reference: the 3x3 of the shifted image, centre first.
         const float* rows[3] = {s0, s1, s2};
-        nb.currentMoving = nb.currentMoving * f.unjitterWeights[4];
+        nb.current = nb.current * f.unjitterWeights[4];
         for (int t = 0; t < 9; ++t)
-          if (t != 4)
-            nb.currentMoving = nb.currentMoving + temporal::load4(rows[t / 3] + 4 * (i + t % 3 - 1)) * f.unjitterWeights[t];
+          if (t != 4) nb.current = nb.current + temporal::load4(rows[t / 3] + 4 * (i + t % 3 - 1)) * f.unjitterWeights[t];
       }
       auto column = [&](int k) {
         return temporal::ColumnReduction4{temporal::load4(s.columnMin + 4 * k), temporal::load4(s.columnMax + 4 * k)};
