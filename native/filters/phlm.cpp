@@ -94,17 +94,17 @@
 //    beta'x after the update (eq. 8) in exact arithmetic and is a convex
 //    combination of two points of the box: the output lies in the 3x3 colour
 //    box of the current frame (a final clamp absorbs rounding).
-//  * Jitter: like "taa" (taa.cpp "Jitter"), a still pixel's measurement y is
-//    its own sample, never resampled; jitterX/Y set its weight w when
-//    jitterWeighting = blackman-harris (weighted least squares: measurement
-//    variance 1/w), the "weighted moving average" of §5.2's static special
-//    case. A moving pixel's y is the unjittered mix of the 3x3 around the
-//    sample nearest its centre (unjitter, temporal/jitter.h; a deviation from
-//    the paper, which renders without jitter): with EEVEE's +-1.5 px jitter
-//    its own sample jumps across edges from frame to frame and the fit
-//    follows the jumps. The 3x3 (box, average, luminance range, followed
-//    tap) is read around that sample for every pixel; the box is widened to
-//    contain y.
+//  * Jitter: the measurement y is the unjittered mix of the 3x3 around the
+//    sample nearest the pixel centre (unjitter, temporal/jitter.h and
+//    taa.cpp "Jitter"; a deviation from the paper, which renders without
+//    jitter): with EEVEE's +-1.5 px jitter a pixel's own sample jumps across
+//    edges from frame to frame and the fit follows the jumps; the mix
+//    converges to the same filtered pixel. The 3x3 (box, average, luminance
+//    range, followed tap) is read around that sample; the box is widened to
+//    contain y. unjitter = none fits the pixel's own samples. jitterX/Y also
+//    set the sample weight w when jitterWeighting = blackman-harris
+//    (weighted least squares: measurement variance 1/w), the "weighted
+//    moving average" of §5.2's static special case.
 //
 // Parameters (also `crisp help phlm` / crispGetFilterDoc):
 // | name | type | default | range | meaning | source |
@@ -121,7 +121,7 @@
 // | featureB | float | 0.25 | [0, 10] | b of phi | §5.1 |
 // | featureAlphaMin | float | 0.05 | [0, 1] | floor of the feature's current weight | this file |
 // | footprintBox | bool | true | - | still pixels: 3x3 box united with the 5x5 values seen twice | docs/sampling.md |
-// | unjitter | string | blackman-harris | blackman-harris, nearest, none | moving pixels' measurement | temporal/jitter.h |
+// | unjitter | string | blackman-harris | blackman-harris, nearest, none | the measurement: the unjittered 3x3 mix | temporal/jitter.h |
 // | depthTolerance | float | 0.05 | [0, 10] | relative depth change still the same surface | this file |
 // | reference | bool | false | - | scalar reference path | this file |
 #include "filters/phlm.h"

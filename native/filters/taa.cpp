@@ -2,8 +2,8 @@
 // "taa": the baseline temporal reprojection anti-aliasing of seed 000 chapter
 // III (after Xu 2016 / Uncharted 4 and Pedersen 2016 / INSIDE; Karis 2014),
 // condensed in METHODS.md "TAA baseline". Per pixel:
-//   1. current colour = this frame's jittered 1-sample value in still pixels,
-//      the unjittered 3x3 mix in moving ones (see "Jitter" below);
+//   1. current colour = the unjittered 3x3 mix of this frame (see "Jitter"
+//      below), or the pixel's own jittered sample with unjitter = none;
 //   2. 3x3 and cross (5-tap) min/max/avg of the current frame, "rounded" (the
 //      mean of the two) (§3.6.3, Fig. 3.7);
 //   3. velocity of the closest-depth pixel of the 3x3 (§3.6.3), or the
@@ -33,26 +33,30 @@
 // (weight max(1 - k, w/W)), so a reset pixel converges quickly.
 //
 // Jitter (METHODS.md: "unjittering the current frame by resampling it at
-// p - j blurs it"): a still pixel never resamples the current frame. Its value
-// at pixel p is a sample of the pixel's footprint at p + j; averaging such
-// samples over jitter phases IS the anti-aliased pixel, so the raw sample is
-// the right input to the static accumulation. A moving pixel (and a still one
-// whose history was rejected) averages only a few frames, and with EEVEE's
-// jitter (+-filterSize = +-1.5 px) its own sample jumps across edges from
-// frame to frame, and so does a 3x3 box around it. For those, `unjitter`
-// (default blackman-harris; METHODS.md "unjittered current colour", Karis
-// 2014) reads the 3x3 around the sample nearest the pixel centre (the image
-// shifted by round(j), |j - round(j)| <= 0.5) for the clip box and the
-// followed tap, and takes as current colour that 3x3 weighted by EEVEE's
-// Blackman-Harris filter at the unjittered centre: tap q sits at q + j -
-// round(j). Averaged over jitter phases these weights again give the filtered
-// pixel, so the moving path still converges to EEVEE's reference, without the
-// frame-to-frame jumps. Measured (crisp eval, 240x136, 48 frames, frames 9-48
-// against 256 samples; docs/temporal_figures.md): camera_dolly PSNR 21.24 ->
-// 24.34 dB and temporal error 0.0230 -> 0.0176; synthetic moving edges +3 to
-// +5 dB and 35 % less flicker (test_taa.cpp UnjitterSteadiesMovingEdges).
-// The reprojected history is jitter-free (motion vectors never include
-// jitter), so nothing else needs unjittering.
+// p - j blurs it"; its TAA baseline: "unjittered current colour"). A pixel's
+// own sample sits at p + j; with EEVEE's jitter (+-filterSize = +-1.5 px) it
+// jumps across edges from frame to frame, and so does a 3x3 box around it.
+// `unjitter` (default blackman-harris; Karis 2014) reads the 3x3 around the
+// sample nearest the pixel centre (the image shifted by round(j), |j -
+// round(j)| <= 0.5) for the clip box and the followed tap, and takes as the
+// current colour of every pixel that 3x3 weighted by EEVEE's Blackman-Harris
+// filter at the unjittered centre (tap q sits at q + j - round(j)); no
+// resampling of the image, only weights. Averaged over EEVEE's jitter phases
+// the mix converges to the same filtered pixel as the raw samples: phase d
+// weighs tap q by BH(q + d) / sum_q' BH(q' + d), and d's density under
+// EEVEE's draw is that same sum up to a constant, so offset u = q + d gets
+// weight BH(u). Each mix already integrates 9 samples, so the average
+// converges far faster, and it smooths EEVEE's first-sample shadow/AO noise,
+// which every 1-sample frame repeats and averaging raw samples never removes.
+// Measured (crisp eval; docs/temporal_figures.md): still_life 480x270 frame
+// 16 31.96 -> 39.62 dB (EEVEE at 16 samples: 34.40); camera_dolly 240x136,
+// frames 9-48, 21.24 -> 24.34 dB, temporal error 0.0230 -> 0.0176 (feedback
+// 0.88/0.97). The price: 16-64 discrete phases leave a small bias (synthetic
+// still edges: 41-50 dB where raw samples keep converging; test_taa.cpp
+// BlackmanHarrisJitterConvergesToEeveeStyleReference). unjitter = none keeps
+// the raw samples (exact accumulation; converges to a box filter for jitter
+// drawn uniformly inside the pixel). The reprojected history is jitter-free
+// (motion vectors never include jitter), so nothing else needs unjittering.
 //
 // Deliberate choices, beside the code below:
 //  * feedback 0.7/0.85 by default, not seed 000's 0.88/0.97 (METHODS.md's
@@ -108,7 +112,7 @@
 // | maxSamples | int | 128 | [1, 65536] | cap of the running average's sample count | this file |
 // | staticClip | bool | true | - | clip static history too | this file |
 // | depthTolerance | float | 0.05 | [0, 10] | relative depth change still the same surface | this file |
-// | unjitter | string | blackman-harris | blackman-harris, nearest, none | moving pixels' current colour | Karis 2014 |
+// | unjitter | string | blackman-harris | blackman-harris, nearest, none | the current colour: the unjittered 3x3 mix | Karis 2014 |
 // | reference | bool | false | - | scalar reference path | this file |
 #include "filters/taa.h"
 

@@ -75,8 +75,8 @@ float blackmanHarrisWeight(float x, float y, float filterSize) {
 std::vector<ParamSpec> jitterParamSpecs(const char* weightMeaning, const char* weightSource) {
   return {
       {"jitterX", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
-       "this frame's sub-pixel sample offset in pixels, x right (set per frame from the sidecar's jitter; a "
-       "still pixel's sample is never resampled, a moving pixel's is unjittered, see unjitter)",
+       "this frame's sub-pixel sample offset in pixels, x right (set per frame from the sidecar's jitter; the "
+       "image is never resampled, see unjitter)",
        "seed 000 §3.6.1 and appendix B; seed 002 §5.2; seed 004 Halton"},
       {"jitterY", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
        "this frame's sample offset in pixels, y DOWN (the library convention: negate the sidecar's / Blender's "
@@ -87,10 +87,10 @@ std::vector<ParamSpec> jitterParamSpecs(const char* weightMeaning, const char* w
        "EEVEE's filter_size: the Blackman-Harris pixel filter of jitterWeighting spans [-filterSize, filterSize] px",
        "BLENDER.md Sampling and jitter"},
       {"unjitter", ParamType::String, 0, 0, 0, "blackman-harris|nearest|none",
-       "current colour of moving pixels (and of still ones whose history was rejected): blackman-harris = this "
-       "frame's 3x3 around the sample nearest the pixel centre, weighted by the pixel filter at the unjittered "
-       "centre; nearest = that sample; none = the pixel's own jittered sample (jumps by up to +-filterSize px from "
-       "frame to frame). Still pixels always average their own samples",
+       "current colour of every pixel: blackman-harris = this frame's 3x3 around the sample nearest the pixel "
+       "centre, weighted by the pixel filter at the unjittered centre (converges to EEVEE's filtered pixel for "
+       "EEVEE's jitter); nearest = that sample; none = the pixel's own jittered sample (jumps by up to "
+       "+-filterSize px from frame to frame; exact accumulation, also for uniform jitter and a box filter)",
        "METHODS.md TAA baseline (unjittered current colour); Karis 2014"},
   };
 }

@@ -72,7 +72,7 @@ Jitter jitterForFrame(int frame, JitterDistribution distribution, float filterSi
 // the Blackman-Harris-filtered image.
 float blackmanHarrisWeight(float x, float y, float filterSize);
 
-// The unjittered current colour of a moving pixel (parameter `unjitter`;
+// The unjittered current colour of a pixel (parameter `unjitter`;
 // METHODS.md "unjittered current colour"; Karis 2014). With jitter j the
 // sample of pixel p sits at p + j; the sample nearest p's centre is that of
 // pixel p - shift, shift = round(j) (halves away from zero) clamped to +-2, so
