@@ -166,7 +166,7 @@ struct Frame {
   bool aliasedNeighbourhood, aliasedBoxSize;
   // Unjitter (see "Jitter"): the 3x3 of pixel p is read around p - shift, the
   // samples nearest p; unjitterWeights[i] weighs its tap i (row order) for the
-  // moving path's current colour. shift 0 and weights {0,0,0,0,1,...}: off.
+  // current colour. Off: shift 0 and the centre tap.
   int shiftX, shiftY;
   float unjitterWeights[9];
   bool unjitter;
