@@ -274,21 +274,6 @@ inline temporal::Vec4 stagedTap(const Frame<T>& f, int x, int y, int i) {
   return temporal::load4(f.staged + (std::size_t(ty) * f.width + tx) * 4);
 }
 
-// Nothing in the 5x5 around (x, y) moves (no motion image: a still scene), so
-// every colour of the footprint box belongs to still surfaces and a
-// reprojected trail of a moving object cannot hide in it.
-template <class T>
-inline bool stillFootprint(const Frame<T>& f, int x, int y) {
-  if (!f.motion.ptr) return true;
-  for (int i = 0; i < 25; ++i) {
-    const int tx = temporal::shiftedSource(x + i % 5 - 2, f.width, f.unjitter.shiftX);
-    const int ty = temporal::shiftedSource(y + i / 5 - 2, f.height, f.unjitter.shiftY);
-    const float* m = f.motion.pixel(tx, ty);
-    if (m[0] != 0.0f || m[1] != 0.0f) return false;
-  }
-  return true;
-}
-
 // Always inlined: into both copies of the row loop (temporal/isa.h).
 template <class T, bool Clamp>
 __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
@@ -302,7 +287,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   using temporal::Vec4;
   // With unjitter the taps are those of the shifted image (header, "Jitter");
   // shiftedSource is the reference's clamp, so every path reads the same taps.
-  Vec4 boxLo, boxHi, boxSum, centre, taps[9];
+  Vec4 boxLo, boxHi, boxSum, taps[9];
   float depth9[9];
   int tapX[9], tapY[9];
   const int sx = f.unjitter.shiftX, sy = f.unjitter.shiftY;
@@ -322,7 +307,6 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
         boxHi = temporal::vmax(boxHi, c);
         boxSum += c;
       }
-      if (i == 4) centre = c;
       if (f.depth) depth9[i] = f.depth[std::size_t(ty) * w + tx];
     }
   T lo[3] = {T(boxLo[0]), T(boxLo[1]), T(boxLo[2])};
@@ -342,27 +326,23 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   const bool moving = vx != 0.0f || vy != 0.0f;
   // The measurement y: the unjittered mix of the 3x3 (the centre tap without
   // unjitter).
-  Vec4 sample = centre;
-  if (f.unjitter.enabled) {
-    sample = taps[4] * f.unjitter.weights[4];
-    for (int i = 0; i < 9; ++i)
-      if (i != 4) sample += taps[i] * f.unjitter.weights[i];
-  }
+  const Vec4 sample = f.unjitter.enabled ? temporal::unjitteredMix(taps, f.unjitter.weights) : taps[4];
   const T current[3] = {T(sample[0]), T(sample[1]), T(sample[2])};
-  if (f.footprintBox && !moving && stillFootprint(f, x, y)) {
+  if (f.footprintBox && !moving &&
+      temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY)) {
     // The box of the correction and of the output clamp: the footprint box
     // (header, "Box"), the 3x3 box united with the 5x5's second extremes.
     temporal::TwoExtremes4 e = temporal::twoExtremesOf(stagedTap(f, x, y, 0), stagedTap(f, x, y, 1));
     for (int i = 2; i < 25; ++i) temporal::addTap(e, stagedTap(f, x, y, i));
-    const Vec4 footLo = temporal::vmin(boxLo, e.min2), footHi = temporal::vmax(boxHi, e.max2);
+    const temporal::MinMax4 foot = temporal::footprintBox({boxLo, boxHi}, e);
     for (int c = 0; c < 3; ++c) {
-      lo[c] = T(footLo[c]);
-      hi[c] = T(footHi[c]);
+      lo[c] = T(foot.min[c]);
+      hi[c] = T(foot.max[c]);
     }
   }
-  // The correction needs y inside the box (lines 13-17): a still pixel's own
-  // sample lies outside a 3x3 shifted by 2, and a weighted mix can pass a
-  // face by rounding. Without unjitter y is a tap and this changes nothing.
+  // The correction needs y inside the box (lines 13-17): the weighted mix can
+  // pass a face by rounding. Without unjitter y is a tap and this changes
+  // nothing.
   for (int c = 0; c < 3; ++c) {
     lo[c] = std::min(lo[c], current[c]);
     hi[c] = std::max(hi[c], current[c]);

@@ -165,11 +165,8 @@ struct Frame {
   const float* aliased;        // aliasedValue plane or null
   bool aliasedNeighbourhood, aliasedBoxSize;
   // Unjitter (see "Jitter"): the 3x3 of pixel p is read around p - shift, the
-  // samples nearest p; unjitterWeights[i] weighs its tap i (row order) for the
-  // current colour. Off: shift 0 and the centre tap.
-  int shiftX, shiftY;
-  float unjitterWeights[9];
-  bool unjitter;
+  // samples nearest p, and its taps weighted give the current colour.
+  temporal::Unjitter unjitter;
 };
 
 // The current frame as the kernel reads it (conventions.h): sanitised, in
@@ -220,14 +217,6 @@ struct Neighbourhood {
   float tapDepth;                // its sanitised depth (with depth only)
 };
 
-// The static test's box: the 3x3 box united with the 5x5 box of the
-// second-largest / second-smallest values (per lane). The 5x5 covers the
-// jitter's footprint; a colour must show in two of its 25 samples to widen
-// the box, so one firefly nearby cannot make a firefly in the history pass.
-inline temporal::MinMax4 footprintBox(const temporal::MinMax4& box3x3, const temporal::TwoExtremes4& e) {
-  return {temporal::vmin(box3x3.min, e.min2), temporal::vmax(box3x3.max, e.max2)};
-}
-
 constexpr int kTapDx[9] = {-1, 0, 1, -1, 0, 1, -1, 0, 1};
 constexpr int kTapDy[9] = {-1, -1, -1, 0, 0, 0, 1, 1, 1};
 
@@ -243,20 +232,6 @@ inline void shiftRowInPlace(float* px, int w, int comps, int shift) {
 // the aliasedValue plane). Writes the history and, unless sharpening, the output.
 // footprintBox() returns the 5x5 box of this frame (MinMax4); it is called only
 // for the static test, so moving pixels never pay for it.
-// Nothing in the 5x5 (of the shifted image) moves: only then may the
-// footprint box accept static history, so that a moving object's colour (a
-// trail, or a first frame's mix next to it) cannot hide in the wider box
-// (phlm.cpp's stillFootprint). No motion image: a still scene.
-inline bool stillFootprint(const Frame& f, int x, int y) {
-  if (!f.motion.ptr) return true;
-  for (int i = 0; i < 25; ++i) {
-    const float* m = f.motion.pixel(temporal::shiftedSource(x + i % 5 - 2, f.width, f.shiftX),
-                                    temporal::shiftedSource(y + i / 5 - 2, f.height, f.shiftY));
-    if (m[0] != 0.0f || m[1] != 0.0f) return false;
-  }
-  return true;
-}
-
 template <class FootprintBox>
 __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, int y, const Neighbourhood& nb,
                                                         FootprintBox&& footprintBox) {
@@ -267,8 +242,8 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
   // Step 3: velocity of the followed tap (clamped to the image, as the taps are).
   float vx = 0.0f, vy = 0.0f;
   if (f.motion.ptr) {
-    const float* m = f.motion.pixel(temporal::shiftedSource(x + kTapDx[nb.tap], w, f.shiftX),
-                                    temporal::shiftedSource(y + kTapDy[nb.tap], h, f.shiftY));
+    const float* m = f.motion.pixel(temporal::shiftedSource(x + kTapDx[nb.tap], w, f.unjitter.shiftX),
+                                    temporal::shiftedSource(y + kTapDy[nb.tap], h, f.unjitter.shiftY));
     vx = m[0];
     vy = m[1];
   }
@@ -329,7 +304,7 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
     // history outside the 3x3 box (the same decision, at a fraction of the cost).
     if (staticPixel && f.staticClip) {
       temporal::clipTowardCentre4(hist, nb.box3x3.min, nb.box3x3.max, &excess);
-      if (excess > 1.0f && !feedbackSinceReset && stillFootprint(f, x, y)) {
+      if (excess > 1.0f && !feedbackSinceReset && temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY)) {
         const temporal::MinMax4 box = footprintBox();
         temporal::clipTowardCentre4(hist, box.min, box.max, &excess);
       }
@@ -382,7 +357,7 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
   result[3] = moving ? -newWeight : newWeight;  // sign: was this pixel static this frame
   temporal::store4(f.history + (std::size_t(y) * w + x) * 4, result);
   if (!f.writeOutput) return;
-  if (reset && !f.unjitter) {
+  if (reset && !f.unjitter.enabled) {
     // Reset to current: the input colour itself (sanitised), not its YCoCg
     // round trip, which can differ in the last bit.
     const float* p = f.color.pixel(x, y);
@@ -402,29 +377,24 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
   float depth9[9];
   // Without unjitter the shift is 0 and shiftedSource a plain clamp.
   for (int i = 0; i < 9; ++i) {
-    const int tx = temporal::shiftedSource(x + kTapDx[i], w, f.shiftX), ty = temporal::shiftedSource(y + kTapDy[i], h, f.shiftY);
+    const int tx = temporal::shiftedSource(x + kTapDx[i], w, f.unjitter.shiftX), ty = temporal::shiftedSource(y + kTapDy[i], h, f.unjitter.shiftY);
     taps[i] = stagePixel(f.color.pixel(tx, ty), cc, f.space);
     depth9[i] = f.depth.ptr ? temporal::sanitizeDepth(f.depth.pixel(tx, ty)[0]) : kBackgroundDepth;
   }
   Neighbourhood nb;
-  nb.current = taps[4];
-  if (f.unjitter) {
-    nb.current = taps[4] * f.unjitterWeights[4];
-    for (int i = 0; i < 9; ++i)
-      if (i != 4) nb.current = nb.current + taps[i] * f.unjitterWeights[i];
-  }
+  nb.current = f.unjitter.enabled ? temporal::unjitteredMix(taps, f.unjitter.weights) : taps[4];
   temporal::columnFirstBoxes4(taps, nb.box3x3, nb.cross);
   nb.tap = (f.depth.ptr && f.motion.ptr) ? temporal::closestDepthTap(depth9) : 4;
   nb.tapDepth = depth9[nb.tap];
   if (depthNow) depthNow[std::size_t(y) * w + x] = depth9[4];
   resolvePixel(f, x, y, nb, [&] {
     auto tap = [&](int i) {
-      const int tx = temporal::shiftedSource(x + i % 5 - 2, w, f.shiftX), ty = temporal::shiftedSource(y + i / 5 - 2, h, f.shiftY);
+      const int tx = temporal::shiftedSource(x + i % 5 - 2, w, f.unjitter.shiftX), ty = temporal::shiftedSource(y + i / 5 - 2, h, f.unjitter.shiftY);
       return stagePixel(f.color.pixel(tx, ty), cc, f.space);
     };
     temporal::TwoExtremes4 e = temporal::twoExtremesOf(tap(0), tap(1));
     for (int i = 2; i < 25; ++i) temporal::addTap(e, tap(i));
-    return footprintBox(nb.box3x3, e);
+    return temporal::footprintBox(nb.box3x3, e);
   });
 }
 
@@ -468,9 +438,9 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
   const int w = f.width;
   float* dst = s.staged[y % kRing];
   // Row y of the shifted image (Frame::shiftX/Y; no shift without unjitter).
-  const int source = std::clamp(y - f.shiftY, 0, f.height - 1);
+  const int source = std::clamp(y - f.unjitter.shiftY, 0, f.height - 1);
   stageColorRow(f.color, source, dst + 4);
-  shiftRowInPlace(dst + 4, w, 4, f.shiftX);
+  shiftRowInPlace(dst + 4, w, 4, f.unjitter.shiftX);
   if (f.space == ClipSpace::YCoCg)
     for (int x = 1; x <= w; ++x) {
       const Vec4 v = temporal::load4(dst + 4 * x);
@@ -482,7 +452,7 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
   if (!f.depth.ptr) return;
   float* d = s.depth[y % kRing];
   stageDepthRow(f.depth, source, d + 1);
-  shiftRowInPlace(d + 1, w, 1, f.shiftX);
+  shiftRowInPlace(d + 1, w, 1, f.unjitter.shiftX);
   d[0] = d[1];
   d[w + 1] = d[w];
   if (depthNow) std::memcpy(depthNow + std::size_t(y) * w, d + 1, std::size_t(w) * sizeof(float));
@@ -535,12 +505,11 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
       const int i = x + 1;
       Neighbourhood nb;
       nb.current = temporal::load4(s1 + 4 * i);
-      if (f.unjitter) {
-        // As the reference: the 3x3 of the shifted image, centre first.
+      if (f.unjitter.enabled) {  // the 3x3 of the shifted image, as the reference
         const float* rows[3] = {s0, s1, s2};
-        nb.current = nb.current * f.unjitterWeights[4];
-        for (int t = 0; t < 9; ++t)
-          if (t != 4) nb.current = nb.current + temporal::load4(rows[t / 3] + 4 * (i + t % 3 - 1)) * f.unjitterWeights[t];
+        Vec4 taps[9];
+        for (int t = 0; t < 9; ++t) taps[t] = temporal::load4(rows[t / 3] + 4 * (i + t % 3 - 1));
+        nb.current = temporal::unjitteredMix(taps, f.unjitter.weights);
       }
       auto column = [&](int k) {
         return temporal::ColumnReduction4{temporal::load4(s.columnMin + 4 * k), temporal::load4(s.columnMax + 4 * k)};
@@ -565,7 +534,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         };
         temporal::TwoExtremes4 e = column(i - 2);
         for (int k = i - 1; k <= i + 2; ++k) temporal::mergeExtremes(e, column(k));
-        return footprintBox(nb.box3x3, e);
+        return temporal::footprintBox(nb.box3x3, e);
       });
     }
   }
@@ -696,11 +665,7 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   f.aliased = in.aliasedValue;
   f.aliasedNeighbourhood = s.aliasedNeighbourhood;
   f.aliasedBoxSize = s.aliasedBoxSize;
-  const temporal::Unjitter unjitter = temporal::unjitterFor(s.unjitter, s.jitterX, s.jitterY, s.filterSize);
-  f.unjitter = unjitter.enabled;
-  f.shiftX = unjitter.shiftX;
-  f.shiftY = unjitter.shiftY;
-  std::copy(unjitter.weights, unjitter.weights + 9, f.unjitterWeights);
+  f.unjitter = temporal::unjitterFor(s.unjitter, s.jitterX, s.jitterY, s.filterSize);
 
   if (reference) {
     for (int y = 0; y < height_; ++y)

@@ -163,6 +163,25 @@ inline void mergeExtremes(TwoExtremes4& e, const TwoExtremes4& o) {
   e.min1 = vmin(e.min1, o.min1);
 }
 
+// The static test's footprint box (taa.cpp "Deliberate choices", phlm.cpp
+// "Box"): the 3x3 box united with the 5x5 box of the second-largest /
+// second-smallest values (per lane). The 5x5 covers the jitter's footprint; a
+// colour must show in two of its 25 samples to widen the box, so one firefly
+// nearby cannot make a firefly in the history pass.
+inline MinMax4 footprintBox(const MinMax4& box3x3, const TwoExtremes4& e) {
+  return {vmin(box3x3.min, e.min2), vmax(box3x3.max, e.max2)};
+}
+
+// The unjittered current colour (temporal/jitter.h Unjitter): the 3x3 taps
+// (row order) weighted by `weights`, summed centre first, then the others in
+// row order, so every path that calls it gets the same bits.
+inline Vec4 unjitteredMix(const Vec4 taps[9], const float weights[9]) {
+  Vec4 sum = taps[4] * weights[4];
+  for (int i = 0; i < 9; ++i)
+    if (i != 4) sum = sum + taps[i] * weights[i];
+  return sum;
+}
+
 // clipTowardCentre on lanes 0-2; lane 3 of the result is p's. *excess as above.
 inline Vec4 clipTowardCentre4(Vec4 p, Vec4 min, Vec4 max, float* excess) {
   const Vec4 centre = 0.5f * (max + min);

@@ -9,6 +9,7 @@
 
 #include "core/conventions.h"
 #include "core/row_stage.h"
+#include "temporal/jitter.h"
 #include "temporal/vec4.h"
 
 namespace crisp::temporal {
@@ -79,5 +80,19 @@ inline bool sameSurfaceDepth(float a, float b, float tolerance) {
 
 // A motion vector usable for reprojection: finite.
 inline bool finiteMotion(float mx, float my) { return std::isfinite(mx) && std::isfinite(my); }
+
+// Nothing in the 5x5 around (x, y) of the image shifted by (shiftX, shiftY)
+// (jitter.h shiftedSource) moves: only then may a still pixel's history be
+// tested against the wider footprint box, so that a moving object's colour (a
+// trail, or a first frame's mix next to it) cannot hide in it (taa.cpp,
+// phlm.cpp). No motion image: a still scene.
+inline bool stillFootprint(const ImageView& motion, int x, int y, int width, int height, int shiftX, int shiftY) {
+  if (!motion.ptr) return true;
+  for (int i = 0; i < 25; ++i) {
+    const float* m = motion.pixel(shiftedSource(x + i % 5 - 2, width, shiftX), shiftedSource(y + i / 5 - 2, height, shiftY));
+    if (m[0] != 0.0f || m[1] != 0.0f) return false;
+  }
+  return true;
+}
 
 }  // namespace crisp::temporal
