@@ -394,29 +394,25 @@ CRISP_AVX2 int anyDiffers8(const Inputs& in, int x, int y, const float* colUx, f
   return _mm256_movemask_ps(any);
 }
 
-// sanitizeColor of 8 packed RGBA pixels (32 floats) from src to dst: NaN -> 0,
-// then clamp to +-kMaxColor, as std::clamp does (the bounds are finite, so
-// max/min give the same values).
+// sanitizeColor in 8 lanes: NaN -> 0, then clamp to +-kMaxColor, as
+// std::clamp does (the bounds are finite, so max/min give the same values).
+CRISP_AVX2 inline __m256 sanitize8(__m256 v) {
+  const __m256 finiteOrInf = _mm256_and_ps(v, _mm256_cmp_ps(v, v, _CMP_ORD_Q));
+  return _mm256_min_ps(_mm256_max_ps(finiteOrInf, set8(-kMaxColor)), set8(kMaxColor));
+}
+
+// sanitizeColor of 8 packed RGBA pixels (32 floats) from src to dst.
 CRISP_AVX2 inline void sanitizeCopy8(const float* src, float* dst) {
-  const __m256 lo = set8(-kMaxColor), hi = set8(kMaxColor);
-  for (int j = 0; j < 32; j += 8) {
-    const __m256 v = _mm256_loadu_ps(src + j);
-    const __m256 finiteOrInf = _mm256_and_ps(v, _mm256_cmp_ps(v, v, _CMP_ORD_Q));
-    _mm256_storeu_ps(dst + j, _mm256_min_ps(_mm256_max_ps(finiteOrInf, lo), hi));
-  }
+  for (int j = 0; j < 32; j += 8) _mm256_storeu_ps(dst + j, sanitize8(_mm256_loadu_ps(src + j)));
 }
 
 // True when the 8 packed RGBA output pixels equal the sanitised colour (src),
 // i.e. FXAA left all of them alone (the scalar test compares channel by
 // channel with !=; so does this, -0 == 0 included).
 CRISP_AVX2 inline bool unchanged8(const float* src, const float* out) {
-  const __m256 lo = set8(-kMaxColor), hi = set8(kMaxColor);
   __m256 neq = _mm256_setzero_ps();
-  for (int j = 0; j < 32; j += 8) {
-    const __m256 v = _mm256_loadu_ps(src + j);
-    const __m256 clean = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(v, _mm256_cmp_ps(v, v, _CMP_ORD_Q)), lo), hi);
-    neq = _mm256_or_ps(neq, _mm256_cmp_ps(clean, _mm256_loadu_ps(out + j), _CMP_NEQ_UQ));
-  }
+  for (int j = 0; j < 32; j += 8)
+    neq = _mm256_or_ps(neq, _mm256_cmp_ps(sanitize8(_mm256_loadu_ps(src + j)), _mm256_loadu_ps(out + j), _CMP_NEQ_UQ));
   return _mm256_testz_ps(neq, neq);
 }
 #endif
