@@ -14,7 +14,11 @@ import time
 
 # Mirrors of the C enums in native/include/crisp/crisp.h.
 FORMAT_FLOAT, FORMAT_FLOAT2, FORMAT_FLOAT3, FORMAT_FLOAT4, FORMAT_UINT = 1, 2, 3, 4, 5
-FORMAT_CHANNELS = {FORMAT_FLOAT: 1, FORMAT_FLOAT2: 2, FORMAT_FLOAT3: 3, FORMAT_FLOAT4: 4, FORMAT_UINT: 1}
+# RSAA's packed sub-sample record (80 bytes per pixel: float32 depth[8], int16 normal x[8], y[8], z[8]).
+FORMAT_RSAA_SUBSAMPLES = 6
+# 4-byte words per pixel.
+FORMAT_CHANNELS = {FORMAT_FLOAT: 1, FORMAT_FLOAT2: 2, FORMAT_FLOAT3: 3, FORMAT_FLOAT4: 4, FORMAT_UINT: 1,
+                   FORMAT_RSAA_SUBSAMPLES: 20}
 ERROR_NAMES = {0: "none", 1: "unknown", 2: "invalid argument", 3: "invalid operation", 4: "out of memory",
                5: "I/O", 6: "invalid data"}
 
@@ -287,8 +291,9 @@ class Frame:
              _b(next_sidecar) if next_sidecar else None)
 
     def attach_subsamples(self, context, frame_filter=None):
-        """RSAA: adds passes sub0..sub7 from the frame_NNNN_subK.exr files its sidecar lists and, with
-        a filter, sets the filter's camera parameters from the sidecar (crispAttachFrameSubsamples)."""
+        """RSAA: adds the pass "subsamples" (packed records, what the filter reads) and sub0..sub7
+        (float4) from the frame_NNNN_subK.exr files its sidecar lists and, with a filter, sets the
+        filter's camera parameters from the sidecar (crispAttachFrameSubsamples)."""
         call("crispAttachFrameSubsamples", context.handle, self.handle,
              frame_filter.handle if frame_filter is not None else None)
 
@@ -330,7 +335,9 @@ def compare_images(context, reference_path, test_path):
         return {n: getattr(m, n) for n, _ in Metrics._fields_}
 
 
-SUBSAMPLE_PASSES = tuple("sub%d" % k for k in range(8))
+# The sub-samples as the filter reads them: one packed record per pixel (the float4 passes
+# sub0..sub7 that crispAttachFrameSubsamples also adds are not bound).
+SUBSAMPLE_PASSES = ("subsamples",)
 
 
 class FrameFilter:

@@ -180,7 +180,7 @@ void crispSetFilterImage(CrispFilter filter, const char* name, void* ptr, CrispF
   guardedVoid([&] {
     need(filter, "filter");
     std::string n = nameOf(name, "image");
-    if (format < CRISP_FORMAT_FLOAT || format > CRISP_FORMAT_UINT)
+    if (format < CRISP_FORMAT_FLOAT || format > CRISP_FORMAT_RSAA_SUBSAMPLES)
       crisp::invalidArgument("image '" + n + "': unknown format " + std::to_string(int(format)));
     if (width > (1u << 16) || height > (1u << 16))
       crisp::invalidArgument("image '" + n + "': size " + std::to_string(width) + "x" + std::to_string(height) +

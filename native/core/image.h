@@ -10,7 +10,10 @@
 
 namespace crisp {
 
-enum class Format : int { Undefined = 0, Float = 1, Float2 = 2, Float3 = 3, Float4 = 4, UInt = 5 };
+// RsaaSubsamples: RSAA's packed 80-byte sub-sample record per pixel (rsaa/subsample_record.h);
+// counted as 20 four-byte words so strides and role checks work unchanged.
+enum class Format : int { Undefined = 0, Float = 1, Float2 = 2, Float3 = 3, Float4 = 4, UInt = 5, RsaaSubsamples = 6 };
+inline constexpr int kRsaaSubsampleWords = 20;
 
 inline int formatChannels(Format f) {
   switch (f) {
@@ -19,6 +22,7 @@ inline int formatChannels(Format f) {
     case Format::Float3: return 3;
     case Format::Float4: return 4;
     case Format::UInt: return 1;
+    case Format::RsaaSubsamples: return kRsaaSubsampleWords;
     default: return 0;
   }
 }

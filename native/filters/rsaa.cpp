@@ -44,6 +44,9 @@ void Kernel::allocate(int width, int height, const Settings& settings) {
   height_ = height;
   settings_ = settings;
   threshold2_ = settings.threshold * settings.threshold;
+  packedCamera_ = settings.camera;
+  for (auto& row : packedCamera_.view)
+    for (float& v : row) v /= kSnormScale;
   geometry_ = patternGeometry(kTablePattern);
   colUx_.resize(std::size_t(width));
   rowUy_.resize(std::size_t(height));
@@ -79,6 +82,11 @@ Geo Kernel::centreGeo(const Inputs& in, int x, int y) const {
 }
 
 Geo Kernel::subGeo(const Inputs& in, int k, int x, int y) const {
+  if (in.packed.valid()) {  // the int16 normal as float (exact); packedCamera_ holds the 1/32767
+    const SubsampleRecord* r = subsampleRecord(in.packed, x, y);
+    return makeGeo(r->depth[k], float(r->nx[k]), float(r->ny[k]), float(r->nz[k]),
+                   colUx_[std::size_t(x)] + dux_[k], rowUy_[std::size_t(y)] + duy_[k], packedCamera_);
+  }
   const float* s = in.sub[k].pixel(x, y);
   return makeGeo(s[3], s[0], s[1], s[2], colUx_[std::size_t(x)] + dux_[k], rowUy_[std::size_t(y)] + duy_[k],
                  settings_.camera);
@@ -310,11 +318,11 @@ CRISP_AVX2 inline void load8x4(const float* const* p, __m256& nx, __m256& ny, __
 
 // rsaa::differs(centre, sample) lane by lane for samples given as their
 // float4s (lane j = p[j]) with ray terms sux, suy; all-ones lanes differ.
+// The samples' world normals (nx, ny, nz; cam.view rotates them to view
+// space) and depths d given in lanes.
 template <bool Ortho>
-CRISP_AVX2 inline __m256 differsLanes(const float* const* p, const Centre8& c, __m256 sux, __m256 suy,
-                                      const Camera& cam, __m256 threshold2) {
-  __m256 nx, ny, nz, d;
-  load8x4(p, nx, ny, nz, d);
+CRISP_AVX2 inline __m256 differsLanes(__m256 nx, __m256 ny, __m256 nz, __m256 d, const Centre8& c, __m256 sux,
+                                      __m256 suy, const Camera& cam, __m256 threshold2) {
   const __m256 bg = _mm256_cmp_ps(d, set8(kFarDepth), _CMP_NLT_UQ);
   const __m256 px = Ortho ? sux : _mm256_mul_ps(sux, d);
   const __m256 py = Ortho ? suy : _mm256_mul_ps(suy, d);
@@ -342,6 +350,15 @@ CRISP_AVX2 inline __m256 differsLanes(const float* const* p, const Centre8& c, _
   return _mm256_or_ps(_mm256_xor_ps(c.bg, bg), _mm256_andnot_ps(c.bg, _mm256_and_ps(apart, far)));
 }
 
+// The same for samples given as their float4s (lane j = p[j]).
+template <bool Ortho>
+CRISP_AVX2 inline __m256 differsLanes(const float* const* p, const Centre8& c, __m256 sux, __m256 suy,
+                                      const Camera& cam, __m256 threshold2) {
+  __m256 nx, ny, nz, d;
+  load8x4(p, nx, ny, nz, d);
+  return differsLanes<Ortho>(nx, ny, nz, d, c, sux, suy, cam, threshold2);
+}
+
 // All 8 sub-samples of one pixel (lane k = sample k, float4 at p[k]) against its centre.
 template <bool Ortho>
 CRISP_AVX2 int differs8(const float* const* p, const Geo& c, float ux, float uy, const float* dux, const float* duy,
@@ -351,10 +368,9 @@ CRISP_AVX2 int differs8(const float* const* p, const Geo& c, float ux, float uy,
   return _mm256_movemask_ps(differsLanes<Ortho>(p, broadcastCentre8(c), sux, suy, cam, set8(threshold2)));
 }
 
-// rsaa::differs of any sample, as an 8-bit lane mask, for pixels x..x+7 of row y.
+// The centres of pixels x..x+7 of row y (centreGeo in 8 lanes).
 template <bool Ortho>
-CRISP_AVX2 int anyDiffers8(const Inputs& in, int x, int y, const float* colUx, float uy, const float* dux,
-                           const float* duy, const Camera& cam, float threshold2) {
+CRISP_AVX2 inline Centre8 loadCentres8(const Inputs& in, int x, int y, __m256 ux, float uy, const Camera& cam) {
   __m256 d, wx, wy, wz;
   if (in.depth.pixelStride == 4) {
     d = _mm256_loadu_ps(in.depth.pixel(x, y));
@@ -382,14 +398,100 @@ CRISP_AVX2 int anyDiffers8(const Inputs& in, int x, int y, const float* colUx, f
     }
     wx = _mm256_load_ps(gx), wy = _mm256_load_ps(gy), wz = _mm256_load_ps(gz);
   }
+  return centre8<Ortho>(d, wx, wy, wz, ux, set8(uy), cam);
+}
+
+// rsaa::differs of any sample, as an 8-bit lane mask, for pixels x..x+7 of
+// row y, sub-samples in the 8 float4 images.
+template <bool Ortho>
+CRISP_AVX2 int anyDiffers8(const Inputs& in, int x, int y, const float* colUx, float uy, const float* dux,
+                           const float* duy, const Camera& cam, float threshold2) {
   const __m256 ux = _mm256_loadu_ps(colUx + x);
-  const Centre8 c = centre8<Ortho>(d, wx, wy, wz, ux, set8(uy), cam);
+  const Centre8 c = loadCentres8<Ortho>(in, x, y, ux, uy, cam);
   const __m256 t2 = set8(threshold2);
   __m256 any = _mm256_setzero_ps();
   for (int k = 0; k < kSamples; ++k) {
     const float* row = in.sub[k].pixel(x, y);  // packed float4
     const float* p[8] = {row, row + 4, row + 8, row + 12, row + 16, row + 20, row + 24, row + 28};
     any = _mm256_or_ps(any, differsLanes<Ortho>(p, c, _mm256_add_ps(ux, set8(dux[k])), set8(uy + duy[k]), cam, t2));
+  }
+  return _mm256_movemask_ps(any);
+}
+
+// Transposes 8 rows of 8 floats (row j = lane j of the result's vectors).
+CRISP_AVX2 inline void transpose8x8(__m256 r[8]) {
+  __m256 t[8], s[8];
+  for (int i = 0; i < 8; i += 2) {
+    t[i] = _mm256_unpacklo_ps(r[i], r[i + 1]);
+    t[i + 1] = _mm256_unpackhi_ps(r[i], r[i + 1]);
+  }
+  for (int h = 0; h < 8; h += 4) {
+    s[h] = _mm256_shuffle_ps(t[h], t[h + 2], _MM_SHUFFLE(1, 0, 1, 0));
+    s[h + 1] = _mm256_shuffle_ps(t[h], t[h + 2], _MM_SHUFFLE(3, 2, 3, 2));
+    s[h + 2] = _mm256_shuffle_ps(t[h + 1], t[h + 3], _MM_SHUFFLE(1, 0, 1, 0));
+    s[h + 3] = _mm256_shuffle_ps(t[h + 1], t[h + 3], _MM_SHUFFLE(3, 2, 3, 2));
+  }
+  for (int k = 0; k < 4; ++k) {
+    r[k] = _mm256_permute2f128_ps(s[k], s[k + 4], 0x20);
+    r[k + 4] = _mm256_permute2f128_ps(s[k], s[k + 4], 0x31);
+  }
+}
+
+// Transposes 8 rows of 8 int16 (row j = element j of the result; a[k]
+// then holds element k of the 8 rows), in each 128-bit half of a[] (AVX2)
+// or in one 128-bit vector (SSE2).
+#define CRISP_RSAA_TRANSPOSE8X8_I16(V, a, lo16, hi16, lo32, hi32, lo64, hi64) \
+  do {                                                                      \
+    V s_[8], t_[8];                                                         \
+    for (int i_ = 0; i_ < 8; i_ += 2) {                                     \
+      s_[i_] = lo16(a[i_], a[i_ + 1]);     /* elements 0-3 of rows i, i+1 */ \
+      s_[i_ + 1] = hi16(a[i_], a[i_ + 1]); /* elements 4-7 */               \
+    }                                                                       \
+    for (int h_ = 0; h_ < 8; h_ += 4) {                                     \
+      t_[h_] = lo32(s_[h_], s_[h_ + 2]);         /* rows h..h+3: 0, 1 */    \
+      t_[h_ + 1] = hi32(s_[h_], s_[h_ + 2]);     /* 2, 3 */                 \
+      t_[h_ + 2] = lo32(s_[h_ + 1], s_[h_ + 3]); /* 4, 5 */                 \
+      t_[h_ + 3] = hi32(s_[h_ + 1], s_[h_ + 3]); /* 6, 7 */                 \
+    }                                                                       \
+    for (int e_ = 0; e_ < 4; ++e_) {                                        \
+      a[2 * e_] = lo64(t_[e_], t_[e_ + 4]);                                 \
+      a[2 * e_ + 1] = hi64(t_[e_], t_[e_ + 4]);                             \
+    }                                                                       \
+  } while (0)
+
+CRISP_AVX2 inline __m256 int16ToFloat8(__m128i v) { return _mm256_cvtepi32_ps(_mm256_cvtepi16_epi32(v)); }
+
+// anyDiffers8 for packed records (rsaa/subsample_record.h): the 8 pixels'
+// depth[8], nx|ny[16] and nz[8] fields are transposed to one vector per
+// sample (lane j = pixel x + j), the int16 normals converted exactly;
+// packedCam rotates them with the 1/32767 scale folded in (as subGeo does).
+template <bool Ortho>
+CRISP_AVX2 int anyDiffersPacked8(const Inputs& in, int x, int y, const float* colUx, float uy, const float* dux,
+                                 const float* duy, const Camera& cam, const Camera& packedCam, float threshold2) {
+  const __m256 ux = _mm256_loadu_ps(colUx + x);
+  const Centre8 c = loadCentres8<Ortho>(in, x, y, ux, uy, cam);
+  const SubsampleRecord* rec = subsampleRecord(in.packed, x, y);
+  __m256 d[8];
+  __m256i nxy[8];
+  __m128i nz[8];
+  for (int j = 0; j < 8; ++j) {
+    d[j] = _mm256_loadu_ps(rec[j].depth);
+    nxy[j] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(rec[j].nx));  // nx[8] then ny[8]
+    nz[j] = _mm_loadu_si128(reinterpret_cast<const __m128i*>(rec[j].nz));
+  }
+  transpose8x8(d);
+  CRISP_RSAA_TRANSPOSE8X8_I16(__m256i, nxy, _mm256_unpacklo_epi16, _mm256_unpackhi_epi16, _mm256_unpacklo_epi32,
+                              _mm256_unpackhi_epi32, _mm256_unpacklo_epi64, _mm256_unpackhi_epi64);
+  CRISP_RSAA_TRANSPOSE8X8_I16(__m128i, nz, _mm_unpacklo_epi16, _mm_unpackhi_epi16, _mm_unpacklo_epi32,
+                              _mm_unpackhi_epi32, _mm_unpacklo_epi64, _mm_unpackhi_epi64);
+  const __m256 t2 = set8(threshold2);
+  __m256 any = _mm256_setzero_ps();
+  for (int k = 0; k < kSamples; ++k) {
+    const __m256 wx = int16ToFloat8(_mm256_castsi256_si128(nxy[k]));
+    const __m256 wy = int16ToFloat8(_mm256_extracti128_si256(nxy[k], 1));
+    const __m256 wz = int16ToFloat8(nz[k]);
+    any = _mm256_or_ps(any, differsLanes<Ortho>(wx, wy, wz, d[k], c, _mm256_add_ps(ux, set8(dux[k])),
+                                                set8(uy + duy[k]), packedCam, t2));
   }
   return _mm256_movemask_ps(any);
 }
@@ -446,14 +548,20 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
 #endif
   const Camera& cam = settings_.camera;
   const bool textureFxaa = settings_.textureAA == TextureAA::Fxaa;
+  const bool packed = in.packed.valid();
 #if defined(CRISP_RSAA_AVX2)
   const bool avx2 = simd && useAvx2();
 #endif
+  // The per-pixel SIMD tests read float4 images; records elsewhere go through subGeo.
+  const bool pixelSimd = simd && !packed;
 #if defined(CRISP_RSAA_AVX2)
-  // 8 pixels at a time where the sub-samples are packed float4 (as the
-  // library's frames and the C API's usual images are).
+  // 8 pixels at a time where the sub-samples are packed records or packed
+  // float4 images (as the library's frames and the C API's usual images are).
   bool chunks = avx2;
-  for (int k = 0; k < kSamples; ++k) chunks = chunks && in.sub[k].pixelStride == 16;
+  if (packed)
+    chunks = chunks && in.packed.pixelStride == sizeof(SubsampleRecord);
+  else
+    for (int k = 0; k < kSamples; ++k) chunks = chunks && in.sub[k].pixelStride == 16;
 #endif
   for (int y = y0; y < y1; ++y) {
     int x = 0;
@@ -461,9 +569,13 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
     if (chunks) {
       const float uy = rowUy_[std::size_t(y)];
       for (; x + 8 <= width_; x += 8) {
-        const int bits = cam.orthographic
-                             ? anyDiffers8<true>(in, x, y, colUx_.data(), uy, dux_, duy_, cam, threshold2_)
-                             : anyDiffers8<false>(in, x, y, colUx_.data(), uy, dux_, duy_, cam, threshold2_);
+        const int bits =
+            packed ? (cam.orthographic ? anyDiffersPacked8<true>(in, x, y, colUx_.data(), uy, dux_, duy_, cam,
+                                                                 packedCamera_, threshold2_)
+                                       : anyDiffersPacked8<false>(in, x, y, colUx_.data(), uy, dux_, duy_, cam,
+                                                                  packedCamera_, threshold2_))
+                   : (cam.orthographic ? anyDiffers8<true>(in, x, y, colUx_.data(), uy, dux_, duy_, cam, threshold2_)
+                                       : anyDiffers8<false>(in, x, y, colUx_.data(), uy, dux_, duy_, cam, threshold2_));
         const std::size_t i0 = std::size_t(y) * std::size_t(width_) + std::size_t(x);
         if (bits == 0) {  // most chunks: all 8 pixels inside one polygon
           std::memset(&geometric_[i0], 0, 8);
@@ -503,7 +615,7 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
       const Geo centre = centreGeo(in, x, y);
       bool any = false;
 #if defined(__SSE2__)
-      if (simd) {
+      if (pixelSimd) {
         const float ux = colUx_[std::size_t(x)], uy = rowUy_[std::size_t(y)];
         const float* p[kSamples];
         for (int k = 0; k < kSamples; ++k) p[k] = in.sub[k].pixel(x, y);
@@ -524,7 +636,7 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
           for (int k = 0; k < kSamples; ++k) subs[k] = subGeo(in, k, x, y);
       }
 #endif
-      if (!simd) {
+      if (!pixelSimd) {
         for (int k = 0; k < kSamples; ++k) {
           subs[k] = subGeo(in, k, x, y);
           any = any || differs(centre, subs[k], threshold2_);
@@ -728,12 +840,16 @@ std::vector<ImageRole> rsaaRoles() {
       {"normal", true, 3, 4, false, "world-space normal at the pixel centre (xyz)"},
       {"output", true, 3, 4, false, "filtered colour, same size (may be the colour buffer)"},
   };
+  roles.push_back({"subsamples", false, kRsaaSubsampleWords, kRsaaSubsampleWords, false,
+                   "the 8 geometric sub-samples of each pixel in one 80-byte record (CRISP_FORMAT_RSAA_SUBSAMPLES: "
+                   "float32 planar depth[8], int16 snorm world normal x[8], y[8], z[8], in the pattern's order; "
+                   "crispAttachFrameSubsamples makes it); used instead of sub0..sub7 when set (62 % of their bytes)"});
   for (int k = 0; k < rsaa::kSamples; ++k)
-    roles.push_back({kSubRoles[k], true, 4, 4, false,
+    roles.push_back({kSubRoles[k], false, 4, 4, false,
                      "geometric sub-sample k (frame_NNNN_subK.exr) at the pattern's offset k: world normal xyz + "
                      "planar depth in w (pattern, x right / y down: (-0.375,0.125) (0.125,0.375) (0.375,-0.125) "
                      "(-0.125,-0.375) (-0.25,-0.25) (0.25,-0.25) (0.25,0.25) (-0.25,0.25) = the add-on's "
-                     "RSAA_PATTERN with y negated)"});
+                     "RSAA_PATTERN with y negated); all 8 are needed unless 'subsamples' is set"});
   return roles;
 }
 
@@ -762,6 +878,12 @@ class RsaaFilter final : public Filter {
       for (int c = 0; c < 3; ++c) cam.view[r][c] = p.getFloat("view" + std::to_string(r) + std::to_string(c));
     s.textureAA = p.getString("textureAA") == "none" ? rsaa::TextureAA::None : rsaa::TextureAA::Fxaa;
     reference_ = p.getBool("reference");
+    if (!hasImage("subsamples"))
+      for (int k = 0; k < rsaa::kSamples; ++k)
+        if (!hasImage(kSubRoles[k]))
+          invalidData(std::string("filter 'rsaa': image '") + kSubRoles[k] +
+                      "' is not set: rsaa needs the geometric sub-samples, either as 'subsamples' (one "
+                      "CRISP_FORMAT_RSAA_SUBSAMPLES record per pixel) or as the 8 float4 images 'sub0'..'sub7'");
     kernel_.allocate(width(), height(), s);
   }
   void onExecute() override {
@@ -769,7 +891,10 @@ class RsaaFilter final : public Filter {
     in.color = image("color");
     in.depth = image("depth");
     in.normal = image("normal");
-    for (int k = 0; k < rsaa::kSamples; ++k) in.sub[k] = image(kSubRoles[k]);
+    if (hasImage("subsamples"))
+      in.packed = image("subsamples");
+    else
+      for (int k = 0; k < rsaa::kSamples; ++k) in.sub[k] = image(kSubRoles[k]);
     kernel_.run(in, image("output"), reference_, numThreads());
   }
 

@@ -28,6 +28,7 @@
 #include "filters/fxaa.h"
 #include "rsaa/cluster.h"
 #include "rsaa/sadp.h"
+#include "rsaa/subsample_record.h"
 
 namespace crisp::rsaa {
 
@@ -50,7 +51,11 @@ struct Inputs {
   ImageView color;   // 3/4 channels, linear
   ImageView depth;   // channel 0: planar depth (background >= kFarDepth)
   ImageView normal;  // channels 0-2: world normal at the pixel centre
-  ImageView sub[kSamples];  // 4 channels: world normal xyz, planar depth of sub-sample k
+  // The sub-samples: either `packed` (Format::RsaaSubsamples, one 80-byte
+  // record per pixel, rsaa/subsample_record.h; used when set) or the 8 images
+  // `sub` (4 channels: world normal xyz, planar depth of sub-sample k).
+  ImageView packed;
+  ImageView sub[kSamples];
 };
 
 // The fast path tests 8 pixels (one sub-sample each) or 8 sub-samples of one
@@ -104,6 +109,9 @@ class Kernel {
 
   int width_ = 0, height_ = 0;
   Settings settings_;
+  // settings_.camera with the rotation scaled by 1 / kSnormScale: turns the
+  // packed records' int16 normals into view space in one step.
+  Camera packedCamera_;
   float threshold2_ = 0.0f;
   PatternGeometry geometry_{};
   std::vector<float> colUx_, rowUy_;

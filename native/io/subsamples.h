@@ -4,9 +4,12 @@
 // depth + normal images frame_NNNN_subK.exr at the RSAA pattern's offsets and
 // lists them in the frame's sidecar:
 //   "subsamples": [{"offset": [x, y] (pixels, x right, y UP), "file": "frame_0001_sub0.exr", "render_s": ..}, ..]
-// attachSubsamples() reads them into the frame as passes sub0..sub7 (float4:
-// world normal xyz, planar depth in w; the rsaa filter's roles) and
-// rsaaCameraParams() gives the filter's camera parameters from the sidecar.
+// attachSubsamples() reads them into the frame as the pass "subsamples" (one
+// 80-byte record per pixel, rsaa/subsample_record.h, Format::RsaaSubsamples:
+// what the rsaa filter reads) and as passes sub0..sub7 (float4: world normal
+// xyz, planar depth in w; the filter's other accepted form, and eval's
+// geometric-edge map), and rsaaCameraParams() gives the filter's camera
+// parameters from the sidecar.
 //
 // Header-only so that crisp_core, the CLI and libcrisp get it without a
 // build-file change (native/CMakeLists.txt is shared).
@@ -27,11 +30,14 @@
 #include "io/frame.h"
 #include "io/sidecar.h"
 #include "rsaa/offset_table.h"
+#include "rsaa/subsample_record.h"
 
 namespace crisp {
 
 // Pass names of the sub-samples in a Frame, in the pattern's order.
 inline std::string subsamplePass(int k) { return "sub" + std::to_string(k); }
+// The pass (and rsaa image) holding all 8 as packed records.
+constexpr const char* kPackedSubsamplePass = "subsamples";
 
 // One sub-sample file as the sidecar lists it.
 struct SubsampleEntry {
@@ -93,8 +99,10 @@ inline std::vector<SubsampleEntry> readSubsampleList(const std::string& sidecarP
 }
 
 // Reads the sub-sample files listed in `sidecarPath` into frame.passes
-// sub0..sub7 (float4: normal xyz, depth). Each file must hold Depth and
-// Normal passes at the frame's size. Throws naming the file; the frame is unchanged then.
+// sub0..sub7 (float4: normal xyz, depth) and "subsamples" (the same values as
+// packed records: depth as is, normals snorm16). Each file must hold Depth
+// and Normal passes at the frame's size. Throws naming the file; the frame is
+// unchanged then.
 inline void attachSubsamples(Frame& frame, const std::string& sidecarPath) {
   const std::vector<SubsampleEntry> list = readSubsampleList(sidecarPath);
   std::vector<Image> packedAll;  // the frame changes only when every file is good
@@ -127,7 +135,16 @@ inline void attachSubsamples(Frame& frame, const std::string& sidecarPath) {
     }
     packedAll.push_back(std::move(packed));
   }
+  Image records = rsaa::subsampleImage(frame.width, frame.height);
+  auto* rec = reinterpret_cast<rsaa::SubsampleRecord*>(records.data.data());
+  const std::size_t n = std::size_t(frame.width) * std::size_t(frame.height);
+  for (int k = 0; k < rsaa::kSamples; ++k)
+    for (std::size_t i = 0; i < n; ++i) {
+      const float* p = packedAll[std::size_t(k)].data.data() + 4 * i;
+      rsaa::encodeSubsample(rec[i], k, p[3], p[0], p[1], p[2]);
+    }
   for (int k = 0; k < rsaa::kSamples; ++k) frame.passes[subsamplePass(k)] = std::move(packedAll[std::size_t(k)]);
+  frame.passes[kPackedSubsamplePass] = std::move(records);
 }
 
 // The rsaa filter's camera parameters from a sidecar: projection terms
@@ -180,7 +197,7 @@ inline void applyRsaaCamera(Filter& filter, const Frame& frame) {
 inline void attachRsaaInputs(Filter& filter, Frame& frame) {
   if (!readsSubsamples(filter))
     invalidArgument(std::string("filter '") + filter.type() + "' reads no geometric sub-samples (only rsaa does)");
-  if (!frame.has(subsamplePass(0))) attachSubsamples(frame, sidecarPathFor(frame.path));
+  if (!frame.has(kPackedSubsamplePass)) attachSubsamples(frame, sidecarPathFor(frame.path));
   applyRsaaCamera(filter, frame);
 }
 

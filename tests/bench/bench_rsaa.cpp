@@ -5,10 +5,13 @@
 // so edge density is realistic; the fraction of resampled pixels is the
 // counter `resolved_fraction`. rsaa.floor.read is the memory floor of the
 // same run: reading every input once (colour, depth, normal, 8 float4
-// sub-sample images) and writing the output. rsaa.* run the filter's default
-// (textureAA = fxaa), rsaa.none.* the thesis' RSAA alone (textureAA = none);
-// rsaa.fxaa-part.mt is the FXAA kernel alone on the same colour, the part
-// textureAA adds.
+// sub-sample images) and writing the output; rsaa.floor.read.packed the same
+// with the sub-samples as packed records (rsaa/subsample_record.h, 80 bytes
+// per pixel), the form the library's frames hand the filter. rsaa.* run the
+// filter's default (textureAA = fxaa), rsaa.none.* the thesis' RSAA alone
+// (textureAA = none), both from the 8 float4 images; rsaa.packed.* the same
+// from the packed records. rsaa.fxaa-part.mt is the FXAA kernel alone on the
+// same colour, the part textureAA adds.
 #include <benchmark/benchmark.h>
 
 #include <cstdlib>
@@ -31,6 +34,7 @@ namespace rsaa = crisp::rsaa;
 
 struct Frame {
   Image color, depth, normal, sub[rsaa::kSamples];
+  Image records;  // the same sub-samples as packed records
 };
 
 // Index of the topmost chart shape containing (x, y), -1 for the background.
@@ -62,11 +66,18 @@ const Frame& frame(int width, int height) {
         p[3] = depthOf(shapeAt(scene, x + 0.5f + rsaa::kTablePattern.x[k], y + 0.5f + rsaa::kTablePattern.y[k]));
       }
     }
+  f.records = rsaa::subsampleImage(width, height);
+  auto* rec = reinterpret_cast<rsaa::SubsampleRecord*>(f.records.data.data());
+  for (int k = 0; k < rsaa::kSamples; ++k)
+    for (std::size_t i = 0; i < std::size_t(width) * std::size_t(height); ++i) {
+      const float* p = f.sub[k].data.data() + 4 * i;
+      rsaa::encodeSubsample(rec[i], k, p[3], p[0], p[1], p[2]);
+    }
   return f;
 }
 
 void runRsaa(benchmark::State& state, int width, int height, int threads, bool reference,
-             const char* textureAA = "fxaa") {
+             const char* textureAA = "fxaa", bool packed = false) {
   const Frame& f = frame(width, height);
   Image output(width, height, 4);
   crisp::Context context;
@@ -75,7 +86,10 @@ void runRsaa(benchmark::State& state, int width, int height, int threads, bool r
   filter->setImage("color", f.color.view());
   filter->setImage("depth", f.depth.view());
   filter->setImage("normal", f.normal.view());
-  for (int k = 0; k < rsaa::kSamples; ++k) filter->setImage("sub" + std::to_string(k), f.sub[k].view());
+  if (packed)
+    filter->setImage("subsamples", f.records.view());
+  else
+    for (int k = 0; k < rsaa::kSamples; ++k) filter->setImage("sub" + std::to_string(k), f.sub[k].view());
   filter->params().setFloat("proj00", 1.0f);
   filter->params().setFloat("proj11", float(width) / float(height));
   filter->commit();
@@ -93,6 +107,7 @@ void runRsaa(benchmark::State& state, int width, int height, int threads, bool r
   in.depth = f.depth.view();
   in.normal = f.normal.view();
   for (int k = 0; k < rsaa::kSamples; ++k) in.sub[k] = f.sub[k].view();
+  if (packed) in.packed = f.records.view();
   Image scratch(width, height, 4);
   kernel.run(in, scratch.view(), false, threads);
   state.counters["resolved_fraction"] = double(kernel.resolvedCount()) / (double(width) * height);
@@ -113,14 +128,22 @@ void runFxaaPart(benchmark::State& state, int width, int height) {
 
 // Reads every input float once and writes the output: the memory floor, on
 // one thread or (threads = 0) on all cores through parallelRows as the filter.
-void readFloor(benchmark::State& state, int width, int height, int threads = 1) {
+// packed: the sub-samples from the packed records (one float of every 16
+// bytes, as the float4 floor reads two of each float4) instead of the 8
+// float4 images.
+void readFloor(benchmark::State& state, int width, int height, int threads = 1, bool packed = false) {
   const Frame& f = frame(width, height);
   Image output(width, height, 4);
   const std::size_t n = std::size_t(width) * std::size_t(height);
   const auto rows = [&](int y0, int y1) {
     for (std::size_t i = std::size_t(y0) * std::size_t(width); i < std::size_t(y1) * std::size_t(width); ++i) {
       float s = f.depth.data[i] + f.normal.data[3 * i];
-      for (int k = 0; k < rsaa::kSamples; ++k) s += f.sub[k].data[4 * i + 3] + f.sub[k].data[4 * i];
+      if (packed) {
+        const float* r = f.records.data.data() + std::size_t(crisp::kRsaaSubsampleWords) * i;
+        for (int w = 0; w < crisp::kRsaaSubsampleWords; w += 4) s += r[w];
+      } else {
+        for (int k = 0; k < rsaa::kSamples; ++k) s += f.sub[k].data[4 * i + 3] + f.sub[k].data[4 * i];
+      }
       for (int c = 0; c < 4; ++c) output.data[4 * i + std::size_t(c)] = f.color.data[4 * i + std::size_t(c)] + s;
     }
   };
@@ -131,7 +154,8 @@ void readFloor(benchmark::State& state, int width, int height, int threads = 1) 
       crisp::parallelRows(width, height, threads, rows);
     benchmark::ClobberMemory();
   }
-  const std::size_t bytes = n * (4 * 4 + 4 + 12 + rsaa::kSamples * 16 + 4 * 4);
+  const std::size_t subBytes = packed ? sizeof(rsaa::SubsampleRecord) : rsaa::kSamples * 16;
+  const std::size_t bytes = n * (4 * 4 + 4 + 12 + subBytes + 4 * 4);
   state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(bytes));
 }
 
@@ -157,6 +181,21 @@ void registerAll() {
     bench::registerTimed("rsaa.fxaa-part.mt" + tag, [w, h](benchmark::State& st) { runFxaaPart(st, w, h); });
     bench::registerTimed("rsaa.floor.read" + tag, [w, h](benchmark::State& st) { readFloor(st, w, h); });
     bench::registerTimed("rsaa.floor.read.mt" + tag, [w, h](benchmark::State& st) { readFloor(st, w, h, 0); });
+    // The same filters and floor from the packed records.
+    bench::registerTimed("rsaa.packed.fast.mt" + tag,
+                         [w, h](benchmark::State& st) { runRsaa(st, w, h, 0, false, "fxaa", true); });
+    bench::registerTimed("rsaa.packed.fast.st" + tag,
+                         [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false, "fxaa", true); });
+    bench::registerTimed("rsaa.packed.reference" + tag,
+                         [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, true, "fxaa", true); });
+    bench::registerTimed("rsaa.packed.none.fast.mt" + tag,
+                         [w, h](benchmark::State& st) { runRsaa(st, w, h, 0, false, "none", true); });
+    bench::registerTimed("rsaa.packed.none.fast.st" + tag,
+                         [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none", true); });
+    bench::registerTimed("rsaa.floor.read.packed" + tag,
+                         [w, h](benchmark::State& st) { readFloor(st, w, h, 1, true); });
+    bench::registerTimed("rsaa.floor.read.packed.mt" + tag,
+                         [w, h](benchmark::State& st) { readFloor(st, w, h, 0, true); });
   }
 }
 

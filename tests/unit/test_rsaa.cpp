@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdio>
 #include <cstring>
 #include <functional>
@@ -69,15 +70,30 @@ struct GeoScene {
 
 struct Frame {
   Image color, depth, normal, sub[kSamples], reference, edges;
+  Image records;  // packed sub-sample records (Format::RsaaSubsamples); when set, the kernel reads these
   Inputs inputs() const {
     Inputs in;
     in.color = color.view();
     in.depth = depth.view();
     in.normal = normal.view();
     for (int k = 0; k < kSamples; ++k) in.sub[k] = sub[k].view();
+    if (!records.empty()) in.packed = records.view();
     return in;
   }
 };
+
+// f with its float4 sub-samples also as packed records (io/subsamples.h's encoding).
+Frame withRecords(Frame f) {
+  f.records = subsampleImage(f.color.width, f.color.height);
+  auto* rec = reinterpret_cast<SubsampleRecord*>(f.records.data.data());
+  const std::size_t n = std::size_t(f.color.width) * std::size_t(f.color.height);
+  for (int k = 0; k < kSamples; ++k)
+    for (std::size_t i = 0; i < n; ++i) {
+      const float* p = f.sub[k].data.data() + 4 * i;
+      encodeSubsample(rec[i], k, p[3], p[0], p[1], p[2]);
+    }
+  return f;
+}
 
 Frame render(const GeoScene& s, int supersample = 16) {
   Frame f;
@@ -378,11 +394,13 @@ void expectSameBits(const Image& a, const Image& b, const char* what) {
 }
 }  // namespace
 
+// Both sub-sample layouts: the 8 float4 images and the packed records.
 TEST(RsaaPaths, FastEqualsReferenceOnEdgesAndAnyCamera) {
+  for (bool packed : {false, true})
   for (int kind = 0; kind < 3; ++kind)
     for (int a = 0; a < 180; a += 23) {
       const GeoScene s = edgeGeometry(29, float(a), 0.37f, kind);
-      const Frame f = render(s, 4);
+      const Frame f = packed ? withRecords(render(s, 4)) : render(s, 4);
       for (int m = 0; m < 3; ++m) {
         Settings settings;
         settings.camera = s.camera;
@@ -392,7 +410,7 @@ TEST(RsaaPaths, FastEqualsReferenceOnEdgesAndAnyCamera) {
         for (int threads : {1, 2, 3}) {
           setSimdLanesForTesting(threads == 3 ? 4 : 0);  // the SSE path too where AVX2 is used
           const Image fast = runKernel(f, settings, false, threads, &kf);
-          expectSameBits(ref, fast, "edge scene");
+          expectSameBits(ref, fast, packed ? "edge scene, records" : "edge scene");
           EXPECT_EQ(kr.masks(), kf.masks());
         }
         setSimdLanesForTesting(0);
@@ -427,7 +445,15 @@ TEST(RsaaPaths, GarbageInputIsSafeAndIdentical) {
     for (std::size_t i = 0; i < f.sub[k].data.size(); ++i)
       f.sub[k].data[i] = (i % 4 == 3) ? value(3.0f, 10.0f) : value(1.0f, 0.0f);
   }
+  // Packed records of the same garbage, plus raw int16 extremes the encoder never writes.
+  Frame p = withRecords(f);
+  auto* rec = reinterpret_cast<SubsampleRecord*>(p.records.data.data());
+  for (int i = 0; i < W * H; i += 3) {
+    const int k = int(g() % kSamples);
+    rec[i].nx[k] = -32768, rec[i].ny[k] = std::int16_t(g()), rec[i].nz[k] = 32767;
+  }
   // Both fast paths (AVX2 where the CPU has it, SSE forced), exact and half-float depth precision.
+  for (const Frame* frame : {static_cast<const Frame*>(&f), static_cast<const Frame*>(&p)})
   for (int lanes : {0, 4})
     for (float ulps : {0.0f, 1.0f, 3.0f})
       for (int m = 0; m < 3; ++m) {
@@ -436,12 +462,12 @@ TEST(RsaaPaths, GarbageInputIsSafeAndIdentical) {
         settings.verification = Verification(m);
         settings.camera.proj00 = 1.7f, settings.camera.proj11 = 3.1f, settings.camera.proj02 = 0.01f;
         settings.camera.depthUlps = ulps;
-        const Image ref = runKernel(f, settings, true, 1);
-        const Image fast = runKernel(f, settings, false, 2);
+        const Image ref = runKernel(*frame, settings, true, 1);
+        const Image fast = runKernel(*frame, settings, false, 2);
         expectSameBits(ref, fast, "garbage");
         for (float v : fast.data) ASSERT_TRUE(std::isfinite(v));
         settings.camera.orthographic = true;
-        expectSameBits(runKernel(f, settings, true, 1), runKernel(f, settings, false, 2), "garbage, ortho");
+        expectSameBits(runKernel(*frame, settings, true, 1), runKernel(*frame, settings, false, 2), "garbage, ortho");
       }
   setSimdLanesForTesting(0);
 }
@@ -471,7 +497,8 @@ TEST(RsaaPaths, FourChannelDepthAndNormalGiveTheSameResult) {
 // Every pixel on its own plane (random tilt up to ~35 degrees, random depth),
 // its sub-samples on the same plane: no pixel is geometric, but any mix-up of
 // centre depths or normals between the SIMD lanes makes pixels differ. Packed
-// and 4-channel depth/normal, perspective and orthographic.
+// and 4-channel depth/normal, sub-samples as float4 images and as packed
+// records (whose 8x8 transposes this checks), perspective and orthographic.
 TEST(RsaaPaths, PerPixelPlanesCatchLaneMixUps) {
   const int W = 45, H = 7;
   Camera cam;
@@ -515,9 +542,10 @@ TEST(RsaaPaths, PerPixelPlanesCatchLaneMixUps) {
         wide.depth.at(x, y)[0] = *f.depth.at(x, y);
         for (int c = 0; c < 3; ++c) wide.normal.at(x, y)[c] = f.normal.at(x, y)[c];
       }
+    const Frame records = withRecords(f);
     Settings settings;
     settings.camera = cam;
-    for (const Frame* frame : {&f, &wide}) {
+    for (const Frame* frame : {static_cast<const Frame*>(&f), static_cast<const Frame*>(&wide), &records}) {
       Kernel kr, kf;
       const Image ref = runKernel(*frame, settings, true, 1, &kr);
       const Image fast = runKernel(*frame, settings, false, 2, &kf);
@@ -592,6 +620,19 @@ TEST(RsaaFilter, RunsThroughTheFilterInterfaceAndChecksItsImages) {
     for (int x = 0; x < 16; ++x)
       for (int c = 0; c < 3; ++c) ASSERT_EQ(out.at(x, y)[c], expect.at(x, y)[c]);
   EXPECT_NE(filter->doc().find("sub7"), std::string::npos);
+  // The packed records instead of sub0..sub7: same result (the float4 images unset).
+  const Frame p = withRecords(f);
+  EXPECT_THROW(filter->setImage("subsamples", f.sub[0].view()), Exception);  // float4 is not a record
+  for (int k = 0; k < kSamples; ++k) filter->unsetImage("sub" + std::to_string(k));
+  EXPECT_THROW(filter->commit(), Exception);  // neither form set
+  filter->setImage("subsamples", p.records.view());
+  filter->commit();
+  Image out2(16, 16, 3);
+  filter->setImage("output", out2.view());
+  filter->execute();
+  for (int y = 0; y < 16; ++y)
+    for (int x = 0; x < 16; ++x)
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(out2.at(x, y)[c], expect.at(x, y)[c]);
 }
 
 // Blender 3.4's EEVEE writes Depth as half floats: on a tilted plane at
@@ -822,6 +863,90 @@ TEST(RsaaTextureAA, TextureAndGeometryFastEqualsReference) {
   }
 }
 
+// ------------------------------------------------ packed records --
+
+// The packed records (depth as is, normals snorm16) make the same decisions
+// as the float4 images on every analytic edge of the accuracy test (36 angles
+// x 4 offsets x 3 plane pairs x 3 verification modes, exact and half-float
+// depth precision): same geometric pixels, masks and halvings, hence the
+// same output bits. Quantising the normals moves SADP by ~1e-4 at most, far
+// from the threshold and from Algorithm 1's split point on these scenes.
+TEST(RsaaPacked, SameDecisionsAsFloat4OnAnalyticEdges) {
+  long scenes = 0, geometric = 0;
+  for (int kind = 0; kind < 3; ++kind)
+    for (int a = 0; a < 180; a += 5)
+      for (float offset : {0.1f, 0.3f, 0.5f, 0.77f}) {
+        const GeoScene s = edgeGeometry(24, float(a), offset, kind);
+        const Frame f = render(s, 1);
+        const Frame p = withRecords(f);
+        for (int m = 0; m < 3; ++m)
+          for (float ulps : {0.0f, 1.0f}) {
+            Settings settings;
+            settings.camera = s.camera;
+            settings.camera.depthUlps = ulps;
+            settings.verification = Verification(m);
+            Kernel kf, kp;
+            const Image fromFloat4 = runKernel(f, settings, true, 1, &kf);
+            const Image fromRecords = runKernel(p, settings, false, 2, &kp);
+            ASSERT_EQ(kf.geometric(), kp.geometric()) << "kind " << kind << " angle " << a << " offset " << offset;
+            ASSERT_EQ(kf.masks(), kp.masks()) << "kind " << kind << " angle " << a << " offset " << offset;
+            ASSERT_EQ(kf.halved(), kp.halved()) << "kind " << kind << " angle " << a << " offset " << offset;
+            expectSameBits(fromFloat4, fromRecords, "float4 vs records");
+            ++scenes;
+            geometric += count(kp.geometric());
+          }
+      }
+  std::printf("[ rsaa ] packed records = float4 decisions on %ld edge scenes (%ld geometric pixels)\n", scenes,
+              geometric);
+  EXPECT_GT(geometric, 10000);  // the test looks at many edge pixels
+}
+
+// Texture and geometry with textureAA = fxaa from packed records: fast ==
+// reference (1-3 threads, SSE forced, in place), and = the float4 result.
+TEST(RsaaPacked, TextureAndGeometryFastEqualsReference) {
+  for (int kind = 0; kind < 3; ++kind) {
+    const GeoScene s = texturedScene(kind == 2 ? 200 : 40, 3.3, true, kind);
+    const Frame f = withRecords(render(s, 2));
+    const Settings settings = textureSettings(s, TextureAA::Fxaa);
+    const Image ref = runKernel(f, settings, true, 1);
+    Frame float4 = f;
+    float4.records = Image();
+    expectSameBits(ref, runKernel(float4, settings, true, 1), "records vs float4");
+    for (int threads : {1, 2, 3}) {
+      setSimdLanesForTesting(threads == 3 ? 4 : 0);
+      expectSameBits(ref, runKernel(f, settings, false, threads), "records, fast");
+    }
+    setSimdLanesForTesting(0);
+    Frame inPlace = f;
+    Kernel k;
+    k.allocate(s.width, s.height, settings);
+    k.run(inPlace.inputs(), inPlace.color.view(), false, 2);
+    expectSameBits(ref, inPlace.color, "records, in place");
+  }
+}
+
+// A record's fields: 80 bytes, snorm16 within half a step, clamped, and a
+// non-finite normal stored as background (depth NaN).
+TEST(RsaaPacked, EncodingIsExactToHalfAStep) {
+  SubsampleRecord r{};
+  std::mt19937 g(3);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (int i = 0; i < 1000; ++i) {
+    const float c[3] = {u(g), u(g), u(g)};
+    encodeSubsample(r, i % kSamples, 7.25f, c[0], c[1], c[2]);
+    EXPECT_EQ(r.depth[i % kSamples], 7.25f);
+    EXPECT_LE(std::fabs(float(r.nx[i % kSamples]) / kSnormScale - c[0]), 0.5f / kSnormScale * 1.0001f);
+    EXPECT_LE(std::fabs(float(r.nz[i % kSamples]) / kSnormScale - c[2]), 0.5f / kSnormScale * 1.0001f);
+  }
+  encodeSubsample(r, 2, 5.0f, 1.5f, -3.0f, 0.0f);
+  EXPECT_EQ(r.nx[2], 32767);
+  EXPECT_EQ(r.ny[2], -32767);
+  encodeSubsample(r, 3, 5.0f, std::nanf(""), 0.0f, 1.0f);
+  EXPECT_TRUE(isBackgroundDepth(r.depth[3]));
+  EXPECT_EQ(offsetof(SubsampleRecord, nx), 32u);
+  EXPECT_EQ(offsetof(SubsampleRecord, nz), 64u);
+}
+
 // ---- sub-sample files (io/subsamples.h): what crisp filter / eval / the add-on read ----------------
 
 #include <OpenImageIO/imageio.h>
@@ -925,6 +1050,21 @@ TEST_F(RsaaFiles, AttachPacksNormalAndDepthOfEverySubsample) {
         EXPECT_FLOAT_EQ(s.at(x, y)[1], -std::sin(0.1f * float(k)));
       }
   }
+  // The same values as packed records: depth as is, normals snorm16.
+  ASSERT_TRUE(f.has(kPackedSubsamplePass));
+  const Image& records = f.pass(kPackedSubsamplePass);
+  ASSERT_EQ(records.format, Format::RsaaSubsamples);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 6; ++x) {
+      const SubsampleRecord* r = subsampleRecord(records.view(), x, y);
+      for (int k = 0; k < kSamples; ++k) {
+        const float* s = f.pass(subsamplePass(k)).at(x, y);
+        EXPECT_EQ(r->depth[k], s[3]);
+        EXPECT_EQ(r->nx[k], encodeSnorm16(s[0]));
+        EXPECT_EQ(r->ny[k], encodeSnorm16(s[1]));
+        EXPECT_EQ(r->nz[k], encodeSnorm16(s[2]));
+      }
+    }
   const std::vector<SubsampleEntry> list = readSubsampleList(sidecarPathFor(frame));
   EXPECT_EQ(list[5].renderSeconds, 0.25);
 }

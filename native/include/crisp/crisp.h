@@ -52,7 +52,12 @@ typedef enum CrispFormat {
   CRISP_FORMAT_FLOAT2 = 2,
   CRISP_FORMAT_FLOAT3 = 3,
   CRISP_FORMAT_FLOAT4 = 4,
-  CRISP_FORMAT_UINT = 5     // 1 x uint32 (object ID hash)
+  CRISP_FORMAT_UINT = 5,    // 1 x uint32 (object ID hash)
+  // RSAA's 8 geometric sub-samples of one pixel in one 80-byte record: float32
+  // planar depth[8], then int16 world normal x[8], y[8], z[8] (snorm:
+  // component x 32767, rounded). The rsaa filter's image "subsamples";
+  // crispAttachFrameSubsamples makes it.
+  CRISP_FORMAT_RSAA_SUBSAMPLES = 6
 } CrispFormat;
 
 typedef struct CrispContextImpl* CrispContext;
