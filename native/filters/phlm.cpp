@@ -174,6 +174,33 @@ struct Frame {
   temporal::Unjitter unjitter;  // the 3x3 is read around the sample nearest the centre (header, "Jitter")
 };
 
+// Step 5 runs on kBatch pixels of a row at once (finishBatch): lane i of
+// every vector is pixel x0 + i; model is the record transposed (model[j] =
+// scalar j of every lane). GCC vector extensions: one AVX register of floats
+// in the AVX2 copy of the row loop (temporal/isa.h), two SSE ones in the
+// baseline copy.
+constexpr int kBatch = 8;
+template <class T>
+struct LanesOf;
+template <>
+struct LanesOf<float> {
+  typedef float V __attribute__((vector_size(kBatch * sizeof(float))));
+  typedef int M __attribute__((vector_size(kBatch * sizeof(int))));
+};
+template <>
+struct LanesOf<double> {
+  typedef double V __attribute__((vector_size(kBatch * sizeof(double))));
+  typedef long long M __attribute__((vector_size(kBatch * sizeof(long long))));
+};
+template <class T>
+struct Batch {
+  using V = typename LanesOf<T>::V;
+  using M = typename LanesOf<T>::M;
+  V model[kZ];                                            // beta, U, D after reprojection and resets
+  V z[3], current[3], lo[3], hi[3], moving;  // moving: 1 or 0
+  int count = 0, x0 = 0, y = 0;
+};
+
 // YCgCo luminance (R + 2G + B) / 4 (§5.1).
 template <class T>
 CRISP_PHLM_INLINE T lumaYCgCo(const T c[3]) {
@@ -247,24 +274,6 @@ CRISP_PHLM_INLINE void fetchBeta(const T* records, int w, int h, float x, float 
   }
 }
 
-// Lines 13-17 of Algorithm 1 on the axis-aligned box [lo, hi] (which contains
-// y): the smallest t in [0, 1] with f + t (y - f) inside the box (0 = inside).
-// The inside test allows a slack of 1e-3 of the box extent plus 1e-5 of the
-// colour's magnitude: y itself is often a corner of its box, and a prediction
-// that equals y up to rounding must not reset the model in one precision and
-// not in the other (the float32 and float64 paths would part ways). The
-// output is clamped to the exact box afterwards.
-template <class T>
-CRISP_PHLM_INLINE T rayEntry(const T f[3], const T y[3], const T lo[3], const T hi[3]) {
-  T t = T(0);
-  for (int c = 0; c < 3; ++c) {
-    const T slack = T(1e-3) * (hi[c] - lo[c]) + T(1e-5) * std::max(std::fabs(lo[c]), std::fabs(hi[c]));
-    if (f[c] < lo[c] - slack) t = std::max(t, (lo[c] - f[c]) / (y[c] - f[c]));
-    else if (f[c] > hi[c] + slack) t = std::max(t, (f[c] - hi[c]) / (f[c] - y[c]));
-  }
-  return std::min(t, T(1));
-}
-
 // Tap i (row-major) of the 5x5 around (x, y), clamped to the image in every
 // path (the fast path's unclamped interior is only one pixel deep).
 template <class T>
@@ -277,7 +286,7 @@ inline temporal::Vec4 stagedTap(const Frame<T>& f, int x, int y, int i) {
 // Always inlined: into both copies of the row loop (temporal/isa.h).
 template <class T, bool Clamp>
 __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
-                                                     long& boxResets) {
+                                                     Batch<T>& batch) {
   const int w = f.width, h = f.height;
   // 3x3 neighbourhood of this frame: box, average (the low-frequency colour),
   // tonemapped luminance range.
@@ -287,28 +296,34 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   using temporal::Vec4;
   // With unjitter the taps are those of the shifted image (header, "Jitter");
   // shiftedSource is the reference's clamp, so every path reads the same taps.
+  // Clamp is true on the border, in the reference path and whenever the
+  // image is shifted (phlmRowsBody); elsewhere the taps need no clamp.
   Vec4 boxLo, boxHi, boxSum, taps[9];
   float depth9[9];
-  int tapX[9], tapY[9];
+  int tapX[3], tapY[3];  // tap i is (tapX[i % 3], tapY[i / 3])
   const int sx = f.unjitter.shiftX, sy = f.unjitter.shiftY;
-  const bool clampTaps = Clamp || sx != 0 || sy != 0;
-  for (int j = 0, i = 0; j < 3; ++j)
-    for (int k = 0; k < 3; ++k, ++i) {
-      const int tx = clampTaps ? temporal::shiftedSource(x + k - 1, w, sx) : x + k - 1;
-      const int ty = clampTaps ? temporal::shiftedSource(y + j - 1, h, sy) : y + j - 1;
-      tapX[i] = tx;
-      tapY[i] = ty;
-      const Vec4 c = temporal::load4(f.staged + (std::size_t(ty) * w + tx) * 4);
-      taps[i] = c;
-      if (i == 0) {
-        boxLo = boxHi = boxSum = c;
-      } else {
-        boxLo = temporal::vmin(boxLo, c);
-        boxHi = temporal::vmax(boxHi, c);
-        boxSum += c;
-      }
-      if (f.depth) depth9[i] = f.depth[std::size_t(ty) * w + tx];
+#pragma GCC unroll 3
+  for (int k = 0; k < 3; ++k) {
+    tapX[k] = Clamp ? temporal::shiftedSource(x + k - 1, w, sx) : x + k - 1;
+    tapY[k] = Clamp ? temporal::shiftedSource(y + k - 1, h, sy) : y + k - 1;
+  }
+#pragma GCC unroll 9
+  for (int i = 0; i < 9; ++i) {
+    const std::size_t at = std::size_t(tapY[i / 3]) * w + tapX[i % 3];
+    const Vec4 c = temporal::load4(f.staged + at * 4);
+    taps[i] = c;
+    if (i == 0) {
+      boxLo = boxHi = boxSum = c;
+    } else {
+      boxLo = temporal::vmin(boxLo, c);
+      boxHi = temporal::vmax(boxHi, c);
+      boxSum += c;
     }
+  }
+  if (f.depth) {
+#pragma GCC unroll 9
+    for (int i = 0; i < 9; ++i) depth9[i] = f.depth[std::size_t(tapY[i / 3]) * w + tapX[i % 3]];
+  }
   T lo[3] = {T(boxLo[0]), T(boxLo[1]), T(boxLo[2])};
   T hi[3] = {T(boxHi[0]), T(boxHi[1]), T(boxHi[2])};
   const T sum[3] = {T(boxSum[0]), T(boxSum[1]), T(boxSum[2])};
@@ -319,7 +334,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   int tap = 4;
   if (f.motion.ptr) {
     if (f.depth) tap = temporal::closestDepthTap(depth9);
-    const float* m = f.motion.pixel(tapX[tap], tapY[tap]);
+    const float* m = f.motion.pixel(tapX[tap % 3], tapY[tap / 3]);
     vx = m[0];
     vy = m[1];
   }
@@ -394,52 +409,182 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     resetModel(model, current, f.p0, f.ps);
     toFeature(current, z);
   }
-  const T x4[kDims] = {T(1), z[0], z[1], z[2]};
-
-  // Step 4: prediction and box correction (lines 12-19).
-  T predicted[3];
-  predict(model, x4, predicted);
-  const bool finite = std::isfinite(predicted[0]) && std::isfinite(predicted[1]) && std::isfinite(predicted[2]);
-  const T t = finite ? rayEntry(predicted, current, lo, hi) : T(1);
-  if (t > T(0)) {
-    ++boxResets;
-    for (int c = 0; c < 3; ++c)
-      predicted[c] = std::clamp(predicted[c] + t * (current[c] - predicted[c]), lo[c], hi[c]);
-    if (!finite)
-      for (int c = 0; c < 3; ++c) predicted[c] = current[c];
-    resetModel(model, predicted, f.p0 * f.boxResetScale, f.ps * f.boxResetScale);
+  // Steps 4 and 5 run on 8 pixels at once (finishBatch): this pixel's lane.
+  const int lane = batch.count;
+  if (lane == 0) {
+    batch.x0 = x;
+    batch.y = y;
   }
+  for (int j = 0; j < kZ; ++j) batch.model[j][lane] = model[j];
+  for (int c = 0; c < 3; ++c) {
+    batch.z[c][lane] = z[c];
+    batch.current[c][lane] = current[c];
+    batch.lo[c][lane] = lo[c];
+    batch.hi[c][lane] = hi[c];
+  }
+  batch.moving[lane] = moving ? T(1) : T(0);
+  ++batch.count;
+}
 
-  // Step 5: stabilised RLS (phlm_rls.h), output beta' x = f + g e (clamped
-  // to the box: only rounding and the inside-test slack can reach past it).
+// A scalar broadcast to every lane.
+template <class V, class T>
+CRISP_PHLM_INLINE V splatOf(T v) {
+  return V{} + v;
+}
+
+// std::max, std::min and std::clamp lane by lane (the same operand order, so
+// the same results, NaN included).
+template <class V>
+CRISP_PHLM_INLINE V maxOf(V a, V b) {
+  return a < b ? b : a;
+}
+template <class V>
+CRISP_PHLM_INLINE V minOf(V a, V b) {
+  return b < a ? b : a;
+}
+template <class V>
+CRISP_PHLM_INLINE V absOf(V a) {
+  return a < zeroOf<V>() ? -a : a;
+}
+template <class V>
+CRISP_PHLM_INLINE V clampOf(V v, V lo, V hi) {
+  return v < lo ? lo : (hi < v ? hi : v);
+}
+
+// Lines 13-17 of Algorithm 1 on the axis-aligned box [lo, hi] (which contains
+// y): the smallest t in [0, 1] with f + t (y - f) inside the box (0 = inside).
+// The inside test allows a slack of 1e-3 of the box extent plus 1e-5 of the
+// colour's magnitude: y itself is often a corner of its box, and a prediction
+// that equals y up to rounding must not reset the model in one precision and
+// not in the other (the float32 and float64 paths would part ways). The
+// output is clamped to the exact box afterwards.
+// Lane by lane: both quotients are computed, each lane keeps the one its
+// branch needs.
+template <class T, class V>
+CRISP_PHLM_INLINE V rayEntryOf(const V f[3], const V y[3], const V lo[3], const V hi[3]) {
+  V t = zeroOf<V>();
+  for (int c = 0; c < 3; ++c) {
+    const V magnitude = maxOf(absOf(lo[c]), absOf(hi[c]));
+    const V slack = T(1e-3) * (hi[c] - lo[c]) + T(1e-5) * magnitude;
+    const V below = maxOf(t, (lo[c] - f[c]) / (y[c] - f[c]));
+    const V above = maxOf(t, (f[c] - hi[c]) / (f[c] - y[c]));
+    t = f[c] < lo[c] - slack ? below : (f[c] > hi[c] + slack ? above : t);
+  }
+  return minOf(t, oneOf<V>());
+}
+
+// The forgetting and regulariser of Step 5 on every lane (phlm_rls.h; header,
+// "Stabilised RLS"): a moving pixel forgets with lambdaMoving and refreshes
+// every axis, a still one forgets with lambda and refreshes this frame's axis.
+
+template <class T, class V>
+CRISP_PHLM_INLINE void forgetAndRegularise(const Frame<T>& f, V* m, bool moving) {
   if (moving) {
     // Every axis each moving frame (information (1 - lambdaMoving) / P0_kk):
     // with two lambdas the 4-frame cycle alone no longer bounds P ("Forgetting").
-    forget(model, f.inverseLambdaMoving);
+    forget(m, splatOf<V>(f.inverseLambdaMoving));
     for (int k = 0; k < kDims; ++k)
-      regularise(model, k, f.regulariserVarianceMoving[k], f.regulariserWeightMoving[k]);
+      regularise(m, k, splatOf<V>(f.regulariserVarianceMoving[k]),
+                 splatOf<V>(f.regulariserWeightMoving[k]));
   } else {
-    forget(model, f.inverseLambda);
-    regularise(model, f.axis, f.regulariserVariance[f.axis], f.regulariserWeight[f.axis]);
+    forget(m, splatOf<V>(f.inverseLambda));
+    regularise(m, f.axis, splatOf<V>(f.regulariserVariance[f.axis]),
+               splatOf<V>(f.regulariserWeight[f.axis]));
   }
-  T out[3] = {predicted[0], predicted[1], predicted[2]};
-  if (f.update) {
-    const T e[3] = {current[0] - predicted[0], current[1] - predicted[1], current[2] - predicted[2]};
-    const T g = rlsUpdate(model, x4, e, f.sampleVariance, f.sampleWeight);
-    for (int c = 0; c < 3; ++c) out[c] = std::clamp(predicted[c] + g * e[c], lo[c], hi[c]);
-    // Guard: beta can only become non-finite through an overflow; restart from the output.
-    T check = T(0);
-    for (int i = 0; i < 12; ++i) check += model[kBeta + i] * T(0);
-    if (!(check == T(0))) resetModel(model, out, f.p0, f.ps);
-  }
-  for (int c = 0; c < 3; ++c) model[kZ + c] = z[c];
-  std::memcpy(f.next + (std::size_t(y) * w + x) * kRecord, model, sizeof model);
+}
 
-  float* o = f.output.pixel(x, y);
-  o[0] = sanitizeColor(float(out[0]));
-  o[1] = sanitizeColor(float(out[1]));
-  o[2] = sanitizeColor(float(out[2]));
-  if (f.output.channels() > 3) o[3] = f.color.channels() > 3 ? sanitizeColor(f.color.pixel(x, y)[3]) : 1.0f;
+// Step 5 for the batch's pixels (stabilised RLS, phlm_rls.h), eight at once:
+// lane i performs the scalar operations of pixel x0 + i in the scalar order,
+// so every path (and the float64 kernel, lane type double) gives the bits of
+// the one-pixel form. Output beta' x = f + g e (clamped to the box: only
+// rounding and the inside-test slack can reach past it). Writes the records
+// and the output.
+template <class T>
+CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& boxResets) {
+  using V = typename Batch<T>::V;
+  using M = typename Batch<T>::M;
+  const int n = batch.count;
+  // Unused lanes repeat lane 0 (finite, harmless values; never written).
+  for (int i = n; i < kBatch; ++i) {
+    for (int j = 0; j < kZ; ++j) batch.model[j][i] = batch.model[j][0];
+    for (int c = 0; c < 3; ++c) {
+      batch.z[c][i] = batch.z[c][0];
+      batch.current[c][i] = batch.current[c][0];
+      batch.lo[c][i] = batch.lo[c][0];
+      batch.hi[c][i] = batch.hi[c][0];
+    }
+    batch.moving[i] = batch.moving[0];
+  }
+  V* m = batch.model;
+  // Step 4: prediction and box correction (lines 12-19).
+  const V x4[kDims] = {oneOf<V>(), batch.z[0], batch.z[1], batch.z[2]};
+  V predicted[3];
+  predict(m, x4, predicted);
+  M finite = (predicted[0] - predicted[0]) == zeroOf<V>();  // std::isfinite
+  finite &= (predicted[1] - predicted[1]) == zeroOf<V>();
+  finite &= (predicted[2] - predicted[2]) == zeroOf<V>();
+  const V t = finite ? rayEntryOf<T>(predicted, batch.current, batch.lo, batch.hi) : oneOf<V>();
+  const M corrected = t > zeroOf<V>();
+  bool anyCorrected = false;
+  for (int i = 0; i < n; ++i)
+    if (corrected[i]) {
+      anyCorrected = true;
+      ++boxResets;
+    }
+  if (anyCorrected) {
+    // Lines 14-18: onto the box along the ray toward y, the model reset there.
+    for (int c = 0; c < 3; ++c) {
+      const V onBox = clampOf(predicted[c] + t * (batch.current[c] - predicted[c]), batch.lo[c], batch.hi[c]);
+      predicted[c] = corrected ? (finite ? onBox : batch.current[c]) : predicted[c];
+    }
+    V reset[kZ];
+    resetModel(reset, predicted, splatOf<V>(f.p0 * f.boxResetScale), splatOf<V>(f.ps * f.boxResetScale));
+    for (int j = 0; j < kZ; ++j) m[j] = corrected ? reset[j] : m[j];
+  }
+
+  // Step 5.
+  const M movingLanes = batch.moving != zeroOf<V>();
+  bool anyMoving = false, anyStill = false;
+  for (int i = 0; i < kBatch; ++i) (movingLanes[i] ? anyMoving : anyStill) = true;
+  if (anyMoving && anyStill) {
+    V still[kZ];  // U and D of the still lanes (beta is not touched)
+    for (int j = kU; j < kZ; ++j) still[j] = m[j];
+    forgetAndRegularise(f, m, true);
+    forgetAndRegularise(f, still, false);
+    for (int j = kU; j < kZ; ++j) m[j] = movingLanes ? m[j] : still[j];
+  } else {
+    forgetAndRegularise(f, m, anyMoving);
+  }
+  V out[3] = {predicted[0], predicted[1], predicted[2]};
+  M overflow = movingLanes & 0;
+  if (f.update) {
+    V e[3];
+    for (int c = 0; c < 3; ++c) e[c] = batch.current[c] - predicted[c];
+    const V g = rlsUpdate(m, x4, e, splatOf<V>(f.sampleVariance), splatOf<V>(f.sampleWeight));
+    for (int c = 0; c < 3; ++c) {
+      const V v = predicted[c] + g * e[c];
+      out[c] = v < batch.lo[c] ? batch.lo[c] : (batch.hi[c] < v ? batch.hi[c] : v);  // std::clamp
+    }
+    // Guard: beta can only become non-finite through an overflow; restart from the output.
+    V check = zeroOf<V>();
+    for (int i = 0; i < 12; ++i) check += m[kBeta + i] * T(0);
+    overflow = check != zeroOf<V>();  // also NaN
+  }
+  const int w = f.width, y = batch.y;
+  for (int i = 0; i < n; ++i) {
+    const int x = batch.x0 + i;
+    T* record = f.next + (std::size_t(y) * w + x) * kRecord;
+    for (int j = 0; j < kZ; ++j) record[j] = m[j][i];
+    const T outLane[3] = {out[0][i], out[1][i], out[2][i]};
+    if (overflow[i]) resetModel(record, outLane, f.p0, f.ps);
+    for (int c = 0; c < 3; ++c) record[kZ + c] = batch.z[c][i];
+    float* o = f.output.pixel(x, y);
+    o[0] = sanitizeColor(float(outLane[0]));
+    o[1] = sanitizeColor(float(outLane[1]));
+    o[2] = sanitizeColor(float(outLane[2]));
+    if (f.output.channels() > 3) o[3] = f.color.channels() > 3 ? sanitizeColor(f.color.pixel(x, y)[3]) : 1.0f;
+  }
+  batch.count = 0;
 }
 
 // Rows [y0, y1), counting the resets per row; two copies (temporal/isa.h).
@@ -447,9 +592,12 @@ template <class T>
 __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y0, int y1, bool reference,
                                                         long* rowStats) {
   for (int y = y0; y < y1; ++y) rowStats[2 * y] = rowStats[2 * y + 1] = 0;
-  temporal::rowsWithBorder(f.width, f.height, y0, y1, reference,
+  Batch<T> batch;
+  const bool clampAll = reference || f.unjitter.shiftX != 0 || f.unjitter.shiftY != 0;
+  temporal::rowsWithBorder(f.width, f.height, y0, y1, clampAll,
                            [&](auto clamp, int x, int y) __attribute__((always_inline)) {
-                             phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], rowStats[2 * y + 1]);
+                             phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], batch);
+                             if (batch.count == kBatch || x == f.width - 1) finishBatch(f, batch, rowStats[2 * y + 1]);
                            });
 }
 template <class T>

@@ -34,9 +34,19 @@
 //     regulariser: there the estimator is the paper's; it differs only where
 //     the paper's P would wind up past its initial value.
 // A weighted sample (jitter weighting) is a measurement of variance 1/w.
+//
+// The update functions below are written once for T = a scalar (float,
+// double) or a GCC vector of scalars (phlm.cpp updates 8 pixels at once, lane
+// i = pixel i, the record "transposed": m[j] holds scalar j of every lane).
+// Only lane-wise IEEE operations in the same order, so a lane gives the bits
+// of the scalar form (the build has no FMA contraction).
 #pragma once
 
 #include <cmath>
+
+// Vector lane types pass only between always-inlined functions: the ABI note
+// of -Wpsabi says nothing here.
+#pragma GCC diagnostic ignored "-Wpsabi"
 
 // Always inlined: into both copies of phlm's row loop (temporal/isa.h).
 #define CRISP_PHLM_INLINE __attribute__((always_inline)) inline
@@ -52,13 +62,23 @@ constexpr int kRecord = 25;       // scalars per pixel
 
 inline constexpr int uIndex(int i, int j) { return kU + j * (j - 1) / 2 + i; }
 
+// 0 and 1 as T (broadcast to every lane for a vector T).
+template <class T>
+CRISP_PHLM_INLINE T zeroOf() {
+  return T{};
+}
+template <class T>
+CRISP_PHLM_INLINE T oneOf() {
+  return T{} + 1;
+}
+
 // Reset (seed 002 §6 "Initialization"): intercept = colour, slopes 0,
 // P = diag(p0, ps, ps, ps) (the paper: p0 = ps = 1000; see phlm.cpp).
 template <class T>
-CRISP_PHLM_INLINE void resetModel(T* m, const T colour[3], T p0, T ps) {
+CRISP_PHLM_INLINE void resetModel(T* m, const T colour[3], const T& p0, const T& ps) {
   for (int c = 0; c < 3; ++c) m[kBeta + c] = colour[c];
-  for (int i = 3; i < 12; ++i) m[kBeta + i] = T(0);
-  for (int i = 0; i < 6; ++i) m[kU + i] = T(0);
+  for (int i = 3; i < 12; ++i) m[kBeta + i] = zeroOf<T>();
+  for (int i = 0; i < 6; ++i) m[kU + i] = zeroOf<T>();
   m[kD] = p0;
   for (int i = 1; i < 4; ++i) m[kD + i] = ps;
 }
@@ -79,7 +99,7 @@ CRISP_PHLM_INLINE void predict(const T* m, const T x[kDims], T f[3]) {
 // receives K = P h / (r + h'P h) (the old P). Returns 1 / (r + h'P h).
 // One division per row: the reciprocal of alpha_j serves row j and j + 1.
 template <class T>
-CRISP_PHLM_INLINE T biermanUpdate(T* m, const T h[kDims], int first, T r, T inverseR, T* gain) {
+CRISP_PHLM_INLINE T biermanUpdate(T* m, const T h[kDims], int first, const T& r, const T& inverseR, T* gain) {
   T f[kDims], v[kDims], b[kDims];
   for (int j = first; j < kDims; ++j) {
     T s = h[j];
@@ -87,12 +107,12 @@ CRISP_PHLM_INLINE T biermanUpdate(T* m, const T h[kDims], int first, T r, T inve
     f[j] = s;
     v[j] = m[kD + j] * s;  // v = D f
   }
-  for (int i = 0; i < first; ++i) b[i] = T(0);
+  for (int i = 0; i < first; ++i) b[i] = zeroOf<T>();
   T alpha = r, inversePrevious = inverseR;
   for (int j = first; j < kDims; ++j) {
     const T previous = alpha;
     alpha = previous + f[j] * v[j];
-    const T inverse = T(1) / alpha;
+    const T inverse = oneOf<T>() / alpha;
     m[kD + j] = m[kD + j] * previous * inverse;
     b[j] = v[j];
     const T p = -f[j] * inversePrevious;
@@ -110,15 +130,15 @@ CRISP_PHLM_INLINE T biermanUpdate(T* m, const T h[kDims], int first, T r, T inve
 
 // Exponential forgetting (eq. 7's 1/lambda): P <- P / lambda.
 template <class T>
-CRISP_PHLM_INLINE void forget(T* m, T inverseLambda) {
+CRISP_PHLM_INLINE void forget(T* m, const T& inverseLambda) {
   for (int j = 0; j < kDims; ++j) m[kD + j] *= inverseLambda;
 }
 
 // Point 3 above: information w = 1 / variance on axis k, beta unchanged.
 template <class T>
-CRISP_PHLM_INLINE void regularise(T* m, int axis, T variance, T inverseVariance) {
-  T h[kDims] = {T(0), T(0), T(0), T(0)};
-  h[axis] = T(1);
+CRISP_PHLM_INLINE void regularise(T* m, int axis, const T& variance, const T& inverseVariance) {
+  T h[kDims] = {zeroOf<T>(), zeroOf<T>(), zeroOf<T>(), zeroOf<T>()};
+  h[axis] = oneOf<T>();
   biermanUpdate(m, h, axis, variance, inverseVariance, static_cast<T*>(nullptr));
 }
 
@@ -127,12 +147,12 @@ CRISP_PHLM_INLINE void regularise(T* m, int axis, T variance, T inverseVariance)
 // g = x'K = x'P x / (1/w + x'P x) in [0, 1): the updated prediction is
 // beta'x + g e, a convex combination of the prediction and y.
 template <class T>
-CRISP_PHLM_INLINE T rlsUpdate(T* m, const T x[kDims], const T e[3], T variance, T inverseVariance) {
+CRISP_PHLM_INLINE T rlsUpdate(T* m, const T x[kDims], const T e[3], const T& variance, const T& inverseVariance) {
   T k[kDims];
   const T inverseAlpha = biermanUpdate(m, x, 0, variance, inverseVariance, k);
   for (int j = 0; j < kDims; ++j)
     for (int c = 0; c < 3; ++c) m[kBeta + 3 * j + c] += k[j] * e[c];
-  return T(1) - variance * inverseAlpha;
+  return oneOf<T>() - variance * inverseAlpha;
 }
 
 // P = U D U' in double (tests, diagnostics).
