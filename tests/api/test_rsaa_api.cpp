@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -106,6 +107,70 @@ TEST_F(RsaaApi, SubsampleWithoutGeometryIsNamedAndTheFrameKeepsItsPasses) {
   writeSidecar(true);
   expectAttachError("rsaa", CRISP_ERROR_INVALID_DATA, {"frame_0001_sub0.exr", "'depth'"});
   EXPECT_STREQ(crispGetFramePasses(frame), "color");
+}
+
+// The packed sub-sample record as crisp.h describes CRISP_FORMAT_RSAA_SUBSAMPLES.
+struct Record {
+  float depth[8];
+  std::int16_t nx[8], ny[8], nz[8];
+};
+static_assert(sizeof(Record) == 80, "80-byte record");
+
+// rsaa through the C API from packed records gives the image it gives from
+// the 8 float4 images (a depth step: plane at depth 10 left of x = 7.3, 14
+// right of it, normals (0, 0, 1) = snorm 32767); a float4 image is refused
+// as "subsamples", an unknown format everywhere.
+TEST_F(RsaaApi, PackedRecordsGiveTheFloat4Result) {
+  const int W = 16, H = 9;
+  const float xs[8] = {-0.375f, 0.125f, 0.375f, -0.125f, -0.25f, 0.25f, 0.25f, -0.25f};
+  std::vector<float> color(4 * W * H), depth(W * H), normal(3 * W * H), sub[8];
+  std::vector<Record> records(W * H);
+  const auto depthAt = [](float x) { return x < 7.3f ? 10.0f : 14.0f; };
+  for (auto& s : sub) s.assign(4 * W * H, 0.0f);
+  for (int i = 0; i < W * H; ++i) {
+    const float x = float(i % W) + 0.5f;
+    for (int c = 0; c < 3; ++c) color[4 * i + c] = x < 7.3f ? 0.9f : 0.1f;
+    color[4 * i + 3] = 1.0f;
+    depth[i] = depthAt(x);
+    normal[3 * i + 2] = 1.0f;
+    for (int k = 0; k < 8; ++k) {
+      sub[k][4 * i + 2] = 1.0f;
+      sub[k][4 * i + 3] = records[i].depth[k] = depthAt(x + xs[k]);
+      records[i].nx[k] = records[i].ny[k] = 0;
+      records[i].nz[k] = 32767;
+    }
+  }
+  std::vector<float> out[2];
+  for (int packed = 0; packed < 2; ++packed) {
+    out[packed].assign(4 * W * H, 0.0f);
+    CrispFilter f = crispNewFilter(context, "rsaa");
+    crispSetFilterImage(f, "color", color.data(), CRISP_FORMAT_FLOAT4, W, H, 0, 0);
+    crispSetFilterImage(f, "depth", depth.data(), CRISP_FORMAT_FLOAT, W, H, 0, 0);
+    crispSetFilterImage(f, "normal", normal.data(), CRISP_FORMAT_FLOAT3, W, H, 0, 0);
+    crispSetFilterImage(f, "output", out[packed].data(), CRISP_FORMAT_FLOAT4, W, H, 0, 0);
+    CrispError code;
+    if (packed) {
+      crispSetFilterImage(f, "subsamples", sub[0].data(), CRISP_FORMAT_FLOAT4, W, H, 0, 0);
+      EXPECT_EQ(lastError(&code).find("subsamples") != std::string::npos, true);
+      crispSetFilterImage(f, "subsamples", records.data(), CrispFormat(7), W, H, 0, 0);
+      EXPECT_NE(lastError(&code).find("unknown format"), std::string::npos);
+      crispSetFilterImage(f, "subsamples", records.data(), CRISP_FORMAT_RSAA_SUBSAMPLES, W, H, 0, 0);
+    } else {
+      for (int k = 0; k < 8; ++k)
+        crispSetFilterImage(f, ("sub" + std::to_string(k)).c_str(), sub[k].data(), CRISP_FORMAT_FLOAT4, W, H, 0, 0);
+    }
+    crispSetFilterFloat(f, "proj00", 2.0f);
+    crispSetFilterFloat(f, "proj11", 2.0f);
+    crispCommitFilter(f);
+    crispExecuteFilter(f);
+    const std::string msg = lastError(&code);
+    EXPECT_EQ(code, CRISP_ERROR_NONE) << msg;
+    crispReleaseFilter(f);
+  }
+  EXPECT_EQ(out[0], out[1]);
+  int changed = 0;  // the step is resampled: some pixels are no longer 0.9 or 0.1
+  for (int i = 0; i < W * H; ++i) changed += out[1][4 * i] != color[4 * i];
+  EXPECT_GE(changed, H);
 }
 
 TEST_F(RsaaApi, OnlyRsaaTakesTheCamera) {
