@@ -17,6 +17,13 @@
 //      from f toward y_i (lines 14-17) and the model is reset to that colour;
 //   5. e = y - f; RLS update (eqs. 5-7, lambda = 0.998) in the stabilised form
 //      of phlm_rls.h; output beta' x after the update.
+// Steps 1 and 3 (and the fetch of step 2) run one pixel at a time; the rest
+// of step 2 and steps 4-5 run on 8 pixels of a row at once (finishBatch: GCC
+// vectors, lane i = pixel i, every branch as a per-lane select), in every
+// path: lane by lane the same IEEE operations in the same order as the
+// one-pixel form, so the same bits (measured: identical outputs and states to
+// the one-pixel code of 992ccd5 on ghosting, disocclusion and moving-edge
+// runs, float32 and float64).
 // Initialisation (§6): beta intercept = y, slopes 0, P = 1000 I, z = y.
 //
 // Decisions the paper leaves open, and deviations (beside the code too):
@@ -197,22 +204,25 @@ struct Batch {
   using V = typename LanesOf<T>::V;
   using M = typename LanesOf<T>::M;
   V model[kZ];                                            // beta, U, D after reprojection and resets
-  V z[3], current[3], lo[3], hi[3], moving;  // moving: 1 or 0
+  // Step 2's inputs: the reprojected feature history, the 3x3 sum and
+  // luminance range, |v|; valid: 1 (history reprojected) or 0 (reset).
+  V history[3], sum[3], yMin, yMax, speed, valid;
+  V current[3], lo[3], hi[3], moving;  // moving: 1 or 0
   int count = 0, x0 = 0, y = 0;
 };
 
-// YCgCo luminance (R + 2G + B) / 4 (§5.1).
-template <class T>
-CRISP_PHLM_INLINE T lumaYCgCo(const T c[3]) {
+// YCgCo luminance (R + 2G + B) / 4 (§5.1); T the scalar, V T or lanes of T.
+template <class T, class V>
+CRISP_PHLM_INLINE V lumaYCgCo(const V c[3]) {
   return T(0.25) * c[0] + T(0.5) * c[1] + T(0.25) * c[2];
 }
 
 // The feature space: c / (1 + Y(c)) of the colour clamped to >= 0.
-template <class T>
-CRISP_PHLM_INLINE void toFeature(const T c[3], T out[3]) {
-  T p[3];
-  for (int k = 0; k < 3; ++k) p[k] = std::max(c[k], T(0));
-  const T scale = T(1) / (T(1) + lumaYCgCo(p));
+template <class T, class V>
+CRISP_PHLM_INLINE void toFeature(const V c[3], V out[3]) {
+  V p[3];
+  for (int k = 0; k < 3; ++k) p[k] = c[k] < zeroOf<V>() ? zeroOf<V>() : c[k];  // std::max(c, 0)
+  const V scale = oneOf<V>() / (oneOf<V>() + lumaYCgCo<T>(p));
   for (int k = 0; k < 3; ++k) out[k] = p[k] * scale;
 }
 
@@ -274,6 +284,21 @@ CRISP_PHLM_INLINE void fetchBeta(const T* records, int w, int h, float x, float 
   }
 }
 
+// temporal::closestDepthTap (the first tap of the smallest depth, the centre
+// unless one is smaller) with integer selects: the compiler turns the float
+// form into branches, which depth edges make unpredictable.
+CRISP_PHLM_INLINE int closestDepthTap(const float depth9[9]) {
+  int best = 4;
+  float bestDepth = depth9[4];
+#pragma GCC unroll 9
+  for (int i = 0; i < 9; ++i) {
+    const int closer = -int(depth9[i] < bestDepth);  // all ones or 0
+    best = (i & closer) | (best & ~closer);
+    bestDepth = depth9[i] < bestDepth ? depth9[i] : bestDepth;
+  }
+  return best;
+}
+
 // Tap i (row-major) of the 5x5 around (x, y), clamped to the image in every
 // path (the fast path's unclamped interior is only one pixel deep).
 template <class T>
@@ -333,7 +358,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   float vx = 0.0f, vy = 0.0f;
   int tap = 4;
   if (f.motion.ptr) {
-    if (f.depth) tap = temporal::closestDepthTap(depth9);
+    if (f.depth) tap = closestDepthTap(depth9);
     const float* m = f.motion.pixel(tapX[tap % 3], tapY[tap / 3]);
     vx = m[0];
     vy = m[1];
@@ -384,30 +409,20 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   }
 
   T model[kRecord];
-  T z[3];
+  T history[3] = {T(0), T(0), T(0)}, speed = T(0);
   if (valid) {
     const T* source = f.previous + (std::size_t(qy) * w + qx) * kRecord;
     std::memcpy(model, source, sizeof(T) * kZ);
     if (moving && f.bilinearBeta) fetchBeta(f.previous, w, h, px, py, model);
-    // Step 2: feature history at pi(v) (exact at zero motion), eq. 1.
-    T history[3];
+    // Step 2: feature history at pi(v) (exact at zero motion), eq. 1; the
+    // rest of step 2 in finishBatch.
     if (moving) fetchFeature(f.previous, w, h, px, py, history);
     else for (int c = 0; c < 3; ++c) history[c] = source[kZ + c];
-    const T featureLuma = lumaYCgCo(history);
-    const T l = std::max(T(0), std::max(yMin - featureLuma, featureLuma - yMax));
-    const T delta = yMax - yMin;
-    const T speed = T(std::sqrt(vx * vx + vy * vy));
-    const T phi = f.featureA * l * l + f.featureB * speed * l * l * l;
-    const T alpha = std::clamp(phi / (l + delta + T(1e-6)), f.featureAlphaMin, T(1));
-    T average[3], lowFrequency[3];
-    for (int c = 0; c < 3; ++c) average[c] = sum[c] * T(1.0 / 9.0);
-    toFeature(average, lowFrequency);
-    for (int c = 0; c < 3; ++c) z[c] = history[c] + (lowFrequency[c] - history[c]) * alpha;
+    speed = T(std::sqrt(vx * vx + vy * vy));
   } else {
-    // Lines 7-9 / §6: reset to the input; z = y.
+    // Lines 7-9 / §6: reset to the input; z = y (finishBatch).
     ++reprojectionResets;
     resetModel(model, current, f.p0, f.ps);
-    toFeature(current, z);
   }
   // Steps 4 and 5 run on 8 pixels at once (finishBatch): this pixel's lane.
   const int lane = batch.count;
@@ -417,11 +432,16 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   }
   for (int j = 0; j < kZ; ++j) batch.model[j][lane] = model[j];
   for (int c = 0; c < 3; ++c) {
-    batch.z[c][lane] = z[c];
+    batch.history[c][lane] = history[c];
+    batch.sum[c][lane] = sum[c];
     batch.current[c][lane] = current[c];
     batch.lo[c][lane] = lo[c];
     batch.hi[c][lane] = hi[c];
   }
+  batch.yMin[lane] = yMin;
+  batch.yMax[lane] = yMax;
+  batch.speed[lane] = speed;
+  batch.valid[lane] = valid ? T(1) : T(0);
   batch.moving[lane] = moving ? T(1) : T(0);
   ++batch.count;
 }
@@ -508,16 +528,38 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
   for (int i = n; i < kBatch; ++i) {
     for (int j = 0; j < kZ; ++j) batch.model[j][i] = batch.model[j][0];
     for (int c = 0; c < 3; ++c) {
-      batch.z[c][i] = batch.z[c][0];
+      batch.history[c][i] = batch.history[c][0];
+      batch.sum[c][i] = batch.sum[c][0];
       batch.current[c][i] = batch.current[c][0];
       batch.lo[c][i] = batch.lo[c][0];
       batch.hi[c][i] = batch.hi[c][0];
     }
+    batch.yMin[i] = batch.yMin[0];
+    batch.yMax[i] = batch.yMax[0];
+    batch.speed[i] = batch.speed[0];
+    batch.valid[i] = batch.valid[0];
     batch.moving[i] = batch.moving[0];
   }
   V* m = batch.model;
+  // Step 2 (§5.1, eq. 1): z = history + alpha (low-frequency colour - history),
+  // alpha = phi / (l + Delta) in [featureAlphaMin, 1]; z = y after a reset.
+  V z[3];
+  {
+    const V featureLuma = lumaYCgCo<T>(batch.history);
+    const V l = maxOf(zeroOf<V>(), maxOf(batch.yMin - featureLuma, featureLuma - batch.yMax));
+    const V delta = batch.yMax - batch.yMin;
+    const V phi = f.featureA * l * l + f.featureB * batch.speed * l * l * l;
+    const V alpha = clampOf(phi / (l + delta + T(1e-6)), splatOf<V>(f.featureAlphaMin), oneOf<V>());
+    V average[3], lowFrequency[3], reset[3];
+    for (int c = 0; c < 3; ++c) average[c] = batch.sum[c] * T(1.0 / 9.0);
+    toFeature<T>(average, lowFrequency);
+    toFeature<T>(batch.current, reset);
+    const M valid = batch.valid != zeroOf<V>();
+    for (int c = 0; c < 3; ++c)
+      z[c] = valid ? batch.history[c] + (lowFrequency[c] - batch.history[c]) * alpha : reset[c];
+  }
   // Step 4: prediction and box correction (lines 12-19).
-  const V x4[kDims] = {oneOf<V>(), batch.z[0], batch.z[1], batch.z[2]};
+  const V x4[kDims] = {oneOf<V>(), z[0], z[1], z[2]};
   V predicted[3];
   predict(m, x4, predicted);
   M finite = (predicted[0] - predicted[0]) == zeroOf<V>();  // std::isfinite
@@ -577,7 +619,7 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     for (int j = 0; j < kZ; ++j) record[j] = m[j][i];
     const T outLane[3] = {out[0][i], out[1][i], out[2][i]};
     if (overflow[i]) resetModel(record, outLane, f.p0, f.ps);
-    for (int c = 0; c < 3; ++c) record[kZ + c] = batch.z[c][i];
+    for (int c = 0; c < 3; ++c) record[kZ + c] = z[c][i];
     float* o = f.output.pixel(x, y);
     o[0] = sanitizeColor(float(outLane[0]));
     o[1] = sanitizeColor(float(outLane[1]));

@@ -72,9 +72,10 @@ class Kernel {
   void allocate(int width, int height, bool withMotion, bool withDepth);
   // Forgets the history: the next frame is a first frame.
   void reset();
-  // One frame. reference: the scalar path (one thread, clamp-to-edge on every
-  // tap); otherwise row bands on numThreads threads with unclamped interior
-  // taps. Both give bit-identical outputs and states.
+  // One frame. reference: the reference path (one thread, clamp-to-edge on
+  // every tap, the baseline instruction set); otherwise row bands on
+  // numThreads threads with unclamped interior taps (and the AVX2 copy where
+  // the CPU has it). Both give bit-identical outputs and states.
   void run(const Inputs& in, const Settings& s, bool reference, int numThreads);
 
   std::size_t bytesKeptBetweenFrames() const;
