@@ -131,6 +131,7 @@
 #include "temporal/isa.h"
 #include "temporal/rows.h"
 #include "temporal/jitter.h"
+#include "temporal/lanes.h"
 #include "temporal/neighbourhood.h"
 #include "temporal/vec4.h"
 #include "temporal/velocity.h"
@@ -167,6 +168,9 @@ struct Frame {
   // Unjitter (see "Jitter"): the 3x3 of pixel p is read around p - shift, the
   // samples nearest p, and its taps weighted give the current colour.
   temporal::Unjitter unjitter;
+  // Fast path: plane index k of a staged row holds input column
+  // sourceColumn[k] (shiftedSource(k - 1)), k < planeFloats(width).
+  const int* sourceColumn;
 };
 
 // The current frame as the kernel reads it (conventions.h): sanitised, in
@@ -180,10 +184,6 @@ inline Vec4 stagePixel(const float* p, int channels, ClipSpace space) {
     v = Vec4{c[0], c[1], c[2], v[3]};
   }
   return v;
-}
-
-inline float lumaOf(const Vec4& c, ClipSpace space) {
-  return space == ClipSpace::YCoCg ? c[0] : 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
 }
 
 inline Float3 toRgb(const Float3& c, ClipSpace space) {
@@ -209,153 +209,241 @@ inline Vec4 toRgb4(Vec4 c, ClipSpace space, float alpha) {
   return Vec4{rgb[0], rgb[1], rgb[2], alpha};
 }
 
-// What the per-pixel core needs from the 3x3 block, however it was gathered.
-struct Neighbourhood {
-  Vec4 current;                  // staged: the unjittered mix, or the centre tap without unjitter
-  temporal::MinMax4 box3x3, cross;
-  int tap;                       // followed tap (closest depth; 4 = centre), row order
-  float tapDepth;                // its sanitised depth (with depth only)
-};
-
 constexpr int kTapDx[9] = {-1, 0, 1, -1, 0, 1, -1, 0, 1};
 constexpr int kTapDy[9] = {-1, -1, -1, 0, 0, 0, 1, 1, 1};
 
-// Row `px` (w pixels of `comps` floats) shifted in place: px'[q] = px[clamp(q - shift)].
-inline void shiftRowInPlace(float* px, int w, int comps, int shift) {
-  if (shift > 0)
-    for (int q = w - 1; q >= 0; --q) std::memmove(px + q * comps, px + std::max(q - shift, 0) * comps, comps * 4);
-  else if (shift < 0)
-    for (int q = 0; q < w; ++q) std::memmove(px + q * comps, px + std::min(q - shift, w - 1) * comps, comps * 4);
-}
-
-// Steps 3-8 for one pixel: the part both paths share (and taa-improved, through
-// the aliasedValue plane). Writes the history and, unless sharpening, the output.
-// footprintBox() returns the 5x5 box of this frame (MinMax4); it is called only
-// for the static test, so moving pixels never pay for it.
-template <class FootprintBox>
-__attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, int y, const Neighbourhood& nb,
-                                                        FootprintBox&& footprintBox) {
+// Steps 3 (from the followed tap's velocity v) and 8's validity, and the
+// bilinear footprint of p + v, on one pixel (T = float) or eight (T = Vec8),
+// written once against temporal/lanes.h so both give the same bits.
+template <class T>
+struct ReprojectionLanes {
+  T qx, qy;                      // p + v
+  temporal::IntOf<T> x0, y0;     // footprint: top-left tap (valid lanes only)
+  T tx, ty;                      // and fractions
+  temporal::MaskOfT<T> valid;    // usable history at p + v
+  temporal::MaskOfT<T> moving;   // v != 0
+};
+template <class T>
+__attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const Frame& f, T px, T py, T vx, T vy,
+                                                                          T tapDepth) {
+  using M = temporal::MaskOfT<T>;
   const int w = f.width, h = f.height;
-  const Vec4 current = nb.current;
-  const float alpha = current[3];
-
-  // Step 3: velocity of the followed tap (clamped to the image, as the taps are).
-  float vx = 0.0f, vy = 0.0f;
-  if (f.motion.ptr) {
-    const float* m = f.motion.pixel(temporal::shiftedSource(x + kTapDx[nb.tap], w, f.unjitter.shiftX),
-                                    temporal::shiftedSource(y + kTapDy[nb.tap], h, f.unjitter.shiftY));
-    vx = m[0];
-    vy = m[1];
-  }
-  const bool moving = vx != 0.0f || vy != 0.0f;
-
-  // Step 8: is there usable history at p + v?
-  const float qx = float(x) + vx, qy = float(y) + vy;
-  bool valid = f.hasHistory && temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h);
-  // The reprojected position's taps, shared by the depth test and the fetch.
-  temporal::Footprint fp{};
-  if (valid && (moving || f.previousDepth)) fp = temporal::footprintOf(qx, qy);
-  if (valid && f.previousDepth) {
+  ReprojectionLanes<T> r;
+  r.moving = M(M(vx != 0.0f) | M(vy != 0.0f));
+  r.qx = px + vx;
+  r.qy = py + vy;
+  // Step 8: finite motion, on screen (history_fetch.h onScreen; NaN fails).
+  M valid = f.hasHistory ? M(temporal::finiteOf(vx) & temporal::finiteOf(vy) & M(r.qx >= -0.5f) &
+                             M(r.qy >= -0.5f) & M(r.qx <= float(w) - 0.5f) & M(r.qy <= float(h) - 0.5f))
+                         : M{};
+  // The reprojected position's taps (history_fetch.h footprintOf), shared by
+  // the depth test and the fetch; other lanes read a harmless 0.
+  const T zero = temporal::lanesOf<T>(0.0f);
+  const T qx = valid ? r.qx : zero, qy = valid ? r.qy : zero;
+  const T fx = temporal::floorExact(qx), fy = temporal::floorExact(qy);
+  r.x0 = temporal::truncOf(fx);
+  r.y0 = temporal::truncOf(fy);
+  r.tx = qx - fx;
+  r.ty = qy - fy;
+  if (f.previousDepth) {
     // Disocclusion: some tap of the bilinear footprint with non-zero weight
     // must hold the surface whose velocity we follow (depth is compared,
-    // never interpolated). Evaluated without branches.
-    const int xa = std::clamp(fp.x0, 0, w - 1), xb = std::clamp(fp.x0 + 1, 0, w - 1);
-    const float* r0 = f.previousDepth + std::size_t(std::clamp(fp.y0, 0, h - 1)) * w;
-    const float* r1 = f.previousDepth + std::size_t(std::clamp(fp.y0 + 1, 0, h - 1)) * w;
-    const float d = nb.tapDepth, tol = f.depthTolerance;
-    const bool useX1 = fp.tx != 0.0f, useY1 = fp.ty != 0.0f;
-    // 0/1 integers, combined without short-circuit branches.
-    const int x1 = useX1, y1 = useY1;
-    valid = (int(temporal::sameSurfaceDepth(d, r0[xa], tol)) | (x1 & int(temporal::sameSurfaceDepth(d, r0[xb], tol))) |
-             (y1 & int(temporal::sameSurfaceDepth(d, r1[xa], tol))) |
-             (x1 & y1 & int(temporal::sameSurfaceDepth(d, r1[xb], tol)))) != 0;
+    // never interpolated).
+    auto clampIndex = [](temporal::IntOf<T> v, int hi) { return v < 0 ? 0 : (hi < v ? hi : v); };
+    const auto xa = clampIndex(r.x0, w - 1), xb = clampIndex(r.x0 + 1, w - 1);
+    const auto ya = clampIndex(r.y0, h - 1), yb = clampIndex(r.y0 + 1, h - 1);
+    const float tol = f.depthTolerance;
+    const M x1 = r.tx != 0.0f, y1 = r.ty != 0.0f;
+    const M same =
+        M(temporal::sameSurfaceDepth(tapDepth, temporal::gatherOf(f.previousDepth, w, xa, ya), tol) |
+          M(x1 & temporal::sameSurfaceDepth(tapDepth, temporal::gatherOf(f.previousDepth, w, xb, ya), tol)) |
+          M(y1 & temporal::sameSurfaceDepth(tapDepth, temporal::gatherOf(f.previousDepth, w, xa, yb), tol)) |
+          M(x1 & y1 & temporal::sameSurfaceDepth(tapDepth, temporal::gatherOf(f.previousDepth, w, xb, yb), tol)));
+    valid = M(valid & same);
   }
+  r.valid = valid;
+  return r;
+}
 
-  Vec4 hist = temporal::splat(0.0f);
-  if (valid) {
-    if (!moving)
-      hist = temporal::load4(f.previous.at(x, y));  // exact: no filtering at zero motion
-    else if (f.filter == HistoryFilter::CatmullRom)
-      hist = temporal::footprintInterior4x4(fp, w, h) ? temporal::fetchCatmullRomAt4<false>(f.previous, fp)
-                                                      : temporal::fetchCatmullRomAt4<true>(f.previous, fp);
-    else
-      hist = temporal::fetchBilinear4(f.previous, qx, qy);
+// Step 4 for one pixel with valid history: exact at zero motion, else the
+// filtered fetch. A gather at a different place for every pixel, so both
+// paths call it one pixel at a time.
+__attribute__((always_inline)) inline Vec4 fetchHistory(const Frame& f, int x, int y, bool moving,
+                                                        const temporal::Footprint& fp, float qx, float qy) {
+  if (!moving) return temporal::load4(f.previous.at(x, y));  // exact: no filtering at zero motion
+  if (f.filter == HistoryFilter::Bilinear) return temporal::fetchBilinear4(f.previous, qx, qy);
+  return temporal::footprintInterior4x4(fp, f.width, f.height) ? temporal::fetchCatmullRomAt4<false>(f.previous, fp)
+                                                                : temporal::fetchCatmullRomAt4<true>(f.previous, fp);
+}
+
+// Steps 5-8 on one pixel (T = float: the reference) or eight (T = Vec8: the
+// fast path), written once against temporal/lanes.h so both give the same
+// bits: every lane computes both blends and selects, where the reference
+// used to branch.
+template <class T>
+struct PixelLanes {
+  using M = typename temporal::MaskOf<T>::type;
+  T current[4];  // the current colour in the clip space (the unjittered mix, or the centre tap); [3] = alpha
+  T boxMin[3], boxMax[3];      // 3x3 box of the current frame
+  T crossMin[3], crossMax[3];  // cross (5-tap) box
+  T hist[4];                   // Reprojection::hist
+  M valid, moving;
+  M feedbackSinceReset;  // Kernel::feedbackSinceReset_ before this frame
+  T aliased;             // aliasedValue (0 without a plane)
+};
+template <class T>
+struct ResolvedLanes {
+  using M = typename temporal::MaskOf<T>::type;
+  T color[3];       // the new history colour, clip space
+  T signedWeight;   // its lane 3: -W moving, +W static
+  T output[3];      // color as sanitised RGB (unless reset without unjitter: the input itself)
+  M reset;          // took the current colour as is
+  M feedbackSinceReset;
+};
+
+template <class T>
+inline T lumaOf(const T c[3], ClipSpace space) {
+  return space == ClipSpace::YCoCg ? c[0] : 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+}
+
+// clipTowardCentre4 (neighbourhood.h) on lanes 0-2: the clipped colour into
+// `out` (when given) and the excess returned.
+template <class T>
+inline T clipTowardCentreOf(const T p[3], const T lo[3], const T hi[3], T* out) {
+  T centre[3], offset[3], ratio[3];
+  for (int c = 0; c < 3; ++c) {
+    centre[c] = 0.5f * (hi[c] + lo[c]);
+    const T half = 0.5f * (hi[c] - lo[c]) + temporal::kClipEpsilon;
+    offset[c] = p[c] - centre[c];
+    ratio[c] = temporal::absOf(offset[c]) / half;
   }
-  const float historyWeight = valid ? std::fabs(hist[3]) : 0.0f;
+  const T excess = temporal::maxOf(temporal::maxOf(ratio[0], ratio[1]), ratio[2]);
+  if (out) {
+    const auto outside = excess > 1.0f;
+    const T scale = 1.0f / excess;
+    for (int c = 0; c < 3; ++c) out[c] = outside ? centre[c] + offset[c] * scale : p[c];
+  }
+  return excess;
+}
+
+// footprintExcess(lane, &excess): for a static lane whose history is outside
+// the 3x3 box and has not been through the feedback path, the excess against
+// the footprint box, or false where the 5x5 moves (see "Deliberate choices").
+template <class T, class FootprintExcess>
+__attribute__((always_inline)) inline ResolvedLanes<T> resolveLanes(const Frame& f, const PixelLanes<T>& in,
+                                                                    FootprintExcess&& footprintExcess) {
+  using M = typename temporal::MaskOf<T>::type;
+  using temporal::lanesOf;
+  using temporal::maxOf;
+  using temporal::minOf;
+  using temporal::notOf;
+  const T zero = lanesOf<T>(0.0f);
   const float weight = f.sampleWeight;
-  const float weightSum = historyWeight + weight;
+  const T historyWeight = in.valid ? temporal::fabsOf(in.hist[3]) : zero;
+  const T weightSum = historyWeight + weight;
+  // First frame bootstrap / invalid reprojection.
+  M reset = M(notOf(in.valid) | notOf(M(weightSum > 0.0f)));
+  const M staticPixel = f.staticAccumulation ? M(notOf(in.moving) & M(in.hist[3] > 0.0f)) : M{};
 
-  Vec4 result = current;
-  float newWeight = weight;
-  bool reset = !valid || !(weightSum > 0.0f);  // first frame bootstrap / invalid reprojection
-  std::uint8_t& feedbackSinceReset = f.feedbackSinceReset[std::size_t(y) * w + x];
-  if (!reset) {
-    const bool staticPixel = f.staticAccumulation && !moving && hist[3] > 0.0f;
-    float excess = 0.0f;
-    // Static history built by the running average alone since its last reset
-    // is tested against the footprint box (3x3 united with the robust 5x5):
-    // the converged value mixes the scene over the jitter's whole footprint
-    // (+-filterSize = +-1.5 px for EEVEE's draw), which one frame's 3x3,
-    // shifted by up to 1.5 px of jitter, misses near an edge. History that
-    // went through the feedback path (a trail behind a moving object, a
-    // clipped firefly: plausible colours of the footprint, but wrong) keeps
-    // the 3x3 box.
-    // The footprint box contains the 3x3 box: it is gathered only for
-    // history outside the 3x3 box (the same decision, at a fraction of the cost).
-    if (staticPixel && f.staticClip) {
-      temporal::clipTowardCentre4(hist, nb.box3x3.min, nb.box3x3.max, &excess);
-      if (excess > 1.0f && !feedbackSinceReset && temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY)) {
-        const temporal::MinMax4 box = footprintBox();
-        temporal::clipTowardCentre4(hist, box.min, box.max, &excess);
-      }
+  // Static history built by the running average alone since its last reset
+  // is tested against the footprint box (3x3 united with the robust 5x5):
+  // the converged value mixes the scene over the jitter's whole footprint
+  // (+-filterSize = +-1.5 px for EEVEE's draw), which one frame's 3x3,
+  // shifted by up to 1.5 px of jitter, misses near an edge. History that
+  // went through the feedback path (a trail behind a moving object, a
+  // clipped firefly: plausible colours of the footprint, but wrong) keeps
+  // the 3x3 box. The footprint box contains the 3x3 box: it is gathered only
+  // for history outside the 3x3 box (the same decision, at a fraction of the cost).
+  M useAverage = staticPixel;
+  if (f.staticClip) {
+    const M tested = M(staticPixel & notOf(reset));
+    T excess = zero;
+    if (temporal::anyOf(tested)) {
+      excess = clipTowardCentreOf<T>(in.hist, in.boxMin, in.boxMax, nullptr);
+      const M wider = M(tested & M(excess > 1.0f) & notOf(in.feedbackSinceReset));
+      temporal::forEachLane(wider, [&](int l) {
+        float e;
+        if (footprintExcess(l, &e)) temporal::setLane(excess, l, e);
+      });
     }
-    if (staticPixel && (!f.staticClip || !(excess > 1.0f))) {
-      // Running average, weight w/W, in linear light.
-      result = hist + (current - hist) * (weight / weightSum);
-      newWeight = std::min(weightSum, f.maxSamples);
+    useAverage = M(staticPixel & notOf(M(excess > 1.0f)));
+  }
+
+  // Running average, weight w/W, in linear light.
+  const T averageWeight = weight / weightSum;
+  T average[3];
+  for (int c = 0; c < 3; ++c) average[c] = in.hist[c] + (in.current[c] - in.hist[c]) * averageWeight;
+  const T averageSum = minOf(weightSum, lanesOf<T>(f.maxSamples));
+
+  // The feedback path. The box: the rounded box (mean of 3x3 and cross), or
+  // steered by aliasedValue a (seed 000 §4.3.4): mix(cross, 3x3, a) (eq. 4.15)
+  // and shrunk toward the current colour, mix(current, box, a) (eq. 4.16);
+  // mix(x, y, t) = x(1 - t) + yt (eq. 4.11).
+  T lo[3], hi[3];
+  const T a = in.aliased;
+  for (int c = 0; c < 3; ++c) {
+    if (f.aliased && f.aliasedNeighbourhood) {
+      lo[c] = in.crossMin[c] * (1.0f - a) + in.boxMin[c] * a;
+      hi[c] = in.crossMax[c] * (1.0f - a) + in.boxMax[c] * a;
     } else {
-      // Kept until a reset: averaging dilutes a trail or a clipped firefly,
-      // never removes it, and the footprint box would let it stay.
-      feedbackSinceReset = 1;
-      // The moving path's box: the rounded box (mean of 3x3 and cross), or
-      // steered by aliasedValue a (seed 000 §4.3.4): mix(cross, 3x3, a)
-      // (eq. 4.15) and shrunk toward the current colour, mix(current, box, a)
-      // (eq. 4.16); mix(x, y, t) = x(1 - t) + yt (eq. 4.11).
-      Vec4 lo, hi;
-      const float a = f.aliased ? f.aliased[std::size_t(y) * w + x] : 0.0f;
-      if (f.aliased && f.aliasedNeighbourhood) {
-        lo = nb.cross.min * (1.0f - a) + nb.box3x3.min * a;
-        hi = nb.cross.max * (1.0f - a) + nb.box3x3.max * a;
-      } else {
-        lo = 0.5f * (nb.box3x3.min + nb.cross.min);
-        hi = 0.5f * (nb.box3x3.max + nb.cross.max);
-      }
-      if (f.aliased && f.aliasedBoxSize) {
-        lo = current * (1.0f - a) + lo * a;
-        hi = current * (1.0f - a) + hi * a;
-      }
-      const Vec4 clipped = temporal::clipTowardCentre4(hist, lo, hi, &excess);
-      // Step 6: luma-difference feedback on the clipped history.
-      const float l0 = lumaOf(clipped, f.space), l1 = lumaOf(current, f.space);
-      const float diff = std::clamp(std::fabs(l0 - l1) / std::max(std::max(l0, l1), 0.2f), 0.0f, 1.0f);
-      const float unbiased = (1.0f - diff) * (1.0f - diff);
-      const float k = f.feedbackMin + (f.feedbackMax - f.feedbackMin) * unbiased;
-      const float mixWeight = std::max(1.0f - k, weight / weightSum);
-      result = clipped + (current - clipped) * mixWeight;
-      // The effective sample count of an exponential blend is about 1/(1-k).
-      newWeight = 1.0f - k > 0.0f ? std::min(weightSum, 1.0f / (1.0f - k)) : weightSum;
-      newWeight = std::min(newWeight, f.maxSamples);
+      lo[c] = 0.5f * (in.boxMin[c] + in.crossMin[c]);
+      hi[c] = 0.5f * (in.boxMax[c] + in.crossMax[c]);
     }
-    // Guard: never let a non-finite value into the history.
-    reset = !(std::isfinite(result[0]) && std::isfinite(result[1]) && std::isfinite(result[2]));
+    if (f.aliased && f.aliasedBoxSize) {
+      lo[c] = in.current[c] * (1.0f - a) + lo[c] * a;
+      hi[c] = in.current[c] * (1.0f - a) + hi[c] * a;
+    }
   }
-  if (reset) {
-    result = current;
-    newWeight = weight;
-    feedbackSinceReset = 0;
+  T clipped[3];
+  clipTowardCentreOf<T>(in.hist, lo, hi, clipped);
+  // Step 6: luma-difference feedback on the clipped history.
+  const T l0 = lumaOf(clipped, f.space), l1 = lumaOf(in.current, f.space);
+  const T diff = temporal::clampOf(temporal::fabsOf(l0 - l1) / maxOf(maxOf(l0, l1), lanesOf<T>(0.2f)), zero,
+                                   lanesOf<T>(1.0f));
+  const T unbiased = (1.0f - diff) * (1.0f - diff);
+  const T k = f.feedbackMin + (f.feedbackMax - f.feedbackMin) * unbiased;
+  const T mixWeight = maxOf(1.0f - k, weight / weightSum);
+  T feedback[3];
+  for (int c = 0; c < 3; ++c) feedback[c] = clipped[c] + (in.current[c] - clipped[c]) * mixWeight;
+  // The effective sample count of an exponential blend is about 1/(1-k).
+  const T oneMinusK = 1.0f - k;
+  T feedbackSum = oneMinusK > 0.0f ? minOf(weightSum, 1.0f / oneMinusK) : weightSum;
+  feedbackSum = minOf(feedbackSum, lanesOf<T>(f.maxSamples));
+
+  ResolvedLanes<T> r;
+  for (int c = 0; c < 3; ++c) r.color[c] = useAverage ? average[c] : feedback[c];
+  T newWeight = useAverage ? averageSum : feedbackSum;
+  // Kept until a reset: averaging dilutes a trail or a clipped firefly, never
+  // removes it, and the footprint box would let it stay.
+  M feedbackSinceReset = M(in.feedbackSinceReset | M(notOf(reset) & notOf(useAverage)));
+  // Guard: never let a non-finite value into the history.
+  reset = M(reset | notOf(M(temporal::finiteOf(r.color[0]) & temporal::finiteOf(r.color[1]) &
+                            temporal::finiteOf(r.color[2]))));
+  for (int c = 0; c < 3; ++c) r.color[c] = reset ? in.current[c] : r.color[c];
+  newWeight = reset ? lanesOf<T>(weight) : newWeight;
+  r.feedbackSinceReset = reset ? M{} : feedbackSinceReset;
+  r.reset = reset;
+  r.signedWeight = in.moving ? -newWeight : newWeight;  // sign: was this pixel static this frame
+  // Output: back to RGB, sanitised (the alpha, current[3], is not).
+  T rgb[3];
+  if (f.space == ClipSpace::YCoCg) {  // R = Y + Co - Cg, G = Y + Cg, B = Y - Co - Cg (color_space.h)
+    rgb[0] = r.color[0] + r.color[1] - r.color[2];
+    rgb[1] = r.color[0] + r.color[2];
+    rgb[2] = r.color[0] - r.color[1] - r.color[2];
+  } else {
+    for (int c = 0; c < 3; ++c) rgb[c] = r.color[c];
   }
-  result[3] = moving ? -newWeight : newWeight;  // sign: was this pixel static this frame
-  temporal::store4(f.history + (std::size_t(y) * w + x) * 4, result);
+  for (int c = 0; c < 3; ++c) {
+    const T v = rgb[c] == rgb[c] ? rgb[c] : zero;  // sanitize4
+    r.output[c] = v < -kMaxColor ? lanesOf<T>(-kMaxColor) : (kMaxColor < v ? lanesOf<T>(kMaxColor) : v);
+  }
+  return r;
+}
+
+// Writes one resolved pixel: its history (RGBA) and, unless sharpening, its output.
+inline void storePixel(const Frame& f, int x, int y, const float color[3], float signedWeight, const float output[3],
+                       bool reset, float alpha) {
+  temporal::store4(f.history + (std::size_t(y) * f.width + x) * 4, Vec4{color[0], color[1], color[2], signedWeight});
   if (!f.writeOutput) return;
   if (reset && !f.unjitter.enabled) {
     // Reset to current: the input colour itself (sanitised), not its YCoCg
@@ -363,9 +451,13 @@ __attribute__((always_inline)) inline void resolvePixel(const Frame& f, int x, i
     const float* p = f.color.pixel(x, y);
     const int cc = f.color.channels();
     storeOutput(f.output, x, y, Vec4{p[0], cc > 1 ? p[1] : p[0], cc > 2 ? p[2] : p[0], alpha});
-  } else {
-    storeOutput(f.output, x, y, toRgb4(result, f.space, alpha));
+    return;
   }
+  float* p = f.output.pixel(x, y);
+  p[0] = output[0];
+  p[1] = output[1];
+  p[2] = output[2];
+  if (f.output.channels() > 3) p[3] = alpha;
 }
 
 // The scalar reference: every tap clamped to the image and staged on the
@@ -377,165 +469,243 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
   float depth9[9];
   // Without unjitter the shift is 0 and shiftedSource a plain clamp.
   for (int i = 0; i < 9; ++i) {
-    const int tx = temporal::shiftedSource(x + kTapDx[i], w, f.unjitter.shiftX), ty = temporal::shiftedSource(y + kTapDy[i], h, f.unjitter.shiftY);
+    const int tx = temporal::shiftedSource(x + kTapDx[i], w, f.unjitter.shiftX),
+              ty = temporal::shiftedSource(y + kTapDy[i], h, f.unjitter.shiftY);
     taps[i] = stagePixel(f.color.pixel(tx, ty), cc, f.space);
     depth9[i] = f.depth.ptr ? temporal::sanitizeDepth(f.depth.pixel(tx, ty)[0]) : kBackgroundDepth;
   }
-  Neighbourhood nb;
-  nb.current = f.unjitter.enabled ? temporal::unjitteredMix(taps, f.unjitter.weights) : taps[4];
-  temporal::columnFirstBoxes4(taps, nb.box3x3, nb.cross);
-  nb.tap = (f.depth.ptr && f.motion.ptr) ? temporal::closestDepthTap(depth9) : 4;
-  nb.tapDepth = depth9[nb.tap];
+  const Vec4 current = f.unjitter.enabled ? temporal::unjitteredMix(taps, f.unjitter.weights) : taps[4];
+  temporal::MinMax4 box3x3, cross;
+  temporal::columnFirstBoxes4(taps, box3x3, cross);
+  const int tap = (f.depth.ptr && f.motion.ptr) ? temporal::closestDepthTap(depth9) : 4;
   if (depthNow) depthNow[std::size_t(y) * w + x] = depth9[4];
-  resolvePixel(f, x, y, nb, [&] {
-    auto tap = [&](int i) {
-      const int tx = temporal::shiftedSource(x + i % 5 - 2, w, f.unjitter.shiftX), ty = temporal::shiftedSource(y + i / 5 - 2, h, f.unjitter.shiftY);
+  // Step 3: velocity of the followed tap (clamped to the image, as the taps are).
+  float vx = 0.0f, vy = 0.0f;
+  if (f.motion.ptr) {
+    const float* m = f.motion.pixel(temporal::shiftedSource(x + kTapDx[tap], w, f.unjitter.shiftX),
+                                    temporal::shiftedSource(y + kTapDy[tap], h, f.unjitter.shiftY));
+    vx = m[0];
+    vy = m[1];
+  }
+  const ReprojectionLanes<float> rp = reprojectLanes<float>(f, float(x), float(y), vx, vy, depth9[tap]);
+  const Vec4 hist =
+      rp.valid ? fetchHistory(f, x, y, rp.moving, {rp.x0, rp.y0, rp.tx, rp.ty}, rp.qx, rp.qy) : temporal::splat(0.0f);
+
+  const std::size_t index = std::size_t(y) * w + x;
+  PixelLanes<float> in;
+  for (int c = 0; c < 4; ++c) {
+    in.current[c] = current[c];
+    in.hist[c] = hist[c];
+  }
+  for (int c = 0; c < 3; ++c) {
+    in.boxMin[c] = box3x3.min[c];
+    in.boxMax[c] = box3x3.max[c];
+    in.crossMin[c] = cross.min[c];
+    in.crossMax[c] = cross.max[c];
+  }
+  in.valid = rp.valid;
+  in.moving = rp.moving;
+  in.feedbackSinceReset = f.feedbackSinceReset[index] != 0;
+  in.aliased = f.aliased ? f.aliased[index] : 0.0f;
+  const ResolvedLanes<float> r = resolveLanes(f, in, [&](int, float* excess) {
+    if (!temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY)) return false;
+    auto tap5 = [&](int i) {
+      const int tx = temporal::shiftedSource(x + i % 5 - 2, w, f.unjitter.shiftX),
+                ty = temporal::shiftedSource(y + i / 5 - 2, h, f.unjitter.shiftY);
       return stagePixel(f.color.pixel(tx, ty), cc, f.space);
     };
-    temporal::TwoExtremes4 e = temporal::twoExtremesOf(tap(0), tap(1));
-    for (int i = 2; i < 25; ++i) temporal::addTap(e, tap(i));
-    return temporal::footprintBox(nb.box3x3, e);
+    temporal::TwoExtremes4 e = temporal::twoExtremesOf(tap5(0), tap5(1));
+    for (int i = 2; i < 25; ++i) temporal::addTap(e, tap5(i));
+    const temporal::MinMax4 box = temporal::footprintBox(box3x3, e);
+    temporal::clipTowardCentre4(hist, box.min, box.max, excess);
+    return true;
   });
+  f.feedbackSinceReset[index] = r.feedbackSinceReset;
+  storePixel(f, x, y, r.color, r.signedWeight, r.output, r.reset, current[3]);
 }
 
-// Fast path scratch of one row band: a ring of five staged rows and five
-// depth rows, each padded by one pixel left and right (a copy of the edge
-// pixel = clamp-to-edge), and the 3- and 5-row column reductions of the
-// current row.
+// Fast path scratch of one row band: a ring of five staged rows, one plane
+// per channel (Y Co Cg A, or R G B A, then motion x and y), each padded by one
+// pixel left (a copy of the edge pixel = clamp-to-edge) and by at least one
+// right, up to a multiple of 8 past the last group's loads; five depth rows
+// likewise; the current row's closest-depth taps.
 constexpr int kRing = 5;
+constexpr int kPlanes = 6;  // colour 4, motion 2
+inline int planeFloats(int width) { return (width + 10 + 7) / 8 * 8; }
 struct BandScratch {
-  float* staged[kRing];  // (width + 2) x 4
-  float* depth[kRing];   // width + 2
-  float* columnMin;  // (width + 2) x 4: column reductions of the current row
-  float* columnMax;
-  float* columnExtremes;  // (width + 2) x 16: TwoExtremes4 of rows y - 2 .. y + 2
-  float* tap;        // width: the current row's closest-depth taps (int bits, read and written by memcpy)
-  float* tapDepth;   // width: their depths
+  float* planes[kRing][kPlanes];
+  float* depth[kRing];
+  float* row;       // width x 4: one input row staged before the shift
+  float* tap;       // planeFloats: closest-depth taps (int bits, read and written by memcpy)
+  float* tapDepth;  // planeFloats: their depths
 };
 
-inline std::size_t bandFloats(int width) { return std::size_t(width + 2) * (kRing * 4 + kRing + 8 + 16 + 2); }
+inline std::size_t bandFloats(int width) {
+  return std::size_t(planeFloats(width)) * (kRing * (kPlanes + 1) + 2) + std::size_t(width) * 4;
+}
 
 BandScratch bandScratch(float* base, int width) {
-  const std::size_t row = std::size_t(width + 2);
+  const int n = planeFloats(width);
   BandScratch s;
-  for (int i = 0; i < kRing; ++i) s.staged[i] = base + i * row * 4;
-  float* next = base + kRing * 4 * row;
-  for (int i = 0; i < kRing; ++i) s.depth[i] = next + i * row;
-  next += kRing * row;
-  s.columnMin = next;
-  s.columnMax = next + 4 * row;
-  s.columnExtremes = next + 8 * row;
-  s.tap = next + 24 * row;
-  s.tapDepth = next + 25 * row;
+  float* next = base;
+  for (int r = 0; r < kRing; ++r)
+    for (int c = 0; c < kPlanes; ++c, next += n) s.planes[r][c] = next;
+  for (int r = 0; r < kRing; ++r, next += n) s.depth[r] = next;
+  s.tap = next;
+  s.tapDepth = next + n;
+  s.row = next + 2 * n;
   return s;
 }
 
-// Stages image row y into ring slot y % kRing (and this frame's depth plane when
-// the row belongs to the band).
-// The same values as stagePixel, a row at a time (core/row_stage.h); inlined
-// into both copies of the row loop.
+// Stages image row y of the shifted image (Frame::unjitter; no shift without
+// unjitter) into ring slot y % kRing (and this frame's depth plane when the
+// row belongs to the band): the same values as stagePixel (core/row_stage.h)
+// and the same motion and depth taps as the reference reads, de-interleaved.
+// Plane index k holds shifted pixel k - 1 clamped (Frame::sourceColumn).
 __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandScratch& s, int y, float* depthNow) {
-  const int w = f.width;
-  float* dst = s.staged[y % kRing];
-  // Row y of the shifted image (Frame::shiftX/Y; no shift without unjitter).
+  const int w = f.width, n = planeFloats(w);
+  const int* column = f.sourceColumn;
   const int source = std::clamp(y - f.unjitter.shiftY, 0, f.height - 1);
-  stageColorRow(f.color, source, dst + 4);
-  shiftRowInPlace(dst + 4, w, 4, f.unjitter.shiftX);
+  stageColorRow(f.color, source, s.row);
+  float* const* p = s.planes[y % kRing];
+  for (int k = 0; k < n; ++k) {
+    const float* px = s.row + 4 * column[k];
+    p[0][k] = px[0];
+    p[1][k] = px[1];
+    p[2][k] = px[2];
+    p[3][k] = px[3];
+  }
   if (f.space == ClipSpace::YCoCg)
-    for (int x = 1; x <= w; ++x) {
-      const Vec4 v = temporal::load4(dst + 4 * x);
-      const Float3 c = temporal::rgbToYCoCg({{v[0], v[1], v[2]}});
-      temporal::store4(dst + 4 * x, Vec4{c[0], c[1], c[2], v[3]});
+    for (int k = 0; k < n; k += temporal::kLanes8) {  // rgbToYCoCg (color_space.h), 8 pixels at a time
+      const temporal::Vec8 r = temporal::load8(p[0] + k), g = temporal::load8(p[1] + k),
+                           b = temporal::load8(p[2] + k);
+      temporal::store8(p[0] + k, 0.25f * r + 0.5f * g + 0.25f * b);
+      temporal::store8(p[1] + k, 0.5f * r - 0.5f * b);
+      temporal::store8(p[2] + k, -0.25f * r + 0.5f * g - 0.25f * b);
     }
-  std::memcpy(dst, dst + 4, 4 * sizeof(float));
-  std::memcpy(dst + 4 * (w + 1), dst + 4 * w, 4 * sizeof(float));
+  if (f.motion.ptr)
+    for (int k = 0; k < n; ++k) {
+      const float* m = f.motion.pixel(column[k], source);
+      p[4][k] = m[0];
+      p[5][k] = m[1];
+    }
   if (!f.depth.ptr) return;
   float* d = s.depth[y % kRing];
-  stageDepthRow(f.depth, source, d + 1);
-  shiftRowInPlace(d + 1, w, 1, f.unjitter.shiftX);
-  d[0] = d[1];
-  d[w + 1] = d[w];
+  stageDepthRow(f.depth, source, s.row);
+  for (int k = 0; k < n; ++k) d[k] = s.row[column[k]];
   if (depthNow) std::memcpy(depthNow + std::size_t(y) * w, d + 1, std::size_t(w) * sizeof(float));
 }
 
-// Rows [y0, y1) on the fast path: staging folded into the pass (each row is
-// staged once per band, plus two halo rows above and below), the 3x3 and
-// cross boxes from shared column reductions (3 min + 3 max per column instead
-// of 9 + 9 per pixel), the 5x5 box of the static test likewise (5 columns of
-// 5-row reductions, only for pixels that take the test), the same per-pixel core.
+// Rows [y0, y1) on the fast path: each row staged once per band (plus two
+// halo rows above and below), then eight pixels at a time: their taps, boxes,
+// unjittered mix and reprojection from the planes, their history fetched one
+// by one, the same resolveLanes as the reference on all eight.
 __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const BandScratch& s, int y0, int y1,
                                                       float* depthNow) {
+  using temporal::load8;
+  using temporal::Mask8;
+  using temporal::maxOf;
+  using temporal::minOf;
+  using temporal::Vec8;
+  constexpr int kL = temporal::kLanes8;
   const int w = f.width, h = f.height;
   const bool followDepth = f.depth.ptr && f.motion.ptr;
   if (y0 > 1) stageRow(f, s, y0 - 2, nullptr);
   if (y0 > 0) stageRow(f, s, y0 - 1, nullptr);
   stageRow(f, s, y0, depthNow);
   if (y0 + 1 < h) stageRow(f, s, y0 + 1, y0 + 1 < y1 ? depthNow : nullptr);
+  const Vec8 laneIndex = {0, 1, 2, 3, 4, 5, 6, 7};
   for (int y = y0; y < y1; ++y) {
     if (y + 2 < h) stageRow(f, s, y + 2, y + 2 < y1 ? depthNow : nullptr);
     const int up = std::max(y - 1, 0) % kRing, mid = y % kRing, down = std::min(y + 1, h - 1) % kRing;
-    const float* s0 = s.staged[up];
-    const float* s1 = s.staged[mid];
-    const float* s2 = s.staged[down];
-    const float* sUp2 = s.staged[std::max(y - 2, 0) % kRing];
-    const float* sDown2 = s.staged[std::min(y + 2, h - 1) % kRing];
-    // Unaligned loads/stores only (memcpy): the scratch carries no alignment promise.
-    for (int i = 0; i < w + 2; ++i) {
-      const temporal::ColumnReduction4 c = temporal::reduceColumn4(
-          temporal::load4(s0 + 4 * i), temporal::load4(s1 + 4 * i), temporal::load4(s2 + 4 * i));
-      temporal::store4(s.columnMin + 4 * i, c.min);
-      temporal::store4(s.columnMax + 4 * i, c.max);
-    }
-    // The 5-row column extremes, gathered for the whole row when its first
-    // pixel takes the footprint test (never in a row where everything moves).
-    bool extremesReady = false;
-    auto gatherExtremes = [&] {
-      for (int i = 0; i < w + 2; ++i) {
-        temporal::TwoExtremes4 e = temporal::twoExtremesOf(temporal::load4(sUp2 + 4 * i), temporal::load4(s0 + 4 * i));
-        temporal::addTap(e, temporal::load4(s1 + 4 * i));
-        temporal::addTap(e, temporal::load4(s2 + 4 * i));
-        temporal::addTap(e, temporal::load4(sDown2 + 4 * i));
-        std::memcpy(s.columnExtremes + 16 * i, &e, sizeof e);
+    float* const* rows[3] = {s.planes[up], s.planes[mid], s.planes[down]};
+    float* const* rows5[5] = {s.planes[std::max(y - 2, 0) % kRing], rows[0], rows[1], rows[2],
+                              s.planes[std::min(y + 2, h - 1) % kRing]};
+    if (followDepth) temporal::closestDepthTapsRow(s.depth[up], s.depth[mid], s.depth[down], w, s.tap, s.tapDepth);
+    const std::size_t rowStart = std::size_t(y) * w;
+    for (int x0 = 0; x0 < w; x0 += kL) {
+      const int lanes = std::min(kL, w - x0), i = x0 + 1;  // i: plane index of pixel x0
+      PixelLanes<Vec8> in;
+      for (int c = 0; c < 4; ++c) {
+        Vec8 t[9];
+        if (c == 3 && !f.unjitter.enabled) {
+          in.current[3] = load8(rows[1][3] + i);
+          break;
+        }
+        for (int k = 0; k < 9; ++k) t[k] = load8(rows[k / 3][c] + i + k % 3 - 1);
+        in.current[c] = f.unjitter.enabled ? temporal::unjitteredMix(t, f.unjitter.weights) : t[4];
+        if (c == 3) break;  // alpha: only mixed
+        // Column-first boxes (neighbourhood.h columnFirstBoxes4).
+        const Vec8 minL = minOf(minOf(t[0], t[3]), t[6]), minC = minOf(minOf(t[1], t[4]), t[7]),
+                   minR = minOf(minOf(t[2], t[5]), t[8]);
+        const Vec8 maxL = maxOf(maxOf(t[0], t[3]), t[6]), maxC = maxOf(maxOf(t[1], t[4]), t[7]),
+                   maxR = maxOf(maxOf(t[2], t[5]), t[8]);
+        in.boxMin[c] = minOf(minOf(minL, minC), minR);
+        in.boxMax[c] = maxOf(maxOf(maxL, maxC), maxR);
+        in.crossMin[c] = minOf(minOf(t[3], minC), t[5]);
+        in.crossMax[c] = maxOf(maxOf(t[3], maxC), t[5]);
       }
-      extremesReady = true;
-    };
-    const float* d1 = s.depth[mid];
-    if (followDepth) temporal::closestDepthTapsRow(s.depth[up], d1, s.depth[down], w, s.tap, s.tapDepth);
-    for (int x = 0; x < w; ++x) {
-      const int i = x + 1;
-      Neighbourhood nb;
-      nb.current = temporal::load4(s1 + 4 * i);
-      if (f.unjitter.enabled) {  // the 3x3 of the shifted image, as the reference
-        const float* rows[3] = {s0, s1, s2};
-        Vec4 taps[9];
-        for (int t = 0; t < 9; ++t) taps[t] = temporal::load4(rows[t / 3] + 4 * (i + t % 3 - 1));
-        nb.current = temporal::unjitteredMix(taps, f.unjitter.weights);
+
+      // Step 3: the followed tap's velocity, selected from the nine staged taps.
+      Vec8 vx = temporal::lanesOf<Vec8>(0.0f), vy = vx, tapDepth = temporal::lanesOf<Vec8>(kBackgroundDepth);
+      if (f.motion.ptr) {
+        Mask8 tap = {4, 4, 4, 4, 4, 4, 4, 4};
+        if (followDepth) {
+          std::memcpy(&tap, s.tap + x0, sizeof tap);
+          tapDepth = load8(s.tapDepth + x0);
+        }
+        for (int k = 0; k < 9; ++k) {
+          const Mask8 chosen = tap == k;
+          vx = chosen ? load8(rows[k / 3][4] + i + k % 3 - 1) : vx;
+          vy = chosen ? load8(rows[k / 3][5] + i + k % 3 - 1) : vy;
+        }
       }
-      auto column = [&](int k) {
-        return temporal::ColumnReduction4{temporal::load4(s.columnMin + 4 * k), temporal::load4(s.columnMax + 4 * k)};
-      };
-      temporal::boxesFromColumns4(column(i - 1), column(i), column(i + 1), temporal::load4(s1 + 4 * (i - 1)),
-                                  temporal::load4(s1 + 4 * (i + 1)), nb.box3x3, nb.cross);
-      if (followDepth) {
-        std::memcpy(&nb.tap, s.tap + x, sizeof(int));
-        nb.tapDepth = s.tapDepth[x];
-      } else {
-        nb.tap = 4;
-        nb.tapDepth = f.depth.ptr ? d1[i] : kBackgroundDepth;
+      const ReprojectionLanes<Vec8> rp =
+          reprojectLanes<Vec8>(f, float(x0) + laneIndex, temporal::lanesOf<Vec8>(float(y)), vx, vy, tapDepth);
+      alignas(32) float hist[4][kL] = {}, aliased[kL] = {};
+      alignas(32) int since[kL] = {};
+      for (int l = 0; l < lanes; ++l) {
+        const int x = x0 + l;
+        if (rp.valid[l]) {
+          const Vec4 v = fetchHistory(f, x, y, rp.moving[l] != 0, {rp.x0[l], rp.y0[l], rp.tx[l], rp.ty[l]},
+                                      rp.qx[l], rp.qy[l]);
+          for (int c = 0; c < 4; ++c) hist[c][l] = v[c];
+        }
+        since[l] = -int(f.feedbackSinceReset[rowStart + x] != 0);
+        if (f.aliased) aliased[l] = f.aliased[rowStart + x];
       }
-      resolvePixel(f, x, y, nb, [&] {
-        if (!extremesReady) gatherExtremes();
-        // Columns x - 2 .. x + 2, clamped as the reference's taps are (padding
-        // column 0 / w + 1 = the edge pixel, so index -1 reads it again).
-        auto column = [&](int k) {
-          temporal::TwoExtremes4 e;
-          std::memcpy(&e, s.columnExtremes + 16 * std::clamp(k, 0, w + 1), sizeof e);
-          return e;
+      for (int c = 0; c < 4; ++c) in.hist[c] = load8(hist[c]);
+      in.valid = rp.valid;
+      in.moving = rp.moving;
+      std::memcpy(&in.feedbackSinceReset, since, sizeof since);
+      in.aliased = load8(aliased);
+
+      const ResolvedLanes<Vec8> r = resolveLanes(f, in, [&](int l, float* excess) {
+        const int x = x0 + l;
+        if (!temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY)) return false;
+        // The reference's 25 taps in its order; plane column i + l + dx,
+        // clamped to the padding (= the edge pixel, as the reference's clamp).
+        auto tap5 = [&](int k) {
+          const int column = std::clamp(i + l + k % 5 - 2, 0, w + 1);
+          float* const* p = rows5[k / 5];
+          return Vec4{p[0][column], p[1][column], p[2][column], p[3][column]};
         };
-        temporal::TwoExtremes4 e = column(i - 2);
-        for (int k = i - 1; k <= i + 2; ++k) temporal::mergeExtremes(e, column(k));
-        return temporal::footprintBox(nb.box3x3, e);
+        temporal::TwoExtremes4 e = temporal::twoExtremesOf(tap5(0), tap5(1));
+        for (int k = 2; k < 25; ++k) temporal::addTap(e, tap5(k));
+        const temporal::MinMax4 box3x3{Vec4{in.boxMin[0][l], in.boxMin[1][l], in.boxMin[2][l], 0.0f},
+                                       Vec4{in.boxMax[0][l], in.boxMax[1][l], in.boxMax[2][l], 0.0f}};
+        const temporal::MinMax4 box = temporal::footprintBox(box3x3, e);
+        temporal::clipTowardCentre4(Vec4{hist[0][l], hist[1][l], hist[2][l], hist[3][l]}, box.min, box.max, excess);
+        return true;
       });
+
+      for (int l = 0; l < lanes; ++l) {
+        const int x = x0 + l;
+        f.feedbackSinceReset[rowStart + x] = r.feedbackSinceReset[l] != 0;
+        const float color[3] = {r.color[0][l], r.color[1][l], r.color[2][l]};
+        const float output[3] = {r.output[0][l], r.output[1][l], r.output[2][l]};
+        storePixel(f, x, y, color, r.signedWeight[l], output, r.reset[l] != 0, in.current[3][l]);
+      }
     }
   }
 }
@@ -600,6 +770,7 @@ void Kernel::allocate(int width, int height, bool withDepth) {
     history_[0] = Image(width, height, 4);
     history_[1] = Image(width, height, 4);
     feedbackSinceReset_.assign(std::size_t(width) * height, 0);
+    sourceColumn_.assign(std::size_t(planeFloats(width)), 0);
   }
   for (auto& d : depth_) {
     if (withDepth)
@@ -666,6 +837,9 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   f.aliasedNeighbourhood = s.aliasedNeighbourhood;
   f.aliasedBoxSize = s.aliasedBoxSize;
   f.unjitter = temporal::unjitterFor(s.unjitter, s.jitterX, s.jitterY, s.filterSize);
+  for (std::size_t k = 0; k < sourceColumn_.size(); ++k)
+    sourceColumn_[k] = temporal::shiftedSource(int(k) - 1, width_, f.unjitter.shiftX);
+  f.sourceColumn = sourceColumn_.data();
 
   if (reference) {
     for (int y = 0; y < height_; ++y)

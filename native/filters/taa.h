@@ -109,6 +109,7 @@ class Kernel {
   // place (each pixel touches only its own entry).
   std::vector<std::uint8_t> feedbackSinceReset_;
   std::vector<float> depth_[2];
+  std::vector<int> sourceColumn_;  // per frame: the input column of each staged plane index (taa.cpp)
   int current_ = 0;           // index of the history written last
   int frames_ = 0;            // frames since reset; 0 = no history
   bool previousDepthValid_ = false;

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstddef>
 
+#include "temporal/lanes.h"
 #include "temporal/vec4.h"
 
 namespace crisp::temporal {
@@ -39,6 +40,13 @@ inline float floorExact(float x) {
   if (!(std::fabs(x) < 8388608.0f)) return x;
   const float t = float(int(x));
   return t > x ? t - 1.0f : t;
+}
+// floorExact on eight lanes (lanes.h), the same values lane by lane.
+inline Vec8 floorExact(Vec8 x) {
+  const Mask8 big = notOf(fabsOf(x) < 8388608.0f);
+  const Vec8 safe = big ? lanesOf<Vec8>(0.0f) : x;
+  const Vec8 t = floatOf(truncOf(safe));
+  return big ? x : (t > safe ? t - 1.0f : t);
 }
 inline Footprint footprintOf(float x, float y) {
   const float fx = floorExact(x), fy = floorExact(y);
@@ -92,6 +100,10 @@ inline Vec4 fetchCatmullRomAt4(const HistoryImage& h, const Footprint& f) {
   int xs[4];
   for (int i = 0; i < 4; ++i) xs[i] = Clamp ? std::clamp(f.x0 - 1 + i, 0, h.width - 1) : f.x0 - 1 + i;
   Vec4 acc = splat(0.0f), lo = splat(0.0f), hi = splat(0.0f);
+  // The carried channel: the nearest of the 4 central taps (row j = 1 or 2, column 1 or 2).
+  const int carriedRow = f.ty < 0.5f ? 1 : 2;
+  const bool carriedLeft = f.tx < 0.5f;
+  float carried = 0.0f;
   for (int j = 0; j < 4; ++j) {
     const float* row = h.at(0, Clamp ? std::clamp(f.y0 - 1 + j, 0, h.height - 1) : f.y0 - 1 + j);
     const Vec4 t0 = load4(row + 4 * xs[0]), t1 = load4(row + 4 * xs[1]);
@@ -105,10 +117,10 @@ inline Vec4 fetchCatmullRomAt4(const HistoryImage& h, const Footprint& f) {
       lo = vmin(lo, vmin(t1, t2));
       hi = vmax(hi, vmax(t1, t2));
     }
+    if (j == carriedRow) carried = carriedLeft ? t1[3] : t2[3];
   }
   Vec4 out = vmin(vmax(acc, lo), hi);
-  const int carriedY = f.ty < 0.5f ? f.y0 : f.y0 + 1;
-  out[3] = h.at(f.tx < 0.5f ? xs[1] : xs[2], Clamp ? std::clamp(carriedY, 0, h.height - 1) : carriedY)[3];
+  out[3] = carried;
   return out;
 }
 inline Vec4 fetchCatmullRom4(const HistoryImage& h, float x, float y) {

@@ -175,8 +175,10 @@ inline MinMax4 footprintBox(const MinMax4& box3x3, const TwoExtremes4& e) {
 // The unjittered current colour (temporal/jitter.h Unjitter): the 3x3 taps
 // (row order) weighted by `weights`, summed centre first, then the others in
 // row order, so every path that calls it gets the same bits.
-inline Vec4 unjitteredMix(const Vec4 taps[9], const float weights[9]) {
-  Vec4 sum = taps[4] * weights[4];
+// T: Vec4 (a pixel's RGBA) or any lane type of one channel (lanes.h Vec8).
+template <class T>
+inline T unjitteredMix(const T taps[9], const float weights[9]) {
+  T sum = taps[4] * weights[4];
   for (int i = 0; i < 9; ++i)
     if (i != 4) sum = sum + taps[i] * weights[i];
   return sum;

@@ -10,6 +10,7 @@
 #include "core/conventions.h"
 #include "core/row_stage.h"
 #include "temporal/jitter.h"
+#include "temporal/lanes.h"
 #include "temporal/vec4.h"
 
 namespace crisp::temporal {
@@ -73,9 +74,12 @@ inline void closestDepthTapsRow(const float* up, const float* middle, const floa
 // tap): the same value as std::fmin for every input, NaN included (the other
 // operand wins); of +0 and -0 either may be returned, which the product and
 // comparison below cannot tell apart.
-inline bool sameSurfaceDepth(float a, float b, float tolerance) {
-  const float nearer = (b < a || a != a) ? b : a;
-  return std::fabs(a - b) <= tolerance * nearer;
+// T: float, or Vec8 (lanes.h) for eight pixels at once.
+template <class T>
+inline MaskOfT<T> sameSurfaceDepth(T a, T b, float tolerance) {
+  using M = MaskOfT<T>;
+  const T nearer = M(M(b < a) | M(a != a)) ? b : a;
+  return fabsOf(a - b) <= tolerance * nearer;
 }
 
 // A motion vector usable for reprojection: finite.
