@@ -78,6 +78,9 @@ long Kernel::resolvedCount() const {
 Geo Kernel::centreGeo(const Inputs& in, int x, int y) const {
   const float d = in.depth.pixel(x, y)[0];
   const float* n = in.normal.pixel(x, y);
+  if (in.packed.valid())  // at the records' precision, so flat faces match their samples exactly
+    return makeGeo(d, snormCentre(n[0]), snormCentre(n[1]), snormCentre(n[2]), colUx_[std::size_t(x)],
+                   rowUy_[std::size_t(y)], packedCamera_);
   return makeGeo(d, n[0], n[1], n[2], colUx_[std::size_t(x)], rowUy_[std::size_t(y)], settings_.camera);
 }
 
@@ -350,6 +353,33 @@ CRISP_AVX2 inline __m256 differsLanes(__m256 nx, __m256 ny, __m256 nz, __m256 d,
   return _mm256_or_ps(_mm256_xor_ps(c.bg, bg), _mm256_andnot_ps(c.bg, _mm256_and_ps(apart, far)));
 }
 
+// differsLanes where every lane's sample normal equals its centre's (after
+// the same rotation): then db = da and slackB = slackA bit for bit (the same
+// operations on the same operands), so eb = ea and dn = ea + ea; the
+// rotation, db and slackB are skipped. Same result bits as differsLanes.
+template <bool Ortho>
+CRISP_AVX2 inline __m256 differsLanesSameNormal(__m256 d, const Centre8& c, __m256 sux, __m256 suy, const Camera& cam,
+                                                __m256 threshold2) {
+  const __m256 bg = _mm256_cmp_ps(d, set8(kFarDepth), _CMP_NLT_UQ);
+  const __m256 px = Ortho ? sux : _mm256_mul_ps(sux, d);
+  const __m256 py = Ortho ? suy : _mm256_mul_ps(suy, d);
+  const __m256 pz = _mm256_xor_ps(d, set8(-0.0f));
+  const __m256 rx = _mm256_sub_ps(px, c.px);
+  const __m256 ry = _mm256_sub_ps(py, c.py);
+  const __m256 rz = _mm256_sub_ps(pz, c.pz);
+  const __m256 r2 = dot8(rx, ry, rz, rx, ry, rz);
+  const __m256 apart = _mm256_cmp_ps(r2, c.samePoint, _CMP_GT_OQ);
+  const __m256 da = dot8(c.nx, c.ny, c.nz, rx, ry, rz);
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 svx = Ortho ? zero : sux, svy = Ortho ? zero : suy;
+  const __m256 stol = tolerance8(d, cam);
+  const __m256 slackA = _mm256_add_ps(c.selfSlack, slack8(c.nx, c.ny, c.nz, svx, svy, stol));
+  const __m256 ea = _mm256_max_ps(zero, _mm256_sub_ps(abs8(da), slackA));
+  const __m256 dn = _mm256_add_ps(ea, ea);
+  const __m256 far = _mm256_cmp_ps(_mm256_mul_ps(dn, dn), _mm256_mul_ps(threshold2, r2), _CMP_NLT_UQ);
+  return _mm256_or_ps(_mm256_xor_ps(c.bg, bg), _mm256_andnot_ps(c.bg, _mm256_and_ps(apart, far)));
+}
+
 // The same for samples given as their float4s (lane j = p[j]).
 template <bool Ortho>
 CRISP_AVX2 inline __m256 differsLanes(const float* const* p, const Centre8& c, __m256 sux, __m256 suy,
@@ -368,9 +398,21 @@ CRISP_AVX2 int differs8(const float* const* p, const Geo& c, float ux, float uy,
   return _mm256_movemask_ps(differsLanes<Ortho>(p, broadcastCentre8(c), sux, suy, cam, set8(threshold2)));
 }
 
+// rsaa::snormCentre in 8 lanes: clamp (max/min: NaN -> -1), scale, round to
+// nearest even, + 0.
+CRISP_AVX2 inline __m256 snormCentre8(__m256 c) {
+  const __m256 t = _mm256_min_ps(_mm256_max_ps(c, set8(-1.0f)), set8(1.0f));
+  return _mm256_add_ps(_mm256_round_ps(_mm256_mul_ps(t, set8(kSnormScale)), _MM_FROUND_CUR_DIRECTION),
+                       _mm256_setzero_ps());
+}
+
 // The centres of pixels x..x+7 of row y (centreGeo in 8 lanes).
 template <bool Ortho>
-CRISP_AVX2 inline Centre8 loadCentres8(const Inputs& in, int x, int y, __m256 ux, float uy, const Camera& cam) {
+// quantised (packed records): the normals at the records' precision
+// (snormCentre in 8 lanes), cam then being the packed camera; the
+// quantised normals are returned in q[3] for the same-normal test.
+CRISP_AVX2 inline Centre8 loadCentres8(const Inputs& in, int x, int y, __m256 ux, float uy, const Camera& cam,
+                                       __m256* q = nullptr) {
   __m256 d, wx, wy, wz;
   if (in.depth.pixelStride == 4) {
     d = _mm256_loadu_ps(in.depth.pixel(x, y));
@@ -397,6 +439,11 @@ CRISP_AVX2 inline Centre8 loadCentres8(const Inputs& in, int x, int y, __m256 ux
       gx[j] = n[0], gy[j] = n[1], gz[j] = n[2];
     }
     wx = _mm256_load_ps(gx), wy = _mm256_load_ps(gy), wz = _mm256_load_ps(gz);
+  }
+  if (q) {
+    // snormCentre: clamp as max/min do (NaN -> -1), scale, round to nearest
+    // even, + 0 (no -0).
+    wx = q[0] = snormCentre8(wx), wy = q[1] = snormCentre8(wy), wz = q[2] = snormCentre8(wz);
   }
   return centre8<Ortho>(d, wx, wy, wz, ux, set8(uy), cam);
 }
@@ -469,7 +516,8 @@ template <bool Ortho>
 CRISP_AVX2 int anyDiffersPacked8(const Inputs& in, int x, int y, const float* colUx, float uy, const float* dux,
                                  const float* duy, const Camera& cam, const Camera& packedCam, float threshold2) {
   const __m256 ux = _mm256_loadu_ps(colUx + x);
-  const Centre8 c = loadCentres8<Ortho>(in, x, y, ux, uy, cam);
+  __m256 q[3];
+  const Centre8 c = loadCentres8<Ortho>(in, x, y, ux, uy, packedCam, q);
   const SubsampleRecord* rec = subsampleRecord(in.packed, x, y);
   __m256 d[8];
   __m256i nxy[8];
@@ -490,8 +538,13 @@ CRISP_AVX2 int anyDiffersPacked8(const Inputs& in, int x, int y, const float* co
     const __m256 wx = int16ToFloat8(_mm256_castsi256_si128(nxy[k]));
     const __m256 wy = int16ToFloat8(_mm256_extracti128_si256(nxy[k], 1));
     const __m256 wz = int16ToFloat8(nz[k]);
-    any = _mm256_or_ps(any, differsLanes<Ortho>(wx, wy, wz, d[k], c, _mm256_add_ps(ux, set8(dux[k])),
-                                                set8(uy + duy[k]), packedCam, t2));
+    const __m256 sux = _mm256_add_ps(ux, set8(dux[k])), suy = set8(uy + duy[k]);
+    // Flat faces: every sample normal equal to its centre's (as integers).
+    const __m256 same = _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(wx, q[0], _CMP_EQ_OQ), _mm256_cmp_ps(wy, q[1], _CMP_EQ_OQ)),
+                                      _mm256_cmp_ps(wz, q[2], _CMP_EQ_OQ));
+    any = _mm256_or_ps(any, _mm256_movemask_ps(same) == 0xFF
+                                ? differsLanesSameNormal<Ortho>(d[k], c, sux, suy, packedCam, t2)
+                                : differsLanes<Ortho>(wx, wy, wz, d[k], c, sux, suy, packedCam, t2));
   }
   return _mm256_movemask_ps(any);
 }

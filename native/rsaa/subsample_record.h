@@ -6,8 +6,9 @@
 //   float   depth[8]  planar depth of sample k, float32 as given (EEVEE 3.4's
 //                     half-float Depth is exact in it; synthetic depths too)
 //   int16_t nx[8], ny[8], nz[8]   world normal, snorm16: round(c x 32767),
-//                     c clamped to [-1, 1]; a non-finite normal is stored as
-//                     (0, 0, 0) with depth NaN, so it stays "different".
+//                     c clamped to [-1, 1] (encodeSnorm16); a non-finite
+//                     normal is stored as (0, 0, 0) with depth NaN, which
+//                     reads as background.
 //
 // Why this layout: the filter tests every pixel against all 8 samples, so it
 // reads every byte of the record; 80 bytes is 62.5 % of the 8 float4 images
@@ -43,11 +44,20 @@ static_assert(sizeof(SubsampleRecord) == std::size_t(kRsaaSubsampleWords) * 4, "
 
 constexpr float kSnormScale = 32767.0f;
 
-// One normal component to snorm16 (round to nearest, clamped).
-inline std::int16_t encodeSnorm16(float c) {
-  const float clamped = std::min(std::max(c, -1.0f), 1.0f);
-  return std::int16_t(std::lround(double(clamped) * double(kSnormScale)));
+// A normal component at snorm16 precision, as a float integer in
+// [-32767, 32767]: clamped (NaN -> -1, written as the SIMD max/min
+// instructions behave), scaled in float, rounded to nearest even, + 0 so
+// that no -0 remains. The filter applies it to the pixel-centre normal when
+// it reads records (rsaa::Kernel::centreGeo and its SIMD copy), so a flat
+// face's centre and samples hold the same integers.
+inline float snormCentre(float c) {
+  float t = c > -1.0f ? c : -1.0f;
+  t = t < 1.0f ? t : 1.0f;
+  return std::nearbyint(t * kSnormScale) + 0.0f;
 }
+
+// One normal component to snorm16: the same integer as snormCentre.
+inline std::int16_t encodeSnorm16(float c) { return std::int16_t(snormCentre(c)); }
 
 // Sets sample k of a record from a depth and a world normal. Non-finite
 // normals cannot be stored as snorm: such a sample gets depth NaN (which the

@@ -76,9 +76,53 @@ const Frame& frame(int width, int height) {
   return f;
 }
 
+// The chart's colour on a smooth sphere (radius 12, centre 20 in front of the
+// camera, filling the frame's height; a plane at depth 40 behind it), depth
+// and normal exact at every point: no two sub-samples share a normal, so the
+// packed path's flat-face shortcut never applies (its worst case; real scenes
+// mix flat and smooth-shaded faces).
+const Frame& sphereFrame(int width, int height) {
+  static std::map<std::pair<int, int>, std::unique_ptr<Frame>> cache;
+  auto& slot = cache[{width, height}];
+  if (slot) return *slot;
+  slot = std::make_unique<Frame>();
+  Frame& f = *slot;
+  f = frame(width, height);  // colour, and the image shapes
+  rsaa::Camera cam;
+  cam.proj11 = float(width) / float(height);
+  const auto geometry = [&](double px, double py, float& depth, float n[3]) {
+    const double v[3] = {rsaa::rayUx(px, width, cam), rsaa::rayUy(py, height, cam), -1.0};
+    const double c[3] = {0.0, 0.0, -20.0}, r = 12.0;
+    const double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2], vc = v[0] * c[0] + v[1] * c[1] + v[2] * c[2];
+    const double disc = vc * vc - vv * (c[2] * c[2] - r * r);  // |t v - c|^2 = r^2
+    if (disc < 0) {
+      depth = 40.0f, n[0] = n[1] = 0.0f, n[2] = 1.0f;
+      return;
+    }
+    const double t = (vc - std::sqrt(disc)) / vv;  // nearest hit; planar depth = t (v.z = -1)
+    depth = float(t);
+    for (int k = 0; k < 3; ++k) n[k] = float((t * v[k] - c[k]) / r);
+  };
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      geometry(x + 0.5, y + 0.5, *f.depth.at(x, y), f.normal.at(x, y));
+      for (int k = 0; k < rsaa::kSamples; ++k) {
+        float* p = f.sub[k].at(x, y);
+        geometry(x + 0.5 + rsaa::kTablePattern.x[k], y + 0.5 + rsaa::kTablePattern.y[k], p[3], p);
+      }
+    }
+  auto* rec = reinterpret_cast<rsaa::SubsampleRecord*>(f.records.data.data());
+  for (int k = 0; k < rsaa::kSamples; ++k)
+    for (std::size_t i = 0; i < std::size_t(width) * std::size_t(height); ++i) {
+      const float* p = f.sub[k].data.data() + 4 * i;
+      rsaa::encodeSubsample(rec[i], k, p[3], p[0], p[1], p[2]);
+    }
+  return f;
+}
+
 void runRsaa(benchmark::State& state, int width, int height, int threads, bool reference,
-             const char* textureAA = "fxaa", bool packed = false) {
-  const Frame& f = frame(width, height);
+             const char* textureAA = "fxaa", bool packed = false, bool sphere = false) {
+  const Frame& f = sphere ? sphereFrame(width, height) : frame(width, height);
   Image output(width, height, 4);
   crisp::Context context;
   auto filter = bench::newFilter(context, "rsaa", output, threads, reference);
@@ -196,6 +240,13 @@ void registerAll() {
                          [w, h](benchmark::State& st) { readFloor(st, w, h, 1, true); });
     bench::registerTimed("rsaa.floor.read.packed.mt" + tag,
                          [w, h](benchmark::State& st) { readFloor(st, w, h, 0, true); });
+    // Smooth geometry (sphereFrame): no flat-face shortcut.
+    bench::registerTimed("rsaa.sphere.packed.fast.mt" + tag,
+                         [w, h](benchmark::State& st) { runRsaa(st, w, h, 0, false, "fxaa", true, true); });
+    bench::registerTimed("rsaa.sphere.packed.none.fast.mt" + tag,
+                         [w, h](benchmark::State& st) { runRsaa(st, w, h, 0, false, "none", true, true); });
+    bench::registerTimed("rsaa.sphere.none.fast.mt" + tag,
+                         [w, h](benchmark::State& st) { runRsaa(st, w, h, 0, false, "none", false, true); });
   }
 }
 
@@ -210,6 +261,10 @@ void registerProfileSize() {
   bench::registerTimed("rsaa.fast.st" + tag, [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false); });
   bench::registerTimed("rsaa.packed.fast.st" + tag,
                        [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false, "fxaa", true); });
+  bench::registerTimed("rsaa.sphere.none.fast.st" + tag,
+                       [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none", false, true); });
+  bench::registerTimed("rsaa.sphere.packed.none.fast.st" + tag,
+                       [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none", true, true); });
 }
 
 const bool registered = (registerAll(), registerProfileSize(), true);
