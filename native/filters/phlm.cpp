@@ -299,13 +299,23 @@ CRISP_PHLM_INLINE int closestDepthTap(const float depth9[9]) {
   return best;
 }
 
-// Tap i (row-major) of the 5x5 around (x, y), clamped to the image in every
-// path (the fast path's unclamped interior is only one pixel deep).
+// The footprint's extremes: the 25 taps of the 5x5 around (x, y) in row
+// order, each clamped to the image (shiftedSource) in every path; the 5
+// columns and rows are clamped once (the same taps as clamping each).
 template <class T>
-inline temporal::Vec4 stagedTap(const Frame<T>& f, int x, int y, int i) {
-  const int tx = temporal::shiftedSource(x + i % 5 - 2, f.width, f.unjitter.shiftX);
-  const int ty = temporal::shiftedSource(y + i / 5 - 2, f.height, f.unjitter.shiftY);
-  return temporal::load4(f.staged + (std::size_t(ty) * f.width + tx) * 4);
+CRISP_PHLM_INLINE temporal::TwoExtremes4 footprintExtremes(const Frame<T>& f, int x, int y) {
+  int column[5];
+  const float* row[5];
+#pragma GCC unroll 5
+  for (int k = 0; k < 5; ++k) {
+    column[k] = temporal::shiftedSource(x + k - 2, f.width, f.unjitter.shiftX) * 4;
+    row[k] = f.staged + std::size_t(temporal::shiftedSource(y + k - 2, f.height, f.unjitter.shiftY)) * f.width * 4;
+  }
+  temporal::TwoExtremes4 e = temporal::twoExtremesOf(temporal::load4(row[0] + column[0]),
+                                                     temporal::load4(row[0] + column[1]));
+#pragma GCC unroll 23
+  for (int i = 2; i < 25; ++i) temporal::addTap(e, temporal::load4(row[i / 5] + column[i % 5]));
+  return e;
 }
 
 // Always inlined: into both copies of the row loop (temporal/isa.h).
@@ -372,9 +382,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
       temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY)) {
     // The box of the correction and of the output clamp: the footprint box
     // (header, "Box"), the 3x3 box united with the 5x5's second extremes.
-    temporal::TwoExtremes4 e = temporal::twoExtremesOf(stagedTap(f, x, y, 0), stagedTap(f, x, y, 1));
-    for (int i = 2; i < 25; ++i) temporal::addTap(e, stagedTap(f, x, y, i));
-    const temporal::MinMax4 foot = temporal::footprintBox({boxLo, boxHi}, e);
+    const temporal::MinMax4 foot = temporal::footprintBox({boxLo, boxHi}, footprintExtremes(f, x, y));
     for (int c = 0; c < 3; ++c) {
       lo[c] = T(foot.min[c]);
       hi[c] = T(foot.max[c]);
@@ -455,19 +463,19 @@ CRISP_PHLM_INLINE V splatOf(T v) {
 // std::max, std::min and std::clamp lane by lane (the same operand order, so
 // the same results, NaN included).
 template <class V>
-CRISP_PHLM_INLINE V maxOf(V a, V b) {
+CRISP_PHLM_INLINE V maxOf(const V& a, const V& b) {
   return a < b ? b : a;
 }
 template <class V>
-CRISP_PHLM_INLINE V minOf(V a, V b) {
+CRISP_PHLM_INLINE V minOf(const V& a, const V& b) {
   return b < a ? b : a;
 }
 template <class V>
-CRISP_PHLM_INLINE V absOf(V a) {
+CRISP_PHLM_INLINE V absOf(const V& a) {
   return a < zeroOf<V>() ? -a : a;
 }
 template <class V>
-CRISP_PHLM_INLINE V clampOf(V v, V lo, V hi) {
+CRISP_PHLM_INLINE V clampOf(const V& v, const V& lo, const V& hi) {
   return v < lo ? lo : (hi < v ? hi : v);
 }
 
