@@ -432,7 +432,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     ++reprojectionResets;
     resetModel(model, current, f.p0, f.ps);
   }
-  // Steps 4 and 5 run on 8 pixels at once (finishBatch): this pixel's lane.
+  // The rest runs on 8 pixels at once (finishBatch): this pixel's lane.
   const int lane = batch.count;
   if (lane == 0) {
     batch.x0 = x;
@@ -504,7 +504,6 @@ CRISP_PHLM_INLINE V rayEntryOf(const V f[3], const V y[3], const V lo[3], const 
 // The forgetting and regulariser of Step 5 on every lane (phlm_rls.h; header,
 // "Stabilised RLS"): a moving pixel forgets with lambdaMoving and refreshes
 // every axis, a still one forgets with lambda and refreshes this frame's axis.
-
 template <class T, class V>
 CRISP_PHLM_INLINE void forgetAndRegularise(const Frame<T>& f, V* m, bool moving) {
   if (moving) {
@@ -521,12 +520,12 @@ CRISP_PHLM_INLINE void forgetAndRegularise(const Frame<T>& f, V* m, bool moving)
   }
 }
 
-// Step 5 for the batch's pixels (stabilised RLS, phlm_rls.h), eight at once:
+// The rest of step 2 and steps 4-5 for the batch's pixels, eight at once:
 // lane i performs the scalar operations of pixel x0 + i in the scalar order,
 // so every path (and the float64 kernel, lane type double) gives the bits of
 // the one-pixel form. Output beta' x = f + g e (clamped to the box: only
 // rounding and the inside-test slack can reach past it). Writes the records
-// and the output.
+// and the output; counts the box corrections in boxResets.
 template <class T>
 CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& boxResets) {
   using V = typename Batch<T>::V;
