@@ -50,6 +50,7 @@
 #include "core/parallel.h"
 #include "core/row_stage.h"
 #include "temporal/history_fetch.h"
+#include "temporal/lanes.h"
 #include "temporal/rows.h"
 #include "temporal/vec4.h"
 #include "temporal/velocity.h"
@@ -144,6 +145,49 @@ inline void motionAt(const ImageView& motion, int x, int y, float& vx, float& vy
   vy = m[1];
 }
 
+// Pass 3 (§4.3.3) on one pixel (T = float) or eight (T = Vec8), written once
+// against temporal/lanes.h so both give the same bits: the bilinear fetch of
+// last frame's stabilised plane at p + v (clamp-to-edge taps), clamped to
+// this frame's 3x3 range [lo, hi] of raw values, blended with the baseline's
+// luma-difference feedback; the raw value c where there is no usable history
+// or the result is not finite.
+struct StabiliseParams {
+  const float* previous;  // last frame's stabilised plane
+  int width, height;
+  bool stabilise;         // history exists and the plane is valid
+  float feedbackMin, feedbackMax;
+};
+template <class T>
+__attribute__((always_inline)) inline T stabilisedSobel(const StabiliseParams& p, T c, T lo, T hi, T vx, T vy, T px,
+                                                        T py) {
+  using M = temporal::MaskOfT<T>;
+  using temporal::lanesOf;
+  if (!p.stabilise) return c;
+  const int w = p.width, h = p.height;
+  const T qx = px + vx, qy = py + vy;
+  const M valid = M(temporal::finiteOf(vx) & temporal::finiteOf(vy) & M(qx >= -0.5f) & M(qy >= -0.5f) &
+                    M(qx <= float(w) - 0.5f) & M(qy <= float(h) - 0.5f));  // finiteMotion, onScreen
+  if (!temporal::anyOf(valid)) return c;
+  const T zero = lanesOf<T>(0.0f);
+  const T sx = valid ? qx : zero, sy = valid ? qy : zero;
+  const T fx = temporal::floorExact(sx), fy = temporal::floorExact(sy);  // footprintOf
+  const auto x0 = temporal::truncOf(fx), y0 = temporal::truncOf(fy);
+  const T tx = sx - fx, ty = sy - fy;
+  auto clampIndex = [](temporal::IntOf<T> v, int top) { return v < 0 ? 0 : (top < v ? top : v); };
+  const auto xa = clampIndex(x0, w - 1), xb = clampIndex(x0 + 1, w - 1);
+  const auto ya = clampIndex(y0, h - 1), yb = clampIndex(y0 + 1, h - 1);
+  const T p00 = temporal::gatherOf(p.previous, w, xa, ya), p10 = temporal::gatherOf(p.previous, w, xb, ya);
+  const T p01 = temporal::gatherOf(p.previous, w, xa, yb), p11 = temporal::gatherOf(p.previous, w, xb, yb);
+  const T top = p00 + (p10 - p00) * tx;
+  const T bottom = p01 + (p11 - p01) * tx;
+  const T hist = temporal::clampOf(top + (bottom - top) * ty, lo, hi);
+  const T diff = temporal::clampOf(temporal::fabsOf(hist - c) / temporal::maxOf(temporal::maxOf(hist, c), lanesOf<T>(0.2f)),
+                                   zero, lanesOf<T>(1.0f));
+  const T k = p.feedbackMin + (p.feedbackMax - p.feedbackMin) * (1.0f - diff) * (1.0f - diff);
+  const T result = valid ? hist + (c - hist) * (1.0f - k) : c;
+  return temporal::finiteOf(result) ? result : c;
+}
+
 }  // namespace
 
 void Kernel::allocate(int width, int height, bool withDepth) {
@@ -229,36 +273,58 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
         sobelPixel(w - 1, y);
       }
     });
-    // Pass 3: one-channel TAA with clamping, no sharpen (§4.3.3).
+    // Pass 3: one-channel TAA with clamping, no sharpen (§4.3.3); the border
+    // (and the reference) one pixel at a time, the interior eight at a time.
+    const float* previous = sobel_[current_].data();
+    float* stabilised = sobel_[next].data();
+    const StabiliseParams sp{previous, w, h, stabilise, s.base.feedbackMin, s.base.feedbackMax};
     parallelRows(w, h, threads, [&](int y0, int y1) {
-      const float* previous = sobel_[current_].data();
-      temporal::rowsWithBorder(w, h, y0, y1, reference, [&](auto clamp, int x, int y) {
+      auto pixel = [&](auto clamp, int x, int y) {
         constexpr bool C = decltype(clamp)::value;
         const float c = raw.at<C>(x, y);
-        float result = c;
+        float lo = c, hi = c;
+        for (int j = -1; j <= 1; ++j)
+          for (int i = -1; i <= 1; ++i) {
+            lo = temporal::minOf(lo, raw.at<C>(x + i, y + j));
+            hi = temporal::maxOf(hi, raw.at<C>(x + i, y + j));
+          }
         float vx, vy;
         motionAt(in.motion, x, y, vx, vy);
-        const float qx = float(x) + vx, qy = float(y) + vy;
-        if (stabilise && temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h)) {
-          const temporal::Footprint fp = temporal::footprintOf(qx, qy);
-          const Plane prev{previous, w, h};
-          const float top = prev.at(fp.x0, fp.y0) + (prev.at(fp.x0 + 1, fp.y0) - prev.at(fp.x0, fp.y0)) * fp.tx;
-          const float bottom =
-              prev.at(fp.x0, fp.y0 + 1) + (prev.at(fp.x0 + 1, fp.y0 + 1) - prev.at(fp.x0, fp.y0 + 1)) * fp.tx;
-          float hist = top + (bottom - top) * fp.ty;
-          float lo = c, hi = c;
+        stabilised[std::size_t(y) * w + x] = stabilisedSobel(sp, c, lo, hi, vx, vy, float(x), float(y));
+      };
+      for (int y = y0; y < y1; ++y) {
+        if (reference || y == 0 || y == h - 1 || w < 3) {
+          for (int x = 0; x < w; ++x) pixel(std::true_type{}, x, y);
+          continue;
+        }
+        using temporal::Vec8;
+        constexpr int kL = temporal::kLanes8;
+        pixel(std::true_type{}, 0, y);
+        int x = 1;
+        const Vec8 laneIndex = {0, 1, 2, 3, 4, 5, 6, 7};
+        for (; x + kL <= w - 1; x += kL) {
+          const float* row = raw.data + std::size_t(y) * w + x;
+          const Vec8 c = temporal::load8(row);
+          Vec8 lo = c, hi = c;
           for (int j = -1; j <= 1; ++j)
             for (int i = -1; i <= 1; ++i) {
-              lo = std::min(lo, raw.at<C>(x + i, y + j));
-              hi = std::max(hi, raw.at<C>(x + i, y + j));
+              const Vec8 v = temporal::load8(row + std::ptrdiff_t(j) * w + i);
+              lo = temporal::minOf(lo, v);
+              hi = temporal::maxOf(hi, v);
             }
-          hist = std::clamp(hist, lo, hi);
-          const float diff = std::clamp(std::fabs(hist - c) / std::max(std::max(hist, c), 0.2f), 0.0f, 1.0f);
-          const float k = s.base.feedbackMin + (s.base.feedbackMax - s.base.feedbackMin) * (1.0f - diff) * (1.0f - diff);
-          result = hist + (c - hist) * (1.0f - k);
+          Vec8 vx = temporal::lanesOf<Vec8>(0.0f), vy = vx;
+          if (in.motion.ptr)
+            for (int l = 0; l < kL; ++l) {
+              const float* m = in.motion.pixel(x + l, y);
+              vx[l] = m[0];
+              vy[l] = m[1];
+            }
+          temporal::store8(stabilised + std::size_t(y) * w + x,
+                           stabilisedSobel(sp, c, lo, hi, vx, vy, float(x) + laneIndex, temporal::lanesOf<Vec8>(float(y))));
         }
-        sobel_[next][std::size_t(y) * w + x] = std::isfinite(result) ? result : c;
-      });
+        for (; x < w - 1; ++x) pixel(std::false_type{}, x, y);
+        pixel(std::true_type{}, w - 1, y);
+      }
     });
   }
 
