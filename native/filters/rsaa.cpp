@@ -319,6 +319,35 @@ CRISP_AVX2 inline void load8x4(const float* const* p, __m256& nx, __m256& ny, __
   d = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2));
 }
 
+// The sample side of rsaa::differs up to r: background mask, r = p2 - p1,
+// |r|^2 and "apart" (not the same point).
+struct SampleR8 {
+  __m256 bg, rx, ry, rz, r2, apart;
+};
+
+template <bool Ortho>
+CRISP_AVX2 inline SampleR8 sampleR8(__m256 d, const Centre8& c, __m256 sux, __m256 suy) {
+  SampleR8 s;
+  s.bg = _mm256_cmp_ps(d, set8(kFarDepth), _CMP_NLT_UQ);
+  const __m256 px = Ortho ? sux : _mm256_mul_ps(sux, d);
+  const __m256 py = Ortho ? suy : _mm256_mul_ps(suy, d);
+  const __m256 pz = _mm256_xor_ps(d, set8(-0.0f));
+  s.rx = _mm256_sub_ps(px, c.px);
+  s.ry = _mm256_sub_ps(py, c.py);
+  s.rz = _mm256_sub_ps(pz, c.pz);
+  s.r2 = dot8(s.rx, s.ry, s.rz, s.rx, s.ry, s.rz);
+  s.apart = _mm256_cmp_ps(s.r2, c.samePoint, _CMP_GT_OQ);
+  return s;
+}
+
+// The end of rsaa::differs: dn^2 >= T^2 |r|^2 (NaN: different). A background
+// centre differs iff the sample is geometry; else background sample, or
+// apart and far.
+CRISP_AVX2 inline __m256 differsResult8(const Centre8& c, const SampleR8& s, __m256 dn, __m256 threshold2) {
+  const __m256 far = _mm256_cmp_ps(_mm256_mul_ps(dn, dn), _mm256_mul_ps(threshold2, s.r2), _CMP_NLT_UQ);
+  return _mm256_or_ps(_mm256_xor_ps(c.bg, s.bg), _mm256_andnot_ps(c.bg, _mm256_and_ps(s.apart, far)));
+}
+
 // rsaa::differs(centre, sample) lane by lane for samples given as their
 // float4s (lane j = p[j]) with ray terms sux, suy; all-ones lanes differ.
 // The samples' world normals (nx, ny, nz; cam.view rotates them to view
@@ -326,16 +355,9 @@ CRISP_AVX2 inline void load8x4(const float* const* p, __m256& nx, __m256& ny, __
 template <bool Ortho>
 CRISP_AVX2 inline __m256 differsLanes(__m256 nx, __m256 ny, __m256 nz, __m256 d, const Centre8& c, __m256 sux,
                                       __m256 suy, const Camera& cam, __m256 threshold2) {
-  const __m256 bg = _mm256_cmp_ps(d, set8(kFarDepth), _CMP_NLT_UQ);
-  const __m256 px = Ortho ? sux : _mm256_mul_ps(sux, d);
-  const __m256 py = Ortho ? suy : _mm256_mul_ps(suy, d);
-  const __m256 pz = _mm256_xor_ps(d, set8(-0.0f));
+  const SampleR8 s = sampleR8<Ortho>(d, c, sux, suy);
+  const __m256 rx = s.rx, ry = s.ry, rz = s.rz;
   const __m256 snx = rotate8(cam, 0, nx, ny, nz), sny = rotate8(cam, 1, nx, ny, nz), snz = rotate8(cam, 2, nx, ny, nz);
-  const __m256 rx = _mm256_sub_ps(px, c.px);
-  const __m256 ry = _mm256_sub_ps(py, c.py);
-  const __m256 rz = _mm256_sub_ps(pz, c.pz);
-  const __m256 r2 = dot8(rx, ry, rz, rx, ry, rz);
-  const __m256 apart = _mm256_cmp_ps(r2, c.samePoint, _CMP_GT_OQ);
   const __m256 da = dot8(c.nx, c.ny, c.nz, rx, ry, rz);
   const __m256 db = dot8(snx, sny, snz, rx, ry, rz);
   // rsaa::certainDot lane by lane: the sample's view-ray terms and depth tolerance.
@@ -346,11 +368,7 @@ CRISP_AVX2 inline __m256 differsLanes(__m256 nx, __m256 ny, __m256 nz, __m256 d,
   const __m256 slackB = _mm256_add_ps(slack8(snx, sny, snz, c.vx, c.vy, c.tol), slack8(snx, sny, snz, svx, svy, stol));
   const __m256 ea = _mm256_max_ps(zero, _mm256_sub_ps(abs8(da), slackA));
   const __m256 eb = _mm256_max_ps(zero, _mm256_sub_ps(abs8(db), slackB));
-  const __m256 dn = _mm256_add_ps(ea, eb);
-  const __m256 far = _mm256_cmp_ps(_mm256_mul_ps(dn, dn), _mm256_mul_ps(threshold2, r2), _CMP_NLT_UQ);
-  // Background centre: differs iff the sample is geometry; else background
-  // sample, or apart and far.
-  return _mm256_or_ps(_mm256_xor_ps(c.bg, bg), _mm256_andnot_ps(c.bg, _mm256_and_ps(apart, far)));
+  return differsResult8(c, s, _mm256_add_ps(ea, eb), threshold2);
 }
 
 // differsLanes where every lane's sample normal equals its centre's (after
@@ -360,24 +378,14 @@ CRISP_AVX2 inline __m256 differsLanes(__m256 nx, __m256 ny, __m256 nz, __m256 d,
 template <bool Ortho>
 CRISP_AVX2 inline __m256 differsLanesSameNormal(__m256 d, const Centre8& c, __m256 sux, __m256 suy, const Camera& cam,
                                                 __m256 threshold2) {
-  const __m256 bg = _mm256_cmp_ps(d, set8(kFarDepth), _CMP_NLT_UQ);
-  const __m256 px = Ortho ? sux : _mm256_mul_ps(sux, d);
-  const __m256 py = Ortho ? suy : _mm256_mul_ps(suy, d);
-  const __m256 pz = _mm256_xor_ps(d, set8(-0.0f));
-  const __m256 rx = _mm256_sub_ps(px, c.px);
-  const __m256 ry = _mm256_sub_ps(py, c.py);
-  const __m256 rz = _mm256_sub_ps(pz, c.pz);
-  const __m256 r2 = dot8(rx, ry, rz, rx, ry, rz);
-  const __m256 apart = _mm256_cmp_ps(r2, c.samePoint, _CMP_GT_OQ);
-  const __m256 da = dot8(c.nx, c.ny, c.nz, rx, ry, rz);
+  const SampleR8 s = sampleR8<Ortho>(d, c, sux, suy);
+  const __m256 da = dot8(c.nx, c.ny, c.nz, s.rx, s.ry, s.rz);
   const __m256 zero = _mm256_setzero_ps();
   const __m256 svx = Ortho ? zero : sux, svy = Ortho ? zero : suy;
   const __m256 stol = tolerance8(d, cam);
   const __m256 slackA = _mm256_add_ps(c.selfSlack, slack8(c.nx, c.ny, c.nz, svx, svy, stol));
   const __m256 ea = _mm256_max_ps(zero, _mm256_sub_ps(abs8(da), slackA));
-  const __m256 dn = _mm256_add_ps(ea, ea);
-  const __m256 far = _mm256_cmp_ps(_mm256_mul_ps(dn, dn), _mm256_mul_ps(threshold2, r2), _CMP_NLT_UQ);
-  return _mm256_or_ps(_mm256_xor_ps(c.bg, bg), _mm256_andnot_ps(c.bg, _mm256_and_ps(apart, far)));
+  return differsResult8(c, s, _mm256_add_ps(ea, ea), threshold2);
 }
 
 // The same for samples given as their float4s (lane j = p[j]).

@@ -135,14 +135,7 @@ inline void attachSubsamples(Frame& frame, const std::string& sidecarPath) {
     }
     packedAll.push_back(std::move(packed));
   }
-  Image records = rsaa::subsampleImage(frame.width, frame.height);
-  auto* rec = reinterpret_cast<rsaa::SubsampleRecord*>(records.data.data());
-  const std::size_t n = std::size_t(frame.width) * std::size_t(frame.height);
-  for (int k = 0; k < rsaa::kSamples; ++k)
-    for (std::size_t i = 0; i < n; ++i) {
-      const float* p = packedAll[std::size_t(k)].data.data() + 4 * i;
-      rsaa::encodeSubsample(rec[i], k, p[3], p[0], p[1], p[2]);
-    }
+  Image records = rsaa::packSubsamples(packedAll.data());
   for (int k = 0; k < rsaa::kSamples; ++k) frame.passes[subsamplePass(k)] = std::move(packedAll[std::size_t(k)]);
   frame.passes[kPackedSubsamplePass] = std::move(records);
 }

@@ -82,4 +82,18 @@ inline Image subsampleImage(int width, int height) {
   return im;
 }
 
+// The records of 8 float4 images of one size (sub-sample k: world normal
+// xyz, planar depth in w), as attachSubsamples stores them.
+inline Image packSubsamples(const Image* sub) {
+  Image records = subsampleImage(sub[0].width, sub[0].height);
+  auto* rec = reinterpret_cast<SubsampleRecord*>(records.data.data());
+  const std::size_t n = std::size_t(sub[0].width) * std::size_t(sub[0].height);
+  for (int k = 0; k < kSamples; ++k)
+    for (std::size_t i = 0; i < n; ++i) {
+      const float* p = sub[k].data.data() + 4 * i;
+      encodeSubsample(rec[i], k, p[3], p[0], p[1], p[2]);
+    }
+  return records;
+}
+
 }  // namespace crisp::rsaa

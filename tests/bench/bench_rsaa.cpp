@@ -66,13 +66,7 @@ const Frame& frame(int width, int height) {
         p[3] = depthOf(shapeAt(scene, x + 0.5f + rsaa::kTablePattern.x[k], y + 0.5f + rsaa::kTablePattern.y[k]));
       }
     }
-  f.records = rsaa::subsampleImage(width, height);
-  auto* rec = reinterpret_cast<rsaa::SubsampleRecord*>(f.records.data.data());
-  for (int k = 0; k < rsaa::kSamples; ++k)
-    for (std::size_t i = 0; i < std::size_t(width) * std::size_t(height); ++i) {
-      const float* p = f.sub[k].data.data() + 4 * i;
-      rsaa::encodeSubsample(rec[i], k, p[3], p[0], p[1], p[2]);
-    }
+  f.records = rsaa::packSubsamples(f.sub);
   return f;
 }
 
@@ -111,12 +105,7 @@ const Frame& sphereFrame(int width, int height) {
         geometry(x + 0.5 + rsaa::kTablePattern.x[k], y + 0.5 + rsaa::kTablePattern.y[k], p[3], p);
       }
     }
-  auto* rec = reinterpret_cast<rsaa::SubsampleRecord*>(f.records.data.data());
-  for (int k = 0; k < rsaa::kSamples; ++k)
-    for (std::size_t i = 0; i < std::size_t(width) * std::size_t(height); ++i) {
-      const float* p = f.sub[k].data.data() + 4 * i;
-      rsaa::encodeSubsample(rec[i], k, p[3], p[0], p[1], p[2]);
-    }
+  f.records = rsaa::packSubsamples(f.sub);
   return f;
 }
 

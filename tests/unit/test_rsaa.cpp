@@ -84,14 +84,7 @@ struct Frame {
 
 // f with its float4 sub-samples also as packed records (io/subsamples.h's encoding).
 Frame withRecords(Frame f) {
-  f.records = subsampleImage(f.color.width, f.color.height);
-  auto* rec = reinterpret_cast<SubsampleRecord*>(f.records.data.data());
-  const std::size_t n = std::size_t(f.color.width) * std::size_t(f.color.height);
-  for (int k = 0; k < kSamples; ++k)
-    for (std::size_t i = 0; i < n; ++i) {
-      const float* p = f.sub[k].data.data() + 4 * i;
-      encodeSubsample(rec[i], k, p[3], p[0], p[1], p[2]);
-    }
+  f.records = packSubsamples(f.sub);
   return f;
 }
 
