@@ -282,7 +282,7 @@ __attribute__((always_inline)) inline Vec4 fetchHistory(const Frame& f, int x, i
 // used to branch.
 template <class T>
 struct PixelLanes {
-  using M = typename temporal::MaskOf<T>::type;
+  using M = temporal::MaskOfT<T>;
   T current[4];  // the current colour in the clip space (the unjittered mix, or the centre tap); [3] = alpha
   T boxMin[3], boxMax[3];      // 3x3 box of the current frame
   T crossMin[3], crossMax[3];  // cross (5-tap) box
@@ -293,7 +293,7 @@ struct PixelLanes {
 };
 template <class T>
 struct ResolvedLanes {
-  using M = typename temporal::MaskOf<T>::type;
+  using M = temporal::MaskOfT<T>;
   T color[3];       // the new history colour, clip space
   T signedWeight;   // its lane 3: -W moving, +W static
   T output[3];      // color as sanitised RGB (unless reset without unjitter: the input itself)
@@ -332,7 +332,7 @@ inline T clipTowardCentreOf(const T p[3], const T lo[3], const T hi[3], T* out) 
 template <class T, class FootprintExcess>
 __attribute__((always_inline)) inline ResolvedLanes<T> resolveLanes(const Frame& f, const PixelLanes<T>& in,
                                                                     FootprintExcess&& footprintExcess) {
-  using M = typename temporal::MaskOf<T>::type;
+  using M = temporal::MaskOfT<T>;
   using temporal::lanesOf;
   using temporal::maxOf;
   using temporal::minOf;

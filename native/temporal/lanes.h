@@ -42,23 +42,11 @@ inline Vec8 lanesOf<Vec8>(float v) {
   return Vec8{v, v, v, v, v, v, v, v};
 }
 
-// The mask type of a lane type; also its integer lane type (int32 lanes).
+// The mask and integer lane types of a lane type (Mask8 is both for Vec8).
 template <class T>
-struct MaskOf;
-template <>
-struct MaskOf<float> {
-  using type = bool;
-};
-template <>
-struct MaskOf<Vec8> {
-  using type = Mask8;
-};
-
+using MaskOfT = std::conditional_t<std::is_same_v<T, float>, bool, Mask8>;
 template <class T>
-using MaskOfT = typename MaskOf<T>::type;
-// The integer lane type of a lane type.
-template <class T>
-using IntOf = typename std::conditional<std::is_same<T, float>::value, int, Mask8>::type;
+using IntOf = std::conditional_t<std::is_same_v<T, float>, int, Mask8>;
 
 // Same operand order as std::min / std::max (which of +0 / -0 is returned).
 template <class T>
