@@ -7,12 +7,15 @@
 // images (ping-pong: the reprojected fetch reads neighbours of the pixel being
 // written) holding the accumulated colour in the clip space plus a signed
 // sample weight, and, only when the filter is committed with depth, two float
-// depth planes (this frame's and the previous frame's). Scratch
-// (bytesScratch): per row band of the fast path, three staged rows (RGBA,
-// the clip space), three depth rows, the column min/max of the 3x3 box and
-// the row's closest-depth taps; the current frame is staged on the fly
-// (core/row_stage.h), never as a whole image. The fast row loop has an SSE2
-// and an AVX2 copy (temporal/isa.h), both bit-identical to the reference.
+// depth planes (this frame's and the previous frame's), and a 1-byte
+// feedback-since-reset plane. Scratch (bytesScratch): per row band of the fast
+// path, a ring of five staged rows as planes (colour in the clip space, alpha,
+// motion x and y), five depth rows and the row's closest-depth taps; the
+// current frame is staged on the fly (core/row_stage.h), never as a whole
+// image. The per-pixel core is written once against temporal/lanes.h and run
+// on one pixel (the scalar reference) or eight (the fast path), so both give
+// the same bits; the fast row loop has an SSE2 and an AVX2 copy
+// (temporal/isa.h).
 #pragma once
 
 #include <cstddef>
