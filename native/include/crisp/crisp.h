@@ -150,8 +150,9 @@ CRISP_API void crispReconstructFrameMotion(CrispContext context, CrispFrame fram
                                            const char* nextSidecar);
 // RSAA (issue 5): reads the 8 geometric sub-sample files that the frame's
 // sidecar (its path with ".json") lists under "subsamples" into the frame as
-// passes "sub0".."sub7" (float4: world normal xyz, planar depth in w; the
-// rsaa filter's roles of the same names) and, when filter is not NULL, sets
+// the pass "subsamples" (CRISP_FORMAT_RSAA_SUBSAMPLES records, what the rsaa
+// filter reads) and passes "sub0".."sub7" (float4: world normal xyz, planar
+// depth in w; the filter's other accepted form) and, when filter is not NULL, sets
 // the filter's camera parameters (orthographic, proj00, proj11, proj02,
 // proj12, view00..view22) from the sidecar's camera. CRISP_ERROR_INVALID_DATA
 // or CRISP_ERROR_IO naming the sidecar or file: no "subsamples" list, a
