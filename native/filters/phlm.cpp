@@ -147,6 +147,7 @@
 #include "temporal/isa.h"
 #include "temporal/rows.h"
 #include "temporal/jitter.h"
+#include "temporal/lanes.h"
 #include "temporal/neighbourhood.h"
 #include "temporal/vec4.h"
 #include "temporal/velocity.h"
@@ -284,21 +285,6 @@ CRISP_PHLM_INLINE void fetchBeta(const T* records, int w, int h, float x, float 
   }
 }
 
-// temporal::closestDepthTap (the first tap of the smallest depth, the centre
-// unless one is smaller) with integer selects: the compiler turns the float
-// form into branches, which depth edges make unpredictable.
-CRISP_PHLM_INLINE int closestDepthTap(const float depth9[9]) {
-  int best = 4;
-  float bestDepth = depth9[4];
-#pragma GCC unroll 9
-  for (int i = 0; i < 9; ++i) {
-    const int closer = -int(depth9[i] < bestDepth);  // all ones or 0
-    best = (i & closer) | (best & ~closer);
-    bestDepth = depth9[i] < bestDepth ? depth9[i] : bestDepth;
-  }
-  return best;
-}
-
 // The footprint's extremes: the 25 taps of the 5x5 around (x, y) in row
 // order, each clamped to the image (shiftedSource) in every path; the 5
 // columns and rows are clamped once (the same taps as clamping each).
@@ -368,7 +354,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   float vx = 0.0f, vy = 0.0f;
   int tap = 4;
   if (f.motion.ptr) {
-    if (f.depth) tap = closestDepthTap(depth9);
+    if (f.depth) tap = temporal::closestDepthTap(depth9);
     const float* m = f.motion.pixel(tapX[tap % 3], tapY[tap / 3]);
     vx = m[0];
     vy = m[1];
@@ -460,24 +446,11 @@ CRISP_PHLM_INLINE V splatOf(T v) {
   return V{} + v;
 }
 
-// std::max, std::min and std::clamp lane by lane (the same operand order, so
-// the same results, NaN included).
-template <class V>
-CRISP_PHLM_INLINE V maxOf(const V& a, const V& b) {
-  return a < b ? b : a;
-}
-template <class V>
-CRISP_PHLM_INLINE V minOf(const V& a, const V& b) {
-  return b < a ? b : a;
-}
-template <class V>
-CRISP_PHLM_INLINE V absOf(const V& a) {
-  return a < zeroOf<V>() ? -a : a;
-}
-template <class V>
-CRISP_PHLM_INLINE V clampOf(const V& v, const V& lo, const V& hi) {
-  return v < lo ? lo : (hi < v ? hi : v);
-}
+// std::max, std::min, std::clamp and |a| lane by lane: temporal/lanes.h.
+using temporal::absOf;
+using temporal::clampOf;
+using temporal::maxOf;
+using temporal::minOf;
 
 // Lines 13-17 of Algorithm 1 on the axis-aligned box [lo, hi] (which contains
 // y): the smallest t in [0, 1] with f + t (y - f) inside the box (0 = inside).

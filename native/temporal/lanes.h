@@ -48,7 +48,8 @@ using MaskOfT = std::conditional_t<std::is_same_v<T, float>, bool, Mask8>;
 template <class T>
 using IntOf = std::conditional_t<std::is_same_v<T, float>, int, Mask8>;
 
-// Same operand order as std::min / std::max (which of +0 / -0 is returned).
+// Same operand order as std::min / std::max (which of +0 / -0 is returned;
+// NaN as they do). Any lane type: float, Vec8, or another GCC vector.
 template <class T>
 inline T minOf(T a, T b) {
   return b < a ? b : a;
@@ -65,7 +66,7 @@ inline T clampOf(T v, T lo, T hi) {
 // a < 0 ? -a : a (keeps -0, as temporal::vabs).
 template <class T>
 inline T absOf(T a) {
-  return a < lanesOf<T>(0.0f) ? -a : a;
+  return a < T{} ? -a : a;
 }
 // std::fabs (clears the sign bit).
 inline float fabsOf(float a) { return std::fabs(a); }

@@ -24,14 +24,15 @@ inline float sanitizeDepth(float d) { return sanitizedDepth(d); }
 // Returns the index of the closest (smallest) depth; the centre wins ties,
 // then the first in row order, so the choice is deterministic.
 inline int closestDepthTap(const float depth9[9]) {
-  // Branch-free (selects, not jumps: depth edges are unpredictable); the
-  // running best depth is carried instead of re-read.
+  // Integer selects (all ones or 0): GCC turns a float select of the index
+  // into branches, which depth edges make unpredictable.
   int best = 4;
   float bestDepth = depth9[4];
+#pragma GCC unroll 9
   for (int i = 0; i < 9; ++i) {
-    const bool closer = depth9[i] < bestDepth;
-    best = closer ? i : best;
-    bestDepth = closer ? depth9[i] : bestDepth;
+    const int closer = -int(depth9[i] < bestDepth);
+    best = (i & closer) | (best & ~closer);
+    bestDepth = depth9[i] < bestDepth ? depth9[i] : bestDepth;
   }
   return best;
 }
