@@ -10,6 +10,7 @@ const char* formatName(Format f) {
     case Format::Float3: return "float3";
     case Format::Float4: return "float4";
     case Format::UInt: return "uint";
+    case Format::RsaaSubsamples: return "rsaa_subsamples";
     default: return "undefined";
   }
 }

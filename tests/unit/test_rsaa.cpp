@@ -616,6 +616,12 @@ TEST(RsaaFilter, RunsThroughTheFilterInterfaceAndChecksItsImages) {
   // The packed records instead of sub0..sub7: same result (the float4 images unset).
   const Frame p = withRecords(f);
   EXPECT_THROW(filter->setImage("subsamples", f.sub[0].view()), Exception);  // float4 is not a record
+  try {  // a record is not a float4, and the error names its format
+    filter->setImage("sub3", p.records.view());
+    ADD_FAILURE() << "records accepted as sub3";
+  } catch (const Exception& e) {
+    EXPECT_NE(std::string(e.what()).find("format rsaa_subsamples"), std::string::npos) << e.what();
+  }
   for (int k = 0; k < kSamples; ++k) filter->unsetImage("sub" + std::to_string(k));
   EXPECT_THROW(filter->commit(), Exception);  // neither form set
   filter->setImage("subsamples", p.records.view());
