@@ -50,6 +50,7 @@
 #include "core/parallel.h"
 #include "core/row_stage.h"
 #include "temporal/history_fetch.h"
+#include "temporal/isa.h"
 #include "temporal/lanes.h"
 #include "temporal/rows.h"
 #include "temporal/vec4.h"
@@ -188,6 +189,49 @@ __attribute__((always_inline)) inline T stabilisedSobel(const StabiliseParams& p
   return temporal::finiteOf(result) ? result : c;
 }
 
+// Pass 3 on the interior of row y (1 <= y < height - 1), eight pixels at a
+// time from x = 1 while a whole group fits before the last column; returns
+// the first pixel left for the caller. Two copies of one body, as the taa
+// kernel's rows (temporal/isa.h): 8-lane vectors need AVX to be fast.
+__attribute__((always_inline)) inline int stabiliseInteriorBody(const StabiliseParams& sp, const float* raw,
+                                                                const ImageView& motion, float* out, int y) {
+  using temporal::Vec8;
+  constexpr int kL = temporal::kLanes8;
+  const int w = sp.width;
+  const Vec8 laneIndex = {0, 1, 2, 3, 4, 5, 6, 7};
+  int x = 1;
+  for (; x + kL <= w - 1; x += kL) {
+    const float* row = raw + std::size_t(y) * w + x;
+    const Vec8 c = temporal::load8(row);
+    Vec8 lo = c, hi = c;
+    for (int j = -1; j <= 1; ++j)
+      for (int i = -1; i <= 1; ++i) {
+        const Vec8 v = temporal::load8(row + std::ptrdiff_t(j) * w + i);
+        lo = temporal::minOf(lo, v);
+        hi = temporal::maxOf(hi, v);
+      }
+    Vec8 vx = temporal::lanesOf<Vec8>(0.0f), vy = vx;
+    if (motion.ptr)
+      for (int l = 0; l < kL; ++l) {
+        const float* m = motion.pixel(x + l, y);
+        vx[l] = m[0];
+        vy[l] = m[1];
+      }
+    temporal::store8(out + std::size_t(y) * w + x,
+                     stabilisedSobel(sp, c, lo, hi, vx, vy, float(x) + laneIndex, temporal::lanesOf<Vec8>(float(y))));
+  }
+  return x;
+}
+int stabiliseInteriorBaseline(const StabiliseParams& sp, const float* raw, const ImageView& motion, float* out, int y) {
+  return stabiliseInteriorBody(sp, raw, motion, out, y);
+}
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+CRISP_TEMPORAL_AVX2 int stabiliseInteriorAvx2(const StabiliseParams& sp, const float* raw, const ImageView& motion,
+                                              float* out, int y) {
+  return stabiliseInteriorBody(sp, raw, motion, out, y);
+}
+#endif
+
 }  // namespace
 
 void Kernel::allocate(int width, int height, bool withDepth) {
@@ -297,31 +341,14 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
           for (int x = 0; x < w; ++x) pixel(std::true_type{}, x, y);
           continue;
         }
-        using temporal::Vec8;
-        constexpr int kL = temporal::kLanes8;
         pixel(std::true_type{}, 0, y);
         int x = 1;
-        const Vec8 laneIndex = {0, 1, 2, 3, 4, 5, 6, 7};
-        for (; x + kL <= w - 1; x += kL) {
-          const float* row = raw.data + std::size_t(y) * w + x;
-          const Vec8 c = temporal::load8(row);
-          Vec8 lo = c, hi = c;
-          for (int j = -1; j <= 1; ++j)
-            for (int i = -1; i <= 1; ++i) {
-              const Vec8 v = temporal::load8(row + std::ptrdiff_t(j) * w + i);
-              lo = temporal::minOf(lo, v);
-              hi = temporal::maxOf(hi, v);
-            }
-          Vec8 vx = temporal::lanesOf<Vec8>(0.0f), vy = vx;
-          if (in.motion.ptr)
-            for (int l = 0; l < kL; ++l) {
-              const float* m = in.motion.pixel(x + l, y);
-              vx[l] = m[0];
-              vy[l] = m[1];
-            }
-          temporal::store8(stabilised + std::size_t(y) * w + x,
-                           stabilisedSobel(sp, c, lo, hi, vx, vy, float(x) + laneIndex, temporal::lanesOf<Vec8>(float(y))));
-        }
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+        if (temporal::useAvx2())
+          x = stabiliseInteriorAvx2(sp, raw.data, in.motion, stabilised, y);
+        else
+#endif
+          x = stabiliseInteriorBaseline(sp, raw.data, in.motion, stabilised, y);
         for (; x < w - 1; ++x) pixel(std::false_type{}, x, y);
         pixel(std::true_type{}, w - 1, y);
       }

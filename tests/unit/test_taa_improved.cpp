@@ -216,55 +216,59 @@ TEST(TaaImproved, AliasedValuePlanesFastEqualsReference) {
   } inputs[] = {{"all", true, true, true}, {"depth mask", false, true, true}, {"no albedo", true, false, true},
                 {"no depth", true, true, false}};
   const char* ingredients[] = {"all", "sobel", "modelAverage", "depthVariance", "temporalDepthVariance"};
-  for (const Inputs& c : inputs)
-    for (const char* only : ingredients) {
-      taa_improved::Settings s;
-      s.depthThreshold = 0.0005f;  // more pixels take the pseudo-variance lanes
-      if (std::string(only) != "all") {
-        s.sobel = std::string(only) == "sobel";
-        s.modelAverage = std::string(only) == "modelAverage";
-        s.depthVariance = std::string(only) == "depthVariance";
-        s.temporalDepthVariance = std::string(only) == "temporalDepthVariance";
-      }
-      taa_improved::Kernel fast, ref;
-      fast.allocate(w, h, c.depth);
-      ref.allocate(w, h, c.depth);
-      bool steered = false;  // some aliasedValue > 0: the ingredient reached the plane
-      for (int t = 0; t < 6; ++t) {
-        synth::FrameData f = synth::renderFrame(seq, w, h, t + 10, {});
-        for (float& v : f.color.data) v *= 0.05f;  // dim: the Sobel term stays below 1
-        if (t == 2) {
-          f.color.at(w / 2, h / 2)[0] = std::numeric_limits<float>::quiet_NaN();
-          if (c.depth) f.depth.at(7, 9)[0] = std::numeric_limits<float>::infinity();
+  for (const temporal::Isa isa : test::kFastPathIsas) {  // the AVX2 and the baseline copies of the fast rows
+    const test::FastPathIsa scope(isa);
+    for (const Inputs& c : inputs)
+      for (const char* only : ingredients) {
+        taa_improved::Settings s;
+        s.depthThreshold = 0.0005f;  // more pixels take the pseudo-variance lanes
+        if (std::string(only) != "all") {
+          s.sobel = std::string(only) == "sobel";
+          s.modelAverage = std::string(only) == "modelAverage";
+          s.depthVariance = std::string(only) == "depthVariance";
+          s.temporalDepthVariance = std::string(only) == "temporalDepthVariance";
         }
-        Image albedo = f.color;
-        for (int y = 0; y < h; ++y)
-          for (int x = 0; x < w; ++x) albedo.at(x, y)[1] = (x / 3) % 2 ? 0.04f : 0.01f;
-        Image outFast(w, h, 4), outRef(w, h, 4);
-        taa_improved::Inputs in;
-        in.color = f.color.view();
-        in.motion = f.motion.view();
-        if (c.depth) in.depth = f.depth.view();
-        if (c.id) in.id = f.id.view();
-        if (c.albedo) in.albedo = albedo.view();
-        s.base.jitterX = f.jitter.x;
-        s.base.jitterY = f.jitter.y;
-        in.output = outFast.view();
-        fast.run(in, s, false, 2);
-        in.output = outRef.view();
-        ref.run(in, s, true, 1);
-        const std::string where = std::string(c.name) + ", " + only + ", frame " + std::to_string(t);
-        ASSERT_EQ(fast.sobel(), ref.sobel()) << where;
-        ASSERT_EQ(0, std::memcmp(fast.aliasedValue().data(), ref.aliasedValue().data(), sizeof(float) * w * h))
-            << where;
-        ASSERT_EQ(0, std::memcmp(outFast.data.data(), outRef.data.data(), outFast.data.size() * sizeof(float)))
-            << where;
-        for (float a : ref.aliasedValue()) steered = steered || a > 0.0f;
+        taa_improved::Kernel fast, ref;
+        fast.allocate(w, h, c.depth);
+        ref.allocate(w, h, c.depth);
+        bool steered = false;  // some aliasedValue > 0: the ingredient reached the plane
+        for (int t = 0; t < 6; ++t) {
+          synth::FrameData f = synth::renderFrame(seq, w, h, t + 10, {});
+          for (float& v : f.color.data) v *= 0.05f;  // dim: the Sobel term stays below 1
+          if (t == 2) {
+            f.color.at(w / 2, h / 2)[0] = std::numeric_limits<float>::quiet_NaN();
+            if (c.depth) f.depth.at(7, 9)[0] = std::numeric_limits<float>::infinity();
+          }
+          Image albedo = f.color;
+          for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) albedo.at(x, y)[1] = (x / 3) % 2 ? 0.04f : 0.01f;
+          Image outFast(w, h, 4), outRef(w, h, 4);
+          taa_improved::Inputs in;
+          in.color = f.color.view();
+          in.motion = f.motion.view();
+          if (c.depth) in.depth = f.depth.view();
+          if (c.id) in.id = f.id.view();
+          if (c.albedo) in.albedo = albedo.view();
+          s.base.jitterX = f.jitter.x;
+          s.base.jitterY = f.jitter.y;
+          in.output = outFast.view();
+          fast.run(in, s, false, 2);
+          in.output = outRef.view();
+          ref.run(in, s, true, 1);
+          const std::string where =
+              std::string(c.name) + ", " + only + ", frame " + std::to_string(t) + ", " + temporal::fastPathIsaName();
+          ASSERT_EQ(fast.sobel(), ref.sobel()) << where;
+          ASSERT_EQ(0, std::memcmp(fast.aliasedValue().data(), ref.aliasedValue().data(), sizeof(float) * w * h))
+              << where;
+          ASSERT_EQ(0, std::memcmp(outFast.data.data(), outRef.data.data(), outFast.data.size() * sizeof(float)))
+              << where;
+          for (float a : ref.aliasedValue()) steered = steered || a > 0.0f;
+        }
+        const bool possible = c.depth || std::string(only) == "all" || std::string(only) == "sobel" ||
+                              (std::string(only) == "modelAverage" && c.id);
+        if (possible) {
+          EXPECT_TRUE(steered) << c.name << ", " << only;
+        }
       }
-      const bool possible = c.depth || std::string(only) == "all" || std::string(only) == "sobel" ||
-                            (std::string(only) == "modelAverage" && c.id);
-      if (possible) {
-        EXPECT_TRUE(steered) << c.name << ", " << only;
-      }
-    }
+  }
 }
