@@ -4,7 +4,8 @@
 // moves 0.7 px right, 0.3 px down per frame: every pixel takes the reprojected,
 // clipped path, the worst case) with colour, motion and depth. Variants: the
 // history fetch (Catmull-Rom default, bilinear), and a still scene without
-// motion and depth (the static accumulation path, no reprojection work).
+// motion and depth (the static accumulation path, no reprojection work), and
+// the fast path's x86-64 baseline (SSE2) row loop where AVX2 exists (.sse2).
 // Counters: kept_MB = memory kept between frames (history), scratch_MB = the
 // fast path's per-band row rings. The memory-copy floor of the same run is floor.memcpy_rgba
 // (bench_floor.cpp).
@@ -14,6 +15,7 @@
 
 #include "bench_common.h"
 #include "filters/taa.h"
+#include "temporal/isa.h"
 
 namespace {
 
@@ -27,6 +29,13 @@ void runTaa(benchmark::State& state, int width, int height, const Variant& v) {
   bench::setMemoryCounters(state, k);
 }
 
+// The same with the baseline copy of the row loop (temporal/isa.h).
+void runTaaBaselineRows(benchmark::State& state, int width, int height, const Variant& v) {
+  crisp::temporal::setFastPathIsa(crisp::temporal::Isa::Baseline);
+  runTaa(state, width, height, v);
+  crisp::temporal::setFastPathIsa(crisp::temporal::Isa::Auto);
+}
+
 void registerAll() {
   const Variant variants[] = {{"taa.rgb_motion_depth.fast.mt", 0, false, true, "catmull-rom"},
                               {"taa.rgb_motion_depth.fast.st", 1, false, true, "catmull-rom"},
@@ -34,6 +43,8 @@ void registerAll() {
                               {"taa.rgb_motion_depth.bilinear.fast.mt", 0, false, true, "bilinear"},
                               {"taa.rgb_static.fast.mt", 0, false, false, "catmull-rom"}};
   bench::registerVariants(variants, runTaa);
+  const Variant baseline[] = {{"taa.rgb_motion_depth.fast.st.sse2", 1, false, true, "catmull-rom"}};
+  bench::registerVariants(baseline, runTaaBaselineRows);
 }
 
 const bool registered = (registerAll(), true);
