@@ -213,7 +213,7 @@ constexpr int kTapDx[9] = {-1, 0, 1, -1, 0, 1, -1, 0, 1};
 constexpr int kTapDy[9] = {-1, -1, -1, 0, 0, 0, 1, 1, 1};
 
 // Steps 3 (from the followed tap's velocity v) and 8's validity, and the
-// bilinear footprint of p + v, on one pixel (T = float) or eight (T = Vec8),
+// bilinear footprint of p + v, on one pixel (T = float) or a lane group (Vec4, Vec8),
 // written once against temporal/lanes.h so both give the same bits.
 template <class T>
 struct ReprojectionLanes {
@@ -276,7 +276,7 @@ __attribute__((always_inline)) inline Vec4 fetchHistory(const Frame& f, int x, i
                                                                 : temporal::fetchCatmullRomAt4<true>(f.previous, fp);
 }
 
-// Steps 5-8 on one pixel (T = float: the reference) or eight (T = Vec8: the
+// Steps 5-8 on one pixel (T = float: the reference) or a lane group (Vec4, Vec8: the
 // fast path), written once against temporal/lanes.h so both give the same
 // bits: every lane computes both blends and selects, where the reference
 // used to branch.
@@ -562,6 +562,7 @@ BandScratch bandScratch(float* base, int width) {
 // row belongs to the band): the same values as stagePixel (core/row_stage.h)
 // and the same motion and depth taps as the reference reads, de-interleaved.
 // Plane index k holds shifted pixel k - 1 clamped (Frame::sourceColumn).
+template <class T>
 __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandScratch& s, int y, float* depthNow) {
   const int w = f.width, n = planeFloats(w);
   const int* column = f.sourceColumn;
@@ -576,12 +577,12 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
     p[3][k] = px[3];
   }
   if (f.space == ClipSpace::YCoCg)
-    for (int k = 0; k < n; k += temporal::kLanes8) {  // rgbToYCoCg (color_space.h), 8 pixels at a time
-      const temporal::Vec8 r = temporal::load8(p[0] + k), g = temporal::load8(p[1] + k),
-                           b = temporal::load8(p[2] + k);
-      temporal::store8(p[0] + k, 0.25f * r + 0.5f * g + 0.25f * b);
-      temporal::store8(p[1] + k, 0.5f * r - 0.5f * b);
-      temporal::store8(p[2] + k, -0.25f * r + 0.5f * g - 0.25f * b);
+    for (int k = 0; k < n; k += temporal::kLanesOf<T>) {  // rgbToYCoCg (color_space.h), a lane group at a time
+      const T r = temporal::loadLanes<T>(p[0] + k), g = temporal::loadLanes<T>(p[1] + k),
+              b = temporal::loadLanes<T>(p[2] + k);
+      temporal::storeLanes(p[0] + k, 0.25f * r + 0.5f * g + 0.25f * b);
+      temporal::storeLanes(p[1] + k, 0.5f * r - 0.5f * b);
+      temporal::storeLanes(p[2] + k, -0.25f * r + 0.5f * g - 0.25f * b);
     }
   if (f.motion.ptr)
     for (int k = 0; k < n; ++k) {
@@ -600,23 +601,25 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
 // halo rows above and below), then eight pixels at a time: their taps, boxes,
 // unjittered mix and reprojection from the planes, their history fetched one
 // by one, the same resolveLanes as the reference on all eight.
+// T: the lane type (temporal/lanes.h), Vec8 in the AVX2 copy, Vec4 in the
+// baseline (SSE2) one.
+template <class T>
 __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const BandScratch& s, int y0, int y1,
                                                       float* depthNow) {
-  using temporal::load8;
-  using temporal::Mask8;
   using temporal::maxOf;
   using temporal::minOf;
-  using temporal::Vec8;
-  constexpr int kL = temporal::kLanes8;
+  using Int = temporal::IntOf<T>;
+  constexpr int kL = temporal::kLanesOf<T>;
+  const auto load = [](const float* p) { return temporal::loadLanes<T>(p); };
   const int w = f.width, h = f.height;
   const bool followDepth = f.depth.ptr && f.motion.ptr;
-  if (y0 > 1) stageRow(f, s, y0 - 2, nullptr);
-  if (y0 > 0) stageRow(f, s, y0 - 1, nullptr);
-  stageRow(f, s, y0, depthNow);
-  if (y0 + 1 < h) stageRow(f, s, y0 + 1, y0 + 1 < y1 ? depthNow : nullptr);
-  const Vec8 laneIndex = {0, 1, 2, 3, 4, 5, 6, 7};
+  if (y0 > 1) stageRow<T>(f, s, y0 - 2, nullptr);
+  if (y0 > 0) stageRow<T>(f, s, y0 - 1, nullptr);
+  stageRow<T>(f, s, y0, depthNow);
+  if (y0 + 1 < h) stageRow<T>(f, s, y0 + 1, y0 + 1 < y1 ? depthNow : nullptr);
+  const T laneIndex = temporal::laneIndexOf<T>();
   for (int y = y0; y < y1; ++y) {
-    if (y + 2 < h) stageRow(f, s, y + 2, y + 2 < y1 ? depthNow : nullptr);
+    if (y + 2 < h) stageRow<T>(f, s, y + 2, y + 2 < y1 ? depthNow : nullptr);
     const int up = std::max(y - 1, 0) % kRing, mid = y % kRing, down = std::min(y + 1, h - 1) % kRing;
     float* const* rows[3] = {s.planes[up], s.planes[mid], s.planes[down]};
     float* const* rows5[5] = {s.planes[std::max(y - 2, 0) % kRing], rows[0], rows[1], rows[2],
@@ -625,20 +628,20 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
     const std::size_t rowStart = std::size_t(y) * w;
     for (int x0 = 0; x0 < w; x0 += kL) {
       const int lanes = std::min(kL, w - x0), i = x0 + 1;  // i: plane index of pixel x0
-      PixelLanes<Vec8> in;
+      PixelLanes<T> in;
       for (int c = 0; c < 4; ++c) {
-        Vec8 t[9];
+        T t[9];
         if (c == 3 && !f.unjitter.enabled) {
-          in.current[3] = load8(rows[1][3] + i);
+          in.current[3] = load(rows[1][3] + i);
           break;
         }
-        for (int k = 0; k < 9; ++k) t[k] = load8(rows[k / 3][c] + i + k % 3 - 1);
+        for (int k = 0; k < 9; ++k) t[k] = load(rows[k / 3][c] + i + k % 3 - 1);
         in.current[c] = f.unjitter.enabled ? temporal::unjitteredMix(t, f.unjitter.weights) : t[4];
         if (c == 3) break;  // alpha: only mixed
         // Column-first boxes (neighbourhood.h columnFirstBoxes4).
-        const Vec8 minL = minOf(minOf(t[0], t[3]), t[6]), minC = minOf(minOf(t[1], t[4]), t[7]),
+        const T minL = minOf(minOf(t[0], t[3]), t[6]), minC = minOf(minOf(t[1], t[4]), t[7]),
                    minR = minOf(minOf(t[2], t[5]), t[8]);
-        const Vec8 maxL = maxOf(maxOf(t[0], t[3]), t[6]), maxC = maxOf(maxOf(t[1], t[4]), t[7]),
+        const T maxL = maxOf(maxOf(t[0], t[3]), t[6]), maxC = maxOf(maxOf(t[1], t[4]), t[7]),
                    maxR = maxOf(maxOf(t[2], t[5]), t[8]);
         in.boxMin[c] = minOf(minOf(minL, minC), minR);
         in.boxMax[c] = maxOf(maxOf(maxL, maxC), maxR);
@@ -647,21 +650,21 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
       }
 
       // Step 3: the followed tap's velocity, selected from the nine staged taps.
-      Vec8 vx = temporal::lanesOf<Vec8>(0.0f), vy = vx, tapDepth = temporal::lanesOf<Vec8>(kBackgroundDepth);
+      T vx = temporal::lanesOf<T>(0.0f), vy = vx, tapDepth = temporal::lanesOf<T>(kBackgroundDepth);
       if (f.motion.ptr) {
-        Mask8 tap = {4, 4, 4, 4, 4, 4, 4, 4};
+        Int tap = temporal::truncOf(temporal::lanesOf<T>(4.0f));
         if (followDepth) {
           std::memcpy(&tap, s.tap + x0, sizeof tap);
-          tapDepth = load8(s.tapDepth + x0);
+          tapDepth = load(s.tapDepth + x0);
         }
         for (int k = 0; k < 9; ++k) {
-          const Mask8 chosen = tap == k;
-          vx = chosen ? load8(rows[k / 3][4] + i + k % 3 - 1) : vx;
-          vy = chosen ? load8(rows[k / 3][5] + i + k % 3 - 1) : vy;
+          const Int chosen = tap == k;
+          vx = chosen ? load(rows[k / 3][4] + i + k % 3 - 1) : vx;
+          vy = chosen ? load(rows[k / 3][5] + i + k % 3 - 1) : vy;
         }
       }
-      const ReprojectionLanes<Vec8> rp =
-          reprojectLanes<Vec8>(f, float(x0) + laneIndex, temporal::lanesOf<Vec8>(float(y)), vx, vy, tapDepth);
+      const ReprojectionLanes<T> rp =
+          reprojectLanes<T>(f, float(x0) + laneIndex, temporal::lanesOf<T>(float(y)), vx, vy, tapDepth);
       alignas(32) float hist[4][kL] = {}, aliased[kL] = {};
       alignas(32) int since[kL] = {};
       for (int l = 0; l < lanes; ++l) {
@@ -674,13 +677,13 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         since[l] = -int(f.feedbackSinceReset[rowStart + x] != 0);
         if (f.aliased) aliased[l] = f.aliased[rowStart + x];
       }
-      for (int c = 0; c < 4; ++c) in.hist[c] = load8(hist[c]);
+      for (int c = 0; c < 4; ++c) in.hist[c] = load(hist[c]);
       in.valid = rp.valid;
       in.moving = rp.moving;
       std::memcpy(&in.feedbackSinceReset, since, sizeof since);
-      in.aliased = load8(aliased);
+      in.aliased = load(aliased);
 
-      const ResolvedLanes<Vec8> r = resolveLanes(f, in, [&](int l, float* excess) {
+      const ResolvedLanes<T> r = resolveLanes(f, in, [&](int l, float* excess) {
         const int x = x0 + l;
         if (!temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY)) return false;
         // The reference's 25 taps in its order; plane column i + l + dx,
@@ -712,11 +715,11 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
 
 // The row loop's two copies (temporal/isa.h): the baseline and AVX2.
 void fastRowsBaseline(const Frame& f, const BandScratch& s, int y0, int y1, float* depthNow) {
-  fastRowsBody(f, s, y0, y1, depthNow);
+  fastRowsBody<Vec4>(f, s, y0, y1, depthNow);
 }
 #ifdef CRISP_TEMPORAL_HAS_AVX2
 CRISP_TEMPORAL_AVX2 void fastRowsAvx2(const Frame& f, const BandScratch& s, int y0, int y1, float* depthNow) {
-  fastRowsBody(f, s, y0, y1, depthNow);
+  fastRowsBody<temporal::Vec8>(f, s, y0, y1, depthNow);
 }
 #endif
 

@@ -146,7 +146,7 @@ inline void motionAt(const ImageView& motion, int x, int y, float& vx, float& vy
   vy = m[1];
 }
 
-// Pass 3 (§4.3.3) on one pixel (T = float) or eight (T = Vec8), written once
+// Pass 3 (§4.3.3) on one pixel (T = float) or a lane group (Vec4, Vec8), written once
 // against temporal/lanes.h so both give the same bits: the bilinear fetch of
 // last frame's stabilised plane at p + v (clamp-to-edge taps), clamped to
 // this frame's 3x3 range [lo, hi] of raw values, blended with the baseline's
@@ -189,46 +189,46 @@ __attribute__((always_inline)) inline T stabilisedSobel(const StabiliseParams& p
   return temporal::finiteOf(result) ? result : c;
 }
 
-// Pass 3 on the interior of row y (1 <= y < height - 1), eight pixels at a
+// Pass 3 on the interior of row y (1 <= y < height - 1), a lane group at a
 // time from x = 1 while a whole group fits before the last column; returns
 // the first pixel left for the caller. Two copies of one body, as the taa
-// kernel's rows (temporal/isa.h): 8-lane vectors need AVX to be fast.
+// kernel's rows (temporal/isa.h): 8 lanes with AVX2, 4 in the baseline copy.
+template <class T>
 __attribute__((always_inline)) inline int stabiliseInteriorBody(const StabiliseParams& sp, const float* raw,
                                                                 const ImageView& motion, float* out, int y) {
-  using temporal::Vec8;
-  constexpr int kL = temporal::kLanes8;
+  constexpr int kL = temporal::kLanesOf<T>;
   const int w = sp.width;
-  const Vec8 laneIndex = {0, 1, 2, 3, 4, 5, 6, 7};
+  const T laneIndex = temporal::laneIndexOf<T>();
   int x = 1;
   for (; x + kL <= w - 1; x += kL) {
     const float* row = raw + std::size_t(y) * w + x;
-    const Vec8 c = temporal::load8(row);
-    Vec8 lo = c, hi = c;
+    const T c = temporal::loadLanes<T>(row);
+    T lo = c, hi = c;
     for (int j = -1; j <= 1; ++j)
       for (int i = -1; i <= 1; ++i) {
-        const Vec8 v = temporal::load8(row + std::ptrdiff_t(j) * w + i);
+        const T v = temporal::loadLanes<T>(row + std::ptrdiff_t(j) * w + i);
         lo = temporal::minOf(lo, v);
         hi = temporal::maxOf(hi, v);
       }
-    Vec8 vx = temporal::lanesOf<Vec8>(0.0f), vy = vx;
+    T vx = temporal::lanesOf<T>(0.0f), vy = vx;
     if (motion.ptr)
       for (int l = 0; l < kL; ++l) {
         const float* m = motion.pixel(x + l, y);
         vx[l] = m[0];
         vy[l] = m[1];
       }
-    temporal::store8(out + std::size_t(y) * w + x,
-                     stabilisedSobel(sp, c, lo, hi, vx, vy, float(x) + laneIndex, temporal::lanesOf<Vec8>(float(y))));
+    temporal::storeLanes(out + std::size_t(y) * w + x,
+                         stabilisedSobel(sp, c, lo, hi, vx, vy, float(x) + laneIndex, temporal::lanesOf<T>(float(y))));
   }
   return x;
 }
 int stabiliseInteriorBaseline(const StabiliseParams& sp, const float* raw, const ImageView& motion, float* out, int y) {
-  return stabiliseInteriorBody(sp, raw, motion, out, y);
+  return stabiliseInteriorBody<temporal::Vec4>(sp, raw, motion, out, y);
 }
 #ifdef CRISP_TEMPORAL_HAS_AVX2
 CRISP_TEMPORAL_AVX2 int stabiliseInteriorAvx2(const StabiliseParams& sp, const float* raw, const ImageView& motion,
                                               float* out, int y) {
-  return stabiliseInteriorBody(sp, raw, motion, out, y);
+  return stabiliseInteriorBody<temporal::Vec8>(sp, raw, motion, out, y);
 }
 #endif
 

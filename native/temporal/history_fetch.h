@@ -41,11 +41,12 @@ inline float floorExact(float x) {
   const float t = float(int(x));
   return t > x ? t - 1.0f : t;
 }
-// floorExact on eight lanes (lanes.h), the same values lane by lane.
-inline Vec8 floorExact(Vec8 x) {
-  const Mask8 big = notOf(fabsOf(x) < 8388608.0f);
-  const Vec8 safe = big ? lanesOf<Vec8>(0.0f) : x;
-  const Vec8 t = floatOf(truncOf(safe));
+// floorExact on vector lanes (lanes.h: Vec4, Vec8), the same values lane by lane.
+template <class T, IfVector<T> = 0>
+inline T floorExact(T x) {
+  const MaskOfT<T> big = notOf(fabsOf(x) < 8388608.0f);
+  const T safe = big ? lanesOf<T>(0.0f) : x;
+  const T t = floatOf(truncOf(safe));
   return big ? x : (t > safe ? t - 1.0f : t);
 }
 inline Footprint footprintOf(float x, float y) {

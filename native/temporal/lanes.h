@@ -13,6 +13,8 @@
 #include <cstring>
 #include <type_traits>
 
+#include "temporal/vec4.h"
+
 // Vec8 by value between functions that are not inlined would change the ABI
 // without AVX (GCC's -Wpsabi); every helper here is inlined.
 #pragma GCC diagnostic ignored "-Wpsabi"
@@ -21,35 +23,81 @@ namespace crisp::temporal {
 
 typedef float Vec8 __attribute__((vector_size(32)));
 typedef int Mask8 __attribute__((vector_size(32)));  // per lane: -1 true, 0 false
+typedef int Mask4 __attribute__((vector_size(16)));  // Vec4's (vec4.h)
 constexpr int kLanes8 = 8;
 
-inline Vec8 load8(const float* p) {
-  Vec8 v;
+// What a lane type is made of: float (1 lane, bool mask), Vec4 (4 lanes, one
+// SSE register: the baseline copies of the fast paths) or Vec8 (8 lanes, one
+// AVX register). The mask type is also the integer lane type (int32 lanes).
+template <class T>
+struct Lanes;
+template <>
+struct Lanes<float> {
+  using Mask = bool;
+  using Int = int;
+  static constexpr int kCount = 1;
+};
+template <>
+struct Lanes<Vec4> {
+  using Mask = Mask4;
+  using Int = Mask4;
+  static constexpr int kCount = 4;
+};
+template <>
+struct Lanes<Vec8> {
+  using Mask = Mask8;
+  using Int = Mask8;
+  static constexpr int kCount = 8;
+};
+template <class T>
+using MaskOfT = typename Lanes<T>::Mask;
+template <class T>
+using IntOf = typename Lanes<T>::Int;
+template <class T>
+constexpr int kLanesOf = Lanes<T>::kCount;
+// The float lane type of an integer/mask lane type.
+template <class M>
+using FloatLanesOf = std::conditional_t<std::is_same_v<M, Mask8>, Vec8, Vec4>;
+// Overloads for the vector lane types only (float and bool have their own).
+template <class T>
+using IfVector = std::enable_if_t<std::is_same_v<T, Vec4> || std::is_same_v<T, Vec8>, int>;
+template <class M>
+using IfMask = std::enable_if_t<std::is_same_v<M, Mask4> || std::is_same_v<M, Mask8>, int>;
+
+template <class T>
+inline T loadLanes(const float* p) {
+  T v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-inline void store8(float* p, Vec8 v) { std::memcpy(p, &v, sizeof v); }
+template <class T>
+inline void storeLanes(float* p, T v) {
+  std::memcpy(p, &v, sizeof v);
+}
+inline Vec8 load8(const float* p) { return loadLanes<Vec8>(p); }
+inline void store8(float* p, Vec8 v) { storeLanes(p, v); }
 
 // A float broadcast to the lane type.
 template <class T>
-inline T lanesOf(float v);
-template <>
-inline float lanesOf<float>(float v) {
-  return v;
+inline T lanesOf(float v) {
+  if constexpr (std::is_same_v<T, float>) {
+    return v;
+  } else {
+    T r;
+    for (int l = 0; l < kLanesOf<T>; ++l) r[l] = v;
+    return r;
+  }
 }
-template <>
-inline Vec8 lanesOf<Vec8>(float v) {
-  return Vec8{v, v, v, v, v, v, v, v};
+// 0, 1, 2, ... in the lanes.
+template <class T>
+inline T laneIndexOf() {
+  T r;
+  for (int l = 0; l < kLanesOf<T>; ++l) r[l] = float(l);
+  return r;
 }
-
-// The mask and integer lane types of a lane type (Mask8 is both for Vec8).
-template <class T>
-using MaskOfT = std::conditional_t<std::is_same_v<T, float>, bool, Mask8>;
-template <class T>
-using IntOf = std::conditional_t<std::is_same_v<T, float>, int, Mask8>;
 
 // Same operand order as std::min / std::max (which of +0 / -0 is returned;
-// NaN as they do). Any lane type: float, Vec8, or another GCC vector.
+// NaN as they do). Any lane type: float, Vec4, Vec8, or another GCC vector.
 template <class T>
 inline T minOf(T a, T b) {
   return b < a ? b : a;
@@ -70,52 +118,66 @@ inline T absOf(T a) {
 }
 // std::fabs (clears the sign bit).
 inline float fabsOf(float a) { return std::fabs(a); }
-inline Vec8 fabsOf(Vec8 a) { return (Vec8)((Mask8)a & 0x7fffffff); }
+template <class T, IfVector<T> = 0>
+inline T fabsOf(T a) {
+  return (T)((IntOf<T>)a & 0x7fffffff);
+}
 // std::isfinite.
 inline bool finiteOf(float a) { return std::isfinite(a); }
-inline Mask8 finiteOf(Vec8 a) { return fabsOf(a) <= lanesOf<Vec8>(FLT_MAX); }
+template <class T, IfVector<T> = 0>
+inline MaskOfT<T> finiteOf(T a) {
+  return fabsOf(a) <= lanesOf<T>(FLT_MAX);
+}
 inline bool notOf(bool m) { return !m; }
-inline Mask8 notOf(Mask8 m) { return ~m; }
+template <class M, IfMask<M> = 0>
+inline M notOf(M m) {
+  return ~m;
+}
 inline bool anyOf(bool m) { return m; }
-inline bool anyOf(Mask8 m) {
-  Mask8 r = m;
+template <class M, IfMask<M> = 0>
+inline bool anyOf(M m) {
   int any = 0;
-  for (int i = 0; i < kLanes8; ++i) any |= r[i];
+  for (int i = 0; i < int(sizeof(M) / sizeof(int)); ++i) any |= m[i];
   return any != 0;
 }
 // Float lanes to int lanes (truncation) and back. Only for values inside the
 // int range (callers clamp first).
 inline int truncOf(float v) { return int(v); }
-inline Mask8 truncOf(Vec8 v) { return __builtin_convertvector(v, Mask8); }
+template <class T, IfVector<T> = 0>
+inline IntOf<T> truncOf(T v) {
+  return __builtin_convertvector(v, IntOf<T>);
+}
 inline float floatOf(int v) { return float(v); }
-inline Vec8 floatOf(Mask8 v) { return __builtin_convertvector(v, Vec8); }
+template <class M, IfMask<M> = 0>
+inline FloatLanesOf<M> floatOf(M v) {
+  return __builtin_convertvector(v, FloatLanesOf<M>);
+}
 // plane[y * width + x] per lane.
 inline float gatherOf(const float* plane, int width, int x, int y) {
   return plane[std::size_t(y) * std::size_t(width) + std::size_t(x)];
 }
-inline Vec8 gatherOf(const float* plane, int width, Mask8 x, Mask8 y) {
-  Vec8 v;
-  for (int l = 0; l < kLanes8; ++l) v[l] = plane[std::size_t(y[l]) * std::size_t(width) + std::size_t(x[l])];
+template <class M, IfMask<M> = 0>
+inline FloatLanesOf<M> gatherOf(const float* plane, int width, M x, M y) {
+  FloatLanesOf<M> v;
+  for (int l = 0; l < int(sizeof(M) / sizeof(int)); ++l)
+    v[l] = plane[std::size_t(y[l]) * std::size_t(width) + std::size_t(x[l])];
   return v;
 }
 
-// Lane l of a value (l = 0 for the scalar form).
-inline float laneOf(float v, int) { return v; }
-inline float laneOf(Vec8 v, int l) { return v[l]; }
-inline bool laneOf(bool m, int) { return m; }
-inline bool laneOf(Mask8 m, int l) { return m[l] != 0; }
-inline int intLaneOf(int v, int) { return v; }
-inline int intLaneOf(Mask8 v, int l) { return v[l]; }
+// Lane l of a value.
 inline void setLane(float& v, int, float x) { v = x; }
-inline void setLane(Vec8& v, int l, float x) { v[l] = x; }
+template <class T, IfVector<T> = 0>
+inline void setLane(T& v, int l, float x) {
+  v[l] = x;
+}
 // Calls fn(l) for every set lane of m.
 template <class Fn>
 inline void forEachLane(bool m, Fn&& fn) {
   if (m) fn(0);
 }
-template <class Fn>
-inline void forEachLane(Mask8 m, Fn&& fn) {
-  for (int l = 0; l < kLanes8; ++l)
+template <class M, class Fn, IfMask<M> = 0>
+inline void forEachLane(M m, Fn&& fn) {
+  for (int l = 0; l < int(sizeof(M) / sizeof(int)); ++l)
     if (m[l]) fn(l);
 }
 
