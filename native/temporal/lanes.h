@@ -24,7 +24,6 @@ namespace crisp::temporal {
 typedef float Vec8 __attribute__((vector_size(32)));
 typedef int Mask8 __attribute__((vector_size(32)));  // per lane: -1 true, 0 false
 typedef int Mask4 __attribute__((vector_size(16)));  // Vec4's (vec4.h)
-constexpr int kLanes8 = 8;
 
 // What a lane type is made of: float (1 lane, bool mask), Vec4 (4 lanes, one
 // SSE register: the baseline copies of the fast paths) or Vec8 (8 lanes, one
@@ -74,8 +73,6 @@ template <class T>
 inline void storeLanes(float* p, T v) {
   std::memcpy(p, &v, sizeof v);
 }
-inline Vec8 load8(const float* p) { return loadLanes<Vec8>(p); }
-inline void store8(float* p, Vec8 v) { storeLanes(p, v); }
 
 // A float broadcast to the lane type.
 template <class T>
