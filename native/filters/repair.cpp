@@ -40,6 +40,7 @@
 #include "core/error.h"
 #include "core/filter.h"
 #include "core/parallel.h"
+#include "temporal/lanes.h"
 
 namespace crisp::repair {
 
@@ -69,9 +70,9 @@ typedef double D4 __attribute__((vector_size(32)));
 #define CRISP_REPAIR_HAS_AVX2_ROWS 1
 #define CRISP_REPAIR_AVX2 __attribute__((target("avx2")))
 #endif
-// Helpers on vectors are always inlined: an out-of-line default-target copy
-// called from an AVX2 clone would pass 32-byte vectors by another ABI.
-#define CRISP_LANES_INLINE inline __attribute__((always_inline))
+// Helpers on vectors are always inlined (CRISP_LANES_INLINE, temporal/lanes.h):
+// an out-of-line default-target copy called from an AVX2 clone would pass
+// 32-byte vectors by another ABI.
 
 template <class F> CRISP_LANES_INLINE F splat(float c);
 template <> CRISP_LANES_INLINE float splat<float>(float c) { return c; }
@@ -99,16 +100,8 @@ CRISP_LANES_INLINE std::int32_t truncateToInt(float v) { return std::int32_t(v);
 CRISP_LANES_INLINE I4 truncateToInt(const F4& v) { return __builtin_convertvector(v, I4); }
 CRISP_LANES_INLINE I8 truncateToInt(const F8& v) { return __builtin_convertvector(v, I8); }
 
-template <class V>
-CRISP_LANES_INLINE V loadV(const float* p) {
-  V v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-template <class V>
-CRISP_LANES_INLINE void storeV(float* p, const V& v) {
-  std::memcpy(p, &v, sizeof v);
-}
+using temporal::loadLanes;
+using temporal::storeLanes;
 
 CRISP_LANES_INLINE F4 load4(const float* p) {
   F4 v;
@@ -201,7 +194,7 @@ constexpr int kLanes = int(sizeof(V) / sizeof(float));
 // order; F8: pixels 0 2 4 6 1 3 5 7 (pixelOrder restores 0..7).
 #if defined(__GNUC__) && !defined(__clang__)
 CRISP_LANES_INLINE void deinterleaveRgb(const float* p, F4& r, F4& g, F4& b) {
-  const F4 a0 = loadV<F4>(p), a1 = loadV<F4>(p + 4), a2 = loadV<F4>(p + 8), a3 = loadV<F4>(p + 12);
+  const F4 a0 = loadLanes<F4>(p), a1 = loadLanes<F4>(p + 4), a2 = loadLanes<F4>(p + 8), a3 = loadLanes<F4>(p + 12);
   const F4 t0 = __builtin_shuffle(a0, a1, I4{0, 4, 1, 5}), t1 = __builtin_shuffle(a0, a1, I4{2, 6, 3, 7});
   const F4 t2 = __builtin_shuffle(a2, a3, I4{0, 4, 1, 5}), t3 = __builtin_shuffle(a2, a3, I4{2, 6, 3, 7});
   r = __builtin_shuffle(t0, t2, I4{0, 1, 4, 5});
@@ -210,7 +203,7 @@ CRISP_LANES_INLINE void deinterleaveRgb(const float* p, F4& r, F4& g, F4& b) {
 }
 CRISP_LANES_INLINE F4 pixelOrder(const F4& v) { return v; }
 CRISP_LANES_INLINE void deinterleaveRgb(const float* p, F8& r, F8& g, F8& b) {
-  const F8 a0 = loadV<F8>(p), a1 = loadV<F8>(p + 8), a2 = loadV<F8>(p + 16), a3 = loadV<F8>(p + 24);
+  const F8 a0 = loadLanes<F8>(p), a1 = loadLanes<F8>(p + 8), a2 = loadLanes<F8>(p + 16), a3 = loadLanes<F8>(p + 24);
   const I8 lo = {0, 8, 1, 9, 4, 12, 5, 13}, hi = {2, 10, 3, 11, 6, 14, 7, 15};
   const F8 t0 = __builtin_shuffle(a0, a1, lo), t1 = __builtin_shuffle(a0, a1, hi);
   const F8 t2 = __builtin_shuffle(a2, a3, lo), t3 = __builtin_shuffle(a2, a3, hi);
@@ -245,7 +238,7 @@ CRISP_LANES_INLINE void greyRowBody(const float* rgba, float* grey, int width) {
     const float* p = rgba + 4 * x;
     V r, g, b;
     deinterleaveRgb(p, r, g, b);
-    storeV(grey + x, pixelOrder(greyT(r, g, b)));
+    storeLanes(grey + x, pixelOrder(greyT(r, g, b)));
   }
   for (; x < width; ++x) grey[x] = greyT(rgba[4 * x], rgba[4 * x + 1], rgba[4 * x + 2]);
 }
@@ -258,9 +251,9 @@ CRISP_LANES_INLINE bool sanitizeRowBody(const float* src, float* dst, int n) {
   decltype(bitsOf(V{})) changed = {};
   int i = 0;
   for (; i + L <= n; i += L) {
-    const V v = loadV<V>(src + i), m = sanitizeT(v);
+    const V v = loadLanes<V>(src + i), m = sanitizeT(v);
     changed |= bitsOf(v) != bitsOf(m);
-    storeV(dst + i, m);
+    storeLanes(dst + i, m);
   }
   bool any = false;
   for (int k = 0; k < L; ++k) any |= changed[k] != 0;
@@ -301,14 +294,14 @@ CRISP_LANES_INLINE void sobelRowBody(const float* up, const float* mid, const fl
   out[0] = at(0);
   int x = 1;
   for (; x + L <= width - 1; x += L) {
-    const V ul = loadV<V>(up + x - 1), uc = loadV<V>(up + x), ur = loadV<V>(up + x + 1);
-    const V ml = loadV<V>(mid + x - 1), mr = loadV<V>(mid + x + 1);
-    const V dl = loadV<V>(down + x - 1), dc = loadV<V>(down + x), dr = loadV<V>(down + x + 1);
+    const V ul = loadLanes<V>(up + x - 1), uc = loadLanes<V>(up + x), ur = loadLanes<V>(up + x + 1);
+    const V ml = loadLanes<V>(mid + x - 1), mr = loadLanes<V>(mid + x + 1);
+    const V dl = loadLanes<V>(down + x - 1), dc = loadLanes<V>(down + x), dr = loadLanes<V>(down + x + 1);
     const V gx = (ur + 2.0f * mr + dr) - (ul + 2.0f * ml + dl);
     const V gy = (dl + 2.0f * dc + dr) - (ul + 2.0f * uc + ur);
     V z = gx * gx + gy * gy;
     sqrtInPlace(z);
-    storeV(out + x, z);
+    storeLanes(out + x, z);
   }
   for (; x < width; ++x) out[x] = at(x);
 }

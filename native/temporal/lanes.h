@@ -16,8 +16,11 @@
 #include "temporal/vec4.h"
 
 // Vec8 by value between functions that are not inlined would change the ABI
-// without AVX (GCC's -Wpsabi); every helper here is inlined.
+// without AVX (GCC's -Wpsabi), and an out-of-line default-target copy called
+// from an AVX2 clone would pass it by another ABI: every helper here is
+// always inlined.
 #pragma GCC diagnostic ignored "-Wpsabi"
+#define CRISP_LANES_INLINE inline __attribute__((always_inline))
 
 namespace crisp::temporal {
 
@@ -64,19 +67,19 @@ template <class M>
 using IfMask = std::enable_if_t<std::is_same_v<M, Mask4> || std::is_same_v<M, Mask8>, int>;
 
 template <class T>
-inline T loadLanes(const float* p) {
+CRISP_LANES_INLINE T loadLanes(const float* p) {
   T v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
 template <class T>
-inline void storeLanes(float* p, T v) {
+CRISP_LANES_INLINE void storeLanes(float* p, T v) {
   std::memcpy(p, &v, sizeof v);
 }
 
 // A float broadcast to the lane type.
 template <class T>
-inline T lanesOf(float v) {
+CRISP_LANES_INLINE T lanesOf(float v) {
   if constexpr (std::is_same_v<T, float>) {
     return v;
   } else {
@@ -87,7 +90,7 @@ inline T lanesOf(float v) {
 }
 // 0, 1, 2, ... in the lanes.
 template <class T>
-inline T laneIndexOf() {
+CRISP_LANES_INLINE T laneIndexOf() {
   T r;
   for (int l = 0; l < kLanesOf<T>; ++l) r[l] = float(l);
   return r;
@@ -96,65 +99,65 @@ inline T laneIndexOf() {
 // Same operand order as std::min / std::max (which of +0 / -0 is returned;
 // NaN as they do). Any lane type: float, Vec4, Vec8, or another GCC vector.
 template <class T>
-inline T minOf(T a, T b) {
+CRISP_LANES_INLINE T minOf(T a, T b) {
   return b < a ? b : a;
 }
 template <class T>
-inline T maxOf(T a, T b) {
+CRISP_LANES_INLINE T maxOf(T a, T b) {
   return a < b ? b : a;
 }
 // std::clamp(v, lo, hi).
 template <class T>
-inline T clampOf(T v, T lo, T hi) {
+CRISP_LANES_INLINE T clampOf(T v, T lo, T hi) {
   return v < lo ? lo : (hi < v ? hi : v);
 }
 // a < 0 ? -a : a (keeps -0, as temporal::vabs).
 template <class T>
-inline T absOf(T a) {
+CRISP_LANES_INLINE T absOf(T a) {
   return a < T{} ? -a : a;
 }
 // std::fabs (clears the sign bit).
-inline float fabsOf(float a) { return std::fabs(a); }
+CRISP_LANES_INLINE float fabsOf(float a) { return std::fabs(a); }
 template <class T, IfVector<T> = 0>
-inline T fabsOf(T a) {
+CRISP_LANES_INLINE T fabsOf(T a) {
   return (T)((IntOf<T>)a & 0x7fffffff);
 }
 // std::isfinite.
-inline bool finiteOf(float a) { return std::isfinite(a); }
+CRISP_LANES_INLINE bool finiteOf(float a) { return std::isfinite(a); }
 template <class T, IfVector<T> = 0>
-inline MaskOfT<T> finiteOf(T a) {
+CRISP_LANES_INLINE MaskOfT<T> finiteOf(T a) {
   return fabsOf(a) <= lanesOf<T>(FLT_MAX);
 }
-inline bool notOf(bool m) { return !m; }
+CRISP_LANES_INLINE bool notOf(bool m) { return !m; }
 template <class M, IfMask<M> = 0>
-inline M notOf(M m) {
+CRISP_LANES_INLINE M notOf(M m) {
   return ~m;
 }
-inline bool anyOf(bool m) { return m; }
+CRISP_LANES_INLINE bool anyOf(bool m) { return m; }
 template <class M, IfMask<M> = 0>
-inline bool anyOf(M m) {
+CRISP_LANES_INLINE bool anyOf(M m) {
   int any = 0;
   for (int i = 0; i < int(sizeof(M) / sizeof(int)); ++i) any |= m[i];
   return any != 0;
 }
 // Float lanes to int lanes (truncation) and back. Only for values inside the
 // int range (callers clamp first).
-inline int truncOf(float v) { return int(v); }
+CRISP_LANES_INLINE int truncOf(float v) { return int(v); }
 template <class T, IfVector<T> = 0>
-inline IntOf<T> truncOf(T v) {
+CRISP_LANES_INLINE IntOf<T> truncOf(T v) {
   return __builtin_convertvector(v, IntOf<T>);
 }
-inline float floatOf(int v) { return float(v); }
+CRISP_LANES_INLINE float floatOf(int v) { return float(v); }
 template <class M, IfMask<M> = 0>
-inline FloatLanesOf<M> floatOf(M v) {
+CRISP_LANES_INLINE FloatLanesOf<M> floatOf(M v) {
   return __builtin_convertvector(v, FloatLanesOf<M>);
 }
 // plane[y * width + x] per lane.
-inline float gatherOf(const float* plane, int width, int x, int y) {
+CRISP_LANES_INLINE float gatherOf(const float* plane, int width, int x, int y) {
   return plane[std::size_t(y) * std::size_t(width) + std::size_t(x)];
 }
 template <class M, IfMask<M> = 0>
-inline FloatLanesOf<M> gatherOf(const float* plane, int width, M x, M y) {
+CRISP_LANES_INLINE FloatLanesOf<M> gatherOf(const float* plane, int width, M x, M y) {
   FloatLanesOf<M> v;
   for (int l = 0; l < int(sizeof(M) / sizeof(int)); ++l)
     v[l] = plane[std::size_t(y[l]) * std::size_t(width) + std::size_t(x[l])];
@@ -162,18 +165,18 @@ inline FloatLanesOf<M> gatherOf(const float* plane, int width, M x, M y) {
 }
 
 // Lane l of a value.
-inline void setLane(float& v, int, float x) { v = x; }
+CRISP_LANES_INLINE void setLane(float& v, int, float x) { v = x; }
 template <class T, IfVector<T> = 0>
-inline void setLane(T& v, int l, float x) {
+CRISP_LANES_INLINE void setLane(T& v, int l, float x) {
   v[l] = x;
 }
 // Calls fn(l) for every set lane of m.
 template <class Fn>
-inline void forEachLane(bool m, Fn&& fn) {
+CRISP_LANES_INLINE void forEachLane(bool m, Fn&& fn) {
   if (m) fn(0);
 }
 template <class M, class Fn, IfMask<M> = 0>
-inline void forEachLane(M m, Fn&& fn) {
+CRISP_LANES_INLINE void forEachLane(M m, Fn&& fn) {
   for (int l = 0; l < int(sizeof(M) / sizeof(int)); ++l)
     if (m[l]) fn(l);
 }
