@@ -150,9 +150,9 @@ struct Frame {
   ImageView color;             // the input, for exact resets
   ImageView motion;            // ptr null: static scene
   ImageView depth;             // ptr null: no depth
-  temporal::HistoryImage previous;  // valid only if hasHistory
+  temporal::HistoryPlanes previous;  // valid only if hasHistory
   bool hasHistory;
-  float* history;              // written: RGBA
+  float* history[4];           // written: planes R G B (or Y Co Cg) and the signed weight
   ImageView output;            // written unless sharpening
   bool writeOutput;
   ClipSpace space;
@@ -270,7 +270,7 @@ __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const 
 // paths call it one pixel at a time.
 __attribute__((always_inline)) inline Vec4 fetchHistory(const Frame& f, int x, int y, bool moving,
                                                         const temporal::Footprint& fp, float qx, float qy) {
-  if (!moving) return temporal::load4(f.previous.at(x, y));  // exact: no filtering at zero motion
+  if (!moving) return temporal::tapOf(f.previous, x, y);  // exact: no filtering at zero motion
   if (f.filter == HistoryFilter::Bilinear) return temporal::fetchBilinear4(f.previous, qx, qy);
   return temporal::footprintInterior4x4(fp, f.width, f.height) ? temporal::fetchCatmullRomAt4<false>(f.previous, fp)
                                                                 : temporal::fetchCatmullRomAt4<true>(f.previous, fp);
@@ -440,10 +440,8 @@ __attribute__((always_inline)) inline ResolvedLanes<T> resolveLanes(const Frame&
   return r;
 }
 
-// Writes one resolved pixel: its history (RGBA) and, unless sharpening, its output.
-inline void storePixel(const Frame& f, int x, int y, const float color[3], float signedWeight, const float output[3],
-                       bool reset, float alpha) {
-  temporal::store4(f.history + (std::size_t(y) * f.width + x) * 4, Vec4{color[0], color[1], color[2], signedWeight});
+// Writes one resolved pixel's output, unless sharpening.
+inline void storeOutputPixel(const Frame& f, int x, int y, const float output[3], bool reset, float alpha) {
   if (!f.writeOutput) return;
   if (reset && !f.unjitter.enabled) {
     // Reset to current: the input colour itself (sanitised), not its YCoCg
@@ -458,6 +456,14 @@ inline void storePixel(const Frame& f, int x, int y, const float color[3], float
   p[1] = output[1];
   p[2] = output[2];
   if (f.output.channels() > 3) p[3] = alpha;
+}
+// Writes one resolved pixel: its history and its output.
+inline void storePixel(const Frame& f, int x, int y, const float color[3], float signedWeight, const float output[3],
+                       bool reset, float alpha) {
+  const std::size_t i = std::size_t(y) * f.width + x;
+  for (int c = 0; c < 3; ++c) f.history[c][i] = color[c];
+  f.history[3][i] = signedWeight;
+  storeOutputPixel(f, x, y, output, reset, alpha);
 }
 
 // The scalar reference: every tap clamped to the image and staged on the
@@ -667,9 +673,26 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
           reprojectLanes<T>(f, float(x0) + laneIndex, temporal::lanesOf<T>(float(y)), vx, vy, tapDepth);
       alignas(32) float hist[4][kL] = {}, aliased[kL] = {};
       alignas(32) int since[kL] = {};
+      // A whole group with valid history fetches it as lanes when nothing in it
+      // moves (exact taps) or when, on Catmull-Rom, every footprint is interior
+      // and shares one integer offset (smooth motion); else one pixel at a time.
+      const bool whole = lanes == kL && temporal::allOf(rp.valid);
+      bool fetched = false;
+      if (whole && !temporal::anyOf(rp.moving)) {
+        for (int c = 0; c < 4; ++c) in.hist[c] = load(f.previous.plane[c] + rowStart + x0);
+        fetched = true;
+      } else if (whole && temporal::allOf(rp.moving) && f.filter == HistoryFilter::CatmullRom) {
+        const int gx = rp.x0[0], gy = rp.y0[0];
+        const Int offset = rp.x0 - temporal::truncOf(laneIndex);
+        if (temporal::allOf(Int(Int(offset == gx) & Int(rp.y0 == gy))) && gx >= 1 && gy >= 1 &&
+            gx + kL + 1 < w && gy + 2 < h) {
+          temporal::fetchCatmullRomRow(f.previous, gx, gy, rp.tx, rp.ty, in.hist);
+          fetched = true;
+        }
+      }
       for (int l = 0; l < lanes; ++l) {
         const int x = x0 + l;
-        if (rp.valid[l]) {
+        if (!fetched && rp.valid[l]) {
           const Vec4 v = fetchHistory(f, x, y, rp.moving[l] != 0, {rp.x0[l], rp.y0[l], rp.tx[l], rp.ty[l]},
                                       rp.qx[l], rp.qy[l]);
           for (int c = 0; c < 4; ++c) hist[c][l] = v[c];
@@ -677,7 +700,11 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         since[l] = -int(f.feedbackSinceReset[rowStart + x] != 0);
         if (f.aliased) aliased[l] = f.aliased[rowStart + x];
       }
-      for (int c = 0; c < 4; ++c) in.hist[c] = load(hist[c]);
+      if (fetched) {
+        for (int c = 0; c < 4; ++c) temporal::storeLanes(hist[c], in.hist[c]);  // the footprint test reads them per lane
+      } else {
+        for (int c = 0; c < 4; ++c) in.hist[c] = load(hist[c]);
+      }
       in.valid = rp.valid;
       in.moving = rp.moving;
       std::memcpy(&in.feedbackSinceReset, since, sizeof since);
@@ -702,12 +729,19 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         return true;
       });
 
+      if (lanes == kL) {
+        for (int c = 0; c < 3; ++c) temporal::storeLanes(f.history[c] + rowStart + x0, r.color[c]);
+        temporal::storeLanes(f.history[3] + rowStart + x0, r.signedWeight);
+      }
       for (int l = 0; l < lanes; ++l) {
         const int x = x0 + l;
         f.feedbackSinceReset[rowStart + x] = r.feedbackSinceReset[l] != 0;
         const float color[3] = {r.color[0][l], r.color[1][l], r.color[2][l]};
         const float output[3] = {r.output[0][l], r.output[1][l], r.output[2][l]};
-        storePixel(f, x, y, color, r.signedWeight[l], output, r.reset[l] != 0, in.current[3][l]);
+        if (lanes == kL)
+          storeOutputPixel(f, x, y, output, r.reset[l] != 0, in.current[3][l]);
+        else
+          storePixel(f, x, y, color, r.signedWeight[l], output, r.reset[l] != 0, in.current[3][l]);
       }
     }
   }
@@ -735,20 +769,21 @@ inline void sharpenPixel(const Frame& f, float amount, int x, int y) {
   auto at = [&](int dx, int dy) {
     const int tx = Clamp ? std::clamp(x + dx, 0, w - 1) : x + dx;
     const int ty = Clamp ? std::clamp(y + dy, 0, h - 1) : y + dy;
-    return f.history + (std::size_t(ty) * w + tx) * 4;
+    return std::size_t(ty) * w + tx;
   };
-  const float* c = at(0, 0);
-  const float* n[4] = {at(0, -1), at(-1, 0), at(1, 0), at(0, 1)};
+  const std::size_t c = at(0, 0);
+  const std::size_t n[4] = {at(0, -1), at(-1, 0), at(1, 0), at(0, 1)};
   Float3 result;
   for (int ch = 0; ch < 3; ++ch) {
-    float lo = c[ch], hi = c[ch];
+    const float* plane = f.history[ch];
+    float lo = plane[c], hi = plane[c];
     float sum = 0.0f;
     for (int i = 0; i < 4; ++i) {
-      sum += n[i][ch];
-      lo = std::min(lo, n[i][ch]);
-      hi = std::max(hi, n[i][ch]);
+      sum += plane[n[i]];
+      lo = std::min(lo, plane[n[i]]);
+      hi = std::max(hi, plane[n[i]]);
     }
-    const float sharpened = c[ch] + amount * (4.0f * c[ch] - sum);
+    const float sharpened = plane[c] + amount * (4.0f * plane[c] - sum);
     result[ch] = std::clamp(sharpened, lo, hi);
   }
   storeOutput(f.output, x, y, toRgb4(Vec4{result[0], result[1], result[2], 0.0f}, f.space, alphaOf(f.color, x, y)));
@@ -819,9 +854,15 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   f.color = in.color;
   f.motion = in.motion;
   f.depth = in.depth;
-  f.previous = {history_[current_].data.data(), width_, height_};
+  // Each history image holds four planes (Kernel::history_).
+  const std::size_t planeSize = std::size_t(width_) * height_;
+  for (int c = 0; c < 4; ++c) {
+    f.previous.plane[c] = history_[current_].data.data() + c * planeSize;
+    f.history[c] = history_[next].data.data() + c * planeSize;
+  }
+  f.previous.width = width_;
+  f.previous.height = height_;
   f.hasHistory = frames_ > 0;
-  f.history = history_[next].data.data();
   f.output = in.output;
   f.writeOutput = !(s.sharpen > 0.0f);
   f.space = s.clipSpace;

@@ -85,9 +85,6 @@ class Kernel {
   std::size_t bytesKeptBetweenFrames() const;
   std::size_t bytesScratch() const;
   int framesSinceReset() const { return frames_; }
-  // The history written by the last run: RGBA, colour in the clip space of
-  // that run, alpha = signed sample weight (negative: the pixel was moving).
-  const Image& history() const { return history_[current_]; }
   ClipSpace historySpace() const { return historySpace_; }
   // The previous frame's sanitised depth plane (width x height), or null when
   // the previous frame had none or there is no history. Valid until run().
@@ -105,6 +102,10 @@ class Kernel {
   int bands_ = 0;                  // row bands of the fast path
   std::vector<float> bandScratch_;  // bands_ x scratchFloatsPerBand()
   std::size_t scratchFloatsPerBand() const;
+  // The history written by the last run and the one before, each width x
+  // height x 4 floats as four planes (not interleaved, so eight pixels' taps
+  // are one load): colour in the clip space of that run, then the signed
+  // sample weight (negative: the pixel was moving).
   Image history_[2];
   // 1 where the history went through the feedback path (moving, or static
   // history rejected) since its last reset: such history is tested against

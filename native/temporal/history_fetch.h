@@ -54,25 +54,45 @@ inline Footprint footprintOf(float x, float y) {
   return {int(fx), int(fy), x - fx, y - fy};
 }
 
+// The history as four planes (channels 0-2 filtered, 3 carried): the layout
+// the taa kernel keeps, so a lane group's taps are contiguous loads. The
+// fetches below take either layout and give the same bits for both.
+struct HistoryPlanes {
+  const float* plane[4];
+  int width;
+  int height;
+  std::size_t index(int x, int y) const { return std::size_t(y) * std::size_t(width) + std::size_t(x); }
+};
+
+// Pixel (x, y) as RGBA, from either layout.
+inline Vec4 tapOf(const HistoryImage& h, int x, int y) { return load4(h.at(x, y)); }
+inline Vec4 tapOf(const HistoryPlanes& h, int x, int y) {
+  const std::size_t i = h.index(x, y);
+  return Vec4{h.plane[0][i], h.plane[1][i], h.plane[2][i], h.plane[3][i]};
+}
+
 // Bilinear fetch of the first 3 channels; out[3] = the carried channel of the
-// nearest tap (never interpolated).
-inline Vec4 fetchBilinear4(const HistoryImage& h, float x, float y) {
+// nearest tap (never interpolated). H: HistoryImage or HistoryPlanes.
+template <class H>
+inline Vec4 fetchBilinear4(const H& h, float x, float y) {
   const Footprint f = footprintOf(x, y);
   const int xa = std::clamp(f.x0, 0, h.width - 1), xb = std::clamp(f.x0 + 1, 0, h.width - 1);
   const int ya = std::clamp(f.y0, 0, h.height - 1), yb = std::clamp(f.y0 + 1, 0, h.height - 1);
-  const Vec4 p00 = load4(h.at(xa, ya)), p10 = load4(h.at(xb, ya));
-  const Vec4 p01 = load4(h.at(xa, yb)), p11 = load4(h.at(xb, yb));
+  const Vec4 p00 = tapOf(h, xa, ya), p10 = tapOf(h, xb, ya);
+  const Vec4 p01 = tapOf(h, xa, yb), p11 = tapOf(h, xb, yb);
   const Vec4 top = p00 + (p10 - p00) * f.tx;
   const Vec4 bottom = p01 + (p11 - p01) * f.tx;
   Vec4 out = top + (bottom - top) * f.ty;
-  out[3] = h.at(f.tx < 0.5f ? xa : xb, f.ty < 0.5f ? ya : yb)[3];
+  out[3] = tapOf(h, f.tx < 0.5f ? xa : xb, f.ty < 0.5f ? ya : yb)[3];
   return out;
 }
 inline void fetchBilinear(const HistoryImage& h, float x, float y, float out[4]) { store4(out, fetchBilinear4(h, x, y)); }
 
 // Catmull-Rom (cubic convolution, Keys 1981 with a = -0.5) weights of the taps
 // floor - 1 .. floor + 2 at fraction t. They sum to 1; w0 and w3 are <= 0.
-inline void catmullRomWeights(float t, float w[4]) {
+// T: float, or a lane type (lanes.h) for a lane group's fractions.
+template <class T>
+CRISP_LANES_INLINE void catmullRomWeights(T t, T w[4]) {
   w[0] = t * (-0.5f + t * (1.0f - 0.5f * t));
   w[1] = 1.0f + t * t * (-2.5f + 1.5f * t);
   w[2] = t * (0.5f + t * (2.0f - 1.5f * t));
@@ -93,8 +113,8 @@ inline bool footprintInterior4x4(const Footprint& f, int width, int height) {
 // already computed (footprintOf); Clamp = false is for footprints known to be
 // interior (footprintInterior4x4): the same taps without the clamps, so the
 // same bits.
-template <bool Clamp>
-inline Vec4 fetchCatmullRomAt4(const HistoryImage& h, const Footprint& f) {
+template <bool Clamp, class H>
+inline Vec4 fetchCatmullRomAt4(const H& h, const Footprint& f) {
   float wx[4], wy[4];
   catmullRomWeights(f.tx, wx);
   catmullRomWeights(f.ty, wy);
@@ -106,9 +126,9 @@ inline Vec4 fetchCatmullRomAt4(const HistoryImage& h, const Footprint& f) {
   const bool carriedLeft = f.tx < 0.5f;
   float carried = 0.0f;
   for (int j = 0; j < 4; ++j) {
-    const float* row = h.at(0, Clamp ? std::clamp(f.y0 - 1 + j, 0, h.height - 1) : f.y0 - 1 + j);
-    const Vec4 t0 = load4(row + 4 * xs[0]), t1 = load4(row + 4 * xs[1]);
-    const Vec4 t2 = load4(row + 4 * xs[2]), t3 = load4(row + 4 * xs[3]);
+    const int y = Clamp ? std::clamp(f.y0 - 1 + j, 0, h.height - 1) : f.y0 - 1 + j;
+    const Vec4 t0 = tapOf(h, xs[0], y), t1 = tapOf(h, xs[1], y);
+    const Vec4 t2 = tapOf(h, xs[2], y), t3 = tapOf(h, xs[3], y);
     const Vec4 r = ((t0 * wx[0] + t1 * wx[1]) + t2 * wx[2]) + t3 * wx[3];
     acc += r * wy[j];
     if (j == 1) {
@@ -124,6 +144,43 @@ inline Vec4 fetchCatmullRomAt4(const HistoryImage& h, const Footprint& f) {
   out[3] = carried;
   return out;
 }
+// fetchCatmullRomAt4<false> on a lane group (lanes.h) of planar history
+// whose footprints are all interior and share their integer offset: lane l's
+// top-left tap is (x0 + l, y0), its fractions tx[l], ty[l]. Per lane the same
+// operations in the same order, so the same bits; channel c into out[c].
+template <class T>
+CRISP_LANES_INLINE void fetchCatmullRomRow(const HistoryPlanes& h, int x0, int y0, T tx, T ty, T out[4]) {
+  T wx[4], wy[4];
+  catmullRomWeights(tx, wx);
+  catmullRomWeights(ty, wy);
+  T acc[3], lo[3], hi[3];
+  for (int c = 0; c < 3; ++c) acc[c] = lanesOf<T>(0.0f);
+  for (int j = 0; j < 4; ++j) {
+    const std::size_t row = h.index(x0 - 1, y0 - 1 + j);
+    for (int c = 0; c < 3; ++c) {
+      const float* p = h.plane[c] + row;
+      const T t0 = loadLanes<T>(p), t1 = loadLanes<T>(p + 1), t2 = loadLanes<T>(p + 2), t3 = loadLanes<T>(p + 3);
+      const T r = ((t0 * wx[0] + t1 * wx[1]) + t2 * wx[2]) + t3 * wx[3];
+      acc[c] = acc[c] + r * wy[j];
+      if (j == 1) {
+        lo[c] = minOf(t1, t2);
+        hi[c] = maxOf(t1, t2);
+      } else if (j == 2) {
+        lo[c] = minOf(lo[c], minOf(t1, t2));
+        hi[c] = maxOf(hi[c], maxOf(t1, t2));
+      }
+    }
+  }
+  for (int c = 0; c < 3; ++c) out[c] = minOf(maxOf(acc[c], lo[c]), hi[c]);
+  // The carried channel: the nearest of the 4 central taps.
+  const float* upper = h.plane[3] + h.index(x0, y0);
+  const float* lower = h.plane[3] + h.index(x0, y0 + 1);
+  const auto left = tx < 0.5f;
+  const T up = left ? loadLanes<T>(upper) : loadLanes<T>(upper + 1);
+  const T down = left ? loadLanes<T>(lower) : loadLanes<T>(lower + 1);
+  out[3] = ty < 0.5f ? up : down;
+}
+
 inline Vec4 fetchCatmullRom4(const HistoryImage& h, float x, float y) {
   return fetchCatmullRomAt4<true>(h, footprintOf(x, y));
 }

@@ -140,6 +140,13 @@ CRISP_LANES_INLINE bool anyOf(M m) {
   for (int i = 0; i < int(sizeof(M) / sizeof(int)); ++i) any |= m[i];
   return any != 0;
 }
+CRISP_LANES_INLINE bool allOf(bool m) { return m; }
+template <class M, IfMask<M> = 0>
+CRISP_LANES_INLINE bool allOf(M m) {
+  int all = -1;
+  for (int i = 0; i < int(sizeof(M) / sizeof(int)); ++i) all &= m[i];
+  return all != 0;
+}
 // Float lanes to int lanes (truncation) and back. Only for values inside the
 // int range (callers clamp first).
 CRISP_LANES_INLINE int truncOf(float v) { return int(v); }
