@@ -375,17 +375,31 @@ CRISP_AVX2 inline __m256 differsLanes(__m256 nx, __m256 ny, __m256 nz, __m256 d,
 // the same rotation): then db = da and slackB = slackA bit for bit (the same
 // operations on the same operands), so eb = ea and dn = ea + ea; the
 // rotation, db and slackB are skipped. Same result bits as differsLanes.
-template <bool Ortho>
-CRISP_AVX2 inline __m256 differsLanesSameNormal(__m256 d, const Centre8& c, __m256 sux, __m256 suy, const Camera& cam,
-                                                __m256 threshold2) {
-  const SampleR8 s = sampleR8<Ortho>(d, c, sux, suy);
-  const __m256 da = dot8(c.nx, c.ny, c.nz, s.rx, s.ry, s.rz);
+// Two more exact rewrites save an operation each: r's z is formed as
+// d - dCentre (cd), which is -((-d) - (-dCentre)) exactly (rounding to
+// nearest is symmetric) or +0 where both are +0, so |r|^2 is unchanged and da
+// = (nx rx + ny ry) - nz rz' differs at most in the sign of a zero, and da is
+// used only through |da|; with no background centre among the lanes
+// (BgCentres false) differsResult8 is s.bg | (apart & far).
+template <bool Ortho, bool BgCentres>
+CRISP_AVX2 inline __m256 sameNormalStep8(__m256 d, const Centre8& c, __m256 cd, __m256 sux, __m256 suy,
+                                         const Camera& cam, __m256 threshold2) {
+  const __m256 bg = _mm256_cmp_ps(d, set8(kFarDepth), _CMP_NLT_UQ);
+  const __m256 rx = _mm256_sub_ps(Ortho ? sux : _mm256_mul_ps(sux, d), c.px);
+  const __m256 ry = _mm256_sub_ps(Ortho ? suy : _mm256_mul_ps(suy, d), c.py);
+  const __m256 rz = _mm256_sub_ps(d, cd);  // = -(pz - c.pz), see above
+  const __m256 r2 = dot8(rx, ry, rz, rx, ry, rz);
+  const __m256 apart = _mm256_cmp_ps(r2, c.samePoint, _CMP_GT_OQ);
+  const __m256 da = _mm256_sub_ps(_mm256_add_ps(_mm256_mul_ps(c.nx, rx), _mm256_mul_ps(c.ny, ry)),
+                                  _mm256_mul_ps(c.nz, rz));
   const __m256 zero = _mm256_setzero_ps();
   const __m256 svx = Ortho ? zero : sux, svy = Ortho ? zero : suy;
-  const __m256 stol = tolerance8(d, cam);
-  const __m256 slackA = _mm256_add_ps(c.selfSlack, slack8(c.nx, c.ny, c.nz, svx, svy, stol));
+  const __m256 slackA = _mm256_add_ps(c.selfSlack, slack8(c.nx, c.ny, c.nz, svx, svy, tolerance8(d, cam)));
   const __m256 ea = _mm256_max_ps(zero, _mm256_sub_ps(abs8(da), slackA));
-  return differsResult8(c, s, _mm256_add_ps(ea, ea), threshold2);
+  const __m256 dn = _mm256_add_ps(ea, ea);
+  const __m256 far = _mm256_cmp_ps(_mm256_mul_ps(dn, dn), _mm256_mul_ps(threshold2, r2), _CMP_NLT_UQ);
+  const __m256 near = _mm256_and_ps(apart, far);
+  return BgCentres ? _mm256_or_ps(_mm256_xor_ps(c.bg, bg), _mm256_andnot_ps(c.bg, near)) : _mm256_or_ps(bg, near);
 }
 
 // The same for samples given as their float4s (lane j = p[j]).
@@ -516,44 +530,127 @@ CRISP_AVX2 inline void transpose8x8(__m256 r[8]) {
 
 CRISP_AVX2 inline __m256 int16ToFloat8(__m128i v) { return _mm256_cvtepi32_ps(_mm256_cvtepi16_epi32(v)); }
 
-// anyDiffers8 for packed records (rsaa/subsample_record.h): the 8 pixels'
-// depth[8], nx|ny[16] and nz[8] fields are transposed to one vector per
-// sample (lane j = pixel x + j), the int16 normals converted exactly;
-// packedCam rotates them with the 1/32767 scale folded in (as subGeo does).
+// vpshufb controls of sameNormals8: for pixel j = 0..3, kPickXY[j] takes
+// int16 word j into every word of the low 128 bits and word 4 + j into the
+// high 128 bits; kPickZ[j] word j into both.
+struct alignas(32) WordPick {
+  std::uint8_t byte[32];
+};
+constexpr WordPick pickWords(int lo, int hi) {
+  WordPick p{};
+  for (int i = 0; i < 16; i += 2) {
+    p.byte[i] = std::uint8_t(2 * lo), p.byte[i + 1] = std::uint8_t(2 * lo + 1);
+    p.byte[16 + i] = std::uint8_t(2 * hi), p.byte[17 + i] = std::uint8_t(2 * hi + 1);
+  }
+  return p;
+}
+constexpr WordPick kPickXY[4] = {pickWords(0, 4), pickWords(1, 5), pickWords(2, 6), pickWords(3, 7)};
+constexpr WordPick kPickZ[4] = {pickWords(0, 0), pickWords(1, 1), pickWords(2, 2), pickWords(3, 3)};
+
+CRISP_AVX2 inline __m256i loadPick(const WordPick& p) {
+  return _mm256_load_si256(reinterpret_cast<const __m256i*>(p.byte));
+}
+
+// True when every sample normal of the 8 records rec[0..7] equals its pixel's
+// centre normal at the records' precision (q: snormCentre of the 8 centres,
+// integer floats), i.e. when every sample step of anyDiffersPacked8 can take
+// sameNormalStep8. Compared as int16 in the records' own layout (no
+// transpose): per pixel j, its centre's x and y words spread over 8 words
+// each against the record's nx|ny, its z word against nz.
+CRISP_AVX2 inline bool sameNormals8(const SubsampleRecord* rec, const __m256 q[3]) {
+  // Per 128-bit half h (pixels 4h..4h+3): xy = x[4h..4h+3], y[4h..4h+3];
+  // z = z[4h..4h+3] twice (the values are integers within int16).
+  const __m256i xy = _mm256_packs_epi32(_mm256_cvtps_epi32(q[0]), _mm256_cvtps_epi32(q[1]));
+  const __m256i zi = _mm256_cvtps_epi32(q[2]);
+  const __m256i z = _mm256_packs_epi32(zi, zi);
+  const __m256i xyLo = _mm256_permute2x128_si256(xy, xy, 0x00), xyHi = _mm256_permute2x128_si256(xy, xy, 0x11);
+  __m256i eq = _mm256_set1_epi32(-1);
+  for (int j = 0; j < 4; ++j) {
+    const __m256i pickXY = loadPick(kPickXY[j]);
+    const __m256i nxy = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(rec[j].nx));  // nx[8] then ny[8]
+    const __m256i nxy4 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(rec[j + 4].nx));
+    const __m256i nz = _mm256_loadu2_m128i(reinterpret_cast<const __m128i*>(rec[j + 4].nz),
+                                           reinterpret_cast<const __m128i*>(rec[j].nz));
+    eq = _mm256_and_si256(eq, _mm256_cmpeq_epi16(nxy, _mm256_shuffle_epi8(xyLo, pickXY)));
+    eq = _mm256_and_si256(eq, _mm256_cmpeq_epi16(nxy4, _mm256_shuffle_epi8(xyHi, pickXY)));
+    eq = _mm256_and_si256(eq, _mm256_cmpeq_epi16(nz, _mm256_shuffle_epi8(z, loadPick(kPickZ[j]))));
+  }
+  return _mm256_testc_si256(eq, _mm256_set1_epi32(-1)) != 0;
+}
+
+// The sample steps of anyDiffersPacked8 where some sample normal differs from
+// its centre's: the 8 records' nx|ny and nz fields are transposed to one
+// vector per sample (lane j = pixel x + j) and converted exactly; per step,
+// sameNormalStep8 where all 8 lanes' normals equal their centres', else
+// differsLanes. Out of line, so that its loads and transposes stay off the
+// flat-face path.
 template <bool Ortho>
-CRISP_AVX2 int anyDiffersPacked8(const Inputs& in, int x, int y, const float* colUx, float uy, const float* dux,
-                                 const float* duy, const Camera& cam, const Camera& packedCam, float threshold2) {
-  const __m256 ux = _mm256_loadu_ps(colUx + x);
-  __m256 q[3];
-  const Centre8 c = loadCentres8<Ortho>(in, x, y, ux, uy, packedCam, q);
-  const SubsampleRecord* rec = subsampleRecord(in.packed, x, y);
-  __m256 d[8];
+CRISP_AVX2 __attribute__((noinline)) __m256 mixedNormalSteps8(const SubsampleRecord* rec, const __m256 d[8],
+                                                              const Centre8& c, const __m256 q[3], __m256 ux,
+                                                              const float* dux, const float* suy,
+                                                              const Camera& packedCam, __m256 t2) {
   __m256i nxy[8];
   __m128i nz[8];
   for (int j = 0; j < 8; ++j) {
-    d[j] = _mm256_loadu_ps(rec[j].depth);
     nxy[j] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(rec[j].nx));  // nx[8] then ny[8]
     nz[j] = _mm_loadu_si128(reinterpret_cast<const __m128i*>(rec[j].nz));
   }
-  transpose8x8(d);
   CRISP_RSAA_TRANSPOSE8X8_I16(__m256i, nxy, _mm256_unpacklo_epi16, _mm256_unpackhi_epi16, _mm256_unpacklo_epi32,
                               _mm256_unpackhi_epi32, _mm256_unpacklo_epi64, _mm256_unpackhi_epi64);
   CRISP_RSAA_TRANSPOSE8X8_I16(__m128i, nz, _mm_unpacklo_epi16, _mm_unpackhi_epi16, _mm_unpacklo_epi32,
                               _mm_unpackhi_epi32, _mm_unpacklo_epi64, _mm_unpackhi_epi64);
-  const __m256 t2 = set8(threshold2);
+  const __m256 cd = _mm256_xor_ps(c.pz, set8(-0.0f));
   __m256 any = _mm256_setzero_ps();
   for (int k = 0; k < kSamples; ++k) {
     const __m256 wx = int16ToFloat8(_mm256_castsi256_si128(nxy[k]));
     const __m256 wy = int16ToFloat8(_mm256_extracti128_si256(nxy[k], 1));
     const __m256 wz = int16ToFloat8(nz[k]);
-    const __m256 sux = _mm256_add_ps(ux, set8(dux[k])), suy = set8(uy + duy[k]);
-    // Flat faces: every sample normal equal to its centre's (as integers).
+    const __m256 sux = _mm256_add_ps(ux, set8(dux[k])), sy = set8(suy[k]);
+    // This step's 8 sample normals equal to their centres' (as integers)?
     const __m256 same = _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(wx, q[0], _CMP_EQ_OQ), _mm256_cmp_ps(wy, q[1], _CMP_EQ_OQ)),
                                       _mm256_cmp_ps(wz, q[2], _CMP_EQ_OQ));
     any = _mm256_or_ps(any, _mm256_movemask_ps(same) == 0xFF
-                                ? differsLanesSameNormal<Ortho>(d[k], c, sux, suy, packedCam, t2)
-                                : differsLanes<Ortho>(wx, wy, wz, d[k], c, sux, suy, packedCam, t2));
+                                ? sameNormalStep8<Ortho, true>(d[k], c, cd, sux, sy, packedCam, t2)
+                                : differsLanes<Ortho>(wx, wy, wz, d[k], c, sux, sy, packedCam, t2));
   }
+  return any;
+}
+
+// anyDiffers8 for packed records (rsaa/subsample_record.h): the 8 records'
+// depth fields are transposed to one vector per sample (lane j = pixel x +
+// j). Where all 8 centres are background a sample differs iff it is
+// geometry; where all sample normals equal their centres' (a flat face,
+// sameNormals8) no normal is decoded; else mixedNormalSteps8. packedCam
+// rotates the int16 normals with the 1/32767 scale folded in (as subGeo
+// does); suy[k] = uy + duy[k], the ray terms of sample k's row.
+template <bool Ortho>
+CRISP_AVX2 int anyDiffersPacked8(const Inputs& in, int x, int y, const float* colUx, float uy, const float* dux,
+                                 const float* suy, const Camera& packedCam, float threshold2) {
+  const __m256 ux = _mm256_loadu_ps(colUx + x);
+  __m256 q[3];
+  const Centre8 c = loadCentres8<Ortho>(in, x, y, ux, uy, packedCam, q);
+  const SubsampleRecord* rec = subsampleRecord(in.packed, x, y);
+  __m256 d[8];
+  for (int j = 0; j < 8; ++j) d[j] = _mm256_loadu_ps(rec[j].depth);
+  transpose8x8(d);
+  const int bgCentres = _mm256_movemask_ps(c.bg);
+  __m256 any = _mm256_setzero_ps();
+  if (bgCentres == 0xFF) {  // differsResult8 with every c.bg set: the sample is not background
+    for (int k = 0; k < kSamples; ++k) any = _mm256_or_ps(any, _mm256_cmp_ps(d[k], set8(kFarDepth), _CMP_LT_OQ));
+    return _mm256_movemask_ps(any);
+  }
+  const __m256 t2 = set8(threshold2);
+  if (!sameNormals8(rec, q))
+    return _mm256_movemask_ps(mixedNormalSteps8<Ortho>(rec, d, c, q, ux, dux, suy, packedCam, t2));
+  const __m256 cd = _mm256_xor_ps(c.pz, set8(-0.0f));
+  if (bgCentres)
+    for (int k = 0; k < kSamples; ++k)
+      any = _mm256_or_ps(any, sameNormalStep8<Ortho, true>(d[k], c, cd, _mm256_add_ps(ux, set8(dux[k])),
+                                                           set8(suy[k]), packedCam, t2));
+  else
+    for (int k = 0; k < kSamples; ++k)
+      any = _mm256_or_ps(any, sameNormalStep8<Ortho, false>(d[k], c, cd, _mm256_add_ps(ux, set8(dux[k])),
+                                                            set8(suy[k]), packedCam, t2));
   return _mm256_movemask_ps(any);
 }
 
@@ -629,12 +726,13 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
 #if defined(CRISP_RSAA_AVX2)
     if (chunks) {
       const float uy = rowUy_[std::size_t(y)];
+      float suy[kSamples];  // the sample rows' ray terms, as subGeo forms them
+      for (int k = 0; k < kSamples; ++k) suy[k] = uy + duy_[k];
       for (; x + 8 <= width_; x += 8) {
         const int bits =
-            packed ? (cam.orthographic ? anyDiffersPacked8<true>(in, x, y, colUx_.data(), uy, dux_, duy_, cam,
-                                                                 packedCamera_, threshold2_)
-                                       : anyDiffersPacked8<false>(in, x, y, colUx_.data(), uy, dux_, duy_, cam,
-                                                                  packedCamera_, threshold2_))
+            packed ? (cam.orthographic
+                          ? anyDiffersPacked8<true>(in, x, y, colUx_.data(), uy, dux_, suy, packedCamera_, threshold2_)
+                          : anyDiffersPacked8<false>(in, x, y, colUx_.data(), uy, dux_, suy, packedCamera_, threshold2_))
                    : (cam.orthographic ? anyDiffers8<true>(in, x, y, colUx_.data(), uy, dux_, duy_, cam, threshold2_)
                                        : anyDiffers8<false>(in, x, y, colUx_.data(), uy, dux_, duy_, cam, threshold2_));
         const std::size_t i0 = std::size_t(y) * std::size_t(width_) + std::size_t(x);
