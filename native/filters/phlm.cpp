@@ -165,8 +165,9 @@ struct Frame {
   const float* previousDepth;  // previous frame's, or null (no depth test)
   ImageView motion;            // ptr null: static scene
   bool hasHistory;
-  const T* previous;           // records of the last frame (== next when static)
+  const T* previous;           // records of the last frame (== next when static), Kernel::recordIndex layout
   T* next;                     // records written
+  int blocksPerRow;            // blocks of kBatch pixels per row of records
   ImageView output;
   long* rowStats;
   T inverseLambda, regulariserVariance[kDims], regulariserWeight[kDims], sampleVariance, sampleWeight, p0, ps;
@@ -187,7 +188,7 @@ struct Frame {
 // scalar j of every lane). GCC vector extensions: one AVX register of floats
 // in the AVX2 copy of the row loop (temporal/isa.h), two SSE ones in the
 // baseline copy.
-constexpr int kBatch = 8;
+constexpr int kBatch = kBlock;  // a batch is a block of the records (phlm.h)
 template <class T>
 struct LanesOf;
 template <>
@@ -204,10 +205,16 @@ template <class T>
 struct Batch {
   using V = typename LanesOf<T>::V;
   using M = typename LanesOf<T>::M;
-  V model[kZ];                                            // beta, U, D after reprojection and resets
-  // Step 2's inputs: the reprojected feature history, the 3x3 sum and
-  // luminance range, |v|; valid: 1 (history reprojected) or 0 (reset).
-  V history[3], sum[3], yMin, yMax, speed, valid;
+  // Step 3, per lane: where the nearest model q = pi(v) is (recordIndex of
+  // scalar 0; read only when valid) and, for a moving lane, the bilinear
+  // footprint of the feature (and beta) fetch: its four taps and fractions.
+  std::size_t source[kBatch], tap[4][kBatch];
+  float tx[kBatch], ty[kBatch];
+  bool direct = true;  // every lane valid, still and reading its own record (q = x)
+  bool anyBilinear = false;  // some lane valid and moving
+  // Step 2's inputs: the 3x3 sum and luminance range, |v|; valid: 1
+  // (history reprojected) or 0 (reset).
+  V sum[3], yMin, yMax, speed, valid;
   V current[3], lo[3], hi[3], moving;  // moving: 1 or 0
   int count = 0, x0 = 0, y = 0;
 };
@@ -225,64 +232,6 @@ CRISP_PHLM_INLINE void toFeature(const V c[3], V out[3]) {
   for (int k = 0; k < 3; ++k) p[k] = c[k] < zeroOf<V>() ? zeroOf<V>() : c[k];  // std::max(c, 0)
   const V scale = oneOf<V>() / (oneOf<V>() + lumaYCgCo<T>(p));
   for (int k = 0; k < 3; ++k) out[k] = p[k] * scale;
-}
-
-// Bilinear fetch of the feature z of the previous records at (x, y), clamp to
-// edge (temporal/history_fetch.h's footprint and addressing).
-template <class T>
-CRISP_PHLM_INLINE void fetchFeature(const T* records, int w, int h, float x, float y, T z[3]) {
-  const temporal::Footprint f = temporal::footprintOf(x, y);
-  const int xa = std::clamp(f.x0, 0, w - 1), xb = std::clamp(f.x0 + 1, 0, w - 1);
-  const int ya = std::clamp(f.y0, 0, h - 1), yb = std::clamp(f.y0 + 1, 0, h - 1);
-  auto at = [&](int px, int py) { return records + (std::size_t(py) * w + px) * kRecord + kZ; };
-  const T* p00 = at(xa, ya);
-  const T* p10 = at(xb, ya);
-  const T* p01 = at(xa, yb);
-  const T* p11 = at(xb, yb);
-  const T tx = T(f.tx), ty = T(f.ty);
-  for (int c = 0; c < 3; ++c) {
-    const T top = p00[c] + (p10[c] - p00[c]) * tx;
-    const T bottom = p01[c] + (p11[c] - p01[c]) * tx;
-    z[c] = top + (bottom - top) * ty;
-  }
-}
-
-// Bilinear fetch of the coefficients beta of the previous records at (x, y),
-// clamp to edge: the blended model predicts the bilinear blend of the four
-// models' predictions for this pixel's x (§6: the models live in textures
-// read with bilinear filtering). P stays the nearest model's.
-template <class T>
-CRISP_PHLM_INLINE void fetchBeta(const T* records, int w, int h, float x, float y, T* model) {
-  const temporal::Footprint f = temporal::footprintOf(x, y);
-  const int xa = std::clamp(f.x0, 0, w - 1), xb = std::clamp(f.x0 + 1, 0, w - 1);
-  const int ya = std::clamp(f.y0, 0, h - 1), yb = std::clamp(f.y0 + 1, 0, h - 1);
-  auto at = [&](int px, int py) { return records + (std::size_t(py) * w + px) * kRecord + kBeta; };
-  const T* p00 = at(xa, ya);
-  const T* p10 = at(xb, ya);
-  const T* p01 = at(xa, yb);
-  const T* p11 = at(xb, yb);
-  if constexpr (std::is_same_v<T, float>) {
-    // Rows of 3 read as 4 lanes (lane 3 = the next scalar of the record, never
-    // used); rows stored in increasing order, the last one 3 lanes wide.
-    using temporal::Vec4;
-    Vec4 rows[4];
-    for (int j = 0; j < 4; ++j) {
-      const Vec4 a = temporal::load4(p00 + 3 * j), b = temporal::load4(p10 + 3 * j);
-      const Vec4 c = temporal::load4(p01 + 3 * j), d = temporal::load4(p11 + 3 * j);
-      const Vec4 top = a + (b - a) * f.tx;
-      const Vec4 bottom = c + (d - c) * f.tx;
-      rows[j] = top + (bottom - top) * f.ty;
-    }
-    for (int j = 0; j < 3; ++j) temporal::store4(model + kBeta + 3 * j, rows[j]);
-    std::memcpy(model + kBeta + 9, &rows[3], 3 * sizeof(float));
-  } else {
-    const T tx = T(f.tx), ty = T(f.ty);
-    for (int i = 0; i < 12; ++i) {
-      const T top = p00[i] + (p10[i] - p00[i]) * tx;
-      const T bottom = p01[i] + (p11[i] - p01[i]) * tx;
-      model[kBeta + i] = top + (bottom - top) * ty;
-    }
-  }
 }
 
 // The footprint's extremes: the 25 taps of the 5x5 around (x, y) in row
@@ -402,31 +351,41 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     valid = match;
   }
 
-  T model[kRecord];
-  T history[3] = {T(0), T(0), T(0)}, speed = T(0);
-  if (valid) {
-    const T* source = f.previous + (std::size_t(qy) * w + qx) * kRecord;
-    std::memcpy(model, source, sizeof(T) * kZ);
-    if (moving && f.bilinearBeta) fetchBeta(f.previous, w, h, px, py, model);
-    // Step 2: feature history at pi(v) (exact at zero motion), eq. 1; the
-    // rest of step 2 in finishBatch.
-    if (moving) fetchFeature(f.previous, w, h, px, py, history);
-    else for (int c = 0; c < 3; ++c) history[c] = source[kZ + c];
-    speed = T(std::sqrt(vx * vx + vy * vy));
-  } else {
-    // Lines 7-9 / §6: reset to the input; z = y (finishBatch).
-    ++reprojectionResets;
-    resetModel(model, current, f.p0, f.ps);
-  }
-  // The rest runs on 8 pixels at once (finishBatch): this pixel's lane.
+  // Step 3 (the model of q) and the fetch of step 2 run in finishBatch, on
+  // the batch's lanes: here only where to read.
   const int lane = batch.count;
   if (lane == 0) {
     batch.x0 = x;
     batch.y = y;
+    batch.direct = true;
+    batch.anyBilinear = false;
   }
-  for (int j = 0; j < kZ; ++j) batch.model[j][lane] = model[j];
+  T speed = T(0);
+  batch.tx[lane] = batch.ty[lane] = 0.0f;
+  if (valid) {
+    batch.source[lane] = recordIndex(f.blocksPerRow, qx, qy);
+    if (moving) {
+      // Step 2: feature history at pi(v) (exact at zero motion), eq. 1,
+      // bilinear with clamp to edge (temporal/history_fetch.h's footprint).
+      const temporal::Footprint fp = temporal::footprintOf(px, py);
+      const int xa = std::clamp(fp.x0, 0, w - 1), xb = std::clamp(fp.x0 + 1, 0, w - 1);
+      const int ya = std::clamp(fp.y0, 0, h - 1), yb = std::clamp(fp.y0 + 1, 0, h - 1);
+      batch.tap[0][lane] = recordIndex(f.blocksPerRow, xa, ya);
+      batch.tap[1][lane] = recordIndex(f.blocksPerRow, xb, ya);
+      batch.tap[2][lane] = recordIndex(f.blocksPerRow, xa, yb);
+      batch.tap[3][lane] = recordIndex(f.blocksPerRow, xb, yb);
+      batch.tx[lane] = fp.tx;
+      batch.ty[lane] = fp.ty;
+      batch.anyBilinear = true;
+      batch.direct = false;
+    }
+    speed = T(std::sqrt(vx * vx + vy * vy));
+  } else {
+    // Lines 7-9 / §6: reset to the input; z = y (finishBatch).
+    ++reprojectionResets;
+    batch.direct = false;
+  }
   for (int c = 0; c < 3; ++c) {
-    batch.history[c][lane] = history[c];
     batch.sum[c][lane] = sum[c];
     batch.current[c][lane] = current[c];
     batch.lo[c][lane] = lo[c];
@@ -444,6 +403,18 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
 template <class V, class T>
 CRISP_PHLM_INLINE V splatOf(T v) {
   return V{} + v;
+}
+
+// kBatch scalars to and from lanes (any alignment).
+template <class V, class T>
+CRISP_PHLM_INLINE V loadLanes(const T* p) {
+  V v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+template <class V, class T>
+CRISP_PHLM_INLINE void storeLanes(T* p, const V& v) {
+  std::memcpy(p, &v, sizeof v);
 }
 
 // std::max, std::min, std::clamp and |a| lane by lane: temporal/lanes.h.
@@ -504,11 +475,10 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
   using V = typename Batch<T>::V;
   using M = typename Batch<T>::M;
   const int n = batch.count;
-  // Unused lanes repeat lane 0 (finite, harmless values; never written).
+  // Unused lanes repeat lane 0 (finite, harmless values; written to the
+  // row's padding records only).
   for (int i = n; i < kBatch; ++i) {
-    for (int j = 0; j < kZ; ++j) batch.model[j][i] = batch.model[j][0];
     for (int c = 0; c < 3; ++c) {
-      batch.history[c][i] = batch.history[c][0];
       batch.sum[c][i] = batch.sum[c][0];
       batch.current[c][i] = batch.current[c][0];
       batch.lo[c][i] = batch.lo[c][0];
@@ -520,12 +490,73 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     batch.valid[i] = batch.valid[0];
     batch.moving[i] = batch.moving[0];
   }
-  V* m = batch.model;
+  // Step 3: the model of q = pi(v) (beta, U, D) and the feature history,
+  // lane i from recordIndex (the record layout is the batch's: scalar j of
+  // the kBatch pixels of a block is one vector). Reset lanes: the reset model
+  // (lines 7-9 / §6) and history 0.
+  const M validLanes = batch.valid != zeroOf<V>();
+  V m[kZ], history[3];
+  if (batch.direct && n == kBatch) {
+    // Every lane still and valid: its own record, the block at (x0, y).
+    const T* block = f.previous + recordIndex(f.blocksPerRow, batch.x0, batch.y);
+    for (int j = 0; j < kZ; ++j) m[j] = loadLanes<V>(block + j * kBatch);
+    for (int c = 0; c < 3; ++c) history[c] = loadLanes<V>(block + (kZ + c) * kBatch);
+  } else {
+    alignas(sizeof(V)) T gathered[kRecord][kBatch];
+    for (int i = 0; i < kBatch; ++i) {
+      const int from = i < n ? i : 0;
+      if (batch.valid[from] != T(0)) {
+        const T* source = f.previous + batch.source[from];
+        for (int j = 0; j < kRecord; ++j) gathered[j][i] = source[j * kBatch];
+      } else {
+        for (int j = 0; j < kRecord; ++j) gathered[j][i] = T(0);
+      }
+    }
+    for (int j = 0; j < kZ; ++j) m[j] = loadLanes<V>(gathered[j]);
+    for (int c = 0; c < 3; ++c) history[c] = loadLanes<V>(gathered[kZ + c]);
+    if (batch.anyBilinear) {
+      // Moving lanes: the feature (and beta with bilinearBeta: the blended
+      // model predicts the bilinear blend of the four models' predictions, §6:
+      // models live in textures read with bilinear filtering; P stays the
+      // nearest model's) from the bilinear footprint. Other lanes: zeros.
+      alignas(sizeof(V)) T taps[4][15][kBatch];
+      alignas(sizeof(V)) T fractionX[kBatch], fractionY[kBatch];
+      const int planes = f.bilinearBeta ? 15 : 3;  // beta (12, if bilinear) and z
+      for (int i = 0; i < kBatch; ++i) {
+        const int from = i < n ? i : 0;
+        fractionX[i] = T(batch.tx[from]);
+        fractionY[i] = T(batch.ty[from]);
+        const bool bilinear = batch.valid[from] != T(0) && batch.moving[from] != T(0);
+        for (int k = 0; k < 4; ++k) {
+          if (bilinear) {
+            const T* source = f.previous + batch.tap[k][from];
+            for (int p = 0; p < planes; ++p) taps[k][p][i] = source[(p < 3 ? kZ + p : kBeta + p - 3) * kBatch];
+          } else {
+            for (int p = 0; p < planes; ++p) taps[k][p][i] = T(0);
+          }
+        }
+      }
+      const V tx = loadLanes<V>(fractionX), ty = loadLanes<V>(fractionY);
+      const M bilinearLanes = validLanes & (batch.moving != zeroOf<V>());
+      for (int p = 0; p < planes; ++p) {
+        const V a = loadLanes<V>(taps[0][p]), b = loadLanes<V>(taps[1][p]);
+        const V c = loadLanes<V>(taps[2][p]), d = loadLanes<V>(taps[3][p]);
+        const V top = a + (b - a) * tx;
+        const V bottom = c + (d - c) * tx;
+        const V blended = top + (bottom - top) * ty;
+        V& target = p < 3 ? history[p] : m[kBeta + p - 3];
+        target = bilinearLanes ? blended : target;
+      }
+    }
+    V reset[kZ];
+    resetModel(reset, batch.current, splatOf<V>(f.p0), splatOf<V>(f.ps));
+    for (int j = 0; j < kZ; ++j) m[j] = validLanes ? m[j] : reset[j];
+  }
   // Step 2 (§5.1, eq. 1): z = history + alpha (low-frequency colour - history),
   // alpha = phi / (l + Delta) in [featureAlphaMin, 1]; z = y after a reset.
   V z[3];
   {
-    const V featureLuma = lumaYCgCo<T>(batch.history);
+    const V featureLuma = lumaYCgCo<T>(history);
     const V l = maxOf(zeroOf<V>(), maxOf(batch.yMin - featureLuma, featureLuma - batch.yMax));
     const V delta = batch.yMax - batch.yMin;
     const V phi = f.featureA * l * l + f.featureB * batch.speed * l * l * l;
@@ -534,9 +565,7 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     for (int c = 0; c < 3; ++c) average[c] = batch.sum[c] * T(1.0 / 9.0);
     toFeature<T>(average, lowFrequency);
     toFeature<T>(batch.current, reset);
-    const M valid = batch.valid != zeroOf<V>();
-    for (int c = 0; c < 3; ++c)
-      z[c] = valid ? batch.history[c] + (lowFrequency[c] - batch.history[c]) * alpha : reset[c];
+    for (int c = 0; c < 3; ++c) z[c] = validLanes ? history[c] + (lowFrequency[c] - history[c]) * alpha : reset[c];
   }
   // Step 4: prediction and box correction (lines 12-19).
   const V x4[kDims] = {oneOf<V>(), z[0], z[1], z[2]};
@@ -592,14 +621,20 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     for (int i = 0; i < 12; ++i) check += m[kBeta + i] * T(0);
     overflow = check != zeroOf<V>();  // also NaN
   }
-  const int w = f.width, y = batch.y;
+  // The records: the block at (x0, y), every lane (lanes past the row's end
+  // land in the row's padding); a lane whose beta overflowed restarts from
+  // its output.
+  {
+    V restart[kZ];
+    resetModel(restart, out, splatOf<V>(f.p0), splatOf<V>(f.ps));
+    T* block = f.next + recordIndex(f.blocksPerRow, batch.x0, batch.y);
+    for (int j = 0; j < kZ; ++j) storeLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]));
+    for (int c = 0; c < 3; ++c) storeLanes(block + (kZ + c) * kBatch, z[c]);
+  }
+  const int y = batch.y;
   for (int i = 0; i < n; ++i) {
     const int x = batch.x0 + i;
-    T* record = f.next + (std::size_t(y) * w + x) * kRecord;
-    for (int j = 0; j < kZ; ++j) record[j] = m[j][i];
     const T outLane[3] = {out[0][i], out[1][i], out[2][i]};
-    if (overflow[i]) resetModel(record, outLane, f.p0, f.ps);
-    for (int c = 0; c < 3; ++c) record[kZ + c] = z[c][i];
     float* o = f.output.pixel(x, y);
     o[0] = sanitizeColor(float(outLane[0]));
     o[1] = sanitizeColor(float(outLane[1]));
@@ -643,7 +678,8 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
     width_ = width;
     height_ = height;
     staged_ = Image(width, height, 4);
-    models_[0].assign(pixels * kRecord, T(0));
+    blocksPerRow_ = (width + kBlock - 1) / kBlock;
+    models_[0].assign(std::size_t(blocksPerRow_) * kBlock * std::size_t(height) * kRecord, T(0));
     models_[1].clear();
     models_[1].shrink_to_fit();
     depth_[0].clear();
@@ -733,6 +769,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.hasHistory = frames_ > 0;
   f.previous = models_[current_].data();
   f.next = models_[next].data();
+  f.blocksPerRow = blocksPerRow_;
   f.output = in.output;
   const T lambda = T(s.lambda);
   f.p0 = T(s.initialCovariance);

@@ -7,7 +7,8 @@
 //
 // State kept between frames (bytesKeptBetweenFrames), allocated in
 // allocate() (the filter's onCommit), never in run():
-//  * one record of kRecord = 25 scalars per pixel: beta (12), the UD factors
+//  * one record of kRecord = 25 scalars per pixel (rows padded to a multiple
+//    of kBlock = 8 pixels; recordIndex below): beta (12), the UD factors
 //    of P (10), the temporal feature z (3); two such buffers (ping-pong) when
 //    motion is given, because a pixel reads the model of another pixel; one
 //    when the scene is static (no motion image: updated in place, no
@@ -19,6 +20,7 @@
 // luminance, float) and two counters per row.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <vector>
 
@@ -30,6 +32,17 @@ namespace crisp::phlm {
 
 enum class JitterWeighting { None, BlackmanHarris };
 enum class ModelFetch { Bilinear, Nearest };  // how beta is reprojected (P, U/D: always nearest)
+
+// The records are stored in blocks of kBlock pixels of a row, each block the
+// kRecord scalars as planes of kBlock lanes (scalar j of the block's pixel i at
+// j * kBlock + i): the layout of phlm.cpp's 8-lane batch, which loads and
+// stores a block's model as whole vectors. Rows are padded to whole blocks.
+constexpr int kBlock = 8;
+// Where scalar 0 of pixel (x, y)'s record is; scalar j at + j * kBlock.
+inline std::size_t recordIndex(int blocksPerRow, int x, int y) {
+  return (std::size_t(y) * std::size_t(blocksPerRow) + std::size_t(x / kBlock)) * (kRecord * kBlock) +
+         std::size_t(x % kBlock);
+}
 
 struct Settings {
   float jitterX = 0.0f;  // this frame's sample offset, pixels, x right
@@ -83,14 +96,17 @@ class Kernel {
   int framesSinceReset() const { return frames_; }
   const FrameStats& lastStats() const { return stats_; }
   // The record (kRecord scalars, phlm_rls.h layout) of pixel (x, y) after the last run.
-  const T* record(int x, int y) const {
-    return models_[current_].data() + (std::size_t(y) * std::size_t(width_) + std::size_t(x)) * kRecord;
+  std::array<T, kRecord> record(int x, int y) const {
+    std::array<T, kRecord> r;
+    const T* first = models_[current_].data() + recordIndex(blocksPerRow_, x, y);
+    for (int j = 0; j < kRecord; ++j) r[std::size_t(j)] = first[std::size_t(j) * kBlock];
+    return r;
   }
   int width() const { return width_; }
   int height() const { return height_; }
 
  private:
-  int width_ = 0, height_ = 0;
+  int width_ = 0, height_ = 0, blocksPerRow_ = 0;
   bool withMotion_ = false, withDepth_ = false;
   Image staged_;
   std::vector<T> models_[2];

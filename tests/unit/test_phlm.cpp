@@ -5,6 +5,7 @@
 // filter interface. The 20 000-frame stability suite is test_phlm_stability.cpp.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -222,20 +223,27 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
       reference.run(in, s, true, 1);
       ASSERT_EQ(0, std::memcmp(outFast.data.data(), outReference.data.data(), outFast.data.size() * sizeof(float)))
           << "frame " << t << " mode " << mode << " " << temporal::fastPathIsaName();
-      ASSERT_EQ(0, std::memcmp(fast.record(0, 0), reference.record(0, 0), sizeof(float) * phlm::kRecord * w * h))
-          << "frame " << t << " mode " << mode << " " << temporal::fastPathIsaName();
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const std::array<float, phlm::kRecord> a = fast.record(x, y), b = reference.record(x, y);
+          ASSERT_EQ(0, std::memcmp(a.data(), b.data(), sizeof a))
+              << "frame " << t << " mode " << mode << " (" << x << "," << y << ") " << temporal::fastPathIsaName();
+        }
     }
   }
 }
 
 // Memory kept between frames: one 100-byte record per pixel when static, two
 // with motion, plus two depth planes with depth; nothing allocated by run().
+// Record rows are padded to whole blocks of 8 pixels (phlm.h recordIndex).
 TEST(Phlm, MemoryKeptBetweenFrames) {
   phlm::Kernel<float> k;
-  k.allocate(100, 10, false, false);
-  EXPECT_EQ(k.bytesKeptBetweenFrames(), 1000u * 100u);
-  k.allocate(100, 10, true, true);
-  EXPECT_EQ(k.bytesKeptBetweenFrames(), 1000u * (200u + 8u));
+  k.allocate(96, 10, false, false);
+  EXPECT_EQ(k.bytesKeptBetweenFrames(), 960u * 100u);
+  k.allocate(96, 10, true, true);
+  EXPECT_EQ(k.bytesKeptBetweenFrames(), 960u * (200u + 8u));
+  k.allocate(100, 10, true, true);  // 100 = 12.5 blocks: records of 104 pixels per row, depth of 100
+  EXPECT_EQ(k.bytesKeptBetweenFrames(), 1040u * 200u + 1000u * 8u);
   std::printf("phlm float32 state: %zu bytes/pixel static, %zu with motion and depth\n", std::size_t(100),
               std::size_t(208));
 }

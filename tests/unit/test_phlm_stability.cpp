@@ -13,6 +13,7 @@
 //    extent (+ an absolute 1e-6), over the whole run.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -79,7 +80,8 @@ void checkState(const phlm::Kernel<T>& k, const phlm::Settings& s, int t, const 
   const double bound = (s.initialCovariance + 3.0 * s.slopeCovariance) / (l3 * cMoving) * (1.0 + 1e-4);
   for (int y = 0; y < kH; ++y)
     for (int x = 0; x < kW; ++x) {
-      const T* m = k.record(x, y);
+      const std::array<T, phlm::kRecord> record = k.record(x, y);
+      const T* m = record.data();
       double P[4][4];
       phlm::covariance(m, P);
       double trace = 0.0;
