@@ -147,9 +147,7 @@ void Kernel::fetch(float fx, float fy, float out[4]) const {
   }
 }
 
-void Kernel::resolve(const Inputs& in, int x, int y, const Geo& centre, const Geo* subs, float out[4]) {
-  float s[kSamples];
-  for (int k = 0; k < kSamples; ++k) s[k] = sadp(centre, subs[k]);
+void Kernel::resolve(const Inputs& in, int x, int y, const Geo& centre, const float s[kSamples], float out[4]) {
   int mask = splitMask(s, settings_.threshold);  // Algorithm 1
   const auto neighbour = [&](int k, Geo& g) {
     const int nx = x + geometry_.neighbourDx[k], ny = y + geometry_.neighbourDy[k];
@@ -161,7 +159,7 @@ void Kernel::resolve(const Inputs& in, int x, int y, const Geo& centre, const Ge
     for (int k = 0; k < kSamples; ++k) {
       if (mask & (1 << k)) continue;
       Geo n;
-      if (neighbour(k, n) && !(sadp(subs[k], n) < s[k])) mask |= 1 << k;
+      if (neighbour(k, n) && !(sadp(subGeo(in, k, x, y), n) < s[k])) mask |= 1 << k;
     }
   }
   float ox = kOffsetTable[mask][0], oy = kOffsetTable[mask][1];
@@ -654,6 +652,58 @@ CRISP_AVX2 int anyDiffersPacked8(const Inputs& in, int x, int y, const float* co
   return _mm256_movemask_ps(any);
 }
 
+// rsaa::sadp(centre, sample k) for the 8 samples of one pixel, lane k =
+// sample k (world normals wx, wy, wz, which cam rotates; depths d; ray terms
+// sux, suy): the operations of sadp in its order, the square root and the
+// division correctly rounded as the scalar ones, so the same bits.
+template <bool Ortho>
+CRISP_AVX2 inline __m256 sadpLanes(__m256 wx, __m256 wy, __m256 wz, __m256 d, const Geo& centre, __m256 sux,
+                                   __m256 suy, const Camera& cam) {
+  const Centre8 c = broadcastCentre8(centre);
+  const SampleR8 s = sampleR8<Ortho>(d, c, sux, suy);
+  const __m256 snx = rotate8(cam, 0, wx, wy, wz), sny = rotate8(cam, 1, wx, wy, wz), snz = rotate8(cam, 2, wx, wy, wz);
+  const __m256 da = dot8(c.nx, c.ny, c.nz, s.rx, s.ry, s.rz);
+  const __m256 db = dot8(snx, sny, snz, s.rx, s.ry, s.rz);
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 svx = Ortho ? zero : sux, svy = Ortho ? zero : suy;
+  const __m256 stol = tolerance8(d, cam);
+  const __m256 slackA = _mm256_add_ps(c.selfSlack, slack8(c.nx, c.ny, c.nz, svx, svy, stol));
+  const __m256 slackB = _mm256_add_ps(slack8(snx, sny, snz, c.vx, c.vy, c.tol), slack8(snx, sny, snz, svx, svy, stol));
+  const __m256 ea = _mm256_max_ps(zero, _mm256_sub_ps(abs8(da), slackA));
+  const __m256 eb = _mm256_max_ps(zero, _mm256_sub_ps(abs8(db), slackB));
+  __m256 v = _mm256_div_ps(_mm256_add_ps(ea, eb), _mm256_sqrt_ps(s.r2));
+  v = _mm256_blendv_ps(set8(kDifferentSadp), v, _mm256_cmp_ps(v, v, _CMP_ORD_Q));  // NaN: different
+  v = _mm256_and_ps(v, s.apart);  // coincident points: 0
+  // Background on either side: 0 for two background points, else different.
+  const __m256 bgValue = _mm256_and_ps(_mm256_xor_ps(c.bg, s.bg), set8(kDifferentSadp));
+  return _mm256_blendv_ps(v, bgValue, _mm256_or_ps(c.bg, s.bg));
+}
+
+// SADP of the 8 samples of pixel (x, y) against its centre into s[], from
+// the packed record (int16 normals, packedCam) or the 8 float4 images (cam).
+// The samples' ray terms are the centre's (ux, uy) plus the pattern's steps
+// (dux, duy), added as subGeo adds them.
+template <bool Ortho>
+CRISP_AVX2 void pixelSadp8(const Inputs& in, int x, int y, const Geo& centre, float ux, float uy, const float* dux,
+                           const float* duy, const Camera& cam, const Camera& packedCam, float s[kSamples]) {
+  const __m256 sux = _mm256_add_ps(set8(ux), _mm256_loadu_ps(dux)), suy = _mm256_add_ps(set8(uy), _mm256_loadu_ps(duy));
+  __m256 v;
+  if (in.packed.valid()) {
+    const SubsampleRecord* r = subsampleRecord(in.packed, x, y);
+    v = sadpLanes<Ortho>(int16ToFloat8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(r->nx))),
+                         int16ToFloat8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(r->ny))),
+                         int16ToFloat8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(r->nz))),
+                         _mm256_loadu_ps(r->depth), centre, sux, suy, packedCam);
+  } else {
+    const float* p[kSamples];
+    for (int k = 0; k < kSamples; ++k) p[k] = in.sub[k].pixel(x, y);
+    __m256 wx, wy, wz, d;
+    load8x4(p, wx, wy, wz, d);
+    v = sadpLanes<Ortho>(wx, wy, wz, d, centre, sux, suy, cam);
+  }
+  _mm256_storeu_ps(s, v);
+}
+
 // sanitizeColor in 8 lanes: NaN -> 0, then clamp to +-kMaxColor, as
 // std::clamp does (the bounds are finite, so max/min give the same values).
 CRISP_AVX2 inline __m256 sanitize8(__m256 v) {
@@ -666,14 +716,19 @@ CRISP_AVX2 inline void sanitizeCopy8(const float* src, float* dst) {
   for (int j = 0; j < 32; j += 8) _mm256_storeu_ps(dst + j, sanitize8(_mm256_loadu_ps(src + j)));
 }
 
-// True when the 8 packed RGBA output pixels equal the sanitised colour (src),
-// i.e. FXAA left all of them alone (the scalar test compares channel by
-// channel with !=; so does this, -0 == 0 included).
-CRISP_AVX2 inline bool unchanged8(const float* src, const float* out) {
-  __m256 neq = _mm256_setzero_ps();
-  for (int j = 0; j < 32; j += 8)
-    neq = _mm256_or_ps(neq, _mm256_cmp_ps(sanitize8(_mm256_loadu_ps(src + j)), _mm256_loadu_ps(out + j), _CMP_NEQ_UQ));
-  return _mm256_testz_ps(neq, neq);
+// Bit j set where packed RGBA output pixel j of 8 differs from the
+// sanitised colour (src), i.e. where FXAA changed it (or RSAA wrote it): the
+// scalar test compares channel by channel with !=; so does this, -0 == 0
+// included.
+CRISP_AVX2 inline int changedPixels8(const float* src, const float* out) {
+  std::uint32_t lanes = 0;  // bits 4p..4p+3: the channels of pixel p
+  for (int j = 0; j < 4; ++j) {
+    const __m256 neq = _mm256_cmp_ps(sanitize8(_mm256_loadu_ps(src + 8 * j)), _mm256_loadu_ps(out + 8 * j), _CMP_NEQ_UQ);
+    lanes |= std::uint32_t(_mm256_movemask_ps(neq)) << (8 * j);
+  }
+  int pixels = 0;
+  for (int p = 0; p < 8; ++p) pixels |= ((lanes >> (4 * p)) & 0xFu) ? 1 << p : 0;
+  return pixels;
 }
 #endif
 
@@ -754,10 +809,15 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
           const std::size_t i = std::size_t(y) * std::size_t(width_) + std::size_t(xj);
           const bool any = (bits >> j) & 1;
           geometric_[i] = any;
-          if (any) {
+          if (any) {  // the 8 SADPs in one AVX2 step, then resolve
             const Geo centre = centreGeo(in, xj, y);
-            for (int k = 0; k < kSamples; ++k) subs[k] = subGeo(in, k, xj, y);
-            resolve(in, xj, y, centre, subs, colour);
+            const float ux = colUx_[std::size_t(xj)], uy = rowUy_[std::size_t(y)];
+            float s[kSamples];
+            if (cam.orthographic)
+              pixelSadp8<true>(in, xj, y, centre, ux, uy, dux_, duy_, cam, packedCamera_, s);
+            else
+              pixelSadp8<false>(in, xj, y, centre, ux, uy, dux_, duy_, cam, packedCamera_, s);
+            resolve(in, xj, y, centre, s, colour);
           } else {
             masks_[i] = 255;
             halved_[i] = 0;
@@ -804,7 +864,9 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
       const std::size_t i = std::size_t(y) * std::size_t(width_) + std::size_t(x);
       geometric_[i] = any;
       if (any) {
-        resolve(in, x, y, centre, subs, colour);
+        float s[kSamples];
+        for (int k = 0; k < kSamples; ++k) s[k] = sadp(centre, subs[k]);
+        resolve(in, x, y, centre, s, colour);
       } else {
         masks_[i] = 255;
         halved_[i] = 0;
@@ -838,10 +900,9 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
 // The second test runs only where FXAA changed the colour (a few % of pixels).
 void Kernel::guardRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd) {
   const int outChannels = output.channels();
-  static constexpr int kNeighbour4[4][2] = {{-1, 0}, {1, 0}, {0, -1}, {0, 1}};
 #if defined(CRISP_RSAA_AVX2)
-  // Fast path: skip 8 pixels at once when FXAA left all of them alone (most
-  // of the image); the others take the scalar test below.
+  // Fast path: 8 pixels' "changed" bits at once; only the changed ones (a
+  // few % where FXAA acted) take the per-pixel test.
   const bool chunks = simd && useAvx2() && outChannels == 4 && output.pixelStride == 16 &&
                       (!direct_ || (direct_->channels() == 4 && direct_->pixelStride == 16));
 #else
@@ -851,9 +912,11 @@ void Kernel::guardRows(const Inputs& in, const ImageView& output, int y0, int y1
     for (int x = 0; x < width_; ++x) {
       const std::size_t i = std::size_t(y) * std::size_t(width_) + std::size_t(x);
 #if defined(CRISP_RSAA_AVX2)
-      if (chunks && x % 8 == 0 && x + 8 <= width_ &&
-          unchanged8(direct_ ? direct_->pixel(x, y) : staged_.at(x, y), output.pixel(x, y))) {
+      if (chunks && x % 8 == 0 && x + 8 <= width_) {
+        const int changed = changedPixels8(direct_ ? direct_->pixel(x, y) : staged_.at(x, y), output.pixel(x, y));
         std::memset(&textured_[i], 0, 8);
+        for (int j = 0; changed >> j; ++j)
+          if ((changed >> j) & 1 && !geometric_[i + std::size_t(j)]) guardChanged(in, output, x + j, y);
         x += 7;
         continue;
       }
@@ -862,30 +925,38 @@ void Kernel::guardRows(const Inputs& in, const ImageView& output, int y0, int y1
       if (geometric_[i]) continue;  // RSAA's result
       float colour[4];
       texel(x, y, colour);
-      float* o = output.pixel(x, y);
+      const float* o = output.pixel(x, y);
       bool changed = false;
       for (int k = 0; k < outChannels; ++k) changed = changed || o[k] != colour[k];
-      if (!changed) continue;
-      bool guarded = false;
-      for (int yy = std::max(y - 1, 0); yy <= std::min(y + 1, height_ - 1) && !guarded; ++yy)
-        for (int xx = std::max(x - 1, 0); xx <= std::min(x + 1, width_ - 1); ++xx)
-          guarded = guarded || geometric_[std::size_t(yy) * std::size_t(width_) + std::size_t(xx)];
-      if (!guarded) {
-        const Geo centre = centreGeo(in, x, y);
-        for (const auto& d : kNeighbour4) {
-          const int nx = x + d[0], ny = y + d[1];
-          if (nx < 0 || ny < 0 || nx >= width_ || ny >= height_) continue;
-          if (differs(centre, centreGeo(in, nx, ny), threshold2_)) {
-            guarded = true;
-            break;
-          }
-        }
-      }
-      if (guarded)
-        for (int k = 0; k < outChannels; ++k) o[k] = colour[k];
-      else
-        textured_[i] = 1;
+      if (changed) guardChanged(in, output, x, y);
     }
+}
+
+void Kernel::guardChanged(const Inputs& in, const ImageView& output, int x, int y) {
+  static constexpr int kNeighbour4[4][2] = {{-1, 0}, {1, 0}, {0, -1}, {0, 1}};
+  bool guarded = false;
+  for (int yy = std::max(y - 1, 0); yy <= std::min(y + 1, height_ - 1) && !guarded; ++yy)
+    for (int xx = std::max(x - 1, 0); xx <= std::min(x + 1, width_ - 1); ++xx)
+      guarded = guarded || geometric_[std::size_t(yy) * std::size_t(width_) + std::size_t(xx)];
+  if (!guarded) {
+    const Geo centre = centreGeo(in, x, y);
+    for (const auto& d : kNeighbour4) {
+      const int nx = x + d[0], ny = y + d[1];
+      if (nx < 0 || ny < 0 || nx >= width_ || ny >= height_) continue;
+      if (differs(centre, centreGeo(in, nx, ny), threshold2_)) {
+        guarded = true;
+        break;
+      }
+    }
+  }
+  if (guarded) {
+    float colour[4];
+    texel(x, y, colour);
+    float* o = output.pixel(x, y);
+    for (int k = 0; k < output.channels(); ++k) o[k] = colour[k];
+  } else {
+    textured_[std::size_t(y) * std::size_t(width_) + std::size_t(x)] = 1;
+  }
 }
 
 void Kernel::run(const Inputs& in, const ImageView& output, bool reference, int numThreads) {

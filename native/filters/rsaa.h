@@ -96,13 +96,17 @@ class Kernel {
   };
   Geo centreGeo(const Inputs& in, int x, int y) const;
   Geo subGeo(const Inputs& in, int k, int x, int y) const;
-  // Steps 2-4 for a pixel with at least one differing sample.
-  void resolve(const Inputs& in, int x, int y, const Geo& centre, const Geo* subs, float out[4]);
+  // Steps 3-4 for a pixel with at least one differing sample, from the SADP
+  // of each sample against the centre (s[k] = rsaa::sadp(centre, sample k)).
+  void resolve(const Inputs& in, int x, int y, const Geo& centre, const float s[kSamples], float out[4]);
   void runRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd);
   // textureAA = fxaa, after runRows on the whole image: restores the colour
   // of every pixel FXAA must not touch.
   // simd: skip 8 pixels FXAA left alone at a time (same result).
   void guardRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd);
+  // guardRows for one non-geometric pixel whose output FXAA changed: keeps
+  // FXAA's colour (textured) or restores the sanitised colour.
+  void guardChanged(const Inputs& in, const ImageView& output, int x, int y);
   void stage(const ImageView& color, int y0, int y1);
   void fetch(float fx, float fy, float out[4]) const;
   void texel(int x, int y, float out[4]) const;
