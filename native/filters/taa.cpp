@@ -223,6 +223,27 @@ struct ReprojectionLanes {
   temporal::MaskOfT<T> valid;    // usable history at p + v
   temporal::MaskOfT<T> moving;   // v != 0
 };
+// True when every lane of a whole group is valid and lane l's footprint
+// starts at (x0[0] + l, y0[0]) with taps left .. x0 + right and top .. y0 +
+// bottom all inside [0, w) x [0, h): then the lanes' taps are consecutive in
+// memory and clamping changes none. False for one pixel (T = float: the
+// reference gathers as before).
+template <class T>
+__attribute__((always_inline)) inline bool sharedInteriorOffset(temporal::IntOf<T> x0, temporal::IntOf<T> y0,
+                                                                temporal::MaskOfT<T> valid, int left, int right,
+                                                                int top, int bottom, int w, int h) {
+  if constexpr (std::is_same_v<T, float>) {
+    return false;
+  } else {
+    using Int = temporal::IntOf<T>;
+    constexpr int kL = temporal::kLanesOf<T>;
+    const int gx = x0[0], gy = y0[0];
+    return temporal::allOf(valid) && temporal::allOf(Int(Int(x0 - temporal::truncOf(temporal::laneIndexOf<T>()) == gx) &
+                                                         Int(y0 == gy))) &&
+           gx + left >= 0 && gx + kL - 1 + right < w && gy + top >= 0 && gy + bottom < h;
+  }
+}
+
 template <class T>
 __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const Frame& f, T px, T py, T vx, T vy,
                                                                           T tapDepth) {
@@ -252,13 +273,31 @@ __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const 
     auto clampIndex = [](temporal::IntOf<T> v, int hi) { return v < 0 ? 0 : (hi < v ? hi : v); };
     const auto xa = clampIndex(r.x0, w - 1), xb = clampIndex(r.x0 + 1, w - 1);
     const auto ya = clampIndex(r.y0, h - 1), yb = clampIndex(r.y0 + 1, h - 1);
+    T d00, d10, d01, d11;  // the previous depth at the four taps
+    bool loaded = false;
+    if constexpr (!std::is_same_v<T, float>) {
+      if (sharedInteriorOffset<T>(r.x0, r.y0, valid, 0, 1, 0, 1, w, h)) {
+        // Smooth motion: the lanes' taps are consecutive, the same values as the gathers.
+        const float* upper = f.previousDepth + std::size_t(r.y0[0]) * w + r.x0[0];
+        d00 = temporal::loadLanes<T>(upper);
+        d10 = temporal::loadLanes<T>(upper + 1);
+        d01 = temporal::loadLanes<T>(upper + w);
+        d11 = temporal::loadLanes<T>(upper + w + 1);
+        loaded = true;
+      }
+    }
+    if (!loaded) {
+      d00 = temporal::gatherOf(f.previousDepth, w, xa, ya);
+      d10 = temporal::gatherOf(f.previousDepth, w, xb, ya);
+      d01 = temporal::gatherOf(f.previousDepth, w, xa, yb);
+      d11 = temporal::gatherOf(f.previousDepth, w, xb, yb);
+    }
     const float tol = f.depthTolerance;
     const M x1 = r.tx != 0.0f, y1 = r.ty != 0.0f;
-    const M same =
-        M(temporal::sameSurfaceDepth(tapDepth, temporal::gatherOf(f.previousDepth, w, xa, ya), tol) |
-          M(x1 & temporal::sameSurfaceDepth(tapDepth, temporal::gatherOf(f.previousDepth, w, xb, ya), tol)) |
-          M(y1 & temporal::sameSurfaceDepth(tapDepth, temporal::gatherOf(f.previousDepth, w, xa, yb), tol)) |
-          M(x1 & y1 & temporal::sameSurfaceDepth(tapDepth, temporal::gatherOf(f.previousDepth, w, xb, yb), tol)));
+    const M same = M(temporal::sameSurfaceDepth(tapDepth, d00, tol) |
+                     M(x1 & temporal::sameSurfaceDepth(tapDepth, d10, tol)) |
+                     M(y1 & temporal::sameSurfaceDepth(tapDepth, d01, tol)) |
+                     M(x1 & y1 & temporal::sameSurfaceDepth(tapDepth, d11, tol)));
     valid = M(valid & same);
   }
   r.valid = valid;
@@ -568,19 +607,79 @@ BandScratch bandScratch(float* base, int width) {
 // row belongs to the band): the same values as stagePixel (core/row_stage.h)
 // and the same motion and depth taps as the reference reads, de-interleaved.
 // Plane index k holds shifted pixel k - 1 clamped (Frame::sourceColumn).
+// The plane indices [lo, hi) whose source column is not clamped:
+// sourceColumn[k] == k - 1 - shiftX there (temporal::shiftedSource).
+struct UnclampedRun {
+  int lo, hi;
+};
+inline UnclampedRun unclampedRun(int width, int shiftX) {
+  const int lo = std::max(1, 1 + shiftX), hi = std::min(width, width + shiftX) + 1;
+  return {lo, std::max(lo, hi)};
+}
+
+// One staged colour: stageColorRow's values (core/row_stage.h): sanitised,
+// a missing G or B repeats R, a missing alpha is 1.
+inline void stageColorTap(const float* px, int channels, float* const* p, int k) {
+  p[0][k] = sanitizeColor(px[0]);
+  p[1][k] = sanitizeColor(channels > 1 ? px[1] : px[0]);
+  p[2][k] = sanitizeColor(channels > 2 ? px[2] : px[0]);
+  p[3][k] = channels > 3 ? sanitizeColor(px[3]) : 1.0f;
+}
+// stageColorTap over `count` packed pixels of C = 3 or 4 floats, into plane
+// indices 0 .. count - 1: sanitizeColor as three selects (the same values),
+// a loop the compiler vectorises.
+template <int C>
+__attribute__((always_inline)) inline void stageColorRun(const float* src, int count, float* p0, float* p1, float* p2,
+                                                         float* p3) {
+  auto sanitize = [](float v) {
+    v = v == v ? v : 0.0f;
+    v = v < -kMaxColor ? -kMaxColor : v;
+    return kMaxColor < v ? kMaxColor : v;
+  };
+  for (int i = 0; i < count; ++i) {
+    const float* px = src + C * i;
+    p0[i] = sanitize(px[0]);
+    p1[i] = sanitize(px[1]);
+    p2[i] = sanitize(px[2]);
+    p3[i] = C > 3 ? sanitize(px[3]) : 1.0f;
+  }
+}
+
+// Stages image row y of the shifted image (Frame::unjitter; no shift without
+// unjitter) into ring slot y % kRing (and this frame's depth plane when the
+// row belongs to the band): the same values as stagePixel (core/row_stage.h)
+// and the same motion and depth taps as the reference reads, de-interleaved.
+// Plane index k holds shifted pixel k - 1 clamped (Frame::sourceColumn); the
+// unclamped run is copied straight from packed inputs, the rest tap by tap.
 template <class T>
 __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandScratch& s, int y, float* depthNow) {
   const int w = f.width, n = planeFloats(w);
   const int* column = f.sourceColumn;
   const int source = std::clamp(y - f.unjitter.shiftY, 0, f.height - 1);
-  stageColorRow(f.color, source, s.row);
+  const UnclampedRun run = unclampedRun(w, f.unjitter.shiftX);
+  const int first = run.lo - 1 - f.unjitter.shiftX;  // source column of plane index run.lo
   float* const* p = s.planes[y % kRing];
-  for (int k = 0; k < n; ++k) {
-    const float* px = s.row + 4 * column[k];
-    p[0][k] = px[0];
-    p[1][k] = px[1];
-    p[2][k] = px[2];
-    p[3][k] = px[3];
+  const int cc = f.color.channels();
+  const std::size_t colorStride = f.color.pixelStride;
+  if ((cc == 3 || cc == 4) && colorStride == std::size_t(cc) * sizeof(float)) {
+    for (int k = 0; k < n; ++k) {
+      if (k == run.lo) k = run.hi;
+      if (k < n) stageColorTap(f.color.pixel(column[k], source), cc, p, k);
+    }
+    const float* src = f.color.pixel(std::clamp(first, 0, w - 1), source);  // = first where the run is not empty
+    if (cc == 4)
+      stageColorRun<4>(src, run.hi - run.lo, p[0] + run.lo, p[1] + run.lo, p[2] + run.lo, p[3] + run.lo);
+    else
+      stageColorRun<3>(src, run.hi - run.lo, p[0] + run.lo, p[1] + run.lo, p[2] + run.lo, p[3] + run.lo);
+  } else {
+    stageColorRow(f.color, source, s.row);
+    for (int k = 0; k < n; ++k) {
+      const float* px = s.row + 4 * column[k];
+      p[0][k] = px[0];
+      p[1][k] = px[1];
+      p[2][k] = px[2];
+      p[3][k] = px[3];
+    }
   }
   if (f.space == ClipSpace::YCoCg)
     for (int k = 0; k < n; k += temporal::kLanesOf<T>) {  // rgbToYCoCg (color_space.h), a lane group at a time
@@ -590,12 +689,28 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
       temporal::storeLanes(p[1] + k, 0.5f * r - 0.5f * b);
       temporal::storeLanes(p[2] + k, -0.25f * r + 0.5f * g - 0.25f * b);
     }
-  if (f.motion.ptr)
-    for (int k = 0; k < n; ++k) {
+  if (f.motion.ptr) {
+    auto motionTap = [&](int k) {
       const float* m = f.motion.pixel(column[k], source);
       p[4][k] = m[0];
       p[5][k] = m[1];
+    };
+    const std::size_t stride = f.motion.pixelStride;
+    if (stride == 8 || stride == 16) {
+      for (int k = 0; k < n; ++k) {
+        if (k == run.lo) k = run.hi;
+        if (k < n) motionTap(k);
+      }
+      const float* m = f.motion.pixel(std::clamp(first, 0, w - 1), source);
+      const int step = int(stride / sizeof(float));
+      for (int k = run.lo; k < run.hi; ++k, m += step) {
+        p[4][k] = m[0];
+        p[5][k] = m[1];
+      }
+    } else {
+      for (int k = 0; k < n; ++k) motionTap(k);
     }
+  }
   if (!f.depth.ptr) return;
   float* d = s.depth[y % kRing];
   stageDepthRow(f.depth, source, s.row);
@@ -605,8 +720,9 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
 
 // Rows [y0, y1) on the fast path: each row staged once per band (plus two
 // halo rows above and below), then eight pixels at a time: their taps, boxes,
-// unjittered mix and reprojection from the planes, their history fetched one
-// by one, the same resolveLanes as the reference on all eight.
+// unjittered mix and reprojection from the planes, their history fetched as
+// lanes where the group moves as one (else one pixel at a time), the same
+// resolveLanes as the reference on all eight, the history stored as lanes.
 // T: the lane type (temporal/lanes.h), Vec8 in the AVX2 copy, Vec4 in the
 // baseline (SSE2) one.
 template <class T>
@@ -624,6 +740,8 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
   stageRow<T>(f, s, y0, depthNow);
   if (y0 + 1 < h) stageRow<T>(f, s, y0 + 1, y0 + 1 < y1 ? depthNow : nullptr);
   const T laneIndex = temporal::laneIndexOf<T>();
+  const bool packedOutput = f.writeOutput && f.unjitter.enabled && f.output.channels() == 4 &&
+                            f.output.pixelStride == 4 * sizeof(float);
   for (int y = y0; y < y1; ++y) {
     if (y + 2 < h) stageRow<T>(f, s, y + 2, y + 2 < y1 ? depthNow : nullptr);
     const int up = std::max(y - 1, 0) % kRing, mid = y % kRing, down = std::min(y + 1, h - 1) % kRing;
@@ -681,14 +799,11 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
       if (whole && !temporal::anyOf(rp.moving)) {
         for (int c = 0; c < 4; ++c) in.hist[c] = load(f.previous.plane[c] + rowStart + x0);
         fetched = true;
-      } else if (whole && temporal::allOf(rp.moving) && f.filter == HistoryFilter::CatmullRom) {
-        const int gx = rp.x0[0], gy = rp.y0[0];
-        const Int offset = rp.x0 - temporal::truncOf(laneIndex);
-        if (temporal::allOf(Int(Int(offset == gx) & Int(rp.y0 == gy))) && gx >= 1 && gy >= 1 &&
-            gx + kL + 1 < w && gy + 2 < h) {
-          temporal::fetchCatmullRomRow(f.previous, gx, gy, rp.tx, rp.ty, in.hist);
-          fetched = true;
-        }
+      } else if (whole && temporal::allOf(rp.moving) && f.filter == HistoryFilter::CatmullRom &&
+                 sharedInteriorOffset<T>(rp.x0, rp.y0, rp.valid, -1, 2, -1, 2, w, h)) {
+        // footprintInterior4x4 on every lane: the unclamped fetch's taps.
+        temporal::fetchCatmullRomRow(f.previous, rp.x0[0], rp.y0[0], rp.tx, rp.ty, in.hist);
+        fetched = true;
       }
       for (int l = 0; l < lanes; ++l) {
         const int x = x0 + l;
@@ -729,19 +844,28 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         return true;
       });
 
+      for (int l = 0; l < lanes; ++l) f.feedbackSinceReset[rowStart + x0 + l] = r.feedbackSinceReset[l] != 0;
       if (lanes == kL) {
         for (int c = 0; c < 3; ++c) temporal::storeLanes(f.history[c] + rowStart + x0, r.color[c]);
         temporal::storeLanes(f.history[3] + rowStart + x0, r.signedWeight);
-      }
-      for (int l = 0; l < lanes; ++l) {
-        const int x = x0 + l;
-        f.feedbackSinceReset[rowStart + x] = r.feedbackSinceReset[l] != 0;
-        const float color[3] = {r.color[0][l], r.color[1][l], r.color[2][l]};
-        const float output[3] = {r.output[0][l], r.output[1][l], r.output[2][l]};
-        if (lanes == kL)
-          storeOutputPixel(f, x, y, output, r.reset[l] != 0, in.current[3][l]);
-        else
-          storePixel(f, x, y, color, r.signedWeight[l], output, r.reset[l] != 0, in.current[3][l]);
+        if (packedOutput) {
+          // storeOutputPixel on packed RGBA, where it never reads the input
+          // (the unjittered mix is the current colour even on a reset).
+          float* out = f.output.pixel(x0, y);
+          for (int l = 0; l < kL; ++l)
+            temporal::store4(out + 4 * l, Vec4{r.output[0][l], r.output[1][l], r.output[2][l], in.current[3][l]});
+        } else {
+          for (int l = 0; l < kL; ++l) {
+            const float output[3] = {r.output[0][l], r.output[1][l], r.output[2][l]};
+            storeOutputPixel(f, x0 + l, y, output, r.reset[l] != 0, in.current[3][l]);
+          }
+        }
+      } else {
+        for (int l = 0; l < lanes; ++l) {
+          const float color[3] = {r.color[0][l], r.color[1][l], r.color[2][l]};
+          const float output[3] = {r.output[0][l], r.output[1][l], r.output[2][l]};
+          storePixel(f, x0 + l, y, color, r.signedWeight[l], output, r.reset[l] != 0, in.current[3][l]);
+        }
       }
     }
   }
