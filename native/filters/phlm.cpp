@@ -205,12 +205,14 @@ template <class T>
 struct Batch {
   using V = typename LanesOf<T>::V;
   using M = typename LanesOf<T>::M;
-  // Step 3, per lane: where the nearest model q = pi(v) is (recordIndex of
-  // scalar 0; read only when valid) and, for a moving lane, the bilinear
-  // footprint of the feature (and beta) fetch: its four taps and fractions.
+  // Step 3, per lane: where the nearest model q = pi(v) is (read only when
+  // valid) and, for a moving lane, the bilinear footprint of the feature (and
+  // beta) fetch: its four taps and fractions. Pixels as indices into the
+  // padded rows (paddedPixel).
   std::size_t source[kBatch], tap[4][kBatch];
   float tx[kBatch], ty[kBatch];
-  bool direct = true;  // every lane valid, still and reading its own record (q = x)
+  bool allValid = true;      // every lane reprojected (no reset)
+  bool allBilinear = true;   // every lane valid and moving
   bool anyBilinear = false;  // some lane valid and moving
   // Step 2's inputs: the 3x3 sum and luminance range, |v|; valid: 1
   // (history reprojected) or 0 (reset).
@@ -219,6 +221,20 @@ struct Batch {
   int count = 0, x0 = 0, y = 0;
 };
 
+// A pixel as an index into the padded rows of the records (blocksPerRow *
+// kBlock pixels a row), and where its scalar 0 is (phlm.h recordIndex).
+CRISP_PHLM_INLINE std::size_t paddedPixel(int blocksPerRow, int x, int y) {
+  return std::size_t(y) * std::size_t(blocksPerRow) * kBlock + std::size_t(x);
+}
+CRISP_PHLM_INLINE std::size_t recordIndexOf(std::size_t paddedPixel) {
+  return paddedPixel / kBlock * (kRecord * kBlock) + paddedPixel % kBlock;
+}
+// The lanes' pixels are consecutive (pixel[i] = pixel[0] + i).
+CRISP_PHLM_INLINE bool isRun(const std::size_t pixel[kBatch]) {
+  bool run = true;
+  for (int i = 1; i < kBatch; ++i) run &= pixel[i] == pixel[0] + std::size_t(i);
+  return run;
+}
 // YCgCo luminance (R + 2G + B) / 4 (§5.1); T the scalar, V T or lanes of T.
 template <class T, class V>
 CRISP_PHLM_INLINE V lumaYCgCo(const V c[3]) {
@@ -357,33 +373,34 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   if (lane == 0) {
     batch.x0 = x;
     batch.y = y;
-    batch.direct = true;
+    batch.allValid = batch.allBilinear = true;
     batch.anyBilinear = false;
   }
   T speed = T(0);
   batch.tx[lane] = batch.ty[lane] = 0.0f;
   if (valid) {
-    batch.source[lane] = recordIndex(f.blocksPerRow, qx, qy);
+    batch.source[lane] = paddedPixel(f.blocksPerRow, qx, qy);
     if (moving) {
       // Step 2: feature history at pi(v) (exact at zero motion), eq. 1,
       // bilinear with clamp to edge (temporal/history_fetch.h's footprint).
       const temporal::Footprint fp = temporal::footprintOf(px, py);
       const int xa = std::clamp(fp.x0, 0, w - 1), xb = std::clamp(fp.x0 + 1, 0, w - 1);
       const int ya = std::clamp(fp.y0, 0, h - 1), yb = std::clamp(fp.y0 + 1, 0, h - 1);
-      batch.tap[0][lane] = recordIndex(f.blocksPerRow, xa, ya);
-      batch.tap[1][lane] = recordIndex(f.blocksPerRow, xb, ya);
-      batch.tap[2][lane] = recordIndex(f.blocksPerRow, xa, yb);
-      batch.tap[3][lane] = recordIndex(f.blocksPerRow, xb, yb);
+      batch.tap[0][lane] = paddedPixel(f.blocksPerRow, xa, ya);
+      batch.tap[1][lane] = paddedPixel(f.blocksPerRow, xb, ya);
+      batch.tap[2][lane] = paddedPixel(f.blocksPerRow, xa, yb);
+      batch.tap[3][lane] = paddedPixel(f.blocksPerRow, xb, yb);
       batch.tx[lane] = fp.tx;
       batch.ty[lane] = fp.ty;
       batch.anyBilinear = true;
-      batch.direct = false;
+    } else {
+      batch.allBilinear = false;
     }
     speed = T(std::sqrt(vx * vx + vy * vy));
   } else {
     // Lines 7-9 / §6: reset to the input; z = y (finishBatch).
     ++reprojectionResets;
-    batch.direct = false;
+    batch.allValid = batch.allBilinear = false;
   }
   for (int c = 0; c < 3; ++c) {
     batch.sum[c][lane] = sum[c];
@@ -415,6 +432,22 @@ CRISP_PHLM_INLINE V loadLanes(const T* p) {
 template <class V, class T>
 CRISP_PHLM_INLINE void storeLanes(T* p, const V& v) {
   std::memcpy(p, &v, sizeof v);
+}
+
+// Scalar j of the kBatch consecutive pixels from `first` (padded): one block's
+// vector, or the tail of one block's and the head of the next one's (blocks
+// follow each other in memory, across rows too).
+template <class V, class T>
+CRISP_PHLM_INLINE V loadRun(const T* records, std::size_t first, int j) {
+  const T* block = records + first / kBlock * (kRecord * kBlock) + j * kBatch;
+  const int shift = int(first % kBlock);
+  const V a = loadLanes<V>(block);
+  if (shift == 0) return a;
+  const V b = loadLanes<V>(block + kRecord * kBlock);
+  using M = typename LanesOf<T>::M;
+  M lanes;
+  for (int i = 0; i < kBatch; ++i) lanes[i] = shift + i;
+  return __builtin_shuffle(a, b, lanes);
 }
 
 // std::max, std::min, std::clamp and |a| lane by lane: temporal/lanes.h.
@@ -496,17 +529,17 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
   // (lines 7-9 / §6) and history 0.
   const M validLanes = batch.valid != zeroOf<V>();
   V m[kZ], history[3];
-  if (batch.direct && n == kBatch) {
-    // Every lane still and valid: its own record, the block at (x0, y).
-    const T* block = f.previous + recordIndex(f.blocksPerRow, batch.x0, batch.y);
-    for (int j = 0; j < kZ; ++j) m[j] = loadLanes<V>(block + j * kBatch);
-    for (int c = 0; c < 3; ++c) history[c] = loadLanes<V>(block + (kZ + c) * kBatch);
+  if (n == kBatch && batch.allValid && isRun(batch.source)) {
+    // Lanes reading consecutive records (a still block reads its own; a
+    // uniform motion a shifted run): whole vectors (loadRun).
+    for (int j = 0; j < kZ; ++j) m[j] = loadRun<V>(f.previous, batch.source[0], j);
+    for (int c = 0; c < 3; ++c) history[c] = loadRun<V>(f.previous, batch.source[0], kZ + c);
   } else {
     alignas(sizeof(V)) T gathered[kRecord][kBatch];
     for (int i = 0; i < kBatch; ++i) {
       const int from = i < n ? i : 0;
       if (batch.valid[from] != T(0)) {
-        const T* source = f.previous + batch.source[from];
+        const T* source = f.previous + recordIndexOf(batch.source[from]);
         for (int j = 0; j < kRecord; ++j) gathered[j][i] = source[j * kBatch];
       } else {
         for (int j = 0; j < kRecord; ++j) gathered[j][i] = T(0);
@@ -514,43 +547,50 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     }
     for (int j = 0; j < kZ; ++j) m[j] = loadLanes<V>(gathered[j]);
     for (int c = 0; c < 3; ++c) history[c] = loadLanes<V>(gathered[kZ + c]);
-    if (batch.anyBilinear) {
-      // Moving lanes: the feature (and beta with bilinearBeta: the blended
-      // model predicts the bilinear blend of the four models' predictions, §6:
-      // models live in textures read with bilinear filtering; P stays the
-      // nearest model's) from the bilinear footprint. Other lanes: zeros.
-      alignas(sizeof(V)) T taps[4][15][kBatch];
-      alignas(sizeof(V)) T fractionX[kBatch], fractionY[kBatch];
-      const int planes = f.bilinearBeta ? 15 : 3;  // beta (12, if bilinear) and z
-      for (int i = 0; i < kBatch; ++i) {
-        const int from = i < n ? i : 0;
-        fractionX[i] = T(batch.tx[from]);
-        fractionY[i] = T(batch.ty[from]);
-        const bool bilinear = batch.valid[from] != T(0) && batch.moving[from] != T(0);
-        for (int k = 0; k < 4; ++k) {
-          if (bilinear) {
-            const T* source = f.previous + batch.tap[k][from];
-            for (int p = 0; p < planes; ++p) taps[k][p][i] = source[(p < 3 ? kZ + p : kBeta + p - 3) * kBatch];
-          } else {
-            for (int p = 0; p < planes; ++p) taps[k][p][i] = T(0);
-          }
-        }
-      }
-      const V tx = loadLanes<V>(fractionX), ty = loadLanes<V>(fractionY);
-      const M bilinearLanes = validLanes & (batch.moving != zeroOf<V>());
-      for (int p = 0; p < planes; ++p) {
-        const V a = loadLanes<V>(taps[0][p]), b = loadLanes<V>(taps[1][p]);
-        const V c = loadLanes<V>(taps[2][p]), d = loadLanes<V>(taps[3][p]);
-        const V top = a + (b - a) * tx;
-        const V bottom = c + (d - c) * tx;
-        const V blended = top + (bottom - top) * ty;
-        V& target = p < 3 ? history[p] : m[kBeta + p - 3];
-        target = bilinearLanes ? blended : target;
-      }
-    }
     V reset[kZ];
     resetModel(reset, batch.current, splatOf<V>(f.p0), splatOf<V>(f.ps));
     for (int j = 0; j < kZ; ++j) m[j] = validLanes ? m[j] : reset[j];
+  }
+  if (batch.anyBilinear) {
+    // Moving lanes: the feature (and beta with bilinearBeta: the blended
+    // model predicts the bilinear blend of the four models' predictions, §6:
+    // models live in textures read with bilinear filtering; P stays the
+    // nearest model's) from the bilinear footprint, clamp to edge.
+    const int planes = f.bilinearBeta ? 15 : 3;  // plane p: z (p < 3), then beta (12, if bilinear)
+    auto planeOf = [](int p) { return p < 3 ? kZ + p : kBeta + p - 3; };
+    alignas(sizeof(V)) T fractionX[kBatch], fractionY[kBatch];
+    for (int i = 0; i < kBatch; ++i) {
+      const int from = i < n ? i : 0;
+      fractionX[i] = T(batch.tx[from]);
+      fractionY[i] = T(batch.ty[from]);
+    }
+    const V tx = loadLanes<V>(fractionX), ty = loadLanes<V>(fractionY);
+    V taps[4][15];
+    for (int k = 0; k < 4; ++k) {
+      if (n == kBatch && batch.allBilinear && isRun(batch.tap[k])) {
+        for (int p = 0; p < planes; ++p) taps[k][p] = loadRun<V>(f.previous, batch.tap[k][0], planeOf(p));
+      } else {
+        alignas(sizeof(V)) T gathered[15][kBatch];  // other lanes: zeros
+        for (int i = 0; i < kBatch; ++i) {
+          const int from = i < n ? i : 0;
+          if (batch.valid[from] != T(0) && batch.moving[from] != T(0)) {
+            const T* source = f.previous + recordIndexOf(batch.tap[k][from]);
+            for (int p = 0; p < planes; ++p) gathered[p][i] = source[planeOf(p) * kBatch];
+          } else {
+            for (int p = 0; p < planes; ++p) gathered[p][i] = T(0);
+          }
+        }
+        for (int p = 0; p < planes; ++p) taps[k][p] = loadLanes<V>(gathered[p]);
+      }
+    }
+    const M bilinearLanes = validLanes & (batch.moving != zeroOf<V>());
+    for (int p = 0; p < planes; ++p) {
+      const V top = taps[0][p] + (taps[1][p] - taps[0][p]) * tx;
+      const V bottom = taps[2][p] + (taps[3][p] - taps[2][p]) * tx;
+      const V blended = top + (bottom - top) * ty;
+      V& target = p < 3 ? history[p] : m[kBeta + p - 3];
+      target = bilinearLanes ? blended : target;
+    }
   }
   // Step 2 (§5.1, eq. 1): z = history + alpha (low-frequency colour - history),
   // alpha = phi / (l + Delta) in [featureAlphaMin, 1]; z = y after a reset.
