@@ -66,6 +66,7 @@ void Kernel::allocate(int width, int height, const Settings& settings) {
   geometric_.assign(n, 0);
   textured_.assign(n, 0);
   rowGuarded_.assign(std::size_t(height), 0);
+  chunkBits_.assign(std::size_t(height) * std::size_t(width / 8), 0);
   if (settings.textureAA == TextureAA::Fxaa) fxaa_.allocate(width, height);
 }
 
@@ -135,6 +136,27 @@ void Kernel::fetch(float fx, float fy, float out[4]) const {
   const int x0 = int(x0f), y0 = int(y0f);
   const int xa = std::clamp(x0, 0, width_ - 1), xb = std::clamp(x0 + 1, 0, width_ - 1);
   const int ya = std::clamp(y0, 0, height_ - 1), yb = std::clamp(y0 + 1, 0, height_ - 1);
+#if defined(__SSE2__)
+  // Packed RGBA texels (the staged copy, or a 4-channel input): the four
+  // sanitised texels and the blend in SSE, lane by lane the scalar code below.
+  const ImageView* packedSource = !direct_ ? nullptr
+                                  : direct_->channels() == 4 && direct_->pixelStride == 16 ? direct_
+                                                                                          : nullptr;
+  if (simdFetch_ && (!direct_ || packedSource)) {
+    const auto load = [&](int x, int y) {
+      const __m128 v = _mm_loadu_ps(packedSource ? packedSource->pixel(x, y) : staged_.at(x, y));
+      if (!packedSource) return v;  // staged: already sanitised
+      // sanitizeColor: NaN -> 0, then clamp (max/min give std::clamp's values for finite bounds).
+      const __m128 finiteOrInf = _mm_and_ps(v, _mm_cmpord_ps(v, v));
+      return _mm_min_ps(_mm_max_ps(finiteOrInf, _mm_set1_ps(-kMaxColor)), _mm_set1_ps(kMaxColor));
+    };
+    const __m128 wx0 = _mm_set1_ps(1.0f - tx), wx1 = _mm_set1_ps(tx);
+    const __m128 top = _mm_add_ps(_mm_mul_ps(wx0, load(xa, ya)), _mm_mul_ps(wx1, load(xb, ya)));
+    const __m128 bottom = _mm_add_ps(_mm_mul_ps(wx0, load(xa, yb)), _mm_mul_ps(wx1, load(xb, yb)));
+    _mm_storeu_ps(out, _mm_add_ps(_mm_mul_ps(_mm_set1_ps(1.0f - ty), top), _mm_mul_ps(_mm_set1_ps(ty), bottom)));
+    return;
+  }
+#endif
   float c00[4], c10[4], c01[4], c11[4];
   texel(xa, ya, c00);
   texel(xb, ya, c10);
@@ -622,8 +644,10 @@ CRISP_AVX2 __attribute__((noinline)) __m256 mixedNormalSteps8(const SubsampleRec
 // rotates the int16 normals with the 1/32767 scale folded in (as subGeo
 // does); suy[k] = uy + duy[k], the ray terms of sample k's row.
 template <bool Ortho>
-CRISP_AVX2 int anyDiffersPacked8(const Inputs& in, int x, int y, const float* colUx, float uy, const float* dux,
-                                 const float* suy, const Camera& packedCam, float threshold2) {
+CRISP_AVX2 inline __attribute__((always_inline)) int anyDiffersPacked8(const Inputs& in, int x, int y,
+                                                                       const float* colUx, float uy, const float* dux,
+                                                                       const float* suy, const Camera& packedCam,
+                                                                       float threshold2) {
   const __m256 ux = _mm256_loadu_ps(colUx + x);
   __m256 q[3];
   const Centre8 c = loadCentres8<Ortho>(in, x, y, ux, uy, packedCam, q);
@@ -702,6 +726,17 @@ CRISP_AVX2 void pixelSadp8(const Inputs& in, int x, int y, const Geo& centre, fl
     v = sadpLanes<Ortho>(wx, wy, wz, d, centre, sux, suy, cam);
   }
   _mm256_storeu_ps(s, v);
+}
+
+// anyDiffersPacked8 for the chunks x = 8 c, c < chunks, of row y into
+// bits[c]: one call per row, so that what the chunks share (the camera's
+// broadcasts, the images' addresses) is set up once.
+template <bool Ortho>
+CRISP_AVX2 void anyDiffersPackedRow(const Inputs& in, int y, int chunks, const float* colUx, float uy,
+                                    const float* dux, const float* suy, const Camera& packedCam, float threshold2,
+                                    std::uint8_t* bits) {
+  for (int c = 0; c < chunks; ++c)
+    bits[c] = std::uint8_t(anyDiffersPacked8<Ortho>(in, 8 * c, y, colUx, uy, dux, suy, packedCam, threshold2));
 }
 
 // sanitizeColor in 8 lanes: NaN -> 0, then clamp to +-kMaxColor, as
@@ -783,11 +818,17 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
       const float uy = rowUy_[std::size_t(y)];
       float suy[kSamples];  // the sample rows' ray terms, as subGeo forms them
       for (int k = 0; k < kSamples; ++k) suy[k] = uy + duy_[k];
+      std::uint8_t* rowBits = &chunkBits_[std::size_t(y) * std::size_t(width_ / 8)];
+      if (packed) {  // the whole row's test first
+        if (cam.orthographic)
+          anyDiffersPackedRow<true>(in, y, width_ / 8, colUx_.data(), uy, dux_, suy, packedCamera_, threshold2_, rowBits);
+        else
+          anyDiffersPackedRow<false>(in, y, width_ / 8, colUx_.data(), uy, dux_, suy, packedCamera_, threshold2_,
+                                     rowBits);
+      }
       for (; x + 8 <= width_; x += 8) {
         const int bits =
-            packed ? (cam.orthographic
-                          ? anyDiffersPacked8<true>(in, x, y, colUx_.data(), uy, dux_, suy, packedCamera_, threshold2_)
-                          : anyDiffersPacked8<false>(in, x, y, colUx_.data(), uy, dux_, suy, packedCamera_, threshold2_))
+            packed ? rowBits[x / 8]
                    : (cam.orthographic ? anyDiffers8<true>(in, x, y, colUx_.data(), uy, dux_, duy_, cam, threshold2_)
                                        : anyDiffers8<false>(in, x, y, colUx_.data(), uy, dux_, duy_, cam, threshold2_));
         const std::size_t i0 = std::size_t(y) * std::size_t(width_) + std::size_t(x);
@@ -972,6 +1013,7 @@ void Kernel::run(const Inputs& in, const ImageView& output, bool reference, int 
   const auto [cb, ce] = span(in.color);
   const auto [ob, oe] = span(output);
   direct_ = (oe <= cb || ce <= ob) ? &in.color : nullptr;
+  simdFetch_ = !reference;
   const auto rows = [&](auto&& body) {
     if (reference)
       body(0, height_);

@@ -122,8 +122,10 @@ class Kernel {
   float dux_[kSamples] = {}, duy_[kSamples] = {};
   Image staged_;
   const ImageView* direct_ = nullptr;  // the input colour during run() when the output does not overlap it
+  bool simdFetch_ = false;             // fetch() in SSE (fast path; the reference stays scalar)
   std::vector<std::uint8_t> masks_, halved_, geometric_, textured_;
   std::vector<std::uint8_t> rowGuarded_;  // per row: guarded inside runRows (fast path)
+  std::vector<std::uint8_t> chunkBits_;   // per row and 8-pixel chunk: the SIMD test's bits (fast path)
   fxaa::Workspace fxaa_;
 };
 
