@@ -17,13 +17,17 @@
 //      from f toward y_i (lines 14-17) and the model is reset to that colour;
 //   5. e = y - f; RLS update (eqs. 5-7, lambda = 0.998) in the stabilised form
 //      of phlm_rls.h; output beta' x after the update.
-// Steps 1 and 3 (and the fetch of step 2) run one pixel at a time; the rest
-// of step 2 and steps 4-5 run on 8 pixels of a row at once (finishBatch: GCC
-// vectors, lane i = pixel i, every branch as a per-lane select), in every
-// path: lane by lane the same IEEE operations in the same order as the
-// one-pixel form, so the same bits (measured: identical outputs and states to
-// the one-pixel code of 992ccd5 on ghosting, disocclusion and moving-edge
-// runs, float32 and float64).
+// Step 1, the neighbourhood and the choice of q run one pixel at a time; the
+// model and feature fetches of steps 2-3 and steps 4-5 run on 8 pixels of a
+// row at once (finishBatch: GCC vectors, lane i = pixel i, every branch as a
+// per-lane select), in every path: lane by lane the same IEEE operations in
+// the same order as the one-pixel form, so the same bits (measured: identical
+// outputs and states to the one-pixel code of 992ccd5 on ghosting,
+// disocclusion and moving-edge runs, float32 and float64; and to 17936ff's
+// interleaved records after the change to blocks of 8, phlm.h kBlock). The
+// records are stored as the batch's vectors: a block of 8 still pixels, or 8
+// pixels whose models sit side by side (uniform motion), is read and written
+// as whole vectors, the rest gathered lane by lane.
 // Initialisation (§6): beta intercept = y, slopes 0, P = 1000 I, z = y.
 //
 // Decisions the paper leaves open, and deviations (beside the code too):
