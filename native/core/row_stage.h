@@ -14,6 +14,14 @@
 
 namespace crisp {
 
+// sanitizeColor (core/color.h) as three selects: the same value for every
+// input, in a form the compiler vectorises.
+inline float sanitizeColorSelects(float v) {
+  v = v == v ? v : 0.0f;
+  v = v < -kMaxColor ? -kMaxColor : v;
+  return kMaxColor < v ? kMaxColor : v;
+}
+
 // Row y of `color` (1-4 float channels) as packed RGBA: sanitizeColor on
 // every channel, a missing G or B repeats R, missing alpha is 1.
 inline void stageColorRow(const ImageView& color, int y, float* rgba) {
@@ -22,12 +30,7 @@ inline void stageColorRow(const ImageView& color, int y, float* rgba) {
   if (c == 4 && color.pixelStride == 16) {
     // Packed RGBA: one element-wise pass the compiler vectorises.
     const float* p = reinterpret_cast<const float*>(src);
-    for (int i = 0; i < 4 * w; ++i) {  // sanitizeColor as three selects
-      float v = p[i];
-      v = v == v ? v : 0.0f;
-      v = v < -kMaxColor ? -kMaxColor : v;
-      rgba[i] = kMaxColor < v ? kMaxColor : v;
-    }
+    for (int i = 0; i < 4 * w; ++i) rgba[i] = sanitizeColorSelects(p[i]);
     return;
   }
   for (int x = 0; x < w; ++x, src += color.pixelStride) {

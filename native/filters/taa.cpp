@@ -626,16 +626,11 @@ inline void stageColorTap(const float* px, int channels, float* const* p, int k)
   p[3][k] = channels > 3 ? sanitizeColor(px[3]) : 1.0f;
 }
 // stageColorTap over `count` packed pixels of C = 3 or 4 floats, into plane
-// indices 0 .. count - 1: sanitizeColor as three selects (the same values),
-// a loop the compiler vectorises.
+// indices 0 .. count - 1: a loop the compiler vectorises.
 template <int C>
 __attribute__((always_inline)) inline void stageColorRun(const float* src, int count, float* p0, float* p1, float* p2,
                                                          float* p3) {
-  auto sanitize = [](float v) {
-    v = v == v ? v : 0.0f;
-    v = v < -kMaxColor ? -kMaxColor : v;
-    return kMaxColor < v ? kMaxColor : v;
-  };
+  const auto sanitize = sanitizeColorSelects;
   for (int i = 0; i < count; ++i) {
     const float* px = src + C * i;
     p0[i] = sanitize(px[0]);
@@ -748,7 +743,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
     float* const* rows[3] = {s.planes[up], s.planes[mid], s.planes[down]};
     float* const* rows5[5] = {s.planes[std::max(y - 2, 0) % kRing], rows[0], rows[1], rows[2],
                               s.planes[std::min(y + 2, h - 1) % kRing]};
-    if (followDepth) temporal::closestDepthTapsRow(s.depth[up], s.depth[mid], s.depth[down], w, s.tap, s.tapDepth);
+    if (followDepth) temporal::closestDepthTapsRow<T>(s.depth[up], s.depth[mid], s.depth[down], w, s.tap, s.tapDepth);
     const std::size_t rowStart = std::size_t(y) * w;
     for (int x0 = 0; x0 < w; x0 += kL) {
       const int lanes = std::min(kL, w - x0), i = x0 + 1;  // i: plane index of pixel x0

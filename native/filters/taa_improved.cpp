@@ -138,6 +138,20 @@ inline float lumaOfView(const ImageView& v, int x, int y) {
   return luminance709(sanitizeColor(p[0]), sanitizeColor(c > 1 ? p[1] : p[0]), sanitizeColor(c > 2 ? p[2] : p[0]));
 }
 
+// lumaOfView of row y into out[0 .. width): packed RGB(A) in a loop the
+// compiler vectorises (the same values), other layouts pixel by pixel.
+template <int C>
+inline void lumaRun(const float* p, int width, float* out) {
+  for (int x = 0; x < width; ++x, p += C)
+    out[x] = luminance709(sanitizeColorSelects(p[0]), sanitizeColorSelects(p[1]), sanitizeColorSelects(p[2]));
+}
+inline void lumaRow(const ImageView& v, int y, float* out) {
+  const int c = v.channels();
+  if (c == 4 && v.pixelStride == 4 * sizeof(float)) return lumaRun<4>(v.pixel(0, y), v.width, out);
+  if (c == 3 && v.pixelStride == 3 * sizeof(float)) return lumaRun<3>(v.pixel(0, y), v.width, out);
+  for (int x = 0; x < v.width; ++x) out[x] = lumaOfView(v, x, y);
+}
+
 inline void motionAt(const ImageView& motion, int x, int y, float& vx, float& vy) {
   vx = vy = 0.0f;
   if (!motion.ptr) return;
@@ -285,10 +299,8 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
     for (int y = y0; y < y1; ++y) {
       if (useDepth) stageDepthRow(in.depth, y, depthPlane + std::size_t(y) * w);
       if (!s.sobel) continue;
-      for (int x = 0; x < w; ++x) {
-        lumaLit_[std::size_t(y) * w + x] = lumaOfView(in.color, x, y);
-        if (useAlbedo) lumaUnlit_[std::size_t(y) * w + x] = lumaOfView(in.albedo, x, y);
-      }
+      lumaRow(in.color, y, lumaLit_.data() + std::size_t(y) * w);
+      if (useAlbedo) lumaRow(in.albedo, y, lumaUnlit_.data() + std::size_t(y) * w);
     }
   });
   if (s.sobel) {

@@ -37,27 +37,30 @@ inline int closestDepthTap(const float depth9[9]) {
   return best;
 }
 
-// closestDepthTap for `width` consecutive pixels of a row, four at a time:
-// up/middle/down are the depth rows above, at and below, padded by one pixel
-// on each side (pixel x's 3x3 is columns x .. x + 2). The same comparisons in
-// the same order per lane, so the same taps as closestDepthTap.
-// tap receives int bits (memcpy), so a float scratch row can hold them.
-inline void closestDepthTapsRow(const float* up, const float* middle, const float* down, int width, float* tap,
-                                float* tapDepth) {
-  typedef int Int4 __attribute__((vector_size(16)));
+// closestDepthTap for `width` consecutive pixels of a row, a lane group of T
+// (lanes.h: Vec4, Vec8) at a time: up/middle/down are the depth rows above,
+// at and below, padded by one pixel on each side (pixel x's 3x3 is columns
+// x .. x + 2). The same comparisons in the same order per lane, so the same
+// taps as closestDepthTap. tap receives int bits (memcpy), so a float scratch
+// row can hold them.
+template <class T = Vec4>
+CRISP_LANES_INLINE void closestDepthTapsRow(const float* up, const float* middle, const float* down, int width,
+                                            float* tap, float* tapDepth) {
+  using Int = IntOf<T>;
+  constexpr int kL = kLanesOf<T>;
   const float* rows[3] = {up, middle, down};
   int x = 0;
-  for (; x + 4 <= width; x += 4) {
-    Vec4 bestDepth = load4(middle + x + 1);
-    Int4 best = {4, 4, 4, 4};
+  for (; x + kL <= width; x += kL) {
+    T bestDepth = loadLanes<T>(middle + x + 1);
+    Int best = Int{} + 4;
     for (int i = 0; i < 9; ++i) {
-      const Vec4 d = load4(rows[i / 3] + x + i % 3);
-      const Int4 closer = d < bestDepth;
-      best = closer ? Int4{i, i, i, i} : best;
+      const T d = loadLanes<T>(rows[i / 3] + x + i % 3);
+      const Int closer = d < bestDepth;
+      best = closer ? Int{} + i : best;
       bestDepth = closer ? d : bestDepth;
     }
     std::memcpy(tap + x, &best, sizeof best);
-    store4(tapDepth + x, bestDepth);
+    storeLanes(tapDepth + x, bestDepth);
   }
   for (; x < width; ++x) {
     const float depth9[9] = {up[x],     up[x + 1],     up[x + 2],   middle[x], middle[x + 1],
