@@ -1017,6 +1017,114 @@ TEST(RsaaPacked, EncodingIsExactToHalfAStep) {
   EXPECT_EQ(offsetof(SubsampleRecord, nz), 64u);
 }
 
+// The packed test's per-chunk shortcuts: a chunk whose 8 centres are all
+// background (a sample differs iff it is geometry), a flat face (every sample
+// normal equal to its centre's: no normal decoded), some background centres,
+// and the mixed path. For every pixel j of a chunk and every sample k, that
+// one sample alone is made different: (0) its normal tilted 45 degrees
+// towards r, on the centre's plane; (1) it lands on the plane while all 8
+// centres of the chunk are background; (2) it is background on the plane;
+// (3) as 1 or 2 with only the chunk's first 4 centres background; (4-6)
+// one component of its world normal (x, y or z) moved to -1 or 1, away from
+// its centre's, the others kept (normals need not be unit), which makes
+// many such samples differ. Any sample, lane or component a shortcut skips or mixes up makes
+// the fast path miss the pixel.
+TEST(RsaaPacked, OneDifferingSampleInAnyLaneIsFound) {
+  const int W = 19, H = 2;  // chunks at x = 0 and 8, a scalar tail of 3
+  Camera cam;
+  cam.proj00 = 1.5f, cam.proj11 = 2.5f;
+  const double rot[3][3] = {{0.8, 0.6, 0.0}, {-0.6, 0.8, 0.0}, {0.0, 0.0, 1.0}};  // world -> view
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) cam.view[r][c] = float(rot[r][c]);
+  // One plane, view-space normal nv, depth 10 at the image centre.
+  double nv[3] = {0.3, -0.2, 0.93};
+  const double len = std::sqrt(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
+  for (double& c : nv) c /= len;
+  const auto dot = [&](double px, double py) {
+    return nv[0] * rayUx(px, W, cam) + nv[1] * rayUy(py, H, cam) - nv[2];
+  };
+  const double planeC = 10.0 * dot(W / 2.0, H / 2.0);
+  const auto depthAt = [&](double px, double py) { return float(planeC / dot(px, py)); };
+  const auto toWorld = [&](const double v[3], float out[3]) {  // the transpose of the rotation
+    for (int c = 0; c < 3; ++c) out[c] = float(rot[0][c] * v[0] + rot[1][c] * v[1] + rot[2][c] * v[2]);
+  };
+  float world[3];
+  toWorld(nv, world);
+  long found = 0, componentCases = 0, perComponent[3] = {0, 0, 0};
+  for (int variant = 0; variant < 7; ++variant)
+    for (int j = 0; j < 8; ++j)
+      for (int k = 0; k < kSamples; ++k) {
+        Frame f;
+        f.color = Image(W, H, 4);
+        f.depth = Image(W, H, 1);
+        f.normal = Image(W, H, 3);
+        for (std::size_t i = 0; i < f.color.data.size(); ++i) f.color.data[i] = float(i % 5) / 5.0f;
+        for (int s = 0; s < kSamples; ++s) f.sub[s] = Image(W, H, 4);
+        const auto background = [&](int x) { return (variant == 1 && x < 8) || (variant == 3 && x < 4); };
+        for (int y = 0; y < H; ++y)
+          for (int x = 0; x < W; ++x) {
+            *f.depth.at(x, y) = background(x) ? kBackgroundDepth : depthAt(x + 0.5, y + 0.5);
+            for (int c = 0; c < 3; ++c) f.normal.at(x, y)[c] = world[c];
+            for (int s = 0; s < kSamples; ++s) {
+              float* p = f.sub[s].at(x, y);
+              const double px = x + 0.5 + kTablePattern.x[s], py = y + 0.5 + kTablePattern.y[s];
+              for (int c = 0; c < 3; ++c) p[c] = world[c];
+              p[3] = background(x) ? kBackgroundDepth : depthAt(px, py);
+            }
+          }
+        // The one different sample, in row 1 (row 0 stays uniform).
+        float* p = f.sub[k].at(j, 1);
+        const double px = j + 0.5 + kTablePattern.x[k], py = 1.5 + kTablePattern.y[k];
+        if (variant == 0) {
+          // n = nv + r / |r| (normalised): n.r / |r| = 0.71.
+          const auto point = [&](double x, double y, double out[3]) {
+            const double d = planeC / dot(x, y);
+            out[0] = rayUx(x, W, cam) * d, out[1] = rayUy(y, H, cam) * d, out[2] = -d;
+          };
+          double a[3], b[3], n[3];
+          point(j + 0.5, 1.5, a);
+          point(px, py, b);
+          const double rl = std::sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) +
+                                      (b[2] - a[2]) * (b[2] - a[2]));
+          for (int c = 0; c < 3; ++c) n[c] = nv[c] + (b[c] - a[c]) / rl;
+          const double nl = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+          for (double& c : n) c /= nl;
+          toWorld(n, p);
+        } else if (variant >= 4) {
+          p[variant - 4] = p[variant - 4] > 0.0f ? -1.0f : 1.0f;  // moves it by >= 1 within the snorm range
+        } else {
+          p[3] = background(j) ? depthAt(px, py) : kBackgroundDepth;
+        }
+        const Frame records = withRecords(f);
+        for (float ulps : {0.0f, 1.0f}) {
+          Settings settings;
+          settings.camera = cam;
+          settings.camera.depthUlps = ulps;
+          Kernel kr, kf;
+          const Image ref = runKernel(records, settings, true, 1, &kr);
+          const Image fast = runKernel(records, settings, false, 1, &kf);
+          ASSERT_EQ(kf.geometric(), kr.geometric()) << "variant " << variant << " pixel " << j << " sample " << k;
+          expectSameBits(ref, fast, "one differing sample");
+          // The reference finds exactly that pixel (so the case is real);
+          // a moved component may leave n.r below the threshold.
+          const long geometric = count(kr.geometric());
+          if (variant >= 4) {
+            ASSERT_LE(geometric, 1);
+            componentCases += geometric;
+            perComponent[variant - 4] += geometric;
+            if (!geometric) continue;
+          }
+          ASSERT_EQ(geometric, 1) << "variant " << variant << " pixel " << j << " sample " << k;
+          ASSERT_TRUE(kr.geometric()[std::size_t(W + j)]);
+          found += count(kf.geometric());
+        }
+      }
+  EXPECT_EQ(found - componentCases, 4 * 8 * kSamples * 2);
+  std::printf("[ rsaa ] one moved normal component: x %ld, y %ld, z %ld of %d cases differ\n", perComponent[0],
+              perComponent[1], perComponent[2], 8 * kSamples * 2);
+  for (long n : perComponent) EXPECT_GT(n, 8 * kSamples * 2 / 4);  // every component in many cases
+}
+
 // ---- sub-sample files (io/subsamples.h): what crisp filter / eval / the add-on read ----------------
 
 #include <OpenImageIO/imageio.h>
