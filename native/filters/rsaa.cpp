@@ -372,15 +372,16 @@ CRISP_AVX2 inline __m256 differsResult8(const Centre8& c, const SampleR8& s, __m
 // float4s (lane j = p[j]) with ray terms sux, suy; all-ones lanes differ.
 // The samples' world normals (nx, ny, nz; cam.view rotates them to view
 // space) and depths d given in lanes.
+// The SADP numerator of 8 samples against their centres, lane by lane:
+// e_a + e_b, each |n . r| less rsaa::certainDot's slack (the sample's
+// view-ray terms and depth tolerance), clipped at 0. Sample normals (nx, ny,
+// nz) are rotated by cam first.
 template <bool Ortho>
-CRISP_AVX2 inline __m256 differsLanes(__m256 nx, __m256 ny, __m256 nz, __m256 d, const Centre8& c, __m256 sux,
-                                      __m256 suy, const Camera& cam, __m256 threshold2) {
-  const SampleR8 s = sampleR8<Ortho>(d, c, sux, suy);
-  const __m256 rx = s.rx, ry = s.ry, rz = s.rz;
+CRISP_AVX2 inline __m256 sadpNumerator8(__m256 nx, __m256 ny, __m256 nz, __m256 d, const Centre8& c,
+                                        const SampleR8& s, __m256 sux, __m256 suy, const Camera& cam) {
   const __m256 snx = rotate8(cam, 0, nx, ny, nz), sny = rotate8(cam, 1, nx, ny, nz), snz = rotate8(cam, 2, nx, ny, nz);
-  const __m256 da = dot8(c.nx, c.ny, c.nz, rx, ry, rz);
-  const __m256 db = dot8(snx, sny, snz, rx, ry, rz);
-  // rsaa::certainDot lane by lane: the sample's view-ray terms and depth tolerance.
+  const __m256 da = dot8(c.nx, c.ny, c.nz, s.rx, s.ry, s.rz);
+  const __m256 db = dot8(snx, sny, snz, s.rx, s.ry, s.rz);
   const __m256 zero = _mm256_setzero_ps();
   const __m256 svx = Ortho ? zero : sux, svy = Ortho ? zero : suy;
   const __m256 stol = tolerance8(d, cam);
@@ -388,7 +389,14 @@ CRISP_AVX2 inline __m256 differsLanes(__m256 nx, __m256 ny, __m256 nz, __m256 d,
   const __m256 slackB = _mm256_add_ps(slack8(snx, sny, snz, c.vx, c.vy, c.tol), slack8(snx, sny, snz, svx, svy, stol));
   const __m256 ea = _mm256_max_ps(zero, _mm256_sub_ps(abs8(da), slackA));
   const __m256 eb = _mm256_max_ps(zero, _mm256_sub_ps(abs8(db), slackB));
-  return differsResult8(c, s, _mm256_add_ps(ea, eb), threshold2);
+  return _mm256_add_ps(ea, eb);
+}
+
+template <bool Ortho>
+CRISP_AVX2 inline __m256 differsLanes(__m256 nx, __m256 ny, __m256 nz, __m256 d, const Centre8& c, __m256 sux,
+                                      __m256 suy, const Camera& cam, __m256 threshold2) {
+  const SampleR8 s = sampleR8<Ortho>(d, c, sux, suy);
+  return differsResult8(c, s, sadpNumerator8<Ortho>(nx, ny, nz, d, c, s, sux, suy, cam), threshold2);
 }
 
 // differsLanes where every lane's sample normal equals its centre's (after
@@ -685,17 +693,7 @@ CRISP_AVX2 inline __m256 sadpLanes(__m256 wx, __m256 wy, __m256 wz, __m256 d, co
                                    __m256 suy, const Camera& cam) {
   const Centre8 c = broadcastCentre8(centre);
   const SampleR8 s = sampleR8<Ortho>(d, c, sux, suy);
-  const __m256 snx = rotate8(cam, 0, wx, wy, wz), sny = rotate8(cam, 1, wx, wy, wz), snz = rotate8(cam, 2, wx, wy, wz);
-  const __m256 da = dot8(c.nx, c.ny, c.nz, s.rx, s.ry, s.rz);
-  const __m256 db = dot8(snx, sny, snz, s.rx, s.ry, s.rz);
-  const __m256 zero = _mm256_setzero_ps();
-  const __m256 svx = Ortho ? zero : sux, svy = Ortho ? zero : suy;
-  const __m256 stol = tolerance8(d, cam);
-  const __m256 slackA = _mm256_add_ps(c.selfSlack, slack8(c.nx, c.ny, c.nz, svx, svy, stol));
-  const __m256 slackB = _mm256_add_ps(slack8(snx, sny, snz, c.vx, c.vy, c.tol), slack8(snx, sny, snz, svx, svy, stol));
-  const __m256 ea = _mm256_max_ps(zero, _mm256_sub_ps(abs8(da), slackA));
-  const __m256 eb = _mm256_max_ps(zero, _mm256_sub_ps(abs8(db), slackB));
-  __m256 v = _mm256_div_ps(_mm256_add_ps(ea, eb), _mm256_sqrt_ps(s.r2));
+  __m256 v = _mm256_div_ps(sadpNumerator8<Ortho>(wx, wy, wz, d, c, s, sux, suy, cam), _mm256_sqrt_ps(s.r2));
   v = _mm256_blendv_ps(set8(kDifferentSadp), v, _mm256_cmp_ps(v, v, _CMP_ORD_Q));  // NaN: different
   v = _mm256_and_ps(v, s.apart);  // coincident points: 0
   // Background on either side: 0 for two background points, else different.
