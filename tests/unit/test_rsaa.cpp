@@ -83,20 +83,26 @@ struct Frame {
 };
 
 // f with its float4 sub-samples also as packed records (io/subsamples.h's encoding).
+// A W x H frame's colour, depth, normal and sub-sample images, all zero.
+Frame blankFrame(int W, int H) {
+  Frame f;
+  f.color = Image(W, H, 4);
+  f.depth = Image(W, H, 1);
+  f.normal = Image(W, H, 3);
+  for (int k = 0; k < kSamples; ++k) f.sub[k] = Image(W, H, 4);
+  return f;
+}
+
 Frame withRecords(Frame f) {
   f.records = packSubsamples(f.sub);
   return f;
 }
 
 Frame render(const GeoScene& s, int supersample = 16) {
-  Frame f;
   const int W = s.width, H = s.height;
-  f.color = Image(W, H, 4);
-  f.depth = Image(W, H, 1);
-  f.normal = Image(W, H, 3);
+  Frame f = blankFrame(W, H);
   f.reference = Image(W, H, 4);
   f.edges = Image(W, H, 1);
-  for (int k = 0; k < kSamples; ++k) f.sub[k] = Image(W, H, 4);
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) {
       const double cx = x + 0.5, cy = y + 0.5;
@@ -500,12 +506,8 @@ TEST(RsaaPaths, PerPixelPlanesCatchLaneMixUps) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (bool ortho : {false, true}) {
     cam.orthographic = ortho;
-    Frame f;
-    f.color = Image(W, H, 4);
-    f.depth = Image(W, H, 1);
-    f.normal = Image(W, H, 3);
+    Frame f = blankFrame(W, H);
     for (auto& v : f.color.data) v = 0.5f;
-    for (int k = 0; k < kSamples; ++k) f.sub[k] = Image(W, H, 4);
     for (int y = 0; y < H; ++y)
       for (int x = 0; x < W; ++x) {
         double n[3] = {0.6 * u(g), 0.6 * u(g), 1.0};
@@ -948,12 +950,8 @@ TEST(RsaaPacked, SameNormalShortcutDecidesAtTheThreshold) {
   for (const auto& cs : cases) {
     const bool ortho = cs.ortho;
     cam.orthographic = ortho;
-    Frame f;
-    f.color = Image(W, H, 4);
-    f.depth = Image(W, H, 1);
-    f.normal = Image(W, H, 3);
+    Frame f = blankFrame(W, H);
     for (std::size_t i = 0; i < f.color.data.size(); ++i) f.color.data[i] = float(i % 7) / 7.0f;
-    for (int k = 0; k < kSamples; ++k) f.sub[k] = Image(W, H, 4);
     const auto depthAt = [&](double px, double py, double nq) {
       const double ux = rayUx(px, W, cam), uy = rayUy(py, H, cam);
       return ortho ? (n[0] * ux + n[1] * uy - nq) / n[2] : nq / (n[0] * ux + n[1] * uy - n[2]);
@@ -1054,12 +1052,8 @@ TEST(RsaaPacked, OneDifferingSampleInAnyLaneIsFound) {
   for (int variant = 0; variant < 7; ++variant)
     for (int j = 0; j < 8; ++j)
       for (int k = 0; k < kSamples; ++k) {
-        Frame f;
-        f.color = Image(W, H, 4);
-        f.depth = Image(W, H, 1);
-        f.normal = Image(W, H, 3);
+        Frame f = blankFrame(W, H);
         for (std::size_t i = 0; i < f.color.data.size(); ++i) f.color.data[i] = float(i % 5) / 5.0f;
-        for (int s = 0; s < kSamples; ++s) f.sub[s] = Image(W, H, 4);
         const auto background = [&](int x) { return (variant == 1 && x < 8) || (variant == 3 && x < 4); };
         for (int y = 0; y < H; ++y)
           for (int x = 0; x < W; ++x) {
