@@ -816,7 +816,7 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
       const float uy = rowUy_[std::size_t(y)];
       float suy[kSamples];  // the sample rows' ray terms, as subGeo forms them
       for (int k = 0; k < kSamples; ++k) suy[k] = uy + duy_[k];
-      std::uint8_t* rowBits = &chunkBits_[std::size_t(y) * std::size_t(width_ / 8)];
+      std::uint8_t* rowBits = chunkBits_.data() + std::size_t(y) * std::size_t(width_ / 8);  // empty below 8 px wide
       if (packed) {  // the whole row's test first
         if (cam.orthographic)
           anyDiffersPackedRow<true>(in, y, width_ / 8, colUx_.data(), uy, dux_, suy, packedCamera_, threshold2_, rowBits);
