@@ -448,10 +448,18 @@ CRISP_PHLM_INLINE V loadRun(const T* records, std::size_t first, int j) {
   const V a = loadLanes<V>(block);
   if (shift == 0) return a;
   const V b = loadLanes<V>(block + kRecord * kBlock);
+#if defined(__GNUC__) && !defined(__clang__)
   using M = typename LanesOf<T>::M;
   M lanes;
   for (int i = 0; i < kBatch; ++i) lanes[i] = shift + i;
   return __builtin_shuffle(a, b, lanes);
+#else
+  // Clang (the fuzzing build) has no run-time-mask shuffle: the same values through memory.
+  T both[2 * kBatch];
+  storeLanes(both, a);
+  storeLanes(both + kBatch, b);
+  return loadLanes<V>(both + shift);
+#endif
 }
 
 // std::max, std::min, std::clamp and |a| lane by lane: temporal/lanes.h.
