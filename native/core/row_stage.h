@@ -22,6 +22,15 @@ inline float sanitizeColorSelects(float v) {
   return kMaxColor < v ? kMaxColor : v;
 }
 
+// One pixel p of `channels` (1-4) floats as RGBA: sanitizeColor on every
+// channel, a missing G or B repeats R, missing alpha is 1.
+inline void stageColorPixel(const float* p, int channels, float rgba[4]) {
+  rgba[0] = sanitizeColor(p[0]);
+  rgba[1] = sanitizeColor(channels > 1 ? p[1] : p[0]);
+  rgba[2] = sanitizeColor(channels > 2 ? p[2] : p[0]);
+  rgba[3] = channels > 3 ? sanitizeColor(p[3]) : 1.0f;
+}
+
 // Row y of `color` (1-4 float channels) as packed RGBA: sanitizeColor on
 // every channel, a missing G or B repeats R, missing alpha is 1.
 inline void stageColorRow(const ImageView& color, int y, float* rgba) {
@@ -33,14 +42,8 @@ inline void stageColorRow(const ImageView& color, int y, float* rgba) {
     for (int i = 0; i < 4 * w; ++i) rgba[i] = sanitizeColorSelects(p[i]);
     return;
   }
-  for (int x = 0; x < w; ++x, src += color.pixelStride) {
-    const float* p = reinterpret_cast<const float*>(src);
-    float* d = rgba + 4 * x;
-    d[0] = sanitizeColor(p[0]);
-    d[1] = sanitizeColor(c > 1 ? p[1] : p[0]);
-    d[2] = sanitizeColor(c > 2 ? p[2] : p[0]);
-    d[3] = c > 3 ? sanitizeColor(p[3]) : 1.0f;
-  }
+  for (int x = 0; x < w; ++x, src += color.pixelStride)
+    stageColorPixel(reinterpret_cast<const float*>(src), c, rgba + 4 * x);
 }
 
 // Depth as the temporal filters use it (temporal/velocity.h sanitizeDepth):

@@ -617,13 +617,17 @@ inline UnclampedRun unclampedRun(int width, int shiftX) {
   return {lo, std::max(lo, hi)};
 }
 
-// One staged colour: stageColorRow's values (core/row_stage.h): sanitised,
-// a missing G or B repeats R, a missing alpha is 1.
+// One staged colour (core/row_stage.h stageColorPixel) into plane index k.
 inline void stageColorTap(const float* px, int channels, float* const* p, int k) {
-  p[0][k] = sanitizeColor(px[0]);
-  p[1][k] = sanitizeColor(channels > 1 ? px[1] : px[0]);
-  p[2][k] = sanitizeColor(channels > 2 ? px[2] : px[0]);
-  p[3][k] = channels > 3 ? sanitizeColor(px[3]) : 1.0f;
+  float rgba[4];
+  stageColorPixel(px, channels, rgba);
+  for (int c = 0; c < 4; ++c) p[c][k] = rgba[c];
+}
+// f(k) for the plane indices [0, n) outside the unclamped run.
+template <class F>
+inline void forEachClampedIndex(const UnclampedRun& run, int n, F&& f) {
+  for (int k = 0; k < std::min(run.lo, n); ++k) f(k);
+  for (int k = run.hi; k < n; ++k) f(k);
 }
 // stageColorTap over `count` packed pixels of C = 3 or 4 floats, into plane
 // indices 0 .. count - 1: a loop the compiler vectorises.
@@ -657,10 +661,7 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
   const int cc = f.color.channels();
   const std::size_t colorStride = f.color.pixelStride;
   if ((cc == 3 || cc == 4) && colorStride == std::size_t(cc) * sizeof(float)) {
-    for (int k = 0; k < n; ++k) {
-      if (k == run.lo) k = run.hi;
-      if (k < n) stageColorTap(f.color.pixel(column[k], source), cc, p, k);
-    }
+    forEachClampedIndex(run, n, [&](int k) { stageColorTap(f.color.pixel(column[k], source), cc, p, k); });
     const float* src = f.color.pixel(std::clamp(first, 0, w - 1), source);  // = first where the run is not empty
     if (cc == 4)
       stageColorRun<4>(src, run.hi - run.lo, p[0] + run.lo, p[1] + run.lo, p[2] + run.lo, p[3] + run.lo);
@@ -692,10 +693,7 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
     };
     const std::size_t stride = f.motion.pixelStride;
     if (stride == 8 || stride == 16) {
-      for (int k = 0; k < n; ++k) {
-        if (k == run.lo) k = run.hi;
-        if (k < n) motionTap(k);
-      }
+      forEachClampedIndex(run, n, motionTap);
       const float* m = f.motion.pixel(std::clamp(first, 0, w - 1), source);
       const int step = int(stride / sizeof(float));
       for (int k = run.lo; k < run.hi; ++k, m += step) {
@@ -810,11 +808,8 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         since[l] = -int(f.feedbackSinceReset[rowStart + x] != 0);
         if (f.aliased) aliased[l] = f.aliased[rowStart + x];
       }
-      if (fetched) {
-        for (int c = 0; c < 4; ++c) temporal::storeLanes(hist[c], in.hist[c]);  // the footprint test reads them per lane
-      } else {
+      if (!fetched)
         for (int c = 0; c < 4; ++c) in.hist[c] = load(hist[c]);
-      }
       in.valid = rp.valid;
       in.moving = rp.moving;
       std::memcpy(&in.feedbackSinceReset, since, sizeof since);
@@ -835,7 +830,8 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         const temporal::MinMax4 box3x3{Vec4{in.boxMin[0][l], in.boxMin[1][l], in.boxMin[2][l], 0.0f},
                                        Vec4{in.boxMax[0][l], in.boxMax[1][l], in.boxMax[2][l], 0.0f}};
         const temporal::MinMax4 box = temporal::footprintBox(box3x3, e);
-        temporal::clipTowardCentre4(Vec4{hist[0][l], hist[1][l], hist[2][l], hist[3][l]}, box.min, box.max, excess);
+        temporal::clipTowardCentre4(Vec4{in.hist[0][l], in.hist[1][l], in.hist[2][l], in.hist[3][l]}, box.min, box.max,
+                                    excess);
         return true;
       });
 
