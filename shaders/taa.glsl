@@ -10,8 +10,9 @@
 //                       historyImage (the previous history, RGBA32F, colour in
 //                       the clip space + signed sample weight), motionImage
 //                       (optional, hasMotion; pixels, previous - current, the
-//                       texture's y), markImage (R32F: taa.cpp's
-//                       feedbackSinceReset of that history, 0/1)
+//                       texture's y), markImage (R32F: taa.cpp's historyState
+//                       of that history, feedbackSinceReset (0/1) + 2 x
+//                       framesSinceReset)
 //                       -> out vec4 historyOut (location 0),
 //                       out vec4 fragColor (location 1, the output unless sharpening),
 //                       out float markOut (location 2, the mark of historyOut)
@@ -19,7 +20,7 @@
 //  2. TAA_SHARPEN_PASS  historyImage (the history just written), colorImage
 //                       (alpha) -> out vec4 fragColor = taa.cpp sharpenPixel<true>.
 // History and mark ping-pong between two texture pairs kept by gpu_filters.py
-// between redraws (the C++ Kernel's history_[2]; its feedbackSinceReset_ plane
+// between redraws (the C++ Kernel's history_[2]; its historyState_ plane
 // is updated in place there); hasHistory = 0 is Kernel::reset().
 //
 // Parameters (taa.cpp table; enum-valued ones as ints):
@@ -27,7 +28,7 @@
 //   jitterWeighting 0 = none / 1 = blackman-harris, filterSize 1.5,
 //   historyFilter 0 = catmull-rom / 1 = bilinear, clipSpace 0 = ycocg / 1 = rgb,
 //   feedbackMin 0.7, feedbackMax 0.85, sharpen 0, staticAccumulation 1,
-//   maxSamples 128, staticClip 1, unjitter 0 = none / 1 = nearest /
+//   maxSamples 128, holdPeriod 16, staticClip 1, unjitter 0 = none / 1 = nearest /
 //   2 = blackman-harris (default 2). (depthTolerance: no depth here.)
 //
 // Not in this version, on purpose: depth (closest-depth velocity and the
@@ -263,7 +264,9 @@ void taaResolvePass() {
   vec4 result = current;
   float newWeight = weight;
   bool reset = !valid || !(weightSum > 0.0);
-  float mark = texelFetch(markImage, p, 0).r;  // feedbackSinceReset
+  float state = texelFetch(markImage, p, 0).r;  // historyState
+  float framesSinceReset = floor(state / 2.0);
+  float mark = state - 2.0 * framesSinceReset;  // feedbackSinceReset
   if (!reset) {
     bool staticPixel = staticAccumulation != 0 && !moving && hist.w > 0.0;
     float excess = 0.0;
@@ -275,8 +278,13 @@ void taaResolvePass() {
       }
     }
     if (staticPixel && (staticClip == 0 || !(excess > 1.0))) {
-      result = hist + (current - hist) * (weight / weightSum);
-      newWeight = min(weightSum, float(max(1, maxSamples)));
+      if (holdPeriod > 0 && !(mark > 0.0) && framesSinceReset >= float(holdPeriod)) {
+        result = hist;  // taa.cpp "Hold"
+        newWeight = historyWeight;
+      } else {
+        result = hist + (current - hist) * (weight / weightSum);
+        newWeight = min(weightSum, float(max(1, maxSamples)));
+      }
     } else {
       mark = 1.0;  // kept until a reset
       vec4 lo = 0.5 * (box3x3.lo + cross.lo);
@@ -293,14 +301,16 @@ void taaResolvePass() {
     }
     reset = !(finiteValue(result.x) && finiteValue(result.y) && finiteValue(result.z));  // never a non-finite history
   }
+  framesSinceReset = min(framesSinceReset + 1.0, 127.0);
   if (reset) {
     result = current;
     newWeight = weight;
     mark = 0.0;
+    framesSinceReset = 1.0;
   }
   result.w = moving ? -newWeight : newWeight;
   historyOut = result;
-  markOut = mark;
+  markOut = mark + 2.0 * framesSinceReset;
   if (reset && unjitter == 0) {
     vec4 c = sanitizeColor4(texelFetch(colorImage, p, 0));  // the input itself, not its YCoCg round trip
     fragColor = vec4(c.rgb, alpha);

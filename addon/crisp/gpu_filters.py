@@ -35,8 +35,8 @@ DEFAULTS = {
     "repair": {"kappa": 0.0, "patchSize": 5, "mask": "gauss5", "angleEstimator": "regression"},
     "taa": {"jitterX": 0.0, "jitterY": 0.0, "jitterWeighting": "none", "filterSize": 1.5,
             "historyFilter": "catmull-rom", "clipSpace": "ycocg", "feedbackMin": 0.7, "feedbackMax": 0.85,
-            "sharpen": 0.0, "staticAccumulation": True, "maxSamples": 128, "staticClip": True,
-            "unjitter": "blackman-harris"},
+            "sharpen": 0.0, "staticAccumulation": True, "maxSamples": 128, "holdPeriod": 16,
+            "staticClip": True, "unjitter": "blackman-harris"},
 }
 
 # Resources of each GLSL file (declared for every pass of the file) and each pass's macro, entry and
@@ -55,7 +55,7 @@ FILES = {
         "push": (("FLOAT", "jitterX"), ("FLOAT", "jitterY"), ("INT", "jitterWeighting"), ("FLOAT", "filterSize"),
                  ("INT", "historyFilter"), ("INT", "clipSpace"), ("FLOAT", "feedbackMin"),
                  ("FLOAT", "feedbackMax"), ("FLOAT", "sharpen"), ("INT", "staticAccumulation"),
-                 ("INT", "maxSamples"), ("INT", "staticClip"), ("INT", "unjitter"), ("INT", "hasHistory"),
+                 ("INT", "maxSamples"), ("INT", "holdPeriod"), ("INT", "staticClip"), ("INT", "unjitter"), ("INT", "hasHistory"),
                  ("INT", "hasMotion")),
     },
 }
@@ -268,7 +268,7 @@ class GpuFilter:
                     break
         elif self.method == "taa":
             # history[i], the output and mark[i] share a framebuffer (MRT: history at slot 0, output at
-            # slot 1, mark at slot 2: taa.cpp's feedbackSinceReset, which picks the box of the static test).
+            # slot 1, mark at slot 2: taa.cpp's historyState, feedback-since-reset + 2 x frames since reset).
             self.history_tex = [gpu.types.GPUTexture((width, height), format="RGBA32F") for _ in range(2)]
             self.mark_tex = [gpu.types.GPUTexture((width, height), format="R32F") for _ in range(2)]
             self.history_fb = [gpu.types.GPUFrameBuffer(color_slots=(t, self.output.texture, m))

@@ -44,6 +44,7 @@ struct Settings {
   float sharpen = 0.0f;       // 0 = off, 1 = the full [0,-1,0;-1,5,-1;0,-1,0] kernel (eq. 3.1)
   bool staticAccumulation = true;
   int maxSamples = 128;       // cap of the running average's sample count (weighted units)
+  int holdPeriod = 16;        // taa.cpp "Hold": the jitter sequence's period in frames; 0 = no hold
   bool staticClip = true;     // clip history in static pixels too (rejects cuts, fireflies, light changes)
   float depthTolerance = 0.05f;  // relative depth difference still the same surface
   temporal::UnjitterMode unjitter = temporal::UnjitterMode::BlackmanHarris;  // taa.cpp "Jitter"
@@ -107,11 +108,12 @@ class Kernel {
   // are one load): colour in the clip space of that run, then the signed
   // sample weight (negative: the pixel was moving).
   Image history_[2];
-  // 1 where the history went through the feedback path (moving, or static
-  // history rejected) since its last reset: such history is tested against
-  // the 3x3 box only, the rest against the footprint box. Read and written in
-  // place (each pixel touches only its own entry).
-  std::vector<std::uint8_t> feedbackSinceReset_;
+  // One byte per pixel, read and written in place (each pixel touches only
+  // its own entry). Bit 0: the history went through the feedback path
+  // (moving, or static history rejected) since its last reset; such history
+  // is tested against the 3x3 box only, the rest against the footprint box.
+  // Bits 1-7: frames since that reset, saturating at 127 (taa.cpp "Hold").
+  std::vector<std::uint8_t> historyState_;
   std::vector<float> depth_[2];
   std::vector<int> sourceColumn_;  // per frame: the input column of each staged plane index (taa.cpp)
   int current_ = 0;           // index of the history written last

@@ -191,6 +191,12 @@ class GpuParity(unittest.TestCase):
     def test_taa_static_8_frames(self):
         self.check("taa 8 frames jittered", "taa", taa_frames(8), {})
 
+    def test_taa_hold(self):
+        # taa.cpp "Hold": with a period of 3 the static pixels stop averaging from the 4th frame; the
+        # sharpen pass then reads the held history.
+        self.check("taa 8 frames hold 3", "taa", taa_frames(8), {"holdPeriod": 3})
+        self.check("taa 8 frames hold 3 sharpen", "taa", taa_frames(8), {"holdPeriod": 3, "sharpen": 0.5})
+
     def test_taa_rgb_sharpen_bh(self):
         self.check("taa 6 frames rgb sharpen bh", "taa", taa_frames(6),
                    {"clipSpace": "rgb", "sharpen": 0.5, "jitterWeighting": "blackman-harris"})

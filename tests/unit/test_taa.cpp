@@ -52,6 +52,7 @@ TEST(Taa, StaticAccumulationConvergesToBoxReference) {
     Driver d;
     d.filter->params().setBool("staticClip", staticClip);
     d.filter->params().setString("unjitter", "none");
+    d.filter->params().setInt("holdPeriod", opt.period);  // a 64-frame jitter period: keep averaging
     std::vector<double> p(frames + 1);
     for (int t = 0; t < frames; ++t) p[t + 1] = psnr(reference, d.run(input[t], false, false));
     std::printf("static chart %dx%d, uniform jitter, staticClip=%d: PSNR 1-sample %.2f; TAA after 1/4/16/64 frames "
@@ -86,6 +87,7 @@ TEST(Taa, BlackmanHarrisJitterConvergesToEeveeStyleReference) {
     Driver d;
     d.filter->params().setBool("staticClip", false);
     d.filter->params().setString("unjitter", unjitter);
+    d.filter->params().setInt("holdPeriod", frames);  // the jitter's period
     if (mode == 2) d.filter->params().setString("jitterWeighting", "blackman-harris");
     const Image* out = nullptr;
     for (int t = 0; t < count; ++t) {
@@ -376,6 +378,7 @@ TEST(Taa, ReferencePathEqualsFastPath) {
       d->filter->params().setFloat("sharpen", c.sharpen);
     }
     ref.filter->params().setBool("reference", true);
+    for (Driver* d : {&ref, &fast}) d->filter->params().setInt("holdPeriod", run % 2 ? 3 : 0);  // "Hold" within 12 frames
     for (int t = 0; t < 12; ++t) {
       synth::FrameData f = synth::renderFrame(seq, w, h, t, jitter);
       const Image& a = ref.run(f, true, c.depth);
@@ -431,6 +434,64 @@ TEST(Taa, LongRunConstantAndFlickerStability) {
               "(input 1.0)\n", worstConstant, worstFlicker);
   EXPECT_LT(worstConstant, 1e-6);
   EXPECT_LT(worstFlicker, 0.05);
+}
+
+// The hold (taa.cpp "Hold"): with EEVEE-style jitter of period 16 on a still
+// chart, a pixel whose history averaged only running-average frames since its
+// reset stops changing once it holds 16 of them, bit for bit; without the hold
+// the output keeps moving. The frame held is as good as further averaging
+// (the average of a whole period of a periodic input is final). A change of
+// the scene still gets through (the camera cut): the held history is clipped
+// like any other.
+TEST(Taa, HoldStopsAStillImageChangingAndReleasesOnAChange) {
+  const int w = 48, h = 32, frames = 48;
+  synth::Sequence seq = synth::staticChartSequence(w, h);
+  synth::FrameOptions opt;
+  opt.jitter = synth::JitterKind::BlackmanHarris;
+  opt.reference = synth::ReferenceKind::BlackmanHarris;
+  const Image reference = synth::renderFrame(seq, w, h, 0, opt).reference;
+  opt.reference = synth::ReferenceKind::None;
+  std::vector<synth::FrameData> input;
+  for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, opt));
+  for (bool staticClip : {false, true}) {
+    double finalPsnr[2] = {};
+    long changedAfterPeriod[2] = {};
+    for (int hold : {0, 1}) {
+      Driver d;
+      d.filter->params().setBool("staticClip", staticClip);
+      d.filter->params().setInt("holdPeriod", hold ? opt.period : 0);
+      Image previous;
+      for (int t = 0; t < frames; ++t) {
+        const Image& out = d.run(input[t], false, false);
+        if (t >= opt.period)
+          for (std::size_t i = 0; i < out.data.size(); ++i)  // colour only: alpha is this frame's mix
+            changedAfterPeriod[hold] += i % 4 != 3 && out.data[i] != previous.data[i];
+        previous = out;
+      }
+      finalPsnr[hold] = psnr(reference, previous);
+    }
+    std::printf("still chart %dx%d, BH jitter period %d, staticClip=%d: values changed after frame %d without / with "
+                "the hold %ld / %ld; PSNR at frame %d %.3f / %.3f dB\n",
+                w, h, opt.period, int(staticClip), opt.period, changedAfterPeriod[0], changedAfterPeriod[1], frames,
+                finalPsnr[0], finalPsnr[1]);
+    EXPECT_GT(changedAfterPeriod[0], long(3 * w * h));  // averaging more keeps moving the output
+    if (!staticClip) EXPECT_EQ(changedAfterPeriod[1], 0);  // every history is pure
+    // With the static clip some edge pixels fall back to the feedback blend
+    // now and then; those keep averaging.
+    EXPECT_LT(changedAfterPeriod[1], changedAfterPeriod[0] / 4);
+    EXPECT_NEAR(finalPsnr[1], finalPsnr[0], 0.05);
+  }
+  // A cut after the hold took hold: no ghost of the old picture.
+  const int cut = 40;
+  synth::Sequence cutSeq = synth::cameraCutSequence(w, h, cut);
+  Driver d;
+  for (int t = 0; t < cut + 4; ++t) {
+    synth::FrameOptions o;
+    o.reference = t < cut ? synth::ReferenceKind::None : synth::ReferenceKind::Box;
+    const synth::FrameData f = synth::renderFrame(cutSeq, w, h, t, o);
+    const Image& out = d.run(f, true, true);
+    if (t >= cut) EXPECT_GE(psnr(f.reference, out), psnr(f.reference, f.color) - 0.5) << "frame " << t;
+  }
 }
 
 // Sharpen (eq. 3.1) on the output: steeper edges than without.
