@@ -34,7 +34,7 @@ DEFAULTS = {
     "fxaa": {"edgeThreshold": 0.166, "edgeThresholdMin": 0.0833, "subpix": 0.75},
     "repair": {"kappa": 0.0, "patchSize": 5, "mask": "gauss5", "angleEstimator": "regression"},
     "taa": {"jitterX": 0.0, "jitterY": 0.0, "jitterWeighting": "none", "filterSize": 1.5,
-            "historyFilter": "catmull-rom", "clipSpace": "ycocg", "feedbackMin": 0.7, "feedbackMax": 0.85,
+            "historyFilter": "catmull-rom", "clipSpace": "rgb", "feedbackMin": 0.7, "feedbackMax": 0.85,
             "sharpen": 0.0, "staticAccumulation": True, "maxSamples": 128, "holdPeriod": 16,
             "staticClip": True, "unjitter": "blackman-harris"},
 }

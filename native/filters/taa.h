@@ -38,7 +38,7 @@ struct Settings {
   JitterWeighting weighting = JitterWeighting::None;
   float filterSize = 1.5f;  // width of the Blackman-Harris pixel filter for weighting (EEVEE's filter_size)
   HistoryFilter historyFilter = HistoryFilter::CatmullRom;
-  ClipSpace clipSpace = ClipSpace::YCoCg;
+  ClipSpace clipSpace = ClipSpace::Rgb;  // taa.cpp "Deliberate choices"
   float feedbackMin = 0.7f;   // history weight for a large luma difference (seed 000: 0.88)
   float feedbackMax = 0.85f;  // history weight for equal lumas (seed 000: 0.97)
   float sharpen = 0.0f;       // 0 = off, 1 = the full [0,-1,0;-1,5,-1;0,-1,0] kernel (eq. 3.1)

@@ -197,9 +197,9 @@ class GpuParity(unittest.TestCase):
         self.check("taa 8 frames hold 3", "taa", taa_frames(8), {"holdPeriod": 3})
         self.check("taa 8 frames hold 3 sharpen", "taa", taa_frames(8), {"holdPeriod": 3, "sharpen": 0.5})
 
-    def test_taa_rgb_sharpen_bh(self):
-        self.check("taa 6 frames rgb sharpen bh", "taa", taa_frames(6),
-                   {"clipSpace": "rgb", "sharpen": 0.5, "jitterWeighting": "blackman-harris"})
+    def test_taa_ycocg_sharpen_bh(self):
+        self.check("taa 6 frames ycocg sharpen bh", "taa", taa_frames(6),
+                   {"clipSpace": "ycocg", "sharpen": 0.5, "jitterWeighting": "blackman-harris"})
 
     def test_taa_moving_catmull_rom(self):
         self.check("taa 5 frames moving c-rom", "taa", moving_frames(5, 0.6, 0.35), {})
