@@ -28,7 +28,7 @@
 //   jitterWeighting 0 = none / 1 = blackman-harris, filterSize 1.5,
 //   historyFilter 0 = catmull-rom / 1 = bilinear, clipSpace 0 = ycocg / 1 = rgb,
 //   feedbackMin 0.7, feedbackMax 0.85, sharpen 0, staticAccumulation 1,
-//   maxSamples 128, holdPeriod 16, staticClip 1, unjitter 0 = none / 1 = nearest /
+//   maxSamples 128, holdPeriod 16, varianceClip 1, staticClip 1, unjitter 0 = none / 1 = nearest /
 //   2 = blackman-harris (default 2). (depthTolerance: no depth here.)
 //
 // Not in this version, on purpose: depth (closest-depth velocity and the
@@ -289,6 +289,18 @@ void taaResolvePass() {
       mark = 1.0;  // kept until a reset
       vec4 lo = 0.5 * (box3x3.lo + cross.lo);
       vec4 hi = 0.5 * (box3x3.hi + cross.hi);
+      if (varianceClip > 0.0) {  // taa.cpp momentsOf: mean +- gamma sigma, clamped into the box
+        vec4 sum = taps[0], squares = taps[0] * taps[0];
+        for (int i = 1; i < 9; ++i) {
+          sum = sum + taps[i];
+          squares = squares + taps[i] * taps[i];
+        }
+        vec4 mean = sum * (1.0 / 9.0);
+        vec4 sigma = sqrt(max(squares * (1.0 / 9.0) - mean * mean, vec4(0.0)));
+        vec4 boxLo = lo, boxHi = hi;
+        lo = clamp(mean - varianceClip * sigma, boxLo, boxHi);
+        hi = clamp(mean + varianceClip * sigma, boxLo, boxHi);
+      }
       vec4 clipped = clipTowardCentre4(hist, lo, hi, excess);
       float l0 = lumaOf(clipped, clipSpace), l1 = lumaOf(current, clipSpace);
       float diff = clamp(abs(l0 - l1) / max(max(l0, l1), 0.2), 0.0, 1.0);

@@ -44,6 +44,7 @@ struct Settings {
   float sharpen = 0.0f;       // 0 = off, 1 = the full [0,-1,0;-1,5,-1;0,-1,0] kernel (eq. 3.1)
   bool staticAccumulation = true;
   int maxSamples = 128;       // cap of the running average's sample count (weighted units)
+  float varianceClip = 1.0f;  // taa.cpp "Deliberate choices": the feedback box within mean +- gamma sigma; 0 = off
   int holdPeriod = 16;        // taa.cpp "Hold": the jitter sequence's period in frames; 0 = no hold
   bool staticClip = true;     // clip history in static pixels too (rejects cuts, fireflies, light changes)
   float depthTolerance = 0.05f;  // relative depth difference still the same surface

@@ -122,6 +122,14 @@ template <class T, IfVector<T> = 0>
 CRISP_LANES_INLINE T fabsOf(T a) {
   return (T)((IntOf<T>)a & 0x7fffffff);
 }
+// std::sqrt per lane (correctly rounded in every form: the same bits).
+CRISP_LANES_INLINE float sqrtOf(float a) { return std::sqrt(a); }
+template <class T, IfVector<T> = 0>
+CRISP_LANES_INLINE T sqrtOf(T a) {
+  T r;
+  for (int l = 0; l < kLanesOf<T>; ++l) r[l] = std::sqrt(a[l]);
+  return r;
+}
 // std::isfinite.
 CRISP_LANES_INLINE bool finiteOf(float a) { return std::isfinite(a); }
 template <class T, IfVector<T> = 0>

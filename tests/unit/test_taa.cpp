@@ -501,6 +501,44 @@ TEST(Taa, HoldStopsAStillImageChangingAndReleasesOnAChange) {
   }
 }
 
+// Variance clipping (taa.cpp "Deliberate choices"): seed 000's ghosting
+// protocol without depth (no disocclusion reset) at the seed's long feedback
+// (0.88/0.97), where the trail lives on what the box lets through: mean +-
+// sigma must leave less of it than the min/max box, and the moving sequences
+// must not lose PSNR.
+TEST(Taa, VarianceClipShortensTheGhostTrail) {
+  const int w = 96, h = 48, frames = 24;
+  synth::Sequence seq = synth::ghostingSequence(w, h, 8.0f, 2.5f, 0.0f);
+  double error[2] = {}, edgePsnr[2] = {};
+  for (int on : {0, 1}) {
+    Driver d;
+    d.filter->params().setFloat("varianceClip", on ? 1.0f : 0.0f);
+    d.filter->params().setFloat("feedbackMin", 0.88f);
+    d.filter->params().setFloat("feedbackMax", 0.97f);
+    for (int t = 0; t < frames; ++t) {
+      const synth::FrameData f = synth::renderFrame(seq, w, h, t, {});
+      const Image& out = d.run(f, true, false);
+      ASSERT_TRUE(allFinite(out));
+      if (t >= 8)
+        for (std::size_t i = 0; i < out.data.size(); ++i)
+          if (i % 4 != 3) error[on] += std::pow(double(out.data[i]) - f.reference.data[i], 2.0);
+    }
+    const test::MovingCase edge = test::movingEdgeAndDisk(48, 40).front();
+    Driver e;
+    e.filter->params().setFloat("varianceClip", on ? 1.0f : 0.0f);
+    for (int t = 0; t < 32; ++t) {
+      const synth::FrameData f = synth::renderFrame(edge.seq, 48, 40, t, {});
+      const Image& out = e.run(f, true, true);
+      if (t >= 8) edgePsnr[on] += psnr(f.reference, out) / 24.0;
+    }
+  }
+  std::printf("ghosting at feedback 0.88/0.97, squared error frames 8-%d: box %.4g, variance clip %.4g; moving edge "
+              "mean PSNR %.2f / %.2f dB\n",
+              frames - 1, error[0], error[1], edgePsnr[0], edgePsnr[1]);
+  EXPECT_LT(error[1], 0.9 * error[0]);
+  EXPECT_GT(edgePsnr[1], edgePsnr[0] - 0.2);
+}
+
 // Sharpen (eq. 3.1) on the output: steeper edges than without.
 TEST(Taa, SharpenRaisesEdgeContrastOnly) {
   const int w = 40, h = 32;
