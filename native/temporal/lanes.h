@@ -12,6 +12,9 @@
 #include <cstddef>
 #include <cstring>
 #include <type_traits>
+#if defined(__SSE2__)
+#include <xmmintrin.h>
+#endif
 
 #include "temporal/vec4.h"
 
@@ -122,14 +125,27 @@ template <class T, IfVector<T> = 0>
 CRISP_LANES_INLINE T fabsOf(T a) {
   return (T)((IntOf<T>)a & 0x7fffffff);
 }
-// std::sqrt per lane (correctly rounded in every form: the same bits).
+// std::sqrt per lane. IEEE square roots are correctly rounded, so sqrtps
+// (SSE, baseline on x86-64; two of them for Vec8, in any target) gives the
+// scalar form's bits; GCC does not vectorise a lane loop of std::sqrt.
 CRISP_LANES_INLINE float sqrtOf(float a) { return std::sqrt(a); }
+#if defined(__SSE2__)
+CRISP_LANES_INLINE Vec4 sqrtOf(Vec4 a) { return (Vec4)_mm_sqrt_ps((__m128)a); }
+CRISP_LANES_INLINE Vec8 sqrtOf(Vec8 a) {
+  Vec4 half[2];
+  std::memcpy(half, &a, sizeof a);
+  half[0] = sqrtOf(half[0]);
+  half[1] = sqrtOf(half[1]);
+  std::memcpy(&a, half, sizeof a);
+  return a;
+}
+#else
 template <class T, IfVector<T> = 0>
 CRISP_LANES_INLINE T sqrtOf(T a) {
-  T r;
-  for (int l = 0; l < kLanesOf<T>; ++l) r[l] = std::sqrt(a[l]);
-  return r;
+  for (int l = 0; l < kLanesOf<T>; ++l) a[l] = std::sqrt(a[l]);
+  return a;
 }
+#endif
 // std::isfinite.
 CRISP_LANES_INLINE bool finiteOf(float a) { return std::isfinite(a); }
 template <class T, IfVector<T> = 0>

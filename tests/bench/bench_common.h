@@ -96,6 +96,7 @@ struct TemporalVariant {
   int threads;
   bool reference, moving;
   const char* historyFilter = nullptr;
+  const char* params = nullptr;  // more parameters, "name=value:name=value" (a baseline of earlier defaults)
 };
 
 // A filter of `type` writing to `output` (kept alive by the caller) on
@@ -169,6 +170,12 @@ inline void runTemporal(benchmark::State& state, int width, int height, const ch
   Context context;
   auto filter = newFilter(context, type, output, v.threads, v.reference);
   if (v.historyFilter) filter->params().setString("historyFilter", v.historyFilter);
+  for (std::string rest = v.params ? v.params : ""; !rest.empty();) {
+    const std::size_t end = rest.find(':'), eq = rest.find('=');
+    const std::string item = rest.substr(0, end);
+    filter->params().setFromText(item.substr(0, eq), item.substr(eq + 1));
+    rest = end == std::string::npos ? "" : rest.substr(end + 1);
+  }
   temporalLoop(state, *filter, output, panFrames(width, height), [&](const synth::FrameData& f) {
     filter->setImage("color", f.color.view());
     if (v.moving) {

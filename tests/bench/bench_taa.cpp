@@ -5,7 +5,8 @@
 // clipped path, the worst case) with colour, motion and depth. Variants: the
 // history fetch (Catmull-Rom default, bilinear), and a still scene without
 // motion and depth (the static accumulation path, no reprojection work), and
-// the fast path's x86-64 baseline (SSE2) row loop where AVX2 exists (.sse2).
+// the fast path's x86-64 baseline (SSE2) row loop where AVX2 exists (.sse2),
+// and the defaults before the RGB box, variance clipping and the hold.
 // Counters: kept_MB = memory kept between frames (history), scratch_MB = the
 // fast path's per-band row rings. The memory-copy floor of the same run is floor.memcpy_rgba
 // (bench_floor.cpp).
@@ -41,7 +42,13 @@ void registerAll() {
                               {"taa.rgb_motion_depth.fast.st", 1, false, true, "catmull-rom"},
                               {"taa.rgb_motion_depth.reference", 1, true, true, "catmull-rom"},
                               {"taa.rgb_motion_depth.bilinear.fast.mt", 0, false, true, "bilinear"},
-                              {"taa.rgb_static.fast.mt", 0, false, false, "catmull-rom"}};
+                              {"taa.rgb_static.fast.mt", 0, false, false, "catmull-rom"},
+                              // The defaults before the RGB box, variance clipping and the hold (7ba9b04):
+                              // the same run's baseline for what those cost.
+                              {"taa.rgb_motion_depth.ycocg_minmax.fast.mt", 0, false, true, "catmull-rom",
+                               "clipSpace=ycocg:varianceClip=0"},
+                              {"taa.rgb_static.ycocg_nohold.fast.mt", 0, false, false, "catmull-rom",
+                               "clipSpace=ycocg:holdPeriod=0"}};
   bench::registerVariants(variants, runTaa);
   const Variant baseline[] = {{"taa.rgb_motion_depth.fast.st.sse2", 1, false, true, "catmull-rom"}};
   bench::registerVariants(baseline, runTaaBaselineRows);
