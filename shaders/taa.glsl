@@ -28,7 +28,7 @@
 //   jitterWeighting 0 = none / 1 = blackman-harris, filterSize 1.5,
 //   historyFilter 0 = catmull-rom / 1 = bilinear, clipSpace 0 = ycocg / 1 = rgb,
 //   feedbackMin 0.7, feedbackMax 0.85, sharpen 0, staticAccumulation 1,
-//   maxSamples 128, holdPeriod 16, varianceClip 1, staticClip 1, unjitter 0 = none / 1 = nearest /
+//   maxSamples 128, holdPeriod 16, varianceClip 1, resampleDamping 0.3, staticClip 1, unjitter 0 = none / 1 = nearest /
 //   2 = blackman-harris (default 2). (depthTolerance: no depth here.)
 //
 // Not in this version, on purpose: depth (closest-depth velocity and the
@@ -306,6 +306,10 @@ void taaResolvePass() {
       float diff = clamp(abs(l0 - l1) / max(max(l0, l1), 0.2), 0.0, 1.0);
       float unbiased = (1.0 - diff) * (1.0 - diff);
       float k = feedbackMin + (feedbackMax - feedbackMin) * unbiased;
+      if (resampleDamping > 0.0) {  // taa.cpp "Deliberate choices"
+        float tx = qx - floor(qx), ty = qy - floor(qy);
+        k = k * (1.0 - resampleDamping * max(4.0 * tx * (1.0 - tx), 4.0 * ty * (1.0 - ty)));
+      }
       float mixWeight = max(1.0 - k, weight / weightSum);
       result = clipped + (current - clipped) * mixWeight;
       newWeight = 1.0 - k > 0.0 ? min(weightSum, 1.0 / (1.0 - k)) : weightSum;

@@ -36,6 +36,7 @@ DEFAULTS = {
     "taa": {"jitterX": 0.0, "jitterY": 0.0, "jitterWeighting": "none", "filterSize": 1.5,
             "historyFilter": "catmull-rom", "clipSpace": "rgb", "feedbackMin": 0.7, "feedbackMax": 0.85,
             "sharpen": 0.0, "staticAccumulation": True, "maxSamples": 128, "holdPeriod": 16, "varianceClip": 1.0,
+            "resampleDamping": 0.3,
             "staticClip": True, "unjitter": "blackman-harris"},
 }
 
@@ -55,7 +56,7 @@ FILES = {
         "push": (("FLOAT", "jitterX"), ("FLOAT", "jitterY"), ("INT", "jitterWeighting"), ("FLOAT", "filterSize"),
                  ("INT", "historyFilter"), ("INT", "clipSpace"), ("FLOAT", "feedbackMin"),
                  ("FLOAT", "feedbackMax"), ("FLOAT", "sharpen"), ("INT", "staticAccumulation"),
-                 ("INT", "maxSamples"), ("INT", "holdPeriod"), ("FLOAT", "varianceClip"), ("INT", "staticClip"), ("INT", "unjitter"), ("INT", "hasHistory"),
+                 ("INT", "maxSamples"), ("INT", "holdPeriod"), ("FLOAT", "varianceClip"), ("FLOAT", "resampleDamping"), ("INT", "staticClip"), ("INT", "unjitter"), ("INT", "hasHistory"),
                  ("INT", "hasMotion")),
     },
 }

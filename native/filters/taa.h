@@ -45,6 +45,7 @@ struct Settings {
   bool staticAccumulation = true;
   int maxSamples = 128;       // cap of the running average's sample count (weighted units)
   float varianceClip = 1.0f;  // taa.cpp "Deliberate choices": the feedback box within mean +- gamma sigma; 0 = off
+  float resampleDamping = 0.3f;  // taa.cpp "Deliberate choices": history weight lowered at sub-pixel motion
   int holdPeriod = 16;        // taa.cpp "Hold": the jitter sequence's period in frames; 0 = no hold
   bool staticClip = true;     // clip history in static pixels too (rejects cuts, fireflies, light changes)
   float depthTolerance = 0.05f;  // relative depth difference still the same surface
