@@ -247,6 +247,8 @@ void writeMap(const fs::path& path, const Image& map, float (*scale)(float)) {
 float errorScale(float sq) { return std::sqrt(std::fmax(sq, 0.0f)) / 0.25f; }
 float ssimScale(float s) { return 1.0f - s; }
 float flipScale(float v) { return v; }
+// Mean per-pixel temporal error over a 0.05 full scale (sRGB units).
+float temporalScale(float v) { return v / 0.05f; }
 
 // The most aliased places: windows with the largest summed 1-sample error, greedily, not overlapping.
 std::vector<Crop> chooseCrops(const Image& errorSum, int count) {
@@ -534,6 +536,8 @@ int run(const Options& o) {
         dir = renders / e.inputSet;
       }
       Image previous;
+      Image temporalSum;  // per-pixel temporal error summed over frames (methods' maps)
+      int temporalFrames = 0;
       for (int f : frames) {
         FrameFigures ff;
         ff.frame = f;
@@ -573,12 +577,24 @@ int run(const Options& o) {
           int prevFrame = f - 1;
           const Image* motion = motions.count(f) ? &motions[f] : nullptr;
           const Image* mask = masks.count(f) ? &masks[f] : nullptr;
-          ff.temporalError = temporalError(test, previous, refs[f], refs[prevFrame], motion, mask, o.threads).value;
+          Image teMap;
+          ff.temporalError = temporalError(test, previous, refs[f], refs[prevFrame], motion, mask, o.threads,
+                                           e.kind != "eevee" ? &teMap : nullptr)
+                                 .value;
+          if (!teMap.empty()) {
+            if (temporalSum.empty()) temporalSum = Image(teMap.width, teMap.height, 1);
+            for (std::size_t i = 0; i < teMap.data.size(); ++i) temporalSum.data[i] += teMap.data[i];
+            ++temporalFrames;
+          }
         }
         if (e.kind != "eevee") kept[e.name][f] = test;
         previous = std::move(test);
         e.frames.push_back(ff);
         progress.step(e.name + " frame " + std::to_string(f));
+      }
+      if (temporalFrames > 0) {  // mean over the frames measured
+        for (float& v : temporalSum.data) v /= float(temporalFrames);
+        writeMap(images / "maps" / (e.name + "_temporal.png"), temporalSum, temporalScale);
       }
       std::vector<double> p, s, fl, te, rs, fs_, ts;
       for (const FrameFigures& ff : e.frames) {

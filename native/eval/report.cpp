@@ -228,14 +228,15 @@ setInterval(() => { if (playing && frames.length > 1) show((idx + 1) % frames.le
 let grid = `<figure><img class="px" src="images/full/reference.png" alt="reference"><figcaption>reference (${S.reference.samples} spp)</figcaption></figure>`;
 for (const m of S.methods) if (!m.error) grid += `<figure><img class="px" src="images/full/${esc(m.name)}.png" alt="${esc(m.name)}"><figcaption>${esc(caption(m.name))}</figcaption></figure>`;
 let maps = "";
+const mapKinds = ["error", "ssim", "perceptual"].concat(S.frames[1] > S.frames[0] ? ["temporal"] : []);  // temporal: 2+ frames
 for (const m of S.methods) {
   if (m.error) continue;
-  maps += `<tr><td class="l">${esc(m.name)}</td>` + ["error", "ssim", "perceptual"].map(k =>
+  maps += `<tr><td class="l">${esc(m.name)}</td>` + mapKinds.map(k =>
     `<td><img class="px" style="width:320px" src="images/maps/${esc(m.name)}_${k}.png" alt="${esc(m.name)} ${k}"></td>`).join("") + "</tr>";
 }
 h(`<h2>Frame ${S.map_frame}: images, error and SSIM maps</h2><div class="grid">${grid}</div>
 <h3>Maps (dark = good; colour scale black&rarr;purple&rarr;red&rarr;yellow&rarr;white)</h3>
-<table><tr><th class="l">method</th><th>|error| (0 – 0.25 in sRGB units)</th><th>1 − SSIM (0 – 1)</th><th>perceptual error (0 – 1)</th></tr>${maps}</table>`);
+<table><tr><th class="l">method</th><th>|error| (0 – 0.25 in sRGB units)</th><th>1 − SSIM (0 – 1)</th><th>perceptual error (0 – 1)</th>${S.frames[1] > S.frames[0] ? "<th>temporal error, mean over all frames (0 – 0.05 in sRGB units)</th>" : ""}</tr>${maps}</table>`);
 
 // Every figure.
 let all = `<tr><th class="l">kind</th><th class="l">name</th><th>frame</th><th>PSNR</th><th>SSIM</th><th>perceptual</th><th>temporal</th><th>render ms</th><th>filter ms</th><th>time ms</th><th class="l">file</th></tr>`;

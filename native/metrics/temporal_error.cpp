@@ -93,7 +93,8 @@ Image disocclusionMask(const Image* motion, const Image* ids, const Image* idsPr
 }
 
 TemporalError temporalError(const Image& out, const Image& outPrevious, const Image& reference,
-                            const Image& referencePrevious, const Image* motion, const Image* mask, int numThreads) {
+                            const Image& referencePrevious, const Image* motion, const Image* mask, int numThreads,
+                            Image* map) {
   checkSame(out, out, "current output", 3, 4);
   checkSame(out, outPrevious, "previous output", 3, 4);
   checkSame(out, reference, "reference", 3, 4);
@@ -104,6 +105,7 @@ TemporalError temporalError(const Image& out, const Image& outPrevious, const Im
   Image o = displayEncode(out, numThreads), op = displayEncode(outPrevious, numThreads);
   Image r = displayEncode(reference, numThreads), rp = displayEncode(referencePrevious, numThreads);
   Image inside;
+  if (map) *map = Image(out.width, out.height, 1);
   if (motion) {
     op = warpPrevious(op, *motion, &inside, numThreads);
     rp = warpPrevious(rp, *motion, nullptr, numThreads);
@@ -118,8 +120,11 @@ TemporalError temporalError(const Image& out, const Image& outPrevious, const Im
       for (int x = 0; x < out.width; ++x) {
         if (motion && inside.at(x, y)[0] <= 0) continue;
         if (mask && !(mask->at(x, y)[0] > 0)) continue;
+        double pixel = 0;
         for (int c = 0; c < 3; ++c)
-          s += std::fabs(double(o.at(x, y)[c] - op.at(x, y)[c]) - double(r.at(x, y)[c] - rp.at(x, y)[c]));
+          pixel += std::fabs(double(o.at(x, y)[c] - op.at(x, y)[c]) - double(r.at(x, y)[c] - rp.at(x, y)[c]));
+        s += pixel;
+        if (map) map->at(x, y)[0] = float(pixel / 3.0);
         ++n;
       }
       rowSum[std::size_t(y)] = s;

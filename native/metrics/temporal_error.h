@@ -25,11 +25,14 @@ struct TemporalError {
 
 // out, outPrevious, reference, referencePrevious: linear RGB(A), all the same
 // size. motion: nullptr (identity) or 2/4 channels of that size. mask: nullptr
-// or 1 channel of that size. Throws CRISP_ERROR_INVALID_DATA naming the image
-// whose size or channel count does not fit.
+// or 1 channel of that size. map (optional): set to one channel of that size
+// holding each valid pixel's term (the mean over RGB of the |...| above) and 0
+// elsewhere, so its sum over valid pixels / pixels is the value. Throws
+// CRISP_ERROR_INVALID_DATA naming the image whose size or channel count does
+// not fit.
 TemporalError temporalError(const Image& out, const Image& outPrevious, const Image& reference,
                             const Image& referencePrevious, const Image* motion = nullptr, const Image* mask = nullptr,
-                            int numThreads = 0);
+                            int numThreads = 0, Image* map = nullptr);
 
 // Warps `previous` (any channel count) to the current frame: result(p) =
 // previous(p + motion.xy(p)), bilinear, clamped at the borders. valid (if not

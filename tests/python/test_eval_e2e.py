@@ -60,6 +60,8 @@ def test_results_shape_and_every_entry(run):
         assert 5 < m["mean"]["psnr"] < 100 and 0 < m["mean"]["ssim"] <= 1
         assert m["mean"]["time_s"] > 0 and m["frames"][0]["temporal_error"] is None
         assert m["frames"][1]["temporal_error"] >= 0
+        # Where it flickers: the per-pixel temporal error, mean over frames, beside the frame's maps.
+        assert os.path.isfile(os.path.join(out, "images", "maps", m["name"] + "_temporal.png")), m["name"]
     assert [c["samples"] for c in scene["eevee_curve"]] == [1, 2, 4]
     curve = scene["eevee_curve"]
     assert all(c["time_s"] > 0 for c in curve)
