@@ -43,10 +43,10 @@ void registerAll() {
                               {"taa.rgb_motion_depth.reference", 1, true, true, "catmull-rom"},
                               {"taa.rgb_motion_depth.bilinear.fast.mt", 0, false, true, "bilinear"},
                               {"taa.rgb_static.fast.mt", 0, false, false, "catmull-rom"},
-                              // The defaults before the RGB box, variance clipping and the hold (7ba9b04):
+                              // The defaults before the RGB box, variance clipping, resampling damping and the hold (7ba9b04):
                               // the same run's baseline for what those cost.
                               {"taa.rgb_motion_depth.ycocg_minmax.fast.mt", 0, false, true, "catmull-rom",
-                               "clipSpace=ycocg:varianceClip=0"},
+                               "clipSpace=ycocg:varianceClip=0:resampleDamping=0"},
                               {"taa.rgb_static.ycocg_nohold.fast.mt", 0, false, false, "catmull-rom",
                                "clipSpace=ycocg:holdPeriod=0"}};
   bench::registerVariants(variants, runTaa);
