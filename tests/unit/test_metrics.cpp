@@ -20,19 +20,11 @@
 #include "test_util.h"
 
 using namespace crisp;
+using test::fromEncoded;
 
 namespace {
 
 constexpr double kC1 = 0.01 * 0.01, kC2 = 0.03 * 0.03;  // Wang 2004 with L = 1
-
-// A linear RGBA image whose DISPLAY-ENCODED values are encoded(x, y, c).
-Image fromEncoded(int w, int h, const std::function<float(int, int, int)>& encoded) {
-  Image im(w, h, 4, 1.0f);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < 3; ++c) im.at(x, y)[c] = srgbDecode(encoded(x, y, c));
-  return im;
-}
 
 Image randomImage(int w, int h, unsigned seed, float lo = 0.0f, float hi = 1.0f) {
   std::mt19937 rng(seed);

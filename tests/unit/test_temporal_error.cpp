@@ -10,19 +10,12 @@
 #include "core/color.h"
 #include "core/error.h"
 #include "metrics/temporal_error.h"
+#include "test_util.h"
 
 using namespace crisp;
+using test::fromEncoded;
 
 namespace {
-
-// A linear RGBA image whose display-encoded values are encoded(x, y, c).
-Image fromEncoded(int w, int h, const std::function<float(int, int, int)>& encoded) {
-  Image im(w, h, 4, 1.0f);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < 3; ++c) im.at(x, y)[c] = srgbDecode(encoded(x, y, c));
-  return im;
-}
 
 // A pattern in display values, shifted right by `shift` pixels.
 Image stripes(int w, int h, int shift) {

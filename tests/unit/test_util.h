@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // Set-up shared by the single-frame tests (test_fxaa.cpp, test_repair.cpp,
-// test_rsaa.cpp, test_flip.cpp, test_metrics.cpp): a synthetic scene with its
+// test_rsaa.cpp, test_flip.cpp, test_metrics.cpp, test_temporal_error.cpp): a synthetic scene with its
 // reference and edge mask, the error over a mask computed here (so a test of
 // a filter does not depend on metrics.cpp), and the error code of a call.
 #pragma once
@@ -24,6 +24,16 @@ struct EdgeFrames {
 inline EdgeFrames renderEdgeFrames(const synth::Scene& scene, int width, int height) {
   return {synth::renderCentre(scene, width, height), synth::renderSupersampled(scene, width, height, 16),
           synth::edgePixels(scene, width, height, 16)};
+}
+
+// A linear RGBA image (alpha 1) whose display-encoded values are
+// encoded(x, y, c) (test_metrics.cpp, test_temporal_error.cpp).
+inline Image fromEncoded(int w, int h, const std::function<float(int, int, int)>& encoded) {
+  Image im(w, h, 4, 1.0f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) im.at(x, y)[c] = srgbDecode(encoded(x, y, c));
+  return im;
 }
 
 // Squared error of display-encoded RGB (sRGB of clamped linear) over the
