@@ -918,8 +918,8 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
       if (!fetched)
         for (int c = 0; c < 4; ++c) in.hist[c] = load(hist[c]);
       in.tx = rp.tx;
-  in.ty = rp.ty;
-  in.valid = rp.valid;
+      in.ty = rp.ty;
+      in.valid = rp.valid;
       in.moving = rp.moving;
       std::memcpy(&in.feedbackSinceReset, since, sizeof since);
       in.framesSinceReset = load(frames);

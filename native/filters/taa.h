@@ -8,8 +8,9 @@
 // written) holding the accumulated colour in the clip space plus a signed
 // sample weight, and, only when the filter is committed with depth, two float
 // depth planes (this frame's and the previous frame's), and a 1-byte
-// feedback-since-reset plane. Scratch (bytesScratch): per row band of the fast
-// path, a ring of five staged rows as planes (colour in the clip space, alpha,
+// history-state plane (feedback since reset, frames since reset). Scratch
+// (bytesScratch): per row band of the fast path, a ring of five staged rows
+// as planes (colour in the clip space, alpha,
 // motion x and y), five depth rows and the row's closest-depth taps; the
 // current frame is staged on the fly (core/row_stage.h), never as a whole
 // image. The per-pixel core is written once against temporal/lanes.h and run
