@@ -212,7 +212,7 @@ struct Batch {
   // Step 3, per lane: where the nearest model q = pi(v) is (read only when
   // valid) and, for a moving lane, the bilinear footprint of the feature (and
   // beta) fetch: its four taps and fractions. Pixels as indices into the
-  // padded rows (paddedPixel).
+  // padded rows (phlm.h paddedPixel).
   std::size_t source[kBatch], tap[4][kBatch];
   float tx[kBatch], ty[kBatch];
   bool allValid = true;      // every lane reprojected (no reset)
@@ -225,14 +225,6 @@ struct Batch {
   int count = 0, x0 = 0, y = 0;
 };
 
-// A pixel as an index into the padded rows of the records (blocksPerRow *
-// kBlock pixels a row), and where its scalar 0 is (phlm.h recordIndex).
-CRISP_PHLM_INLINE std::size_t paddedPixel(int blocksPerRow, int x, int y) {
-  return std::size_t(y) * std::size_t(blocksPerRow) * kBlock + std::size_t(x);
-}
-CRISP_PHLM_INLINE std::size_t recordIndexOf(std::size_t paddedPixel) {
-  return paddedPixel / kBlock * (kRecord * kBlock) + paddedPixel % kBlock;
-}
 // The lanes' pixels are consecutive (pixel[i] = pixel[0] + i).
 CRISP_PHLM_INLINE bool isRun(const std::size_t pixel[kBatch]) {
   bool run = true;

@@ -38,10 +38,18 @@ enum class ModelFetch { Bilinear, Nearest };  // how beta is reprojected (P, U/D
 // j * kBlock + i): the layout of phlm.cpp's 8-lane batch, which loads and
 // stores a block's model as whole vectors. Rows are padded to whole blocks.
 constexpr int kBlock = 8;
-// Where scalar 0 of pixel (x, y)'s record is; scalar j at + j * kBlock.
+// A pixel as an index into the padded rows of the records (blocksPerRow *
+// kBlock pixels a row).
+inline std::size_t paddedPixel(int blocksPerRow, int x, int y) {
+  return std::size_t(y) * std::size_t(blocksPerRow) * kBlock + std::size_t(x);
+}
+// Where scalar 0 of a padded pixel's record is; scalar j at + j * kBlock.
+inline std::size_t recordIndexOf(std::size_t paddedPixel) {
+  return paddedPixel / kBlock * (kRecord * kBlock) + paddedPixel % kBlock;
+}
+// The same for pixel (x, y).
 inline std::size_t recordIndex(int blocksPerRow, int x, int y) {
-  return (std::size_t(y) * std::size_t(blocksPerRow) + std::size_t(x / kBlock)) * (kRecord * kBlock) +
-         std::size_t(x % kBlock);
+  return recordIndexOf(paddedPixel(blocksPerRow, x, y));
 }
 
 struct Settings {

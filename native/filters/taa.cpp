@@ -333,9 +333,6 @@ __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const 
     // Disocclusion: some tap of the bilinear footprint with non-zero weight
     // must hold the surface whose velocity we follow (depth is compared,
     // never interpolated).
-    auto clampIndex = [](temporal::IntOf<T> v, int hi) { return v < 0 ? 0 : (hi < v ? hi : v); };
-    const auto xa = clampIndex(r.x0, w - 1), xb = clampIndex(r.x0 + 1, w - 1);
-    const auto ya = clampIndex(r.y0, h - 1), yb = clampIndex(r.y0 + 1, h - 1);
     T d00, d10, d01, d11;  // the previous depth at the four taps
     bool loaded = false;
     if constexpr (!std::is_same_v<T, float>) {
@@ -349,7 +346,10 @@ __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const 
         loaded = true;
       }
     }
-    if (!loaded) {
+    if (!loaded) {  // clamped to the image
+      auto clampIndex = [](temporal::IntOf<T> v, int hi) { return v < 0 ? 0 : (hi < v ? hi : v); };
+      const auto xa = clampIndex(r.x0, w - 1), xb = clampIndex(r.x0 + 1, w - 1);
+      const auto ya = clampIndex(r.y0, h - 1), yb = clampIndex(r.y0 + 1, h - 1);
       d00 = temporal::gatherOf(f.previousDepth, w, xa, ya);
       d10 = temporal::gatherOf(f.previousDepth, w, xb, ya);
       d01 = temporal::gatherOf(f.previousDepth, w, xa, yb);
