@@ -75,6 +75,10 @@ class Workspace {
   int height() const { return height_; }
   // Pixels that passed the contrast check in the last runFast (for benchmarks).
   std::size_t searchedPixels() const;
+  // After runFast: one byte per pixel, row-major, 1 where the pixel passed the
+  // contrast check. Only those pixels can differ from the sanitised colour
+  // (rsaa's guard reads these instead of comparing every pixel).
+  const std::uint8_t* searchFlags() const { return needsSearch_.data(); }
 
  private:
   friend struct Access;

@@ -749,20 +749,6 @@ CRISP_AVX2 inline void sanitizeCopy8(const float* src, float* dst) {
   for (int j = 0; j < 32; j += 8) _mm256_storeu_ps(dst + j, sanitize8(_mm256_loadu_ps(src + j)));
 }
 
-// Bit j set where packed RGBA output pixel j of 8 differs from the
-// sanitised colour (src), i.e. where FXAA changed it (or RSAA wrote it): the
-// scalar test compares channel by channel with !=; so does this, -0 == 0
-// included.
-CRISP_AVX2 inline int changedPixels8(const float* src, const float* out) {
-  std::uint32_t lanes = 0;  // bits 4p..4p+3: the channels of pixel p
-  for (int j = 0; j < 4; ++j) {
-    const __m256 neq = _mm256_cmp_ps(sanitize8(_mm256_loadu_ps(src + 8 * j)), _mm256_loadu_ps(out + 8 * j), _CMP_NEQ_UQ);
-    lanes |= std::uint32_t(_mm256_movemask_ps(neq)) << (8 * j);
-  }
-  int pixels = 0;
-  for (int p = 0; p < 8; ++p) pixels |= ((lanes >> (4 * p)) & 0xFu) ? 1 << p : 0;
-  return pixels;
-}
 #endif
 
 std::atomic<int> gSimdLanes{0};  // setSimdLanesForTesting
@@ -939,27 +925,28 @@ void Kernel::runRows(const Inputs& in, const ImageView& output, int y0, int y1, 
 // The second test runs only where FXAA changed the colour (a few % of pixels).
 void Kernel::guardRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd) {
   const int outChannels = output.channels();
-#if defined(CRISP_RSAA_AVX2)
-  // Fast path: 8 pixels' "changed" bits at once; only the changed ones (a
-  // few % where FXAA acted) take the per-pixel test.
-  const bool chunks = simd && useAvx2() && outChannels == 4 && output.pixelStride == 16 &&
-                      (!direct_ || (direct_->channels() == 4 && direct_->pixelStride == 16));
-#else
-  (void)simd;
-#endif
+  // Fast path (after fxaa::runFast): only pixels that passed FXAA's contrast
+  // check can have changed, so the others (most of the image) are skipped by
+  // their flag bytes, 8 at a time, without reading colour or output.
+  const std::uint8_t* searched = simd ? fxaa_.searchFlags() : nullptr;
   for (int y = y0; y < y1; ++y)
     for (int x = 0; x < width_; ++x) {
       const std::size_t i = std::size_t(y) * std::size_t(width_) + std::size_t(x);
-#if defined(CRISP_RSAA_AVX2)
-      if (chunks && x % 8 == 0 && x + 8 <= width_) {
-        const int changed = changedPixels8(direct_ ? direct_->pixel(x, y) : staged_.at(x, y), output.pixel(x, y));
-        std::memset(&textured_[i], 0, 8);
-        for (int j = 0; changed >> j; ++j)
-          if ((changed >> j) & 1 && !geometric_[i + std::size_t(j)]) guardChanged(in, output, x + j, y);
-        x += 7;
-        continue;
+      if (searched) {
+        if (x % 8 == 0 && x + 8 <= width_) {
+          std::uint64_t eight;
+          std::memcpy(&eight, searched + i, 8);
+          if (eight == 0) {
+            std::memset(&textured_[i], 0, 8);
+            x += 7;
+            continue;
+          }
+        }
+        if (!searched[i]) {
+          textured_[i] = 0;
+          continue;
+        }
       }
-#endif
       textured_[i] = 0;
       if (geometric_[i]) continue;  // RSAA's result
       float colour[4];

@@ -102,7 +102,8 @@ class Kernel {
   void runRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd);
   // textureAA = fxaa, after runRows on the whole image: restores the colour
   // of every pixel FXAA must not touch.
-  // simd: skip 8 pixels FXAA left alone at a time (same result).
+  // simd (after fxaa::runFast): visit only the pixels FXAA's contrast check
+  // passed (its flags, 8 at a time), not every pixel's colour (same result).
   void guardRows(const Inputs& in, const ImageView& output, int y0, int y1, bool simd);
   // guardRows for one non-geometric pixel whose output FXAA changed: keeps
   // FXAA's colour (textured) or restores the sanitised colour.
