@@ -85,6 +85,19 @@
 //    shifted by the jitter) misses: still_life frame 8 fell 31.0 -> 27.0 dB
 //    on such box resets (30.7 dB with footprintBox). Where something moves
 //    nearby, the 3x3 box stays (a trail must not hide in the wider box).
+//    With motion, a pixel whose model moved, saw motion in its 5x5 or was
+//    box-corrected since its last reset keeps the 3x3 box until its next
+//    reset (a byte per pixel, as taa's feedback-since-reset bit): such a
+//    model may hold another colour that lies inside the wider box, such as
+//    the wall under ghosting's moving shadow, which has no motion at all.
+//    Measured (docs/temporal_figures.md: crisp eval, 240x136, frames 9-48 vs
+//    256 samples; PSNR dB / temporal error): ghosting 28.12/0.0064 ->
+//    30.31/0.0056 (means over all 48 frames: the 3x3 box everywhere
+//    30.42/0.0064, the box-corrected condition alone 29.54/0.0061);
+//    spinning_cube, camera_dolly and still_life (no motion image) unchanged.
+//    The price: box corrections at edges under jitter flag still pixels too
+//    (a still chart with a zero motion image: -0.23 dB;
+//    Phlm.ReturningShadowLeavesNoLag).
 //    On by default (since 2026-11-22). The output of a still pixel then lies
 //    in its 5x5 colour range rather than its 3x3 one (the bound
 //    test_phlm_stability.cpp checks for such pixels), and a slow change of a
@@ -180,6 +193,7 @@ struct Frame {
   bool update;                 // sample weight > 0
   bool bilinearBeta;           // reproject beta bilinearly (else nearest)
   bool footprintBox;           // still pixels use the footprint box (header, "Box")
+  std::uint8_t* narrowBox;  // per pixel: 1 = its model keeps the 3x3 box until its reset ("Box"); null: static scene
   T boxResetScale;             // P after a box correction = boxResetScale * P0
   int axis;                    // regularised axis of this frame
   T featureA, featureB, featureAlphaMin;
@@ -325,23 +339,6 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   // unjitter).
   const Vec4 sample = f.unjitter.enabled ? temporal::unjitteredMix(taps, f.unjitter.weights) : taps[4];
   const T current[3] = {T(sample[0]), T(sample[1]), T(sample[2])};
-  if (f.footprintBox && !moving &&
-      temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY)) {
-    // The box of the correction and of the output clamp: the footprint box
-    // (header, "Box"), the 3x3 box united with the 5x5's second extremes.
-    const temporal::MinMax4 foot = temporal::footprintBox({boxLo, boxHi}, footprintExtremes(f, x, y));
-    for (int c = 0; c < 3; ++c) {
-      lo[c] = T(foot.min[c]);
-      hi[c] = T(foot.max[c]);
-    }
-  }
-  // The correction needs y inside the box (lines 13-17): the weighted mix can
-  // pass a face by rounding. Without unjitter y is a tap and this changes
-  // nothing.
-  for (int c = 0; c < 3; ++c) {
-    lo[c] = std::min(lo[c], current[c]);
-    hi[c] = std::max(hi[c], current[c]);
-  }
   bool valid = f.hasHistory && temporal::finiteMotion(vx, vy);
   const float px = float(x) + vx, py = float(y) + vy;
   if (valid) valid = temporal::onScreen(px, py, w, h);
@@ -361,6 +358,36 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
         match = temporal::sameSurfaceDepth(d, f.previousDepth[std::size_t(sy) * w + sx], f.depthTolerance);
       }
     valid = match;
+  }
+
+  // The footprint box trusts a still model. A model that moved, saw
+  // something move in its 5x5 or was box-corrected since its reset may hold
+  // another surface's or an earlier light's colour (the depth test accepts a
+  // neighbour's depth and surfaces close in depth, the measurement mixes the
+  // 3x3, and a moving shadow has no motion at all): it keeps the 3x3 box,
+  // which corrects it once the other colour has gone (header, "Box").
+  const bool stillAround = temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY);
+  bool narrow = false;
+  if (f.narrowBox) {
+    std::uint8_t& flag = f.narrowBox[std::size_t(y) * w + x];
+    narrow = valid && flag != 0;
+    flag = narrow || moving || !stillAround ? 1 : 0;  // finishBatch sets it on a box correction
+  }
+  if (f.footprintBox && !moving && !narrow && stillAround) {
+    // The box of the correction and of the output clamp: the footprint box
+    // (header, "Box"), the 3x3 box united with the 5x5's second extremes.
+    const temporal::MinMax4 foot = temporal::footprintBox({boxLo, boxHi}, footprintExtremes(f, x, y));
+    for (int c = 0; c < 3; ++c) {
+      lo[c] = T(foot.min[c]);
+      hi[c] = T(foot.max[c]);
+    }
+  }
+  // The correction needs y inside the box (lines 13-17): the weighted mix can
+  // pass a face by rounding. Without unjitter y is a tap and this changes
+  // nothing.
+  for (int c = 0; c < 3; ++c) {
+    lo[c] = std::min(lo[c], current[c]);
+    hi[c] = std::max(hi[c], current[c]);
   }
 
   // Step 3 (the model of q) and the fetch of step 2 run in finishBatch, on
@@ -625,6 +652,7 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     if (corrected[i]) {
       anyCorrected = true;
       ++boxResets;
+      if (f.narrowBox) f.narrowBox[std::size_t(batch.y) * std::size_t(f.width) + std::size_t(batch.x0 + i)] = 1;
     }
   if (anyCorrected) {
     // Lines 14-18: onto the box along the ray toward y, the model reset there.
@@ -726,6 +754,7 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
     models_[0].assign(std::size_t(blocksPerRow_) * kBlock * std::size_t(height) * kRecord, T(0));
     models_[1].clear();
     models_[1].shrink_to_fit();
+    narrowBox_.clear();
     depth_[0].clear();
     depth_[1].clear();
     current_ = 0;
@@ -735,9 +764,11 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
   }
   if (withMotion && !withMotion_) {
     models_[1 - current_] = models_[current_];  // keeps the history
+    narrowBox_.assign(pixels, 0);
   } else if (!withMotion && withMotion_) {
     models_[1 - current_].clear();
     models_[1 - current_].shrink_to_fit();
+    narrowBox_ = std::vector<std::uint8_t>();
   }
   withMotion_ = withMotion;
   if (withDepth && !withDepth_) {
@@ -760,7 +791,8 @@ void Kernel<T>::reset() {
 
 template <class T>
 std::size_t Kernel<T>::bytesKeptBetweenFrames() const {
-  return (models_[0].size() + models_[1].size()) * sizeof(T) + (depth_[0].size() + depth_[1].size()) * sizeof(float);
+  return (models_[0].size() + models_[1].size()) * sizeof(T) + (depth_[0].size() + depth_[1].size()) * sizeof(float) +
+         narrowBox_.size();
 }
 
 template <class T>
@@ -837,6 +869,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.axis = frames_ % kDims;
   f.bilinearBeta = s.modelFetch == ModelFetch::Bilinear;
   f.footprintBox = s.footprintBox;
+  f.narrowBox = moving ? narrowBox_.data() : nullptr;
   f.unjitter = temporal::unjitterFor(s.unjitter, s.jitterX, s.jitterY, s.filterSize);
   f.boxResetScale = T(s.boxResetCovariance) / f.p0;
   if (!(f.boxResetScale > T(0))) invalidArgument("phlm: parameter 'boxResetCovariance' must be > 0");

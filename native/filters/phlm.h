@@ -14,7 +14,10 @@
 //    when the scene is static (no motion image: updated in place, no
 //    reprojection work). float: 100 bytes per pixel per buffer.
 //  * with depth: two float depth planes (this frame's and the previous one).
-// So at 1920x1080 (float): 207 MB static, 415 MB with motion, 431 MB with
+//  * with motion: one byte per pixel, set when the pixel's model moved, saw
+//    motion in its 5x5 or was box-corrected since its reset (it then keeps
+//    the 3x3 box; phlm.cpp "Box").
+// So at 1920x1080 (float): 207 MB static, 417 MB with motion, 433 MB with
 // motion and depth (test Phlm.MemoryKeptBetweenFrames, bench counter kept_MB).
 // Scratch (bytesScratch): the staged, sanitised frame (RGB + tonemapped
 // luminance, float) and two counters per row.
@@ -22,6 +25,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "core/image.h"
@@ -119,6 +123,7 @@ class Kernel {
   Image staged_;
   std::vector<T> models_[2];
   std::vector<float> depth_[2];
+  std::vector<std::uint8_t> narrowBox_;  // with motion: per pixel, its model keeps the 3x3 box (phlm.cpp "Box")
   std::vector<long> rowStats_;  // 2 per row: reprojection resets, box resets
   int current_ = 0;
   int frames_ = 0;
