@@ -366,7 +366,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   // neighbour's depth and surfaces close in depth, the measurement mixes the
   // 3x3, and a moving shadow has no motion at all): it keeps the 3x3 box,
   // which corrects it once the other colour has gone (header, "Box").
-  const bool stillAround = temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY);
+  const bool stillAround = !moving && temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY);
   bool narrow = false;
   if (f.narrowBox) {
     std::uint8_t& flag = f.narrowBox[std::size_t(y) * w + x];
