@@ -523,13 +523,9 @@ void runFast(const ImageView& color, const ImageView& output, const Settings& se
       if (!rowChecked[y]) contrastRow(origin, stride, y, width, st, flags);
       const bool interiorRow = y > 0 && y < height - 1;
       for (int x = 0; x < width; ++x) {
-        if (x + 8 <= width) {  // skip 8 flat pixels at a time
-          std::uint64_t eight;
-          std::memcpy(&eight, flags + x, 8);
-          if (eight == 0) {
-            x += 7;
-            continue;
-          }
+        if (x + 8 <= width && noneOf8(flags + x)) {  // skip 8 flat pixels at a time
+          x += 7;
+          continue;
         }
         if (!flags[x]) continue;
         const Blend blend = blendFor(luma, x, y, st);

@@ -21,6 +21,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include "core/conventions.h"
@@ -64,6 +65,14 @@ inline float sanitize(float v) {
   v = v != v ? 0.0f : v;
   v = v < -kMaxColor ? -kMaxColor : v;
   return v > kMaxColor ? kMaxColor : v;
+}
+
+// True when the 8 contrast flags from `flags` (Workspace::searchFlags) are all
+// 0: the scans of those flags skip 8 pixels at a time with it.
+inline bool noneOf8(const std::uint8_t* flags) {
+  std::uint64_t eight;
+  std::memcpy(&eight, flags, 8);
+  return eight == 0;
 }
 
 // Buffers of both paths, allocated once for a frame size (Filter::onCommit);

@@ -366,14 +366,15 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   // neighbour's depth and surfaces close in depth, the measurement mixes the
   // 3x3, and a moving shadow has no motion at all): it keeps the 3x3 box,
   // which corrects it once the other colour has gone (header, "Box").
+  // Still, and nothing in the 5x5 moves.
   const bool stillAround = !moving && temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY);
   bool narrow = false;
   if (f.narrowBox) {
     std::uint8_t& flag = f.narrowBox[std::size_t(y) * w + x];
     narrow = valid && flag != 0;
-    flag = narrow || moving || !stillAround ? 1 : 0;  // finishBatch sets it on a box correction
+    flag = narrow || !stillAround ? 1 : 0;  // finishBatch sets it on a box correction
   }
-  if (f.footprintBox && !moving && !narrow && stillAround) {
+  if (f.footprintBox && !narrow && stillAround) {
     // The box of the correction and of the output clamp: the footprint box
     // (header, "Box"), the 3x3 box united with the 5x5's second extremes.
     const temporal::MinMax4 foot = temporal::footprintBox({boxLo, boxHi}, footprintExtremes(f, x, y));

@@ -932,23 +932,13 @@ void Kernel::guardRows(const Inputs& in, const ImageView& output, int y0, int y1
   for (int y = y0; y < y1; ++y)
     for (int x = 0; x < width_; ++x) {
       const std::size_t i = std::size_t(y) * std::size_t(width_) + std::size_t(x);
-      if (searched) {
-        if (x % 8 == 0 && x + 8 <= width_) {
-          std::uint64_t eight;
-          std::memcpy(&eight, searched + i, 8);
-          if (eight == 0) {
-            std::memset(&textured_[i], 0, 8);
-            x += 7;
-            continue;
-          }
-        }
-        if (!searched[i]) {
-          textured_[i] = 0;
-          continue;
-        }
+      if (searched && x % 8 == 0 && x + 8 <= width_ && fxaa::noneOf8(searched + i)) {
+        std::memset(&textured_[i], 0, 8);
+        x += 7;
+        continue;
       }
       textured_[i] = 0;
-      if (geometric_[i]) continue;  // RSAA's result
+      if ((searched && !searched[i]) || geometric_[i]) continue;  // FXAA left it alone, or RSAA's result
       float colour[4];
       texel(x, y, colour);
       const float* o = output.pixel(x, y);
