@@ -63,6 +63,7 @@ struct Settings {
   float filterSize = 1.5f;       // Blackman-Harris width for the weighting
   double lambda = 0.998;         // forgetting factor (eqs. 6-7)
   double lambdaMoving = 0.7;     // forgetting factor of moving pixels (phlm.cpp header, "Forgetting")
+  double resampleDamping = 0.3;  // moving pixels forget with lambdaMoving (1 - beta s) (phlm.cpp, "Forgetting")
   double initialCovariance = 1000.0;  // p0: intercept variance at init/reset (§6) and its bound
   double slopeCovariance = 1.0;       // ps: slope variances at init/reset and their bound (§6 has 1000)
   double featureA = 0.125;       // a of phi (§5.1)
