@@ -119,6 +119,17 @@
 //    restores the paper's 3x3 box everywhere. Using the
 //    footprint box for the correction only does not help (27.2 dB): the
 //    output clamp to the 3x3 box throws the converged value away as well.
+//  * Hold (parameter holdPeriod P, default 16; taa.cpp "Hold"): the jitter
+//    cycles through P points and EEVEE repeats its 1-sample noise, so a
+//    still pixel's input is periodic and a model that has seen P of its
+//    samples has seen them all; learning on only moves the output back and
+//    forth around the fit (and the feature z with this frame's colour). A
+//    still model (nothing in its 5x5 moves, not narrow, not reset this
+//    frame) holding P samples since its reset or last box correction keeps
+//    its beta, P and z: its output stops changing. The prediction is still
+//    tested against the box, so a change that leaves the box corrects and
+//    restarts it; one that stays inside the box is not taken in (the price,
+//    as in taa). One byte per pixel counts the samples (saturating).
 //  * l = distance of the feature's luminance to [Ymin, Ymax] of the 3x3 (0
 //    inside), Delta = Ymax - Ymin. We read alpha as the weight of the CURRENT
 //    low-frequency colour (alpha = 0 would freeze a feature that lies in range,
@@ -153,6 +164,7 @@
 // | filterSize | float | 1.5 | [0.01, 4] | Blackman-Harris width for the weighting | BLENDER.md |
 // | lambda | float | 0.998 | [0.5, 0.99999] | forgetting factor | eqs. 6-7 |
 // | lambdaMoving | float | 0.7 | [0.5, 0.99999] | forgetting factor of moving pixels | this file |
+// | holdPeriod | int | 16 | [0, 127] | a still, undisturbed model with this many samples stops learning | this file (Hold) |
 // | resampleDamping | float | 0.3 | [0, 0.9] | moving pixels forget with lambdaMoving (1 - beta s) at sub-pixel fraction s | this file |
 // | initialCovariance | float | 1000 | [1e-3, 1e6] | p0: intercept variance at init/reset, and its bound | §6 |
 // | slopeCovariance | float | 1 | [1e-3, 1e6] | ps: slope variances at init/reset, and their bound | §6 (deviation) |
@@ -211,6 +223,8 @@ struct Frame {
   bool bilinearBeta;           // reproject beta bilinearly (else nearest)
   bool footprintBox;           // still pixels use the footprint box (header, "Box")
   std::uint8_t* narrowBox;  // per pixel: 1 = its model keeps the 3x3 box until its reset ("Box"); null: static scene
+  std::uint8_t* stillSamples;  // per pixel: samples in its still, undisturbed model (header, "Hold")
+  int holdPeriod;              // a model with this many still samples is held; 0: off
   T boxResetScale;             // P after a box correction = boxResetScale * P0
   int axis;                    // regularised axis of this frame
   T featureA, featureB, featureAlphaMin;
@@ -253,6 +267,8 @@ struct Batch {
   // (history reprojected) or 0 (reset).
   V sum[3], yMin, yMax, speed, valid;
   V current[3], lo[3], hi[3], moving;  // moving: 1 or 0
+  V held;                              // 1: keep the model and feature as they are (header, "Hold")
+  bool anyHeld = false;
   int count = 0, x0 = 0, y = 0;
 };
 
@@ -391,6 +407,16 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     narrow = valid && flag != 0;
     flag = narrow || !stillAround ? 1 : 0;  // finishBatch sets it on a box correction
   }
+  // Hold: a still, undisturbed model that holds a whole jitter period of
+  // samples stops learning (header, "Hold"). Its count restarts at a reset
+  // (1 sample: the model is y) and at a box correction (finishBatch).
+  bool held = false;
+  {
+    std::uint8_t& count = f.stillSamples[std::size_t(y) * w + x];
+    const bool calm = valid && !moving && stillAround;
+    held = calm && f.holdPeriod > 0 && count >= f.holdPeriod;
+    count = !valid ? 1 : (!calm ? 0 : (held || count == 255 ? count : std::uint8_t(count + 1)));
+  }
   if (f.footprintBox && !narrow && stillAround) {
     // The box of the correction and of the output clamp: the footprint box
     // (header, "Box"), the 3x3 box united with the 5x5's second extremes.
@@ -416,6 +442,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     batch.y = y;
     batch.allValid = batch.allBilinear = true;
     batch.anyBilinear = false;
+    batch.anyHeld = false;
   }
   T speed = T(0);
   batch.tx[lane] = batch.ty[lane] = 0.0f;
@@ -454,6 +481,8 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   batch.speed[lane] = speed;
   batch.valid[lane] = valid ? T(1) : T(0);
   batch.moving[lane] = moving ? T(1) : T(0);
+  batch.held[lane] = held ? T(1) : T(0);
+  batch.anyHeld |= held;
   ++batch.count;
 }
 
@@ -587,6 +616,7 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     batch.speed[i] = batch.speed[0];
     batch.valid[i] = batch.valid[0];
     batch.moving[i] = batch.moving[0];
+    batch.held[i] = batch.held[0];
     batch.tx[i] = batch.tx[0];
     batch.ty[i] = batch.ty[0];
   }
@@ -673,6 +703,10 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     toFeature<T>(average, lowFrequency);
     toFeature<T>(batch.current, reset);
     for (int c = 0; c < 3; ++c) z[c] = validLanes ? history[c] + (lowFrequency[c] - history[c]) * alpha : reset[c];
+    if (batch.anyHeld) {
+      const M heldLanes = batch.held != zeroOf<V>();
+      for (int c = 0; c < 3; ++c) z[c] = heldLanes ? history[c] : z[c];
+    }
   }
   // Step 4: prediction and box correction (lines 12-19).
   const V x4[kDims] = {oneOf<V>(), z[0], z[1], z[2]};
@@ -688,7 +722,9 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     if (corrected[i]) {
       anyCorrected = true;
       ++boxResets;
-      if (f.narrowBox) f.narrowBox[std::size_t(batch.y) * std::size_t(f.width) + std::size_t(batch.x0 + i)] = 1;
+      const std::size_t pixel = std::size_t(batch.y) * std::size_t(f.width) + std::size_t(batch.x0 + i);
+      if (f.narrowBox) f.narrowBox[pixel] = 1;
+      if (f.stillSamples[pixel] != 0) f.stillSamples[pixel] = 1;  // the model restarts from the corrected value
     }
   if (anyCorrected) {
     // Lines 14-18: onto the box along the ray toward y, the model reset there.
@@ -701,7 +737,11 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     for (int j = 0; j < kZ; ++j) m[j] = corrected ? reset[j] : m[j];
   }
 
-  // Step 5.
+  // Step 5 (held lanes that were not corrected keep their model, below).
+  const M keptLanes = batch.anyHeld ? (batch.held != zeroOf<V>()) & ~corrected : corrected & 0;
+  V kept[kZ];
+  if (batch.anyHeld)
+    for (int j = 0; j < kZ; ++j) kept[j] = m[j];
   const M movingLanes = batch.moving != zeroOf<V>();
   bool anyMoving = false, anyStill = false;
   for (int i = 0; i < kBatch; ++i) (movingLanes[i] ? anyMoving : anyStill) = true;
@@ -728,6 +768,14 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     V check = zeroOf<V>();
     for (int i = 0; i < 12; ++i) check += m[kBeta + i] * T(0);
     overflow = check != zeroOf<V>();  // also NaN
+  }
+  if (batch.anyHeld) {
+    for (int j = 0; j < kZ; ++j) m[j] = keptLanes ? kept[j] : m[j];
+    for (int c = 0; c < 3; ++c) {
+      const V v = clampOf(predicted[c], batch.lo[c], batch.hi[c]);
+      out[c] = keptLanes ? v : out[c];
+    }
+    overflow &= ~keptLanes;
   }
   // The records: the block at (x0, y), every lane (lanes past the row's end
   // land in the row's padding); a lane whose beta overflowed restarts from
@@ -791,6 +839,7 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
     models_[1].clear();
     models_[1].shrink_to_fit();
     narrowBox_.clear();
+    stillSamples_.assign(pixels, 0);
     depth_[0].clear();
     depth_[1].clear();
     current_ = 0;
@@ -828,7 +877,7 @@ void Kernel<T>::reset() {
 template <class T>
 std::size_t Kernel<T>::bytesKeptBetweenFrames() const {
   return (models_[0].size() + models_[1].size()) * sizeof(T) + (depth_[0].size() + depth_[1].size()) * sizeof(float) +
-         narrowBox_.size();
+         narrowBox_.size() + stillSamples_.size();
 }
 
 template <class T>
@@ -911,6 +960,8 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.bilinearBeta = s.modelFetch == ModelFetch::Bilinear;
   f.footprintBox = s.footprintBox;
   f.narrowBox = moving ? narrowBox_.data() : nullptr;
+  f.stillSamples = stillSamples_.data();
+  f.holdPeriod = s.holdPeriod;
   f.unjitter = temporal::unjitterFor(s.unjitter, s.jitterX, s.jitterY, s.filterSize);
   f.boxResetScale = T(s.boxResetCovariance) / f.p0;
   if (!(f.boxResetScale > T(0))) invalidArgument("phlm: parameter 'boxResetCovariance' must be > 0");
@@ -964,6 +1015,10 @@ std::vector<ParamSpec> phlmParams() {
        "sub-pixel fraction t of the reprojected position (each bilinear model fetch blurs most at half a pixel); "
        "0 = off",
        "this file (Forgetting; taa's resampleDamping)"},
+      {"holdPeriod", ParamType::Int, 16, 0, 127, nullptr,
+       "the jitter's period: a still model (nothing in its 5x5 moves, no box correction) that holds this many "
+       "samples since its reset stops learning, and its output stops changing; 0 = off",
+       "this file (Hold; taa's holdPeriod)"},
       {"initialCovariance", ParamType::Float, 1000.0, 1e-3, 1e6, nullptr,
        "p0: variance of the intercept at initialisation and every reset (large: the first sample after a reset "
        "dominates), and its bound: P <= diag(p0, ps, ps, ps) / lambda^3",
@@ -1024,6 +1079,7 @@ class PhlmFilter final : public Filter {
     settings_.lambda = p.getFloat("lambda");
     settings_.lambdaMoving = p.getFloat("lambdaMoving");
     settings_.resampleDamping = p.getFloat("resampleDamping");
+    settings_.holdPeriod = p.getInt("holdPeriod");
     settings_.initialCovariance = p.getFloat("initialCovariance");
     settings_.slopeCovariance = p.getFloat("slopeCovariance");
     settings_.boxResetCovariance = p.getFloat("boxResetCovariance");

@@ -17,7 +17,9 @@
 //  * with motion: one byte per pixel, set when the pixel's model moved, saw
 //    motion in its 5x5 or was box-corrected since its reset (it then keeps
 //    the 3x3 box; phlm.cpp "Box").
-// So at 1920x1080 (float): 207 MB static, 417 MB with motion, 433 MB with
+//  * one byte per pixel: the samples in the pixel's still, undisturbed model
+//    (phlm.cpp "Hold").
+// So at 1920x1080 (float): 209 MB static, 419 MB with motion, 435 MB with
 // motion and depth (test Phlm.MemoryKeptBetweenFrames, bench counter kept_MB).
 // Scratch (bytesScratch): the staged, sanitised frame (RGB + tonemapped
 // luminance, float) and two counters per row.
@@ -63,6 +65,7 @@ struct Settings {
   float filterSize = 1.5f;       // Blackman-Harris width for the weighting
   double lambda = 0.998;         // forgetting factor (eqs. 6-7)
   double lambdaMoving = 0.7;     // forgetting factor of moving pixels (phlm.cpp header, "Forgetting")
+  int holdPeriod = 16;           // still models with this many samples are held (phlm.cpp, "Hold"); 0: off
   double resampleDamping = 0.3;  // moving pixels forget with lambdaMoving (1 - beta s) (phlm.cpp, "Forgetting")
   double initialCovariance = 1000.0;  // p0: intercept variance at init/reset (§6) and its bound
   double slopeCovariance = 1.0;       // ps: slope variances at init/reset and their bound (§6 has 1000)
@@ -124,6 +127,7 @@ class Kernel {
   Image staged_;
   std::vector<T> models_[2];
   std::vector<float> depth_[2];
+  std::vector<std::uint8_t> stillSamples_;  // per pixel: samples in its still, undisturbed model (phlm.cpp "Hold")
   std::vector<std::uint8_t> narrowBox_;  // with motion: per pixel, its model keeps the 3x3 box (phlm.cpp "Box")
   std::vector<long> rowStats_;  // 2 per row: reprojection resets, box resets
   int current_ = 0;

@@ -48,9 +48,11 @@ std::vector<synth::FrameData> stillEdgeFrames(float angleDeg) {
 // method on the frames with one boolean parameter set (fast or reference path),
 // and unjitter (whose shifted 3x3 also centres a still pixel's box).
 StillRun filterStill(const char* method, const std::vector<synth::FrameData>& frames, const Image& reference,
-                     const char* flag, bool value, bool referencePath, const char* unjitter = "blackman-harris") {
+                     const char* flag, bool value, bool referencePath, const char* unjitter = "blackman-harris",
+                     int holdPeriod = -1) {
   test::TemporalDriver d(method, referencePath ? 1 : 2);
   d.filter->params().setBool(flag, value);
+  if (holdPeriod >= 0) d.filter->params().setInt("holdPeriod", holdPeriod);
   d.filter->params().setString("unjitter", unjitter);
   d.filter->params().setBool("reference", referencePath);
   StillRun r;
@@ -98,18 +100,22 @@ TEST(TemporalFootprint, StillEdgeUnderWideJitterConvergesWithoutDrops) {
 // accumulation, well above the paper's 3x3 box around the pixel's own sample
 // (unjitter none); both paths agree bit for bit. The default, fitting the
 // unjittered mix of the 3x3 around the sample nearest the centre, must beat
-// the paper's box too.
+// the paper's box too. These runs learn on (holdPeriod 0), to see the box
+// alone; with the default hold (phlm.cpp "Hold") the models stop at 16
+// samples and end lower (printed), still well above the paper's box.
 TEST(TemporalFootprint, PhlmFootprintBoxKeepsConvergedModels) {
   const int frames = kFrames;
   for (float angle : kAngles) {
     const std::vector<synth::FrameData> input = stillEdgeFrames(angle);
     const Image& reference = input[0].reference;
     // The box alone: phlm fitting its own samples (unjitter none).
-    auto runPhlm = [&](bool footprint, bool referencePath, const char* unjitter = "none") {
-      return filterStill("phlm", input, reference, "footprintBox", footprint, referencePath, unjitter);
+    auto runPhlm = [&](bool footprint, bool referencePath, const char* unjitter = "none", int holdPeriod = 0) {
+      return filterStill("phlm", input, reference, "footprintBox", footprint, referencePath, unjitter, holdPeriod);
     };
     const StillRun paper = runPhlm(false, false), wide = runPhlm(true, false), scalar = runPhlm(true, true);
-    const StillRun shifted = runPhlm(true, false, "blackman-harris");  // the default: the unjittered mix
+    const StillRun shifted = runPhlm(true, false, "blackman-harris");  // the unjittered mix, learning on
+    const StillRun held = runPhlm(true, false, "blackman-harris", -1);  // the default, held
+    const StillRun paperHeld = runPhlm(false, false, "none", -1);
     // taa's pure accumulation of its own samples (unjitter none): the exact running average.
     const StillRun pure = filterStill("taa", input, reference, "staticClip", false, false, "none");
     for (int t = 0; t < frames; ++t)
@@ -118,8 +124,11 @@ TEST(TemporalFootprint, PhlmFootprintBoxKeepsConvergedModels) {
           << "angle " << angle << " frame " << t << ": fast path != reference path";
     const double last = wide.psnr[frames - 1];
     std::printf("phlm, still edge at %.0f deg, BH jitter +-1.5 px, frame %d: 3x3 box %.2f dB, footprint box %.2f dB "
-                "(taa pure accumulation %.2f); with the unjittered mix %.2f dB\n", angle, frames,
-                paper.psnr[frames - 1], last, pure.psnr[frames - 1], shifted.psnr[frames - 1]);
+                "(taa pure accumulation %.2f); with the unjittered mix %.2f dB; held (the default) %.2f dB, the "
+                "3x3 box held %.2f dB\n", angle, frames,
+                paper.psnr[frames - 1], last, pure.psnr[frames - 1], shifted.psnr[frames - 1], held.psnr[frames - 1],
+                paperHeld.psnr[frames - 1]);
+    EXPECT_GT(held.psnr[frames - 1], paperHeld.psnr[frames - 1] + 2.0) << "angle " << angle;
     EXPECT_GT(shifted.psnr[frames - 1], paper.psnr[frames - 1] + 2.0) << "angle " << angle;
     EXPECT_GT(last, paper.psnr[frames - 1] + 1.0) << "angle " << angle;
     EXPECT_GT(last, pure.psnr[frames - 1] - 3.0) << "angle " << angle;
