@@ -88,4 +88,46 @@ struct TemporalDriver {
   }
 };
 
+// The resampling-damping check of taa and phlm (their
+// ResampleDampingActsOnlyAtSubPixelMotion tests): the test chart panned by
+// whole pixels (1, -1) and by half pixels (0.5, 0.5) per frame, filtered
+// with resampleDamping 0 and 0.3. wholePixelSame: the whole-pixel pan gave
+// the same bits either way; off / on: the half-pixel pan's mean PSNR after
+// warmUp without / with the damping.
+struct DampingFigures {
+  bool wholePixelSame = true;
+  double off = 0, on = 0;
+};
+inline DampingFigures resampleDampingFigures(const char* method, int w, int h, int frames, int warmUp) {
+  auto pan = [&](float vx, float vy) {
+    synth::Sequence seq = synth::staticChartSequence(w, h);
+    for (auto& shape : seq.before.shapes) shape.vx = vx, shape.vy = vy;
+    seq.before.backgroundVx = vx;
+    seq.before.backgroundVy = vy;
+    std::vector<synth::FrameData> input;
+    for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, {}));
+    return input;
+  };
+  auto run = [&](const std::vector<synth::FrameData>& input, float damping, std::vector<Image>* outputs) {
+    TemporalDriver d(method);
+    d.filter->params().setFloat("resampleDamping", damping);
+    double sum = 0;
+    for (int t = 0; t < frames; ++t) {
+      const Image& out = d.run(input[std::size_t(t)], true, true);
+      if (outputs) outputs->push_back(out);
+      if (t >= warmUp) sum += psnr(input[std::size_t(t)].reference, out) / (frames - warmUp);
+    }
+    return sum;
+  };
+  DampingFigures r;
+  const std::vector<synth::FrameData> whole = pan(1.0f, -1.0f), half = pan(0.5f, 0.5f);
+  std::vector<Image> plain, damped;
+  run(whole, 0.0f, &plain);
+  run(whole, 0.3f, &damped);
+  for (int t = 0; t < frames; ++t) r.wholePixelSame &= plain[std::size_t(t)].data == damped[std::size_t(t)].data;
+  r.off = run(half, 0.0f, nullptr);
+  r.on = run(half, 0.3f, nullptr);
+  return r;
+}
+
 }  // namespace crisp::test

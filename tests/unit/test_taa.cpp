@@ -545,36 +545,12 @@ TEST(Taa, VarianceClipShortensTheGhostTrail) {
 // the damped history keeps them sharper (higher PSNR against the box
 // reference).
 TEST(Taa, ResampleDampingActsOnlyAtSubPixelMotion) {
-  const int w = 48, h = 32, frames = 24, warmUp = 8;
-  auto pan = [&](float vx, float vy) {
-    synth::Sequence seq = synth::staticChartSequence(w, h);
-    for (auto& shape : seq.before.shapes) shape.vx = vx, shape.vy = vy;
-    seq.before.backgroundVx = vx;
-    seq.before.backgroundVy = vy;
-    std::vector<synth::FrameData> input;
-    for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, {}));
-    return input;
-  };
-  auto run = [&](const std::vector<synth::FrameData>& input, float damping, std::vector<Image>* outputs) {
-    Driver d;
-    d.filter->params().setFloat("resampleDamping", damping);
-    double sum = 0;
-    for (int t = 0; t < frames; ++t) {
-      const Image& out = d.run(input[t], true, true);
-      if (outputs) outputs->push_back(out);
-      if (t >= warmUp) sum += psnr(input[t].reference, out) / (frames - warmUp);
-    }
-    return sum;
-  };
-  const std::vector<synth::FrameData> whole = pan(1.0f, -1.0f), half = pan(0.5f, 0.5f);
-  std::vector<Image> plain, damped;
-  run(whole, 0.0f, &plain);
-  run(whole, 0.3f, &damped);
-  for (int t = 0; t < frames; ++t) ASSERT_EQ(plain[t].data, damped[t].data) << "whole-pixel pan, frame " << t;
-  const double off = run(half, 0.0f, nullptr), on = run(half, 0.3f, nullptr);
-  std::printf("chart panned by (0.5, 0.5) px per frame: mean PSNR frames %d-%d %.2f dB without, %.2f dB with "
-              "resampleDamping 0.3\n", warmUp, frames - 1, off, on);
-  EXPECT_GT(on, off + 0.2);
+  const int frames = 24, warmUp = 8;
+  const test::DampingFigures d = test::resampleDampingFigures("taa", 48, 32, frames, warmUp);
+  EXPECT_TRUE(d.wholePixelSame) << "the whole-pixel pan differs with the damping";
+  std::printf("chart panned by (0.5, 0.5) px per frame: taa mean PSNR frames %d-%d %.2f dB without, %.2f dB with "
+              "resampleDamping 0.3\n", warmUp, frames - 1, d.off, d.on);
+  EXPECT_GT(d.on, d.off + 0.2);
 }
 
 // Sharpen (eq. 3.1) on the output: steeper edges than without.
