@@ -10,7 +10,7 @@ A method that keeps stale history there (a ghost trail) scores high.
 
 Runs inside Blender (for its EXR reader, which reads the zip-compressed files crisp writes):
     blender -b --factory-startup --python tools/temporal_figures.py -- [--warmup 8] [--trail 8]
-        [--json OUT.json] EVALDIR...
+        [--split] [--json OUT.json] EVALDIR...
 Prints a Markdown table per scene."""
 
 import argparse
@@ -65,7 +65,36 @@ def ghosting_error(evaldir, files, ref_dir, frames, warmup, trail):
     return total / count if count else float("nan")
 
 
-def summarize(evaldir, warmup, trail):
+def temporal_split(evaldir, files, ref_dir, frames, warmup, trail):
+    """--split: METHODS.md's temporal error with W = identity (so a moving object's own pixels count
+    too), as the sum of two parts over all pixels: "quiet" pixels, whose reference changed by at most
+    0.02 (display-encoded) in each of the last `trail` frames, and "recent" ones (the rest). Returns
+    (total, quiet part, recent part, recent share of the pixels)."""
+    quiet = recent = 0.0
+    pixels = recent_pixels = 0
+    for i, f in enumerate(frames):
+        if f <= warmup or i < 1:
+            continue
+        ref = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % f)))
+        ref_prev = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % frames[i - 1])))
+        changed = np.zeros(ref.shape[:2], dtype=bool)
+        for k in range(0, min(trail, i)):
+            a = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % frames[i - k])))
+            b = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % frames[i - k - 1])))
+            changed |= np.abs(a - b).max(axis=2) > 0.02
+        out = encode(read_rgb(os.path.join(evaldir, files[f])))
+        out_prev = encode(read_rgb(os.path.join(evaldir, files[frames[i - 1]])))
+        te = np.abs((out - out_prev) - (ref - ref_prev)).mean(axis=2)
+        quiet += float(te[~changed].sum())
+        recent += float(te[changed].sum())
+        pixels += te.size
+        recent_pixels += int(changed.sum())
+    if not pixels:
+        return None
+    return ((quiet + recent) / pixels, quiet / pixels, recent / pixels, recent_pixels / pixels)
+
+
+def summarize(evaldir, warmup, trail, split=False):
     with open(os.path.join(evaldir, "results.json")) as fh:
         results = json.load(fh)
     out = []
@@ -84,6 +113,8 @@ def summarize(evaldir, warmup, trail):
             for key in ("psnr", "ssim", "perceptual_error", "temporal_error", "filter_s", "time_s"):
                 row[key] = mean_after(m["frames"], key, warmup)
             row["ghosting_error"] = ghosting_error(evaldir, files, ref_dir, frames, warmup, trail) if moving else None
+            if split and moving:
+                row["temporal_split"] = temporal_split(evaldir, files, ref_dir, frames, warmup, trail)
             rows.append(row)
         out.append({"scene": scene["name"], "resolution": scene["resolution"], "frames": scene["frames"],
                     "reference": os.path.basename(ref_dir), "warmup": warmup, "trail": trail, "rows": rows,
@@ -133,6 +164,17 @@ def markdown(summary):
         for k, v in s["bars"].items():
             lines.append("- %s: %s" % (k, "yes" if v else "**NO**"))
         lines.append("")
+        split = [r for r in s["rows"] if r.get("temporal_split")]
+        if split:
+            share = split[0]["temporal_split"][3]
+            lines.append("Temporal error with W = identity, split (`--split`; recent: %.0f %% of the pixels):" % (100 * share))
+            lines.append("")
+            lines.append("| method | total | quiet part | recent part |")
+            lines.append("|---|---|---|---|")
+            for r in split:
+                t = r["temporal_split"]
+                lines.append("| %s | %.5f | %.5f | %.5f |" % (r["name"], t[0], t[1], t[2]))
+            lines.append("")
     return "\n".join(lines)
 
 
@@ -143,10 +185,12 @@ def main():
     p.add_argument("--warmup", type=int, default=8, help="frames left out of the means (default 8)")
     p.add_argument("--trail", type=int, default=8, help="frames of reference change the ghosting mask covers")
     p.add_argument("--json", default="")
+    p.add_argument("--split", action="store_true",
+                   help="also split the temporal error (identity warp) into quiet and recently changed pixels")
     a = p.parse_args(argv)
     summary = []
     for d in a.evaldirs:
-        summary += summarize(d, a.warmup, a.trail)
+        summary += summarize(d, a.warmup, a.trail, a.split)
     print(markdown(summary))
     if a.json:
         with open(a.json + ".tmp", "w") as fh:
