@@ -129,7 +129,12 @@
 //    its beta, P and z: its output stops changing. The prediction is still
 //    tested against the box, so a change that leaves the box corrects and
 //    restarts it; one that stays inside the box is not taken in (the price,
-//    as in taa). One byte per pixel counts the samples (saturating).
+//    as in taa). One byte per pixel counts the samples (saturating). A batch
+//    of held lanes skips step 5, and in place (static scene) its store.
+//    Measured: still_life's 16 jittered frames filtered twice over (32
+//    frames), frame 32 against the 64-sample reference: 39.674 dB held,
+//    39.676 learning (frame 16: 39.667); 0.6 % of the pixels still change
+//    between frames 17 and 32 (box corrections at edges).
 //  * l = distance of the feature's luminance to [Ymin, Ymax] of the 3x3 (0
 //    inside), Delta = Ymax - Ymin. We read alpha as the weight of the CURRENT
 //    low-frequency colour (alpha = 0 would freeze a feature that lies in range,
@@ -737,55 +742,69 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     for (int j = 0; j < kZ; ++j) m[j] = corrected ? reset[j] : m[j];
   }
 
-  // Step 5 (held lanes that were not corrected keep their model, below).
+  // Step 5 (held lanes that were not corrected keep their model, below;
+  // a batch of such lanes only: nothing to compute, and in place nothing to
+  // store).
   const M keptLanes = batch.anyHeld ? (batch.held != zeroOf<V>()) & ~corrected : corrected & 0;
-  V kept[kZ];
-  if (batch.anyHeld)
-    for (int j = 0; j < kZ; ++j) kept[j] = m[j];
-  const M movingLanes = batch.moving != zeroOf<V>();
-  bool anyMoving = false, anyStill = false;
-  for (int i = 0; i < kBatch; ++i) (movingLanes[i] ? anyMoving : anyStill) = true;
-  if (anyMoving && anyStill) {
-    V still[kZ];  // U and D of the still lanes (beta is not touched)
-    for (int j = kU; j < kZ; ++j) still[j] = m[j];
-    forgetAndRegularise(f, batch, m, true);
-    forgetAndRegularise(f, batch, still, false);
-    for (int j = kU; j < kZ; ++j) m[j] = movingLanes ? m[j] : still[j];
+  bool allKept = batch.anyHeld;
+  for (int i = 0; i < kBatch && allKept; ++i) allKept = keptLanes[i] != 0;
+  V out[3];
+  if (allKept) {
+    for (int c = 0; c < 3; ++c) out[c] = clampOf(predicted[c], batch.lo[c], batch.hi[c]);
+    if (f.next != f.previous) {
+      T* block = f.next + recordIndex(f.blocksPerRow, batch.x0, batch.y);
+      for (int j = 0; j < kZ; ++j) storeLanes(block + j * kBatch, m[j]);
+      for (int c = 0; c < 3; ++c) storeLanes(block + (kZ + c) * kBatch, z[c]);
+    }
   } else {
-    forgetAndRegularise(f, batch, m, anyMoving);
-  }
-  V out[3] = {predicted[0], predicted[1], predicted[2]};
-  M overflow = movingLanes & 0;
-  if (f.update) {
-    V e[3];
-    for (int c = 0; c < 3; ++c) e[c] = batch.current[c] - predicted[c];
-    const V g = rlsUpdate(m, x4, e, splatOf<V>(f.sampleVariance), splatOf<V>(f.sampleWeight));
-    for (int c = 0; c < 3; ++c) {
-      const V v = predicted[c] + g * e[c];
-      out[c] = v < batch.lo[c] ? batch.lo[c] : (batch.hi[c] < v ? batch.hi[c] : v);  // std::clamp
+    V kept[kZ];
+    if (batch.anyHeld)
+      for (int j = 0; j < kZ; ++j) kept[j] = m[j];
+    const M movingLanes = batch.moving != zeroOf<V>();
+    bool anyMoving = false, anyStill = false;
+    for (int i = 0; i < kBatch; ++i) (movingLanes[i] ? anyMoving : anyStill) = true;
+    if (anyMoving && anyStill) {
+      V still[kZ];  // U and D of the still lanes (beta is not touched)
+      for (int j = kU; j < kZ; ++j) still[j] = m[j];
+      forgetAndRegularise(f, batch, m, true);
+      forgetAndRegularise(f, batch, still, false);
+      for (int j = kU; j < kZ; ++j) m[j] = movingLanes ? m[j] : still[j];
+    } else {
+      forgetAndRegularise(f, batch, m, anyMoving);
     }
-    // Guard: beta can only become non-finite through an overflow; restart from the output.
-    V check = zeroOf<V>();
-    for (int i = 0; i < 12; ++i) check += m[kBeta + i] * T(0);
-    overflow = check != zeroOf<V>();  // also NaN
-  }
-  if (batch.anyHeld) {
-    for (int j = 0; j < kZ; ++j) m[j] = keptLanes ? kept[j] : m[j];
-    for (int c = 0; c < 3; ++c) {
-      const V v = clampOf(predicted[c], batch.lo[c], batch.hi[c]);
-      out[c] = keptLanes ? v : out[c];
+    for (int c = 0; c < 3; ++c) out[c] = predicted[c];
+    M overflow = movingLanes & 0;
+    if (f.update) {
+      V e[3];
+      for (int c = 0; c < 3; ++c) e[c] = batch.current[c] - predicted[c];
+      const V g = rlsUpdate(m, x4, e, splatOf<V>(f.sampleVariance), splatOf<V>(f.sampleWeight));
+      for (int c = 0; c < 3; ++c) {
+        const V v = predicted[c] + g * e[c];
+        out[c] = v < batch.lo[c] ? batch.lo[c] : (batch.hi[c] < v ? batch.hi[c] : v);  // std::clamp
+      }
+      // Guard: beta can only become non-finite through an overflow; restart from the output.
+      V check = zeroOf<V>();
+      for (int i = 0; i < 12; ++i) check += m[kBeta + i] * T(0);
+      overflow = check != zeroOf<V>();  // also NaN
     }
-    overflow &= ~keptLanes;
-  }
-  // The records: the block at (x0, y), every lane (lanes past the row's end
-  // land in the row's padding); a lane whose beta overflowed restarts from
-  // its output.
-  {
-    V restart[kZ];
-    resetModel(restart, out, splatOf<V>(f.p0), splatOf<V>(f.ps));
-    T* block = f.next + recordIndex(f.blocksPerRow, batch.x0, batch.y);
-    for (int j = 0; j < kZ; ++j) storeLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]));
-    for (int c = 0; c < 3; ++c) storeLanes(block + (kZ + c) * kBatch, z[c]);
+    if (batch.anyHeld) {
+      for (int j = 0; j < kZ; ++j) m[j] = keptLanes ? kept[j] : m[j];
+      for (int c = 0; c < 3; ++c) {
+        const V v = clampOf(predicted[c], batch.lo[c], batch.hi[c]);
+        out[c] = keptLanes ? v : out[c];
+      }
+      overflow &= ~keptLanes;
+    }
+    // The records: the block at (x0, y), every lane (lanes past the row's end
+    // land in the row's padding); a lane whose beta overflowed restarts from
+    // its output.
+    {
+      V restart[kZ];
+      resetModel(restart, out, splatOf<V>(f.p0), splatOf<V>(f.ps));
+      T* block = f.next + recordIndex(f.blocksPerRow, batch.x0, batch.y);
+      for (int j = 0; j < kZ; ++j) storeLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]));
+      for (int c = 0; c < 3; ++c) storeLanes(block + (kZ + c) * kBatch, z[c]);
+    }
   }
   const int y = batch.y;
   for (int i = 0; i < n; ++i) {
