@@ -191,8 +191,8 @@ TEST(Phlm, ResampleDampingActsOnlyAtSubPixelMotion) {
 }
 
 // Hold (phlm.cpp "Hold"): on the still chart under the 16-point jitter, a
-// model that has seen a whole period stops learning, so from frame 17 on
-// (17 samples: frames 0-16) most of the output no longer changes, with and
+// model that has seen a whole period (16 samples: frames 0-15) stops
+// learning, so from frame 16 on most of the output no longer changes, with and
 // without a (zero) motion image. What still changes are edge pixels whose
 // box, in some jitter phases, excludes the held prediction: each correction
 // restarts the model (measured: 4-7 % of the values per frame, against 47 %
