@@ -222,9 +222,7 @@ struct Frame {
   ImageView output;
   long* rowStats;
   T inverseLambda, regulariserVariance[kDims], regulariserWeight[kDims], sampleVariance, sampleWeight, p0, ps;
-  // The same for moving pixels (lambdaMoving, header "Forgetting").
-  T inverseLambdaMoving, regulariserVarianceMoving[kDims], regulariserWeightMoving[kDims];
-  // Resampling damping (header "Forgetting"): lambdaMoving (1 - resampleDamping s) per lane; 0: off.
+  // Moving pixels (header "Forgetting"): lambdaMoving (1 - resampleDamping s) per lane.
   T lambdaMoving, resampleDamping, p0Diagonal[kDims];
   bool update;                 // sample weight > 0
   bool bilinearBeta;           // reproject beta bilinearly (else nearest)
@@ -568,11 +566,14 @@ CRISP_PHLM_INLINE V rayEntryOf(const V f[3], const V y[3], const V lo[3], const 
 // every axis, a still one forgets with lambda and refreshes this frame's axis.
 template <class T, class V>
 CRISP_PHLM_INLINE void forgetAndRegularise(const Frame<T>& f, const Batch<T>& batch, V* m, bool moving) {
-  if (moving && f.resampleDamping > T(0)) {
+  if (moving) {
+    // Every axis each moving frame, with information (1 - lm) / P0_kk (with
+    // two lambdas the 4-frame cycle alone no longer bounds P, "Forgetting").
     // Per lane lm = lambdaMoving (1 - beta s), s = max(4 tx (1 - tx), 4 ty (1 - ty))
     // of the bilinear fetch's fractions (0 for still lanes, whose U and D the
-    // caller takes from the still branch). Refreshing with (1 - lm) / P0_kk
-    // keeps the bound: c(lm) = (1 - lm) / (1 - lm lambda^3) grows as lm falls.
+    // caller takes from the still branch; lm = lambdaMoving exactly when beta
+    // = 0). c(lm) = (1 - lm) / (1 - lm lambda^3) grows as lm falls, so the
+    // bound holds.
     V s;
     for (int i = 0; i < kBatch; ++i) {
       const T tx = T(batch.tx[i]), ty = T(batch.ty[i]);
@@ -584,13 +585,6 @@ CRISP_PHLM_INLINE void forgetAndRegularise(const Frame<T>& f, const Batch<T>& ba
       const V variance = splatOf<V>(f.p0Diagonal[k]) / (oneOf<V>() - lm);
       regularise(m, k, variance, oneOf<V>() / variance);
     }
-  } else if (moving) {
-    // Every axis each moving frame (information (1 - lambdaMoving) / P0_kk):
-    // with two lambdas the 4-frame cycle alone no longer bounds P ("Forgetting").
-    forget(m, splatOf<V>(f.inverseLambdaMoving));
-    for (int k = 0; k < kDims; ++k)
-      regularise(m, k, splatOf<V>(f.regulariserVarianceMoving[k]),
-                 splatOf<V>(f.regulariserWeightMoving[k]));
   } else {
     forget(m, splatOf<V>(f.inverseLambda));
     regularise(m, f.axis, splatOf<V>(f.regulariserVariance[f.axis]),
@@ -751,13 +745,9 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
   bool allKept = batch.anyHeld;
   for (int i = 0; i < kBatch && allKept; ++i) allKept = keptLanes[i] != 0;
   V out[3];
+  M overflow = keptLanes & 0;
   if (allKept) {
     for (int c = 0; c < 3; ++c) out[c] = clampOf(predicted[c], batch.lo[c], batch.hi[c]);
-    if (f.next != f.previous) {
-      T* block = f.next + recordIndex(f.blocksPerRow, batch.x0, batch.y);
-      for (int j = 0; j < kZ; ++j) storeLanes(block + j * kBatch, m[j]);
-      for (int c = 0; c < 3; ++c) storeLanes(block + (kZ + c) * kBatch, z[c]);
-    }
   } else {
     V kept[kZ];
     if (batch.anyHeld)
@@ -775,7 +765,6 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
       forgetAndRegularise(f, batch, m, anyMoving);
     }
     for (int c = 0; c < 3; ++c) out[c] = predicted[c];
-    M overflow = movingLanes & 0;
     if (f.update) {
       V e[3];
       for (int c = 0; c < 3; ++c) e[c] = batch.current[c] - predicted[c];
@@ -797,16 +786,16 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
       }
       overflow &= ~keptLanes;
     }
-    // The records: the block at (x0, y), every lane (lanes past the row's end
-    // land in the row's padding); a lane whose beta overflowed restarts from
-    // its output.
-    {
-      V restart[kZ];
-      resetModel(restart, out, splatOf<V>(f.p0), splatOf<V>(f.ps));
-      T* block = f.next + recordIndex(f.blocksPerRow, batch.x0, batch.y);
-      for (int j = 0; j < kZ; ++j) storeLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]));
-      for (int c = 0; c < 3; ++c) storeLanes(block + (kZ + c) * kBatch, z[c]);
-    }
+  }
+  // The records: the block at (x0, y), every lane (lanes past the row's end
+  // land in the row's padding); a lane whose beta overflowed restarts from
+  // its output. Held lanes only, in place: the records are unchanged.
+  if (!allKept || f.next != f.previous) {
+    V restart[kZ];
+    resetModel(restart, out, splatOf<V>(f.p0), splatOf<V>(f.ps));
+    T* block = f.next + recordIndex(f.blocksPerRow, batch.x0, batch.y);
+    for (int j = 0; j < kZ; ++j) storeLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]));
+    for (int c = 0; c < 3; ++c) storeLanes(block + (kZ + c) * kBatch, z[c]);
   }
   const int y = batch.y;
   for (int i = 0; i < n; ++i) {
@@ -959,7 +948,6 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   if (!(f.p0 > T(0) && f.ps > T(0))) invalidArgument("phlm: parameters 'initialCovariance' and 'slopeCovariance' must be > 0");
   f.inverseLambda = T(1) / lambda;
   const T lambdaMoving = T(s.lambdaMoving);
-  f.inverseLambdaMoving = T(1) / lambdaMoving;
   f.lambdaMoving = lambdaMoving;
   f.resampleDamping = T(s.resampleDamping);
   if (!(f.resampleDamping >= T(0) && f.resampleDamping < T(1)))
@@ -968,8 +956,6 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   for (int k = 0; k < kDims; ++k) {  // information 4 (1 - lambda) / P0_kk (phlm_rls.h point 3)
     f.regulariserVariance[k] = (k == 0 ? f.p0 : f.ps) / (T(4) * (T(1) - lambda));
     f.regulariserWeight[k] = T(1) / f.regulariserVariance[k];
-    f.regulariserVarianceMoving[k] = (k == 0 ? f.p0 : f.ps) / (T(1) - lambdaMoving);
-    f.regulariserWeightMoving[k] = T(1) / f.regulariserVarianceMoving[k];
   }
   const float weight = s.weighting == JitterWeighting::BlackmanHarris
                            ? temporal::blackmanHarrisWeight(s.jitterX, s.jitterY, s.filterSize)
