@@ -118,12 +118,13 @@ CRISP_LANES_INLINE void sqrtInPlace(F4& v) {
   for (int i = 0; i < 4; ++i) v[i] = std::sqrt(v[i]);
 #endif
 }
+// F8's halves are split and joined in registers: through memory the 32-byte
+// reload of two 16-byte stores cannot be store-forwarded and stalls.
 CRISP_LANES_INLINE void sqrtInPlace(F8& v) {
-  F4 half[2];
-  std::memcpy(half, &v, sizeof v);
-  sqrtInPlace(half[0]);
-  sqrtInPlace(half[1]);
-  std::memcpy(&v, half, sizeof v);
+  F4 lo = __builtin_shufflevector(v, v, 0, 1, 2, 3), hi = __builtin_shufflevector(v, v, 4, 5, 6, 7);
+  sqrtInPlace(lo);
+  sqrtInPlace(hi);
+  v = __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
 }
 
 // Same values as crisp::sanitizeColor (core/color.h): NaN -> 0,

@@ -888,42 +888,49 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
       }
       const ReprojectionLanes<T> rp =
           reprojectLanes<T>(f, float(x0) + laneIndex, temporal::lanesOf<T>(float(y)), vx, vy, tapDepth);
-      alignas(32) float hist[4][kL] = {}, aliased[kL] = {}, frames[kL] = {};
-      alignas(32) int since[kL] = {};
       // A whole group with valid history fetches it as lanes when nothing in it
       // moves (exact taps) or when, on Catmull-Rom, every footprint is interior
       // and shares one integer offset (smooth motion); else one pixel at a time.
       const bool whole = lanes == kL && temporal::allOf(rp.valid);
-      bool fetched = false;
       if (whole && !temporal::anyOf(rp.moving)) {
         for (int c = 0; c < 4; ++c) in.hist[c] = load(f.previous.plane[c] + rowStart + x0);
-        fetched = true;
       } else if (whole && temporal::allOf(rp.moving) && f.filter == HistoryFilter::CatmullRom &&
                  sharedInteriorOffset<T>(rp.x0, rp.y0, rp.valid, -1, 2, -1, 2, w, h)) {
         // footprintInterior4x4 on every lane: the unclamped fetch's taps.
         temporal::fetchCatmullRomRow(f.previous, rp.x0[0], rp.y0[0], rp.tx, rp.ty, in.hist);
-        fetched = true;
-      }
-      for (int l = 0; l < lanes; ++l) {
-        const int x = x0 + l;
-        if (!fetched && rp.valid[l]) {
-          const Vec4 v = fetchHistory(f, x, y, rp.moving[l] != 0, {rp.x0[l], rp.y0[l], rp.tx[l], rp.ty[l]},
+      } else {
+        alignas(32) float hist[4][kL] = {};
+        for (int l = 0; l < lanes; ++l) {
+          if (!rp.valid[l]) continue;
+          const Vec4 v = fetchHistory(f, x0 + l, y, rp.moving[l] != 0, {rp.x0[l], rp.y0[l], rp.tx[l], rp.ty[l]},
                                       rp.qx[l], rp.qy[l]);
           for (int c = 0; c < 4; ++c) hist[c][l] = v[c];
         }
-        since[l] = -int((f.historyState[rowStart + x] & 1) != 0);
-        frames[l] = float(f.historyState[rowStart + x] >> 1);
-        if (f.aliased) aliased[l] = f.aliased[rowStart + x];
-      }
-      if (!fetched)
         for (int c = 0; c < 4; ++c) in.hist[c] = load(hist[c]);
+      }
+      // The history state (historyStateOf) and aliasedValue: a lane group at a
+      // time (a partial group at the row's end pads with zeros).
+      if (lanes == kL) {
+        const Int state = temporal::loadBytesOf<T>(f.historyState + rowStart + x0);
+        in.feedbackSinceReset = 0 - (state & 1);
+        in.framesSinceReset = temporal::floatOf(state >> 1);
+        in.aliased = f.aliased ? load(f.aliased + rowStart + x0) : temporal::lanesOf<T>(0.0f);
+      } else {
+        alignas(32) float aliased[kL] = {}, frames[kL] = {};
+        alignas(32) int since[kL] = {};
+        for (int l = 0; l < lanes; ++l) {
+          since[l] = -int((f.historyState[rowStart + x0 + l] & 1) != 0);
+          frames[l] = float(f.historyState[rowStart + x0 + l] >> 1);
+          if (f.aliased) aliased[l] = f.aliased[rowStart + x0 + l];
+        }
+        std::memcpy(&in.feedbackSinceReset, since, sizeof since);
+        in.framesSinceReset = load(frames);
+        in.aliased = load(aliased);
+      }
       in.tx = rp.tx;
       in.ty = rp.ty;
       in.valid = rp.valid;
       in.moving = rp.moving;
-      std::memcpy(&in.feedbackSinceReset, since, sizeof since);
-      in.framesSinceReset = load(frames);
-      in.aliased = load(aliased);
 
       const ResolvedLanes<T> r = resolveLanes(f, in, [&](int l, float* excess) {
         const int x = x0 + l;
@@ -945,8 +952,12 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         return true;
       });
 
-      for (int l = 0; l < lanes; ++l)
-        f.historyState[rowStart + x0 + l] = historyStateOf(r.feedbackSinceReset[l] != 0, r.framesSinceReset[l]);
+      if (lanes == kL)  // historyStateOf, a lane group at a time
+        temporal::storeBytesOf<T>(f.historyState + rowStart + x0,
+                                  (r.feedbackSinceReset & 1) | temporal::truncOf(r.framesSinceReset) << 1);
+      else
+        for (int l = 0; l < lanes; ++l)
+          f.historyState[rowStart + x0 + l] = historyStateOf(r.feedbackSinceReset[l] != 0, r.framesSinceReset[l]);
       if (lanes == kL) {
         for (int c = 0; c < 3; ++c) temporal::storeLanes(f.history[c] + rowStart + x0, r.color[c]);
         temporal::storeLanes(f.history[3] + rowStart + x0, r.signedWeight);

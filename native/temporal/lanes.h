@@ -80,6 +80,26 @@ CRISP_LANES_INLINE void storeLanes(float* p, T v) {
   std::memcpy(p, &v, sizeof v);
 }
 
+// One byte per lane (values 0..255) as int lanes, and back: a per-pixel byte
+// plane read and written a lane group at a time (vpmovzxbd and a pack in the
+// AVX2 copy), not lane by lane into a stack array read back as a vector,
+// whose reload cannot be store-forwarded. storeBytesOf keeps the low 8 bits.
+typedef unsigned char Bytes4 __attribute__((vector_size(4)));
+typedef unsigned char Bytes8 __attribute__((vector_size(8)));
+template <class T>
+using BytesOf = std::conditional_t<std::is_same_v<T, Vec8>, Bytes8, Bytes4>;
+template <class T, IfVector<T> = 0>
+CRISP_LANES_INLINE IntOf<T> loadBytesOf(const unsigned char* p) {
+  BytesOf<T> b;
+  std::memcpy(&b, p, sizeof b);
+  return __builtin_convertvector(b, IntOf<T>);
+}
+template <class T, IfVector<T> = 0>
+CRISP_LANES_INLINE void storeBytesOf(unsigned char* p, IntOf<T> v) {
+  const BytesOf<T> b = __builtin_convertvector(v & 0xff, BytesOf<T>);
+  std::memcpy(p, &b, sizeof b);
+}
+
 // A float broadcast to the lane type.
 template <class T>
 CRISP_LANES_INLINE T lanesOf(float v) {
@@ -128,16 +148,17 @@ CRISP_LANES_INLINE T fabsOf(T a) {
 // std::sqrt per lane. IEEE square roots are correctly rounded, so sqrtps
 // (SSE, baseline on x86-64; two of them for Vec8, in any target) gives the
 // scalar form's bits; GCC does not vectorise a lane loop of std::sqrt.
+// Vec8's halves are split and joined in registers (vextractf128 /
+// vinsertf128 in the AVX2 copy): through memory, as two 16-byte stores read
+// back by one 32-byte load, the load cannot be forwarded from the stores and
+// stalls; perf put 15 % of taa's fast path on that load.
 CRISP_LANES_INLINE float sqrtOf(float a) { return std::sqrt(a); }
 #if defined(__SSE2__)
 CRISP_LANES_INLINE Vec4 sqrtOf(Vec4 a) { return (Vec4)_mm_sqrt_ps((__m128)a); }
 CRISP_LANES_INLINE Vec8 sqrtOf(Vec8 a) {
-  Vec4 half[2];
-  std::memcpy(half, &a, sizeof a);
-  half[0] = sqrtOf(half[0]);
-  half[1] = sqrtOf(half[1]);
-  std::memcpy(&a, half, sizeof a);
-  return a;
+  const Vec4 lo = sqrtOf(Vec4(__builtin_shufflevector(a, a, 0, 1, 2, 3)));
+  const Vec4 hi = sqrtOf(Vec4(__builtin_shufflevector(a, a, 4, 5, 6, 7)));
+  return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
 }
 #else
 template <class T, IfVector<T> = 0>
