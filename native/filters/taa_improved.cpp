@@ -138,11 +138,27 @@ inline float lumaOfView(const ImageView& v, int x, int y) {
   return luminance709(sanitizeColor(p[0]), sanitizeColor(c > 1 ? p[1] : p[0]), sanitizeColor(c > 2 ? p[2] : p[0]));
 }
 
-// lumaOfView of row y into out[0 .. width): packed RGB(A) in a loop the
-// compiler vectorises (the same values), other layouts pixel by pixel.
+// lumaOfView of row y into out[0 .. width): packed RGB(A) with the same
+// values, packed RGBA four pixels at a time (GCC left the strided loop
+// scalar, with a branch per channel: 13 % of taa-improved's time), other
+// layouts pixel by pixel.
 template <int C>
 inline void lumaRun(const float* p, int width, float* out) {
-  for (int x = 0; x < width; ++x, p += C)
+  int x = 0;
+  if constexpr (C == 4) {
+    using temporal::Vec4;
+    for (; x + 4 <= width; x += 4, p += 16) {
+      const Vec4 a = temporal::load4(p), b = temporal::load4(p + 4), c = temporal::load4(p + 8),
+                 d = temporal::load4(p + 12);
+      const Vec4 ab01 = __builtin_shufflevector(a, b, 0, 4, 1, 5), cd01 = __builtin_shufflevector(c, d, 0, 4, 1, 5);
+      const Vec4 ab2 = __builtin_shufflevector(a, b, 2, 6, 3, 7), cd2 = __builtin_shufflevector(c, d, 2, 6, 3, 7);
+      const Vec4 r = temporal::sanitize4(__builtin_shufflevector(ab01, cd01, 0, 1, 4, 5), kMaxColor);
+      const Vec4 g = temporal::sanitize4(__builtin_shufflevector(ab01, cd01, 2, 3, 6, 7), kMaxColor);
+      const Vec4 bl = temporal::sanitize4(__builtin_shufflevector(ab2, cd2, 0, 1, 4, 5), kMaxColor);
+      temporal::store4(out + x, 0.2126f * r + 0.7152f * g + 0.0722f * bl);  // luminance709's order
+    }
+  }
+  for (; x < width; ++x, p += C)
     out[x] = luminance709(sanitizeColorSelects(p[0]), sanitizeColorSelects(p[1]), sanitizeColorSelects(p[2]));
 }
 inline void lumaRow(const ImageView& v, int y, float* out) {
