@@ -386,6 +386,7 @@ void copyAndLumaPacked(const float* in, float* out, int width, float* luma) {
 // R, G, B and compute luminance709 then toneLuma lane-wise in the same order
 // as the scalar code. `stream` uses non-temporal stores so a frame larger
 // than the caches is written without first being read (as memcpy does).
+constexpr int kPrefetchPixels = 32;
 void copyAndLumaRgbaSse2(const float* in, float* out, int width, float* luma, bool stream) {
   const __m128 hi = _mm_set1_ps(kMaxColor), lo = _mm_set1_ps(-kMaxColor);
   const __m128 wr = _mm_set1_ps(0.2126f), wg = _mm_set1_ps(0.7152f), wb = _mm_set1_ps(0.0722f);
@@ -393,6 +394,10 @@ void copyAndLumaRgbaSse2(const float* in, float* out, int width, float* luma, bo
   const __m128 absMask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
   int x = 0;
   for (; x + 4 <= width; x += 4) {
+    // One cache line of input per step; fetched 32 pixels (8 lines) ahead, as
+    // the hardware prefetcher did not keep up (perf: the step's last load).
+    if (x + kPrefetchPixels < width)
+      _mm_prefetch(reinterpret_cast<const char*>(in + 4 * (x + kPrefetchPixels)), _MM_HINT_T0);
     __m128 p[4];
     for (int k = 0; k < 4; ++k) {
       __m128 v = _mm_loadu_ps(in + 4 * (x + k));

@@ -733,8 +733,14 @@ template <bool Ortho>
 CRISP_AVX2 void anyDiffersPackedRow(const Inputs& in, int y, int chunks, const float* colUx, float uy,
                                     const float* dux, const float* suy, const Camera& packedCam, float threshold2,
                                     std::uint8_t* bits) {
-  for (int c = 0; c < chunks; ++c)
+  constexpr int kAhead = 4;  // chunks
+  for (int c = 0; c < chunks; ++c) {
+    if (c + kAhead < chunks) {
+      const char* next = reinterpret_cast<const char*>(subsampleRecord(in.packed, 8 * (c + kAhead), y));
+      for (int line = 0; line < 8 * int(sizeof(SubsampleRecord)); line += 64) _mm_prefetch(next + line, _MM_HINT_T0);
+    }
     bits[c] = std::uint8_t(anyDiffersPacked8<Ortho>(in, 8 * c, y, colUx, uy, dux, suy, packedCam, threshold2));
+  }
 }
 
 // sanitizeColor in 8 lanes: NaN -> 0, then clamp to +-kMaxColor, as
