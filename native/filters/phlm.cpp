@@ -317,10 +317,17 @@ CRISP_PHLM_INLINE temporal::TwoExtremes4 footprintExtremes(const Frame<T>& f, in
   return e;
 }
 
+// Step 1's closest-depth taps of a pixel's row, computed ahead a lane group
+// at a time (phlmRowsBody), or null: phlmPixel calls closestDepthTap.
+struct RowTaps {
+  const float* tap = nullptr;    // int bits (temporal::closestDepthTapsRow)
+  const float* depth = nullptr;  // the tap's depth
+};
+
 // Always inlined: into both copies of the row loop (temporal/isa.h).
 template <class T, bool Clamp>
 __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
-                                                     Batch<T>& batch) {
+                                                     Batch<T>& batch, const RowTaps& rowTaps) {
   const int w = f.width, h = f.height;
   // 3x3 neighbourhood of this frame: box, average (the low-frequency colour),
   // tonemapped luminance range.
@@ -354,7 +361,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
       boxSum += c;
     }
   }
-  if (f.depth) {
+  if (f.depth && !rowTaps.tap) {
 #pragma GCC unroll 9
     for (int i = 0; i < 9; ++i) depth9[i] = f.depth[std::size_t(tapY[i / 3]) * w + tapX[i % 3]];
   }
@@ -366,8 +373,15 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   // Step 1: velocity (closest depth of the 3x3 when depth is given).
   float vx = 0.0f, vy = 0.0f;
   int tap = 4;
+  float tapDepth = 0.0f;  // depth9[tap], read below only with previousDepth (which comes with depth)
+  if (rowTaps.tap) {
+    std::memcpy(&tap, rowTaps.tap + x, sizeof tap);
+    tapDepth = rowTaps.depth[x];
+  } else if (f.depth) {
+    if (f.motion.ptr) tap = temporal::closestDepthTap(depth9);
+    tapDepth = depth9[tap];
+  }
   if (f.motion.ptr) {
-    if (f.depth) tap = temporal::closestDepthTap(depth9);
     const float* m = f.motion.pixel(tapX[tap % 3], tapY[tap / 3]);
     vx = m[0];
     vy = m[1];
@@ -388,7 +402,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   if (valid && f.previousDepth) {
     // Disocclusion: the followed surface must be in the previous frame's 3x3
     // around q (a jittered edge pixel's own sample may be of either surface).
-    const float d = depth9[tap];
+    const float d = tapDepth;
     bool match = false;
     for (int j = -1; j <= 1 && !match; ++j)
       for (int k = -1; k <= 1 && !match; ++k) {
@@ -817,11 +831,33 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
   for (int y = y0; y < y1; ++y) rowStats[2 * y] = rowStats[2 * y + 1] = 0;
   Batch<T> batch;
   const bool clampAll = reference || f.unjitter.shiftX != 0 || f.unjitter.shiftY != 0;
-  temporal::rowsWithBorder(f.width, f.height, y0, y1, clampAll,
-                           [&](auto clamp, int x, int y) __attribute__((always_inline)) {
-                             phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], batch);
-                             if (batch.count == kBatch || x == f.width - 1) finishBatch(f, batch, rowStats[2 * y + 1]);
-                           });
+  // Step 1's closest-depth taps, a row at a time on the fast path (the
+  // reference keeps closestDepthTap per pixel, so the tests compare the two):
+  // the row's three depth rows staged with the taps' clamp (shiftedSource,
+  // the same taps as phlmPixel's, interior or not), padded by one pixel.
+  const int w = f.width, h = f.height;
+  const bool tapsAhead = !reference && f.motion.ptr && f.depth;
+  std::vector<float> depthRows, taps;
+  RowTaps rowTaps;
+  if (tapsAhead) {
+    depthRows.resize(std::size_t(3) * (w + 2));
+    taps.resize(std::size_t(2) * w);
+    rowTaps = {taps.data(), taps.data() + w};
+  }
+  auto stageTaps = [&](int y) {
+    float* rows[3];
+    for (int k = 0; k < 3; ++k) {
+      const float* src = f.depth + std::size_t(temporal::shiftedSource(y + k - 1, h, f.unjitter.shiftY)) * w;
+      float* dst = rows[k] = depthRows.data() + std::size_t(k) * (w + 2);
+      for (int j = 0; j < w + 2; ++j) dst[j] = src[temporal::shiftedSource(j - 1, w, f.unjitter.shiftX)];
+    }
+    temporal::closestDepthTapsRow<temporal::Vec8>(rows[0], rows[1], rows[2], w, taps.data(), taps.data() + w);
+  };
+  temporal::rowsWithBorder(w, h, y0, y1, clampAll, [&](auto clamp, int x, int y) __attribute__((always_inline)) {
+    if (tapsAhead && x == 0) stageTaps(y);
+    phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], batch, rowTaps);
+    if (batch.count == kBatch || x == f.width - 1) finishBatch(f, batch, rowStats[2 * y + 1]);
+  });
 }
 template <class T>
 void phlmRowsBaseline(const Frame<T>& f, int y0, int y1, bool reference, long* rowStats) {

@@ -267,6 +267,12 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
     s.holdPeriod = 4;  // held and learning lanes in one batch (phlm.cpp "Hold")
     for (int t = 0; t < 12; ++t) {
       const synth::FrameData f = synth::renderFrame(seq, w, h, t, {});
+      // Jitter offsets whose unjitter shifts the taps by a whole pixel on
+      // some frames (temporal::unjitterFor: shift = round(jitter)), so the
+      // shifted, clamped taps are compared too.
+      const float jitter[4][2] = {{0.2f, -0.3f}, {0.7f, 0.1f}, {-0.4f, -0.8f}, {-0.6f, 0.55f}};
+      s.jitterX = jitter[t % 4][0];
+      s.jitterY = jitter[t % 4][1];
       phlm::Inputs in;
       in.color = f.color.view();
       if (mode == 0) {
