@@ -844,12 +844,16 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
     taps.resize(std::size_t(2) * w);
     rowTaps = {taps.data(), taps.data() + w};
   }
+  const int sx = f.unjitter.shiftX;
+  const temporal::UnclampedRun run = temporal::unclampedRun(w, sx);
   auto stageTaps = [&](int y) {
     float* rows[3];
     for (int k = 0; k < 3; ++k) {
       const float* src = f.depth + std::size_t(temporal::shiftedSource(y + k - 1, h, f.unjitter.shiftY)) * w;
       float* dst = rows[k] = depthRows.data() + std::size_t(k) * (w + 2);
-      for (int j = 0; j < w + 2; ++j) dst[j] = src[temporal::shiftedSource(j - 1, w, f.unjitter.shiftX)];
+      for (int j = 0; j < run.lo; ++j) dst[j] = src[temporal::shiftedSource(j - 1, w, sx)];
+      if (run.hi > run.lo) std::memcpy(dst + run.lo, src + (run.lo - 1 - sx), sizeof(float) * (run.hi - run.lo));
+      for (int j = run.hi; j < w + 2; ++j) dst[j] = src[temporal::shiftedSource(j - 1, w, sx)];
     }
     temporal::closestDepthTapsRow<temporal::Vec8>(rows[0], rows[1], rows[2], w, taps.data(), taps.data() + w);
   };

@@ -707,20 +707,8 @@ BandScratch bandScratch(float* base, int width) {
   return s;
 }
 
-// Stages image row y of the shifted image (Frame::unjitter; no shift without
-// unjitter) into ring slot y % kRing (and this frame's depth plane when the
-// row belongs to the band): the same values as stagePixel (core/row_stage.h)
-// and the same motion and depth taps as the reference reads, de-interleaved.
-// Plane index k holds shifted pixel k - 1 clamped (Frame::sourceColumn).
-// The plane indices [lo, hi) whose source column is not clamped:
-// sourceColumn[k] == k - 1 - shiftX there (temporal::shiftedSource).
-struct UnclampedRun {
-  int lo, hi;
-};
-inline UnclampedRun unclampedRun(int width, int shiftX) {
-  const int lo = std::max(1, 1 + shiftX), hi = std::min(width, width + shiftX) + 1;
-  return {lo, std::max(lo, hi)};
-}
+using temporal::UnclampedRun;  // plane index k holds shifted pixel k - 1 (Frame::sourceColumn)
+using temporal::unclampedRun;
 
 // One staged colour (core/row_stage.h stageColorPixel) into plane index k.
 inline void stageColorTap(const float* px, int channels, float* const* p, int k) {

@@ -20,6 +20,8 @@
 // the taa filter's jitterX / jitterY expect.
 #pragma once
 
+#include <algorithm>
+
 #include <string>
 #include <vector>
 
@@ -97,6 +99,18 @@ inline int shiftedSource(int q, int size, int shift) {
   const int c = q < 0 ? 0 : (q >= size ? size - 1 : q);
   const int s = c - shift;
   return s < 0 ? 0 : (s >= size ? size - 1 : s);
+}
+
+// A row of the shifted image padded by one pixel each side: index k holds
+// shiftedSource(k - 1, width, shiftX). The indices [lo, hi) whose source is
+// not clamped: column k - 1 - shiftX there (a copy of a run of the input);
+// the rest are copies of column 0 or width - 1.
+struct UnclampedRun {
+  int lo, hi;
+};
+inline UnclampedRun unclampedRun(int width, int shiftX) {
+  const int lo = std::max(1, 1 + shiftX), hi = std::min(width, width + shiftX) + 1;
+  return {lo, std::max(lo, hi)};
 }
 
 }  // namespace crisp::temporal
