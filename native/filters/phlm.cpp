@@ -851,9 +851,8 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
     for (int k = 0; k < 3; ++k) {
       const float* src = f.depth + std::size_t(temporal::shiftedSource(y + k - 1, h, f.unjitter.shiftY)) * w;
       float* dst = rows[k] = depthRows.data() + std::size_t(k) * (w + 2);
-      for (int j = 0; j < run.lo; ++j) dst[j] = src[temporal::shiftedSource(j - 1, w, sx)];
+      temporal::forEachClampedIndex(run, w + 2, [&](int j) { dst[j] = src[temporal::shiftedSource(j - 1, w, sx)]; });
       if (run.hi > run.lo) std::memcpy(dst + run.lo, src + (run.lo - 1 - sx), sizeof(float) * (run.hi - run.lo));
-      for (int j = run.hi; j < w + 2; ++j) dst[j] = src[temporal::shiftedSource(j - 1, w, sx)];
     }
     temporal::closestDepthTapsRow<temporal::Vec8>(rows[0], rows[1], rows[2], w, taps.data(), taps.data() + w);
   };

@@ -709,18 +709,13 @@ BandScratch bandScratch(float* base, int width) {
 
 using temporal::UnclampedRun;  // plane index k holds shifted pixel k - 1 (Frame::sourceColumn)
 using temporal::unclampedRun;
+using temporal::forEachClampedIndex;
 
 // One staged colour (core/row_stage.h stageColorPixel) into plane index k.
 inline void stageColorTap(const float* px, int channels, float* const* p, int k) {
   float rgba[4];
   stageColorPixel(px, channels, rgba);
   for (int c = 0; c < 4; ++c) p[c][k] = rgba[c];
-}
-// f(k) for the plane indices [0, n) outside the unclamped run.
-template <class F>
-inline void forEachClampedIndex(const UnclampedRun& run, int n, F&& f) {
-  for (int k = 0; k < std::min(run.lo, n); ++k) f(k);
-  for (int k = run.hi; k < n; ++k) f(k);
 }
 // stageColorTap over `count` packed pixels of C = 3 or 4 floats, into plane
 // indices 0 .. count - 1: a loop the compiler vectorises.
@@ -940,13 +935,10 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         return true;
       });
 
-      if (lanes == kL)  // historyStateOf, a lane group at a time
+      if (lanes == kL) {
+        // historyStateOf, a lane group at a time.
         temporal::storeBytesOf<T>(f.historyState + rowStart + x0,
                                   (r.feedbackSinceReset & 1) | temporal::truncOf(r.framesSinceReset) << 1);
-      else
-        for (int l = 0; l < lanes; ++l)
-          f.historyState[rowStart + x0 + l] = historyStateOf(r.feedbackSinceReset[l] != 0, r.framesSinceReset[l]);
-      if (lanes == kL) {
         for (int c = 0; c < 3; ++c) temporal::storeLanes(f.history[c] + rowStart + x0, r.color[c]);
         temporal::storeLanes(f.history[3] + rowStart + x0, r.signedWeight);
         if (packedOutput) {
@@ -963,6 +955,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         }
       } else {
         for (int l = 0; l < lanes; ++l) {
+          f.historyState[rowStart + x0 + l] = historyStateOf(r.feedbackSinceReset[l] != 0, r.framesSinceReset[l]);
           const float color[3] = {r.color[0][l], r.color[1][l], r.color[2][l]};
           const float output[3] = {r.output[0][l], r.output[1][l], r.output[2][l]};
           storePixel(f, x0 + l, y, color, r.signedWeight[l], output, r.reset[l] != 0, in.current[3][l]);

@@ -112,5 +112,11 @@ inline UnclampedRun unclampedRun(int width, int shiftX) {
   const int lo = std::max(1, 1 + shiftX), hi = std::min(width, width + shiftX) + 1;
   return {lo, std::max(lo, hi)};
 }
+// f(k) for the indices [0, n) outside the unclamped run.
+template <class F>
+inline void forEachClampedIndex(const UnclampedRun& run, int n, F&& f) {
+  for (int k = 0; k < std::min(run.lo, n); ++k) f(k);
+  for (int k = run.hi; k < n; ++k) f(k);
+}
 
 }  // namespace crisp::temporal
