@@ -90,19 +90,14 @@ inline float sobelMagnitude(At&& at, int x, int y) {
 // Pass 2 on the interior pixels x in [1, w - 2] of a row whose neighbours
 // above and below exist: sobelMagnitude's arithmetic, in its order, on
 // direct taps of packed planes (row pointers at the current row, stride w),
-// four pixels per step (temporal/vec4.h: lane-wise IEEE operations and
+// a lane group per step (temporal/lanes.h: lane-wise IEEE operations and
 // correctly rounded square roots, so the same bits as the per-pixel code),
-// then the remaining pixels one by one with the same template.
+// then the remaining pixels one by one with the same template. Two copies of
+// the row loop (temporal/isa.h): 8 lanes with AVX2, 4 in the baseline copy.
 template <class V, bool Unlit, bool Depth>
-inline V sobelMixed(const float* lit, const float* unlit, const float* depth, int w, int x) {
-  auto load = [](const float* p) {
-    if constexpr (std::is_same_v<V, float>) return *p;
-    else return temporal::load4(p);
-  };
-  auto root = [](V v) {
-    if constexpr (std::is_same_v<V, float>) return std::sqrt(v);
-    else return temporal::vsqrt(v);
-  };
+__attribute__((always_inline)) inline V sobelMixed(const float* lit, const float* unlit, const float* depth, int w,
+                                                   int x) {
+  auto load = [](const float* p) { return temporal::loadLanes<V>(p); };
   auto sobelAt = [&](const float* p) {
     const float* up = p - w;
     const float* down = p + w;
@@ -110,7 +105,7 @@ inline V sobelMixed(const float* lit, const float* unlit, const float* depth, in
                  (load(up + x - 1) + 2.0f * load(p + x - 1) + load(down + x - 1));
     const V gy = (load(down + x - 1) + 2.0f * load(down + x) + load(down + x + 1)) -
                  (load(up + x - 1) + 2.0f * load(up + x) + load(up + x + 1));
-    return root(gx * gx + gy * gy);
+    return temporal::sqrtOf(gx * gx + gy * gy);
   };
   const V l = sobelAt(lit);
   V g = l;
@@ -119,17 +114,38 @@ inline V sobelMixed(const float* lit, const float* unlit, const float* depth, in
   if constexpr (std::is_same_v<V, float>) {
     g = clamp01(g);
   } else {  // clamp01 per lane
-    const V below = g < 1.0f ? g : temporal::splat(1.0f);
-    g = g > 0.0f ? below : temporal::splat(0.0f);
+    const V below = g < 1.0f ? g : temporal::lanesOf<V>(1.0f);
+    g = g > 0.0f ? below : temporal::lanesOf<V>(0.0f);
   }
-  return root(g * g * (3.0f - 2.0f * g));
+  return temporal::sqrtOf(g * g * (3.0f - 2.0f * g));
+}
+template <class V, bool Unlit, bool Depth>
+__attribute__((always_inline)) inline void sobelInteriorBody(const float* lit, const float* unlit, const float* depth,
+                                                             int w, float* out) {
+  constexpr int kL = temporal::kLanesOf<V>;
+  int x = 1;
+  for (; x + kL <= w - 1; x += kL)
+    temporal::storeLanes(out + x, sobelMixed<V, Unlit, Depth>(lit, unlit, depth, w, x));
+  for (; x < w - 1; ++x) out[x] = sobelMixed<float, Unlit, Depth>(lit, unlit, depth, w, x);
 }
 template <bool Unlit, bool Depth>
-void sobelInteriorRow(const float* lit, const float* unlit, const float* depth, int w, float* out) {
-  int x = 1;
-  for (; x + 4 <= w - 1; x += 4)
-    temporal::store4(out + x, sobelMixed<temporal::Vec4, Unlit, Depth>(lit, unlit, depth, w, x));
-  for (; x < w - 1; ++x) out[x] = sobelMixed<float, Unlit, Depth>(lit, unlit, depth, w, x);
+void sobelInteriorBaseline(const float* lit, const float* unlit, const float* depth, int w, float* out) {
+  sobelInteriorBody<temporal::Vec4, Unlit, Depth>(lit, unlit, depth, w, out);
+}
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+template <bool Unlit, bool Depth>
+CRISP_TEMPORAL_AVX2 void sobelInteriorAvx2(const float* lit, const float* unlit, const float* depth, int w,
+                                           float* out) {
+  sobelInteriorBody<temporal::Vec8, Unlit, Depth>(lit, unlit, depth, w, out);
+}
+#endif
+using SobelInteriorRow = void (*)(const float*, const float*, const float*, int, float*);
+template <bool Unlit, bool Depth>
+SobelInteriorRow sobelInteriorRow() {
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+  if (temporal::useAvx2()) return sobelInteriorAvx2<Unlit, Depth>;
+#endif
+  return sobelInteriorBaseline<Unlit, Depth>;
 }
 
 inline float lumaOfView(const ImageView& v, int x, int y) {
@@ -262,6 +278,132 @@ CRISP_TEMPORAL_AVX2 int stabiliseInteriorAvx2(const StabiliseParams& sp, const f
 }
 #endif
 
+// Pass 4's inputs (eqs. 4.1, 4.4-4.6, 4.12-4.14), shared by the per-pixel
+// form in Kernel::run and the lane-group rows below.
+struct AliasedParams {
+  const ImageView* id;      // object ids (packed uint32 on the lane path), or nullptr
+  const float* depth;       // this frame's sanitised depth plane, or nullptr
+  const float* pastDepth;   // last frame's, or nullptr
+  const float* sobel;       // the stabilised Sobel plane, or nullptr (Sobel off)
+  const ImageView* motion;  // may be empty (static)
+  float* aliased;           // the aliasedValue plane written
+  int width, height;
+  bool modelOn, depthStats, depthVariance, temporalDepthVariance;
+  float depthThreshold;
+};
+
+// Eqs. 4.5-4.6 where m passes the threshold (few pixels: depth edges).
+inline void depthVariances(const AliasedParams& p, int x, int y, float avg, float m, float dc, float& depthPV,
+                           float& depthTPV) {
+  if (p.depthVariance) depthPV = std::pow(std::fabs(1.0f - avg) / m, 2.0f);
+  if (p.temporalDepthVariance && p.pastDepth) {
+    float vx, vy;
+    motionAt(*p.motion, x, y, vx, vy);
+    const float qx = float(x) + vx, qy = float(y) + vy;
+    if (temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, p.width, p.height)) {
+      const int px = std::clamp(int(temporal::floorExact(qx + 0.5f)), 0, p.width - 1);
+      const int py = std::clamp(int(temporal::floorExact(qy + 0.5f)), 0, p.height - 1);
+      const float past = p.pastDepth[std::size_t(py) * p.width + px] / dc;
+      depthTPV = std::pow(std::fabs(past - avg) / m, 4.0f);
+    }
+  }
+}
+
+// Pass 4 on the interior of row y (1 <= y < height - 1), a lane group at a
+// time from x = 1 while a whole group fits before the last column: Kernel::
+// run's aliasedPixel lane-wise, the same operations in the same order per
+// lane, so the same bits; eqs. 4.5-4.6 per lane where needed. Returns the
+// first pixel left for the caller. Ids must be packed. Two copies
+// (temporal/isa.h): 8 lanes with AVX2, 4 in the baseline copy.
+template <class T>
+__attribute__((always_inline)) inline int aliasedInteriorBody(const AliasedParams& p, int y) {
+  using Int = temporal::IntOf<T>;
+  constexpr int kL = temporal::kLanesOf<T>;
+  const int w = p.width;
+  const T zero = temporal::lanesOf<T>(0.0f), one = temporal::lanesOf<T>(1.0f);
+  auto clamp01v = [&](T v) {
+    const T below = v < 1.0f ? v : one;
+    return v > 0.0f ? below : zero;
+  };
+  auto load = [](const float* q) { return temporal::loadLanes<T>(q); };
+  int x = 1;
+  for (; x + kL <= w - 1; x += kL) {
+    T model = zero;
+    if (p.modelOn) {
+      Int differ = Int{};
+      if (p.id) {
+        auto ids = [&](int i, int j) {
+          const char* row = static_cast<const char*>(p.id->ptr) + std::size_t(y + j) * p.id->rowStride;
+          Int v;
+          std::memcpy(&v, row + 4 * std::size_t(x + i), sizeof v);
+          return v;
+        };
+        const Int centre = ids(0, 0);
+        for (int j = -1; j <= 1; ++j)
+          for (int i = -1; i <= 1; ++i) differ -= ids(i, j) != centre;  // a true lane is -1
+      } else {
+        auto background = [&](int i, int j) {  // isBackgroundDepth per lane: -1 background, 0 object
+          return ~(load(p.depth + std::size_t(y + j) * w + x + i) < kFarDepth);
+        };
+        const Int centre = background(0, 0);
+        for (int j = -1; j <= 1; ++j)
+          for (int i = -1; i <= 1; ++i) differ -= background(i, j) != centre;
+      }
+      model = __builtin_convertvector(differ, T) / 9.0f;
+    }
+    T sobelAvg = zero;
+    if (p.sobel) {
+      const float* r[3] = {p.sobel + std::size_t(y - 1) * w, p.sobel + std::size_t(y) * w,
+                           p.sobel + std::size_t(y + 1) * w};
+      const T centre = load(r[1] + x);
+      T sum9 = zero;
+      for (int j = 0; j < 3; ++j)
+        for (int i = -1; i <= 1; ++i) sum9 += load(r[j] + x + i);
+      const T sumCross = load(r[0] + x) + load(r[1] + x - 1) + centre + load(r[1] + x + 1) + load(r[2] + x);
+      const T avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
+      const T t = clamp01v(model + centre);
+      sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
+    }
+    T depthPV = zero, depthTPV = zero;
+    if (p.depthStats) {
+      const T dc = load(p.depth + std::size_t(y) * w + x);
+      T lo = one, hi = one, sum = zero;
+      for (int j = -1; j <= 1; ++j)
+        for (int i = -1; i <= 1; ++i) {
+          const T d = load(p.depth + std::size_t(y + j) * w + x + i) / dc;
+          lo = temporal::minOf(lo, d);
+          hi = temporal::maxOf(hi, d);
+          sum += d;
+        }
+      const T avg = sum / 9.0f;
+      const T m = temporal::minOf(temporal::fabsOf(lo - avg), temporal::fabsOf(hi - avg));
+      if (temporal::anyOf(m >= p.depthThreshold))
+        for (int k = 0; k < kL; ++k)
+          if (m[k] >= p.depthThreshold) {
+            float pv = 0.0f, tpv = 0.0f;
+            depthVariances(p, x + k, y, avg[k], m[k], dc[k], pv, tpv);
+            depthPV[k] = pv;
+            depthTPV[k] = tpv;
+          }
+    }
+    const T a = sobelAvg + depthPV + depthTPV + model;
+    temporal::storeLanes(p.aliased + std::size_t(y) * w + x, a != a ? one : clamp01v(a));
+  }
+  return x;
+}
+int aliasedInteriorBaseline(const AliasedParams& p, int y) { return aliasedInteriorBody<temporal::Vec4>(p, y); }
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+CRISP_TEMPORAL_AVX2 int aliasedInteriorAvx2(const AliasedParams& p, int y) {
+  return aliasedInteriorBody<temporal::Vec8>(p, y);
+}
+#endif
+int aliasedInterior(const AliasedParams& p, int y) {
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+  if (temporal::useAvx2()) return aliasedInteriorAvx2(p, y);
+#endif
+  return aliasedInteriorBaseline(p, y);
+}
+
 }  // namespace
 
 void Kernel::allocate(int width, int height, bool withDepth) {
@@ -330,8 +472,9 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
       g = clamp01(g);
       sobelRaw_[std::size_t(y) * w + x] = std::sqrt(g * g * (3.0f - 2.0f * g));
     };
-    auto interior = useAlbedo ? (sobelOfDepth ? sobelInteriorRow<true, true> : sobelInteriorRow<true, false>)
-                              : (sobelOfDepth ? sobelInteriorRow<false, true> : sobelInteriorRow<false, false>);
+    const SobelInteriorRow interior =
+        useAlbedo ? (sobelOfDepth ? sobelInteriorRow<true, true>() : sobelInteriorRow<true, false>())
+                  : (sobelOfDepth ? sobelInteriorRow<false, true>() : sobelInteriorRow<false, false>());
     parallelRows(w, h, threads, [&](int y0, int y1) {
       for (int y = y0; y < y1; ++y) {
         if (reference || y == 0 || y == h - 1 || w < 3) {
@@ -388,21 +531,9 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   const Plane sob{sobel_[next].data(), w, h};
   const bool modelOn = s.modelAverage && (in.id.ptr || useDepth);
   const bool depthStats = useDepth && (s.depthVariance || s.temporalDepthVariance);
-  // Eqs. 4.5-4.6 where m passes the threshold (few pixels: depth edges).
-  auto depthVariances = [&](int x, int y, float avg, float m, float dc, float& depthPV, float& depthTPV) {
-    if (s.depthVariance) depthPV = std::pow(std::fabs(1.0f - avg) / m, 2.0f);
-    if (s.temporalDepthVariance && pastDepth) {
-      float vx, vy;
-      motionAt(in.motion, x, y, vx, vy);
-      const float qx = float(x) + vx, qy = float(y) + vy;
-      if (temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, w, h)) {
-        const int px = std::clamp(int(temporal::floorExact(qx + 0.5f)), 0, w - 1);
-        const int py = std::clamp(int(temporal::floorExact(qy + 0.5f)), 0, h - 1);
-        const float past = pastDepth[std::size_t(py) * w + px] / dc;
-        depthTPV = std::pow(std::fabs(past - avg) / m, 4.0f);
-      }
-    }
-  };
+  const AliasedParams ap{in.id.ptr ? &in.id : nullptr, depthPlane, pastDepth, s.sobel ? sob.data : nullptr,
+                        &in.motion, aliased_.data(), w, h, modelOn, depthStats, s.depthVariance,
+                        s.temporalDepthVariance, s.depthThreshold};
   auto aliasedPixel = [&](auto clamp, int x, int y) {
     constexpr bool C = decltype(clamp)::value;
     float sobelCentre = 0.0f, sobelAvg = 0.0f;
@@ -443,84 +574,11 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
         }
       const float avg = sum / 9.0f;
       const float m = std::min(std::fabs(lo - avg), std::fabs(hi - avg));
-      if (m >= s.depthThreshold) depthVariances(x, y, avg, m, dc, depthPV, depthTPV);
+      if (m >= s.depthThreshold) depthVariances(ap, x, y, avg, m, dc, depthPV, depthTPV);
     }
     const float a = sobelAvg + depthPV + depthTPV + model;
     // Non-finite (cannot happen with sanitised inputs): full TAA, the baseline's box.
     aliased_[std::size_t(y) * w + x] = std::isnan(a) ? 1.0f : clamp01(a);
-  };
-  // aliasedPixel for the four interior pixels x .. x + 3 of row y, lane-wise
-  // (temporal/vec4.h): the same operations in the same order per lane, so the
-  // same bits; eqs. 4.5-4.6 per lane where needed. Ids must be packed.
-  auto aliasedInterior4 = [&](int x, int y) {
-    using temporal::Vec4;
-    typedef int Int4 __attribute__((vector_size(16)));
-    const Vec4 zero = temporal::splat(0.0f);
-    auto clamp01v = [&](Vec4 v) {
-      const Vec4 below = v < 1.0f ? v : temporal::splat(1.0f);
-      return v > 0.0f ? below : zero;
-    };
-    Vec4 model = zero;
-    if (modelOn) {
-      Int4 differ = {0, 0, 0, 0};
-      if (in.id.ptr) {
-        auto ids = [&](int i, int j) {
-          const char* row = static_cast<const char*>(in.id.ptr) + std::size_t(y + j) * in.id.rowStride;
-          Int4 v;
-          std::memcpy(&v, row + 4 * std::size_t(x + i), sizeof v);
-          return v;
-        };
-        const Int4 centre = ids(0, 0);
-        for (int j = -1; j <= 1; ++j)
-          for (int i = -1; i <= 1; ++i) differ -= ids(i, j) != centre;  // a true lane is -1
-      } else {
-        auto background = [&](int i, int j) {  // isBackgroundDepth per lane: -1 background, 0 object
-          const Vec4 d = temporal::load4(depthPlane + std::size_t(y + j) * w + x + i);
-          return ~(d < kFarDepth);
-        };
-        const Int4 centre = background(0, 0);
-        for (int j = -1; j <= 1; ++j)
-          for (int i = -1; i <= 1; ++i) differ -= background(i, j) != centre;
-      }
-      model = __builtin_convertvector(differ, Vec4) / 9.0f;
-    }
-    Vec4 sobelAvg = zero;
-    if (s.sobel) {
-      const float* r[3] = {sob.data + std::size_t(y - 1) * w, sob.data + std::size_t(y) * w,
-                           sob.data + std::size_t(y + 1) * w};
-      const Vec4 centre = temporal::load4(r[1] + x);
-      Vec4 sum9 = zero;
-      for (int j = 0; j < 3; ++j)
-        for (int i = -1; i <= 1; ++i) sum9 += temporal::load4(r[j] + x + i);
-      const Vec4 sumCross = temporal::load4(r[0] + x) + temporal::load4(r[1] + x - 1) + centre +
-                            temporal::load4(r[1] + x + 1) + temporal::load4(r[2] + x);
-      const Vec4 avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
-      const Vec4 t = clamp01v(model + centre);
-      sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
-    }
-    Vec4 depthPV = zero, depthTPV = zero;
-    if (depthStats) {
-      const Vec4 dc = temporal::load4(depthPlane + std::size_t(y) * w + x);
-      Vec4 lo = temporal::splat(1.0f), hi = temporal::splat(1.0f), sum = zero;
-      for (int j = -1; j <= 1; ++j)
-        for (int i = -1; i <= 1; ++i) {
-          const Vec4 d = temporal::load4(depthPlane + std::size_t(y + j) * w + x + i) / dc;
-          lo = temporal::vmin(lo, d);
-          hi = temporal::vmax(hi, d);
-          sum += d;
-        }
-      const Vec4 avg = sum / 9.0f;
-      const Vec4 m = temporal::vmin(temporal::vfabs(lo - avg), temporal::vfabs(hi - avg));
-      for (int k = 0; k < 4; ++k)
-        if (m[k] >= s.depthThreshold) {
-          float pv = 0.0f, tpv = 0.0f;
-          depthVariances(x + k, y, avg[k], m[k], dc[k], pv, tpv);
-          depthPV[k] = pv;
-          depthTPV[k] = tpv;
-        }
-    }
-    const Vec4 a = sobelAvg + depthPV + depthTPV + model;
-    temporal::store4(aliased_.data() + std::size_t(y) * w + x, a != a ? temporal::splat(1.0f) : clamp01v(a));
   };
   const bool vectorRows = !reference && (!in.id.ptr || in.id.pixelStride == 4);
   parallelRows(w, h, threads, [&](int y0, int y1) {
@@ -534,8 +592,7 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
         continue;
       }
       aliasedPixel(std::true_type{}, 0, y);
-      int x = 1;
-      for (; x + 4 <= w - 1; x += 4) aliasedInterior4(x, y);
+      int x = aliasedInterior(ap, y);
       for (; x < w - 1; ++x) aliasedPixel(std::false_type{}, x, y);
       aliasedPixel(std::true_type{}, w - 1, y);
     }

@@ -201,8 +201,8 @@ TEST(TaaImproved, SwitchesChangeOutputAndPathsAgree) {
   }
 }
 
-// The aliasedValue passes' fast path (unclamped interior taps, four pixels per
-// step, the staged depth plane) equals the reference path bit for bit: the
+// The aliasedValue passes' fast path (unclamped interior taps, a lane group of
+// 4 or 8 pixels per step, the staged depth plane) equals the reference path bit for bit: the
 // Sobel and aliasedValue planes and the output, every frame, for each way the
 // inputs can be given (ids, depth as the object mask, no albedo, no depth) and
 // each ingredient alone (together they saturate aliasedValue at edges), on a
