@@ -286,27 +286,6 @@ struct ReprojectionLanes {
   temporal::MaskOfT<T> valid;    // usable history at p + v
   temporal::MaskOfT<T> moving;   // v != 0
 };
-// True when every lane of a whole group is valid and lane l's footprint
-// starts at (x0[0] + l, y0[0]) with taps left .. x0 + right and top .. y0 +
-// bottom all inside [0, w) x [0, h): then the lanes' taps are consecutive in
-// memory and clamping changes none. False for one pixel (T = float: the
-// reference gathers as before).
-template <class T>
-__attribute__((always_inline)) inline bool sharedInteriorOffset(temporal::IntOf<T> x0, temporal::IntOf<T> y0,
-                                                                temporal::MaskOfT<T> valid, int left, int right,
-                                                                int top, int bottom, int w, int h) {
-  if constexpr (std::is_same_v<T, float>) {
-    return false;
-  } else {
-    using Int = temporal::IntOf<T>;
-    constexpr int kL = temporal::kLanesOf<T>;
-    const int gx = x0[0], gy = y0[0];
-    return temporal::allOf(valid) && temporal::allOf(Int(Int(x0 - temporal::truncOf(temporal::laneIndexOf<T>()) == gx) &
-                                                         Int(y0 == gy))) &&
-           gx + left >= 0 && gx + kL - 1 + right < w && gy + top >= 0 && gy + bottom < h;
-  }
-}
-
 template <class T>
 __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const Frame& f, T px, T py, T vx, T vy,
                                                                           T tapDepth) {
@@ -336,7 +315,7 @@ __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const 
     T d00, d10, d01, d11;  // the previous depth at the four taps
     bool loaded = false;
     if constexpr (!std::is_same_v<T, float>) {
-      if (sharedInteriorOffset<T>(r.x0, r.y0, valid, 0, 1, 0, 1, w, h)) {
+      if (temporal::sharedInteriorOffset<T>(r.x0, r.y0, valid, 0, 1, 0, 1, w, h)) {
         // Smooth motion: the lanes' taps are consecutive, the same values as the gathers.
         const float* upper = f.previousDepth + std::size_t(r.y0[0]) * w + r.x0[0];
         d00 = temporal::loadLanes<T>(upper);
@@ -878,7 +857,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
       if (whole && !temporal::anyOf(rp.moving)) {
         for (int c = 0; c < 4; ++c) in.hist[c] = load(f.previous.plane[c] + rowStart + x0);
       } else if (whole && temporal::allOf(rp.moving) && f.filter == HistoryFilter::CatmullRom &&
-                 sharedInteriorOffset<T>(rp.x0, rp.y0, rp.valid, -1, 2, -1, 2, w, h)) {
+                 temporal::sharedInteriorOffset<T>(rp.x0, rp.y0, rp.valid, -1, 2, -1, 2, w, h)) {
         // footprintInterior4x4 on every lane: the unclamped fetch's taps.
         temporal::fetchCatmullRomRow(f.previous, rp.x0[0], rp.y0[0], rp.tx, rp.ty, in.hist);
       } else {

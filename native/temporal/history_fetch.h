@@ -9,11 +9,31 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <type_traits>
 
 #include "temporal/lanes.h"
 #include "temporal/vec4.h"
 
 namespace crisp::temporal {
+
+// True when every lane of a whole group is valid and lane l's footprint
+// starts at (x0[0] + l, y0[0]) with taps left .. x0 + right and top .. y0 +
+// bottom all inside [0, w) x [0, h): then the lanes' taps are consecutive in
+// memory and clamping changes none. False for one pixel (T = float: the
+// reference gathers as before).
+template <class T>
+__attribute__((always_inline)) inline bool sharedInteriorOffset(IntOf<T> x0, IntOf<T> y0, MaskOfT<T> valid, int left,
+                                                                int right, int top, int bottom, int w, int h) {
+  if constexpr (std::is_same_v<T, float>) {
+    return false;
+  } else {
+    using Int = IntOf<T>;
+    constexpr int kL = kLanesOf<T>;
+    const int gx = x0[0], gy = y0[0];
+    return allOf(valid) && allOf(Int(Int(x0 - truncOf(laneIndexOf<T>()) == gx) & Int(y0 == gy))) && gx + left >= 0 &&
+           gx + kL - 1 + right < w && gy + top >= 0 && gy + bottom < h;
+  }
+}
 
 struct HistoryImage {
   const float* data;  // 4 floats per pixel, rows top-down
