@@ -60,9 +60,12 @@ namespace crisp::taa_improved {
 
 namespace {
 
-inline float clamp01(float v) {  // NaN -> 0; two selects (vectorisable)
-  const float below = v < 1.0f ? v : 1.0f;
-  return v > 0.0f ? below : 0.0f;
+// NaN -> 0; two selects, so one pixel (T = float) and a lane group
+// (temporal/lanes.h) perform the same operations.
+template <class T>
+__attribute__((always_inline)) inline T clamp01(T v) {
+  const T below = v < 1.0f ? v : temporal::lanesOf<T>(1.0f);
+  return v > 0.0f ? below : temporal::lanesOf<T>(0.0f);
 }
 
 // A packed float plane read with clamp-to-edge addressing; at<false> skips
@@ -111,12 +114,7 @@ __attribute__((always_inline)) inline V sobelMixed(const float* lit, const float
   V g = l;
   if constexpr (Unlit) g = 0.3f * sobelAt(unlit) + 0.7f * l;
   if constexpr (Depth) g += sobelAt(depth) / load(depth + x);
-  if constexpr (std::is_same_v<V, float>) {
-    g = clamp01(g);
-  } else {  // clamp01 per lane
-    const V below = g < 1.0f ? g : temporal::lanesOf<V>(1.0f);
-    g = g > 0.0f ? below : temporal::lanesOf<V>(0.0f);
-  }
+  g = clamp01(g);
   return temporal::sqrtOf(g * g * (3.0f - 2.0f * g));
 }
 template <class V, bool Unlit, bool Depth>
@@ -290,6 +288,12 @@ CRISP_TEMPORAL_AVX2 int stabiliseInteriorAvx2(const StabiliseParams& sp, const f
   return stabiliseInteriorBody<temporal::Vec8>(sp, raw, motion, out, y);
 }
 #endif
+int stabiliseInterior(const StabiliseParams& sp, const float* raw, const ImageView& motion, float* out, int y) {
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+  if (temporal::useAvx2()) return stabiliseInteriorAvx2(sp, raw, motion, out, y);
+#endif
+  return stabiliseInteriorBaseline(sp, raw, motion, out, y);
+}
 
 // Pass 4's inputs (eqs. 4.1, 4.4-4.6, 4.12-4.14), shared by the per-pixel
 // form in Kernel::run and the lane-group rows below.
@@ -334,10 +338,6 @@ __attribute__((always_inline)) inline int aliasedInteriorBody(const AliasedParam
   constexpr int kL = temporal::kLanesOf<T>;
   const int w = p.width;
   const T zero = temporal::lanesOf<T>(0.0f), one = temporal::lanesOf<T>(1.0f);
-  auto clamp01v = [&](T v) {
-    const T below = v < 1.0f ? v : one;
-    return v > 0.0f ? below : zero;
-  };
   auto load = [](const float* q) { return temporal::loadLanes<T>(q); };
   int x = 1;
   for (; x + kL <= w - 1; x += kL) {
@@ -374,7 +374,7 @@ __attribute__((always_inline)) inline int aliasedInteriorBody(const AliasedParam
         for (int i = -1; i <= 1; ++i) sum9 += load(r[j] + x + i);
       const T sumCross = load(r[0] + x) + load(r[1] + x - 1) + centre + load(r[1] + x + 1) + load(r[2] + x);
       const T avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
-      const T t = clamp01v(model + centre);
+      const T t = clamp01(model + centre);
       sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
     }
     T depthPV = zero, depthTPV = zero;
@@ -400,7 +400,7 @@ __attribute__((always_inline)) inline int aliasedInteriorBody(const AliasedParam
           }
     }
     const T a = sobelAvg + depthPV + depthTPV + model;
-    temporal::storeLanes(p.aliased + std::size_t(y) * w + x, a != a ? one : clamp01v(a));
+    temporal::storeLanes(p.aliased + std::size_t(y) * w + x, a != a ? one : clamp01(a));
   }
   return x;
 }
@@ -526,13 +526,7 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
           continue;
         }
         pixel(std::true_type{}, 0, y);
-        int x = 1;
-#ifdef CRISP_TEMPORAL_HAS_AVX2
-        if (temporal::useAvx2())
-          x = stabiliseInteriorAvx2(sp, raw.data, in.motion, stabilised, y);
-        else
-#endif
-          x = stabiliseInteriorBaseline(sp, raw.data, in.motion, stabilised, y);
+        int x = stabiliseInterior(sp, raw.data, in.motion, stabilised, y);
         for (; x < w - 1; ++x) pixel(std::false_type{}, x, y);
         pixel(std::true_type{}, w - 1, y);
       }

@@ -21,7 +21,6 @@
 #pragma once
 
 #include <algorithm>
-
 #include <string>
 #include <vector>
 

@@ -202,11 +202,12 @@ TEST(TaaImproved, SwitchesChangeOutputAndPathsAgree) {
 }
 
 // The aliasedValue passes' fast path (unclamped interior taps, a lane group of
-// 4 or 8 pixels per step, the staged depth plane) equals the reference path bit for bit: the
-// Sobel and aliasedValue planes and the output, every frame, for each way the
-// inputs can be given (ids, depth as the object mask, no albedo, no depth) and
-// each ingredient alone (together they saturate aliasedValue at edges), on a
-// width whose interior is not a multiple of four, with a NaN and a far depth.
+// 4 or 8 pixels per step, the staged depth plane) equals the reference path
+// bit for bit: the Sobel and aliasedValue planes and the output, every frame,
+// for each way the inputs can be given (ids, depth as the object mask, no
+// albedo, no depth) and each ingredient alone (together they saturate
+// aliasedValue at edges), on a width whose interior is not a multiple of four
+// or eight, with a NaN and a far depth.
 TEST(TaaImproved, AliasedValuePlanesFastEqualsReference) {
   const int w = 45, h = 37;
   synth::Sequence seq = synth::ghostingSequence(w, h, 8.0f, 1.3f, 0.4f);
