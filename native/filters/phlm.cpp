@@ -58,8 +58,8 @@
 //    33.69/0.0029, ghosting 26.13/0.0079 -> 26.51/0.0078; synthetic moving
 //    edge and disks +1.0 to +2.2 dB with less flicker, a slowly moving edge
 //    +0.8 dB with more (0.0015 -> 0.0022).
-//  * Resampling damping (parameter resampleDamping, beta = 0.3; taa's
-//    rule): a moving model is fetched bilinearly every frame, and each fetch
+//  * Resampling damping (parameter resampleDamping, beta = 0.25; taa's
+//    rule): a moving model is fetched every frame, and each bilinear fetch
 //    at a sub-pixel offset averages four models (most at half a pixel, none
 //    at whole pixels); kept for 1/(1 - lm) frames, the blur builds up on
 //    textured surfaces. A moving lane forgets with lm = lambdaMoving (1 -
@@ -72,6 +72,33 @@
 //    30.31/0.00565 -> 30.56/0.00557: the cube passes taa (35.23) and
 //    Blender's SMAA node (34.87); the dolly flickers 9 % more, still less
 //    than taa (0.0173). Test Phlm.ResampleDampingActsOnlyAtSubPixelMotion.
+//    Those figures are with the bilinear model fetch; with the Catmull-Rom
+//    intercepts (below), which blur less, beta = 0.25 (below).
+//  * Model fetch (parameter modelFetch, default catmull-rom; §5.2 and §6
+//    keep the models in textures read bilinearly): a moving lane's
+//    intercepts beta[0][c] are read by Catmull-Rom over the 4x4 around the
+//    bilinear footprint, each clamped to the range of its 4 central taps
+//    (taa's history fetch, temporal/history_fetch.h: no ringing past the
+//    neighbouring models); the slopes and the feature z stay bilinear, P is
+//    the nearest model's. At whole-pixel offsets it reads the nearest model
+//    exactly, as the bilinear fetch does. The intercepts carry the colour;
+//    Catmull-Rom on the slopes as well changed nothing measurable, on z
+//    neither. Measured (docs/temporal_figures.md: crisp eval, 240x136,
+//    frames 9-48 vs 256 samples; PSNR dB / temporal error), bilinear and
+//    beta 0.3 -> Catmull-Rom and beta 0.3 -> Catmull-Rom and beta 0.25:
+//    spinning_cube 35.37/0.002797 -> 35.70/0.002686 -> 35.52/0.002662 (taa
+//    35.23/0.002666), camera_dolly 25.99/0.01727 -> 25.92/0.01719 ->
+//    25.90/0.01690 (taa 25.76/0.01756), ghosting 30.51/0.00530 ->
+//    30.52/0.00530 -> 30.48/0.00531 (taa 29.39/0.00541). Unclamped
+//    Catmull-Rom: spinning_cube 35.72/0.002709. Lower beta or higher
+//    lambdaMoving trade PSNR for temporal error (beta 0, 0.15:
+//    34.18/0.00269, 35.10/0.00266 on spinning_cube; lambdaMoving 0.74:
+//    35.50/0.002661). Test Phlm.CatmullRomInterceptsKeepASubPixelPanSharper.
+//    The fetch reads the intercepts from planes kept beside the records
+//    (written with them, 24 bytes per pixel for the two buffers), where a
+//    tap of 8 pixels is one unaligned load: gathered from the blocked
+//    records it needed a shuffle per tap, and a copy pass over the records
+//    each frame cost about 15 ms at 1920x1080 on 2 threads.
 //  * Reset covariance P0 = diag(p0, ps, ps, ps) = diag(1000, 1, 1, 1), not the
 //    paper's 1000 I: with 1000 on the slopes the fit "explains" per-frame
 //    flicker by the feature's tiny per-frame changes (z is an exponential
@@ -172,7 +199,8 @@
 // | lambda | float | 0.998 | [0.5, 0.99999] | forgetting factor | eqs. 6-7 |
 // | lambdaMoving | float | 0.7 | [0.5, 0.99999] | forgetting factor of moving pixels | this file |
 // | holdPeriod | int | 16 | [0, 127] | a still model with this many samples since its reset stops learning | this file (Hold) |
-// | resampleDamping | float | 0.3 | [0, 0.9] | moving pixels forget with lambdaMoving (1 - beta s) at sub-pixel fraction s | this file |
+// | resampleDamping | float | 0.25 | [0, 0.9] | moving pixels forget with lambdaMoving (1 - beta s) at sub-pixel fraction s | this file |
+// | modelFetch | string | catmull-rom | catmull-rom, bilinear, nearest | how a moving pixel's model is read | §5.2, §6; this file |
 // | initialCovariance | float | 1000 | [1e-3, 1e6] | p0: intercept variance at init/reset, and its bound | §6 |
 // | slopeCovariance | float | 1 | [1e-3, 1e6] | ps: slope variances at init/reset, and their bound | §6 (deviation) |
 // | featureA | float | 0.125 | [0, 10] | a of phi | §5.1 |
@@ -225,7 +253,11 @@ struct Frame {
   // Moving pixels (header "Forgetting"): lambdaMoving (1 - resampleDamping s) per lane.
   T lambdaMoving, resampleDamping, p0Diagonal[kDims];
   bool update;                 // sample weight > 0
-  bool bilinearBeta;           // reproject beta bilinearly (else nearest)
+  bool bilinearBeta;           // reproject beta's slopes bilinearly (else nearest)
+  bool catmullRomIntercepts;   // and its intercepts by clamped Catmull-Rom (else as the slopes; "Model fetch")
+  const T* intercepts;         // with motion: the previous records' intercepts, interceptRow's layout
+  T* interceptsNext;           // with motion: the intercepts of the records written (else null)
+  bool reference;              // the reference path: the Catmull-Rom fetch gathers from the records
   bool footprintBox;           // still pixels use the footprint box (header, "Box")
   std::uint8_t* narrowBox;  // per pixel: 1 = its model keeps the 3x3 box until its reset ("Box"); null: static scene
   std::uint8_t* stillSamples;  // per pixel: samples since its reset or box correction, while still (header, "Hold")
@@ -265,6 +297,7 @@ struct Batch {
   // padded rows (phlm.h paddedPixel).
   std::size_t source[kBatch], tap[4][kBatch];
   float tx[kBatch], ty[kBatch];
+  int footX[kBatch], footY[kBatch];  // the footprint's top-left tap, unclamped (Catmull-Rom's 4x4 around it)
   bool allValid = true;      // every lane reprojected (no reset)
   bool allBilinear = true;   // every lane valid and moving
   bool anyBilinear = false;  // some lane valid and moving
@@ -465,6 +498,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   }
   T speed = T(0);
   batch.tx[lane] = batch.ty[lane] = 0.0f;
+  batch.footX[lane] = batch.footY[lane] = 0;
   if (valid) {
     batch.source[lane] = paddedPixel(f.blocksPerRow, qx, qy);
     if (moving) {
@@ -479,6 +513,8 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
       batch.tap[3][lane] = paddedPixel(f.blocksPerRow, xb, yb);
       batch.tx[lane] = fp.tx;
       batch.ty[lane] = fp.ty;
+      batch.footX[lane] = fp.x0;
+      batch.footY[lane] = fp.y0;
       batch.anyBilinear = true;
     } else {
       batch.allBilinear = false;
@@ -606,6 +642,81 @@ CRISP_PHLM_INLINE void forgetAndRegularise(const Frame<T>& f, const Batch<T>& ba
   }
 }
 
+// The intercepts beta[0][c] of the moving lanes (bilinearLanes) by Catmull-Rom
+// over the 4x4 around the bilinear footprint, clamp to edge, each clamped to
+// the range of its 4 central taps (header, "Model fetch"; the filter and
+// clamp of taa's history fetch, temporal/history_fetch.h). Read from the
+// planes f.intercepts (Kernel::run), where a tap of 8 consecutive pixels is
+// one unaligned load: a whole batch of moving lanes whose footprints are
+// consecutive and interior loads each tap so; otherwise lane by lane (other
+// lanes read 0). The reference path gathers every tap from the records
+// themselves, so comparing the paths checks the planes too. Lane by lane the
+// same operations either way, so the same bits.
+// Row y of intercept c in the planar copy: the three intercepts' rows of a
+// pixel row follow each other (padded rows of blocksPerRow blocks), so the
+// 4x4 footprint's taps lie in one window of memory.
+template <class T>
+CRISP_PHLM_INLINE T* interceptRow(T* intercepts, int blocksPerRow, int c, int y) {
+  return intercepts + (std::size_t(y) * 3 + std::size_t(c)) * std::size_t(blocksPerRow) * kBlock;
+}
+
+template <class T, class V, class M>
+CRISP_PHLM_INLINE void fetchInterceptsCatmullRom(const Frame<T>& f, const Batch<T>& batch, V tx, V ty,
+                                                 M bilinearLanes, V* m) {
+  const int n = batch.count;
+  bool run = !f.reference && n == kBatch && batch.allBilinear;
+  for (int i = 1; i < kBatch && run; ++i)
+    run = batch.footX[i] == batch.footX[0] + i && batch.footY[i] == batch.footY[0];
+  run = run && batch.footX[0] >= 1 && batch.footX[0] + kBatch + 1 < f.width && batch.footY[0] >= 1 &&
+        batch.footY[0] + 2 < f.height;
+  V wx[4], wy[4];
+  temporal::catmullRomWeights(tx, wx);
+  temporal::catmullRomWeights(ty, wy);
+  // Off the run, each lane's 16 taps per plane are gathered first (other
+  // lanes read 0); on it, a tap of the 8 lanes is one unaligned load.
+  alignas(sizeof(V)) T gathered[3][4][4][kBatch];
+  if (!run) {
+    for (int i = 0; i < kBatch; ++i) {
+      const int from = i < n ? i : 0;
+      const bool read = batch.valid[from] != T(0) && batch.moving[from] != T(0);
+      for (int j = 0; j < 4; ++j) {
+        const int y = std::clamp(batch.footY[from] - 1 + j, 0, f.height - 1);
+        for (int k = 0; k < 4; ++k) {
+          const int x = std::clamp(batch.footX[from] - 1 + k, 0, f.width - 1);
+          const T* record = f.previous + recordIndex(f.blocksPerRow, x, y);
+          for (int c = 0; c < 3; ++c) {
+            const T* plane = interceptRow(f.intercepts, f.blocksPerRow, c, y);
+            const T value = f.reference ? record[(kBeta + c) * kBatch] : plane[x];
+            gathered[c][j][k][i] = read ? value : T(0);
+          }
+        }
+      }
+    }
+  }
+  for (int c = 0; c < 3; ++c) {
+    V acc = zeroOf<V>(), lo = zeroOf<V>(), hi = zeroOf<V>();
+    for (int j = 0; j < 4; ++j) {
+      V tap[4];
+      if (run) {
+        const T* first = interceptRow(f.intercepts, f.blocksPerRow, c, batch.footY[0] - 1 + j) + batch.footX[0] - 1;
+        for (int k = 0; k < 4; ++k) tap[k] = loadLanes<V>(first + k);
+      } else {
+        for (int k = 0; k < 4; ++k) tap[k] = loadLanes<V>(gathered[c][j][k]);
+      }
+      const V r = ((tap[0] * wx[0] + tap[1] * wx[1]) + tap[2] * wx[2]) + tap[3] * wx[3];
+      acc = acc + r * wy[j];
+      if (j == 1) {
+        lo = minOf(tap[1], tap[2]);
+        hi = maxOf(tap[1], tap[2]);
+      } else if (j == 2) {
+        lo = minOf(lo, minOf(tap[1], tap[2]));
+        hi = maxOf(hi, maxOf(tap[1], tap[2]));
+      }
+    }
+    m[kBeta + c] = bilinearLanes ? minOf(maxOf(acc, lo), hi) : m[kBeta + c];
+  }
+}
+
 // The rest of step 2 and steps 4-5 for the batch's pixels, eight at once:
 // lane i performs the scalar operations of pixel x0 + i in the scalar order,
 // so every path (and the float64 kernel, lane type double) gives the bits of
@@ -634,6 +745,8 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     batch.held[i] = batch.held[0];
     batch.tx[i] = batch.tx[0];
     batch.ty[i] = batch.ty[0];
+    batch.footX[i] = batch.footX[0];
+    batch.footY[i] = batch.footY[0];
   }
   // Step 3: the model of q = pi(v) (beta, U, D) and the feature history,
   // lane i from recordIndex (the record layout is the batch's: scalar j of
@@ -667,9 +780,12 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     // Moving lanes: the feature (and beta with bilinearBeta: the blended
     // model predicts the bilinear blend of the four models' predictions, §6:
     // models live in textures read with bilinear filtering; P stays the
-    // nearest model's) from the bilinear footprint, clamp to edge.
-    const int planes = f.bilinearBeta ? 15 : 3;  // plane p: z (p < 3), then beta (12, if bilinear)
-    auto planeOf = [](int p) { return p < 3 ? kZ + p : kBeta + p - 3; };
+    // nearest model's) from the bilinear footprint, clamp to edge. With
+    // catmullRomIntercepts the intercepts come from fetchInterceptsCatmullRom
+    // instead (header, "Model fetch").
+    const int firstBeta = f.catmullRomIntercepts ? 3 : 0;  // beta's scalars fetched here: firstBeta .. 11
+    const int planes = f.bilinearBeta ? 15 - firstBeta : 3;  // plane p: z (p < 3), then beta (if bilinear)
+    auto planeOf = [firstBeta](int p) { return p < 3 ? kZ + p : kBeta + firstBeta + p - 3; };
     alignas(sizeof(V)) T fractionX[kBatch], fractionY[kBatch];
     for (int i = 0; i < kBatch; ++i) {
       const int from = i < n ? i : 0;
@@ -700,9 +816,10 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
       const V top = taps[0][p] + (taps[1][p] - taps[0][p]) * tx;
       const V bottom = taps[2][p] + (taps[3][p] - taps[2][p]) * tx;
       const V blended = top + (bottom - top) * ty;
-      V& target = p < 3 ? history[p] : m[kBeta + p - 3];
+      V& target = p < 3 ? history[p] : m[kBeta + firstBeta + p - 3];
       target = bilinearLanes ? blended : target;
     }
+    if (f.catmullRomIntercepts) fetchInterceptsCatmullRom(f, batch, tx, ty, bilinearLanes, m);
   }
   // Step 2 (§5.1, eq. 1): z = history + alpha (low-frequency colour - history),
   // alpha = phi / (l + Delta) in [featureAlphaMin, 1]; z = y after a reset.
@@ -810,6 +927,10 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     T* block = f.next + recordIndex(f.blocksPerRow, batch.x0, batch.y);
     for (int j = 0; j < kZ; ++j) storeLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]));
     for (int c = 0; c < 3; ++c) storeLanes(block + (kZ + c) * kBatch, z[c]);
+    if (f.interceptsNext)
+      for (int c = 0; c < 3; ++c)
+        storeLanes(interceptRow(f.interceptsNext, f.blocksPerRow, c, batch.y) + batch.x0,
+                   V(overflow ? restart[kBeta + c] : m[kBeta + c]));
   }
   const int y = batch.y;
   for (int i = 0; i < n; ++i) {
@@ -888,6 +1009,7 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
     models_[1].clear();
     models_[1].shrink_to_fit();
     narrowBox_.clear();
+    for (auto& planes : intercepts_) planes.clear();
     stillSamples_.assign(pixels, 0);
     depth_[0].clear();
     depth_[1].clear();
@@ -899,10 +1021,13 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
   if (withMotion && !withMotion_) {
     models_[1 - current_] = models_[current_];  // keeps the history
     narrowBox_.assign(pixels, 0);
+    for (auto& planes : intercepts_) planes.assign(3 * std::size_t(blocksPerRow_) * kBlock * std::size_t(height), T(0));
+    interceptsValid_ = false;
   } else if (!withMotion && withMotion_) {
     models_[1 - current_].clear();
     models_[1 - current_].shrink_to_fit();
     narrowBox_ = std::vector<std::uint8_t>();
+    for (auto& planes : intercepts_) planes = std::vector<T>();
   }
   withMotion_ = withMotion;
   if (withDepth && !withDepth_) {
@@ -925,7 +1050,8 @@ void Kernel<T>::reset() {
 
 template <class T>
 std::size_t Kernel<T>::bytesKeptBetweenFrames() const {
-  return (models_[0].size() + models_[1].size()) * sizeof(T) + (depth_[0].size() + depth_[1].size()) * sizeof(float) +
+  return (models_[0].size() + models_[1].size() + intercepts_[0].size() + intercepts_[1].size()) * sizeof(T) +
+         (depth_[0].size() + depth_[1].size()) * sizeof(float) +
          narrowBox_.size() + stillSamples_.size();
 }
 
@@ -1003,7 +1129,30 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.sampleVariance = f.update ? T(1) / T(weight) : T(1);
   f.sampleWeight = f.update ? T(weight) : T(1);
   f.axis = frames_ % kDims;
-  f.bilinearBeta = s.modelFetch == ModelFetch::Bilinear;
+  f.bilinearBeta = s.modelFetch != ModelFetch::Nearest;
+  f.catmullRomIntercepts = s.modelFetch == ModelFetch::CatmullRom;
+  // With motion the intercepts are also kept as planes (interceptRow), written
+  // with the records, which the Catmull-Rom fetch reads with one unaligned
+  // load per tap of 8 pixels. After a frame without motion or a new
+  // allocation they are copied from the records once (a strided pass over
+  // them: about 15 ms at 1920x1080 on 2 threads, which is why they are kept).
+  f.intercepts = moving ? intercepts_[current_].data() : nullptr;
+  f.interceptsNext = moving ? intercepts_[next].data() : nullptr;
+  f.reference = reference;
+  if (moving && f.hasHistory && f.catmullRomIntercepts && !interceptsValid_) {
+    T* planes = intercepts_[current_].data();
+    auto copyRows = [&](int y0, int y1) {
+      for (int y = y0; y < y1; ++y)
+        for (int b = 0; b < blocksPerRow_; ++b) {
+          const T* block = f.previous + recordIndex(blocksPerRow_, b * kBlock, y);
+          for (int c = 0; c < 3; ++c)
+            std::memcpy(interceptRow(planes, blocksPerRow_, c, y) + b * kBlock, block + (kBeta + c) * kBlock,
+                        kBlock * sizeof(T));
+        }
+    };
+    if (reference) copyRows(0, height_);
+    else parallelRows(width_, height_, threads, copyRows);
+  }
   f.footprintBox = s.footprintBox;
   f.narrowBox = moving ? narrowBox_.data() : nullptr;
   f.stillSamples = stillSamples_.data();
@@ -1030,6 +1179,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
     stats_.boxResets += rowStats[2 * y + 1];
   }
   current_ = next;
+  interceptsValid_ = moving;  // with motion every record's intercepts went to the planes too
   previousDepthValid_ = hasDepth;
   ++frames_;
 }
@@ -1056,10 +1206,15 @@ std::vector<ParamSpec> phlmParams() {
       {"lambdaMoving", ParamType::Float, 0.7, 0.5, 0.99999, nullptr,
        "RLS forgetting factor of moving pixels (non-zero velocity): their models are reprojected every frame",
        "this file (Forgetting; seed 002 uses one lambda)"},
-      {"resampleDamping", ParamType::Float, 0.3, 0.0, 0.9, nullptr,
+      {"modelFetch", ParamType::String, 0, 0, 0, "catmull-rom|bilinear|nearest",
+       "how a moving pixel's model is read at its reprojected position: catmull-rom = the intercepts by "
+       "Catmull-Rom clamped to the central 2x2 (as taa's history), the slopes bilinear; bilinear = all of beta "
+       "bilinear (the paper's textures); nearest = the nearest model. P is always the nearest model's",
+       "seed 002 §5.2, §6; this file (Model fetch)"},
+      {"resampleDamping", ParamType::Float, 0.25, 0.0, 0.9, nullptr,
        "beta: a moving pixel forgets with lambdaMoving (1 - beta s), s = max over x and y of 4 t (1 - t) for the "
-       "sub-pixel fraction t of the reprojected position (each bilinear model fetch blurs most at half a pixel); "
-       "0 = off",
+       "sub-pixel fraction t of the reprojected position (each interpolating model fetch blurs most at half a "
+       "pixel); 0 = off",
        "this file (Forgetting; taa's resampleDamping)"},
       {"holdPeriod", ParamType::Int, 16, 0, 127, nullptr,
        "the jitter's period: a still model (nothing in its 5x5 moves) that holds this many samples since its "
@@ -1125,6 +1280,10 @@ class PhlmFilter final : public Filter {
     settings_.lambda = p.getFloat("lambda");
     settings_.lambdaMoving = p.getFloat("lambdaMoving");
     settings_.resampleDamping = p.getFloat("resampleDamping");
+    const std::string fetch = p.getString("modelFetch");
+    settings_.modelFetch = fetch == "bilinear" ? phlm::ModelFetch::Bilinear
+                           : fetch == "nearest" ? phlm::ModelFetch::Nearest
+                                                : phlm::ModelFetch::CatmullRom;
     settings_.holdPeriod = p.getInt("holdPeriod");
     settings_.initialCovariance = p.getFloat("initialCovariance");
     settings_.slopeCovariance = p.getFloat("slopeCovariance");

@@ -13,13 +13,16 @@
 //    motion is given, because a pixel reads the model of another pixel; one
 //    when the scene is static (no motion image: updated in place, no
 //    reprojection work). float: 100 bytes per pixel per buffer.
+//  * with motion: the intercepts beta[0] of both record buffers again, as
+//    three planes of padded rows each (phlm.cpp "Model fetch": the
+//    Catmull-Rom fetch reads them), 24 bytes per pixel in float.
 //  * with depth: two float depth planes (this frame's and the previous one).
 //  * with motion: one byte per pixel, set when the pixel's model moved, saw
 //    motion in its 5x5 or was box-corrected since its reset (it then keeps
 //    the 3x3 box; phlm.cpp "Box").
 //  * one byte per pixel: the samples in the pixel's still model since its
 //    reset or last box correction (phlm.cpp "Hold").
-// So at 1920x1080 (float): 209 MB static, 419 MB with motion, 435 MB with
+// So at 1920x1080 (float): 209 MB static, 469 MB with motion, 485 MB with
 // motion and depth (test Phlm.MemoryKeptBetweenFrames, bench counter kept_MB).
 // Scratch (bytesScratch): the staged, sanitised frame (RGB + tonemapped
 // luminance, float) and two counters per row.
@@ -37,7 +40,10 @@
 namespace crisp::phlm {
 
 enum class JitterWeighting { None, BlackmanHarris };
-enum class ModelFetch { Bilinear, Nearest };  // how beta is reprojected (P, U/D: always nearest)
+// How a moving pixel's beta is reprojected (P, U/D: always nearest; phlm.cpp "Model fetch"):
+// CatmullRom = the intercepts by Catmull-Rom clamped to the central 2x2, the
+// slopes bilinear; Bilinear = all of beta bilinear; Nearest.
+enum class ModelFetch { CatmullRom, Bilinear, Nearest };
 
 // The records are stored in blocks of kBlock pixels of a row, each block the
 // kRecord scalars as planes of kBlock lanes (scalar j of the block's pixel i at
@@ -66,14 +72,14 @@ struct Settings {
   double lambda = 0.998;         // forgetting factor (eqs. 6-7)
   double lambdaMoving = 0.7;     // forgetting factor of moving pixels (phlm.cpp header, "Forgetting")
   int holdPeriod = 16;           // still models with this many samples are held (phlm.cpp, "Hold"); 0: off
-  double resampleDamping = 0.3;  // moving pixels forget with lambdaMoving (1 - beta s) (phlm.cpp, "Forgetting")
+  double resampleDamping = 0.25;  // moving pixels forget with lambdaMoving (1 - beta s) (phlm.cpp, "Forgetting")
   double initialCovariance = 1000.0;  // p0: intercept variance at init/reset (§6) and its bound
   double slopeCovariance = 1.0;       // ps: slope variances at init/reset and their bound (§6 has 1000)
   double featureA = 0.125;       // a of phi (§5.1)
   double featureB = 0.25;        // b of phi (§5.1)
   double featureAlphaMin = 0.05;  // floor of the feature's current-frame weight (this file)
   float depthTolerance = 0.05f;  // relative depth difference still the same surface
-  ModelFetch modelFetch = ModelFetch::Bilinear;
+  ModelFetch modelFetch = ModelFetch::CatmullRom;
   double boxResetCovariance = 1000.0;  // intercept variance after a box correction (P scaled from P0)
   bool footprintBox = true;  // still pixels: correct/clamp against the footprint box (phlm.cpp header)
   temporal::UnjitterMode unjitter = temporal::UnjitterMode::BlackmanHarris;  // phlm.cpp header, "Jitter"
@@ -118,6 +124,16 @@ class Kernel {
     for (int j = 0; j < kRecord; ++j) r[std::size_t(j)] = first[std::size_t(j) * kBlock];
     return r;
   }
+  // With motion: pixel (x, y)'s intercepts in the planes kept beside the
+  // records (phlm.cpp "Model fetch"); they equal record(x, y)[0..2] after
+  // every frame with motion.
+  std::array<T, 3> planarIntercepts(int x, int y) const {
+    const std::size_t row = std::size_t(blocksPerRow_) * kBlock;
+    std::array<T, 3> r;
+    for (int c = 0; c < 3; ++c)
+      r[std::size_t(c)] = intercepts_[current_][(std::size_t(y) * 3 + std::size_t(c)) * row + std::size_t(x)];
+    return r;
+  }
   int width() const { return width_; }
   int height() const { return height_; }
 
@@ -128,6 +144,8 @@ class Kernel {
   std::vector<T> models_[2];
   std::vector<float> depth_[2];
   std::vector<std::uint8_t> stillSamples_;  // per pixel: samples in its still model since its reset or box correction (phlm.cpp "Hold")
+  std::vector<T> intercepts_[2];  // with motion: the records' intercepts as planes, ping-pong (phlm.cpp "Model fetch")
+  bool interceptsValid_ = false;   // intercepts_[current_] holds the current records' intercepts
   std::vector<std::uint8_t> narrowBox_;  // with motion: per pixel, its model keeps the 3x3 box (phlm.cpp "Box")
   std::vector<long> rowStats_;  // 2 per row: reprojection resets, box resets
   int current_ = 0;

@@ -88,6 +88,36 @@ struct TemporalDriver {
   }
 };
 
+// The test chart panned by (vx, vy) pixels per frame (a uniform motion
+// image): frames 0 .. frames - 1.
+inline std::vector<synth::FrameData> pannedChart(int w, int h, int frames, float vx, float vy) {
+  synth::Sequence seq = synth::staticChartSequence(w, h);
+  for (auto& shape : seq.before.shapes) shape.vx = vx, shape.vy = vy;
+  seq.before.backgroundVx = vx;
+  seq.before.backgroundVy = vy;
+  std::vector<synth::FrameData> input;
+  for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, {}));
+  return input;
+}
+
+// `method` over the frames of `input` with motion and depth, its parameters
+// set by `setParams`: the mean PSNR against the references of the frames
+// from warmUp on; each output appended to `outputs` when given.
+template <class SetParams>
+double meanPsnrAfterWarmUp(const char* method, const std::vector<synth::FrameData>& input, int warmUp,
+                           std::vector<Image>* outputs, const SetParams& setParams) {
+  TemporalDriver d(method);
+  setParams(d.filter->params());
+  const int frames = int(input.size());
+  double sum = 0;
+  for (int t = 0; t < frames; ++t) {
+    const Image& out = d.run(input[std::size_t(t)], true, true);
+    if (outputs) outputs->push_back(out);
+    if (t >= warmUp) sum += psnr(input[std::size_t(t)].reference, out) / (frames - warmUp);
+  }
+  return sum;
+}
+
 // The resampling-damping check of taa and phlm (their
 // ResampleDampingActsOnlyAtSubPixelMotion tests): the test chart panned by
 // whole pixels (1, -1) and by half pixels (0.5, 0.5) per frame, filtered
@@ -99,28 +129,13 @@ struct DampingFigures {
   double off = 0, on = 0;
 };
 inline DampingFigures resampleDampingFigures(const char* method, int w, int h, int frames, int warmUp) {
-  auto pan = [&](float vx, float vy) {
-    synth::Sequence seq = synth::staticChartSequence(w, h);
-    for (auto& shape : seq.before.shapes) shape.vx = vx, shape.vy = vy;
-    seq.before.backgroundVx = vx;
-    seq.before.backgroundVy = vy;
-    std::vector<synth::FrameData> input;
-    for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, {}));
-    return input;
-  };
   auto run = [&](const std::vector<synth::FrameData>& input, float damping, std::vector<Image>* outputs) {
-    TemporalDriver d(method);
-    d.filter->params().setFloat("resampleDamping", damping);
-    double sum = 0;
-    for (int t = 0; t < frames; ++t) {
-      const Image& out = d.run(input[std::size_t(t)], true, true);
-      if (outputs) outputs->push_back(out);
-      if (t >= warmUp) sum += psnr(input[std::size_t(t)].reference, out) / (frames - warmUp);
-    }
-    return sum;
+    return meanPsnrAfterWarmUp(method, input, warmUp, outputs,
+                               [&](ParamSet& p) { p.setFloat("resampleDamping", damping); });
   };
   DampingFigures r;
-  const std::vector<synth::FrameData> whole = pan(1.0f, -1.0f), half = pan(0.5f, 0.5f);
+  const std::vector<synth::FrameData> whole = pannedChart(w, h, frames, 1.0f, -1.0f);
+  const std::vector<synth::FrameData> half = pannedChart(w, h, frames, 0.5f, 0.5f);
   std::vector<Image> plain, damped;
   run(whole, 0.0f, &plain);
   run(whole, 0.3f, &damped);

@@ -177,10 +177,11 @@ TEST(Phlm, MovingSequencesBeatOneSampleAfterWarmUp) {
   }
 }
 
-// Resampling damping (phlm.cpp "Forgetting"): the test chart panned by whole
-// pixels gives the same bits with and without it (the bilinear model fetch
-// does not blur); panned by half a pixel, where each fetch averages four
-// models, the damped models keep the chart's thin lines sharper.
+// Resampling damping (phlm.cpp "Forgetting"; 0 against 0.3, the default's
+// neighbour): the test chart panned by whole pixels gives the same bits with
+// and without it (the model fetch reads whole models and does not blur);
+// panned by half a pixel, where each fetch interpolates between models, the
+// damped models keep the chart's thin lines sharper.
 TEST(Phlm, ResampleDampingActsOnlyAtSubPixelMotion) {
   const int frames = 24, warmUp = 8;
   const test::DampingFigures d = test::resampleDampingFigures("phlm", 48, 32, frames, warmUp);
@@ -188,6 +189,31 @@ TEST(Phlm, ResampleDampingActsOnlyAtSubPixelMotion) {
   std::printf("chart panned by (0.5, 0.5) px per frame: phlm mean PSNR frames %d-%d %.2f dB without, %.2f dB with "
               "resampleDamping 0.3\n", warmUp, frames - 1, d.off, d.on);
   EXPECT_GT(d.on, d.off + 0.2);
+}
+
+// Model fetch (phlm.cpp "Model fetch"): on the test chart panned by whole
+// pixels the Catmull-Rom intercepts read the nearest model exactly, as the
+// bilinear fetch does (the same bits); panned by sub-pixel steps, where each
+// bilinear fetch averages four models, they keep the chart sharper.
+TEST(Phlm, CatmullRomInterceptsKeepASubPixelPanSharper) {
+  const int w = 48, h = 32, frames = 24, warmUp = 8;
+  auto run = [&](const std::vector<synth::FrameData>& input, const char* fetch, std::vector<Image>* outputs) {
+    return test::meanPsnrAfterWarmUp("phlm", input, warmUp, outputs,
+                                     [&](ParamSet& p) { p.setString("modelFetch", fetch); });
+  };
+  std::vector<Image> bilinear, catmullRom;
+  const std::vector<synth::FrameData> whole = test::pannedChart(w, h, frames, 1.0f, -1.0f);
+  run(whole, "bilinear", &bilinear);
+  run(whole, "catmull-rom", &catmullRom);
+  for (int t = 0; t < frames; ++t)
+    EXPECT_TRUE(bilinear[std::size_t(t)].data == catmullRom[std::size_t(t)].data) << "whole-pixel pan, frame " << t;
+  for (const auto& [vx, vy] : {std::pair{0.5f, 0.5f}, std::pair{0.3f, -0.7f}}) {
+    const std::vector<synth::FrameData> pan = test::pannedChart(w, h, frames, vx, vy);
+    const double off = run(pan, "bilinear", nullptr), on = run(pan, "catmull-rom", nullptr);
+    std::printf("chart panned by (%.1f, %.1f) px per frame: phlm mean PSNR frames %d-%d %.2f dB bilinear, %.2f dB "
+                "Catmull-Rom intercepts\n", vx, vy, warmUp, frames - 1, off, on);
+    EXPECT_GT(on, off + 0.2) << vx << ", " << vy;
+  }
 }
 
 // Hold (phlm.cpp "Hold"): on the still chart under the 16-point jitter, a
@@ -254,28 +280,36 @@ TEST(Phlm, CameraCutLeavesNoGhost) {
 // the moving sphere over the still background puts moving and still pixels
 // in one batch.
 TEST(Phlm, ReferencePathEqualsFastPath) {
-  const int w = 61, h = 48;
-  const synth::Sequence seq = synth::ghostingSequence(w, h, 9.0f, 1.3f, 0.4f);
-  for (int run = 0; run < 4; ++run) {
-    const int mode = run % 2;  // 0: motion + depth, 1: static (in place)
-    const test::FastPathIsa isa(test::kFastPathIsas[run / 2]);
+  const int w = 61, h = 48, frames = 12;
+  const synth::Sequence ghosting = synth::ghostingSequence(w, h, 9.0f, 1.3f, 0.4f);
+  // The test chart panned by a sub-pixel step: whole batches of moving lanes
+  // whose Catmull-Rom footprints are consecutive and interior (loaded from the
+  // intercept planes as vectors; the reference gathers from the records).
+  const std::vector<synth::FrameData> pan = test::pannedChart(w, h, frames, 0.37f, -0.21f);
+  for (int run = 0; run < 8; ++run) {
+    // 0: ghosting, motion + depth; 1: static (in place); 2: the pan; 3: the pan
+    // with frames 4-5 given no motion (the planes go stale and are copied at
+    // frame 6) and frame 8 fetched bilinearly (the planes are written anyway).
+    const int mode = run % 4;
+    const test::FastPathIsa isa(test::kFastPathIsas[run / 4]);
     phlm::Kernel<float> fast, reference;
-    fast.allocate(w, h, mode == 0, mode == 0);
-    reference.allocate(w, h, mode == 0, mode == 0);
+    fast.allocate(w, h, mode != 1, mode != 1);
+    reference.allocate(w, h, mode != 1, mode != 1);
     Image outFast(w, h, 4), outReference(w, h, 4);
     phlm::Settings s;
     s.holdPeriod = 4;  // held and learning lanes in one batch (phlm.cpp "Hold")
-    for (int t = 0; t < 12; ++t) {
-      const synth::FrameData f = synth::renderFrame(seq, w, h, t, {});
+    for (int t = 0; t < frames; ++t) {
+      const synth::FrameData f = mode >= 2 ? pan[std::size_t(t)] : synth::renderFrame(ghosting, w, h, t, {});
       // Jitter offsets whose unjitter shifts the taps by a whole pixel on
       // some frames (temporal::unjitterFor: shift = round(jitter)), so the
       // shifted, clamped taps are compared too.
       const float jitter[4][2] = {{0.2f, -0.3f}, {0.7f, 0.1f}, {-0.4f, -0.8f}, {-0.6f, 0.55f}};
       s.jitterX = jitter[t % 4][0];
       s.jitterY = jitter[t % 4][1];
+      s.modelFetch = mode == 3 && t == 8 ? phlm::ModelFetch::Bilinear : phlm::ModelFetch::CatmullRom;
       phlm::Inputs in;
       in.color = f.color.view();
-      if (mode == 0) {
+      if (mode != 1 && !(mode == 3 && (t == 4 || t == 5))) {
         in.motion = f.motion.view();
         in.depth = f.depth.view();
       }
@@ -295,21 +329,66 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
   }
 }
 
+// The intercept planes beside the records (phlm.cpp "Model fetch") hold the
+// records' intercepts after every frame with motion (written with the
+// records), and the first moving frame after still ones (the state
+// re-allocated with motion) reads them copied from the records.
+TEST(Phlm, InterceptPlanesFollowTheRecords) {
+  const int w = 37, h = 21, frames = 12;
+  const std::vector<synth::FrameData> pan = test::pannedChart(w, h, frames, 0.4f, -0.3f);
+  phlm::Kernel<float> k;
+  k.allocate(w, h, false, false);
+  Image out(w, h, 4);
+  phlm::Settings s;
+  for (int t = 0; t < frames; ++t) {
+    const bool moving = t >= 3;
+    if (t == 3) k.allocate(w, h, true, true);
+    if (t == 8) k.reset();
+    phlm::Inputs in;
+    in.color = pan[std::size_t(t)].color.view();
+    if (moving) {
+      in.motion = pan[std::size_t(t)].motion.view();
+      in.depth = pan[std::size_t(t)].depth.view();
+    }
+    in.output = out.view();
+    s.jitterX = pan[std::size_t(t)].jitter.x;
+    s.jitterY = pan[std::size_t(t)].jitter.y;
+    k.run(in, s, false, 2);
+    // The first moving frame read planes copied from the records: had it read
+    // stale planes (zeros), every prediction would leave its box (measured:
+    // 777 of 777 pixels, against 140 with the copy and 144 a frame later).
+    if (t == 3) {
+      EXPECT_LT(k.lastStats().boxResets, w * h / 2);
+    }
+    if (!moving) continue;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const std::array<float, phlm::kRecord> r = k.record(x, y);
+        const std::array<float, 3> p = k.planarIntercepts(x, y);
+        for (int c = 0; c < 3; ++c)
+          ASSERT_EQ(r[std::size_t(phlm::kBeta + c)], p[std::size_t(c)])
+              << "frame " << t << " (" << x << "," << y << ")";
+      }
+  }
+}
+
 // Memory kept between frames: one 100-byte record and the hold's byte per
-// pixel when static, two records and the narrow-box byte more with motion,
-// plus two depth planes with depth;
-// nothing allocated by run().
-// Record rows are padded to whole blocks of 8 pixels (phlm.h recordIndex).
+// pixel when static; with motion two records, their intercepts as planes
+// (2 x 12 bytes, phlm.cpp "Model fetch") and the narrow-box byte more; plus
+// two depth planes with depth; nothing allocated by run().
+// Record and intercept rows are padded to whole blocks of 8 pixels (phlm.h recordIndex).
 TEST(Phlm, MemoryKeptBetweenFrames) {
   phlm::Kernel<float> k;
   k.allocate(96, 10, false, false);
   EXPECT_EQ(k.bytesKeptBetweenFrames(), 960u * (100u + 1u));
   k.allocate(96, 10, true, true);
-  EXPECT_EQ(k.bytesKeptBetweenFrames(), 960u * (200u + 1u + 1u + 8u));
+  EXPECT_EQ(k.bytesKeptBetweenFrames(), 960u * (200u + 24u + 1u + 1u + 8u));
   k.allocate(100, 10, true, true);  // 100 = 12.5 blocks: records of 104 pixels per row, depth of 100
-  EXPECT_EQ(k.bytesKeptBetweenFrames(), 1040u * 200u + 1000u * (1u + 1u + 8u));
+  EXPECT_EQ(k.bytesKeptBetweenFrames(), 1040u * (200u + 24u) + 1000u * (1u + 1u + 8u));
+  k.allocate(100, 10, false, false);  // motion dropped: its buffers freed
+  EXPECT_EQ(k.bytesKeptBetweenFrames(), 1040u * 100u + 1000u * 1u);
   std::printf("phlm float32 state: %zu bytes/pixel static, %zu with motion and depth\n", std::size_t(101),
-              std::size_t(210));
+              std::size_t(234));
 }
 
 // The filter: registered, parameter table documented, bad input named,
