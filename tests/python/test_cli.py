@@ -6,6 +6,7 @@ partial output under a final name (nor touch existing files)."""
 import json
 import os
 import pathlib
+import shutil
 import subprocess
 
 import pytest
@@ -117,6 +118,22 @@ def test_mismatched_sizes_are_named(chart, tmp_path):
     p = run("compare", "--reference", chart / "chart_reference.exr", "--test", small / "chart_1spp.exr", ok=False)
     assert p.returncode == 1
     assert "97x61" in p.stderr and "31x17" in p.stderr and "chart_1spp.exr" in p.stderr
+
+
+def test_size_change_mid_sequence_is_reported(chart, tmp_path):
+    small = tmp_path / "small"
+    run("synth", "-o", small, "--size", "31x17")
+    a, b = tmp_path / "a.exr", tmp_path / "b.exr"
+    shutil.copy(chart / "chart_1spp.exr", a)
+    shutil.copy(small / "chart_1spp.exr", b)
+    out = tmp_path / "out"
+    p = run("filter", "-q", "--method", "taa", a, b, "-o", out)  # a cut: carries on
+    assert "warning" in p.stderr and "b.exr" in p.stderr and "31x17" in p.stderr and "97x61" in p.stderr
+    assert (out / "a.exr").is_file() and (out / "b.exr").is_file()
+    a2 = tmp_path / "a2.exr"
+    shutil.copy(a, a2)
+    p = run("filter", "-q", "--method", "taa", a, a2, "-o", tmp_path / "same")
+    assert "warning" not in p.stderr
 
 
 def test_existing_output_survives_a_failed_run(chart, tmp_path):
