@@ -482,7 +482,9 @@ TEST(Taa, HoldStopsAStillImageChangingAndReleasesOnAChange) {
                 w, h, opt.period, int(staticClip), opt.period, changedAfterPeriod[0], changedAfterPeriod[1], frames,
                 finalPsnr[0], finalPsnr[1]);
     EXPECT_GT(changedAfterPeriod[0], long(3 * w * h));  // averaging more keeps moving the output
-    if (!staticClip) EXPECT_EQ(changedAfterPeriod[1], 0);  // every history is pure
+    if (!staticClip) {
+      EXPECT_EQ(changedAfterPeriod[1], 0);  // every history is pure
+    }
     // With the static clip some edge pixels fall back to the feedback blend
     // now and then; those keep averaging.
     EXPECT_LT(changedAfterPeriod[1], changedAfterPeriod[0] / 4);
@@ -497,7 +499,9 @@ TEST(Taa, HoldStopsAStillImageChangingAndReleasesOnAChange) {
     o.reference = t < cut ? synth::ReferenceKind::None : synth::ReferenceKind::Box;
     const synth::FrameData f = synth::renderFrame(cutSeq, w, h, t, o);
     const Image& out = d.run(f, true, true);
-    if (t >= cut) EXPECT_GE(psnr(f.reference, out), psnr(f.reference, f.color) - 0.5) << "frame " << t;
+    if (t >= cut) {
+      EXPECT_GE(psnr(f.reference, out), psnr(f.reference, f.color) - 0.5) << "frame " << t;
+    }
   }
 }
 
