@@ -125,12 +125,15 @@ int runFilter(const ParsedArgs& args) {
     Frame frame = readFrame(in);
     if (rebuildMotion) addReconstructedMotion(frame, args.positional, i, context.numThreads());
     bindFrame(*filter, frame);
-    // A size change part-way is legitimate (a cut to another camera) but more
-    // often mixed-up folders: carry on, and say so.
-    if (output.width != 0 && (output.width != frame.width || output.height != frame.height))
-      std::fprintf(stderr, "filter: warning: '%s' is %dx%d, the frames before it %dx%d: %s starts over at the new size\n",
-                   in.c_str(), frame.width, frame.height, output.width, output.height, filter->type());
-    if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
+    if (output.width != frame.width || output.height != frame.height) {
+      // A size change part-way is legitimate (a cut to another camera) but
+      // more often mixed-up folders: carry on, and say so.
+      if (output.width != 0)
+        std::fprintf(stderr,
+                     "filter: warning: '%s' is %dx%d, the frames before it %dx%d: %s starts over at the new size\n",
+                     in.c_str(), frame.width, frame.height, output.width, output.height, filter->type());
+      output = Image(frame.width, frame.height, 4);
+    }
     filter->setImage("output", output.view());
     try {
       if (!filter->committed()) filter->commit();

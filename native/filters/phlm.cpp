@@ -652,14 +652,6 @@ CRISP_PHLM_INLINE void forgetAndRegularise(const Frame<T>& f, const Batch<T>& ba
 // lanes read 0). The reference path gathers every tap from the records
 // themselves, so comparing the paths checks the planes too. Lane by lane the
 // same operations either way, so the same bits.
-// Row y of intercept c in the planar copy: the three intercepts' rows of a
-// pixel row follow each other (padded rows of blocksPerRow blocks), so the
-// 4x4 footprint's taps lie in one window of memory.
-template <class T>
-CRISP_PHLM_INLINE T* interceptRow(T* intercepts, int blocksPerRow, int c, int y) {
-  return intercepts + (std::size_t(y) * 3 + std::size_t(c)) * std::size_t(blocksPerRow) * kBlock;
-}
-
 template <class T, class V, class M>
 CRISP_PHLM_INLINE void fetchInterceptsCatmullRom(const Frame<T>& f, const Batch<T>& batch, V tx, V ty,
                                                  M bilinearLanes, V* m) {
@@ -703,17 +695,9 @@ CRISP_PHLM_INLINE void fetchInterceptsCatmullRom(const Frame<T>& f, const Batch<
       } else {
         for (int k = 0; k < 4; ++k) tap[k] = loadLanes<V>(gathered[c][j][k]);
       }
-      const V r = ((tap[0] * wx[0] + tap[1] * wx[1]) + tap[2] * wx[2]) + tap[3] * wx[3];
-      acc = acc + r * wy[j];
-      if (j == 1) {
-        lo = minOf(tap[1], tap[2]);
-        hi = maxOf(tap[1], tap[2]);
-      } else if (j == 2) {
-        lo = minOf(lo, minOf(tap[1], tap[2]));
-        hi = maxOf(hi, maxOf(tap[1], tap[2]));
-      }
+      temporal::addCatmullRomRow(tap, wx, wy[j], j, acc, lo, hi);
     }
-    m[kBeta + c] = bilinearLanes ? minOf(maxOf(acc, lo), hi) : m[kBeta + c];
+    m[kBeta + c] = bilinearLanes ? temporal::catmullRomClamped(acc, lo, hi) : m[kBeta + c];
   }
 }
 

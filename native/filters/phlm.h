@@ -64,6 +64,15 @@ inline std::size_t recordIndex(int blocksPerRow, int x, int y) {
   return recordIndexOf(paddedPixel(blocksPerRow, x, y));
 }
 
+// Row y of intercept c (0-2) in the intercept planes kept with motion
+// (phlm.cpp "Model fetch"): the three intercepts' rows of a pixel row follow
+// each other (padded rows of blocksPerRow blocks), so a 4x4 footprint's taps
+// lie in one window of memory.
+template <class T>
+inline T* interceptRow(T* intercepts, int blocksPerRow, int c, int y) {
+  return intercepts + (std::size_t(y) * 3 + std::size_t(c)) * std::size_t(blocksPerRow) * kBlock;
+}
+
 struct Settings {
   float jitterX = 0.0f;  // this frame's sample offset, pixels, x right
   float jitterY = 0.0f;  // pixels, y DOWN (library convention)
@@ -128,10 +137,9 @@ class Kernel {
   // records (phlm.cpp "Model fetch"); they equal record(x, y)[0..2] after
   // every frame with motion.
   std::array<T, 3> planarIntercepts(int x, int y) const {
-    const std::size_t row = std::size_t(blocksPerRow_) * kBlock;
     std::array<T, 3> r;
     for (int c = 0; c < 3; ++c)
-      r[std::size_t(c)] = intercepts_[current_][(std::size_t(y) * 3 + std::size_t(c)) * row + std::size_t(x)];
+      r[std::size_t(c)] = interceptRow(intercepts_[current_].data(), blocksPerRow_, c, y)[x];
     return r;
   }
   int width() const { return width_; }

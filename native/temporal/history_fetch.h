@@ -119,6 +119,29 @@ CRISP_LANES_INLINE void catmullRomWeights(T t, T w[4]) {
   w[3] = t * t * (-0.5f + 0.5f * t);
 }
 
+// Row j (0-3) of a 4x4 Catmull-Rom footprint on lanes T (lanes.h, or any
+// vector type minOf / maxOf take): adds the row's taps weighted by wx, times
+// wy, to acc; rows 1 and 2 set lo / hi, the range of the central 2x2 the
+// result is clamped to (catmullRomClamped). The order of operations is the
+// fetches' (fetchCatmullRomAt4 spells the same steps on Vec4 with scalar
+// weights).
+template <class T>
+CRISP_LANES_INLINE void addCatmullRomRow(const T tap[4], const T wx[4], T wy, int j, T& acc, T& lo, T& hi) {
+  const T r = ((tap[0] * wx[0] + tap[1] * wx[1]) + tap[2] * wx[2]) + tap[3] * wx[3];
+  acc = acc + r * wy;
+  if (j == 1) {
+    lo = minOf(tap[1], tap[2]);
+    hi = maxOf(tap[1], tap[2]);
+  } else if (j == 2) {
+    lo = minOf(lo, minOf(tap[1], tap[2]));
+    hi = maxOf(hi, maxOf(tap[1], tap[2]));
+  }
+}
+template <class T>
+CRISP_LANES_INLINE T catmullRomClamped(T acc, T lo, T hi) {
+  return minOf(maxOf(acc, lo), hi);
+}
+
 // True when the 4x4 Catmull-Rom footprint at f lies inside the image, so
 // clamp-to-edge addressing changes no tap.
 inline bool footprintInterior4x4(const Footprint& f, int width, int height) {
@@ -179,19 +202,11 @@ CRISP_LANES_INLINE void fetchCatmullRomRow(const HistoryPlanes& h, int x0, int y
     const std::size_t row = h.index(x0 - 1, y0 - 1 + j);
     for (int c = 0; c < 3; ++c) {
       const float* p = h.plane[c] + row;
-      const T t0 = loadLanes<T>(p), t1 = loadLanes<T>(p + 1), t2 = loadLanes<T>(p + 2), t3 = loadLanes<T>(p + 3);
-      const T r = ((t0 * wx[0] + t1 * wx[1]) + t2 * wx[2]) + t3 * wx[3];
-      acc[c] = acc[c] + r * wy[j];
-      if (j == 1) {
-        lo[c] = minOf(t1, t2);
-        hi[c] = maxOf(t1, t2);
-      } else if (j == 2) {
-        lo[c] = minOf(lo[c], minOf(t1, t2));
-        hi[c] = maxOf(hi[c], maxOf(t1, t2));
-      }
+      const T tap[4] = {loadLanes<T>(p), loadLanes<T>(p + 1), loadLanes<T>(p + 2), loadLanes<T>(p + 3)};
+      addCatmullRomRow(tap, wx, wy[j], j, acc[c], lo[c], hi[c]);
     }
   }
-  for (int c = 0; c < 3; ++c) out[c] = minOf(maxOf(acc[c], lo[c]), hi[c]);
+  for (int c = 0; c < 3; ++c) out[c] = catmullRomClamped(acc[c], lo[c], hi[c]);
   // The carried channel: the nearest of the 4 central taps.
   const float* upper = h.plane[3] + h.index(x0, y0);
   const float* lower = h.plane[3] + h.index(x0, y0 + 1);
