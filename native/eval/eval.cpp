@@ -13,6 +13,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -21,6 +22,7 @@
 #include <set>
 #include <sstream>
 #include <thread>
+#include <vector>
 
 #include "cli/commands.h"
 #include "cli/progress.h"
@@ -124,11 +126,49 @@ void addMotion(Frame& frame, const fs::path& inputDir, int f, int firstFrame, bo
   if (fs::exists(prev)) reconstructFrameMotion(frame, prev.string(), "", threads);
 }
 
+// The build that computes the methods' frames: the library version and a hash
+// (FNV-1a, 64 bits) of the running executable, which holds libcrisp (the CLI
+// links it statically). A method folder made by another build is computed
+// again, so a figure never comes from frames an older filter left behind.
+const std::string& buildStamp() {
+  static const std::string stamp = [] {
+    std::string s = "crisp " + std::to_string(CRISP_VERSION_MAJOR) + "." + std::to_string(CRISP_VERSION_MINOR) + "." +
+                    std::to_string(CRISP_VERSION_PATCH);
+    std::ifstream exe("/proc/self/exe", std::ios::binary);
+    if (!exe) return s + " (executable unreadable)";
+    std::uint64_t hash = 0xcbf29ce484222325ull;
+    std::vector<char> chunk(1 << 20);
+    while (exe.read(chunk.data(), std::streamsize(chunk.size())) || exe.gcount() > 0) {
+      for (std::streamsize i = 0; i < exe.gcount(); ++i) {
+        hash ^= static_cast<unsigned char>(chunk[std::size_t(i)]);
+        hash *= 0x100000001b3ull;
+      }
+    }
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash));
+    return s + " executable fnv1a64:" + hex;
+  }();
+  return stamp;
+}
+
 void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const fs::path& inputDir, bool sceneMoves,
                cli::Progress& progress) {
   const fs::path dir = fs::path(o.outDir) / "methods" / e.name;
   cli::makeDirectories(dir.string());
   json times = readJson(dir / "times.json", false);
+  const fs::path stampFile = dir / "build.txt";
+  std::string stamp;
+  if (std::ifstream in(stampFile); in) std::getline(in, stamp);
+  if (stamp != buildStamp()) {
+    // Frames of another build (or of a folder from before the stamp): none counts as done. The
+    // emptied times go first, so an interrupted run never pairs old frames with the new stamp.
+    if (!times.empty() && !o.quiet)
+      std::fprintf(stderr, "crisp eval: methods/%s was made by another crisp build; computing it again\n",
+                   e.name.c_str());
+    times = json::object();
+    writeJson(dir / "times.json", times);
+    cli::writeTextFile(stampFile.string(), buildStamp() + "\n");
+  }
   auto done = [&](int f) { return times.contains(frameKey(f)) && fs::exists(dir / frameName(f)); };
   bool allDone = std::all_of(frames.begin(), frames.end(), done);
   // A temporal method's frame depends on the history of all earlier ones: a partial run starts over.

@@ -4,7 +4,8 @@ real Blender, then:
   * results.json has every method, blender-smaa and the EEVEE curve, in the issue's shape;
   * each PSNR in it is recomputed here with numpy from the EXRs it points to (read through libcrisp's
     C API with ctypes), display-encoded as metrics.h says;
-  * a second run resumes: nothing is re-rendered and the figures stay the same;
+  * a second run resumes: nothing is re-rendered and the figures stay the same; a method whose frames
+    another build made is computed again;
   * report.html opens in headless Chromium with its self-check "OK" in the title, no console error,
     and a screenshot that is not blank.
 Needs Blender, the built CLI and library (CRISP_BUILD_DIR) and Debian's chromium."""
@@ -106,6 +107,27 @@ def test_resume_redoes_nothing(run):
     second = json.load(open(os.path.join(out, "results.json")))["scenes"][0]
     for a, b in zip(first["methods"], second["methods"]):
         assert a["name"] == b["name"] and a["mean"]["psnr"] == b["mean"]["psnr"]
+
+
+def test_frames_of_another_build_are_computed_again(run):
+    """A method folder records the build that made its frames (methods/<name>/build.txt); frames of
+    another build are computed again, the others are kept."""
+    out, _, _ = run
+    taa, none = (os.path.join(out, "methods", m) for m in ("taa", "none"))
+    stamp = open(os.path.join(taa, "build.txt")).read()
+    assert stamp.startswith("crisp ") and "fnv1a64:" in stamp
+    frames = [os.path.join(d, "frame_0003.exr") for d in (taa, none)]
+    before = [os.stat(f).st_mtime_ns for f in frames]
+    with open(os.path.join(taa, "build.txt"), "w") as f:
+        f.write("crisp 0.0.0 executable fnv1a64:0000000000000000\n")
+    p = subprocess.run([CRISP, "eval"] + ARGS + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                       timeout=300)
+    assert p.returncode == 0, p.stderr.decode()[-2000:]
+    err = p.stderr.decode()
+    assert "methods/taa was made by another crisp build" in err and "methods/none was made" not in err
+    after = [os.stat(f).st_mtime_ns for f in frames]
+    assert after[0] > before[0] and after[1] == before[1]
+    assert open(os.path.join(taa, "build.txt")).read() == stamp
 
 
 def test_settings_of_another_run_are_refused(run):
