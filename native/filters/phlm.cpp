@@ -951,7 +951,7 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
   }
   const int sx = f.unjitter.shiftX;
   const temporal::UnclampedRun run = temporal::unclampedRun(w, sx);
-  auto stageTaps = [&](int y) {
+  auto stageTaps = [&](int y) __attribute__((always_inline)) {  // inlined: compiled for each copy's ISA
     float* rows[3];
     for (int k = 0; k < 3; ++k) {
       const float* src = f.depth + std::size_t(temporal::shiftedSource(y + k - 1, h, f.unjitter.shiftY)) * w;
