@@ -398,8 +398,6 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
 #pragma GCC unroll 9
     for (int i = 0; i < 9; ++i) depth9[i] = f.depth[std::size_t(tapY[i / 3]) * w + tapX[i % 3]];
   }
-  T lo[3] = {T(boxLo[0]), T(boxLo[1]), T(boxLo[2])};
-  T hi[3] = {T(boxHi[0]), T(boxHi[1]), T(boxHi[2])};
   const T sum[3] = {T(boxSum[0]), T(boxSum[1]), T(boxSum[2])};
   const T yMin = T(boxLo[3]), yMax = T(boxHi[3]);
 
@@ -435,13 +433,20 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   if (valid && f.previousDepth) {
     // Disocclusion: the followed surface must be in the previous frame's 3x3
     // around q (a jittered edge pixel's own sample may be of either surface).
+    // An interior q reads its 3x3 directly (the same taps as clamping each).
     const float d = tapDepth;
     bool match = false;
-    for (int j = -1; j <= 1 && !match; ++j)
-      for (int k = -1; k <= 1 && !match; ++k) {
-        const int sx = std::clamp(qx + k, 0, w - 1), sy = std::clamp(qy + j, 0, h - 1);
-        match = temporal::sameSurfaceDepth(d, f.previousDepth[std::size_t(sy) * w + sx], f.depthTolerance);
-      }
+    if (qx >= 1 && qx + 1 < w && qy >= 1 && qy + 1 < h) {
+      const float* around = f.previousDepth + std::size_t(qy - 1) * w + (qx - 1);
+      for (int i = 0; i < 9 && !match; ++i)
+        match = temporal::sameSurfaceDepth(d, around[std::size_t(i / 3) * w + i % 3], f.depthTolerance);
+    } else {
+      for (int j = -1; j <= 1 && !match; ++j)
+        for (int k = -1; k <= 1 && !match; ++k) {
+          const int sx = std::clamp(qx + k, 0, w - 1), sy = std::clamp(qy + j, 0, h - 1);
+          match = temporal::sameSurfaceDepth(d, f.previousDepth[std::size_t(sy) * w + sx], f.depthTolerance);
+        }
+    }
     valid = match;
   }
 
@@ -469,22 +474,19 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     held = calm && f.holdPeriod > 0 && count >= f.holdPeriod;
     count = !valid ? 1 : (!calm ? 0 : (held || count == 255 ? count : std::uint8_t(count + 1)));
   }
+  Vec4 lo4 = boxLo, hi4 = boxHi;  // lanes 0-2 are used
   if (f.footprintBox && !narrow && stillAround) {
     // The box of the correction and of the output clamp: the footprint box
     // (header, "Box"), the 3x3 box united with the 5x5's second extremes.
     const temporal::MinMax4 foot = temporal::footprintBox({boxLo, boxHi}, footprintExtremes(f, x, y));
-    for (int c = 0; c < 3; ++c) {
-      lo[c] = T(foot.min[c]);
-      hi[c] = T(foot.max[c]);
-    }
+    lo4 = foot.min;
+    hi4 = foot.max;
   }
   // The correction needs y inside the box (lines 13-17): the weighted mix can
   // pass a face by rounding. Without unjitter y is a tap and this changes
-  // nothing.
-  for (int c = 0; c < 3; ++c) {
-    lo[c] = std::min(lo[c], current[c]);
-    hi[c] = std::max(hi[c], current[c]);
-  }
+  // nothing. (vmin/vmax are std::min/max lane by lane, and T(float) is exact.)
+  lo4 = temporal::vmin(lo4, sample);
+  hi4 = temporal::vmax(hi4, sample);
 
   // Step 3 (the model of q) and the fetch of step 2 run in finishBatch, on
   // the batch's lanes: here only where to read.
@@ -528,8 +530,8 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   for (int c = 0; c < 3; ++c) {
     batch.sum[c][lane] = sum[c];
     batch.current[c][lane] = current[c];
-    batch.lo[c][lane] = lo[c];
-    batch.hi[c][lane] = hi[c];
+    batch.lo[c][lane] = T(lo4[c]);
+    batch.hi[c][lane] = T(hi4[c]);
   }
   batch.yMin[lane] = yMin;
   batch.yMax[lane] = yMax;
@@ -572,8 +574,8 @@ CRISP_PHLM_INLINE V loadRun(const T* records, std::size_t first, int j) {
 #if defined(__GNUC__) && !defined(__clang__)
   using M = typename LanesOf<T>::M;
   M lanes;
-  for (int i = 0; i < kBatch; ++i) lanes[i] = shift + i;
-  return __builtin_shuffle(a, b, lanes);
+  for (int i = 0; i < kBatch; ++i) lanes[i] = i;  // a constant, plus one broadcast
+  return __builtin_shuffle(a, b, lanes + shift);
 #else
   // Clang (the fuzzing build) has no run-time-mask shuffle: the same values through memory.
   T both[2 * kBatch];
@@ -916,15 +918,25 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
         storeLanes(interceptRow(f.interceptsNext, f.blocksPerRow, c, batch.y) + batch.x0,
                    V(overflow ? restart[kBeta + c] : m[kBeta + c]));
   }
+  // sanitizeColor on all lanes at once (as core/row_stage.h sanitizeColorSelects: the same values), then
+  // pixel by pixel.
   const int y = batch.y;
+  using F = typename LanesOf<float>::V;
+  F rgb[3];
+  for (int c = 0; c < 3; ++c) {
+    F v = __builtin_convertvector(out[c], F);
+    v = v == v ? v : F{};
+    v = v < -kMaxColor ? F{} - kMaxColor : v;
+    rgb[c] = kMaxColor < v ? F{} + kMaxColor : v;
+  }
+  const bool alphaOut = f.output.channels() > 3, alphaIn = f.color.channels() > 3;
   for (int i = 0; i < n; ++i) {
     const int x = batch.x0 + i;
-    const T outLane[3] = {out[0][i], out[1][i], out[2][i]};
     float* o = f.output.pixel(x, y);
-    o[0] = sanitizeColor(float(outLane[0]));
-    o[1] = sanitizeColor(float(outLane[1]));
-    o[2] = sanitizeColor(float(outLane[2]));
-    if (f.output.channels() > 3) o[3] = f.color.channels() > 3 ? sanitizeColor(f.color.pixel(x, y)[3]) : 1.0f;
+    o[0] = rgb[0][i];
+    o[1] = rgb[1][i];
+    o[2] = rgb[2][i];
+    if (alphaOut) o[3] = alphaIn ? sanitizeColor(f.color.pixel(x, y)[3]) : 1.0f;
   }
   batch.count = 0;
 }
@@ -1062,10 +1074,12 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   auto stageRows = [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       stageColorRow(in.color, y, staged_.at(0, y));  // sanitised RGB (core/row_stage.h); lane 3 replaced below
-      for (int x = 0; x < width_; ++x) {
-        float* d = staged_.at(x, y);
-        // The luminance range of §5.1 (Delta, l) on tonemapped YCgCo luminance.
-        const float luma = 0.25f * std::max(d[0], 0.0f) + 0.5f * std::max(d[1], 0.0f) + 0.25f * std::max(d[2], 0.0f);
+      float* d = staged_.at(0, y);
+      for (int x = 0; x < width_; ++x, d += 4) {
+        // The luminance range of §5.1 (Delta, l) on tonemapped YCgCo luminance. std::max(v, 0) as
+        // selects, which the compiler vectorises (std::max left a branch per channel).
+        const float r = d[0] < 0.0f ? 0.0f : d[0], g = d[1] < 0.0f ? 0.0f : d[1], b = d[2] < 0.0f ? 0.0f : d[2];
+        const float luma = 0.25f * r + 0.5f * g + 0.25f * b;
         d[3] = luma / (1.0f + luma);
       }
       if (hasDepth) stageDepthRow(in.depth, y, depthNow + std::size_t(y) * width_);
