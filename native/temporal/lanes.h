@@ -179,18 +179,37 @@ CRISP_LANES_INLINE M notOf(M m) {
   return ~m;
 }
 CRISP_LANES_INLINE bool anyOf(bool m) { return m; }
+// Halves folded by shuffles (no lane-by-lane extraction; the same answer).
 template <class M, IfMask<M> = 0>
 CRISP_LANES_INLINE bool anyOf(M m) {
-  int any = 0;
-  for (int i = 0; i < int(sizeof(M) / sizeof(int)); ++i) any |= m[i];
-  return any != 0;
+  if constexpr (sizeof(M) == 8 * sizeof(int)) {
+    const auto q = __builtin_shufflevector(m, m, 0, 1, 2, 3) | __builtin_shufflevector(m, m, 4, 5, 6, 7);
+    const auto p = __builtin_shufflevector(q, q, 0, 1) | __builtin_shufflevector(q, q, 2, 3);
+    return (p[0] | p[1]) != 0;
+  } else if constexpr (sizeof(M) == 4 * sizeof(int)) {
+    const auto p = __builtin_shufflevector(m, m, 0, 1) | __builtin_shufflevector(m, m, 2, 3);
+    return (p[0] | p[1]) != 0;
+  } else {
+    int any = 0;
+    for (int i = 0; i < int(sizeof(M) / sizeof(int)); ++i) any |= m[i];
+    return any != 0;
+  }
 }
 CRISP_LANES_INLINE bool allOf(bool m) { return m; }
 template <class M, IfMask<M> = 0>
 CRISP_LANES_INLINE bool allOf(M m) {
-  int all = -1;
-  for (int i = 0; i < int(sizeof(M) / sizeof(int)); ++i) all &= m[i];
-  return all != 0;
+  if constexpr (sizeof(M) == 8 * sizeof(int)) {
+    const auto q = __builtin_shufflevector(m, m, 0, 1, 2, 3) & __builtin_shufflevector(m, m, 4, 5, 6, 7);
+    const auto p = __builtin_shufflevector(q, q, 0, 1) & __builtin_shufflevector(q, q, 2, 3);
+    return (p[0] & p[1]) != 0;
+  } else if constexpr (sizeof(M) == 4 * sizeof(int)) {
+    const auto p = __builtin_shufflevector(m, m, 0, 1) & __builtin_shufflevector(m, m, 2, 3);
+    return (p[0] & p[1]) != 0;
+  } else {
+    int all = -1;
+    for (int i = 0; i < int(sizeof(M) / sizeof(int)); ++i) all &= m[i];
+    return all != 0;
+  }
 }
 // Float lanes to int lanes (truncation) and back. Only for values inside the
 // int range (callers clamp first).
