@@ -774,7 +774,9 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
   if (!f.depth.ptr) return;
   float* d = s.depth[y % kRing];
   stageDepthRow(f.depth, source, s.row);
-  for (int k = 0; k < n; ++k) d[k] = s.row[column[k]];
+  forEachClampedIndex(run, n, [&](int k) { d[k] = s.row[column[k]]; });
+  if (run.hi > run.lo)  // the unclamped run: one copy (column[k] = k - 1 - shiftX there)
+    std::memcpy(d + run.lo, s.row + first, sizeof(float) * std::size_t(run.hi - run.lo));
   if (depthNow) std::memcpy(depthNow + std::size_t(y) * w, d + 1, std::size_t(w) * sizeof(float));
 }
 
@@ -923,9 +925,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         if (packedOutput) {
           // storeOutputPixel on packed RGBA, where it never reads the input
           // (the unjittered mix is the current colour even on a reset).
-          float* out = f.output.pixel(x0, y);
-          for (int l = 0; l < kL; ++l)
-            temporal::store4(out + 4 * l, Vec4{r.output[0][l], r.output[1][l], r.output[2][l], in.current[3][l]});
+          temporal::storeInterleaved4(f.output.pixel(x0, y), r.output[0], r.output[1], r.output[2], in.current[3]);
         } else {
           for (int l = 0; l < kL; ++l) {
             const float output[3] = {r.output[0][l], r.output[1][l], r.output[2][l]};

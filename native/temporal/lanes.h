@@ -79,6 +79,32 @@ template <class T>
 CRISP_LANES_INLINE void storeLanes(float* p, T v) {
   std::memcpy(p, &v, sizeof v);
 }
+// Four channels of a lane group stored as packed pixels (p: r0 g0 b0 a0 r1 ...),
+// transposed by shuffles instead of lane by lane.
+template <class T, IfVector<T> = 0>
+CRISP_LANES_INLINE void storeInterleaved4(float* p, T r, T g, T b, T a) {
+  if constexpr (kLanesOf<T> == 8) {
+    const T rgLo = __builtin_shufflevector(r, g, 0, 8, 1, 9, 4, 12, 5, 13);  // r0 g0 r1 g1 | r4 g4 r5 g5
+    const T rgHi = __builtin_shufflevector(r, g, 2, 10, 3, 11, 6, 14, 7, 15);
+    const T baLo = __builtin_shufflevector(b, a, 0, 8, 1, 9, 4, 12, 5, 13);
+    const T baHi = __builtin_shufflevector(b, a, 2, 10, 3, 11, 6, 14, 7, 15);
+    const T p04 = __builtin_shufflevector(rgLo, baLo, 0, 1, 8, 9, 4, 5, 12, 13);  // pixel 0 | pixel 4
+    const T p15 = __builtin_shufflevector(rgLo, baLo, 2, 3, 10, 11, 6, 7, 14, 15);
+    const T p26 = __builtin_shufflevector(rgHi, baHi, 0, 1, 8, 9, 4, 5, 12, 13);
+    const T p37 = __builtin_shufflevector(rgHi, baHi, 2, 3, 10, 11, 6, 7, 14, 15);
+    storeLanes(p, T(__builtin_shufflevector(p04, p15, 0, 1, 2, 3, 8, 9, 10, 11)));
+    storeLanes(p + 8, T(__builtin_shufflevector(p26, p37, 0, 1, 2, 3, 8, 9, 10, 11)));
+    storeLanes(p + 16, T(__builtin_shufflevector(p04, p15, 4, 5, 6, 7, 12, 13, 14, 15)));
+    storeLanes(p + 24, T(__builtin_shufflevector(p26, p37, 4, 5, 6, 7, 12, 13, 14, 15)));
+  } else {
+    const T rgLo = __builtin_shufflevector(r, g, 0, 4, 1, 5), rgHi = __builtin_shufflevector(r, g, 2, 6, 3, 7);
+    const T baLo = __builtin_shufflevector(b, a, 0, 4, 1, 5), baHi = __builtin_shufflevector(b, a, 2, 6, 3, 7);
+    storeLanes(p, T(__builtin_shufflevector(rgLo, baLo, 0, 1, 4, 5)));
+    storeLanes(p + 4, T(__builtin_shufflevector(rgLo, baLo, 2, 3, 6, 7)));
+    storeLanes(p + 8, T(__builtin_shufflevector(rgHi, baHi, 0, 1, 4, 5)));
+    storeLanes(p + 12, T(__builtin_shufflevector(rgHi, baHi, 2, 3, 6, 7)));
+  }
+}
 
 // One byte per lane (values 0..255) as int lanes, and back: a per-pixel byte
 // plane read and written a lane group at a time (vpmovzxbd and a pack in the

@@ -12,6 +12,7 @@
 #include "temporal/color_space.h"
 #include "temporal/history_fetch.h"
 #include "temporal/jitter.h"
+#include "temporal/lanes.h"
 #include "temporal/neighbourhood.h"
 #include "temporal/vec4.h"
 #include "temporal/velocity.h"
@@ -329,4 +330,32 @@ TEST(TemporalNeighbourhood, FourLaneVersionsMatchScalar) {
     for (int c = 0; c < 3; ++c) EXPECT_EQ(s.color[c], v[c]);
     EXPECT_EQ(v[3], 5.0f);  // lane 3 rides along
   }
+}
+
+// The lane helpers that only move data or fold masks: storeInterleaved4 writes
+// packed pixels in order, anyOf/allOf match a lane-by-lane fold, on 4 and 8 lanes.
+template <class T>
+void checkLaneHelpers() {
+  using namespace crisp::temporal;
+  constexpr int n = kLanesOf<T>;
+  T ch[4];
+  for (int c = 0; c < 4; ++c)
+    for (int l = 0; l < n; ++l) ch[c][l] = float(10 * l + c);
+  float out[4 * n + 1];
+  out[4 * n] = -1.0f;  // past the end: untouched
+  storeInterleaved4(out, ch[0], ch[1], ch[2], ch[3]);
+  for (int i = 0; i < 4 * n; ++i) EXPECT_EQ(out[i], float(10 * (i / 4) + i % 4)) << n << " lanes, float " << i;
+  EXPECT_EQ(out[4 * n], -1.0f);
+  for (int bits = 0; bits < (1 << n); ++bits) {
+    T a{}, b{};
+    for (int l = 0; l < n; ++l) (bits >> l & 1 ? b : a)[l] = 1.0f;
+    const auto mask = a < b;  // lane l true where bit l is set
+    EXPECT_EQ(anyOf(mask), bits != 0) << bits;
+    EXPECT_EQ(allOf(mask), bits == (1 << n) - 1) << bits;
+  }
+}
+
+TEST(TemporalLanes, InterleavedStoreAndMaskFolds) {
+  checkLaneHelpers<crisp::temporal::Vec4>();
+  checkLaneHelpers<crisp::temporal::Vec8>();
 }
