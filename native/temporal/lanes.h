@@ -209,9 +209,7 @@ CRISP_LANES_INLINE bool anyOf(bool m) { return m; }
 template <class M, IfMask<M> = 0>
 CRISP_LANES_INLINE bool anyOf(M m) {
   if constexpr (sizeof(M) == 8 * sizeof(int)) {
-    const auto q = __builtin_shufflevector(m, m, 0, 1, 2, 3) | __builtin_shufflevector(m, m, 4, 5, 6, 7);
-    const auto p = __builtin_shufflevector(q, q, 0, 1) | __builtin_shufflevector(q, q, 2, 3);
-    return (p[0] | p[1]) != 0;
+    return anyOf(Mask4(__builtin_shufflevector(m, m, 0, 1, 2, 3) | __builtin_shufflevector(m, m, 4, 5, 6, 7)));
   } else if constexpr (sizeof(M) == 4 * sizeof(int)) {
     const auto p = __builtin_shufflevector(m, m, 0, 1) | __builtin_shufflevector(m, m, 2, 3);
     return (p[0] | p[1]) != 0;
@@ -225,9 +223,7 @@ CRISP_LANES_INLINE bool allOf(bool m) { return m; }
 template <class M, IfMask<M> = 0>
 CRISP_LANES_INLINE bool allOf(M m) {
   if constexpr (sizeof(M) == 8 * sizeof(int)) {
-    const auto q = __builtin_shufflevector(m, m, 0, 1, 2, 3) & __builtin_shufflevector(m, m, 4, 5, 6, 7);
-    const auto p = __builtin_shufflevector(q, q, 0, 1) & __builtin_shufflevector(q, q, 2, 3);
-    return (p[0] & p[1]) != 0;
+    return allOf(Mask4(__builtin_shufflevector(m, m, 0, 1, 2, 3) & __builtin_shufflevector(m, m, 4, 5, 6, 7)));
   } else if constexpr (sizeof(M) == 4 * sizeof(int)) {
     const auto p = __builtin_shufflevector(m, m, 0, 1) & __builtin_shufflevector(m, m, 2, 3);
     return (p[0] & p[1]) != 0;
