@@ -10,9 +10,11 @@ Layout under RENDERDIR (OUTDIR/renders):
                                methods that need nothing but colour, and of blender-smaa)
     jittered/frame_NNNN.exr    1 sample, per-frame jitter, the union of the temporal methods' passes
                                (+ .json sidecar)
-    unjittered/frame_NNNN.exr  1 sample, no jitter, the union of the other methods' passes, only
-                               when some of them need more than colour; with rsaa also the 8
-                               geometry renders frame_NNNN_subK.exr listed in the sidecar
+    unjittered/frame_NNNN.exr  1 sample, no jitter, the union of the other methods' passes and,
+                               where something moves, of the temporal error's (plan.TEMPORAL_ERROR:
+                               depth, IDs, motion at the pixel centres; + .json sidecar); only when
+                               that is more than colour; with rsaa also the 8 geometry renders
+                               frame_NNNN_subK.exr listed in the sidecar
     reference_N/frame_NNNN.exr the reference (N EEVEE samples)
     blender-smaa/frame_NNNN.exr  eevee_1 through Image -> Anti-Aliasing -> Composite
     <set>/times.json           {"NNNN": wall seconds of that frame's render}
@@ -89,6 +91,8 @@ def group_plans(scene, methods, frames):
         p = plan_mod.make_plan(m, facts)
         plans[m] = p
         groups[p.jitter].append(p)
+    # The temporal error's warp and disocclusion test read the unjittered frame's geometry.
+    groups[False].append(plan_mod.make_plan(plan_mod.TEMPORAL_ERROR, facts))
     sets = {}
     for jitter, members in groups.items():
         passes = []

@@ -33,6 +33,14 @@ METHOD_PASSES = {
 STATIC_METHODS = tuple(METHOD_PASSES)
 TEMPORAL_METHODS = ("taa", "taa-improved", "phlm")
 
+# Not a method: what `crisp eval`'s temporal error (METHODS.md "Metrics") reads where something moves.
+# Its warp W and disocclusion test must describe the PIXEL CENTRES of the images it compares (the
+# outputs and the reference), so they come from an unjittered 1-sample render: a jittered frame's
+# motion, depth and IDs describe the point at p + jitter, up to 1.5 px away, and belong to another
+# surface along every edge that moves against what is behind it.
+TEMPORAL_ERROR = "temporal-error"
+MEASURE_PASSES = {TEMPORAL_ERROR: ("color", "depth", "motion", "id")}
+
 # Why a method reads a pass (used in the reasons).
 USE = {
     ("taa", "motion"): "reprojects the history along the motion vectors",
@@ -46,6 +54,10 @@ USE = {
     ("rsaa", "depth"): "positions for the SADP similarity",
     ("rsaa", "normal"): "normals for the SADP similarity",
     ("rsaa", "subsamples"): "8 geometric sub-samples per pixel (depth + normal at sub-pixel offsets)",
+    (TEMPORAL_ERROR, "color"): "the unjittered 1-sample image (Combined), as eevee_1",
+    (TEMPORAL_ERROR, "motion"): "the temporal error's warp W, at the pixel centres of the compared images",
+    (TEMPORAL_ERROR, "depth"): "the temporal error's disocclusion test (and the motion reconstruction)",
+    (TEMPORAL_ERROR, "id"): "the temporal error's disocclusion test by object ID",
 }
 
 # Blender view-layer flag of each logical pass (None: not a view-layer pass).
@@ -104,10 +116,11 @@ class Plan:
 
 
 def make_plan(method, facts):
-    """The passes `method` reads on a scene described by `facts`, each with a reason."""
-    if method not in METHOD_PASSES:
+    """The passes `method` reads on a scene described by `facts`, each with a reason. `method` may also
+    be TEMPORAL_ERROR: the passes of eval's temporal error (unjittered)."""
+    wanted = METHOD_PASSES.get(method) or MEASURE_PASSES.get(method)
+    if wanted is None:
         raise ValueError("unknown method '%s' (known: %s)" % (method, ", ".join(METHOD_PASSES)))
-    wanted = METHOD_PASSES[method]
     moving = bool(facts.camera_moves or facts.moving_objects or facts.deforming_objects)
     single = len(facts.visible_objects) <= 1
     passes, reasons, skipped = [], {}, {}
@@ -124,7 +137,10 @@ def make_plan(method, facts):
         use = USE.get((method, p), "")
         if p == "color":
             passes.append(p)
-            reasons[p] = "the image %s filters (Combined, 1 sample)" % method
+            reasons[p] = use or "the image %s filters (Combined, 1 sample)" % method
+        elif method == TEMPORAL_ERROR and not moving:
+            skipped[p] = ("nothing moves over frames %d-%d: the warp W is the identity and nothing is "
+                          "disoccluded" % (facts.frame_start, facts.frame_end))
         elif p == "motion":
             if not moving:
                 skipped[p] = ("nothing moves over frames %d-%d (camera and every visible object keep their "

@@ -151,6 +151,46 @@ const std::string& buildStamp() {
   return stamp;
 }
 
+// Where the temporal error's motion and disocclusion test come from (see run): the unjittered
+// 1-sample frames when they carry the geometry the TEMPORAL_ERROR plan asked for, else the jittered
+// ones, with a note for stderr saying why.
+struct WarpSource {
+  fs::path dir;      // empty: none (W = identity)
+  std::string what;  // for the report
+  std::string note;  // for stderr, or empty
+};
+WarpSource warpSource(const fs::path& renders, const json& scene, int first) {
+  WarpSource w;
+  const fs::path unjittered = renders / "unjittered", jittered = renders / "jittered";
+  std::string missing;
+  if (fs::exists(unjittered / frameName(first))) {
+    const json plan = scene.value("sets", json::object()).value("unjittered", json::object());
+    const Frame probe = readFrame((unjittered / frameName(first)).string());
+    for (const std::string pass : {"depth", "id"}) {
+      const json passes = plan.value("passes", json::array());
+      if (std::find(passes.begin(), passes.end(), pass) != passes.end() && !probe.has(pass))
+        missing += (missing.empty() ? "" : ", ") + pass;
+    }
+    if (!probe.has("depth") && !probe.has("motion")) missing += missing.empty() ? "depth" : "";
+    if (missing.empty()) {
+      w.dir = unjittered;
+      w.what = "motion vectors at the pixel centres (the unjittered 1-sample frames)";
+      return w;
+    }
+  } else {
+    missing = "all (no renders/unjittered)";
+  }
+  if (fs::exists(jittered / frameName(first))) {
+    w.dir = jittered;
+    w.what = "motion vectors of the jittered 1-sample frames (they describe the point at p + jitter: "
+             "approximate along moving edges)";
+  }
+  w.note = "the temporal error's warp takes " + std::string(w.dir.empty() ? "no motion" : "the jittered frames' motion") +
+           ": the unjittered 1-sample frames lack " + missing +
+           " (renders from an earlier crisp; delete " + unjittered.string() + " to render them again)";
+  return w;
+}
+
 void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const fs::path& inputDir, bool sceneMoves,
                cli::Progress& progress) {
   const fs::path dir = fs::path(o.outDir) / "methods" / e.name;
@@ -487,17 +527,22 @@ int run(const Options& o) {
   std::map<int, Image> refs;
   for (int f : frames) refs[f] = readFrame((refDir / frameName(f)).string()).pass("color");
 
-  // Motion for W (the temporal error's warp) and the disocclusion mask.
+  // Motion for W (the temporal error's warp) and the disocclusion mask, at the pixel centres of the
+  // images compared: from the unjittered 1-sample frames (plan.py TEMPORAL_ERROR). A jittered
+  // frame's motion, depth and IDs describe the point at p + jitter (up to 1.5 px away), another
+  // surface along every edge that moves against what lies behind it; they serve only eval folders
+  // rendered before the unjittered set carried that geometry.
   std::map<int, Image> motions, masks;
   std::string warp = "identity: nothing moves over the frames";
   if (moving) {
     warp = "identity: the scene moves but no motion vectors were available (the temporal error overstates)";
-    const fs::path jit = renders / "jittered";
-    if (fs::exists(jit / frameName(first))) {
+    const WarpSource source = warpSource(renders, scene, first);
+    if (!source.note.empty()) std::fprintf(stderr, "crisp eval: %s\n", source.note.c_str());
+    if (!source.dir.empty()) {
       std::unique_ptr<Frame> prev;
       for (int f : frames) {
-        auto fr = std::make_unique<Frame>(readFrame((jit / frameName(f)).string()));
-        addMotion(*fr, jit, f, first, moving, o.threads);
+        auto fr = std::make_unique<Frame>(readFrame((source.dir / frameName(f)).string()));
+        addMotion(*fr, source.dir, f, first, moving, o.threads);
         if (prev && fr->has("motion")) {
           motions[f] = fr->pass("motion");
           const Image* ids = fr->has("id") ? &fr->pass("id") : nullptr;
@@ -506,8 +551,8 @@ int run(const Options& o) {
           const Image* depthPrev = prev->has("depth") ? &prev->pass("depth") : nullptr;
           if ((ids && idsPrev) || (depth && depthPrev))
             masks[f] = disocclusionMask(&motions[f], ids, idsPrev, depth, depthPrev, 0.1f, o.threads);
-          warp = "motion vectors of the jittered 1-sample frames (renderer or reconstructed); valid = inside the "
-                 "previous frame and not disoccluded (object ID / depth test)";
+          warp = source.what + " (renderer or reconstructed); valid = inside the previous frame and not "
+                 "disoccluded (object ID / depth test)";
         }
         prev = std::move(fr);
       }

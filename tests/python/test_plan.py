@@ -74,8 +74,28 @@ def test_rsaa_reads_geometry_and_subsamples():
     assert set(p.render_flags()) == {"use_pass_combined", "use_pass_z", "use_pass_normal"}
 
 
+def test_temporal_error_reads_unjittered_geometry_only_where_something_moves():
+    # Its warp and disocclusion test: motion, depth and IDs at the pixel centres (no jitter).
+    p = plan.make_plan(plan.TEMPORAL_ERROR, facts(moving_objects=["B"]))
+    assert p.passes == ["color", "depth", "motion", "id"] and not p.jitter
+    assert p.motion_source == "reconstruct" and "pixel centres" in p.reasons["motion"]
+    # camera-only motion: IDs still tell surfaces apart for the disocclusion test
+    p = plan.make_plan(plan.TEMPORAL_ERROR, facts(camera_moves=True))
+    assert p.passes == ["color", "depth", "motion", "id"]
+    # one visible object: depth alone tells it from the background
+    p = plan.make_plan(plan.TEMPORAL_ERROR, facts(moving_objects=["A"], visible_objects=["A"]))
+    assert p.passes == ["color", "depth", "motion"]
+    # the renderer's Vector pass: still depth and IDs, for the disocclusion test
+    p = plan.make_plan(plan.TEMPORAL_ERROR, facts(camera_moves=True, renderer_motion_pass=True))
+    assert p.passes == ["color", "depth", "motion", "id"] and p.motion_source == "renderer"
+    # a still scene: W is the identity, nothing but colour
+    p = plan.make_plan(plan.TEMPORAL_ERROR, facts())
+    assert p.passes == ["color"] and "identity" in p.skipped["depth"]
+    assert plan.TEMPORAL_ERROR not in plan.METHOD_PASSES  # not a method anyone can pick
+
+
 def test_every_planned_pass_has_a_reason_and_json_round_trip():
-    for method in plan.METHOD_PASSES:
+    for method in list(plan.METHOD_PASSES) + [plan.TEMPORAL_ERROR]:
         for f in (facts(), facts(camera_moves=True), facts(moving_objects=["A"], deforming_objects=["B"])):
             p = plan.make_plan(method, f)
             assert set(p.reasons) == set(p.passes)

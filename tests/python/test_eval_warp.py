@@ -1,0 +1,170 @@
+# SPDX-License-Identifier: Apache-2.0
+"""End to end: the temporal error's warp W and disocclusion test in `crisp eval` on a moving scene
+(ghosting: a sphere crossing a wall, 64x36, 3 frames, reference 4 samples, curve 1) in real Blender.
+  * The renders hold an unjittered 1-sample set with depth, object IDs and a sidecar (the pass plan
+    plan.TEMPORAL_ERROR), and results.json says W is taken at the pixel centres.
+  * Frame 3's temporal error of 'none' and 'taa' is recomputed here from the files with numpy: motion
+    reconstructed through libcrisp's C API (ctypes) from that set's depth, IDs and sidecars, the
+    disocclusion mask by object ID and depth, a bilinear warp; it must equal the reported figure, and
+    the same recomputation from the jittered set's geometry must not.
+  * An eval folder whose unjittered frames lack that geometry (renders of an earlier crisp) falls back
+    to the jittered set's motion and says so on stderr and in results.json.
+Needs Blender and the built CLI and library (CRISP_BUILD_DIR)."""
+
+import ctypes
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+
+import numpy as np
+import pytest
+
+from crisp_test_util import CRISP, LIBRARY, Lib, display
+
+ARGS = ["--scene", "ghosting", "--resolution", "64x36", "--frames", "1-3", "--reference-samples", "4",
+        "--curve", "1", "--methods", "none,taa"]
+
+pytestmark = [
+    pytest.mark.skipif(not os.path.isfile(CRISP), reason="crisp CLI not built at %s" % CRISP),
+    pytest.mark.skipif(not os.path.isfile(LIBRARY), reason="libcrisp not built"),
+    pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed"),
+]
+
+
+def crisp_eval(out):
+    p = subprocess.run([CRISP, "eval"] + ARGS + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                       timeout=600)
+    assert p.returncode == 0, p.stderr.decode()[-3000:]
+    return p.stderr.decode()
+
+
+@pytest.fixture(scope="module")
+def run():
+    out = tempfile.mkdtemp(prefix="crisp_eval_warp_")
+    stderr = crisp_eval(out)
+    yield out, stderr
+    shutil.rmtree(out, ignore_errors=True)
+
+
+class Geometry:
+    """A render's depth, object IDs and motion (reconstructed by libcrisp from the sidecars)."""
+
+    def __init__(self, lib, folder, frame):
+        c = lib.lib
+        c.crispReconstructFrameMotion.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_char_p]
+        path = os.path.join(folder, "frame_%04d.exr" % frame)
+        f = c.crispLoadFrame(lib.ctx, path.encode())
+        assert f, path
+        try:
+            self.w, self.h = c.crispGetFrameWidth(f), c.crispGetFrameHeight(f)
+            previous = os.path.join(folder, "frame_%04d.json" % (frame - 1))
+            c.crispReconstructFrameMotion(lib.ctx, f, previous.encode(), None)
+            self.depth = self.plane(c, f, b"depth", 1, ctypes.c_float)
+            self.ids = self.plane(c, f, b"id", 5, ctypes.c_uint32)
+            self.motion = self.plane(c, f, b"motion", 4, ctypes.c_float)
+        finally:
+            c.crispReleaseFrame(f)
+
+    def plane(self, c, f, role, fmt, ctype):
+        kind = ctypes.c_int()
+        ptr = c.crispGetFramePass(f, role, ctypes.byref(kind))
+        assert ptr and kind.value == fmt, role
+        n = {1: 1, 4: 4, 5: 1}[fmt]
+        a = np.ctypeslib.as_array((ctype * (self.w * self.h * n)).from_address(ptr)).copy()
+        return a.reshape(self.h, self.w, n) if n > 1 else a.reshape(self.h, self.w)
+
+
+def warp(img, mx, my):
+    """temporal_error.cpp warpPrevious: bilinear at p + motion, clamped to the border."""
+    h, w = img.shape[:2]
+    ys, xs = np.mgrid[0:h, 0:w]
+    x = np.clip(xs + mx, 0, w - 1).astype(np.float32)
+    y = np.clip(ys + my, 0, h - 1).astype(np.float32)
+    x0, y0 = x.astype(int), y.astype(int)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+    top = img[y0, x0] * (1 - fx) + img[y0, x1] * fx
+    bottom = img[y1, x0] * (1 - fx) + img[y1, x1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+def temporal_error(now, before, ref_now, ref_before, g, g_before):
+    """METHODS.md: mean over valid pixels of |(out_t - W out_t-1) - (ref_t - W ref_t-1)|."""
+    h, w = g.depth.shape
+    mx, my = g.motion[..., 0], g.motion[..., 1]
+    ys, xs = np.mgrid[0:h, 0:w]
+    px, py = xs + mx, ys + my
+    valid = (px >= -0.5) & (py >= -0.5) & (px <= w - 0.5) & (py <= h - 0.5)
+    nx = np.clip(np.floor(px + 0.5).astype(int), 0, w - 1)  # lround for the in-picture taps
+    ny = np.clip(np.floor(py + 0.5).astype(int), 0, h - 1)
+    valid &= g.ids == g_before.ids[ny, nx]
+    d, dp = g.depth, g_before.depth[ny, nx]
+    bg, bgp = d >= 65504, dp >= 65504
+    valid &= (bg == bgp) & (bg | (np.abs(d - dp) <= 0.1 * np.maximum(np.abs(d), 1e-6)))
+    o, op = display(now), warp(display(before), mx, my)
+    r, rp = display(ref_now), warp(display(ref_before), mx, my)
+    e = np.abs((o - op) - (r - rp)).mean(-1)
+    return float(e[valid].mean()), float(valid.mean())
+
+
+def reported(out, name, frame):
+    scene = json.load(open(os.path.join(out, "results.json")))["scenes"][0]
+    m = next(m for m in scene["methods"] if m["name"] == name)
+    return next(f["temporal_error"] for f in m["frames"] if f["frame"] == frame), scene
+
+
+def test_unjittered_geometry_is_rendered_for_the_warp(run):
+    out, _ = run
+    scene = json.load(open(os.path.join(out, "renders", "scene.json")))
+    assert scene["sets"]["unjittered"]["passes"] == ["color", "depth", "motion", "id"]
+    assert "temporal-error" in scene["sets"]["unjittered"]["method"]
+    assert scene["inputs"]["none"] == "eevee_1"  # the methods' own inputs do not change
+    side = json.load(open(os.path.join(out, "renders", "unjittered", "frame_0002.json")))
+    assert not side["jitter"]["enabled"] and side["jitter"]["x"] == 0 and side["jitter"]["y"] == 0
+    jittered = json.load(open(os.path.join(out, "renders", "jittered", "frame_0002.json")))
+    assert jittered["jitter"]["enabled"] and (jittered["jitter"]["x"], jittered["jitter"]["y"]) != (0, 0)
+    _, results = reported(out, "none", 3)
+    assert "pixel centres" in results["temporal_error_warp"]
+
+
+def test_temporal_error_recomputed_from_the_pixel_centres(run):
+    out, _ = run
+    lib = Lib()
+    ref = [lib.color(os.path.join(out, "renders", "reference_4", "frame_%04d.exr" % f)) for f in (2, 3)]
+    geometry = {s: [Geometry(lib, os.path.join(out, "renders", s), f) for f in (2, 3)]
+                for s in ("unjittered", "jittered")}
+    for name in ("none", "taa"):
+        test = [lib.color(os.path.join(out, "methods", name, "frame_%04d.exr" % f)) for f in (2, 3)]
+        want, _ = reported(out, name, 3)
+        got, valid = temporal_error(test[1], test[0], ref[1], ref[0], geometry["unjittered"][1],
+                                    geometry["unjittered"][0])
+        assert 0.5 < valid < 1 and want > 0, (name, valid, want)  # the sphere disoccludes some wall
+        assert abs(got - want) <= 1e-3 * want, (name, got, want)
+        # The jittered frames' geometry describes other points: another figure.
+        other, _ = temporal_error(test[1], test[0], ref[1], ref[0], geometry["jittered"][1], geometry["jittered"][0])
+        assert abs(other - want) > 1e-2 * want, (name, other, want)
+
+
+def test_old_renders_fall_back_to_the_jittered_motion_and_say_so(run):
+    out, _ = run
+    copy = tempfile.mkdtemp(prefix="crisp_eval_warp_old_")
+    try:
+        shutil.copytree(out, copy, dirs_exist_ok=True)
+        # Renders of an earlier crisp: unjittered frames with colour only (as eevee_1's).
+        for f in (1, 2, 3):
+            name = "frame_%04d.exr" % f
+            shutil.copy(os.path.join(copy, "renders", "eevee_1", name), os.path.join(copy, "renders", "unjittered", name))
+        stderr = crisp_eval(copy)
+        assert "lack depth, id" in stderr and "delete" in stderr, stderr[-2000:]
+        want, scene = reported(copy, "none", 3)
+        assert "jittered 1-sample frames" in scene["temporal_error_warp"]
+        lib = Lib()
+        ref = [lib.color(os.path.join(copy, "renders", "reference_4", "frame_%04d.exr" % f)) for f in (2, 3)]
+        test = [lib.color(os.path.join(copy, "methods", "none", "frame_%04d.exr" % f)) for f in (2, 3)]
+        g = [Geometry(lib, os.path.join(copy, "renders", "jittered"), f) for f in (2, 3)]
+        got, _ = temporal_error(test[1], test[0], ref[1], ref[0], g[1], g[0])
+        assert abs(got - want) <= 1e-3 * want, (got, want)
+    finally:
+        shutil.rmtree(copy, ignore_errors=True)
