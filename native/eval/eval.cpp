@@ -171,14 +171,12 @@ WarpSource warpSource(const fs::path& renders, const json& scene, int first) {
       if (std::find(passes.begin(), passes.end(), pass) != passes.end() && !probe.has(pass))
         missing += (missing.empty() ? "" : ", ") + pass;
     }
-    if (!probe.has("depth") && !probe.has("motion")) missing += missing.empty() ? "depth" : "";
+    if (missing.empty() && !probe.has("depth") && !probe.has("motion")) missing = "depth";
     if (missing.empty()) {
       w.dir = unjittered;
       w.what = "motion vectors at the pixel centres (the unjittered 1-sample frames)";
       return w;
     }
-  } else {
-    missing = "all (no renders/unjittered)";
   }
   if (fs::exists(jittered / frameName(first))) {
     w.dir = jittered;
@@ -186,8 +184,9 @@ WarpSource warpSource(const fs::path& renders, const json& scene, int first) {
              "approximate along moving edges)";
   }
   w.note = "the temporal error's warp takes " + std::string(w.dir.empty() ? "no motion" : "the jittered frames' motion") +
-           ": the unjittered 1-sample frames lack " + missing +
-           " (renders from an earlier crisp; delete " + unjittered.string() + " to render them again)";
+           (missing.empty() ? ": there are no unjittered 1-sample frames in " + renders.string()
+                            : ": the unjittered 1-sample frames lack " + missing + " (renders from an earlier crisp; delete " +
+                                  unjittered.string() + " and run eval again to render them)");
   return w;
 }
 
