@@ -10,11 +10,13 @@ Layout under RENDERDIR (OUTDIR/renders):
                                methods that need nothing but colour, and of blender-smaa)
     jittered/frame_NNNN.exr    1 sample, per-frame jitter, the union of the temporal methods' passes
                                (+ .json sidecar)
-    unjittered/frame_NNNN.exr  1 sample, no jitter, the union of the other methods' passes and,
-                               where something moves, of the temporal error's (plan.TEMPORAL_ERROR:
-                               depth, IDs, motion at the pixel centres; + .json sidecar); only when
-                               that is more than colour; with rsaa also the 8 geometry renders
-                               frame_NNNN_subK.exr listed in the sidecar
+    unjittered/frame_NNNN.exr  1 sample, no jitter, the union of the other methods' passes, only
+                               when some of them need more than colour; with rsaa also the 8
+                               geometry renders frame_NNNN_subK.exr listed in the sidecar
+    warp/frame_NNNN.exr        only where something moves: 1 sample, no jitter, the geometry of the
+                               temporal error's warp W and disocclusion test at the pixel centres
+                               (plan.TEMPORAL_ERROR: depth, motion, IDs; + .json sidecar); no
+                               method reads it, so no method's render time includes it
     reference_N/frame_NNNN.exr the reference (N EEVEE samples)
     blender-smaa/frame_NNNN.exr  eevee_1 through Image -> Anti-Aliasing -> Composite
     <set>/times.json           {"NNNN": wall seconds of that frame's render}
@@ -76,9 +78,10 @@ class TimeBook:
 def group_plans(scene, methods, frames):
     """Plans of the library methods `methods` (names plan.py knows), grouped into render sets.
 
-    Returns (plans, sets, unknown): plans {method: Plan.to_json()}; sets {set name: Plan} for the
-    1-sample renders to make ("jittered", maybe "unjittered"); unknown: methods plan.py has no passes
-    for (they get the plain 1-sample frames)."""
+    Returns (plans, sets, unknown, facts): plans {method: Plan}; sets {set name: Plan} for the
+    1-sample renders to make ("jittered", maybe "unjittered", and "warp" where something moves: the
+    temporal error's geometry); unknown: methods plan.py has no passes for (they get the plain
+    1-sample frames); facts: plan.SceneFacts of the frame range."""
     engine = render.eevee_engine(scene)
     facts = plan_mod.scene_facts(scene, frames[0], frames[-1],
                                  renderer_motion_pass=render.renderer_motion_pass(engine))
@@ -91,8 +94,6 @@ def group_plans(scene, methods, frames):
         p = plan_mod.make_plan(m, facts)
         plans[m] = p
         groups[p.jitter].append(p)
-    # The temporal error's warp and disocclusion test read the unjittered frame's geometry.
-    groups[False].append(plan_mod.make_plan(plan_mod.TEMPORAL_ERROR, facts))
     sets = {}
     for jitter, members in groups.items():
         passes = []
@@ -111,6 +112,9 @@ def group_plans(scene, methods, frames):
         union = plan_mod.Plan(method="+".join(p.method for p in members), passes=passes, reasons=reasons,
                               skipped={}, jitter=jitter, motion_source=sources.pop() if sources else "none")
         sets["jittered" if jitter else "unjittered"] = union
+    warp = plan_mod.make_plan(plan_mod.TEMPORAL_ERROR, facts)
+    if warp.passes != ["color"]:  # something moves
+        sets["warp"] = warp
     return plans, sets, unknown, facts
 
 
@@ -141,9 +145,12 @@ def render_curve_set(scene, frames, folder, samples, step):
 
 
 def render_input_set(scene, the_plan, frames, folder, jitter_distribution, step):
+    """Renders the frames of one input set that are missing, or were rendered with other passes or
+    settings (an earlier run with other methods: reusing them would hand a method fewer passes)."""
     book = TimeBook(folder)
+    engine = render.eevee_engine(scene)
     for f in frames:
-        if book.done(f):
+        if book.done(f) and render.reusable_input(scene, engine, folder, f, the_plan, 1, jitter_distribution):
             step(os.path.basename(folder), f, 1, skipped=True)
             continue
         info = render.render_frames(scene, the_plan, [f], folder, samples=1,

@@ -101,28 +101,6 @@ def chunk_run(frames, shot_first, preroll, is_complete=None):
     return list(range(max(shot_first, first - max(preroll, 0)), first)) if todo else [], todo
 
 
-def _input_complete(input_dir, f):
-    # render.py writes the EXR before its sidecar, both renamed into place: a sidecar means both are whole.
-    return all(os.path.isfile(os.path.join(input_dir, render.frame_name(f, ext))) for ext in (".exr", ".json"))
-
-
-def _reusable_input(scene, engine, input_dir, f, the_plan, samples, jitter_distribution):
-    """Whether input/frame f was rendered as this run would render it (same passes, size, samples and
-    jitter), so a pre-roll can read it instead of rendering it again; stale or foreign inputs are not."""
-    if not _input_complete(input_dir, f):
-        return False
-    try:
-        with open(os.path.join(input_dir, render.frame_name(f, ".json"))) as fh:
-            side = json.load(fh)
-        jitter = side["jitter"]
-        settings = side["render_settings"]
-        return (side["passes"] == list(the_plan.passes) and settings["samples"] == samples
-                and settings["engine"] == engine and settings["resolution"] == list(render.render_size(scene))
-                and jitter["distribution"] == (jitter_distribution if the_plan.jitter else "none"))
-    except (OSError, ValueError, KeyError, TypeError):
-        return False
-
-
 def run(scene, method, frames, out_dir, params=None, samples=1, reference_samples=0, plan_only=False,
         filter_frames=True, threads=0, jitter_distribution="blackman-harris", write_png=True, log=print,
         view_layer=None, should_cancel=None, engine_name="eevee", preroll=0, shot=None, resume=False):
@@ -195,13 +173,13 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         if frame_filter is not None:
             outs += [os.path.join(filtered_dir, render.frame_name(f, ext)) for ext in ((".exr", ".png") if write_png
                                                                                      else (".exr",))]
-        return _input_complete(input_dir, f) and all(os.path.isfile(p) for p in outs)
+        return render.input_complete(input_dir, f) and all(os.path.isfile(p) for p in outs)
 
     # Pre-roll warms temporal history: nothing to warm without a filter or for a spatial method.
     warms = frame_filter is not None and method in plan_mod.TEMPORAL_METHODS
     preroll_frames, todo = chunk_run(frames, (shot or frames)[0], preroll if warms else 0,
                                      is_complete if resume else None)
-    reused = [f for f in preroll_frames if _reusable_input(scene, engine, input_dir, f, the_plan, samples,
+    reused = [f for f in preroll_frames if render.reusable_input(scene, engine, input_dir, f, the_plan, samples,
                                                                      jitter_distribution)]
     result["chunk"] = {"shot": [shot[0], shot[-1]] if shot else None, "preroll": preroll,
                        "preroll_frames": [preroll_frames[0], preroll_frames[-1]] if preroll_frames else None,

@@ -54,7 +54,7 @@ USE = {
     ("rsaa", "depth"): "positions for the SADP similarity",
     ("rsaa", "normal"): "normals for the SADP similarity",
     ("rsaa", "subsamples"): "8 geometric sub-samples per pixel (depth + normal at sub-pixel offsets)",
-    (TEMPORAL_ERROR, "color"): "the unjittered 1-sample image (Combined), as eevee_1",
+    (TEMPORAL_ERROR, "color"): "always rendered (Combined); the temporal error compares the outputs and the reference",
     (TEMPORAL_ERROR, "motion"): "the temporal error's warp W, at the pixel centres of the compared images",
     (TEMPORAL_ERROR, "depth"): "the temporal error's disocclusion test (and the motion reconstruction)",
     (TEMPORAL_ERROR, "id"): "the temporal error's disocclusion test by object ID",

@@ -420,3 +420,28 @@ def render_reference(scene, frames, out_dir, samples, view_layer=None, on_frame=
             if on_frame:
                 on_frame(f, info)
     return infos
+
+
+# ---- reusing earlier renders ----------------------------------------------------------------------
+
+def input_complete(input_dir, f):
+    # render_frames writes the EXR before its sidecar, both renamed into place: a sidecar means both are whole.
+    return all(os.path.isfile(os.path.join(input_dir, frame_name(f, ext))) for ext in (".exr", ".json"))
+
+
+def reusable_input(scene, engine, input_dir, f, the_plan, samples, jitter_distribution):
+    """Whether input/frame f was rendered as this run would render it (same passes, size, samples and
+    jitter), so it can be read instead of rendered again (a pre-roll, eval's input sets); stale or foreign
+    inputs are not."""
+    if not input_complete(input_dir, f):
+        return False
+    try:
+        with open(os.path.join(input_dir, frame_name(f, ".json"))) as fh:
+            side = json.load(fh)
+        jitter = side["jitter"]
+        settings = side["render_settings"]
+        return (side["passes"] == list(the_plan.passes) and settings["samples"] == samples
+                and settings["engine"] == engine and settings["resolution"] == list(render_size(scene))
+                and jitter["distribution"] == (jitter_distribution if the_plan.jitter else "none"))
+    except (OSError, ValueError, KeyError, TypeError):
+        return False

@@ -116,7 +116,7 @@ std::map<int, double> renderTimes(const fs::path& dir) {
 // ---- the methods ---------------------------------------------------------------------------------
 
 
-// Motion for the frames of a render set that has depth (renders/jittered) of a
+// Motion for the frames of a render set that has depth (renders/jittered, renders/warp) of a
 // scene where something moves: the renderer's pass, else reconstructed from
 // depth and the sidecars. A still scene gets none, as its pass plan says, so
 // the temporal filters take their static path.
@@ -151,43 +151,82 @@ const std::string& buildStamp() {
   return stamp;
 }
 
-// Where the temporal error's motion and disocclusion test come from (see run): the unjittered
-// 1-sample frames when they carry the geometry the TEMPORAL_ERROR plan asked for, else the jittered
-// ones, with a note for stderr saying why.
-struct WarpSource {
-  fs::path dir;      // empty: none (W = identity)
-  std::string what;  // for the report
-  std::string note;  // for stderr, or empty
+// The temporal error's warp W and disocclusion test (METHODS.md "Metrics") describe the pixel
+// centres of the images compared (the outputs and the reference): they come from renders/warp, the
+// unjittered 1-sample frames with depth, motion and IDs (plan.py TEMPORAL_ERROR). A jittered frame's
+// motion, depth and IDs describe the point at p + jitter (up to 1.5 px away), another surface along
+// every edge that moves against what lies behind it; they serve only when renders/warp cannot.
+struct WarpGeometry {
+  std::map<int, Image> motions, masks;  // by frame (from the second frame on)
+  std::string description;              // for the report; empty: none found (W = identity)
 };
-WarpSource warpSource(const fs::path& renders, const json& scene, int first) {
-  WarpSource w;
-  const fs::path unjittered = renders / "unjittered", jittered = renders / "jittered";
-  std::string missing;
-  if (fs::exists(unjittered / frameName(first))) {
-    const json plan = scene.value("sets", json::object()).value("unjittered", json::object());
-    const Frame probe = readFrame((unjittered / frameName(first)).string());
-    for (const std::string pass : {"depth", "id"}) {
-      const json passes = plan.value("passes", json::array());
-      if (std::find(passes.begin(), passes.end(), pass) != passes.end() && !probe.has(pass))
+
+// Motion (the renderer's, else reconstructed from depth and the sidecars) and the disocclusion mask
+// of each frame after the first, from the frames in dir. Throws on unreadable frames or motion that
+// cannot be reconstructed.
+void loadWarpGeometry(const fs::path& dir, const std::vector<int>& frames, int threads, WarpGeometry& g) {
+  std::unique_ptr<Frame> prev;
+  for (int f : frames) {
+    auto fr = std::make_unique<Frame>(readFrame((dir / frameName(f)).string()));
+    addMotion(*fr, dir, f, frames.front(), true, threads);
+    if (prev && fr->has("motion")) {
+      g.motions[f] = fr->pass("motion");
+      const Image* ids = fr->has("id") ? &fr->pass("id") : nullptr;
+      const Image* idsPrev = prev->has("id") ? &prev->pass("id") : nullptr;
+      const Image* depth = fr->has("depth") ? &fr->pass("depth") : nullptr;
+      const Image* depthPrev = prev->has("depth") ? &prev->pass("depth") : nullptr;
+      if ((ids && idsPrev) || (depth && depthPrev))
+        g.masks[f] = disocclusionMask(&g.motions[f], ids, idsPrev, depth, depthPrev, 0.1f, threads);
+    }
+    prev = std::move(fr);
+  }
+}
+
+// renders/warp when its frames carry the passes its plan (scene.json "sets") lists, else the
+// jittered frames; the first that loads. Each one passed over is said on stderr (unless quiet).
+WarpGeometry warpGeometry(const fs::path& renders, const json& scene, const std::vector<int>& frames,
+                          const Options& o) {
+  const fs::path warp = renders / "warp", jittered = renders / "jittered";
+  auto note = [&](const std::string& text) {
+    if (!o.quiet) std::fprintf(stderr, "crisp eval: the temporal error's warp: %s\n", text.c_str());
+  };
+  struct Candidate {
+    fs::path dir;
+    const char* description;
+  };
+  std::vector<Candidate> candidates;
+  if (!fs::exists(warp / frameName(frames.front()))) {
+    note("no unjittered geometry in " + warp.string() + "; using the jittered frames' motion");
+  } else {
+    std::string missing;
+    const Frame probe = readFrame((warp / frameName(frames.front())).string());
+    const json passes = scene.value("sets", json::object()).value("warp", json::object()).value("passes", json::array());
+    for (const std::string pass : {"depth", "motion", "id"})
+      if (std::find(passes.begin(), passes.end(), pass) != passes.end() && !probe.has(pass) &&
+          !(pass == "motion" && probe.has("depth")))  // motion is reconstructed from depth
         missing += (missing.empty() ? "" : ", ") + pass;
-    }
-    if (missing.empty() && !probe.has("depth") && !probe.has("motion")) missing = "depth";
-    if (missing.empty()) {
-      w.dir = unjittered;
-      w.what = "motion vectors at the pixel centres (the unjittered 1-sample frames)";
-      return w;
-    }
+    if (missing.empty())
+      candidates.push_back({warp, "motion vectors at the pixel centres (unjittered 1-sample frames)"});
+    else
+      note(warp.string() + " lacks " + missing + " (delete it and run eval again to render it); using the "
+           "jittered frames' motion");
   }
-  if (fs::exists(jittered / frameName(first))) {
-    w.dir = jittered;
-    w.what = "motion vectors of the jittered 1-sample frames (they describe the point at p + jitter: "
-             "approximate along moving edges)";
+  candidates.push_back({jittered, "motion vectors of the jittered 1-sample frames (they describe the point at "
+                                  "p + jitter: approximate along moving edges)"});
+  for (const Candidate& c : candidates) {
+    if (!fs::exists(c.dir / frameName(frames.front()))) continue;
+    WarpGeometry g;
+    try {
+      loadWarpGeometry(c.dir, frames, o.threads, g);
+    } catch (const Exception& ex) {
+      note(c.dir.string() + ": " + ex.what() + (&c != &candidates.back() ? "; trying the next source" : ""));
+      continue;
+    }
+    if (g.motions.empty()) continue;
+    g.description = c.description;
+    return g;
   }
-  w.note = "the temporal error's warp takes " + std::string(w.dir.empty() ? "no motion" : "the jittered frames' motion") +
-           (missing.empty() ? ": there are no unjittered 1-sample frames in " + renders.string()
-                            : ": the unjittered 1-sample frames lack " + missing + " (renders from an earlier crisp; delete " +
-                                  unjittered.string() + " and run eval again to render them)");
-  return w;
+  return {};
 }
 
 void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const fs::path& inputDir, bool sceneMoves,
@@ -526,35 +565,18 @@ int run(const Options& o) {
   std::map<int, Image> refs;
   for (int f : frames) refs[f] = readFrame((refDir / frameName(f)).string()).pass("color");
 
-  // Motion for W (the temporal error's warp) and the disocclusion mask, at the pixel centres of the
-  // images compared: from the unjittered 1-sample frames (plan.py TEMPORAL_ERROR). A jittered
-  // frame's motion, depth and IDs describe the point at p + jitter (up to 1.5 px away), another
-  // surface along every edge that moves against what lies behind it; they serve only eval folders
-  // rendered before the unjittered set carried that geometry.
+  // W and the disocclusion mask (warpGeometry).
   std::map<int, Image> motions, masks;
   std::string warp = "identity: nothing moves over the frames";
   if (moving) {
-    warp = "identity: the scene moves but no motion vectors were available (the temporal error overstates)";
-    const WarpSource source = warpSource(renders, scene, first);
-    if (!source.note.empty()) std::fprintf(stderr, "crisp eval: %s\n", source.note.c_str());
-    if (!source.dir.empty()) {
-      std::unique_ptr<Frame> prev;
-      for (int f : frames) {
-        auto fr = std::make_unique<Frame>(readFrame((source.dir / frameName(f)).string()));
-        addMotion(*fr, source.dir, f, first, moving, o.threads);
-        if (prev && fr->has("motion")) {
-          motions[f] = fr->pass("motion");
-          const Image* ids = fr->has("id") ? &fr->pass("id") : nullptr;
-          const Image* idsPrev = prev->has("id") ? &prev->pass("id") : nullptr;
-          const Image* depth = fr->has("depth") ? &fr->pass("depth") : nullptr;
-          const Image* depthPrev = prev->has("depth") ? &prev->pass("depth") : nullptr;
-          if ((ids && idsPrev) || (depth && depthPrev))
-            masks[f] = disocclusionMask(&motions[f], ids, idsPrev, depth, depthPrev, 0.1f, o.threads);
-          warp = source.what + " (renderer or reconstructed); valid = inside the previous frame and not "
-                 "disoccluded (object ID / depth test)";
-        }
-        prev = std::move(fr);
-      }
+    WarpGeometry g = warpGeometry(renders, scene, frames, o);
+    if (g.description.empty()) {
+      warp = "identity: the scene moves but no motion vectors were available (the temporal error overstates)";
+    } else {
+      motions = std::move(g.motions);
+      masks = std::move(g.masks);
+      warp = g.description + " (renderer or reconstructed); valid = inside the previous frame and not disoccluded "
+             "(object ID / depth test)";
     }
   }
 

@@ -1,14 +1,16 @@
 # SPDX-License-Identifier: Apache-2.0
 """End to end: the temporal error's warp W and disocclusion test in `crisp eval` on a moving scene
 (ghosting: a sphere crossing a wall, 64x36, 3 frames, reference 4 samples, curve 1) in real Blender.
-  * The renders hold an unjittered 1-sample set with depth, object IDs and a sidecar (the pass plan
-    plan.TEMPORAL_ERROR), and results.json says W is taken at the pixel centres.
+  * The renders hold renders/warp, unjittered 1-sample frames with depth, object IDs and a sidecar
+    (the pass plan plan.TEMPORAL_ERROR), and results.json says W is taken at the pixel centres.
   * Frame 3's temporal error of 'none' and 'taa' is recomputed here from the files with numpy: motion
     reconstructed through libcrisp's C API (ctypes) from that set's depth, IDs and sidecars, the
     disocclusion mask by object ID and depth, a bilinear warp; it must equal the reported figure, and
     the same recomputation from the jittered set's geometry must not.
-  * An eval folder whose unjittered frames lack that geometry (renders of an earlier crisp) falls back
-    to the jittered set's motion and says so on stderr and in results.json.
+  * A renders/warp whose frames lack that geometry falls back to the jittered set's motion and says so
+    on stderr and in results.json.
+  * A resume with more methods renders again the input frames that lack the passes they now need
+    (the jittered set gains taa-improved's IDs and albedo), and keeps the frames that have them.
 Needs Blender and the built CLI and library (CRISP_BUILD_DIR)."""
 
 import ctypes
@@ -118,10 +120,11 @@ def reported(out, name, frame):
 def test_unjittered_geometry_is_rendered_for_the_warp(run):
     out, _ = run
     scene = json.load(open(os.path.join(out, "renders", "scene.json")))
-    assert scene["sets"]["unjittered"]["passes"] == ["color", "depth", "motion", "id"]
-    assert "temporal-error" in scene["sets"]["unjittered"]["method"]
-    assert scene["inputs"]["none"] == "eevee_1"  # the methods' own inputs do not change
-    side = json.load(open(os.path.join(out, "renders", "unjittered", "frame_0002.json")))
+    assert scene["sets"]["warp"]["passes"] == ["color", "depth", "motion", "id"]
+    assert scene["sets"]["warp"]["method"] == "temporal-error"
+    assert "unjittered" not in scene["sets"], "no method here reads unjittered frames beyond colour"
+    assert scene["inputs"] == {"none": "eevee_1", "taa": "jittered"}  # no method reads renders/warp
+    side = json.load(open(os.path.join(out, "renders", "warp", "frame_0002.json")))
     assert not side["jitter"]["enabled"] and side["jitter"]["x"] == 0 and side["jitter"]["y"] == 0
     jittered = json.load(open(os.path.join(out, "renders", "jittered", "frame_0002.json")))
     assert jittered["jitter"]["enabled"] and (jittered["jitter"]["x"], jittered["jitter"]["y"]) != (0, 0)
@@ -134,12 +137,12 @@ def test_temporal_error_recomputed_from_the_pixel_centres(run):
     lib = Lib()
     ref = [lib.color(os.path.join(out, "renders", "reference_4", "frame_%04d.exr" % f)) for f in (2, 3)]
     geometry = {s: [Geometry(lib, os.path.join(out, "renders", s), f) for f in (2, 3)]
-                for s in ("unjittered", "jittered")}
+                for s in ("warp", "jittered")}
     for name in ("none", "taa"):
         test = [lib.color(os.path.join(out, "methods", name, "frame_%04d.exr" % f)) for f in (2, 3)]
         want, _ = reported(out, name, 3)
-        got, valid = temporal_error(test[1], test[0], ref[1], ref[0], geometry["unjittered"][1],
-                                    geometry["unjittered"][0])
+        got, valid = temporal_error(test[1], test[0], ref[1], ref[0], geometry["warp"][1],
+                                    geometry["warp"][0])
         assert 0.5 < valid < 1 and want > 0, (name, valid, want)  # the sphere disoccludes some wall
         assert abs(got - want) <= 1e-3 * want, (name, got, want)
         # The jittered frames' geometry describes other points: another figure.
@@ -152,12 +155,12 @@ def test_old_renders_fall_back_to_the_jittered_motion_and_say_so(run):
     copy = tempfile.mkdtemp(prefix="crisp_eval_warp_old_")
     try:
         shutil.copytree(out, copy, dirs_exist_ok=True)
-        # Renders of an earlier crisp: unjittered frames with colour only (as eevee_1's).
+        # Frames that lost their geometry (colour only, as eevee_1's; the sidecars still list it).
         for f in (1, 2, 3):
             name = "frame_%04d.exr" % f
-            shutil.copy(os.path.join(copy, "renders", "eevee_1", name), os.path.join(copy, "renders", "unjittered", name))
+            shutil.copy(os.path.join(copy, "renders", "eevee_1", name), os.path.join(copy, "renders", "warp", name))
         stderr = crisp_eval(copy)
-        assert "lack depth, id" in stderr and "delete" in stderr, stderr[-2000:]
+        assert "warp lacks depth" in stderr and "delete it" in stderr, stderr[-2000:]
         want, scene = reported(copy, "none", 3)
         assert "jittered 1-sample frames" in scene["temporal_error_warp"]
         lib = Lib()
@@ -166,5 +169,26 @@ def test_old_renders_fall_back_to_the_jittered_motion_and_say_so(run):
         g = [Geometry(lib, os.path.join(copy, "renders", "jittered"), f) for f in (2, 3)]
         got, _ = temporal_error(test[1], test[0], ref[1], ref[0], g[1], g[0])
         assert abs(got - want) <= 1e-3 * want, (got, want)
+    finally:
+        shutil.rmtree(copy, ignore_errors=True)
+
+
+def test_resume_renders_again_what_lacks_the_passes_now_needed(run):
+    out, _ = run
+    copy = tempfile.mkdtemp(prefix="crisp_eval_warp_resume_")
+    try:
+        shutil.copytree(out, copy, dirs_exist_ok=True)
+        renders = os.path.join(copy, "renders")
+        stamp = {s: os.path.getmtime(os.path.join(renders, s, "frame_0002.exr")) for s in ("jittered", "warp")}
+        p = subprocess.run([CRISP, "eval"] + ARGS[:-1] + ["none,taa,taa-improved", "-o", copy],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=600)
+        assert p.returncode == 0, p.stderr.decode()[-3000:]
+        side = json.load(open(os.path.join(renders, "jittered", "frame_0002.json")))
+        assert side["passes"] == ["color", "depth", "motion", "id", "albedo"], side["passes"]
+        assert os.path.getmtime(os.path.join(renders, "jittered", "frame_0002.exr")) != stamp["jittered"]
+        assert os.path.getmtime(os.path.join(renders, "warp", "frame_0002.exr")) == stamp["warp"]
+        scene = json.load(open(os.path.join(copy, "results.json")))["scenes"][0]
+        entry = next(m for m in scene["methods"] if m["name"] == "taa-improved")
+        assert not entry["error"], entry["error"]
     finally:
         shutil.rmtree(copy, ignore_errors=True)
