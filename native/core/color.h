@@ -15,6 +15,16 @@ inline float sanitizeColor(float v) {
   return std::clamp(v, -kMaxColor, kMaxColor);
 }
 
+// sanitizeColor as three selects, on a float or on every lane of a GCC vector of floats (the temporal
+// kernels' Vec4 and Vec8, phlm's lanes): the same value for every input, in a form the compiler
+// vectorises. Always inlined, so an AVX2 copy of a row loop runs it with AVX2.
+template <class T>
+__attribute__((always_inline)) inline T sanitizeColorLanes(T v) {
+  v = v == v ? v : T{};
+  v = v < -kMaxColor ? T{} - kMaxColor : v;
+  return kMaxColor < v ? T{} + kMaxColor : v;
+}
+
 // Rec. 709 luminance of linear RGB.
 inline float luminance709(float r, float g, float b) { return 0.2126f * r + 0.7152f * g + 0.0722f * b; }
 

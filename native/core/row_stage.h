@@ -14,13 +14,6 @@
 
 namespace crisp {
 
-// sanitizeColor (core/color.h) as three selects: the same value for every
-// input, in a form the compiler vectorises.
-inline float sanitizeColorSelects(float v) {
-  v = v == v ? v : 0.0f;
-  v = v < -kMaxColor ? -kMaxColor : v;
-  return kMaxColor < v ? kMaxColor : v;
-}
 
 // One pixel p of `channels` (1-4) floats as RGBA: sanitizeColor on every
 // channel, a missing G or B repeats R, missing alpha is 1.
@@ -39,7 +32,7 @@ inline void stageColorRow(const ImageView& color, int y, float* rgba) {
   if (c == 4 && color.pixelStride == 16) {
     // Packed RGBA: one element-wise pass the compiler vectorises.
     const float* p = reinterpret_cast<const float*>(src);
-    for (int i = 0; i < 4 * w; ++i) rgba[i] = sanitizeColorSelects(p[i]);
+    for (int i = 0; i < 4 * w; ++i) rgba[i] = sanitizeColorLanes(p[i]);
     return;
   }
   for (int x = 0; x < w; ++x, src += color.pixelStride)

@@ -918,17 +918,11 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
         storeLanes(interceptRow(f.interceptsNext, f.blocksPerRow, c, batch.y) + batch.x0,
                    V(overflow ? restart[kBeta + c] : m[kBeta + c]));
   }
-  // sanitizeColor on all lanes at once (as core/row_stage.h sanitizeColorSelects: the same values), then
-  // pixel by pixel.
+  // sanitizeColor on all lanes at once (sanitizeColorLanes: the same values), then pixel by pixel.
   const int y = batch.y;
   using F = typename LanesOf<float>::V;
   F rgb[3];
-  for (int c = 0; c < 3; ++c) {
-    F v = __builtin_convertvector(out[c], F);
-    v = v == v ? v : F{};
-    v = v < -kMaxColor ? F{} - kMaxColor : v;
-    rgb[c] = kMaxColor < v ? F{} + kMaxColor : v;
-  }
+  for (int c = 0; c < 3; ++c) rgb[c] = sanitizeColorLanes(F(__builtin_convertvector(out[c], F)));
   const bool alphaOut = f.output.channels() > 3, alphaIn = f.color.channels() > 3;
   for (int i = 0; i < n; ++i) {
     const int x = batch.x0 + i;

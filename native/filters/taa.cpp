@@ -241,7 +241,7 @@ struct Frame {
 inline Vec4 stagePixel(const float* p, int channels, ClipSpace space) {
   Vec4 v = channels > 3 ? temporal::load4(p)
                         : Vec4{p[0], channels > 1 ? p[1] : p[0], channels > 2 ? p[2] : p[0], 1.0f};
-  v = temporal::sanitize4(v, kMaxColor);  // sanitizeColor per lane; alpha 1 stays 1
+  v = sanitizeColorLanes(v);  // sanitizeColor per lane; alpha 1 stays 1
   if (space == ClipSpace::YCoCg) {
     const Float3 c = temporal::rgbToYCoCg({{v[0], v[1], v[2]}});
     v = Vec4{c[0], c[1], c[2], v[3]};
@@ -256,7 +256,7 @@ inline Float3 toRgb(const Float3& c, ClipSpace space) {
 // rgb in lanes 0-2 (sanitised here), alpha in lane 3.
 inline void storeOutput(const ImageView& out, int x, int y, Vec4 rgba) {
   const float alpha = rgba[3];
-  rgba = temporal::sanitize4(rgba, kMaxColor);
+  rgba = sanitizeColorLanes(rgba);
   rgba[3] = alpha;
   float* p = out.pixel(x, y);
   if (out.channels() > 3) {
@@ -534,10 +534,7 @@ __attribute__((always_inline)) inline ResolvedLanes<T> resolveLanes(const Frame&
   } else {
     for (int c = 0; c < 3; ++c) rgb[c] = r.color[c];
   }
-  for (int c = 0; c < 3; ++c) {
-    const T v = rgb[c] == rgb[c] ? rgb[c] : zero;  // sanitize4
-    r.output[c] = v < -kMaxColor ? lanesOf<T>(-kMaxColor) : (kMaxColor < v ? lanesOf<T>(kMaxColor) : v);
-  }
+  for (int c = 0; c < 3; ++c) r.output[c] = sanitizeColorLanes(rgb[c]);
   return r;
 }
 
@@ -701,7 +698,7 @@ inline void stageColorTap(const float* px, int channels, float* const* p, int k)
 template <int C>
 __attribute__((always_inline)) inline void stageColorRun(const float* src, int count, float* p0, float* p1, float* p2,
                                                          float* p3) {
-  const auto sanitize = sanitizeColorSelects;
+  const auto sanitize = sanitizeColorLanes<float>;
   for (int i = 0; i < count; ++i) {
     const float* px = src + C * i;
     p0[i] = sanitize(px[0]);

@@ -166,14 +166,14 @@ inline void lumaRun(const float* p, int width, float* out) {
                  d = temporal::load4(p + 12);
       const Vec4 ab01 = __builtin_shufflevector(a, b, 0, 4, 1, 5), cd01 = __builtin_shufflevector(c, d, 0, 4, 1, 5);
       const Vec4 ab2 = __builtin_shufflevector(a, b, 2, 6, 3, 7), cd2 = __builtin_shufflevector(c, d, 2, 6, 3, 7);
-      const Vec4 r = temporal::sanitize4(__builtin_shufflevector(ab01, cd01, 0, 1, 4, 5), kMaxColor);
-      const Vec4 g = temporal::sanitize4(__builtin_shufflevector(ab01, cd01, 2, 3, 6, 7), kMaxColor);
-      const Vec4 bl = temporal::sanitize4(__builtin_shufflevector(ab2, cd2, 0, 1, 4, 5), kMaxColor);
+      const Vec4 r = sanitizeColorLanes(Vec4(__builtin_shufflevector(ab01, cd01, 0, 1, 4, 5)));
+      const Vec4 g = sanitizeColorLanes(Vec4(__builtin_shufflevector(ab01, cd01, 2, 3, 6, 7)));
+      const Vec4 bl = sanitizeColorLanes(Vec4(__builtin_shufflevector(ab2, cd2, 0, 1, 4, 5)));
       temporal::store4(out + x, 0.2126f * r + 0.7152f * g + 0.0722f * bl);  // luminance709's order
     }
   }
   for (; x < width; ++x, p += C)
-    out[x] = luminance709(sanitizeColorSelects(p[0]), sanitizeColorSelects(p[1]), sanitizeColorSelects(p[2]));
+    out[x] = luminance709(sanitizeColorLanes(p[0]), sanitizeColorLanes(p[1]), sanitizeColorLanes(p[2]));
 }
 inline void lumaRow(const ImageView& v, int y, float* out) {
   const int c = v.channels();

@@ -37,11 +37,5 @@ inline Vec4 vsqrt(Vec4 v) {
   return v;
 #endif
 }
-// crisp::sanitizeColor (core/color.h) on every lane, same results: NaN -> 0,
-// then std::clamp(v, -limit, limit).
-inline Vec4 sanitize4(Vec4 v, float limit) {
-  v = v == v ? v : splat(0.0f);
-  return v < -limit ? splat(-limit) : (limit < v ? splat(limit) : v);
-}
 
 }  // namespace crisp::temporal
