@@ -86,35 +86,12 @@ def group_plans(scene, methods, frames):
     facts = plan_mod.scene_facts(scene, frames[0], frames[-1],
                                  renderer_motion_pass=render.renderer_motion_pass(engine))
     plans, unknown = {}, []
-    groups = {True: [], False: []}
     for m in methods:
         if m not in plan_mod.METHOD_PASSES:
             unknown.append(m)
             continue
-        p = plan_mod.make_plan(m, facts)
-        plans[m] = p
-        groups[p.jitter].append(p)
-    sets = {}
-    for jitter, members in groups.items():
-        passes = []
-        for p in members:
-            passes += [q for q in p.passes if q not in passes]
-        if not members or (not jitter and passes == ["color"]):
-            continue  # colour-only, unjittered: the curve's 1-sample frames are exactly these
-        # "subsamples" (rsaa): render.render_frames adds the geometry renders frame_NNNN_subK.exr and
-        # lists them, with their render times, in each frame's sidecar (eval reports those times apart).
-        order = ["color", "depth", "normal", "motion", "id", "albedo", "subsamples"]
-        passes.sort(key=order.index)
-        reasons = {}
-        for p in members:
-            reasons.update({k: v for k, v in p.reasons.items() if k in passes})
-        sources = {p.motion_source for p in members} - {"none"}
-        union = plan_mod.Plan(method="+".join(p.method for p in members), passes=passes, reasons=reasons,
-                              skipped={}, jitter=jitter, motion_source=sources.pop() if sources else "none")
-        sets["jittered" if jitter else "unjittered"] = union
-    warp = plan_mod.make_plan(plan_mod.TEMPORAL_ERROR, facts)
-    if warp.passes != ["color"]:  # something moves
-        sets["warp"] = warp
+        plans[m] = plan_mod.make_plan(m, facts)
+    sets = plan_mod.render_sets(list(plans.values()), facts)
     return plans, sets, unknown, facts
 
 

@@ -60,6 +60,9 @@ USE = {
     (TEMPORAL_ERROR, "id"): "the temporal error's disocclusion test by object ID",
 }
 
+# The order passes are listed in (plans, sidecars, render sets).
+PASS_ORDER = ("color", "depth", "normal", "motion", "id", "albedo", "subsamples")
+
 # Blender view-layer flag of each logical pass (None: not a view-layer pass).
 PASS_FLAGS = {
     "color": "use_pass_combined",
@@ -87,7 +90,7 @@ class SceneFacts:
 @dataclass
 class Plan:
     method: str
-    passes: list                  # logical passes, in METHOD_PASSES order
+    passes: list                  # logical passes, in PASS_ORDER
     reasons: dict                 # pass -> why it is rendered
     skipped: dict                 # pass -> why it is not rendered
     jitter: bool                  # per-frame sub-pixel jitter (temporal methods)
@@ -187,10 +190,39 @@ def make_plan(method, facts):
             skipped[p] = "%s does not read it" % method
     if "motion" not in passes and "motion" not in skipped:
         skipped["motion"] = "%s does not read it" % method
-    order = ["color", "depth", "normal", "motion", "id", "albedo", "subsamples"]
-    passes.sort(key=order.index)
+    passes.sort(key=PASS_ORDER.index)
     return Plan(method=method, passes=passes, reasons=reasons, skipped=skipped,
                 jitter=method in TEMPORAL_METHODS, motion_source=motion_source)
+
+
+def render_sets(plans, facts):
+    """The 1-sample render sets of `crisp eval` for the methods' plans on a scene described by `facts`:
+    {name: Plan}. "jittered": the union of the temporal methods' passes; "unjittered": the union of the
+    other methods' passes where some of them read more than colour (colour alone is the curve's 1-sample
+    set, eevee_1); "warp": where something moves, the temporal error's geometry (TEMPORAL_ERROR), which
+    no method reads."""
+    sets = {}
+    for jitter in (True, False):
+        members = [p for p in plans if p.jitter == jitter]
+        passes = []
+        for p in members:
+            passes += [q for q in p.passes if q not in passes]
+        if not members or (not jitter and passes == ["color"]):
+            continue
+        # "subsamples" (rsaa): render.render_frames adds the geometry renders frame_NNNN_subK.exr and
+        # lists them, with their render times, in each frame's sidecar (eval reports those times apart).
+        passes.sort(key=PASS_ORDER.index)
+        reasons = {}
+        for p in members:  # the first method that reads a pass gives its reason
+            reasons.update({k: v for k, v in p.reasons.items() if k in passes and k not in reasons})
+        sources = {p.motion_source for p in members} - {"none"}
+        sets["jittered" if jitter else "unjittered"] = Plan(
+            method="+".join(p.method for p in members), passes=passes, reasons=reasons, skipped={}, jitter=jitter,
+            motion_source=sources.pop() if sources else "none")
+    warp = make_plan(TEMPORAL_ERROR, facts)
+    if warp.passes != ["color"]:  # something moves
+        sets["warp"] = warp
+    return sets
 
 
 # ---- reading the facts off a Blender scene (bpy objects passed in, no bpy import) -----------------

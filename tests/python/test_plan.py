@@ -94,6 +94,28 @@ def test_temporal_error_reads_unjittered_geometry_only_where_something_moves():
     assert plan.TEMPORAL_ERROR not in plan.METHOD_PASSES  # not a method anyone can pick
 
 
+def test_eval_render_sets_group_the_plans_and_add_the_warp_where_something_moves():
+    def sets(methods, f):
+        return plan.render_sets([plan.make_plan(m, f) for m in methods], f)
+    # A still scene: colour-only methods need no render of their own (eevee_1 is theirs), no warp.
+    assert sets(["none", "fxaa"], facts()) == {}
+    s = sets(["none", "taa"], facts())
+    assert list(s) == ["jittered"] and s["jittered"].passes == ["color"] and s["jittered"].jitter
+    # Moving: the temporal methods' union, rsaa's geometry unjittered, and the warp's own set.
+    s = sets(["none", "taa", "taa-improved", "rsaa"], facts(moving_objects=["B"]))
+    assert set(s) == {"jittered", "unjittered", "warp"}
+    assert s["jittered"].passes == ["color", "depth", "motion", "id", "albedo"]
+    assert s["jittered"].method == "taa+taa-improved" and s["jittered"].motion_source == "reconstruct"
+    assert "reprojects the history" in s["jittered"].reasons["motion"]  # the first reader's reason
+    assert s["unjittered"].passes == ["color", "depth", "normal", "subsamples"] and not s["unjittered"].jitter
+    assert s["unjittered"].method == "none+rsaa" and "SADP" in s["unjittered"].reasons["depth"]
+    assert s["warp"].method == plan.TEMPORAL_ERROR and s["warp"].passes == ["color", "depth", "motion", "id"]
+    # Only colour-reading methods on a moving scene: the warp alone.
+    assert list(sets(["none", "repair"], facts(camera_moves=True))) == ["warp"]
+    for p in s.values():
+        assert set(p.reasons) == set(p.passes) and p.passes == sorted(p.passes, key=plan.PASS_ORDER.index)
+
+
 def test_every_planned_pass_has_a_reason_and_json_round_trip():
     for method in list(plan.METHOD_PASSES) + [plan.TEMPORAL_ERROR]:
         for f in (facts(), facts(camera_moves=True), facts(moving_objects=["A"], deforming_objects=["B"])):
