@@ -850,8 +850,9 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
       const ReprojectionLanes<T> rp =
           reprojectLanes<T>(f, float(x0) + laneIndex, temporal::lanesOf<T>(float(y)), vx, vy, tapDepth);
       // A whole group with valid history fetches it as lanes when nothing in it
-      // moves (exact taps) or when, on Catmull-Rom, every footprint is interior
-      // and shares one integer offset (smooth motion); else one pixel at a time.
+      // moves (exact taps) or when every footprint (4x4 Catmull-Rom, 2x2
+      // bilinear) is interior and shares one integer offset (smooth motion);
+      // else one pixel at a time.
       const bool whole = lanes == kL && temporal::allOf(rp.valid);
       if (whole && !temporal::anyOf(rp.moving)) {
         for (int c = 0; c < 4; ++c) in.hist[c] = load(f.previous.plane[c] + rowStart + x0);
@@ -859,6 +860,10 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
                  temporal::sharedInteriorOffset<T>(rp.x0, rp.y0, rp.valid, -1, 2, -1, 2, w, h)) {
         // footprintInterior4x4 on every lane: the unclamped fetch's taps.
         temporal::fetchCatmullRomRow(f.previous, rp.x0[0], rp.y0[0], rp.tx, rp.ty, in.hist);
+      } else if (whole && temporal::allOf(rp.moving) && f.filter == HistoryFilter::Bilinear &&
+                 temporal::sharedInteriorOffset<T>(rp.x0, rp.y0, rp.valid, 0, 1, 0, 1, w, h)) {
+        // Every lane's 2x2 inside the image: fetchBilinear4's taps, unclamped.
+        temporal::fetchBilinearRow(f.previous, rp.x0[0], rp.y0[0], rp.tx, rp.ty, in.hist);
       } else {
         alignas(32) float hist[4][kL] = {};
         for (int l = 0; l < lanes; ++l) {

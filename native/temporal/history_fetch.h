@@ -191,6 +191,18 @@ inline Vec4 fetchCatmullRomAt4(const H& h, const Footprint& f) {
 // whose footprints are all interior and share their integer offset: lane l's
 // top-left tap is (x0 + l, y0), its fractions tx[l], ty[l]. Per lane the same
 // operations in the same order, so the same bits; channel c into out[c].
+// The carried channel (3) of a lane group's interior footprints, lane l's 2x2 at (x0 + l, y0): the
+// nearest of the four taps, never interpolated (as fetchBilinear4 and fetchCatmullRomAt4 take it).
+template <class T>
+CRISP_LANES_INLINE T carriedNearestRow(const HistoryPlanes& h, int x0, int y0, T tx, T ty) {
+  const float* upper = h.plane[3] + h.index(x0, y0);
+  const float* lower = h.plane[3] + h.index(x0, y0 + 1);
+  const auto left = tx < 0.5f;
+  const T up = left ? loadLanes<T>(upper) : loadLanes<T>(upper + 1);
+  const T down = left ? loadLanes<T>(lower) : loadLanes<T>(lower + 1);
+  return ty < 0.5f ? up : down;
+}
+
 template <class T>
 CRISP_LANES_INLINE void fetchCatmullRomRow(const HistoryPlanes& h, int x0, int y0, T tx, T ty, T out[4]) {
   T wx[4], wy[4];
@@ -207,13 +219,24 @@ CRISP_LANES_INLINE void fetchCatmullRomRow(const HistoryPlanes& h, int x0, int y
     }
   }
   for (int c = 0; c < 3; ++c) out[c] = catmullRomClamped(acc[c], lo[c], hi[c]);
-  // The carried channel: the nearest of the 4 central taps.
-  const float* upper = h.plane[3] + h.index(x0, y0);
-  const float* lower = h.plane[3] + h.index(x0, y0 + 1);
-  const auto left = tx < 0.5f;
-  const T up = left ? loadLanes<T>(upper) : loadLanes<T>(upper + 1);
-  const T down = left ? loadLanes<T>(lower) : loadLanes<T>(lower + 1);
-  out[3] = ty < 0.5f ? up : down;
+  out[3] = carriedNearestRow(h, x0, y0, tx, ty);
+}
+
+// fetchBilinear4 on a lane group as fetchCatmullRomRow reads Catmull-Rom: every lane's 2x2 footprint
+// inside the image, lane l's at (x0 + l, y0) (sharedInteriorOffset with 0..1); the same operations
+// in the same order, so the same bits.
+template <class T>
+CRISP_LANES_INLINE void fetchBilinearRow(const HistoryPlanes& h, int x0, int y0, T tx, T ty, T out[4]) {
+  const std::size_t upper = h.index(x0, y0), lower = h.index(x0, y0 + 1);
+  for (int c = 0; c < 3; ++c) {
+    const float* p = h.plane[c];
+    const T p00 = loadLanes<T>(p + upper), p10 = loadLanes<T>(p + upper + 1);
+    const T p01 = loadLanes<T>(p + lower), p11 = loadLanes<T>(p + lower + 1);
+    const T top = p00 + (p10 - p00) * tx;
+    const T bottom = p01 + (p11 - p01) * tx;
+    out[c] = top + (bottom - top) * ty;
+  }
+  out[3] = carriedNearestRow(h, x0, y0, tx, ty);
 }
 
 inline Vec4 fetchCatmullRom4(const HistoryImage& h, float x, float y) {

@@ -219,6 +219,54 @@ TEST(TemporalFetch, BilinearAndCatmullRom) {
   EXPECT_FALSE(onScreen(1.0f, INFINITY, w, h));
 }
 
+// The lane-group fetches (a group whose footprints share one integer offset, as taa's fast path
+// reads a smooth motion) give, lane by lane, the bits of the one-pixel fetches, with the carried
+// channel of the nearest tap; on Vec4 and Vec8, over fractions that include 0 and 0.5.
+template <class T>
+void rowFetchesEqualPixelFetches() {
+  constexpr int kL = kLanesOf<T>;
+  const int w = 23, h = 7;
+  std::vector<float> planes[4];
+  for (int c = 0; c < 4; ++c) {
+    planes[c].resize(std::size_t(w) * h);
+    for (int i = 0; i < w * h; ++i) planes[c][i] = std::sin(0.37f * float(i) + 1.3f * float(c)) * (c == 3 ? 5 : 1);
+  }
+  const HistoryPlanes hp{{planes[0].data(), planes[1].data(), planes[2].data(), planes[3].data()}, w, h};
+  const float fractions[] = {0.0f, 0.25f, 0.5f, 0.73f, 0.99f};
+  for (float fx : fractions)
+    for (float fy : fractions)
+      for (int x0 = 1; x0 + kL + 2 <= w; x0 += 3) {
+        const int y0 = 2;
+        // Reprojected positions and their fractions as taa derives them (footprintOf).
+        float qx[kL], qy[kL];
+        T tx, ty, bilinear[4], cubic[4];
+        for (int l = 0; l < kL; ++l) {
+          qx[l] = float(x0 + l) + fx + 0.003f * float(l % 3);
+          qy[l] = float(y0) + fy;
+          const Footprint fp = footprintOf(qx[l], qy[l]);
+          ASSERT_EQ(fp.x0, x0 + l);
+          setLane(tx, l, fp.tx);
+          setLane(ty, l, fp.ty);
+        }
+        fetchBilinearRow(hp, x0, y0, tx, ty, bilinear);
+        fetchCatmullRomRow(hp, x0, y0, tx, ty, cubic);
+        for (int l = 0; l < kL; ++l) {
+          const Footprint fp = footprintOf(qx[l], qy[l]);
+          const Vec4 b = fetchBilinear4(hp, qx[l], qy[l]);
+          const Vec4 c = fetchCatmullRomAt4<false>(hp, fp);
+          for (int ch = 0; ch < 4; ++ch) {
+            EXPECT_EQ(bilinear[ch][l], b[ch]) << "bilinear lane " << l << " channel " << ch << " at " << fx << "," << fy;
+            EXPECT_EQ(cubic[ch][l], c[ch]) << "catmull-rom lane " << l << " channel " << ch << " at " << fx << "," << fy;
+          }
+        }
+      }
+}
+
+TEST(TemporalFetch, LaneGroupFetchesEqualPixelFetches) {
+  rowFetchesEqualPixelFetches<Vec4>();
+  rowFetchesEqualPixelFetches<Vec8>();
+}
+
 TEST(TemporalVelocity, ClosestDepthAndSurfaceTests) {
   float d[9] = {5, 5, 5, 5, 5, 5, 5, 5, 5};
   EXPECT_EQ(closestDepthTap(d), 4);  // ties: the centre
