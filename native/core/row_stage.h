@@ -14,7 +14,6 @@
 
 namespace crisp {
 
-
 // One pixel p of `channels` (1-4) floats as RGBA: sanitizeColor on every
 // channel, a missing G or B repeats R, missing alpha is 1.
 inline void stageColorPixel(const float* p, int channels, float rgba[4]) {

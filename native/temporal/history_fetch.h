@@ -187,10 +187,7 @@ inline Vec4 fetchCatmullRomAt4(const H& h, const Footprint& f) {
   out[3] = carried;
   return out;
 }
-// fetchCatmullRomAt4<false> on a lane group (lanes.h) of planar history
-// whose footprints are all interior and share their integer offset: lane l's
-// top-left tap is (x0 + l, y0), its fractions tx[l], ty[l]. Per lane the same
-// operations in the same order, so the same bits; channel c into out[c].
+
 // The carried channel (3) of a lane group's interior footprints, lane l's 2x2 at (x0 + l, y0): the
 // nearest of the four taps, never interpolated (as fetchBilinear4 and fetchCatmullRomAt4 take it).
 template <class T>
@@ -203,6 +200,10 @@ CRISP_LANES_INLINE T carriedNearestRow(const HistoryPlanes& h, int x0, int y0, T
   return ty < 0.5f ? up : down;
 }
 
+// fetchCatmullRomAt4<false> on a lane group (lanes.h) of planar history
+// whose footprints are all interior and share their integer offset: lane l's
+// top-left tap is (x0 + l, y0), its fractions tx[l], ty[l]. Per lane the same
+// operations in the same order, so the same bits; channel c into out[c].
 template <class T>
 CRISP_LANES_INLINE void fetchCatmullRomRow(const HistoryPlanes& h, int x0, int y0, T tx, T ty, T out[4]) {
   T wx[4], wy[4];
