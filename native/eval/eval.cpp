@@ -162,12 +162,14 @@ struct WarpGeometry {
 };
 
 // Motion (the renderer's, else reconstructed from depth and the sidecars) and the disocclusion mask
-// of each frame after the first, from the frames in dir. Throws on unreadable frames or motion that
-// cannot be reconstructed.
-void loadWarpGeometry(const fs::path& dir, const std::vector<int>& frames, int threads, WarpGeometry& g) {
+// of each frame after the first, from the frames in dir. first: that folder's first frame when the
+// caller has read it already. Throws on unreadable frames or motion that cannot be reconstructed.
+void loadWarpGeometry(const fs::path& dir, const std::vector<int>& frames, int threads, WarpGeometry& g,
+                      std::unique_ptr<Frame> first) {
   std::unique_ptr<Frame> prev;
   for (int f : frames) {
-    auto fr = std::make_unique<Frame>(readFrame((dir / frameName(f)).string()));
+    auto fr = f == frames.front() && first ? std::move(first)
+                                           : std::make_unique<Frame>(readFrame((dir / frameName(f)).string()));
     addMotion(*fr, dir, f, frames.front(), true, threads);
     if (prev && fr->has("motion")) {
       g.motions[f] = fr->pass("motion");
@@ -193,31 +195,33 @@ WarpGeometry warpGeometry(const fs::path& renders, const json& scene, const std:
   struct Candidate {
     fs::path dir;
     const char* description;
+    std::unique_ptr<Frame> first;  // read already (the probe of renders/warp)
   };
   std::vector<Candidate> candidates;
   if (!fs::exists(warp / frameName(frames.front()))) {
     note("no unjittered geometry in " + warp.string() + "; using the jittered frames' motion");
   } else {
     std::string missing;
-    const Frame probe = readFrame((warp / frameName(frames.front())).string());
+    auto probe = std::make_unique<Frame>(readFrame((warp / frameName(frames.front())).string()));
     const json passes = scene.value("sets", json::object()).value("warp", json::object()).value("passes", json::array());
     for (const std::string pass : {"depth", "motion", "id"})
-      if (std::find(passes.begin(), passes.end(), pass) != passes.end() && !probe.has(pass) &&
-          !(pass == "motion" && probe.has("depth")))  // motion is reconstructed from depth
+      if (std::find(passes.begin(), passes.end(), pass) != passes.end() && !probe->has(pass) &&
+          !(pass == "motion" && probe->has("depth")))  // motion is reconstructed from depth
         missing += (missing.empty() ? "" : ", ") + pass;
     if (missing.empty())
-      candidates.push_back({warp, "motion vectors at the pixel centres (unjittered 1-sample frames)"});
+      candidates.push_back({warp, "motion vectors at the pixel centres (unjittered 1-sample frames)", std::move(probe)});
     else
       note(warp.string() + " lacks " + missing + " (delete it and run eval again to render it); using the "
            "jittered frames' motion");
   }
   candidates.push_back({jittered, "motion vectors of the jittered 1-sample frames (they describe the point at "
-                                  "p + jitter: approximate along moving edges)"});
-  for (const Candidate& c : candidates) {
+                                  "p + jitter: approximate along moving edges)",
+                        nullptr});
+  for (Candidate& c : candidates) {
     if (!fs::exists(c.dir / frameName(frames.front()))) continue;
     WarpGeometry g;
     try {
-      loadWarpGeometry(c.dir, frames, o.threads, g);
+      loadWarpGeometry(c.dir, frames, o.threads, g, std::move(c.first));
     } catch (const Exception& ex) {
       note(c.dir.string() + ": " + ex.what() + (&c != &candidates.back() ? "; trying the next source" : ""));
       continue;
