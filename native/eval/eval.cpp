@@ -233,11 +233,25 @@ WarpGeometry warpGeometry(const fs::path& renders, const json& scene, const std:
   return {};
 }
 
+// What identifies an input frame a method read: its size and modification time. A render set's
+// frame rendered again (other passes or settings, render.reusable_input) is a new file with a new
+// time, and a method's frame made from the old one is then stale.
+std::string inputStamp(const fs::path& file) {
+  std::error_code ec;
+  const auto size = fs::file_size(file, ec);
+  if (ec) return "";
+  const auto time = fs::last_write_time(file, ec);
+  if (ec) return "";
+  return std::to_string(size) + " " + std::to_string(time.time_since_epoch().count());
+}
+
 void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const fs::path& inputDir, bool sceneMoves,
                cli::Progress& progress) {
   const fs::path dir = fs::path(o.outDir) / "methods" / e.name;
   cli::makeDirectories(dir.string());
   json times = readJson(dir / "times.json", false);
+  // inputs.json: the stamp (inputStamp) of the input each frame was made from.
+  json inputs = readJson(dir / "inputs.json", false);
   const fs::path stampFile = dir / "build.txt";
   std::string stamp;
   if (std::ifstream in(stampFile); in) std::getline(in, stamp);
@@ -251,7 +265,15 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
     writeJson(dir / "times.json", times);
     cli::writeTextFile(stampFile.string(), buildStamp() + "\n");
   }
-  auto done = [&](int f) { return times.contains(frameKey(f)) && fs::exists(dir / frameName(f)); };
+  std::map<int, std::string> inputNow;
+  for (int f : frames) inputNow[f] = inputStamp(inputDir / frameName(f));
+  auto made = [&](int f) { return times.contains(frameKey(f)) && fs::exists(dir / frameName(f)); };
+  auto done = [&](int f) {
+    return made(f) && inputs.contains(frameKey(f)) && inputs[frameKey(f)] == inputNow[f];
+  };
+  if (!o.quiet && std::any_of(frames.begin(), frames.end(), [&](int f) { return made(f) && !done(f); }))
+    std::fprintf(stderr, "crisp eval: methods/%s: frames made from inputs rendered since; computing them again\n",
+                 e.name.c_str());
   bool allDone = std::all_of(frames.begin(), frames.end(), done);
   // A temporal method's frame depends on the history of all earlier ones: a partial run starts over.
   if (!allDone && e.temporal) times = json::object();
@@ -283,6 +305,8 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
     writeImage((dir / frameName(f, ".png")).string(), output);
     times[frameKey(f)] = seconds;
     writeJson(dir / "times.json", times);
+    inputs[frameKey(f)] = inputNow[f];  // after times: an interruption between them only recomputes
+    writeJson(dir / "inputs.json", inputs);
     progress.step(e.name + " frame " + std::to_string(f));
   }
 }

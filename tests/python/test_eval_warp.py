@@ -10,7 +10,8 @@
   * A renders/warp whose frames lack that geometry falls back to the jittered set's motion and says so
     on stderr and in results.json.
   * A resume with more methods renders again the input frames that lack the passes they now need
-    (the jittered set gains taa-improved's IDs and albedo), and keeps the frames that have them.
+    (the jittered set gains taa-improved's IDs and albedo), and keeps the frames that have them; a
+    method's frames made from the frames rendered again are made again, the others kept.
 Needs Blender and the built CLI and library (CRISP_BUILD_DIR)."""
 
 import ctypes
@@ -180,6 +181,7 @@ def test_resume_renders_again_what_lacks_the_passes_now_needed(run):
         shutil.copytree(out, copy, dirs_exist_ok=True)
         renders = os.path.join(copy, "renders")
         stamp = {s: os.path.getmtime(os.path.join(renders, s, "frame_0002.exr")) for s in ("jittered", "warp")}
+        made = {m: os.path.getmtime(os.path.join(copy, "methods", m, "frame_0002.exr")) for m in ("none", "taa")}
         p = subprocess.run([CRISP, "eval"] + ARGS[:-1] + ["none,taa,taa-improved", "-o", copy],
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=600)
         assert p.returncode == 0, p.stderr.decode()[-3000:]
@@ -187,6 +189,11 @@ def test_resume_renders_again_what_lacks_the_passes_now_needed(run):
         assert side["passes"] == ["color", "depth", "motion", "id", "albedo"], side["passes"]
         assert os.path.getmtime(os.path.join(renders, "jittered", "frame_0002.exr")) != stamp["jittered"]
         assert os.path.getmtime(os.path.join(renders, "warp", "frame_0002.exr")) == stamp["warp"]
+        # taa's frames were made from the jittered frames rendered again: made again; none's input
+        # set did not change: kept.
+        assert os.path.getmtime(os.path.join(copy, "methods", "taa", "frame_0002.exr")) != made["taa"]
+        assert os.path.getmtime(os.path.join(copy, "methods", "none", "frame_0002.exr")) == made["none"]
+        assert "methods/taa: frames made from inputs rendered since" in p.stderr.decode()
         scene = json.load(open(os.path.join(copy, "results.json")))["scenes"][0]
         entry = next(m for m in scene["methods"] if m["name"] == "taa-improved")
         assert not entry["error"], entry["error"]
