@@ -60,4 +60,13 @@ std::vector<std::string> blenderDriverCommand(const ParsedArgs& args, const std:
   return cmd;
 }
 
+void appendJitterOption(const ParsedArgs& args, std::vector<std::string>& cmd) {
+  if (!args.has("jitter")) return;
+  const std::string dist = args.get("jitter");
+  if (dist != "blackman-harris" && dist != "uniform")
+    throw UsageError("--jitter: unknown distribution '" + dist + "' (known: blackman-harris, uniform)");
+  cmd.push_back("--jitter");
+  cmd.push_back(dist);
+}
+
 }  // namespace crisp::cli

@@ -176,6 +176,7 @@ int runEval(const ParsedArgs& args) {
   }
 
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch_eval.py");
+  appendJitterOption(args, cmd);
   makeDirectories(outDir.string());
   const fs::path renders = outDir / "renders", logs = outDir / "logs";
   makeDirectories(renders.string());

@@ -35,6 +35,7 @@ int runRender(const ParsedArgs& args) {
     cmd.push_back("--set");
     cmd.push_back(kv);
   }
+  appendJitterOption(args, cmd);
   if (args.has("plan")) cmd.push_back("--plan-only");
   if (args.has("resume")) cmd.push_back("--resume");
   const fs::path library = fs::path(executableDir()) / ".." / "lib" / "libcrisp.so";

@@ -36,6 +36,9 @@ std::string joinPath(const std::string& dir, const std::string& name);
 // --scene of args (a .blend to open, or a bundled test scene to build); it ends
 // after "--" with the driver's scene arguments, callers append the rest.
 std::vector<std::string> blenderDriverCommand(const ParsedArgs& args, const std::string& script);
+// Appends "--jitter DIST" for the driver when args has --jitter; a distribution
+// the add-on does not know (render.JITTER_DISTRIBUTIONS) is a UsageError.
+void appendJitterOption(const ParsedArgs& args, std::vector<std::string>& cmd);
 // Folder of the running executable (/proc/self/exe).
 std::string executableDir();
 

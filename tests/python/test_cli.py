@@ -80,6 +80,10 @@ def test_help_prints_parameter_tables():
     (["filter", "--method", "fxaa", "--bogus", "IN", "-o", "OUT"], 2, ["unknown option '--bogus'"]),
     (["compare", "--reference", "IN", "--test", "IN", "IN"], 2, ["paired in order"]),
     (["frobnicate"], 2, ["unknown command 'frobnicate'"]),
+    (["eval", "--scene", "still_life", "--jitter", "halton", "-o", "OUT"], 2,
+     ["--jitter: unknown distribution 'halton'", "blackman-harris, uniform"]),
+    (["render", "--scene", "still_life", "--jitter", "halton", "-o", "OUT"], 2,
+     ["--jitter: unknown distribution 'halton'"]),
 ])
 def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
     args = [str(chart / "chart_1spp.exr") if a == "IN" else str(tmp_path / "out") if a == "OUT" else a for a in args]
@@ -88,6 +92,8 @@ def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
     for w in words:
         assert w in p.stderr
     assert not (tmp_path / "out" / "chart_1spp.exr").exists()
+    if args[0] in ("eval", "render"):
+        assert not (tmp_path / "out").exists()  # refused before anything is made
 
 
 def test_bad_files_name_the_file_and_write_nothing(chart, tmp_path):

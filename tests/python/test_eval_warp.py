@@ -12,8 +12,11 @@
   * A resume with more methods renders again the input frames that lack the passes they now need
     (the jittered set gains taa-improved's IDs and albedo), and keeps the frames that have them; a
     method's frames made from the frames rendered again are made again, the others kept.
+  * --jitter uniform on a resumed folder renders the jittered set again inside the pixel and keeps
+    the other sets.
 Needs Blender and the built CLI and library (CRISP_BUILD_DIR)."""
 
+import contextlib
 import ctypes
 import json
 import os
@@ -36,11 +39,26 @@ pytestmark = [
 ]
 
 
-def crisp_eval(out):
-    p = subprocess.run([CRISP, "eval"] + ARGS + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+def crisp_eval(out, args=ARGS):
+    p = subprocess.run([CRISP, "eval"] + args + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                        timeout=600)
     assert p.returncode == 0, p.stderr.decode()[-3000:]
     return p.stderr.decode()
+
+
+@contextlib.contextmanager
+def copy_of(out):
+    """A copy of an eval folder, modification times kept (so a resume there reuses what it can)."""
+    copy = tempfile.mkdtemp(prefix="crisp_eval_warp_copy_")
+    try:
+        shutil.copytree(out, copy, dirs_exist_ok=True)
+        yield copy
+    finally:
+        shutil.rmtree(copy, ignore_errors=True)
+
+
+def mtime(folder, *parts):
+    return os.path.getmtime(os.path.join(folder, *parts))
 
 
 @pytest.fixture(scope="module")
@@ -153,9 +171,7 @@ def test_temporal_error_recomputed_from_the_pixel_centres(run):
 
 def test_old_renders_fall_back_to_the_jittered_motion_and_say_so(run):
     out, _ = run
-    copy = tempfile.mkdtemp(prefix="crisp_eval_warp_old_")
-    try:
-        shutil.copytree(out, copy, dirs_exist_ok=True)
+    with copy_of(out) as copy:
         # Frames that lost their geometry (colour only, as eevee_1's; the sidecars still list it).
         for f in (1, 2, 3):
             name = "frame_%04d.exr" % f
@@ -170,32 +186,43 @@ def test_old_renders_fall_back_to_the_jittered_motion_and_say_so(run):
         g = [Geometry(lib, os.path.join(copy, "renders", "jittered"), f) for f in (2, 3)]
         got, _ = temporal_error(test[1], test[0], ref[1], ref[0], g[1], g[0])
         assert abs(got - want) <= 1e-3 * want, (got, want)
-    finally:
-        shutil.rmtree(copy, ignore_errors=True)
 
 
 def test_resume_renders_again_what_lacks_the_passes_now_needed(run):
     out, _ = run
-    copy = tempfile.mkdtemp(prefix="crisp_eval_warp_resume_")
-    try:
-        shutil.copytree(out, copy, dirs_exist_ok=True)
+    with copy_of(out) as copy:
         renders = os.path.join(copy, "renders")
-        stamp = {s: os.path.getmtime(os.path.join(renders, s, "frame_0002.exr")) for s in ("jittered", "warp")}
-        made = {m: os.path.getmtime(os.path.join(copy, "methods", m, "frame_0002.exr")) for m in ("none", "taa")}
-        p = subprocess.run([CRISP, "eval"] + ARGS[:-1] + ["none,taa,taa-improved", "-o", copy],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=600)
-        assert p.returncode == 0, p.stderr.decode()[-3000:]
+        before = {s: mtime(renders, s, "frame_0002.exr") for s in ("jittered", "warp")}
+        made = {m: mtime(copy, "methods", m, "frame_0002.exr") for m in ("none", "taa")}
+        stderr = crisp_eval(copy, ARGS[:-1] + ["none,taa,taa-improved"])
         side = json.load(open(os.path.join(renders, "jittered", "frame_0002.json")))
         assert side["passes"] == ["color", "depth", "motion", "id", "albedo"], side["passes"]
-        assert os.path.getmtime(os.path.join(renders, "jittered", "frame_0002.exr")) != stamp["jittered"]
-        assert os.path.getmtime(os.path.join(renders, "warp", "frame_0002.exr")) == stamp["warp"]
+        assert mtime(renders, "jittered", "frame_0002.exr") != before["jittered"]
+        assert mtime(renders, "warp", "frame_0002.exr") == before["warp"]
         # taa's frames were made from the jittered frames rendered again: made again; none's input
         # set did not change: kept.
-        assert os.path.getmtime(os.path.join(copy, "methods", "taa", "frame_0002.exr")) != made["taa"]
-        assert os.path.getmtime(os.path.join(copy, "methods", "none", "frame_0002.exr")) == made["none"]
-        assert "methods/taa: frames made from inputs rendered since" in p.stderr.decode()
+        assert mtime(copy, "methods", "taa", "frame_0002.exr") != made["taa"]
+        assert mtime(copy, "methods", "none", "frame_0002.exr") == made["none"]
+        assert "methods/taa: frames made from inputs rendered since" in stderr
         scene = json.load(open(os.path.join(copy, "results.json")))["scenes"][0]
         entry = next(m for m in scene["methods"] if m["name"] == "taa-improved")
         assert not entry["error"], entry["error"]
-    finally:
-        shutil.rmtree(copy, ignore_errors=True)
+
+
+def test_jitter_uniform_renders_the_jittered_set_again(run):
+    """--jitter uniform on a resumed folder: the jittered set is rendered again inside the pixel, the
+    temporal method made again from it, the warp set and the reference kept."""
+    out, _ = run
+    with copy_of(out) as copy:
+        renders = os.path.join(copy, "renders")
+        kept = {s: mtime(renders, s, "frame_0002.exr") for s in ("warp", "reference_4")}
+        stderr = crisp_eval(copy, ARGS + ["--jitter", "uniform"])
+        for f in (1, 2, 3):
+            jitter = json.load(open(os.path.join(renders, "jittered", "frame_%04d.json" % f)))["jitter"]
+            assert jitter["distribution"] == "uniform"
+            assert -0.5 <= jitter["x"] <= 0.5 and -0.5 <= jitter["y"] <= 0.5
+        for s, t in kept.items():
+            assert mtime(renders, s, "frame_0002.exr") == t, s
+        assert "methods/taa: frames made from inputs rendered since" in stderr
+        scene = json.load(open(os.path.join(copy, "results.json")))["scenes"][0]
+        assert scene["jitter_distribution"] == "uniform"
