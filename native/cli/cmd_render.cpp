@@ -4,6 +4,7 @@
 // with exactly the passes the method needs, filters them through libcrisp and
 // writes OUTDIR/{input,filtered,reference}/ and OUTDIR/run.json. A farm
 // chunk (--preroll, --shot, --resume) is handled by batch.py as well.
+#include <fcntl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -22,6 +23,7 @@ namespace fs = std::filesystem;
 
 int runRender(const ParsedArgs& args) {
   if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
+  const bool quiet = args.has("quiet");
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch.py");
   cmd.push_back("-o");
   cmd.push_back(args.get("output"));
@@ -51,6 +53,12 @@ int runRender(const ParsedArgs& args) {
   pid_t pid = fork();
   if (pid < 0) ioError("cannot start Blender (fork failed)");
   if (pid == 0) {
+    // --quiet: Blender's and the driver's progress (stdout) is dropped; errors (stderr) still show.
+    // --plan's output is what was asked for: kept.
+    if (quiet && !args.has("plan")) {
+      const int devNull = open("/dev/null", O_WRONLY);
+      if (devNull >= 0) dup2(devNull, STDOUT_FILENO);
+    }
     execvp(argv[0], argv.data());
     std::fprintf(stderr, "crisp: error: cannot run Blender '%s' (install it, or pass --blender PATH)\n", argv[0]);
     _exit(127);

@@ -68,7 +68,8 @@ def lib():
 @pytest.fixture(scope="module")
 def shot(tmp_path_factory):
     out = tmp_path_factory.mktemp("sequential")
-    render(out, SHOT)
+    p = render(out, SHOT)
+    assert p.stdout == "", p.stdout[-2000:]  # --quiet: no progress from Blender or the driver
     inputs = [str(out / "input" / frame(f)) for f in range(SHOT[0], SHOT[1] + 1)]
     assert all(os.path.isfile(p) for p in inputs)
     return out, inputs
