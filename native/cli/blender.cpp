@@ -4,6 +4,8 @@
 // test scene to build.
 #include <cstdlib>
 #include <filesystem>
+#include <sstream>
+#include <string>
 
 #include "cli/commands.h"
 #include "core/error.h"
@@ -67,6 +69,16 @@ void appendJitterOption(const ParsedArgs& args, std::vector<std::string>& cmd) {
     throw UsageError("--jitter: unknown distribution '" + dist + "' (known: blackman-harris, uniform)");
   cmd.push_back("--jitter");
   cmd.push_back(dist);
+}
+
+std::string blenderErrorLines(const std::string& output) {
+  std::istringstream in(output);
+  std::string line, out;
+  while (std::getline(in, line))
+    if (line.find("crisp: error") != std::string::npos || line.find("Error") != std::string::npos ||
+        line.find("Traceback") != std::string::npos)
+      if (line.find("EGL") == std::string::npos) out += "  " + line + "\n";
+  return out;
 }
 
 }  // namespace crisp::cli

@@ -119,12 +119,7 @@ int runBlender(std::vector<std::string> cmd, const fs::path& log, bool quiet) {
 // The lines of Blender's log that say what went wrong.
 std::string blenderErrors(const fs::path& log) {
   std::ifstream in(log);
-  std::string line, out;
-  while (std::getline(in, line))
-    if (line.find("crisp: error") != std::string::npos || line.find("Error") != std::string::npos ||
-        line.find("Traceback") != std::string::npos)
-      if (line.find("EGL") == std::string::npos) out += "  " + line + "\n";
-  return out;
+  return blenderErrorLines(std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()));
 }
 
 }  // namespace

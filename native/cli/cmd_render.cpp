@@ -8,10 +8,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "cli/commands.h"
@@ -49,22 +51,40 @@ int runRender(const ParsedArgs& args) {
   std::vector<char*> argv;
   for (auto& s : cmd) argv.push_back(s.data());
   argv.push_back(nullptr);
+  // --quiet: Blender's and the driver's progress (their stdout) is read here and dropped, except the
+  // lines that report an error when Blender fails (Blender prints "Error: ..." there, e.g. for an
+  // unreadable .blend). stderr stays the terminal's. --plan's output is what was asked for: kept.
+  const bool capture = quiet && !args.has("plan");
+  int fds[2] = {-1, -1};
+  if (capture && pipe2(fds, O_CLOEXEC) != 0) ioError("cannot start Blender (pipe failed)");
   std::fflush(stdout);
   pid_t pid = fork();
   if (pid < 0) ioError("cannot start Blender (fork failed)");
   if (pid == 0) {
-    // --quiet: Blender's and the driver's progress (stdout) is dropped; errors (stderr) still show.
-    // --plan's output is what was asked for: kept.
-    if (quiet && !args.has("plan")) {
-      const int devNull = open("/dev/null", O_WRONLY);
-      if (devNull >= 0) dup2(devNull, STDOUT_FILENO);
-    }
+    if (capture) dup2(fds[1], STDOUT_FILENO);  // the copy is not close-on-exec; the pipe's own ends are
     execvp(argv[0], argv.data());
     std::fprintf(stderr, "crisp: error: cannot run Blender '%s' (install it, or pass --blender PATH)\n", argv[0]);
     _exit(127);
   }
+  std::string output;
+  if (capture) {
+    close(fds[1]);
+    char buffer[4096];
+    for (;;) {
+      const ssize_t n = read(fds[0], buffer, sizeof buffer);
+      if (n > 0) output.append(buffer, std::size_t(n));
+      else if (n == 0 || errno != EINTR) break;
+    }
+    close(fds[0]);
+  }
   int status = 0;
   while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (capture && !(WIFEXITED(status) && WEXITSTATUS(status) == 0)) {
+    std::string errors = blenderErrorLines(output);
+    if (errors.empty())  // none recognised: the end of what it printed
+      errors = output.substr(output.size() - std::min<std::size_t>(output.size(), 2000));
+    std::fprintf(stderr, "%s", errors.c_str());
   }
   if (WIFEXITED(status)) {
     int code = WEXITSTATUS(status);

@@ -39,6 +39,10 @@ std::vector<std::string> blenderDriverCommand(const ParsedArgs& args, const std:
 // Appends "--jitter DIST" for the driver when args has --jitter; a distribution
 // the add-on does not know (render.JITTER_DISTRIBUTIONS) is a UsageError.
 void appendJitterOption(const ParsedArgs& args, std::vector<std::string>& cmd);
+// The lines of Blender's output that report an error (the driver's "crisp:
+// error", Blender's "Error: ...", Python tracebacks; not EGL's fallback
+// notes), each indented, for a message after Blender failed.
+std::string blenderErrorLines(const std::string& output);
 // Folder of the running executable (/proc/self/exe).
 std::string executableDir();
 

@@ -233,16 +233,18 @@ WarpGeometry warpGeometry(const fs::path& renders, const json& scene, const std:
   return {};
 }
 
-// What identifies an input frame a method read: its size and modification time. A render set's
-// frame rendered again (other passes or settings, render.reusable_input) is a new file with a new
-// time, and a method's frame made from the old one is then stale.
+// What identifies an input frame a method read: its render set, size and modification time. A
+// render set's frame rendered again (other passes or settings, render.reusable_input) is a new file
+// with a new time, and a method's frame made from the old one is then stale. (A copy of an eval
+// folder must keep modification times, as cp -a does, or every method is computed again.)
 std::string inputStamp(const fs::path& file) {
   std::error_code ec;
   const auto size = fs::file_size(file, ec);
   if (ec) return "";
   const auto time = fs::last_write_time(file, ec);
   if (ec) return "";
-  return std::to_string(size) + " " + std::to_string(time.time_since_epoch().count());
+  return (file.parent_path().filename() / file.filename()).string() + " " + std::to_string(size) + " " +
+         std::to_string(time.time_since_epoch().count());
 }
 
 void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const fs::path& inputDir, bool sceneMoves,
@@ -252,6 +254,8 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   json times = readJson(dir / "times.json", false);
   // inputs.json: the stamp (inputStamp) of the input each frame was made from.
   json inputs = readJson(dir / "inputs.json", false);
+  if (!times.is_object()) times = json::object();  // valid JSON of another shape: nothing recorded
+  if (!inputs.is_object()) inputs = json::object();
   const fs::path stampFile = dir / "build.txt";
   std::string stamp;
   if (std::ifstream in(stampFile); in) std::getline(in, stamp);
@@ -272,8 +276,8 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
     return made(f) && inputs.contains(frameKey(f)) && inputs[frameKey(f)] == inputNow[f];
   };
   if (!o.quiet && std::any_of(frames.begin(), frames.end(), [&](int f) { return made(f) && !done(f); }))
-    std::fprintf(stderr, "crisp eval: methods/%s: frames made from inputs rendered since; computing them again\n",
-                 e.name.c_str());
+    std::fprintf(stderr, "crisp eval: methods/%s: frames whose input frame changed (or was not recorded); computing "
+                 "them again\n", e.name.c_str());
   bool allDone = std::all_of(frames.begin(), frames.end(), done);
   // A temporal method's frame depends on the history of all earlier ones: a partial run starts over.
   if (!allDone && e.temporal) times = json::object();

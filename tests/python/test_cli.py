@@ -169,3 +169,29 @@ def test_tiny_and_odd_sizes(tmp_path):
         for m in ("none", "fxaa", "repair", "taa"):
             run("filter", "-q", "--method", m, d / "chart_1spp.exr", "-o", d / m)
             assert (d / m / "chart_1spp.exr").is_file()
+
+
+@pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
+def test_quiet_render_drops_progress_but_not_blenders_errors(tmp_path):
+    # Blender reports an unreadable .blend on stdout, which --quiet otherwise drops.
+    bad = tmp_path / "bad.blend"
+    bad.write_bytes(b"not a blend file\n" * 64)
+    p = run("render", "--scene", bad, "--frames", "1-2", "--method", "taa", "--quiet", "-o", tmp_path / "out",
+            ok=False)
+    assert p.returncode == 1 and p.stdout == ""
+    assert "Error" in p.stderr and str(bad) in p.stderr, p.stderr
+    # --plan's output is what was asked for: --quiet keeps it.
+    p = run("render", "--scene", "spinning_cube", "--method", "taa", "--plan", "--quiet", "-o", tmp_path / "plan")
+    assert "plan for taa:" in p.stdout
+
+
+def test_jitter_distributions_match_the_add_ons():
+    """The CLI checks --jitter before Blender starts: its list must be the add-on's."""
+    import ast
+    source = pathlib.Path(__file__).resolve().parents[2] / "addon" / "crisp" / "render.py"
+    tree = ast.parse(source.read_text())
+    addon = next(ast.literal_eval(n.value) for n in tree.body if isinstance(n, ast.Assign)
+                 and any(getattr(t, "id", None) == "JITTER_DISTRIBUTIONS" for t in n.targets))
+    p = run("eval", "--scene", "still_life", "--jitter", "x", "-o", "/nonexistent/never", ok=False)
+    known = p.stderr.split("(known: ")[1].split(")")[0].split(", ")
+    assert p.returncode == 2 and sorted(known) == sorted(addon), (known, addon)

@@ -203,7 +203,7 @@ def test_resume_renders_again_what_lacks_the_passes_now_needed(run):
         # set did not change: kept.
         assert mtime(copy, "methods", "taa", "frame_0002.exr") != made["taa"]
         assert mtime(copy, "methods", "none", "frame_0002.exr") == made["none"]
-        assert "methods/taa: frames made from inputs rendered since" in stderr
+        assert "methods/taa: frames whose input frame changed" in stderr
         scene = json.load(open(os.path.join(copy, "results.json")))["scenes"][0]
         entry = next(m for m in scene["methods"] if m["name"] == "taa-improved")
         assert not entry["error"], entry["error"]
@@ -216,6 +216,7 @@ def test_jitter_uniform_renders_the_jittered_set_again(run):
     with copy_of(out) as copy:
         renders = os.path.join(copy, "renders")
         kept = {s: mtime(renders, s, "frame_0002.exr") for s in ("warp", "reference_4")}
+        made = {m: mtime(copy, "methods", m, "frame_0002.exr") for m in ("none", "taa")}
         stderr = crisp_eval(copy, ARGS + ["--jitter", "uniform"])
         for f in (1, 2, 3):
             jitter = json.load(open(os.path.join(renders, "jittered", "frame_%04d.json" % f)))["jitter"]
@@ -223,6 +224,8 @@ def test_jitter_uniform_renders_the_jittered_set_again(run):
             assert -0.5 <= jitter["x"] <= 0.5 and -0.5 <= jitter["y"] <= 0.5
         for s, t in kept.items():
             assert mtime(renders, s, "frame_0002.exr") == t, s
-        assert "methods/taa: frames made from inputs rendered since" in stderr
+        assert "methods/taa: frames whose input frame changed" in stderr
+        assert mtime(copy, "methods", "taa", "frame_0002.exr") != made["taa"]
+        assert mtime(copy, "methods", "none", "frame_0002.exr") == made["none"]
         scene = json.load(open(os.path.join(copy, "results.json")))["scenes"][0]
         assert scene["jitter_distribution"] == "uniform"
