@@ -25,7 +25,6 @@ namespace fs = std::filesystem;
 
 int runRender(const ParsedArgs& args) {
   if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
-  const bool quiet = args.has("quiet");
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch.py");
   cmd.push_back("-o");
   cmd.push_back(args.get("output"));
@@ -54,7 +53,7 @@ int runRender(const ParsedArgs& args) {
   // --quiet: Blender's and the driver's progress (their stdout) is read here and dropped, except the
   // lines that report an error when Blender fails (Blender prints "Error: ..." there, e.g. for an
   // unreadable .blend). stderr stays the terminal's. --plan's output is what was asked for: kept.
-  const bool capture = quiet && !args.has("plan");
+  const bool capture = args.has("quiet") && !args.has("plan");
   int fds[2] = {-1, -1};
   if (capture && pipe2(fds, O_CLOEXEC) != 0) ioError("cannot start Blender (pipe failed)");
   std::fflush(stdout);
