@@ -33,6 +33,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/aligned_vector.h"
 #include "core/image.h"
 #include "filters/phlm_rls.h"
 #include "temporal/jitter.h"
@@ -149,10 +150,10 @@ class Kernel {
   int width_ = 0, height_ = 0, blocksPerRow_ = 0;
   bool withMotion_ = false, withDepth_ = false;
   Image staged_;
-  std::vector<T> models_[2];
+  AlignedVector<T> models_[2];  // aligned: written with streaming stores (phlm.cpp streamLanes)
   std::vector<float> depth_[2];
   std::vector<std::uint8_t> stillSamples_;  // per pixel: samples in its still model since its reset or box correction (phlm.cpp "Hold")
-  std::vector<T> intercepts_[2];  // with motion: the records' intercepts as planes, ping-pong (phlm.cpp "Model fetch")
+  AlignedVector<T> intercepts_[2];  // with motion: the records' intercepts as planes, ping-pong (phlm.cpp "Model fetch")
   bool interceptsValid_ = false;   // intercepts_[current_] holds the current records' intercepts
   std::vector<std::uint8_t> narrowBox_;  // with motion: per pixel, its model keeps the 3x3 box (phlm.cpp "Box")
   std::vector<long> rowStats_;  // 2 per row: reprojection resets, box resets
