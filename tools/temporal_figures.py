@@ -10,7 +10,7 @@ A method that keeps stale history there (a ghost trail) scores high.
 
 Runs inside Blender (for its EXR reader, which reads the zip-compressed files crisp writes):
     blender -b --factory-startup --python tools/temporal_figures.py -- [--warmup 8] [--trail 8]
-        [--split] [--json OUT.json] EVALDIR...
+        [--split] [--plate-oracle] [--json OUT.json] EVALDIR...
 Prints a Markdown table per scene."""
 
 import argparse
@@ -94,7 +94,37 @@ def temporal_split(evaldir, files, ref_dir, frames, warmup, trail):
     return ((quiet + recent) / pixels, quiet / pixels, recent / pixels, recent_pixels / pixels)
 
 
-def summarize(evaldir, warmup, trail, split=False):
+def plate_oracle(evaldir, files, ref_dir, frames, warmup, settle=8):
+    """--plate-oracle: an upper bound for a "background plate" (a second history that gives a revealed
+    pixel back its settled value at once). The oracle knows the reference: a pixel is settled once its
+    reference changed by at most 0.02 (display-encoded) in each of the last `settle` frames, and its
+    plate is the method's output then; a pixel not settled whose reference is back within 0.02 of its
+    plate's reference shows the plate. Returns the temporal error with W = identity and the mean PSNR
+    over frames after warm-up, of the method as it is and with the oracle plate."""
+    ref = np.stack([encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % f))) for f in frames])
+    out = np.stack([encode(read_rgb(os.path.join(evaldir, files[f]))) for f in frames])
+    plated = out.copy()
+    settled_for = np.zeros(ref.shape[1:3], dtype=int)
+    plate = np.full(ref.shape[1:], np.nan, dtype=np.float32)
+    plate_ref = np.full(ref.shape[1:], np.nan, dtype=np.float32)
+    for t in range(len(frames)):
+        if t > 0:
+            settled_for = np.where(np.abs(ref[t] - ref[t - 1]).max(axis=2) <= 0.02, settled_for + 1, 0)
+        settled = settled_for >= settle
+        back = ~settled & np.isfinite(plate_ref[..., 0]) & (np.abs(ref[t] - plate_ref).max(axis=2) <= 0.02)
+        plated[t][back] = plate[back]
+        plate[settled] = out[t][settled]
+        plate_ref[settled] = ref[t][settled]
+    after = [t for t, f in enumerate(frames) if f > warmup and t > 0]
+
+    def figures(a):
+        te = np.mean([np.abs((a[t] - a[t - 1]) - (ref[t] - ref[t - 1])).mean() for t in after])
+        psnr = np.mean([-10 * np.log10(max(float(np.mean((a[t] - ref[t]) ** 2)), 1e-12)) for t in after])
+        return float(te), float(psnr)
+    return figures(out) + figures(plated)
+
+
+def summarize(evaldir, warmup, trail, split=False, oracle=False):
     with open(os.path.join(evaldir, "results.json")) as fh:
         results = json.load(fh)
     out = []
@@ -115,6 +145,8 @@ def summarize(evaldir, warmup, trail, split=False):
             row["ghosting_error"] = ghosting_error(evaldir, files, ref_dir, frames, warmup, trail) if moving else None
             if split and moving:
                 row["temporal_split"] = temporal_split(evaldir, files, ref_dir, frames, warmup, trail)
+            if oracle and moving and m["name"] in ("none", "blender-smaa") + TEMPORAL:
+                row["plate_oracle"] = plate_oracle(evaldir, files, ref_dir, frames, warmup)
             rows.append(row)
         out.append({"scene": scene["name"], "resolution": scene["resolution"], "frames": scene["frames"],
                     "reference": os.path.basename(ref_dir), "warmup": warmup, "trail": trail, "rows": rows,
@@ -175,6 +207,17 @@ def markdown(summary):
                 t = r["temporal_split"]
                 lines.append("| %s | %.5f | %.5f | %.5f |" % (r["name"], t[0], t[1], t[2]))
             lines.append("")
+        oracle = [r for r in s["rows"] if r.get("plate_oracle")]
+        if oracle:
+            lines.append("Oracle background plate (`--plate-oracle`; W = identity): temporal error and PSNR as they are "
+                         "-> with the plate:")
+            lines.append("")
+            lines.append("| method | temporal err | with plate | PSNR | with plate |")
+            lines.append("|---|---|---|---|---|")
+            for r in oracle:
+                t = r["plate_oracle"]
+                lines.append("| %s | %.5f | %.5f | %.2f | %.2f |" % (r["name"], t[0], t[2], t[1], t[3]))
+            lines.append("")
     return "\n".join(lines)
 
 
@@ -187,10 +230,13 @@ def main():
     p.add_argument("--json", default="")
     p.add_argument("--split", action="store_true",
                    help="also split the temporal error (identity warp) into quiet and recently changed pixels")
+    p.add_argument("--plate-oracle", action="store_true",
+                   help="also bound a background plate: the temporal error (identity warp) and PSNR with an oracle "
+                        "that shows a revealed pixel's settled output at once")
     a = p.parse_args(argv)
     summary = []
     for d in a.evaldirs:
-        summary += summarize(d, a.warmup, a.trail, a.split)
+        summary += summarize(d, a.warmup, a.trail, a.split, a.plate_oracle)
     print(markdown(summary))
     if a.json:
         with open(a.json + ".tmp", "w") as fh:
