@@ -260,6 +260,7 @@ struct Frame {
   bool catmullRomIntercepts;   // and its intercepts by clamped Catmull-Rom (else as the slopes; "Model fetch")
   const T* intercepts;         // with motion: the previous records' intercepts, interceptRow's layout
   T* interceptsNext;           // with motion: the intercepts of the records written (else null)
+  bool streamNext;             // write next and interceptsNext with streaming stores (Kernel::run)
   bool reference;              // the reference path: the Catmull-Rom fetch gathers from the records
   bool footprintBox;           // still pixels use the footprint box (header, "Box")
   std::uint8_t* narrowBox;  // per pixel: 1 = its model keeps the 3x3 box until its reset ("Box"); null: static scene
@@ -566,7 +567,9 @@ CRISP_PHLM_INLINE void storeLanes(T* p, const V& v) {
 // The same to a buffer this frame does not read again (the next records with
 // motion, 16-byte aligned: phlm.h's AlignedVector and whole blocks): a
 // streaming store, which skips reading the line in first. At 1920x1080 the
-// records and intercepts written per frame are 230 MB.
+// records and intercepts written per frame are 230 MB. (With float, every
+// other block and every intercept store ends mid-line; the next batch
+// completes the line.)
 template <class V, class T>
 CRISP_PHLM_INLINE void streamLanes(T* p, const V& v) {
 #if defined(__SSE2__)
@@ -932,18 +935,21 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     resetModel(restart, out, splatOf<V>(f.p0), splatOf<V>(f.ps));
     T* block = f.next + recordIndex(f.blocksPerRow, batch.x0, batch.y);
     // Records: in place (still scene) the lines were just read, so cached
-    // stores; with motion the next records are a buffer of their own.
-    if (f.next != f.previous) {
+    // stores; with motion, on a large frame, streamed (Frame::streamNext).
+    if (f.streamNext) {
       for (int j = 0; j < kZ; ++j) streamLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]));
       for (int c = 0; c < 3; ++c) streamLanes(block + (kZ + c) * kBatch, z[c]);
-    } else {
-      for (int j = 0; j < kZ; ++j) storeLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]));
-      for (int c = 0; c < 3; ++c) storeLanes(block + (kZ + c) * kBatch, z[c]);
-    }
-    if (f.interceptsNext)
       for (int c = 0; c < 3; ++c)
         streamLanes(interceptRow(f.interceptsNext, f.blocksPerRow, c, batch.y) + batch.x0,
                     V(overflow ? restart[kBeta + c] : m[kBeta + c]));
+    } else {
+      for (int j = 0; j < kZ; ++j) storeLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]));
+      for (int c = 0; c < 3; ++c) storeLanes(block + (kZ + c) * kBatch, z[c]);
+      if (f.interceptsNext)
+        for (int c = 0; c < 3; ++c)
+          storeLanes(interceptRow(f.interceptsNext, f.blocksPerRow, c, batch.y) + batch.x0,
+                     V(overflow ? restart[kBeta + c] : m[kBeta + c]));
+    }
   }
   // sanitizeColor on all lanes at once (sanitizeColorLanes: the same values), then pixel by pixel.
   const int y = batch.y;
@@ -1083,6 +1089,10 @@ std::size_t Kernel<T>::bytesScratch() const {
   return staged_.data.size() * sizeof(float) + rowStats_.size() * sizeof(long);
 }
 
+// Next records at least this large (with motion) are written with streaming
+// stores (Kernel::run; 1920x1080: 230 MB, 640x360: 26 MB).
+constexpr std::size_t kStreamBytes = std::size_t(16) << 20;
+
 template <class T>
 void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int numThreads) {
   if (in.color.width != width_ || in.color.height != height_)
@@ -1163,6 +1173,13 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   // them: about 15 ms at 1920x1080 on 2 threads, which is why they are kept).
   f.intercepts = moving ? intercepts_[current_].data() : nullptr;
   f.interceptsNext = moving ? intercepts_[next].data() : nullptr;
+  // Streaming stores pay where the state written this frame would not stay
+  // in the caches until the next frame reads it (previous and next records
+  // together larger than a 32 MB last-level cache); below that they would
+  // push it out to memory. The reference path keeps plain stores, so the
+  // tests that compare the two paths compare streamed records with cached ones.
+  const std::size_t bytesWritten = (models_[next].size() + intercepts_[next].size()) * sizeof(T);
+  f.streamNext = !reference && moving && bytesWritten >= kStreamBytes;
   f.reference = reference;
   if (moving && f.hasHistory && f.catmullRomIntercepts && !interceptsValid_) {
     T* planes = intercepts_[current_].data();

@@ -329,6 +329,48 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
   }
 }
 
+// A frame large enough that the fast path writes its next records and
+// intercept planes with streaming stores (phlm.cpp kStreamBytes: here 21 MB)
+// gives the same outputs, records and planes as the reference path, whose
+// stores are plain ones.
+TEST(Phlm, StreamedRecordsEqualTheReference) {
+  const int w = 581, h = 320, frames = 3;  // 73 blocks a row: the last one padded
+  // test::pannedChart's pan, without its 256-sample references (not read here).
+  synth::Sequence seq = synth::staticChartSequence(w, h);
+  for (auto& shape : seq.before.shapes) shape.vx = 0.37f, shape.vy = -0.21f;
+  seq.before.backgroundVx = 0.37f;
+  seq.before.backgroundVy = -0.21f;
+  synth::FrameOptions options;
+  options.referenceSamples = 1;
+  std::vector<synth::FrameData> pan;
+  for (int t = 0; t < frames; ++t) pan.push_back(synth::renderFrame(seq, w, h, t, options));
+  phlm::Kernel<float> fast, reference;
+  fast.allocate(w, h, true, true);
+  reference.allocate(w, h, true, true);
+  Image outFast(w, h, 4), outReference(w, h, 4);
+  phlm::Settings s;
+  for (int t = 0; t < frames; ++t) {
+    const synth::FrameData& f = pan[std::size_t(t)];
+    phlm::Inputs in;
+    in.color = f.color.view();
+    in.motion = f.motion.view();
+    in.depth = f.depth.view();
+    in.output = outFast.view();
+    fast.run(in, s, false, 2);
+    in.output = outReference.view();
+    reference.run(in, s, true, 1);
+    ASSERT_EQ(0, std::memcmp(outFast.data.data(), outReference.data.data(), outFast.data.size() * sizeof(float)))
+        << "frame " << t;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const std::array<float, phlm::kRecord> a = fast.record(x, y), b = reference.record(x, y);
+        ASSERT_EQ(0, std::memcmp(a.data(), b.data(), sizeof a)) << "frame " << t << " (" << x << "," << y << ")";
+        const std::array<float, 3> pa = fast.planarIntercepts(x, y), pb = reference.planarIntercepts(x, y);
+        ASSERT_EQ(0, std::memcmp(pa.data(), pb.data(), sizeof pa)) << "frame " << t << " (" << x << "," << y << ")";
+      }
+  }
+}
+
 // The intercept planes beside the records (phlm.cpp "Model fetch") hold the
 // records' intercepts after every frame with motion (written with the
 // records), and the first moving frame after still ones (the state
