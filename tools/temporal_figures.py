@@ -96,25 +96,29 @@ def temporal_split(evaldir, files, ref_dir, frames, warmup, trail):
 
 def plate_oracle(evaldir, files, ref_dir, frames, warmup, settle=8):
     """--plate-oracle: an upper bound for a "background plate" (a second history that gives a revealed
-    pixel back its settled value at once). The oracle knows the reference: a pixel is settled once its
-    reference changed by at most 0.02 (display-encoded) in each of the last `settle` frames, and its
-    plate is the method's output then; a pixel not settled whose reference is back within 0.02 of its
-    plate's reference shows the plate. Returns the temporal error with W = identity and the mean PSNR
-    over frames after warm-up, of the method as it is and with the oracle plate."""
+    pixel back its settled value at once and holds it). The oracle knows the reference: a pixel is
+    settled once its reference changed by at most 0.02 (display-encoded) in each of the last `settle`
+    frames, and its plate is the method's output then. A pixel whose reference comes back within 0.02
+    of its plate's reference before it has settled again shows the plate, and keeps showing it (its
+    plate unchanged) until its reference leaves it again. Returns the temporal error with W =
+    identity and the mean PSNR over frames after warm-up, of the method as it is and with the plate."""
     ref = np.stack([encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % f))) for f in frames])
     out = np.stack([encode(read_rgb(os.path.join(evaldir, files[f]))) for f in frames])
     plated = out.copy()
     settled_for = np.zeros(ref.shape[1:3], dtype=int)
+    showing = np.zeros(ref.shape[1:3], dtype=bool)
     plate = np.full(ref.shape[1:], np.nan, dtype=np.float32)
     plate_ref = np.full(ref.shape[1:], np.nan, dtype=np.float32)
     for t in range(len(frames)):
         if t > 0:
             settled_for = np.where(np.abs(ref[t] - ref[t - 1]).max(axis=2) <= 0.02, settled_for + 1, 0)
         settled = settled_for >= settle
-        back = ~settled & np.isfinite(plate_ref[..., 0]) & (np.abs(ref[t] - plate_ref).max(axis=2) <= 0.02)
-        plated[t][back] = plate[back]
-        plate[settled] = out[t][settled]
-        plate_ref[settled] = ref[t][settled]
+        at_plate = np.isfinite(plate_ref[..., 0]) & (np.abs(ref[t] - plate_ref).max(axis=2) <= 0.02)
+        showing = at_plate & (showing | ~settled)
+        plated[t][showing] = plate[showing]
+        learn = settled & ~showing
+        plate[learn] = out[t][learn]
+        plate_ref[learn] = ref[t][learn]
     after = [t for t, f in enumerate(frames) if f > warmup and t > 0]
 
     def figures(a):
