@@ -583,6 +583,13 @@ CRISP_PHLM_INLINE void streamLanes(T* p, const V& v) {
   storeLanes(p, v);
 #endif
 }
+template <class V, class T>
+CRISP_PHLM_INLINE void putLanes(T* p, const V& v, bool stream) {
+  if (stream)
+    streamLanes(p, v);
+  else
+    storeLanes(p, v);
+}
 
 // Scalar j of the kBatch consecutive pixels from `first` (padded): one block's
 // vector, or the tail of one block's and the head of the next one's (blocks
@@ -936,20 +943,12 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
     T* block = f.next + recordIndex(f.blocksPerRow, batch.x0, batch.y);
     // Records: in place (still scene) the lines were just read, so cached
     // stores; with motion, on a large frame, streamed (Frame::streamNext).
-    if (f.streamNext) {
-      for (int j = 0; j < kZ; ++j) streamLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]));
-      for (int c = 0; c < 3; ++c) streamLanes(block + (kZ + c) * kBatch, z[c]);
+    for (int j = 0; j < kZ; ++j) putLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]), f.streamNext);
+    for (int c = 0; c < 3; ++c) putLanes(block + (kZ + c) * kBatch, z[c], f.streamNext);
+    if (f.interceptsNext)
       for (int c = 0; c < 3; ++c)
-        streamLanes(interceptRow(f.interceptsNext, f.blocksPerRow, c, batch.y) + batch.x0,
-                    V(overflow ? restart[kBeta + c] : m[kBeta + c]));
-    } else {
-      for (int j = 0; j < kZ; ++j) storeLanes(block + j * kBatch, V(overflow ? restart[j] : m[j]));
-      for (int c = 0; c < 3; ++c) storeLanes(block + (kZ + c) * kBatch, z[c]);
-      if (f.interceptsNext)
-        for (int c = 0; c < 3; ++c)
-          storeLanes(interceptRow(f.interceptsNext, f.blocksPerRow, c, batch.y) + batch.x0,
-                     V(overflow ? restart[kBeta + c] : m[kBeta + c]));
-    }
+        putLanes(interceptRow(f.interceptsNext, f.blocksPerRow, c, batch.y) + batch.x0,
+                 V(overflow ? restart[kBeta + c] : m[kBeta + c]), f.streamNext);
   }
   // sanitizeColor on all lanes at once (sanitizeColorLanes: the same values), then pixel by pixel.
   const int y = batch.y;
