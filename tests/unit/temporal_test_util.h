@@ -90,13 +90,14 @@ struct TemporalDriver {
 
 // The test chart panned by (vx, vy) pixels per frame (a uniform motion
 // image): frames 0 .. frames - 1.
-inline std::vector<synth::FrameData> pannedChart(int w, int h, int frames, float vx, float vy) {
+inline std::vector<synth::FrameData> pannedChart(int w, int h, int frames, float vx, float vy,
+                                                 const synth::FrameOptions& options = {}) {
   synth::Sequence seq = synth::staticChartSequence(w, h);
   for (auto& shape : seq.before.shapes) shape.vx = vx, shape.vy = vy;
   seq.before.backgroundVx = vx;
   seq.before.backgroundVy = vy;
   std::vector<synth::FrameData> input;
-  for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, {}));
+  for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, options));
   return input;
 }
 

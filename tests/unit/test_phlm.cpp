@@ -348,15 +348,9 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
 // stores are plain ones.
 TEST(Phlm, StreamedRecordsEqualTheReference) {
   const int w = 581, h = 320, frames = 3;  // 73 blocks a row: the last one padded
-  // test::pannedChart's pan, without its 256-sample references (not read here).
-  synth::Sequence seq = synth::staticChartSequence(w, h);
-  for (auto& shape : seq.before.shapes) shape.vx = 0.37f, shape.vy = -0.21f;
-  seq.before.backgroundVx = 0.37f;
-  seq.before.backgroundVy = -0.21f;
   synth::FrameOptions options;
-  options.referenceSamples = 1;
-  std::vector<synth::FrameData> pan;
-  for (int t = 0; t < frames; ++t) pan.push_back(synth::renderFrame(seq, w, h, t, options));
+  options.referenceSamples = 1;  // the references are not read here
+  const std::vector<synth::FrameData> pan = test::pannedChart(w, h, frames, 0.37f, -0.21f, options);
   phlm::Kernel<float> fast, reference;
   fast.allocate(w, h, true, true);
   reference.allocate(w, h, true, true);
