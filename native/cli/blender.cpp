@@ -1,7 +1,15 @@
 // SPDX-License-Identifier: Apache-2.0
-// The Blender command line shared by `crisp render` and `crisp eval`: find the
-// add-on's driver script and turn --scene into a .blend to open or a bundled
-// test scene to build.
+// Headless Blender for `crisp render` and `crisp eval`: the command line (find
+// the add-on's driver script, turn --scene into a .blend to open or a bundled
+// test scene to build), the one process launcher both use, and the lines of
+// its output that say what went wrong.
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <sstream>
@@ -79,6 +87,100 @@ std::string blenderErrorLines(const std::string& output) {
         line.find("Traceback") != std::string::npos)
       if (line.find("EGL") == std::string::npos) out += "  " + line + "\n";
   return out;
+}
+
+namespace {
+
+// Appends what fd has ready to buffer; false once its writers are gone.
+bool readSome(int fd, std::string& buffer) {
+  char chunk[4096];
+  for (;;) {
+    const ssize_t n = read(fd, chunk, sizeof chunk);
+    if (n > 0) {
+      buffer.append(chunk, std::size_t(n));
+      return true;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    return false;
+  }
+}
+
+}  // namespace
+
+BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const std::string& log,
+                      const std::function<void(const std::string&)>& onProgress) {
+  // The pipes are close-on-exec: Blender keeps what the child dup2s, and the
+  // progress pipe's write end, made inheritable there.
+  int progress[2] = {-1, -1}, capture[2] = {-1, -1};
+  if (onProgress) {
+    if (pipe2(progress, O_CLOEXEC) != 0) ioError("cannot start Blender (pipe failed)");
+    cmd.push_back("--progress-fd");
+    cmd.push_back(std::to_string(progress[1]));
+  }
+  if (output == BlenderOutput::Captured && pipe2(capture, O_CLOEXEC) != 0)
+    ioError("cannot start Blender (pipe failed)");
+  std::vector<char*> argv;
+  for (auto& s : cmd) argv.push_back(s.data());
+  argv.push_back(nullptr);
+  std::fflush(stdout);
+  std::fflush(stderr);
+  const pid_t pid = fork();
+  if (pid < 0) ioError("cannot start Blender (fork failed)");
+  if (pid == 0) {
+    // The terminal's stderr, kept for the one message Blender cannot print.
+    const int terminal = fcntl(STDERR_FILENO, F_DUPFD_CLOEXEC, 3);
+    int to = output == BlenderOutput::Captured ? capture[1] : -1;
+    if (output == BlenderOutput::Logged) to = open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (to >= 0) {
+      dup2(to, STDOUT_FILENO);
+      dup2(to, STDERR_FILENO);
+    }
+    if (onProgress) fcntl(progress[1], F_SETFD, 0);
+    execvp(argv[0], argv.data());
+    const std::string message =
+        "crisp: error: cannot run Blender '" + cmd[0] + "' (install it, or pass --blender PATH)\n";
+    (void)!write(terminal >= 0 ? terminal : STDERR_FILENO, message.data(), message.size());
+    _exit(127);
+  }
+  // Both pipes are read as they fill (Blender would block on a full one).
+  BlenderRun run;
+  if (onProgress) close(progress[1]);
+  if (output == BlenderOutput::Captured) close(capture[1]);
+  std::string lines;  // progress not yet ended by a newline
+  std::vector<pollfd> reading;
+  if (onProgress) reading.push_back({progress[0], POLLIN, 0});
+  if (output == BlenderOutput::Captured) reading.push_back({capture[0], POLLIN, 0});
+  while (!reading.empty()) {
+    if (poll(reading.data(), reading.size(), -1) < 0) {
+      if (errno == EINTR) continue;
+      for (const pollfd& p : reading) close(p.fd);  // not expected; Blender then gets SIGPIPE
+      break;
+    }
+    for (std::size_t i = 0; i < reading.size();) {
+      const bool isProgress = onProgress && reading[i].fd == progress[0];
+      bool more = true;
+      if (reading[i].revents & (POLLIN | POLLHUP | POLLERR))
+        more = readSome(reading[i].fd, isProgress ? lines : run.output);
+      if (isProgress)
+        for (std::size_t end; (end = lines.find('\n')) != std::string::npos; lines.erase(0, end + 1))
+          onProgress(lines.substr(0, end));
+      if (more) {
+        ++i;
+        continue;
+      }
+      close(reading[i].fd);
+      reading.erase(reading.begin() + std::ptrdiff_t(i));
+    }
+  }
+  if (onProgress && !lines.empty()) onProgress(lines);
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFEXITED(status))
+    run.exitCode = WEXITSTATUS(status);
+  else
+    run.signal = WTERMSIG(status);
+  return run;
 }
 
 }  // namespace crisp::cli

@@ -4,13 +4,10 @@
 // the methods' 1-sample inputs, the reference, Blender's SMAA), then runs the
 // methods through the library, measures them and writes the report
 // (native/eval/). Blender's own output goes to OUTDIR/logs/blender.log; its
-// progress comes back on a pipe. Finished frames are never redone.
-#include <fcntl.h>
-#include <sys/wait.h>
+// progress comes back on a pipe (runBlender, cli/blender.cpp). Finished frames are never redone.
 #include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -59,61 +56,24 @@ std::string commandLine() {
   return out;
 }
 
-// Runs Blender; progress lines from batch_eval.py arrive on a pipe and are shown here.
-int runBlender(std::vector<std::string> cmd, const fs::path& log, bool quiet) {
-  int fds[2];
-  if (pipe(fds) != 0) ioError("cannot start Blender (pipe failed)");
-  cmd.push_back("--progress-fd");
-  cmd.push_back(std::to_string(fds[1]));
-  std::vector<char*> argv;
-  for (auto& s : cmd) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  std::fflush(stdout);
+// Shows a progress line of batch_eval.py ("progress DONE TOTAL COST COST_TOTAL SECONDS_LEFT ITEM").
+void showRenderProgress(const std::string& line, bool tty) {
+  int done = 0, total = 0, consumed = 0;
+  long cost = 0, costTotal = 0;
+  double left = 0;
+  if (std::sscanf(line.c_str(), "progress %d %d %ld %ld %lf %n", &done, &total, &cost, &costTotal, &left,
+                  &consumed) < 5)
+    return;
+  std::string item = line.substr(std::size_t(consumed));
+  while (!item.empty() && (item.back() == '\n' || item.back() == '\r')) item.pop_back();
+  const int width = 30;
+  const int filled = costTotal > 0 ? int(cost * width / costTotal) : width;
+  if (tty)
+    std::fprintf(stderr, "\rrender [%s%s] %d/%d %.0fs left  %-40.40s", std::string(filled, '#').c_str(),
+                 std::string(width - filled, '.').c_str(), done, total, left, item.c_str());
+  else
+    std::fprintf(stderr, "render %d/%d %s (%.0fs left)\n", done, total, item.c_str(), left);
   std::fflush(stderr);
-  pid_t pid = fork();
-  if (pid < 0) ioError("cannot start Blender (fork failed)");
-  if (pid == 0) {
-    close(fds[0]);
-    int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-    if (fd >= 0) {
-      dup2(fd, 1);
-      dup2(fd, 2);
-      close(fd);
-    }
-    execvp(argv[0], argv.data());
-    std::fprintf(stderr, "crisp: error: cannot run Blender '%s' (install it, or pass --blender PATH)\n", argv[0]);
-    _exit(127);
-  }
-  close(fds[1]);
-  FILE* in = fdopen(fds[0], "r");
-  const bool tty = isatty(fileno(stderr)) != 0;
-  char line[1024];
-  while (in && std::fgets(line, sizeof line, in)) {
-    int done = 0, total = 0;
-    long cost = 0, costTotal = 0;
-    double left = 0;
-    int consumed = 0;
-    if (std::sscanf(line, "progress %d %d %ld %ld %lf %n", &done, &total, &cost, &costTotal, &left, &consumed) >= 5 &&
-        !quiet) {
-      std::string item(line + consumed);
-      while (!item.empty() && (item.back() == '\n' || item.back() == '\r')) item.pop_back();
-      const int width = 30;
-      int filled = costTotal > 0 ? int(cost * width / costTotal) : width;
-      if (tty)
-        std::fprintf(stderr, "\rrender [%s%s] %d/%d %.0fs left  %-40.40s", std::string(filled, '#').c_str(),
-                     std::string(width - filled, '.').c_str(), done, total, left, item.c_str());
-      else
-        std::fprintf(stderr, "render %d/%d %s (%.0fs left)\n", done, total, item.c_str(), left);
-      std::fflush(stderr);
-    }
-  }
-  if (in) std::fclose(in);
-  if (!quiet && tty) std::fprintf(stderr, "\n");
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (WIFEXITED(status)) return WEXITSTATUS(status);
-  return 128 + WTERMSIG(status);
 }
 
 // The lines of Blender's log that say what went wrong.
@@ -202,7 +162,12 @@ int runEval(const ParsedArgs& args) {
   const fs::path log = logs / "blender.log";
   if (!quiet) std::fprintf(stderr, "crisp eval: rendering in Blender (log: %s)\n", log.c_str());
   auto t0 = std::chrono::steady_clock::now();
-  int code = runBlender(cmd, log, quiet);
+  const bool tty = isatty(fileno(stderr)) != 0;
+  const BlenderRun run = runBlender(cmd, BlenderOutput::Logged, log.string(), [&](const std::string& line) {
+    if (!quiet) showRenderProgress(line, tty);
+  });
+  if (!quiet && tty) std::fprintf(stderr, "\n");
+  const int code = run.signal ? 128 + run.signal : run.exitCode;
   double blenderSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (code == 127) return 1;
   if (code != 0) {

@@ -4,12 +4,7 @@
 // with exactly the passes the method needs, filters them through libcrisp and
 // writes OUTDIR/{input,filtered,reference}/ and OUTDIR/run.json. A farm
 // chunk (--preroll, --shot, --resume) is handled by batch.py as well.
-#include <fcntl.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -47,52 +42,24 @@ int runRender(const ParsedArgs& args) {
     cmd.push_back(fs::canonical(library).string());
   }
 
-  std::vector<char*> argv;
-  for (auto& s : cmd) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  // --quiet: Blender's and the driver's progress (their stdout) is read here and dropped, except the
-  // lines that report an error when Blender fails (Blender prints "Error: ..." there, e.g. for an
-  // unreadable .blend). stderr stays the terminal's. --plan's output is what was asked for: kept.
+  // --quiet: Blender's and the driver's output (progress, EGL's notes) is read here and dropped,
+  // except the lines that report an error when Blender fails (Blender prints "Error: ..." on stdout,
+  // e.g. for an unreadable .blend). --plan's output is what was asked for: kept.
   const bool capture = args.has("quiet") && !args.has("plan");
-  int fds[2] = {-1, -1};
-  if (capture && pipe2(fds, O_CLOEXEC) != 0) ioError("cannot start Blender (pipe failed)");
-  std::fflush(stdout);
-  pid_t pid = fork();
-  if (pid < 0) ioError("cannot start Blender (fork failed)");
-  if (pid == 0) {
-    if (capture) dup2(fds[1], STDOUT_FILENO);  // the copy is not close-on-exec; the pipe's own ends are
-    execvp(argv[0], argv.data());
-    std::fprintf(stderr, "crisp: error: cannot run Blender '%s' (install it, or pass --blender PATH)\n", argv[0]);
-    _exit(127);
-  }
-  std::string output;
-  if (capture) {
-    close(fds[1]);
-    char buffer[4096];
-    for (;;) {
-      const ssize_t n = read(fds[0], buffer, sizeof buffer);
-      if (n > 0) output.append(buffer, std::size_t(n));
-      else if (n == 0 || errno != EINTR) break;
-    }
-    close(fds[0]);
-  }
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (capture && !(WIFEXITED(status) && WEXITSTATUS(status) == 0)) {
-    std::string errors = blenderErrorLines(output);
+  const BlenderRun run = runBlender(cmd, capture ? BlenderOutput::Captured : BlenderOutput::Terminal);
+  if (capture && (run.signal != 0 || (run.exitCode != 0 && run.exitCode != 127))) {
+    std::string errors = blenderErrorLines(run.output);
     if (errors.empty())  // none recognised: the end of what it printed
-      errors = output.substr(output.size() - std::min<std::size_t>(output.size(), 2000));
+      errors = run.output.substr(run.output.size() - std::min<std::size_t>(run.output.size(), 2000));
     std::fprintf(stderr, "%s", errors.c_str());
   }
-  if (WIFEXITED(status)) {
-    int code = WEXITSTATUS(status);
-    if (code == 127) return 1;
-    // batch.py: 2 bad input, 3 library, 4 render failure; Blender itself exits 1 on a Python error.
-    return code == 0 ? 0 : (code == 2 ? 2 : 1);
+  if (run.signal != 0) {
+    std::fprintf(stderr, "crisp: error: Blender was killed by signal %d\n", run.signal);
+    return 1;
   }
-  std::fprintf(stderr, "crisp: error: Blender was killed by signal %d\n", WTERMSIG(status));
-  return 1;
+  if (run.exitCode == 127) return 1;  // said by runBlender
+  // batch.py: 2 bad input, 3 library, 4 render failure; Blender itself exits 1 on a Python error.
+  return run.exitCode == 0 ? 0 : (run.exitCode == 2 ? 2 : 1);
 }
 
 }  // namespace crisp::cli

@@ -2,6 +2,7 @@
 // One function per subcommand; each returns the process exit code.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -43,6 +44,22 @@ void appendJitterOption(const ParsedArgs& args, std::vector<std::string>& cmd);
 // error", Blender's "Error: ...", Python tracebacks; not EGL's fallback
 // notes), each indented, for a message after Blender failed.
 std::string blenderErrorLines(const std::string& output);
+// Where a Blender run's own output (its stdout and stderr) goes.
+enum class BlenderOutput {
+  Terminal,  // left on this process's terminal
+  Captured,  // both streams read into BlenderRun::output
+  Logged,    // both streams appended to the log file
+};
+struct BlenderRun {
+  int exitCode = 0;    // 127: Blender could not be started (said on stderr)
+  int signal = 0;      // non-zero: Blender was killed by it
+  std::string output;  // BlenderOutput::Captured: what Blender printed
+};
+// Runs cmd (blenderDriverCommand's; cmd[0] looked up on PATH) and waits for it.
+// With onProgress, "--progress-fd N" is appended and each line the driver
+// writes to that pipe is handed over as it arrives.
+BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const std::string& log = {},
+                      const std::function<void(const std::string&)>& onProgress = {});
 // Folder of the running executable (/proc/self/exe).
 std::string executableDir();
 

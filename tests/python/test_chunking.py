@@ -70,6 +70,7 @@ def shot(tmp_path_factory):
     out = tmp_path_factory.mktemp("sequential")
     p = render(out, SHOT)
     assert p.stdout == "", p.stdout[-2000:]  # --quiet: no progress from Blender or the driver
+    assert p.stderr == "", p.stderr[-2000:]  # nor Blender's notes (EGL's fallback) on success
     inputs = [str(out / "input" / frame(f)) for f in range(SHOT[0], SHOT[1] + 1)]
     assert all(os.path.isfile(p) for p in inputs)
     return out, inputs

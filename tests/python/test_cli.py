@@ -185,6 +185,19 @@ def test_quiet_render_drops_progress_but_not_blenders_errors(tmp_path):
     assert "plan for taa:" in p.stdout
 
 
+@pytest.mark.parametrize("command", ["render", "eval"])
+def test_a_missing_blender_is_named_on_stderr(tmp_path, command):
+    # Both commands start Blender through one launcher; its exec failure must reach the terminal,
+    # not the capture (render --quiet) or the log (eval).
+    args = ["--method", "taa"] if command == "render" else ["--methods", "taa"]
+    p = run(command, "--scene", "spinning_cube", "--frames", "1-2", *args, "--quiet", "--blender",
+            tmp_path / "no-blender", "-o", tmp_path / "out", ok=False)
+    assert p.returncode == 1 and p.stdout == "", p.stdout
+    assert "cannot run Blender '%s'" % (tmp_path / "no-blender") in p.stderr, p.stderr
+    if command == "eval":
+        assert (tmp_path / "out" / "logs" / "blender.log").read_text() == ""
+
+
 def test_jitter_distributions_match_the_add_ons():
     """The CLI checks --jitter before Blender starts: its list must be the add-on's."""
     import ast
