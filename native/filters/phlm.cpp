@@ -17,7 +17,10 @@
 //      from f toward y_i (lines 14-17) and the model is reset to that colour;
 //   5. e = y - f; RLS update (eqs. 5-7, lambda = 0.998) in the stabilised form
 //      of phlm_rls.h; output beta' x after the update.
-// Step 1, the neighbourhood and the choice of q run one pixel at a time; the
+// Step 1, the neighbourhood and the choice of q run one pixel at a time
+// (phlmPixel), except on 8 pixels that all move, whose taps need no clamp, in
+// the AVX2 copy of the float kernel: those run as lanes (phlmMovingGroup,
+// the same operations; Phlm.ReferencePathEqualsFastPath compares both); the
 // model and feature fetches of steps 2-3 and steps 4-5 run on 8 pixels of a
 // row at once (finishBatch: GCC vectors, lane i = pixel i, every branch as a
 // per-lane select), in every path: lane by lane the same IEEE operations in
@@ -547,6 +550,147 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   ++batch.count;
 }
 
+// phlmPixel on the eight pixels x0 .. x0 + 7 of row y at once, for what a
+// moving shot's pixels mostly are: every lane moves, and every tap of their
+// (shifted) 3x3 lies inside the image, so no tap needs a clamp. The same
+// operations lane by lane as phlmPixel (lanes.h: lane-wise IEEE operations),
+// so the same bits; the batch's lanes are written as vectors, which
+// finishBatch then reads without waiting for eight scalar stores each.
+// Moving pixels use neither the footprint box nor the hold, so those parts
+// reduce to constants here. Returns false, having changed nothing, when a
+// lane is still; the caller then runs phlmPixel on the eight.
+// Needs the closest-depth taps ahead (rowTaps) with depth, and motion.
+template <class T>
+__attribute__((always_inline)) inline bool phlmMovingGroup(const Frame<T>& f, int x0, int y, long& reprojectionResets,
+                                                           Batch<T>& batch, const RowTaps& rowTaps) {
+  using temporal::Vec4;
+  using temporal::Vec8;
+  using Int = temporal::IntOf<Vec8>;
+  using M = temporal::MaskOfT<Vec8>;
+  const int w = f.width, h = f.height, sx = f.unjitter.shiftX, sy = f.unjitter.shiftY;
+  // Step 1: the followed tap's velocity.
+  Int tap = Int{} + 4;
+  Vec8 tapDepth = temporal::lanesOf<Vec8>(0.0f);
+  if (rowTaps.tap) {
+    std::memcpy(&tap, rowTaps.tap + x0, sizeof tap);
+    tapDepth = temporal::loadLanes<Vec8>(rowTaps.depth + x0);
+  }
+  Vec8 vx, vy;
+  for (int l = 0; l < kBatch; ++l) {
+    const float* m = f.motion.pixel(x0 + l + tap[l] % 3 - 1 - sx, y + tap[l] / 3 - 1 - sy);
+    vx[l] = m[0];
+    vy[l] = m[1];
+  }
+  if (!temporal::allOf(M(M(vx != 0.0f) | M(vy != 0.0f)))) return false;
+
+  // The 3x3 box, sum and measurement, pixel by pixel as phlmPixel (four channels at once), then
+  // turned into lanes.
+  Vec4 lo4[kBatch], hi4[kBatch], sum4[kBatch], sample4[kBatch];
+  const float* topLeft = f.staged + (std::size_t(y - 1 - sy) * w + std::size_t(x0 - 1 - sx)) * 4;
+  for (int l = 0; l < kBatch; ++l) {
+    Vec4 taps[9];
+#pragma GCC unroll 9
+    for (int i = 0; i < 9; ++i) {
+      const Vec4 c = temporal::load4(topLeft + (std::size_t(i / 3) * w + std::size_t(l + i % 3)) * 4);
+      taps[i] = c;
+      if (i == 0) {
+        lo4[l] = hi4[l] = sum4[l] = c;
+      } else {
+        lo4[l] = temporal::vmin(lo4[l], c);
+        hi4[l] = temporal::vmax(hi4[l], c);
+        sum4[l] += c;
+      }
+    }
+    sample4[l] = f.unjitter.enabled ? temporal::unjitteredMix(taps, f.unjitter.weights) : taps[4];
+  }
+  Vec8 boxLo[4], boxHi[4], boxSum[4], sample[4];
+  temporal::transposeToLanes(lo4, boxLo);
+  temporal::transposeToLanes(hi4, boxHi);
+  temporal::transposeToLanes(sum4, boxSum);
+  temporal::transposeToLanes(sample4, sample);
+
+  // Validity, the nearest model q and the depth test (phlmPixel's order).
+  const Vec8 px = (float(x0) + temporal::laneIndexOf<Vec8>()) + vx, py = temporal::lanesOf<Vec8>(float(y)) + vy;
+  M valid = f.hasHistory ? M(temporal::finiteOf(vx) & temporal::finiteOf(vy) & M(px >= -0.5f) & M(py >= -0.5f) &
+                             M(px <= float(w) - 0.5f) & M(py <= float(h) - 0.5f))
+                         : M{};
+  const Vec8 zero = temporal::lanesOf<Vec8>(0.0f);
+  const Vec8 safeX = valid ? px : zero, safeY = valid ? py : zero;  // other lanes: harmless
+  const Int last = Int{} + (w - 1), lastRow = Int{} + (h - 1);
+  Int qx = temporal::truncOf(temporal::floorExact(safeX + 0.5f)), qy = temporal::truncOf(temporal::floorExact(safeY + 0.5f));
+  qx = qx < 0 ? Int{} : (last < qx ? last : qx);
+  qy = qy < 0 ? Int{} : (lastRow < qy ? lastRow : qy);
+  if (f.previousDepth && temporal::anyOf(valid)) {
+    if (temporal::sharedInteriorOffset<Vec8>(qx, qy, valid, -1, 1, -1, 1, w, h)) {
+      const float* around = f.previousDepth + std::size_t(qy[0] - 1) * w + (qx[0] - 1);
+      M match{};
+      for (int i = 0; i < 9; ++i)
+        match |= temporal::sameSurfaceDepth(tapDepth, temporal::loadLanes<Vec8>(around + std::size_t(i / 3) * w + i % 3),
+                                            f.depthTolerance);
+      valid &= match;
+    } else {
+      for (int l = 0; l < kBatch; ++l) {
+        if (!valid[l]) continue;
+        bool match = false;
+        for (int j = -1; j <= 1 && !match; ++j)
+          for (int k = -1; k <= 1 && !match; ++k) {
+            const int ax = std::clamp(qx[l] + k, 0, w - 1), ay = std::clamp(qy[l] + j, 0, h - 1);
+            match = temporal::sameSurfaceDepth(tapDepth[l], f.previousDepth[std::size_t(ay) * w + ax], f.depthTolerance);
+          }
+        if (!match) valid[l] = 0;
+      }
+    }
+  }
+
+  // Moving: the 3x3 box from now on ("Box"), no hold, the still count restarts (1 after a reset).
+  const std::size_t row = std::size_t(y) * w + x0;
+  if (f.narrowBox) std::memset(f.narrowBox + row, 1, kBatch);
+  temporal::storeBytesOf<Vec8>(f.stillSamples + row, valid ? Int{} : Int{} + 1);
+
+  // The batch, as phlmPixel leaves it after its eight pixels.
+  batch.x0 = x0;
+  batch.y = y;
+  batch.anyHeld = false;
+  const bool allValid = temporal::allOf(valid);
+  batch.allValid = batch.allBilinear = allValid;
+  batch.anyBilinear = temporal::anyOf(valid);
+  const Vec8 fx = temporal::floorExact(safeX), fy = temporal::floorExact(safeY);
+  const Int footX = valid ? temporal::truncOf(fx) : Int{}, footY = valid ? temporal::truncOf(fy) : Int{};
+  const Vec8 tx = valid ? safeX - fx : zero, ty = valid ? safeY - fy : zero;
+  std::memcpy(batch.footX, &footX, sizeof footX);
+  std::memcpy(batch.footY, &footY, sizeof footY);
+  temporal::storeLanes(batch.tx, tx);
+  temporal::storeLanes(batch.ty, ty);
+  for (int l = 0; l < kBatch; ++l) {
+    if (!valid[l]) {
+      ++reprojectionResets;
+      continue;
+    }
+    batch.source[l] = paddedPixel(f.blocksPerRow, qx[l], qy[l]);
+    const int xa = std::clamp(footX[l], 0, w - 1), xb = std::clamp(footX[l] + 1, 0, w - 1);
+    const int ya = std::clamp(footY[l], 0, h - 1), yb = std::clamp(footY[l] + 1, 0, h - 1);
+    batch.tap[0][l] = paddedPixel(f.blocksPerRow, xa, ya);
+    batch.tap[1][l] = paddedPixel(f.blocksPerRow, xb, ya);
+    batch.tap[2][l] = paddedPixel(f.blocksPerRow, xa, yb);
+    batch.tap[3][l] = paddedPixel(f.blocksPerRow, xb, yb);
+  }
+  const Vec8 one = temporal::lanesOf<Vec8>(1.0f);
+  for (int c = 0; c < 3; ++c) {
+    batch.sum[c] = boxSum[c];
+    batch.current[c] = sample[c];
+    batch.lo[c] = temporal::minOf(boxLo[c], sample[c]);  // phlmPixel's vmin(lo4, sample)
+    batch.hi[c] = temporal::maxOf(boxHi[c], sample[c]);
+  }
+  batch.yMin = boxLo[3];
+  batch.yMax = boxHi[3];
+  batch.speed = valid ? temporal::sqrtOf(vx * vx + vy * vy) : zero;
+  batch.valid = valid ? one : zero;
+  batch.moving = one;
+  batch.held = zero;
+  batch.count = kBatch;
+  return true;
+}
+
 // A scalar broadcast to every lane.
 template <class V, class T>
 CRISP_PHLM_INLINE V splatOf(T v) {
@@ -968,7 +1112,7 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
 }
 
 // Rows [y0, y1), counting the resets per row; two copies (temporal/isa.h).
-template <class T>
+template <class T, bool Groups>
 __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y0, int y1, bool reference,
                                                         long* rowStats) {
   for (int y = y0; y < y1; ++y) rowStats[2 * y] = rowStats[2 * y + 1] = 0;
@@ -999,17 +1143,48 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
     }
     temporal::closestDepthTapsRow<temporal::Vec8>(rows[0], rows[1], rows[2], w, taps.data(), taps.data() + w);
   };
-  temporal::rowsWithBorder(w, h, y0, y1, clampAll, [&](auto clamp, int x, int y) __attribute__((always_inline)) {
-    if (tapsAhead && x == 0) stageTaps(y);
-    phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], batch, rowTaps);
-    if (batch.count == kBatch || x == f.width - 1) finishBatch(f, batch, rowStats[2 * y + 1]);
-  });
+  // Moving groups (phlmMovingGroup): in the AVX2 copy, on the float kernel's
+  // fast path, with motion and (then) the closest-depth taps ahead.
+  if (!Groups || reference || !f.motion.ptr || (f.depth && !tapsAhead)) {
+    temporal::rowsWithBorder(w, h, y0, y1, clampAll, [&](auto clamp, int x, int y) __attribute__((always_inline)) {
+      if (tapsAhead && x == 0) stageTaps(y);
+      phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], batch, rowTaps);
+      if (batch.count == kBatch || x == f.width - 1) finishBatch(f, batch, rowStats[2 * y + 1]);
+    });
+    return;
+  }
+  if constexpr (Groups) {
+    const int sy = f.unjitter.shiftY;
+    for (int y = y0; y < y1; ++y) {
+      if (tapsAhead) stageTaps(y);
+      const bool clampRow = clampAll || y == 0 || y == h - 1 || w < 3;
+      // Batches start at x = 0, 8, 16, ...; a group's taps are the columns
+      // x0 - 1 - shiftX .. x0 + 8 - shiftX of the rows y - 1 - shiftY ..
+      // y + 1 - shiftY: where these and the unshifted 3x3s lie inside, they
+      // are the taps phlmPixel reads, clamped (shiftedSource) or not.
+      const bool groupRow = y >= 1 && y + 1 < h && y - 1 - sy >= 0 && y + 1 - sy < h;
+      for (int x = 0; x < w;) {
+        if (groupRow && x >= kBatch && x % kBatch == 0 && x + kBatch <= w - 1 && x - 1 - sx >= 0 &&
+            x + kBatch - sx < w && phlmMovingGroup(f, x, y, rowStats[2 * y], batch, rowTaps)) {
+          x += kBatch;
+        } else {
+          if (clampRow || x == 0 || x == w - 1)
+            phlmPixel<T, true>(f, x, y, rowStats[2 * y], batch, rowTaps);
+          else
+            phlmPixel<T, false>(f, x, y, rowStats[2 * y], batch, rowTaps);
+          ++x;
+        }
+        if (batch.count == kBatch || x == w) finishBatch(f, batch, rowStats[2 * y + 1]);
+      }
+    }
+  }
 }
+
 // Each copy ends with a store fence: the streaming stores of its rows are
 // visible before the thread pool reports the band done.
 template <class T>
 void phlmRowsBaseline(const Frame<T>& f, int y0, int y1, bool reference, long* rowStats) {
-  phlmRowsBody(f, y0, y1, reference, rowStats);
+  phlmRowsBody<T, false>(f, y0, y1, reference, rowStats);
 #if defined(__SSE2__)
   _mm_sfence();
 #endif
@@ -1017,7 +1192,7 @@ void phlmRowsBaseline(const Frame<T>& f, int y0, int y1, bool reference, long* r
 #ifdef CRISP_TEMPORAL_HAS_AVX2
 template <class T>
 CRISP_TEMPORAL_AVX2 void phlmRowsAvx2(const Frame<T>& f, int y0, int y1, bool reference, long* rowStats) {
-  phlmRowsBody(f, y0, y1, reference, rowStats);
+  phlmRowsBody<T, std::is_same_v<T, float>>(f, y0, y1, reference, rowStats);
   _mm_sfence();
 }
 #endif

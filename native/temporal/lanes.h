@@ -106,6 +106,21 @@ CRISP_LANES_INLINE void storeInterleaved4(float* p, T r, T g, T b, T a) {
   }
 }
 
+// storeInterleaved4's inverse for eight pixels held as Vec4s (pixel l's four
+// channels in a[l]): channel c of pixel l in out[c][l], by shuffles.
+CRISP_LANES_INLINE void transposeToLanes(const Vec4 a[8], Vec8 out[4]) {
+  Vec8 p[4];  // pixel i | pixel i + 4
+  for (int i = 0; i < 4; ++i) p[i] = __builtin_shufflevector(a[i], a[i + 4], 0, 1, 2, 3, 4, 5, 6, 7);
+  const Vec8 t0 = __builtin_shufflevector(p[0], p[1], 0, 8, 1, 9, 4, 12, 5, 13);  // r0 r1 g0 g1 | r4 r5 g4 g5
+  const Vec8 t1 = __builtin_shufflevector(p[0], p[1], 2, 10, 3, 11, 6, 14, 7, 15);
+  const Vec8 t2 = __builtin_shufflevector(p[2], p[3], 0, 8, 1, 9, 4, 12, 5, 13);
+  const Vec8 t3 = __builtin_shufflevector(p[2], p[3], 2, 10, 3, 11, 6, 14, 7, 15);
+  out[0] = __builtin_shufflevector(t0, t2, 0, 1, 8, 9, 4, 5, 12, 13);
+  out[1] = __builtin_shufflevector(t0, t2, 2, 3, 10, 11, 6, 7, 14, 15);
+  out[2] = __builtin_shufflevector(t1, t3, 0, 1, 8, 9, 4, 5, 12, 13);
+  out[3] = __builtin_shufflevector(t1, t3, 2, 3, 10, 11, 6, 7, 14, 15);
+}
+
 // One byte per lane (values 0..255) as int lanes, and back: a per-pixel byte
 // plane read and written a lane group at a time (vpmovzxbd and a pack in the
 // AVX2 copy), not lane by lane into a stack array read back as a vector,

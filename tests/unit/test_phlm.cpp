@@ -309,12 +309,23 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
   // whose Catmull-Rom footprints are consecutive and interior (loaded from the
   // intercept planes as vectors; the reference gathers from the records).
   const std::vector<synth::FrameData> pan = test::pannedChart(w, h, frames, 0.37f, -0.21f);
-  for (int run = 0; run < 8; ++run) {
+  // The pan with uneven motion: the models of consecutive moving pixels are
+  // not consecutive, and some lanes reproject off screen, so the AVX2 copy's
+  // moving groups test depth lane by lane (phlm.cpp phlmMovingGroup).
+  std::vector<synth::FrameData> uneven = test::pannedChart(w, h, frames, 0.37f, -0.21f);
+  for (synth::FrameData& f : uneven)
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        float* m = f.motion.at(x, y);
+        m[0] = x % 11 == 5 ? 70.0f : 0.37f + 0.5f * float((x + 2 * y) % 4);
+      }
+  for (int run = 0; run < 10; ++run) {
     // 0: ghosting, motion + depth; 1: static (in place); 2: the pan; 3: the pan
     // with frames 4-5 given no motion (the planes go stale and are copied at
-    // frame 6) and frame 8 fetched bilinearly (the planes are written anyway).
-    const int mode = run % 4;
-    const test::FastPathIsa isa(test::kFastPathIsas[run / 4]);
+    // frame 6) and frame 8 fetched bilinearly (the planes are written anyway);
+    // 4: the uneven pan.
+    const int mode = run % 5;
+    const test::FastPathIsa isa(test::kFastPathIsas[run / 5]);
     phlm::Kernel<float> fast, reference;
     fast.allocate(w, h, mode != 1, mode != 1);
     reference.allocate(w, h, mode != 1, mode != 1);
@@ -322,7 +333,9 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
     phlm::Settings s;
     s.holdPeriod = 4;  // held and learning lanes in one batch (phlm.cpp "Hold")
     for (int t = 0; t < frames; ++t) {
-      const synth::FrameData f = mode >= 2 ? pan[std::size_t(t)] : synth::renderFrame(ghosting, w, h, t, {});
+      const synth::FrameData f = mode == 4   ? uneven[std::size_t(t)]
+                                 : mode >= 2 ? pan[std::size_t(t)]
+                                             : synth::renderFrame(ghosting, w, h, t, {});
       // Jitter offsets whose unjitter shifts the taps by a whole pixel on
       // some frames (temporal::unjitterFor: shift = round(jitter)), so the
       // shifted, clamped taps are compared too.

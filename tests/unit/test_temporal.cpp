@@ -407,3 +407,17 @@ TEST(TemporalLanes, InterleavedStoreAndMaskFolds) {
   checkLaneHelpers<crisp::temporal::Vec4>();
   checkLaneHelpers<crisp::temporal::Vec8>();
 }
+
+// transposeToLanes undoes storeInterleaved4: eight packed pixels back to channels.
+TEST(TemporalLanes, TransposeToLanesInvertsTheInterleavedStore) {
+  using namespace crisp::temporal;
+  Vec4 pixels[8];
+  for (int l = 0; l < 8; ++l) pixels[l] = Vec4{float(10 * l), float(10 * l + 1), float(10 * l + 2), float(10 * l + 3)};
+  Vec8 ch[4];
+  transposeToLanes(pixels, ch);
+  for (int c = 0; c < 4; ++c)
+    for (int l = 0; l < 8; ++l) EXPECT_EQ(ch[c][l], float(10 * l + c)) << "channel " << c << " lane " << l;
+  float packed[32];
+  storeInterleaved4(packed, ch[0], ch[1], ch[2], ch[3]);
+  for (int i = 0; i < 32; ++i) EXPECT_EQ(packed[i], float(10 * (i / 4) + i % 4)) << i;
+}
