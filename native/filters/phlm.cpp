@@ -216,6 +216,7 @@
 #include "filters/phlm.h"
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <cstring>
 #include <type_traits>
@@ -550,6 +551,17 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   ++batch.count;
 }
 
+// Eight non-negative int lanes widened into size_t indices.
+template <class Int>
+__attribute__((always_inline)) inline void storeIndices(std::size_t out[kBatch], Int v) {
+  typedef long long Wide __attribute__((vector_size(32)));
+  static_assert(sizeof(std::size_t) == sizeof(long long));
+  const Wide lo = __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1, 2, 3), Wide);
+  const Wide hi = __builtin_convertvector(__builtin_shufflevector(v, v, 4, 5, 6, 7), Wide);
+  std::memcpy(out, &lo, sizeof lo);
+  std::memcpy(out + 4, &hi, sizeof hi);
+}
+
 // phlmPixel on the eight pixels x0 .. x0 + 7 of row y at once, for what a
 // moving shot's pixels mostly are: every lane moves, and every tap of their
 // (shifted) 3x3 lies inside the image, so no tap needs a clamp. The same
@@ -661,18 +673,30 @@ __attribute__((always_inline)) inline bool phlmMovingGroup(const Frame<T>& f, in
   std::memcpy(batch.footY, &footY, sizeof footY);
   temporal::storeLanes(batch.tx, tx);
   temporal::storeLanes(batch.ty, ty);
-  for (int l = 0; l < kBatch; ++l) {
-    if (!valid[l]) {
-      ++reprojectionResets;
-      continue;
+  for (int l = 0; l < kBatch; ++l) reprojectionResets += valid[l] == 0;
+  // Where each lane reads (phlm.h paddedPixel; read only for valid lanes),
+  // as int lanes while every padded index fits in an int.
+  const int rowPixels = f.blocksPerRow * kBatch;
+  if (std::size_t(h) * std::size_t(rowPixels) <= std::size_t(INT_MAX)) {
+    auto clampTo = [](Int v, int hi) __attribute__((always_inline)) { return v < 0 ? Int{} : (hi < v ? Int{} + hi : v); };
+    const Int xa = clampTo(footX, w - 1), xb = clampTo(footX + 1, w - 1);
+    const Int ya = clampTo(footY, h - 1) * rowPixels, yb = clampTo(footY + 1, h - 1) * rowPixels;
+    storeIndices(batch.source, qy * rowPixels + qx);
+    storeIndices(batch.tap[0], ya + xa);
+    storeIndices(batch.tap[1], ya + xb);
+    storeIndices(batch.tap[2], yb + xa);
+    storeIndices(batch.tap[3], yb + xb);
+  } else {
+    for (int l = 0; l < kBatch; ++l) {
+      if (!valid[l]) continue;
+      batch.source[l] = paddedPixel(f.blocksPerRow, qx[l], qy[l]);
+      const int xa = std::clamp(footX[l], 0, w - 1), xb = std::clamp(footX[l] + 1, 0, w - 1);
+      const int ya = std::clamp(footY[l], 0, h - 1), yb = std::clamp(footY[l] + 1, 0, h - 1);
+      batch.tap[0][l] = paddedPixel(f.blocksPerRow, xa, ya);
+      batch.tap[1][l] = paddedPixel(f.blocksPerRow, xb, ya);
+      batch.tap[2][l] = paddedPixel(f.blocksPerRow, xa, yb);
+      batch.tap[3][l] = paddedPixel(f.blocksPerRow, xb, yb);
     }
-    batch.source[l] = paddedPixel(f.blocksPerRow, qx[l], qy[l]);
-    const int xa = std::clamp(footX[l], 0, w - 1), xb = std::clamp(footX[l] + 1, 0, w - 1);
-    const int ya = std::clamp(footY[l], 0, h - 1), yb = std::clamp(footY[l] + 1, 0, h - 1);
-    batch.tap[0][l] = paddedPixel(f.blocksPerRow, xa, ya);
-    batch.tap[1][l] = paddedPixel(f.blocksPerRow, xb, ya);
-    batch.tap[2][l] = paddedPixel(f.blocksPerRow, xa, yb);
-    batch.tap[3][l] = paddedPixel(f.blocksPerRow, xb, yb);
   }
   const Vec8 one = temporal::lanesOf<Vec8>(1.0f);
   for (int c = 0; c < 3; ++c) {
