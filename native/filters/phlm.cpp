@@ -246,6 +246,7 @@ template <class T>
 struct Frame {
   int width, height;
   const float* staged;         // sanitised linear RGB + tonemapped YCgCo luminance Y / (1 + Y)
+  const std::uint8_t* alphaOne;  // per row: every input alpha is 1 (Kernel::alphaOne_)
   ImageView color;             // the input (alpha)
   const float* depth;          // this frame's sanitised depth, or null
   const float* previousDepth;  // previous frame's, or null (no depth test)
@@ -1123,14 +1124,18 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
   using F = typename LanesOf<float>::V;
   F rgb[3];
   for (int c = 0; c < 3; ++c) rgb[c] = sanitizeColorLanes(F(__builtin_convertvector(out[c], F)));
-  const bool alphaOut = f.output.channels() > 3, alphaIn = f.color.channels() > 3;
-  for (int i = 0; i < n; ++i) {
-    const int x = batch.x0 + i;
-    float* o = f.output.pixel(x, y);
-    o[0] = rgb[0][i];
-    o[1] = rgb[1][i];
-    o[2] = rgb[2][i];
-    if (alphaOut) o[3] = alphaIn ? sanitizeColor(f.color.pixel(x, y)[3]) : 1.0f;
+  const bool alphaOut = f.output.channels() > 3, alphaIn = f.color.channels() > 3 && !f.alphaOne[y];
+  if (n == kBatch && alphaOut && !alphaIn && f.output.pixelStride == 4 * sizeof(float)) {
+    temporal::storeInterleaved4(f.output.pixel(batch.x0, y), rgb[0], rgb[1], rgb[2], temporal::lanesOf<F>(1.0f));
+  } else {
+    for (int i = 0; i < n; ++i) {
+      const int x = batch.x0 + i;
+      float* o = f.output.pixel(x, y);
+      o[0] = rgb[0][i];
+      o[1] = rgb[1][i];
+      o[2] = rgb[2][i];
+      if (alphaOut) o[3] = alphaIn ? sanitizeColor(f.color.pixel(x, y)[3]) : 1.0f;
+    }
   }
   batch.count = 0;
 }
@@ -1243,6 +1248,7 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
     current_ = 0;
     withMotion_ = withDepth_ = false;
     rowStats_.assign(std::size_t(height) * 2, 0);
+    alphaOne_.assign(std::size_t(height), 0);
     reset();
   }
   if (withMotion && !withMotion_) {
@@ -1284,7 +1290,7 @@ std::size_t Kernel<T>::bytesKeptBetweenFrames() const {
 
 template <class T>
 std::size_t Kernel<T>::bytesScratch() const {
-  return staged_.data.size() * sizeof(float) + rowStats_.size() * sizeof(long);
+  return staged_.data.size() * sizeof(float) + rowStats_.size() * sizeof(long) + alphaOne_.size();
 }
 
 // Next records at least this large (with motion) are written with streaming
@@ -1310,6 +1316,11 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
     for (int y = y0; y < y1; ++y) {
       stageColorRow(in.color, y, staged_.at(0, y));  // sanitised RGB (core/row_stage.h); lane 3 replaced below
       float* d = staged_.at(0, y);
+      // The output's alpha is the input's, sanitised; a row whose alphas are
+      // all 1 (or absent) is not read again for it (finishBatch).
+      bool alphaOne = true;
+      for (int x = 0; x < width_; ++x) alphaOne &= d[4 * x + 3] == 1.0f;
+      alphaOne_[std::size_t(y)] = alphaOne;
       for (int x = 0; x < width_; ++x, d += 4) {
         // The luminance range of §5.1 (Delta, l) on tonemapped YCgCo luminance. std::max(v, 0) as
         // selects, which the compiler vectorises (std::max left a branch per channel).
@@ -1329,6 +1340,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.width = width_;
   f.height = height_;
   f.staged = staged_.data.data();
+  f.alphaOne = alphaOne_.data();
   f.color = in.color;
   f.depth = depthNow;
   // No motion image: nothing moves, nothing is disoccluded; a depth test would

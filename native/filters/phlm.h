@@ -157,6 +157,7 @@ class Kernel {
   bool interceptsValid_ = false;   // intercepts_[current_] holds the current records' intercepts
   std::vector<std::uint8_t> narrowBox_;  // with motion: per pixel, its model keeps the 3x3 box (phlm.cpp "Box")
   std::vector<long> rowStats_;  // 2 per row: reprojection resets, box resets
+  std::vector<std::uint8_t> alphaOne_;  // per row of this frame: every input alpha is 1 (or there is none)
   int current_ = 0;
   int frames_ = 0;
   bool previousDepthValid_ = false;

@@ -10,8 +10,10 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <random>
 
+#include "core/color.h"
 #include "core/context.h"
 #include "core/error.h"
 #include "core/filter.h"
@@ -351,6 +353,39 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
       }
       ASSERT_TRUE(runBothPaths(fast, reference, in, s, outFast, outReference))
           << "frame " << t << " mode " << mode << " " << temporal::fastPathIsaName();
+    }
+  }
+}
+
+// The output's alpha is the input's, sanitised, on both paths: rows whose
+// alphas are all 1 skip reading it again (phlm.cpp finishBatch), the others
+// read it pixel by pixel, in moving groups and on the border alike.
+TEST(Phlm, OutputAlphaIsTheInputAlpha) {
+  const int w = 61, h = 24, frames = 3;
+  std::vector<synth::FrameData> pan = test::pannedChart(w, h, frames, 0.37f, -0.21f);
+  ASSERT_EQ(pan[0].color.channels, 4);
+  for (synth::FrameData& f : pan) {
+    f.color.at(20, 5)[3] = 0.5f;                                      // inside a moving group
+    f.color.at(0, 9)[3] = std::numeric_limits<float>::quiet_NaN();  // border pixel: 0
+    f.color.at(40, 9)[3] = 1e30f;                                     // kMaxColor
+    f.color.at(7, h - 1)[3] = -2.0f;                                  // last row
+  }
+  for (const bool reference : {false, true}) {
+    phlm::Kernel<float> k;
+    k.allocate(w, h, true, true);
+    Image out(w, h, 4);
+    for (int t = 0; t < frames; ++t) {
+      const synth::FrameData& f = pan[std::size_t(t)];
+      phlm::Inputs in;
+      in.color = f.color.view();
+      in.motion = f.motion.view();
+      in.depth = f.depth.view();
+      in.output = out.view();
+      k.run(in, phlm::Settings{}, reference, 2);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          ASSERT_EQ(out.at(x, y)[3], sanitizeColor(f.color.at(x, y)[3]))
+              << "(" << x << "," << y << ") frame " << t << (reference ? " reference" : " fast");
     }
   }
 }
