@@ -276,6 +276,15 @@ TEST(Phlm, CameraCutLeavesNoGhost) {
   }
 }
 
+// A synthetic frame's colour, motion and depth as phlm's inputs.
+static phlm::Inputs movingInputs(const synth::FrameData& f) {
+  phlm::Inputs in;
+  in.color = f.color.view();
+  in.motion = f.motion.view();
+  in.depth = f.depth.view();
+  return in;
+}
+
 // One frame on the threaded fast path (2 threads) and on the reference path:
 // equal outputs and records, and with motion equal intercept planes.
 static ::testing::AssertionResult runBothPaths(phlm::Kernel<float>& fast, phlm::Kernel<float>& reference, phlm::Inputs in,
@@ -376,10 +385,7 @@ TEST(Phlm, OutputAlphaIsTheInputAlpha) {
     Image out(w, h, 4);
     for (int t = 0; t < frames; ++t) {
       const synth::FrameData& f = pan[std::size_t(t)];
-      phlm::Inputs in;
-      in.color = f.color.view();
-      in.motion = f.motion.view();
-      in.depth = f.depth.view();
+      phlm::Inputs in = movingInputs(f);
       in.output = out.view();
       k.run(in, phlm::Settings{}, reference, 2);
       for (int y = 0; y < h; ++y)
@@ -406,11 +412,7 @@ TEST(Phlm, StreamedRecordsEqualTheReference) {
   phlm::Settings s;
   for (int t = 0; t < frames; ++t) {
     const synth::FrameData& f = pan[std::size_t(t)];
-    phlm::Inputs in;
-    in.color = f.color.view();
-    in.motion = f.motion.view();
-    in.depth = f.depth.view();
-    ASSERT_TRUE(runBothPaths(fast, reference, in, s, outFast, outReference)) << "frame " << t;
+    ASSERT_TRUE(runBothPaths(fast, reference, movingInputs(f), s, outFast, outReference)) << "frame " << t;
   }
 }
 
