@@ -11,6 +11,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <sstream>
 #include <string>
@@ -110,25 +111,37 @@ bool readSome(int fd, std::string& buffer) {
 BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const std::string& log,
                       const std::function<void(const std::string&)>& onProgress) {
   // The pipes are close-on-exec: Blender keeps what the child dup2s, and the
-  // progress pipe's write end, made inheritable there.
-  int progress[2] = {-1, -1}, capture[2] = {-1, -1};
+  // progress pipe's write end, made inheritable there. The exec pipe tells
+  // the parent whether Blender started: it closes empty on a successful exec,
+  // or carries the child's errno (an exit status cannot tell: Blender, or a
+  // wrapper script, may itself exit 127).
+  int progress[2] = {-1, -1}, capture[2] = {-1, -1}, exec[2] = {-1, -1};
+  auto closeAll = [&]() {
+    for (int fd : {progress[0], progress[1], capture[0], capture[1], exec[0], exec[1]})
+      if (fd >= 0) close(fd);
+  };
+  bool piped = pipe2(exec, O_CLOEXEC) == 0;
+  if (piped && onProgress) piped = pipe2(progress, O_CLOEXEC) == 0;
+  if (piped && output == BlenderOutput::Captured) piped = pipe2(capture, O_CLOEXEC) == 0;
+  if (!piped) {
+    closeAll();
+    ioError("cannot start Blender (pipe failed)");
+  }
   if (onProgress) {
-    if (pipe2(progress, O_CLOEXEC) != 0) ioError("cannot start Blender (pipe failed)");
     cmd.push_back("--progress-fd");
     cmd.push_back(std::to_string(progress[1]));
   }
-  if (output == BlenderOutput::Captured && pipe2(capture, O_CLOEXEC) != 0)
-    ioError("cannot start Blender (pipe failed)");
   std::vector<char*> argv;
   for (auto& s : cmd) argv.push_back(s.data());
   argv.push_back(nullptr);
   std::fflush(stdout);
   std::fflush(stderr);
   const pid_t pid = fork();
-  if (pid < 0) ioError("cannot start Blender (fork failed)");
+  if (pid < 0) {
+    closeAll();
+    ioError("cannot start Blender (fork failed)");
+  }
   if (pid == 0) {
-    // The terminal's stderr, kept for the one message Blender cannot print.
-    const int terminal = fcntl(STDERR_FILENO, F_DUPFD_CLOEXEC, 3);
     int to = output == BlenderOutput::Captured ? capture[1] : -1;
     if (output == BlenderOutput::Logged) to = open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
     if (to >= 0) {
@@ -137,10 +150,27 @@ BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const 
     }
     if (onProgress) fcntl(progress[1], F_SETFD, 0);
     execvp(argv[0], argv.data());
-    const std::string message =
-        "crisp: error: cannot run Blender '" + cmd[0] + "' (install it, or pass --blender PATH)\n";
-    (void)!write(terminal >= 0 ? terminal : STDERR_FILENO, message.data(), message.size());
+    const int error = errno;
+    (void)!write(exec[1], &error, sizeof error);
     _exit(127);
+  }
+  close(exec[1]);
+  int execError = 0;
+  ssize_t got;
+  while ((got = read(exec[0], &execError, sizeof execError)) < 0 && errno == EINTR) {
+  }
+  close(exec[0]);
+  if (got > 0) {  // exec failed: nothing else comes from the child
+    if (onProgress) close(progress[0]), close(progress[1]);
+    if (output == BlenderOutput::Captured) close(capture[0]), close(capture[1]);
+    while (waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {
+    }
+    std::fprintf(stderr, "crisp: error: cannot run Blender '%s': %s (install it, or pass --blender PATH)\n",
+                 cmd[0].c_str(), std::strerror(execError));
+    BlenderRun failed;
+    failed.started = false;
+    failed.exitCode = 127;
+    return failed;
   }
   // Both pipes are read as they fill (Blender would block on a full one).
   BlenderRun run;

@@ -169,7 +169,7 @@ int runEval(const ParsedArgs& args) {
   if (!quiet && tty) std::fprintf(stderr, "\n");
   const int code = run.signal ? 128 + run.signal : run.exitCode;
   double blenderSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (code == 127) return 1;
+  if (!run.started) return 1;  // said by runBlender
   if (code != 0) {
     std::fprintf(stderr, "crisp: error: Blender failed (exit %d); from %s:\n%s", code, log.c_str(),
                  blenderErrors(log).c_str());

@@ -47,7 +47,8 @@ int runRender(const ParsedArgs& args) {
   // e.g. for an unreadable .blend). --plan's output is what was asked for: kept.
   const bool capture = args.has("quiet") && !args.has("plan");
   const BlenderRun run = runBlender(cmd, capture ? BlenderOutput::Captured : BlenderOutput::Terminal);
-  if (capture && (run.signal != 0 || (run.exitCode != 0 && run.exitCode != 127))) {
+  if (!run.started) return 1;  // said by runBlender
+  if (capture && (run.signal != 0 || run.exitCode != 0)) {
     std::string errors = blenderErrorLines(run.output);
     if (errors.empty())  // none recognised: the end of what it printed
       errors = run.output.substr(run.output.size() - std::min<std::size_t>(run.output.size(), 2000));
@@ -57,7 +58,6 @@ int runRender(const ParsedArgs& args) {
     std::fprintf(stderr, "crisp: error: Blender was killed by signal %d\n", run.signal);
     return 1;
   }
-  if (run.exitCode == 127) return 1;  // said by runBlender
   // batch.py: 2 bad input, 3 library, 4 render failure; Blender itself exits 1 on a Python error.
   return run.exitCode == 0 ? 0 : (run.exitCode == 2 ? 2 : 1);
 }

@@ -51,8 +51,9 @@ enum class BlenderOutput {
   Logged,    // both streams appended to the log file
 };
 struct BlenderRun {
-  int exitCode = 0;    // 127: Blender could not be started (said on stderr)
-  int signal = 0;      // non-zero: Blender was killed by it
+  bool started = true;  // false: Blender could not be started (said on stderr; exitCode 127)
+  int exitCode = 0;
+  int signal = 0;       // non-zero: Blender was killed by it
   std::string output;  // BlenderOutput::Captured: what Blender printed
 };
 // Runs cmd (blenderDriverCommand's; cmd[0] looked up on PATH) and waits for it.

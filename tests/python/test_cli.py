@@ -198,6 +198,24 @@ def test_a_missing_blender_is_named_on_stderr(tmp_path, command):
         assert (tmp_path / "out" / "logs" / "blender.log").read_text() == ""
 
 
+@pytest.mark.parametrize("command", ["render", "eval"])
+def test_a_blender_that_exits_127_is_not_taken_for_a_missing_one(tmp_path, command):
+    # A wrapper script starts (exec succeeds) and then fails with 127 itself: its own message must
+    # reach the user (render --quiet shows the end of what it printed, eval points at its log).
+    wrapper = tmp_path / "blender-wrapper"
+    wrapper.write_text("#!/bin/sh\necho 'wrapper: no blender behind me' >&2\nexit 127\n")
+    wrapper.chmod(0o755)
+    args = ["--method", "taa"] if command == "render" else ["--methods", "taa"]
+    p = run(command, "--scene", "spinning_cube", "--frames", "1-2", *args, "--quiet", "--blender", wrapper,
+            "-o", tmp_path / "out", ok=False)
+    assert p.returncode == 1 and "cannot run Blender" not in p.stderr, p.stderr
+    if command == "render":
+        assert "wrapper: no blender behind me" in p.stderr, p.stderr
+    else:
+        assert "Blender failed (exit 127)" in p.stderr, p.stderr
+        assert "no blender behind me" in (tmp_path / "out" / "logs" / "blender.log").read_text()
+
+
 def test_jitter_distributions_match_the_add_ons():
     """The CLI checks --jitter before Blender starts: its list must be the add-on's."""
     import ast
