@@ -366,6 +366,39 @@ struct RowTaps {
   const float* depth = nullptr;  // the tap's depth
 };
 
+// The 3x3 box and sum of nine taps, in tap order (min/max are exact and the
+// sum runs in tap order, so every path gets the same bits).
+CRISP_PHLM_INLINE void boxOfTaps(const temporal::Vec4 taps[9], temporal::Vec4& lo, temporal::Vec4& hi,
+                                 temporal::Vec4& sum) {
+  lo = hi = sum = taps[0];
+#pragma GCC unroll 8
+  for (int i = 1; i < 9; ++i) {
+    lo = temporal::vmin(lo, taps[i]);
+    hi = temporal::vmax(hi, taps[i]);
+    sum += taps[i];
+  }
+}
+
+// Disocclusion: the followed surface (depth d) must be in the previous
+// frame's 3x3 around q (a jittered edge pixel's own sample may be of either
+// surface). An interior q reads its 3x3 directly (the same taps as clamping each).
+template <class T>
+CRISP_PHLM_INLINE bool followedSurfaceAround(const Frame<T>& f, int qx, int qy, float d) {
+  const int w = f.width, h = f.height;
+  if (qx >= 1 && qx + 1 < w && qy >= 1 && qy + 1 < h) {
+    const float* around = f.previousDepth + std::size_t(qy - 1) * w + (qx - 1);
+    for (int i = 0; i < 9; ++i)
+      if (temporal::sameSurfaceDepth(d, around[std::size_t(i / 3) * w + i % 3], f.depthTolerance)) return true;
+    return false;
+  }
+  for (int j = -1; j <= 1; ++j)
+    for (int k = -1; k <= 1; ++k) {
+      const int sx = std::clamp(qx + k, 0, w - 1), sy = std::clamp(qy + j, 0, h - 1);
+      if (temporal::sameSurfaceDepth(d, f.previousDepth[std::size_t(sy) * w + sx], f.depthTolerance)) return true;
+    }
+  return false;
+}
+
 // Always inlined: into both copies of the row loop (temporal/isa.h).
 template <class T, bool Clamp>
 __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
@@ -391,18 +424,8 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     tapY[k] = Clamp ? temporal::shiftedSource(y + k - 1, h, sy) : y + k - 1;
   }
 #pragma GCC unroll 9
-  for (int i = 0; i < 9; ++i) {
-    const std::size_t at = std::size_t(tapY[i / 3]) * w + tapX[i % 3];
-    const Vec4 c = temporal::load4(f.staged + at * 4);
-    taps[i] = c;
-    if (i == 0) {
-      boxLo = boxHi = boxSum = c;
-    } else {
-      boxLo = temporal::vmin(boxLo, c);
-      boxHi = temporal::vmax(boxHi, c);
-      boxSum += c;
-    }
-  }
+  for (int i = 0; i < 9; ++i) taps[i] = temporal::load4(f.staged + (std::size_t(tapY[i / 3]) * w + tapX[i % 3]) * 4);
+  boxOfTaps(taps, boxLo, boxHi, boxSum);
   if (f.depth && !rowTaps.tap) {
 #pragma GCC unroll 9
     for (int i = 0; i < 9; ++i) depth9[i] = f.depth[std::size_t(tapY[i / 3]) * w + tapX[i % 3]];
@@ -439,25 +462,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     qx = std::clamp(int(std::floor(px + 0.5f)), 0, w - 1);
     qy = std::clamp(int(std::floor(py + 0.5f)), 0, h - 1);
   }
-  if (valid && f.previousDepth) {
-    // Disocclusion: the followed surface must be in the previous frame's 3x3
-    // around q (a jittered edge pixel's own sample may be of either surface).
-    // An interior q reads its 3x3 directly (the same taps as clamping each).
-    const float d = tapDepth;
-    bool match = false;
-    if (qx >= 1 && qx + 1 < w && qy >= 1 && qy + 1 < h) {
-      const float* around = f.previousDepth + std::size_t(qy - 1) * w + (qx - 1);
-      for (int i = 0; i < 9 && !match; ++i)
-        match = temporal::sameSurfaceDepth(d, around[std::size_t(i / 3) * w + i % 3], f.depthTolerance);
-    } else {
-      for (int j = -1; j <= 1 && !match; ++j)
-        for (int k = -1; k <= 1 && !match; ++k) {
-          const int sx = std::clamp(qx + k, 0, w - 1), sy = std::clamp(qy + j, 0, h - 1);
-          match = temporal::sameSurfaceDepth(d, f.previousDepth[std::size_t(sy) * w + sx], f.depthTolerance);
-        }
-    }
-    valid = match;
-  }
+  if (valid && f.previousDepth) valid = followedSurfaceAround(f, qx, qy, tapDepth);
 
   // The footprint box trusts a still model. A model that moved, saw
   // something move in its 5x5 or was box-corrected since its reset may hold
@@ -603,17 +608,8 @@ __attribute__((always_inline)) inline bool phlmMovingGroup(const Frame<T>& f, in
   for (int l = 0; l < kBatch; ++l) {
     Vec4 taps[9];
 #pragma GCC unroll 9
-    for (int i = 0; i < 9; ++i) {
-      const Vec4 c = temporal::load4(topLeft + (std::size_t(i / 3) * w + std::size_t(l + i % 3)) * 4);
-      taps[i] = c;
-      if (i == 0) {
-        lo4[l] = hi4[l] = sum4[l] = c;
-      } else {
-        lo4[l] = temporal::vmin(lo4[l], c);
-        hi4[l] = temporal::vmax(hi4[l], c);
-        sum4[l] += c;
-      }
-    }
+    for (int i = 0; i < 9; ++i) taps[i] = temporal::load4(topLeft + (std::size_t(i / 3) * w + std::size_t(l + i % 3)) * 4);
+    boxOfTaps(taps, lo4[l], hi4[l], sum4[l]);
     sample4[l] = f.unjitter.enabled ? temporal::unjitteredMix(taps, f.unjitter.weights) : taps[4];
   }
   Vec8 boxLo[4], boxHi[4], boxSum[4], sample[4];
@@ -642,16 +638,8 @@ __attribute__((always_inline)) inline bool phlmMovingGroup(const Frame<T>& f, in
                                             f.depthTolerance);
       valid &= match;
     } else {
-      for (int l = 0; l < kBatch; ++l) {
-        if (!valid[l]) continue;
-        bool match = false;
-        for (int j = -1; j <= 1 && !match; ++j)
-          for (int k = -1; k <= 1 && !match; ++k) {
-            const int ax = std::clamp(qx[l] + k, 0, w - 1), ay = std::clamp(qy[l] + j, 0, h - 1);
-            match = temporal::sameSurfaceDepth(tapDepth[l], f.previousDepth[std::size_t(ay) * w + ax], f.depthTolerance);
-          }
-        if (!match) valid[l] = 0;
-      }
+      for (int l = 0; l < kBatch; ++l)
+        if (valid[l] && !followedSurfaceAround(f, qx[l], qy[l], tapDepth[l])) valid[l] = 0;
     }
   }
 
@@ -675,30 +663,17 @@ __attribute__((always_inline)) inline bool phlmMovingGroup(const Frame<T>& f, in
   temporal::storeLanes(batch.tx, tx);
   temporal::storeLanes(batch.ty, ty);
   for (int l = 0; l < kBatch; ++l) reprojectionResets += valid[l] == 0;
-  // Where each lane reads (phlm.h paddedPixel; read only for valid lanes),
-  // as int lanes while every padded index fits in an int.
+  // Where each lane reads (phlm.h paddedPixel; read only for valid lanes), as
+  // int lanes: phlmRowsBody runs groups only where every padded index fits.
   const int rowPixels = f.blocksPerRow * kBatch;
-  if (std::size_t(h) * std::size_t(rowPixels) <= std::size_t(INT_MAX)) {
-    auto clampTo = [](Int v, int hi) __attribute__((always_inline)) { return v < 0 ? Int{} : (hi < v ? Int{} + hi : v); };
-    const Int xa = clampTo(footX, w - 1), xb = clampTo(footX + 1, w - 1);
-    const Int ya = clampTo(footY, h - 1) * rowPixels, yb = clampTo(footY + 1, h - 1) * rowPixels;
-    storeIndices(batch.source, qy * rowPixels + qx);
-    storeIndices(batch.tap[0], ya + xa);
-    storeIndices(batch.tap[1], ya + xb);
-    storeIndices(batch.tap[2], yb + xa);
-    storeIndices(batch.tap[3], yb + xb);
-  } else {
-    for (int l = 0; l < kBatch; ++l) {
-      if (!valid[l]) continue;
-      batch.source[l] = paddedPixel(f.blocksPerRow, qx[l], qy[l]);
-      const int xa = std::clamp(footX[l], 0, w - 1), xb = std::clamp(footX[l] + 1, 0, w - 1);
-      const int ya = std::clamp(footY[l], 0, h - 1), yb = std::clamp(footY[l] + 1, 0, h - 1);
-      batch.tap[0][l] = paddedPixel(f.blocksPerRow, xa, ya);
-      batch.tap[1][l] = paddedPixel(f.blocksPerRow, xb, ya);
-      batch.tap[2][l] = paddedPixel(f.blocksPerRow, xa, yb);
-      batch.tap[3][l] = paddedPixel(f.blocksPerRow, xb, yb);
-    }
-  }
+  auto clampTo = [](Int v, int hi) __attribute__((always_inline)) { return v < 0 ? Int{} : (hi < v ? Int{} + hi : v); };
+  const Int xa = clampTo(footX, w - 1), xb = clampTo(footX + 1, w - 1);
+  const Int ya = clampTo(footY, h - 1) * rowPixels, yb = clampTo(footY + 1, h - 1) * rowPixels;
+  storeIndices(batch.source, qy * rowPixels + qx);
+  storeIndices(batch.tap[0], ya + xa);
+  storeIndices(batch.tap[1], ya + xb);
+  storeIndices(batch.tap[2], yb + xa);
+  storeIndices(batch.tap[3], yb + xb);
   const Vec8 one = temporal::lanesOf<Vec8>(1.0f);
   for (int c = 0; c < 3; ++c) {
     batch.sum[c] = boxSum[c];
@@ -1173,8 +1148,10 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
     temporal::closestDepthTapsRow<temporal::Vec8>(rows[0], rows[1], rows[2], w, taps.data(), taps.data() + w);
   };
   // Moving groups (phlmMovingGroup): in the AVX2 copy, on the float kernel's
-  // fast path, with motion and (then) the closest-depth taps ahead.
-  if (!Groups || reference || !f.motion.ptr || (f.depth && !tapsAhead)) {
+  // fast path, with motion (and so the closest-depth taps ahead with depth),
+  // where every padded pixel index fits in an int (their index lanes).
+  const bool indicesFit = std::size_t(h) * std::size_t(f.blocksPerRow) * kBatch <= std::size_t(INT_MAX);
+  if (!Groups || reference || !f.motion.ptr || !indicesFit) {
     temporal::rowsWithBorder(w, h, y0, y1, clampAll, [&](auto clamp, int x, int y) __attribute__((always_inline)) {
       if (tapsAhead && x == 0) stageTaps(y);
       phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], batch, rowTaps);
