@@ -155,14 +155,13 @@ BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const 
     _exit(127);
   }
   close(exec[1]);
+  exec[1] = -1;
   int execError = 0;
   ssize_t got;
   while ((got = read(exec[0], &execError, sizeof execError)) < 0 && errno == EINTR) {
   }
-  close(exec[0]);
   if (got > 0) {  // exec failed: nothing else comes from the child
-    if (onProgress) close(progress[0]), close(progress[1]);
-    if (output == BlenderOutput::Captured) close(capture[0]), close(capture[1]);
+    closeAll();
     while (waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {
     }
     std::fprintf(stderr, "crisp: error: cannot run Blender '%s': %s (install it, or pass --blender PATH)\n",
@@ -172,6 +171,7 @@ BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const 
     failed.exitCode = 127;
     return failed;
   }
+  close(exec[0]);
   // Both pipes are read as they fill (Blender would block on a full one).
   BlenderRun run;
   if (onProgress) close(progress[1]);
