@@ -40,6 +40,16 @@ def encode(a):
     return np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)
 
 
+def reference_frame(ref_dir, f):
+    """Frame f of the reference, display-encoded."""
+    return encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % f)))
+
+
+def method_frame(evaldir, files, f):
+    """A method's frame f (files: frame -> path in evaldir), display-encoded."""
+    return encode(read_rgb(os.path.join(evaldir, files[f])))
+
+
 def mean_after(rows, key, warmup):
     vals = [r[key] for r in rows if r["frame"] > warmup and r.get(key) is not None]
     return sum(vals) / len(vals) if vals else float("nan")
@@ -51,14 +61,14 @@ def ghosting_error(evaldir, files, ref_dir, frames, warmup, trail):
     for i, f in enumerate(frames):
         if f <= warmup or i < trail:
             continue
-        ref = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % f)))
+        ref = reference_frame(ref_dir, f)
         changed = np.zeros(ref.shape[:2], dtype=bool)
         for k in range(1, trail + 1):
-            prev = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % frames[i - k])))
+            prev = reference_frame(ref_dir, frames[i - k])
             changed |= np.abs(ref - prev).max(axis=2) > 0.1
         if not changed.any():
             continue
-        out = encode(read_rgb(os.path.join(evaldir, files[f])))
+        out = method_frame(evaldir, files, f)
         err = np.abs(out - ref).mean(axis=2)
         total += float(err[changed].sum())
         count += int(changed.sum())
@@ -75,15 +85,15 @@ def temporal_split(evaldir, files, ref_dir, frames, warmup, trail):
     for i, f in enumerate(frames):
         if f <= warmup or i < 1:
             continue
-        ref = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % f)))
-        ref_prev = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % frames[i - 1])))
+        ref = reference_frame(ref_dir, f)
+        ref_prev = reference_frame(ref_dir, frames[i - 1])
         changed = np.zeros(ref.shape[:2], dtype=bool)
         for k in range(0, min(trail, i)):
-            a = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % frames[i - k])))
-            b = encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % frames[i - k - 1])))
+            a = reference_frame(ref_dir, frames[i - k])
+            b = reference_frame(ref_dir, frames[i - k - 1])
             changed |= np.abs(a - b).max(axis=2) > 0.02
-        out = encode(read_rgb(os.path.join(evaldir, files[f])))
-        out_prev = encode(read_rgb(os.path.join(evaldir, files[frames[i - 1]])))
+        out = method_frame(evaldir, files, f)
+        out_prev = method_frame(evaldir, files, frames[i - 1])
         te = np.abs((out - out_prev) - (ref - ref_prev)).mean(axis=2)
         quiet += float(te[~changed].sum())
         recent += float(te[changed].sum())
@@ -102,8 +112,8 @@ def plate_oracle(evaldir, files, ref_dir, frames, warmup, settle=8):
     of its plate's reference before it has settled again shows the plate, and keeps showing it (its
     plate unchanged) until its reference leaves it again. Returns the temporal error with W =
     identity and the mean PSNR over frames after warm-up, of the method as it is and with the plate."""
-    ref = np.stack([encode(read_rgb(os.path.join(ref_dir, "frame_%04d.exr" % f))) for f in frames])
-    out = np.stack([encode(read_rgb(os.path.join(evaldir, files[f]))) for f in frames])
+    ref = np.stack([reference_frame(ref_dir, f) for f in frames])
+    out = np.stack([method_frame(evaldir, files, f) for f in frames])
     plated = out.copy()
     settled_for = np.zeros(ref.shape[1:3], dtype=int)
     showing = np.zeros(ref.shape[1:3], dtype=bool)
