@@ -122,22 +122,30 @@ CRISP_LANES_INLINE void transposeToLanes(const Vec4 a[8], Vec8 out[4]) {
 }
 
 // One byte per lane (values 0..255) as int lanes, and back: a per-pixel byte
-// plane read and written a lane group at a time (vpmovzxbd and a pack in the
-// AVX2 copy), not lane by lane into a stack array read back as a vector,
-// whose reload cannot be store-forwarded. storeBytesOf keeps the low 8 bits.
+// plane read and written a lane group at a time, not lane by lane into a
+// stack array read back as a vector, whose reload cannot be store-forwarded.
+// Both convert through 16-bit lanes: GCC 12 lowers a direct 8 <-> 32-bit
+// __builtin_convertvector to a byte-by-byte scalar loop (about 30
+// instructions per group of 8 in taa's AVX2 rows), the two steps to
+// vpmovzxbw/vpmovzxwd and vpackusdw/vpackuswb. storeBytesOf keeps the low 8
+// bits.
 typedef unsigned char Bytes4 __attribute__((vector_size(4)));
 typedef unsigned char Bytes8 __attribute__((vector_size(8)));
+typedef unsigned short Shorts4 __attribute__((vector_size(8)));
+typedef unsigned short Shorts8 __attribute__((vector_size(16)));
 template <class T>
 using BytesOf = std::conditional_t<std::is_same_v<T, Vec8>, Bytes8, Bytes4>;
+template <class T>
+using ShortsOf = std::conditional_t<std::is_same_v<T, Vec8>, Shorts8, Shorts4>;
 template <class T, IfVector<T> = 0>
 CRISP_LANES_INLINE IntOf<T> loadBytesOf(const unsigned char* p) {
   BytesOf<T> b;
   std::memcpy(&b, p, sizeof b);
-  return __builtin_convertvector(b, IntOf<T>);
+  return __builtin_convertvector(__builtin_convertvector(b, ShortsOf<T>), IntOf<T>);
 }
 template <class T, IfVector<T> = 0>
 CRISP_LANES_INLINE void storeBytesOf(unsigned char* p, IntOf<T> v) {
-  const BytesOf<T> b = __builtin_convertvector(v & 0xff, BytesOf<T>);
+  const BytesOf<T> b = __builtin_convertvector(__builtin_convertvector(v & 0xff, ShortsOf<T>), BytesOf<T>);
   std::memcpy(p, &b, sizeof b);
 }
 

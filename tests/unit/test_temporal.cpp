@@ -381,7 +381,8 @@ TEST(TemporalNeighbourhood, FourLaneVersionsMatchScalar) {
 }
 
 // The lane helpers that only move data or fold masks: storeInterleaved4 writes
-// packed pixels in order, anyOf/allOf match a lane-by-lane fold, on 4 and 8 lanes.
+// packed pixels in order, anyOf/allOf match a lane-by-lane fold, byte planes
+// read and write each value as it is, on 4 and 8 lanes.
 template <class T>
 void checkLaneHelpers() {
   using namespace crisp::temporal;
@@ -401,6 +402,18 @@ void checkLaneHelpers() {
     EXPECT_EQ(anyOf(mask), bits != 0) << bits;
     EXPECT_EQ(allOf(mask), bits == (1 << n) - 1) << bits;
   }
+  // Byte planes: every value 0..255 read back as itself; stores keep the low
+  // 8 bits and touch nothing past the group.
+  unsigned char bytes[256], back[257];
+  for (int i = 0; i < 256; ++i) bytes[i] = static_cast<unsigned char>(i);
+  back[256] = 7;
+  for (int x = 0; x < 256; x += n) {
+    const IntOf<T> v = loadBytesOf<T>(bytes + x);
+    for (int l = 0; l < n; ++l) EXPECT_EQ(v[l], x + l) << n << " lanes, byte " << x + l;
+    storeBytesOf<T>(back + x, v + 256 * (x / n % 3) - 512 * (x / n % 2));  // high bits dropped, some negative
+  }
+  for (int i = 0; i < 256; ++i) EXPECT_EQ(back[i], i) << n << " lanes, stored byte " << i;
+  EXPECT_EQ(back[256], 7);
 }
 
 TEST(TemporalLanes, InterleavedStoreAndMaskFolds) {
