@@ -106,6 +106,66 @@ CRISP_LANES_INLINE void storeInterleaved4(float* p, T r, T g, T b, T a) {
   }
 }
 
+// storeInterleaved4's inverse: a lane group of packed pixels (p: r0 g0 b0 a0
+// r1 ...) into four channel lanes, by shuffles.
+template <class T, IfVector<T> = 0>
+CRISP_LANES_INLINE void loadInterleaved4(const float* p, T& r, T& g, T& b, T& a) {
+  if constexpr (kLanesOf<T> == 8) {
+    const T q0 = loadLanes<T>(p), q1 = loadLanes<T>(p + 8), q2 = loadLanes<T>(p + 16), q3 = loadLanes<T>(p + 24);
+    const T p04 = __builtin_shufflevector(q0, q2, 0, 1, 2, 3, 8, 9, 10, 11);  // pixel 0 | pixel 4
+    const T p15 = __builtin_shufflevector(q0, q2, 4, 5, 6, 7, 12, 13, 14, 15);
+    const T p26 = __builtin_shufflevector(q1, q3, 0, 1, 2, 3, 8, 9, 10, 11);
+    const T p37 = __builtin_shufflevector(q1, q3, 4, 5, 6, 7, 12, 13, 14, 15);
+    const T rgLo = __builtin_shufflevector(p04, p15, 0, 8, 1, 9, 4, 12, 5, 13);  // r0 r1 g0 g1 | r4 r5 g4 g5
+    const T baLo = __builtin_shufflevector(p04, p15, 2, 10, 3, 11, 6, 14, 7, 15);
+    const T rgHi = __builtin_shufflevector(p26, p37, 0, 8, 1, 9, 4, 12, 5, 13);  // r2 r3 g2 g3 | r6 r7 g6 g7
+    const T baHi = __builtin_shufflevector(p26, p37, 2, 10, 3, 11, 6, 14, 7, 15);
+    r = __builtin_shufflevector(rgLo, rgHi, 0, 1, 8, 9, 4, 5, 12, 13);
+    g = __builtin_shufflevector(rgLo, rgHi, 2, 3, 10, 11, 6, 7, 14, 15);
+    b = __builtin_shufflevector(baLo, baHi, 0, 1, 8, 9, 4, 5, 12, 13);
+    a = __builtin_shufflevector(baLo, baHi, 2, 3, 10, 11, 6, 7, 14, 15);
+  } else {
+    const T q0 = loadLanes<T>(p), q1 = loadLanes<T>(p + 4), q2 = loadLanes<T>(p + 8), q3 = loadLanes<T>(p + 12);
+    const T rg01 = __builtin_shufflevector(q0, q1, 0, 4, 1, 5), ba01 = __builtin_shufflevector(q0, q1, 2, 6, 3, 7);
+    const T rg23 = __builtin_shufflevector(q2, q3, 0, 4, 1, 5), ba23 = __builtin_shufflevector(q2, q3, 2, 6, 3, 7);
+    r = __builtin_shufflevector(rg01, rg23, 0, 1, 4, 5);
+    g = __builtin_shufflevector(rg01, rg23, 2, 3, 6, 7);
+    b = __builtin_shufflevector(ba01, ba23, 0, 1, 4, 5);
+    a = __builtin_shufflevector(ba01, ba23, 2, 3, 6, 7);
+  }
+}
+
+// Channels 0 and 1 of a lane group of packed pixels `step` = 2 or 4 floats
+// apart (a motion pass), de-interleaved into x and y by shuffles: the values
+// of a lane-by-lane copy.
+template <class T, IfVector<T> = 0>
+CRISP_LANES_INLINE void loadFirstTwoChannels(const float* p, int step, T& x, T& y) {
+  if constexpr (std::is_same_v<T, Vec4>) {
+    if (step == 2) {  // x0 y0 x1 y1 | x2 y2 x3 y3
+      const T a = loadLanes<T>(p), b = loadLanes<T>(p + 4);
+      x = __builtin_shufflevector(a, b, 0, 2, 4, 6);
+      y = __builtin_shufflevector(a, b, 1, 3, 5, 7);
+    } else {  // one pixel per load: a 4x4 transpose's first two rows
+      const T a = loadLanes<T>(p), b = loadLanes<T>(p + 4), c = loadLanes<T>(p + 8), d = loadLanes<T>(p + 12);
+      const T ab = __builtin_shufflevector(a, b, 0, 4, 1, 5), cd = __builtin_shufflevector(c, d, 0, 4, 1, 5);
+      x = __builtin_shufflevector(ab, cd, 0, 1, 4, 5);
+      y = __builtin_shufflevector(ab, cd, 2, 3, 6, 7);
+    }
+  } else {
+    if (step == 2) {  // pixels 0-3 | pixels 4-7
+      const T a = loadLanes<T>(p), b = loadLanes<T>(p + 8);
+      x = __builtin_shufflevector(a, b, 0, 2, 4, 6, 8, 10, 12, 14);
+      y = __builtin_shufflevector(a, b, 1, 3, 5, 7, 9, 11, 13, 15);
+    } else {  // two pixels per load
+      const T a = loadLanes<T>(p), b = loadLanes<T>(p + 8), c = loadLanes<T>(p + 16), d = loadLanes<T>(p + 24);
+      const T ab = __builtin_shufflevector(a, b, 0, 4, 8, 12, 1, 5, 9, 13);  // x0-3 y0-3
+      const T cd = __builtin_shufflevector(c, d, 0, 4, 8, 12, 1, 5, 9, 13);  // x4-7 y4-7
+      x = __builtin_shufflevector(ab, cd, 0, 1, 2, 3, 8, 9, 10, 11);
+      y = __builtin_shufflevector(ab, cd, 4, 5, 6, 7, 12, 13, 14, 15);
+    }
+  }
+}
+
 // storeInterleaved4's inverse for eight pixels held as Vec4s (pixel l's four
 // channels in a[l]): channel c of pixel l in out[c][l], by shuffles.
 CRISP_LANES_INLINE void transposeToLanes(const Vec4 a[8], Vec8 out[4]) {

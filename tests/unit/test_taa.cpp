@@ -388,6 +388,18 @@ TEST(Taa, ReferencePathEqualsFastPath) {
     for (Driver* d : {&ref, &fast}) d->filter->params().setInt("holdPeriod", run % 2 ? 3 : 0);  // "Hold" within 12 frames
     for (int t = 0; t < 12; ++t) {
       synth::FrameData f = synth::renderFrame(seq, w, h, t, jitter);
+      if (run % 2) {  // Blender's Vector pass: 4 channels, x and y first
+        Image motion4(w, h, 4);
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) {
+            float* m = motion4.at(x, y);
+            m[0] = f.motion.at(x, y)[0];
+            m[1] = f.motion.at(x, y)[1];
+            m[2] = 1e30f;
+            m[3] = -7.0f;
+          }
+        f.motion = std::move(motion4);
+      }
       const Image& a = ref.run(f, true, c.depth);
       const Image& b = fast.run(f, true, c.depth);
       ASSERT_EQ(0, std::memcmp(a.data.data(), b.data.data(), a.data.size() * sizeof(float)))

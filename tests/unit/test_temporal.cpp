@@ -381,7 +381,7 @@ TEST(TemporalNeighbourhood, FourLaneVersionsMatchScalar) {
 }
 
 // The lane helpers that only move data or fold masks: storeInterleaved4 writes
-// packed pixels in order, anyOf/allOf match a lane-by-lane fold, byte planes
+// packed pixels in order and loadInterleaved4 reads them back, anyOf/allOf match a lane-by-lane fold, byte planes
 // read and write each value as it is, on 4 and 8 lanes.
 template <class T>
 void checkLaneHelpers() {
@@ -395,6 +395,10 @@ void checkLaneHelpers() {
   storeInterleaved4(out, ch[0], ch[1], ch[2], ch[3]);
   for (int i = 0; i < 4 * n; ++i) EXPECT_EQ(out[i], float(10 * (i / 4) + i % 4)) << n << " lanes, float " << i;
   EXPECT_EQ(out[4 * n], -1.0f);
+  T unpacked[4];
+  loadInterleaved4(out, unpacked[0], unpacked[1], unpacked[2], unpacked[3]);
+  for (int c = 0; c < 4; ++c)
+    for (int l = 0; l < n; ++l) EXPECT_EQ(unpacked[c][l], ch[c][l]) << n << " lanes, channel " << c << " lane " << l;
   for (int bits = 0; bits < (1 << n); ++bits) {
     T a{}, b{};
     for (int l = 0; l < n; ++l) (bits >> l & 1 ? b : a)[l] = 1.0f;
@@ -414,6 +418,17 @@ void checkLaneHelpers() {
   }
   for (int i = 0; i < 256; ++i) EXPECT_EQ(back[i], i) << n << " lanes, stored byte " << i;
   EXPECT_EQ(back[256], 7);
+  // Motion passes of 2 and 4 channels: x and y of each pixel, in order.
+  for (int step : {2, 4}) {
+    float packed[4 * n];
+    for (int i = 0; i < step * n; ++i) packed[i] = float(100 * (i / step) + i % step);
+    T x, y;
+    loadFirstTwoChannels(packed, step, x, y);
+    for (int l = 0; l < n; ++l) {
+      EXPECT_EQ(x[l], float(100 * l)) << n << " lanes, step " << step << " lane " << l;
+      EXPECT_EQ(y[l], float(100 * l + 1)) << n << " lanes, step " << step << " lane " << l;
+    }
+  }
 }
 
 TEST(TemporalLanes, InterleavedStoreAndMaskFolds) {
