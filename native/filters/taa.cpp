@@ -820,6 +820,8 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
   stageRow<T>(f, s, y0, depthNow);
   if (y0 + 1 < h) stageRow<T>(f, s, y0 + 1, y0 + 1 < y1 ? depthNow : nullptr);
   const T laneIndex = temporal::laneIndexOf<T>();
+  T mixWeights[9];  // f.unjitter.weights broadcast once, not in every group
+  for (int k = 0; k < 9; ++k) mixWeights[k] = temporal::lanesOf<T>(f.unjitter.weights[k]);
   const bool packedOutput = f.writeOutput && f.unjitter.enabled && f.output.channels() == 4 &&
                             f.output.pixelStride == 4 * sizeof(float);
   for (int y = y0; y < y1; ++y) {
@@ -840,7 +842,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
           break;
         }
         for (int k = 0; k < 9; ++k) t[k] = load(rows[k / 3][c] + i + k % 3 - 1);
-        in.current[c] = f.unjitter.enabled ? temporal::unjitteredMix(t, f.unjitter.weights) : t[4];
+        in.current[c] = f.unjitter.enabled ? temporal::unjitteredMix(t, mixWeights) : t[4];
         if (c == 3) break;  // alpha: only mixed
         // Column-first boxes (neighbourhood.h columnFirstBoxes4).
         const T minL = minOf(minOf(t[0], t[3]), t[6]), minC = minOf(minOf(t[1], t[4]), t[7]),

@@ -176,8 +176,9 @@ inline MinMax4 footprintBox(const MinMax4& box3x3, const TwoExtremes4& e) {
 // (row order) weighted by `weights`, summed centre first, then the others in
 // row order, so every path that calls it gets the same bits.
 // T: Vec4 (a pixel's RGBA) or any lane type of one channel (lanes.h Vec8).
-template <class T>
-inline T unjitteredMix(const T taps[9], const float weights[9]) {
+// W: float, or T with the weights broadcast once per row (same products).
+template <class T, class W>
+inline T unjitteredMix(const T taps[9], const W weights[9]) {
   T sum = taps[4] * weights[4];
   for (int i = 0; i < 9; ++i)
     if (i != 4) sum = sum + taps[i] * weights[i];
