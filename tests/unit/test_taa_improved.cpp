@@ -274,11 +274,11 @@ TEST(TaaImproved, AliasedValuePlanesFastEqualsReference) {
   }
 }
 
-// The luminance planes behind the Sobel read packed RGBA four pixels at a
-// time and packed RGB one pixel at a time (taa_improved.cpp lumaRun): the
+// The luminance planes behind the Sobel read packed RGBA a lane group at a
+// time (4 or 8 lanes) and packed RGB one pixel at a time (taa_improved.cpp lumaRun): the
 // same colour and albedo given both ways, with NaN, +-Inf and huge values
 // and a width that is not a multiple of four, give the same Sobel plane and
-// output colour bit for bit.
+// output colour bit for bit, on both copies of the fast path.
 TEST(TaaImproved, LuminanceOfRgbaEqualsRgb) {
   const int w = 45, h = 29;
   synth::Sequence seq = synth::ghostingSequence(w, h, 8.0f, 1.3f, 0.4f);
@@ -294,7 +294,8 @@ TEST(TaaImproved, LuminanceOfRgbaEqualsRgb) {
   taa_improved::Kernel four, three;
   four.allocate(w, h, true);
   three.allocate(w, h, true);
-  for (int t = 0; t < 4; ++t) {
+  for (int t = 0; t < 8; ++t) {
+    const test::FastPathIsa isa(test::kFastPathIsas[t % 2]);  // lumaRun's 8- and 4-lane copies
     synth::FrameData f = synth::renderFrame(seq, w, h, t + 10, {});
     for (float& v : f.color.data) v *= 0.05f;  // dim: the Sobel term stays below 1
     Image albedo = f.color;
