@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <tuple>
 #include <utility>
 
 #include "core/context.h"
@@ -70,23 +71,31 @@ using FramePair = std::pair<synth::FrameData, synth::FrameData>;
 // ids; no reference): every pixel moves 0.7 px right and 0.3 px down per
 // frame, so every pixel of a temporal filter takes the reprojected path (the
 // worst case). Built once per size.
-inline const FramePair& panFrames(int width, int height) {
-  static std::map<std::pair<int, int>, FramePair> cache;
-  auto key = std::make_pair(width, height);
+// With objectOnly, the still-camera case instead (a turntable, the ghosting
+// scene): the background and all but `kMovingShapes` of the chart's shapes
+// stay; those move as above.
+inline const FramePair& chartFrames(int width, int height, bool objectOnly) {
+  static std::map<std::tuple<int, int, bool>, FramePair> cache;
+  auto key = std::make_tuple(width, height, objectOnly);
   auto it = cache.find(key);
   if (it != cache.end()) return it->second;
   synth::Sequence seq = synth::staticChartSequence(width, height);
-  for (auto& s : seq.before.shapes) {
-    s.vx = 0.7f;
-    s.vy = 0.3f;
+  constexpr std::size_t kMovingShapes = 3;
+  for (std::size_t i = 0; i < seq.before.shapes.size(); ++i) {
+    if (objectOnly && i >= kMovingShapes) break;
+    seq.before.shapes[i].vx = 0.7f;
+    seq.before.shapes[i].vy = 0.3f;
   }
-  seq.before.backgroundVx = 0.7f;
-  seq.before.backgroundVy = 0.3f;
+  if (!objectOnly) {
+    seq.before.backgroundVx = 0.7f;
+    seq.before.backgroundVy = 0.3f;
+  }
   synth::FrameOptions opt;
   opt.reference = synth::ReferenceKind::None;
   FramePair pair(synth::renderFrame(seq, width, height, 1, opt), synth::renderFrame(seq, width, height, 2, opt));
   return cache.emplace(key, std::move(pair)).first->second;
 }
+inline const FramePair& panFrames(int width, int height) { return chartFrames(width, height, false); }
 
 // One benchmark of a temporal filter ("taa", "phlm"): threads (0 = all), the
 // scalar reference path or the fast one, camera pan (motion and depth given)
@@ -97,6 +106,7 @@ struct TemporalVariant {
   bool reference, moving;
   const char* historyFilter = nullptr;
   const char* params = nullptr;  // more parameters, "name=value:name=value" (a baseline of earlier defaults)
+  bool objectOnly = false;       // with moving: still camera, a few shapes move (chartFrames)
 };
 
 // A filter of `type` writing to `output` (kept alive by the caller) on
@@ -176,7 +186,8 @@ inline void runTemporal(benchmark::State& state, int width, int height, const ch
     filter->params().setFromText(item.substr(0, eq), item.substr(eq + 1));
     rest = end == std::string::npos ? "" : rest.substr(end + 1);
   }
-  temporalLoop(state, *filter, output, panFrames(width, height), [&](const synth::FrameData& f) {
+  const FramePair& frames = chartFrames(width, height, v.objectOnly);
+  temporalLoop(state, *filter, output, frames, [&](const synth::FrameData& f) {
     filter->setImage("color", f.color.view());
     if (v.moving) {
       filter->setImage("motion", f.motion.view());
@@ -184,6 +195,12 @@ inline void runTemporal(benchmark::State& state, int width, int height, const ch
     }
   });
   setPixelRate(state, width, height);
+  if (v.moving) {  // the share of pixels whose motion is not zero
+    std::size_t moving = 0;
+    for (std::size_t i = 0; i < frames.second.motion.data.size(); i += 2)
+      moving += frames.second.motion.data[i] != 0.0f || frames.second.motion.data[i + 1] != 0.0f;
+    state.counters["moving_pct"] = 100.0 * double(moving) / (double(width) * height);
+  }
 }
 
 // kept_MB = the memory a temporal kernel keeps between frames (history or

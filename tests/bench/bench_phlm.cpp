@@ -37,6 +37,7 @@ void registerAll() {
                               {"phlm.fast.st", 1, false, true},
                               {"phlm.reference", 1, true, true},
                               {"phlm.static.fast.mt", 0, false, false},
+                              {"phlm.object.fast.mt", 0, false, true, nullptr, nullptr, true},
                               // the bilinear model fetch (phlm.cpp "Model fetch")
                               {"phlm.bilinear.fast.mt", 0, false, true, nullptr,
                                "modelFetch=bilinear:resampleDamping=0.3"}};

@@ -43,6 +43,7 @@ void registerAll() {
                               {"taa.rgb_motion_depth.reference", 1, true, true, "catmull-rom"},
                               {"taa.rgb_motion_depth.bilinear.fast.mt", 0, false, true, "bilinear"},
                               {"taa.rgb_static.fast.mt", 0, false, false, "catmull-rom"},
+                              {"taa.rgb_object_depth.fast.mt", 0, false, true, "catmull-rom", nullptr, true},
                               // The defaults before the RGB box, variance clipping, resampling damping and the hold (7ba9b04):
                               // the same run's baseline for what those cost.
                               {"taa.rgb_motion_depth.ycocg_minmax.fast.mt", 0, false, true, "catmull-rom",
