@@ -270,6 +270,7 @@ struct Frame {
   bool footprintBox;           // still pixels use the footprint box (header, "Box")
   std::uint8_t* narrowBox;  // per pixel: 1 = its model keeps the 3x3 box until its reset ("Box"); null: static scene
   std::uint8_t* stillSamples;  // per pixel: samples since its reset or box correction, while still (header, "Hold")
+  const std::uint8_t* moving = nullptr;  // fast path with motion: per pixel, temporal::movingRow; else null
   int holdPeriod;              // a model with this many still samples is held; 0: off
   T boxResetScale;             // P after a box correction = boxResetScale * P0
   int axis;                    // regularised axis of this frame
@@ -359,11 +360,31 @@ CRISP_PHLM_INLINE temporal::TwoExtremes4 footprintExtremes(const Frame<T>& f, in
   return e;
 }
 
+// The fast path's stillFootprint of a row, from the frame's moving flags
+// (Kernel::run), made when a still pixel of the row first asks (a pan never
+// does).
+struct StillRow {
+  std::vector<std::uint8_t> bytes;  // width flags, then width + 4 scratch
+  int row = -1;
+  template <class T>
+  const std::uint8_t* of(const Frame<T>& f, int y) {
+    if (row != y) {
+      bytes.resize(std::size_t(2) * f.width + 4);
+      temporal::stillFootprintRow(f.moving, y, f.width, f.height, f.unjitter.shiftX, f.unjitter.shiftY,
+                                  bytes.data() + f.width, bytes.data());
+      row = y;
+    }
+    return bytes.data();
+  }
+};
+
 // Step 1's closest-depth taps of a pixel's row, computed ahead a lane group
-// at a time (phlmRowsBody), or null: phlmPixel calls closestDepthTap.
+// at a time (phlmRowsBody), or null: phlmPixel calls closestDepthTap. Also
+// the row's still footprints, or null: phlmPixel tests its 5x5.
 struct RowTaps {
   const float* tap = nullptr;    // int bits (temporal::closestDepthTapsRow)
   const float* depth = nullptr;  // the tap's depth
+  StillRow* still = nullptr;
 };
 
 // The 3x3 box and sum of nine taps, in tap order (min/max are exact and the
@@ -471,7 +492,9 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   // 3x3, and a moving shadow has no motion at all): it keeps the 3x3 box,
   // which corrects it once the other colour has gone (header, "Box").
   // Still, and nothing in the 5x5 moves.
-  const bool stillAround = !moving && temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY);
+  const bool stillAround =
+      !moving && (rowTaps.still ? rowTaps.still->of(f, y)[x] != 0
+                                : temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY));
   bool narrow = false;
   if (f.narrowBox) {
     std::uint8_t& flag = f.narrowBox[std::size_t(y) * w + x];
@@ -1133,8 +1156,13 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
   if (tapsAhead) {
     depthRows.resize(std::size_t(3) * (w + 2));
     taps.resize(std::size_t(2) * w);
-    rowTaps = {taps.data(), taps.data() + w};
+    rowTaps.tap = taps.data();
+    rowTaps.depth = taps.data() + w;
   }
+  // The still footprints a row at a time on the fast path (StillRow); the
+  // reference tests each pixel's 5x5.
+  StillRow stillRow;
+  if (f.moving) rowTaps.still = &stillRow;
   const int sx = f.unjitter.shiftX;
   const temporal::UnclampedRun run = temporal::unclampedRun(w, sx);
   auto stageTaps = [&](int y) __attribute__((always_inline)) {  // inlined: compiled for each copy's ISA
@@ -1218,6 +1246,7 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
     models_[1].clear();
     models_[1].shrink_to_fit();
     narrowBox_.clear();
+    moving_.clear();
     for (auto& planes : intercepts_) planes.clear();
     stillSamples_.assign(pixels, 0);
     depth_[0].clear();
@@ -1231,12 +1260,14 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
   if (withMotion && !withMotion_) {
     models_[1 - current_] = models_[current_];  // keeps the history
     narrowBox_.assign(pixels, 0);
+    moving_.assign(pixels, 0);
     for (auto& planes : intercepts_) planes.assign(3 * std::size_t(blocksPerRow_) * kBlock * std::size_t(height), T(0));
     interceptsValid_ = false;
   } else if (!withMotion && withMotion_) {
     models_[1 - current_].clear();
     models_[1 - current_].shrink_to_fit();
     narrowBox_ = std::vector<std::uint8_t>();
+    moving_ = std::vector<std::uint8_t>();
     for (auto& planes : intercepts_) planes = AlignedVector<T>();
   }
   withMotion_ = withMotion;
@@ -1267,7 +1298,7 @@ std::size_t Kernel<T>::bytesKeptBetweenFrames() const {
 
 template <class T>
 std::size_t Kernel<T>::bytesScratch() const {
-  return staged_.data.size() * sizeof(float) + rowStats_.size() * sizeof(long) + alphaOne_.size();
+  return staged_.data.size() * sizeof(float) + rowStats_.size() * sizeof(long) + alphaOne_.size() + moving_.size();
 }
 
 // Next records at least this large (with motion) are written with streaming
@@ -1288,6 +1319,8 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   const bool hasDepth = in.depth.ptr != nullptr;
   const int nextDepth = frames_ % 2;
   float* depthNow = hasDepth ? depth_[nextDepth].data() : nullptr;
+  // The fast path's still footprints (phlmRowsBody) read these flags.
+  std::uint8_t* movingFlags = !reference && in.motion.ptr ? moving_.data() : nullptr;
 
   auto stageRows = [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
@@ -1306,6 +1339,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
         d[3] = luma / (1.0f + luma);
       }
       if (hasDepth) stageDepthRow(in.depth, y, depthNow + std::size_t(y) * width_);
+      if (movingFlags) temporal::movingRow(in.motion, y, movingFlags + std::size_t(y) * width_);
     }
   };
   if (reference) stageRows(0, height_);
@@ -1384,6 +1418,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   }
   f.footprintBox = s.footprintBox;
   f.narrowBox = moving ? narrowBox_.data() : nullptr;
+  f.moving = movingFlags;
   f.stillSamples = stillSamples_.data();
   f.holdPeriod = s.holdPeriod;
   f.unjitter = temporal::unjitterFor(s.unjitter, s.jitterX, s.jitterY, s.filterSize);

@@ -349,6 +349,45 @@ TEST(MovingSequences, BlackmanHarrisReferenceIsSmootherThanBox) {
   EXPECT_GT(mixedB, mixedA);
 }
 
+// movingRow and stillFootprintRow give every pixel's stillFootprint: sparse motion (zero,
+// -0, NaN and small values) in 2- and 4-channel passes, every jitter shift
+// the unjitter uses (up to 2 px each way), narrow images included.
+TEST(TemporalVelocity, StillFootprintRowEqualsPerPixelTest) {
+  using namespace crisp::temporal;
+  for (int channels : {2, 4})
+    for (int w : {1, 3, 17}) {
+      const int h = 11;
+      Image motion(w, h, channels);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const int k = (x * 7 + y * 13) % 29;
+          float* m = motion.at(x, y);
+          m[0] = k == 0 ? 0.25f : (k == 5 ? std::nanf("") : (k == 9 ? -0.0f : 0.0f));
+          m[1] = k == 17 ? -1e-6f : 0.0f;
+          if (channels == 4) m[2] = m[3] = 5.0f;  // other channels are not motion
+        }
+      std::vector<std::uint8_t> plane(std::size_t(w) * h), columns(w + 4), row(w);
+      for (int y = 0; y < h; ++y) movingRow(motion.view(), y, plane.data() + std::size_t(y) * w);
+      int still = 0, moving = 0;
+      for (int sy = -2; sy <= 2; ++sy)
+        for (int sx = -2; sx <= 2; ++sx)
+          for (int y = 0; y < h; ++y) {
+            stillFootprintRow(plane.data(), y, w, h, sx, sy, columns.data(), row.data());
+            for (int x = 0; x < w; ++x) {
+              const bool expected = stillFootprint(motion.view(), x, y, w, h, sx, sy);
+              ASSERT_EQ(row[x] != 0, expected) << channels << " channels, " << w << " wide, shift " << sx << ","
+                                               << sy << " pixel " << x << "," << y;
+              if (expected) ++still;
+              else ++moving;
+            }
+          }
+      if (w == 17) {  // both answers occur
+        EXPECT_GT(still, 0) << channels;
+        EXPECT_GT(moving, 0) << channels;
+      }
+    }
+}
+
 TEST(TemporalNeighbourhood, FourLaneVersionsMatchScalar) {
   std::vector<float> values = {0.3f, -2.0f, 7.5f, 1e4f, 0.0f, 0.25f, 3.0f, -0.5f, 9.0f, 2.0f, 4.0f, 0.1f};
   Float3 taps[9];
