@@ -30,7 +30,9 @@
 // interleaved records after the change to blocks of 8, phlm.h kBlock). The
 // records are stored as the batch's vectors: a block of 8 still pixels, or 8
 // pixels whose models sit side by side (uniform motion), is read and written
-// as whole vectors, the rest gathered lane by lane.
+// as whole vectors, the rest gathered lane by lane. A still pixel's 5x5 work
+// (is anything moving, the footprint box) reads per-row results the fast
+// path makes once per row (StillRow, FootprintRow).
 // Initialisation (§6): beta intercept = y, slopes 0, P = 1000 I, z = y.
 //
 // Decisions the paper leaves open, and deviations (beside the code too):
@@ -341,24 +343,56 @@ CRISP_PHLM_INLINE void toFeature(const V c[3], V out[3]) {
   for (int k = 0; k < 3; ++k) out[k] = p[k] * scale;
 }
 
-// The footprint's extremes: the 25 taps of the 5x5 around (x, y) in row
-// order, each clamped to the image (shiftedSource) in every path; the 5
-// columns and rows are clamped once (the same taps as clamping each).
+// The footprint's extremes: the 25 taps of the 5x5 around (x, y), each
+// clamped to the image (shiftedSource) in every path, as the merge
+// (mergeExtremes, left to right) of its five columns' extremes (each top to
+// bottom). The fast path keeps each column's extremes for the row
+// (FootprintRow), so a still pixel merges five columns instead of taking 25
+// taps; the order is the same, so are the bits.
 template <class T>
-CRISP_PHLM_INLINE temporal::TwoExtremes4 footprintExtremes(const Frame<T>& f, int x, int y) {
-  int column[5];
-  const float* row[5];
+CRISP_PHLM_INLINE void footprintRows(const Frame<T>& f, int y, const float* row[5]) {
 #pragma GCC unroll 5
-  for (int k = 0; k < 5; ++k) {
-    column[k] = temporal::shiftedSource(x + k - 2, f.width, f.unjitter.shiftX) * 4;
-    row[k] = f.staged + std::size_t(temporal::shiftedSource(y + k - 2, f.height, f.unjitter.shiftY)) * f.width * 4;
-  }
-  temporal::TwoExtremes4 e = temporal::twoExtremesOf(temporal::load4(row[0] + column[0]),
-                                                     temporal::load4(row[0] + column[1]));
-#pragma GCC unroll 23
-  for (int i = 2; i < 25; ++i) temporal::addTap(e, temporal::load4(row[i / 5] + column[i % 5]));
+  for (int j = 0; j < 5; ++j)
+    row[j] = f.staged + std::size_t(temporal::shiftedSource(y + j - 2, f.height, f.unjitter.shiftY)) * f.width * 4;
+}
+// Column x (may lie outside the image: clamped) of the 5 rows.
+template <class T>
+CRISP_PHLM_INLINE temporal::TwoExtremes4 footprintColumn(const Frame<T>& f, int x, const float* const row[5]) {
+  const int c = temporal::shiftedSource(x, f.width, f.unjitter.shiftX) * 4;
+  temporal::TwoExtremes4 e = temporal::twoExtremesOf(temporal::load4(row[0] + c), temporal::load4(row[1] + c));
+#pragma GCC unroll 3
+  for (int j = 2; j < 5; ++j) temporal::addTap(e, temporal::load4(row[j] + c));
   return e;
 }
+template <class T>
+CRISP_PHLM_INLINE temporal::TwoExtremes4 footprintExtremes(const Frame<T>& f, int x, int y) {
+  const float* row[5];
+  footprintRows(f, y, row);
+  temporal::TwoExtremes4 e = footprintColumn(f, x - 2, row);
+#pragma GCC unroll 4
+  for (int k = 1; k < 5; ++k) temporal::mergeExtremes(e, footprintColumn(f, x - 2 + k, row));
+  return e;
+}
+// The fast path's column extremes of a row (index k: column k - 2), made when
+// a pixel of the row first asks for its footprint.
+struct FootprintRow {
+  std::vector<temporal::TwoExtremes4> columns;
+  int row = -1;
+  template <class T>
+  temporal::TwoExtremes4 of(const Frame<T>& f, int x, int y) {
+    if (row != y) {
+      columns.resize(std::size_t(f.width) + 4);
+      const float* rows[5];
+      footprintRows(f, y, rows);
+      for (int k = 0; k < f.width + 4; ++k) columns[std::size_t(k)] = footprintColumn(f, k - 2, rows);
+      row = y;
+    }
+    temporal::TwoExtremes4 e = columns[std::size_t(x)];
+#pragma GCC unroll 4
+    for (int k = 1; k < 5; ++k) temporal::mergeExtremes(e, columns[std::size_t(x + k)]);
+    return e;
+  }
+};
 
 // The fast path's stillFootprint of a row, from the frame's moving flags
 // (Kernel::run), made when a still pixel of the row first asks (a pan never
@@ -380,11 +414,13 @@ struct StillRow {
 
 // Step 1's closest-depth taps of a pixel's row, computed ahead a lane group
 // at a time (phlmRowsBody), or null: phlmPixel calls closestDepthTap. Also
-// the row's still footprints, or null: phlmPixel tests its 5x5.
+// the row's still footprints and footprint columns, or null: phlmPixel
+// works on its 5x5.
 struct RowTaps {
   const float* tap = nullptr;    // int bits (temporal::closestDepthTapsRow)
   const float* depth = nullptr;  // the tap's depth
   StillRow* still = nullptr;
+  FootprintRow* footprint = nullptr;  // or null: footprintExtremes per pixel
 };
 
 // The 3x3 box and sum of nine taps, in tap order (min/max are exact and the
@@ -515,7 +551,8 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   if (f.footprintBox && !narrow && stillAround) {
     // The box of the correction and of the output clamp: the footprint box
     // (header, "Box"), the 3x3 box united with the 5x5's second extremes.
-    const temporal::MinMax4 foot = temporal::footprintBox({boxLo, boxHi}, footprintExtremes(f, x, y));
+    const temporal::MinMax4 foot = temporal::footprintBox(
+        {boxLo, boxHi}, rowTaps.footprint ? rowTaps.footprint->of(f, x, y) : footprintExtremes(f, x, y));
     lo4 = foot.min;
     hi4 = foot.max;
   }
@@ -1163,6 +1200,8 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
   // reference tests each pixel's 5x5.
   StillRow stillRow;
   if (f.moving) rowTaps.still = &stillRow;
+  FootprintRow footprintRow;
+  if (!reference) rowTaps.footprint = &footprintRow;
   const int sx = f.unjitter.shiftX;
   const temporal::UnclampedRun run = temporal::unclampedRun(w, sx);
   auto stageTaps = [&](int y) __attribute__((always_inline)) {  // inlined: compiled for each copy's ISA
