@@ -409,6 +409,58 @@ TEST(Taa, ReferencePathEqualsFastPath) {
   }
 }
 
+// A 2-channel motion view with a 16-byte pixel stride (channels 0-1 of a
+// wider buffer) is read as what it is: the fast path gives the reference's
+// bits, and with the view's last pixel at the very end of its buffer the
+// sanitizer build flags any read of the 8 bytes a whole 16-byte pixel would
+// have (the lane staging once did that).
+TEST(Taa, StridedTwoChannelMotionIsReadAsTwoChannels) {
+  const int w = 32, h = 9;  // a whole number of 4- and 8-lane groups: the last pixel is in one
+  synth::Sequence seq = synth::ghostingSequence(w, h, 4.0f, 1.4f, 0.3f);
+  for (int isaIndex = 0; isaIndex < 2; ++isaIndex) {
+    const test::FastPathIsa isa(test::kFastPathIsas[isaIndex]);
+    Context context;
+    std::unique_ptr<Filter> ref = createFilter(context, "taa"), fast = createFilter(context, "taa");
+    ref->params().setBool("reference", true);
+    Image outRef(w, h, 4), outFast(w, h, 4);
+    for (int t = 0; t < 4; ++t) {
+      const synth::FrameData f = synth::renderFrame(seq, w, h, t, {});
+      // Pixel (x, y) at float 4 (y w + x); the last pixel owns 2 floats only.
+      std::vector<float> strided(std::size_t(4) * (std::size_t(w) * h - 1) + 2);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const std::size_t i = 4 * (std::size_t(y) * w + x);
+          strided[i] = f.motion.at(x, y)[0];
+          strided[i + 1] = f.motion.at(x, y)[1];
+          if (i + 2 < strided.size()) strided[i + 2] = strided[i + 3] = std::numeric_limits<float>::quiet_NaN();
+        }
+      ImageView motion;
+      motion.ptr = strided.data();
+      motion.format = Format::Float2;
+      motion.width = w;
+      motion.height = h;
+      motion.pixelStride = 16;
+      motion.rowStride = 16 * std::size_t(w);
+      auto runOn = [&](Filter& filter, Image& out) {
+        filter.setImage("color", f.color.view());
+        filter.setImage("motion", motion);
+        filter.setImage("depth", f.depth.view());
+        filter.setImage("output", out.view());
+        filter.params().setString("unjitter", "none");  // no shift: the run is the whole row
+        filter.params().setFloat("jitterX", f.jitter.x);
+        filter.params().setFloat("jitterY", f.jitter.y);
+        filter.markDirty();
+        filter.commit();
+        filter.execute();
+      };
+      runOn(*ref, outRef);
+      runOn(*fast, outFast);
+      ASSERT_EQ(0, std::memcmp(outRef.data.data(), outFast.data.data(), outRef.data.size() * sizeof(float)))
+          << "frame " << t << " " << temporal::fastPathIsaName();
+    }
+  }
+}
+
 // Long run (20 000 frames, 16x8, EEVEE's +-1.5 px jitter): a constant region
 // stays exactly constant, a checkerboard that inverts every frame (the
 // sub-pixel flicker TAA exists to remove) settles to its mean, and nothing
