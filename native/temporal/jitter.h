@@ -100,15 +100,15 @@ inline int shiftedSource(int q, int size, int shift) {
   return s < 0 ? 0 : (s >= size ? size - 1 : s);
 }
 
-// A row of the shifted image padded by one pixel each side: index k holds
-// shiftedSource(k - 1, width, shiftX). The indices [lo, hi) whose source is
-// not clamped: column k - 1 - shiftX there (a copy of a run of the input);
-// the rest are copies of column 0 or width - 1.
+// A row of the shifted image padded by `pad` pixels each side (1 unless
+// given): index k holds shiftedSource(k - pad, width, shiftX). The indices
+// [lo, hi) whose source is not clamped: column k - pad - shiftX there (a copy
+// of a run of the input); the rest are copies of column 0 or width - 1.
 struct UnclampedRun {
   int lo, hi;
 };
-inline UnclampedRun unclampedRun(int width, int shiftX) {
-  const int lo = std::max(1, 1 + shiftX), hi = std::min(width, width + shiftX) + 1;
+inline UnclampedRun unclampedRun(int width, int shiftX, int pad = 1) {
+  const int lo = std::max(pad, pad + shiftX), hi = std::min(width, width + shiftX) + pad;
   return {lo, std::max(lo, hi)};
 }
 // f(k) for the indices [0, n) outside the unclamped run.

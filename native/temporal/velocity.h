@@ -4,7 +4,6 @@
 // a la camara"; seed 004 "TAA steps" 2-4).
 #pragma once
 
-#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -97,12 +96,13 @@ inline bool finiteMotion(float mx, float my) { return std::isfinite(mx) && std::
 // tested against the wider footprint box, so that a moving object's colour (a
 // trail, or a first frame's mix next to it) cannot hide in it (taa.cpp,
 // phlm.cpp). No motion image: a still scene.
+// A pixel m of a motion image moves: either component is not zero (NaN moves).
+inline bool movesAt(const float* m) { return m[0] != 0.0f || m[1] != 0.0f; }
 inline bool stillFootprint(const ImageView& motion, int x, int y, int width, int height, int shiftX, int shiftY) {
   if (!motion.ptr) return true;
-  for (int i = 0; i < 25; ++i) {
-    const float* m = motion.pixel(shiftedSource(x + i % 5 - 2, width, shiftX), shiftedSource(y + i / 5 - 2, height, shiftY));
-    if (m[0] != 0.0f || m[1] != 0.0f) return false;
-  }
+  for (int i = 0; i < 25; ++i)
+    if (movesAt(motion.pixel(shiftedSource(x + i % 5 - 2, width, shiftX), shiftedSource(y + i / 5 - 2, height, shiftY))))
+      return false;
   return true;
 }
 
@@ -114,12 +114,7 @@ inline bool stillFootprint(const ImageView& motion, int x, int y, int width, int
 // then a window of 5 columns, instead of 25 motion taps per pixel.
 // `columns` holds width + 4 bytes of scratch.
 inline void movingRow(const ImageView& motion, int y, std::uint8_t* out) {
-  const char* p = static_cast<const char*>(motion.ptr) + std::size_t(y) * motion.rowStride;
-  for (int x = 0; x < motion.width; ++x, p += motion.pixelStride) {
-    float m[2];
-    std::memcpy(m, p, sizeof m);
-    out[x] = (m[0] != 0.0f) | (m[1] != 0.0f);
-  }
+  for (int x = 0; x < motion.width; ++x) out[x] = movesAt(motion.pixel(x, y)) ? 1 : 0;
 }
 inline void stillFootprintRow(const std::uint8_t* moving, int y, int width, int height, int shiftX, int shiftY,
                               std::uint8_t* __restrict columns, std::uint8_t* __restrict out) {
@@ -129,11 +124,10 @@ inline void stillFootprintRow(const std::uint8_t* moving, int y, int width, int 
   const std::uint8_t* __restrict r3 = moving + std::size_t(shiftedSource(y + 1, height, shiftY)) * width;
   const std::uint8_t* __restrict r4 = moving + std::size_t(shiftedSource(y + 2, height, shiftY)) * width;
   auto column = [&](int k, int c) { columns[k] = r0[c] | r1[c] | r2[c] | r3[c] | r4[c]; };
-  // Column k reads shifted column k - 2, source k - 2 - shiftX: unclamped on [lo, hi).
-  const int lo = std::max(2, 2 + shiftX), hi = std::max(lo, std::min(width + 2, width + 2 + shiftX));
-  for (int k = 0; k < lo; ++k) column(k, shiftedSource(k - 2, width, shiftX));
-  for (int k = lo; k < hi; ++k) column(k, k - 2 - shiftX);
-  for (int k = hi; k < width + 4; ++k) column(k, shiftedSource(k - 2, width, shiftX));
+  // Column k is shifted column k - 2 (the row padded by 2 each side).
+  const UnclampedRun run = unclampedRun(width, shiftX, 2);
+  forEachClampedIndex(run, width + 4, [&](int k) { column(k, shiftedSource(k - 2, width, shiftX)); });
+  for (int k = run.lo; k < run.hi; ++k) column(k, k - 2 - shiftX);
   for (int x = 0; x < width; ++x)
     out[x] = (columns[x] | columns[x + 1] | columns[x + 2] | columns[x + 3] | columns[x + 4]) ? 0 : 1;
 }
