@@ -272,7 +272,7 @@ struct Frame {
   bool footprintBox;           // still pixels use the footprint box (header, "Box")
   std::uint8_t* narrowBox;  // per pixel: 1 = its model keeps the 3x3 box until its reset ("Box"); null: static scene
   std::uint8_t* stillSamples;  // per pixel: samples since its reset or box correction, while still (header, "Hold")
-  const std::uint8_t* moving = nullptr;  // fast path with motion: per pixel, temporal::movingRow; else null
+  const std::uint8_t* movingFlags = nullptr;  // fast path with motion: per pixel, temporal::movingRow; else null
   int holdPeriod;              // a model with this many still samples is held; 0: off
   T boxResetScale;             // P after a box correction = boxResetScale * P0
   int axis;                    // regularised axis of this frame
@@ -404,7 +404,7 @@ struct StillRow {
   const std::uint8_t* of(const Frame<T>& f, int y) {
     if (row != y) {
       bytes.resize(std::size_t(2) * f.width + 4);
-      temporal::stillFootprintRow(f.moving, y, f.width, f.height, f.unjitter.shiftX, f.unjitter.shiftY,
+      temporal::stillFootprintRow(f.movingFlags, y, f.width, f.height, f.unjitter.shiftX, f.unjitter.shiftY,
                                   bytes.data() + f.width, bytes.data());
       row = y;
     }
@@ -1199,7 +1199,7 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
   // The still footprints a row at a time on the fast path (StillRow); the
   // reference tests each pixel's 5x5.
   StillRow stillRow;
-  if (f.moving) rowTaps.still = &stillRow;
+  if (f.movingFlags) rowTaps.still = &stillRow;
   FootprintRow footprintRow;
   if (!reference) rowTaps.footprint = &footprintRow;
   const int sx = f.unjitter.shiftX;
@@ -1285,7 +1285,7 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
     models_[1].clear();
     models_[1].shrink_to_fit();
     narrowBox_.clear();
-    moving_.clear();
+    movingFlags_.clear();
     for (auto& planes : intercepts_) planes.clear();
     stillSamples_.assign(pixels, 0);
     depth_[0].clear();
@@ -1299,14 +1299,14 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
   if (withMotion && !withMotion_) {
     models_[1 - current_] = models_[current_];  // keeps the history
     narrowBox_.assign(pixels, 0);
-    moving_.assign(pixels, 0);
+    movingFlags_.assign(pixels, 0);
     for (auto& planes : intercepts_) planes.assign(3 * std::size_t(blocksPerRow_) * kBlock * std::size_t(height), T(0));
     interceptsValid_ = false;
   } else if (!withMotion && withMotion_) {
     models_[1 - current_].clear();
     models_[1 - current_].shrink_to_fit();
     narrowBox_ = std::vector<std::uint8_t>();
-    moving_ = std::vector<std::uint8_t>();
+    movingFlags_ = std::vector<std::uint8_t>();
     for (auto& planes : intercepts_) planes = AlignedVector<T>();
   }
   withMotion_ = withMotion;
@@ -1337,7 +1337,7 @@ std::size_t Kernel<T>::bytesKeptBetweenFrames() const {
 
 template <class T>
 std::size_t Kernel<T>::bytesScratch() const {
-  return staged_.data.size() * sizeof(float) + rowStats_.size() * sizeof(long) + alphaOne_.size() + moving_.size();
+  return staged_.data.size() * sizeof(float) + rowStats_.size() * sizeof(long) + alphaOne_.size() + movingFlags_.size();
 }
 
 // Next records at least this large (with motion) are written with streaming
@@ -1359,7 +1359,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   const int nextDepth = frames_ % 2;
   float* depthNow = hasDepth ? depth_[nextDepth].data() : nullptr;
   // The fast path's still footprints (phlmRowsBody) read these flags.
-  std::uint8_t* movingFlags = !reference && in.motion.ptr ? moving_.data() : nullptr;
+  std::uint8_t* movingFlags = !reference && in.motion.ptr ? movingFlags_.data() : nullptr;
 
   auto stageRows = [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
@@ -1457,7 +1457,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   }
   f.footprintBox = s.footprintBox;
   f.narrowBox = moving ? narrowBox_.data() : nullptr;
-  f.moving = movingFlags;
+  f.movingFlags = movingFlags;
   f.stillSamples = stillSamples_.data();
   f.holdPeriod = s.holdPeriod;
   f.unjitter = temporal::unjitterFor(s.unjitter, s.jitterX, s.jitterY, s.filterSize);

@@ -156,7 +156,7 @@ class Kernel {
   AlignedVector<T> intercepts_[2];  // with motion: the records' intercepts as planes, ping-pong (phlm.cpp "Model fetch")
   bool interceptsValid_ = false;   // intercepts_[current_] holds the current records' intercepts
   std::vector<std::uint8_t> narrowBox_;  // with motion: per pixel, its model keeps the 3x3 box (phlm.cpp "Box")
-  std::vector<std::uint8_t> moving_;     // with motion: this frame's temporal::movingRow flags (fast path)
+  std::vector<std::uint8_t> movingFlags_;  // with motion: this frame's temporal::movingRow flags (fast path)
   std::vector<long> rowStats_;  // 2 per row: reprojection resets, box resets
   std::vector<std::uint8_t> alphaOne_;  // per row of this frame: every input alpha is 1 (or there is none)
   int current_ = 0;
