@@ -18,9 +18,10 @@
 //   5. e = y - f; RLS update (eqs. 5-7, lambda = 0.998) in the stabilised form
 //      of phlm_rls.h; output beta' x after the update.
 // Step 1, the neighbourhood and the choice of q run one pixel at a time
-// (phlmPixel), except on 8 pixels that all move, whose taps need no clamp, in
-// the AVX2 copy of the float kernel: those run as lanes (phlmMovingGroup,
-// the same operations; Phlm.ReferencePathEqualsFastPath compares both); the
+// (phlmPixel), except on 8 pixels that all move or all stand still, whose
+// taps need no clamp, in the AVX2 copy of the float kernel: those run as
+// lanes (phlmMovingGroup, phlmStillGroup: the same operations;
+// Phlm.ReferencePathEqualsFastPath compares both); the
 // model and feature fetches of steps 2-3 and steps 4-5 run on 8 pixels of a
 // row at once (finishBatch: GCC vectors, lane i = pixel i, every branch as a
 // per-lane select), in every path: lane by lane the same IEEE operations in
@@ -628,50 +629,72 @@ __attribute__((always_inline)) inline void storeIndices(std::size_t out[kBatch],
   std::memcpy(out + 4, &hi, sizeof hi);
 }
 
-// phlmPixel on the eight pixels x0 .. x0 + 7 of row y at once, for what a
-// moving shot's pixels mostly are: every lane moves, and every tap of their
-// (shifted) 3x3 lies inside the image, so no tap needs a clamp. The same
-// operations lane by lane as phlmPixel (lanes.h: lane-wise IEEE operations),
-// so the same bits; the batch's lanes are written as vectors, which
-// finishBatch then reads without waiting for eight scalar stores each.
-// Moving pixels use neither the footprint box nor the hold, so those parts
-// reduce to constants here. Returns false, having changed nothing, when a
-// lane is still; the caller then runs phlmPixel on the eight.
-// Needs the closest-depth taps ahead (rowTaps) with depth, and motion.
+// Step 1 for the eight pixels x0 .. x0 + 7 of row y (a lane group): the
+// followed tap's velocity and depth, lane by lane as phlmPixel; 0 without
+// motion. Needs the closest-depth taps ahead (rowTaps) with depth.
+struct GroupVelocity {
+  temporal::Vec8 vx, vy, tapDepth;
+};
 template <class T>
-__attribute__((always_inline)) inline bool phlmMovingGroup(const Frame<T>& f, int x0, int y, long& reprojectionResets,
-                                                           Batch<T>& batch, const RowTaps& rowTaps) {
-  using temporal::Vec4;
-  using temporal::Vec8;
-  using Int = temporal::IntOf<Vec8>;
-  using M = temporal::MaskOfT<Vec8>;
-  const int w = f.width, h = f.height, sx = f.unjitter.shiftX, sy = f.unjitter.shiftY;
-  // Step 1: the followed tap's velocity.
+__attribute__((always_inline)) inline GroupVelocity groupVelocity(const Frame<T>& f, int x0, int y,
+                                                                  const RowTaps& rowTaps) {
+  using Int = temporal::IntOf<temporal::Vec8>;
+  GroupVelocity v;
+  v.vx = v.vy = v.tapDepth = temporal::lanesOf<temporal::Vec8>(0.0f);
+  if (!f.motion.ptr) return v;
   Int tap = Int{} + 4;
-  Vec8 tapDepth = temporal::lanesOf<Vec8>(0.0f);
   if (rowTaps.tap) {
     std::memcpy(&tap, rowTaps.tap + x0, sizeof tap);
-    tapDepth = temporal::loadLanes<Vec8>(rowTaps.depth + x0);
+    v.tapDepth = temporal::loadLanes<temporal::Vec8>(rowTaps.depth + x0);
   }
-  Vec8 vx, vy;
+  const int sx = f.unjitter.shiftX, sy = f.unjitter.shiftY;
   for (int l = 0; l < kBatch; ++l) {
     const float* m = f.motion.pixel(x0 + l + tap[l] % 3 - 1 - sx, y + tap[l] / 3 - 1 - sy);
-    vx[l] = m[0];
-    vy[l] = m[1];
+    v.vx[l] = m[0];
+    v.vy[l] = m[1];
   }
-  if (!temporal::allOf(M(M(vx != 0.0f) | M(vy != 0.0f)))) return false;
+  return v;
+}
 
-  // The 3x3 box, sum and measurement, pixel by pixel as phlmPixel (four channels at once), then
-  // turned into lanes.
-  Vec4 lo4[kBatch], hi4[kBatch], sum4[kBatch], sample4[kBatch];
+// The 3x3 box, sum and measurement of a lane group's eight pixels, pixel by
+// pixel as phlmPixel (four channels at once: RGB and the luminance). Every
+// tap lies inside the image (phlmRowsBody's group rows), so none is clamped.
+template <class T>
+__attribute__((always_inline)) inline void groupNeighbourhood(const Frame<T>& f, int x0, int y,
+                                                              temporal::Vec4 lo4[kBatch], temporal::Vec4 hi4[kBatch],
+                                                              temporal::Vec4 sum4[kBatch],
+                                                              temporal::Vec4 sample4[kBatch]) {
+  const int w = f.width, sx = f.unjitter.shiftX, sy = f.unjitter.shiftY;
   const float* topLeft = f.staged + (std::size_t(y - 1 - sy) * w + std::size_t(x0 - 1 - sx)) * 4;
   for (int l = 0; l < kBatch; ++l) {
-    Vec4 taps[9];
+    temporal::Vec4 taps[9];
 #pragma GCC unroll 9
     for (int i = 0; i < 9; ++i) taps[i] = temporal::load4(topLeft + (std::size_t(i / 3) * w + std::size_t(l + i % 3)) * 4);
     boxOfTaps(taps, lo4[l], hi4[l], sum4[l]);
     sample4[l] = f.unjitter.enabled ? temporal::unjitteredMix(taps, f.unjitter.weights) : taps[4];
   }
+}
+
+// phlmPixel on the eight pixels x0 .. x0 + 7 of row y at once, for what a
+// moving shot's pixels mostly are: every lane moves (v), and every tap of
+// their (shifted) 3x3 lies inside the image, so no tap needs a clamp. The
+// same operations lane by lane as phlmPixel (lanes.h: lane-wise IEEE
+// operations), so the same bits; the batch's lanes are written as vectors,
+// which finishBatch then reads without waiting for eight scalar stores each.
+// Moving pixels use neither the footprint box nor the hold, so those parts
+// reduce to constants here.
+template <class T>
+__attribute__((always_inline)) inline void phlmMovingGroup(const Frame<T>& f, int x0, int y, long& reprojectionResets,
+                                                           Batch<T>& batch, const GroupVelocity& v) {
+  using temporal::Vec4;
+  using temporal::Vec8;
+  using Int = temporal::IntOf<Vec8>;
+  using M = temporal::MaskOfT<Vec8>;
+  const int w = f.width, h = f.height;
+  const Vec8 vx = v.vx, vy = v.vy, tapDepth = v.tapDepth;
+
+  Vec4 lo4[kBatch], hi4[kBatch], sum4[kBatch], sample4[kBatch];
+  groupNeighbourhood(f, x0, y, lo4, hi4, sum4, sample4);
   Vec8 boxLo[4], boxHi[4], boxSum[4], sample[4];
   temporal::transposeToLanes(lo4, boxLo);
   temporal::transposeToLanes(hi4, boxHi);
@@ -748,7 +771,122 @@ __attribute__((always_inline)) inline bool phlmMovingGroup(const Frame<T>& f, in
   batch.moving = one;
   batch.held = zero;
   batch.count = kBatch;
-  return true;
+}
+
+// phlmPixel on the eight pixels x0 .. x0 + 7 of row y at once where none
+// moves (a still camera's background; every pixel of a still scene), with
+// the taps inside the image as in phlmMovingGroup; the same bits. A still
+// pixel's model is its own (q = p), so it needs no fetch footprint; what
+// remains per pixel is the 3x3 and the footprint box. The byte planes (the
+// narrow box, the still count) are read and written a lane group at a time.
+// Needs the row's still footprints (rowTaps.still) with motion.
+template <class T>
+__attribute__((always_inline)) inline void phlmStillGroup(const Frame<T>& f, int x0, int y, long& reprojectionResets,
+                                                          Batch<T>& batch, const RowTaps& rowTaps,
+                                                          const GroupVelocity& v) {
+  using temporal::Vec4;
+  using temporal::Vec8;
+  using Int = temporal::IntOf<Vec8>;
+  using M = temporal::MaskOfT<Vec8>;
+  const int w = f.width;
+  const std::size_t row = std::size_t(y) * w + x0;
+  const M all = M{} == M{};
+
+  // Validity: history, and the followed surface in the previous 3x3 of the
+  // pixel itself (q = p: an interior 3x3, read as lanes).
+  M valid = f.hasHistory ? all : M{};
+  if (f.previousDepth && f.hasHistory) {
+    const float* around = f.previousDepth + std::size_t(y - 1) * w + (x0 - 1);
+    M match{};
+    for (int i = 0; i < 9; ++i)
+      match |= temporal::sameSurfaceDepth(v.tapDepth, temporal::loadLanes<Vec8>(around + std::size_t(i / 3) * w + i % 3),
+                                          f.depthTolerance);
+    valid &= match;
+  }
+  // Nothing in the 5x5 moves (always, without motion); the narrow box; the
+  // hold (phlmPixel's order and rules).
+  const M stillAround = rowTaps.still ? M(temporal::loadBytesOf<Vec8>(rowTaps.still->of(f, y) + x0) != 0) : all;
+  M narrow{};
+  if (f.narrowBox) {
+    narrow = valid & M(temporal::loadBytesOf<Vec8>(f.narrowBox + row) != 0);
+    temporal::storeBytesOf<Vec8>(f.narrowBox + row, M(narrow | ~stillAround) & 1);
+  }
+  const Int count = temporal::loadBytesOf<Vec8>(f.stillSamples + row);
+  const M calm = valid & stillAround;
+  const M held = f.holdPeriod > 0 ? M(calm & M(count >= f.holdPeriod)) : M{};
+  const Int kept = M(held | M(count == 255)) ? count : count + 1;
+  temporal::storeBytesOf<Vec8>(f.stillSamples + row, valid ? (calm ? kept : Int{}) : Int{} + 1);
+
+  // The boxes, pixel by pixel: the footprint box where phlmPixel takes it,
+  // then united with the measurement; lane 3 keeps the 3x3's luminance
+  // extreme (yMin, yMax).
+  Vec4 lo4[kBatch], hi4[kBatch], sum4[kBatch], sample4[kBatch];
+  groupNeighbourhood(f, x0, y, lo4, hi4, sum4, sample4);
+  const M footprint = f.footprintBox ? M(~narrow & stillAround) : M{};
+  for (int l = 0; l < kBatch; ++l) {
+    Vec4 lo = lo4[l], hi = hi4[l];
+    if (footprint[l]) {
+      const temporal::MinMax4 foot = temporal::footprintBox({lo, hi}, rowTaps.footprint->of(f, x0 + l, y));
+      lo = foot.min;
+      hi = foot.max;
+    }
+    lo4[l] = __builtin_shufflevector(temporal::vmin(lo, sample4[l]), lo4[l], 0, 1, 2, 7);
+    hi4[l] = __builtin_shufflevector(temporal::vmax(hi, sample4[l]), hi4[l], 0, 1, 2, 7);
+  }
+  Vec8 lo[4], hi[4], sum[4], sample[4];
+  temporal::transposeToLanes(lo4, lo);
+  temporal::transposeToLanes(hi4, hi);
+  temporal::transposeToLanes(sum4, sum);
+  temporal::transposeToLanes(sample4, sample);
+
+  // The batch, as phlmPixel leaves it after its eight pixels.
+  batch.x0 = x0;
+  batch.y = y;
+  batch.allValid = temporal::allOf(valid);
+  batch.allBilinear = batch.anyBilinear = false;
+  batch.anyHeld = temporal::anyOf(held);
+  for (int l = 0; l < kBatch; ++l) {
+    batch.source[l] = paddedPixel(f.blocksPerRow, x0 + l, y);
+    batch.tx[l] = batch.ty[l] = 0.0f;
+    batch.footX[l] = batch.footY[l] = 0;
+    reprojectionResets += valid[l] == 0;
+  }
+  const Vec8 one = temporal::lanesOf<Vec8>(1.0f), zero = temporal::lanesOf<Vec8>(0.0f);
+  for (int c = 0; c < 3; ++c) {
+    batch.sum[c] = sum[c];
+    batch.current[c] = sample[c];
+    batch.lo[c] = lo[c];
+    batch.hi[c] = hi[c];
+  }
+  batch.yMin = lo[3];
+  batch.yMax = hi[3];
+  batch.speed = zero;
+  batch.valid = valid ? one : zero;
+  batch.moving = zero;
+  batch.held = held ? one : zero;
+  batch.count = kBatch;
+}
+
+// A lane group of row y at x0 as one batch (phlmMovingGroup or
+// phlmStillGroup) where its lanes all move or all stand still; false,
+// having changed nothing, where they mix (or the kind has no group here):
+// the caller then runs phlmPixel on the eight.
+template <class T>
+__attribute__((always_inline)) inline bool phlmGroup(const Frame<T>& f, int x0, int y, long& reprojectionResets,
+                                                     Batch<T>& batch, const RowTaps& rowTaps, bool movingGroups,
+                                                     bool stillGroups) {
+  using M = temporal::MaskOfT<temporal::Vec8>;
+  const GroupVelocity v = groupVelocity(f, x0, y, rowTaps);
+  const M moves = M(v.vx != 0.0f) | M(v.vy != 0.0f);  // phlmPixel's `moving`
+  if (movingGroups && temporal::allOf(moves)) {
+    phlmMovingGroup(f, x0, y, reprojectionResets, batch, v);
+    return true;
+  }
+  if (stillGroups && !temporal::anyOf(moves)) {
+    phlmStillGroup(f, x0, y, reprojectionResets, batch, rowTaps, v);
+    return true;
+  }
+  return false;
 }
 
 // A scalar broadcast to every lane.
@@ -1214,11 +1352,14 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
     }
     temporal::closestDepthTapsRow<temporal::Vec8>(rows[0], rows[1], rows[2], w, taps.data(), taps.data() + w);
   };
-  // Moving groups (phlmMovingGroup): in the AVX2 copy, on the float kernel's
-  // fast path, with motion (and so the closest-depth taps ahead with depth),
-  // where every padded pixel index fits in an int (their index lanes).
+  // Lane groups (phlmGroup), in the AVX2 copy on the float kernel's fast
+  // path: moving ones with motion (and so the closest-depth taps ahead with
+  // depth), where every padded pixel index fits in an int (their index
+  // lanes); still ones with the row's still footprints, or without motion.
   const bool indicesFit = std::size_t(h) * std::size_t(f.blocksPerRow) * kBatch <= std::size_t(INT_MAX);
-  if (!Groups || reference || !f.motion.ptr || !indicesFit) {
+  const bool movingGroups = f.motion.ptr && indicesFit;
+  const bool stillGroups = !f.motion.ptr || rowTaps.still;
+  if (!Groups || reference || !(movingGroups || stillGroups)) {
     temporal::rowsWithBorder(w, h, y0, y1, clampAll, [&](auto clamp, int x, int y) __attribute__((always_inline)) {
       if (tapsAhead && x == 0) stageTaps(y);
       phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], batch, rowTaps);
@@ -1238,7 +1379,8 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
       const bool groupRow = y >= 1 && y + 1 < h && y - 1 - sy >= 0 && y + 1 - sy < h;
       for (int x = 0; x < w;) {
         if (groupRow && x >= kBatch && x % kBatch == 0 && x + kBatch <= w - 1 && x - 1 - sx >= 0 &&
-            x + kBatch - sx < w && phlmMovingGroup(f, x, y, rowStats[2 * y], batch, rowTaps)) {
+            x + kBatch - sx < w &&
+            phlmGroup(f, x, y, rowStats[2 * y], batch, rowTaps, movingGroups, stillGroups)) {
           x += kBatch;
         } else {
           if (clampRow || x == 0 || x == w - 1)

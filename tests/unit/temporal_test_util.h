@@ -90,12 +90,17 @@ struct TemporalDriver {
 
 // The test chart panned by (vx, vy) pixels per frame (a uniform motion
 // image): frames 0 .. frames - 1.
+// With movingShapes >= 0, a still camera instead: only the chart's first
+// movingShapes shapes move, over the still chart.
 inline std::vector<synth::FrameData> pannedChart(int w, int h, int frames, float vx, float vy,
-                                                 const synth::FrameOptions& options = {}) {
+                                                 const synth::FrameOptions& options = {}, int movingShapes = -1) {
   synth::Sequence seq = synth::staticChartSequence(w, h);
-  for (auto& shape : seq.before.shapes) shape.vx = vx, shape.vy = vy;
-  seq.before.backgroundVx = vx;
-  seq.before.backgroundVy = vy;
+  for (std::size_t i = 0; i < seq.before.shapes.size(); ++i)
+    if (movingShapes < 0 || int(i) < movingShapes) seq.before.shapes[i].vx = vx, seq.before.shapes[i].vy = vy;
+  if (movingShapes < 0) {
+    seq.before.backgroundVx = vx;
+    seq.before.backgroundVy = vy;
+  }
   std::vector<synth::FrameData> input;
   for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, options));
   return input;

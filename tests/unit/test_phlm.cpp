@@ -330,13 +330,18 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
         float* m = f.motion.at(x, y);
         m[0] = x % 11 == 5 ? 70.0f : 0.37f + 0.5f * float((x + 2 * y) % 4);
       }
-  for (int run = 0; run < 10; ++run) {
+  // A still camera over the chart, three of its shapes moving: still lane
+  // groups (phlmStillGroup) beside moving shapes, on a textured background
+  // whose footprint box is not the 3x3 box.
+  const std::vector<synth::FrameData> object = test::pannedChart(w, h, frames, 0.37f, -0.21f, {}, 3);
+  constexpr int kModes = 6;
+  for (int run = 0; run < 2 * kModes; ++run) {
     // 0: ghosting, motion + depth; 1: static (in place); 2: the pan; 3: the pan
     // with frames 4-5 given no motion (the planes go stale and are copied at
     // frame 6) and frame 8 fetched bilinearly (the planes are written anyway);
-    // 4: the uneven pan.
-    const int mode = run % 5;
-    const test::FastPathIsa isa(test::kFastPathIsas[run / 5]);
+    // 4: the uneven pan; 5: the still camera over the chart.
+    const int mode = run % kModes;
+    const test::FastPathIsa isa(test::kFastPathIsas[run / kModes]);
     phlm::Kernel<float> fast, reference;
     fast.allocate(w, h, mode != 1, mode != 1);
     reference.allocate(w, h, mode != 1, mode != 1);
@@ -344,7 +349,8 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
     phlm::Settings s;
     s.holdPeriod = 4;  // held and learning lanes in one batch (phlm.cpp "Hold")
     for (int t = 0; t < frames; ++t) {
-      const synth::FrameData f = mode == 4   ? uneven[std::size_t(t)]
+      const synth::FrameData f = mode == 5   ? object[std::size_t(t)]
+                                 : mode == 4 ? uneven[std::size_t(t)]
                                  : mode >= 2 ? pan[std::size_t(t)]
                                              : synth::renderFrame(ghosting, w, h, t, {});
       // Jitter offsets whose unjitter shifts the taps by a whole pixel on
