@@ -1412,6 +1412,60 @@ CRISP_TEMPORAL_AVX2 void phlmRowsAvx2(const Frame<T>& f, int y0, int y1, bool re
 }
 #endif
 
+// What Kernel::run stages of one input row: the sanitised colour with the
+// tonemapped luminance in lane 3 (the luminance range of §5.1, Delta and l,
+// on tonemapped YCgCo luminance), whether every alpha of the row is 1 (or
+// absent: finishBatch then does not read it again for the output's alpha),
+// the sanitised depth and, on the fast path with motion, the moving flags.
+struct StagedRow {
+  ImageView color, depth, motion;
+  float* staged;             // width x height packed RGBA
+  std::uint8_t* alphaOne;    // per row
+  float* depthOut;           // or null
+  std::uint8_t* movingFlags;  // or null
+};
+// Lane groups of V (Vec4 or Vec8), then pixel by pixel: the same operations
+// in every lane, so both copies give the same bits (the reference path runs
+// the baseline one; the tests compare it with the AVX2 copy).
+template <class V>
+CRISP_PHLM_INLINE void stageRowBody(const StagedRow& r, int y) {
+  using M = temporal::MaskOfT<V>;
+  constexpr int n = temporal::kLanesOf<V>;
+  const int w = r.color.width;
+  float* d = r.staged + std::size_t(y) * w * 4;
+  stageColorRow(r.color, y, d);  // sanitised RGBA (core/row_stage.h); lane 3 replaced below
+  auto luma = [](auto red, auto green, auto blue) __attribute__((always_inline)) {
+    using L = decltype(red);
+    // std::max(v, 0) as selects; then Y / (1 + Y).
+    red = red < L{} ? L{} : red;
+    green = green < L{} ? L{} : green;
+    blue = blue < L{} ? L{} : blue;
+    const L l = 0.25f * red + 0.5f * green + 0.25f * blue;
+    return l / (1.0f + l);
+  };
+  M alphaOne = M{} == M{};
+  int x = 0;
+  for (; x + n <= w; x += n) {
+    V red, green, blue, alpha;
+    temporal::loadInterleaved4(d + 4 * x, red, green, blue, alpha);
+    alphaOne &= alpha == 1.0f;
+    temporal::storeInterleaved4(d + 4 * x, red, green, blue, V(luma(red, green, blue)));
+  }
+  bool one = temporal::allOf(alphaOne);
+  for (; x < w; ++x) {
+    float* p = d + 4 * x;
+    one &= p[3] == 1.0f;
+    p[3] = luma(p[0], p[1], p[2]);
+  }
+  r.alphaOne[std::size_t(y)] = one;
+  if (r.depthOut) stageDepthRow(r.depth, y, r.depthOut + std::size_t(y) * w);
+  if (r.movingFlags) temporal::movingRow<V>(r.motion, y, r.movingFlags + std::size_t(y) * w);
+}
+void stageRowBaseline(const StagedRow& r, int y) { stageRowBody<temporal::Vec4>(r, y); }
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+CRISP_TEMPORAL_AVX2 void stageRowAvx2(const StagedRow& r, int y) { stageRowBody<temporal::Vec8>(r, y); }
+#endif
+
 }  // namespace
 
 template <class T>
@@ -1503,25 +1557,20 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   // The fast path's still footprints (phlmRowsBody) read these flags.
   std::uint8_t* movingFlags = !reference && in.motion.ptr ? movingFlags_.data() : nullptr;
 
+  StagedRow row;
+  row.color = in.color;
+  row.depth = in.depth;
+  row.motion = in.motion;
+  row.staged = staged_.data.data();
+  row.alphaOne = alphaOne_.data();
+  row.depthOut = depthNow;
+  row.movingFlags = movingFlags;
+  auto stageRow = stageRowBaseline;
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+  if (!reference && temporal::useAvx2()) stageRow = stageRowAvx2;
+#endif
   auto stageRows = [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y) {
-      stageColorRow(in.color, y, staged_.at(0, y));  // sanitised RGB (core/row_stage.h); lane 3 replaced below
-      float* d = staged_.at(0, y);
-      // The output's alpha is the input's, sanitised; a row whose alphas are
-      // all 1 (or absent) is not read again for it (finishBatch).
-      bool alphaOne = true;
-      for (int x = 0; x < width_; ++x) alphaOne &= d[4 * x + 3] == 1.0f;
-      alphaOne_[std::size_t(y)] = alphaOne;
-      for (int x = 0; x < width_; ++x, d += 4) {
-        // The luminance range of §5.1 (Delta, l) on tonemapped YCgCo luminance. std::max(v, 0) as
-        // selects, which the compiler vectorises (std::max left a branch per channel).
-        const float r = d[0] < 0.0f ? 0.0f : d[0], g = d[1] < 0.0f ? 0.0f : d[1], b = d[2] < 0.0f ? 0.0f : d[2];
-        const float luma = 0.25f * r + 0.5f * g + 0.25f * b;
-        d[3] = luma / (1.0f + luma);
-      }
-      if (hasDepth) stageDepthRow(in.depth, y, depthNow + std::size_t(y) * width_);
-      if (movingFlags) temporal::movingRow(in.motion, y, movingFlags + std::size_t(y) * width_);
-    }
+    for (int y = y0; y < y1; ++y) stageRow(row, y);
   };
   if (reference) stageRows(0, height_);
   else parallelRows(width_, height_, threads, stageRows);

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <type_traits>
 
 #include "core/conventions.h"
 #include "core/row_stage.h"
@@ -113,8 +114,23 @@ inline bool stillFootprint(const ImageView& motion, int x, int y, int width, int
 // still): each column of the shifted image is tested once over the 5 rows,
 // then a window of 5 columns, instead of 25 motion taps per pixel.
 // `columns` holds width + 4 bytes of scratch.
-inline void movingRow(const ImageView& motion, int y, std::uint8_t* out) {
-  for (int x = 0; x < motion.width; ++x) out[x] = movesAt(motion.pixel(x, y)) ? 1 : 0;
+// V (Vec4, Vec8) takes whole pixels of 2 or 4 packed floats a lane group at
+// a time, de-interleaved by shuffles; the flags are the same.
+template <class V = float>
+CRISP_LANES_INLINE void movingRow(const ImageView& motion, int y, std::uint8_t* out) {
+  int x = 0;
+  if constexpr (!std::is_same_v<V, float>) {
+    using M = MaskOfT<V>;
+    constexpr int n = kLanesOf<V>;
+    const int step = int(motion.pixelStride / sizeof(float));
+    if (motion.pixelStride % sizeof(float) == 0 && (step == 2 || step == 4) && motion.channels() == step)
+      for (const float* m = motion.pixel(0, y); x + n <= motion.width; x += n, m += n * step) {
+        V mx, my;
+        loadFirstTwoChannels(m, step, mx, my);
+        storeBytesOf<V>(out + x, M(M(mx != 0.0f) | M(my != 0.0f)) & 1);
+      }
+  }
+  for (; x < motion.width; ++x) out[x] = movesAt(motion.pixel(x, y)) ? 1 : 0;
 }
 inline void stillFootprintRow(const std::uint8_t* moving, int y, int width, int height, int shiftX, int shiftY,
                               std::uint8_t* __restrict columns, std::uint8_t* __restrict out) {

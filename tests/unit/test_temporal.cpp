@@ -349,7 +349,7 @@ TEST(MovingSequences, BlackmanHarrisReferenceIsSmootherThanBox) {
   EXPECT_GT(mixedB, mixedA);
 }
 
-// movingRow and stillFootprintRow give every pixel's stillFootprint: sparse motion (zero,
+// movingRow (in every lane form) and stillFootprintRow give every pixel's stillFootprint: sparse motion (zero,
 // -0, NaN and small values) in 2- and 4-channel passes, every jitter shift
 // the unjitter uses (up to 2 px each way), narrow images included.
 TEST(TemporalVelocity, StillFootprintRowEqualsPerPixelTest) {
@@ -368,6 +368,16 @@ TEST(TemporalVelocity, StillFootprintRowEqualsPerPixelTest) {
         }
       std::vector<std::uint8_t> plane(std::size_t(w) * h), columns(w + 4), row(w);
       for (int y = 0; y < h; ++y) movingRow(motion.view(), y, plane.data() + std::size_t(y) * w);
+      // The lane forms give the same flags.
+      for (int lanes : {4, 8}) {
+        std::vector<std::uint8_t> laned(plane.size(), 7);
+        for (int y = 0; y < h; ++y) {
+          std::uint8_t* out = laned.data() + std::size_t(y) * w;
+          if (lanes == 4) movingRow<Vec4>(motion.view(), y, out);
+          else movingRow<Vec8>(motion.view(), y, out);
+        }
+        ASSERT_EQ(laned, plane) << channels << " channels, " << w << " wide, " << lanes << " lanes";
+      }
       int still = 0, moving = 0;
       for (int sy = -2; sy <= 2; ++sy)
         for (int sx = -2; sx <= 2; ++sx)
