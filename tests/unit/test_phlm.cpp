@@ -295,6 +295,10 @@ static ::testing::AssertionResult runBothPaths(phlm::Kernel<float>& fast, phlm::
   reference.run(in, s, true, 1);
   if (std::memcmp(outFast.data.data(), outReference.data.data(), outFast.data.size() * sizeof(float)) != 0)
     return ::testing::AssertionFailure() << "outputs differ";
+  const phlm::FrameStats &a = fast.lastStats(), &b = reference.lastStats();
+  if (a.reprojectionResets != b.reprojectionResets || a.boxResets != b.boxResets)
+    return ::testing::AssertionFailure() << "reset counts differ: reprojection " << a.reprojectionResets << " / "
+                                         << b.reprojectionResets << ", box " << a.boxResets << " / " << b.boxResets;
   for (int y = 0; y < fast.height(); ++y)
     for (int x = 0; x < fast.width(); ++x) {
       const std::array<float, phlm::kRecord> a = fast.record(x, y), b = reference.record(x, y);
@@ -372,6 +376,31 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
   }
 }
 
+// The still count saturates at 255 (phlm.cpp "Hold") on both paths: a
+// still scene filtered for 260 frames with the hold off, then with it on,
+// whose models are held at once (a count that wrapped would start again).
+TEST(Phlm, StillCountSaturatesOnBothPaths) {
+  const int w = 29, h = 12;
+  const synth::Sequence still = synth::staticChartSequence(w, h);
+  phlm::Kernel<float> fast, reference;
+  fast.allocate(w, h, false, false);
+  reference.allocate(w, h, false, false);
+  Image outFast(w, h, 4), outReference(w, h, 4);
+  const synth::FrameData f = synth::renderFrame(still, w, h, 0, {});
+  phlm::Inputs in;
+  in.color = f.color.view();
+  phlm::Settings s;
+  s.holdPeriod = 0;
+  for (int t = 0; t < 262; ++t) {
+    if (t == 260) s.holdPeriod = 16;
+    ASSERT_TRUE(runBothPaths(fast, reference, in, s, outFast, outReference)) << "frame " << t;
+  }
+  // Held: the last frame changed nothing.
+  const std::array<float, phlm::kRecord> before = fast.record(w / 2, h / 2);
+  ASSERT_TRUE(runBothPaths(fast, reference, in, s, outFast, outReference));
+  EXPECT_EQ(0, std::memcmp(before.data(), fast.record(w / 2, h / 2).data(), sizeof before));
+}
+
 // The output's alpha is the input's, sanitised, on both paths: rows whose
 // alphas are all 1 skip reading it again (phlm.cpp finishBatch), the others
 // read it pixel by pixel, in moving groups and on the border alike.
@@ -381,6 +410,7 @@ TEST(Phlm, OutputAlphaIsTheInputAlpha) {
   ASSERT_EQ(pan[0].color.channels, 4);
   for (synth::FrameData& f : pan) {
     f.color.at(20, 5)[3] = 0.5f;                                      // inside a moving group
+    f.color.at(58, 6)[3] = 0.5f;  // in the row's last, partial lane group (staging's tail)
     f.color.at(0, 9)[3] = std::numeric_limits<float>::quiet_NaN();  // border pixel: 0
     f.color.at(40, 9)[3] = 1e30f;                                     // kMaxColor
     f.color.at(7, h - 1)[3] = -2.0f;                                  // last row
