@@ -1437,10 +1437,8 @@ CRISP_PHLM_INLINE void stageRowBody(const StagedRow& r, int y) {
   auto luma = [](auto red, auto green, auto blue) __attribute__((always_inline)) {
     using L = decltype(red);
     // std::max(v, 0) as selects; then Y / (1 + Y).
-    red = red < L{} ? L{} : red;
-    green = green < L{} ? L{} : green;
-    blue = blue < L{} ? L{} : blue;
-    const L l = 0.25f * red + 0.5f * green + 0.25f * blue;
+    const L c[3] = {red < L{} ? L{} : red, green < L{} ? L{} : green, blue < L{} ? L{} : blue};
+    const L l = lumaYCgCo<float>(c);
     return l / (1.0f + l);
   };
   M alphaOne = M{} == M{};

@@ -774,10 +774,7 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
       forEachClampedIndex(run, n, motionTap);
       const float* m = f.motion.pixel(std::clamp(first, 0, w - 1), source);
       const int step = int(stride / sizeof(float));
-      // The lane loads read whole pixels of `step` floats: only where the view
-      // owns them (a 2- or 3-channel view may have a 16-byte stride, and its
-      // last pixel then ends 8 or 4 bytes before the next would start).
-      const bool wholePixels = f.motion.channels() == step;
+      const bool wholePixels = temporal::motionLanesReadable(f.motion);
       int k = run.lo;
       for (; wholePixels && k + temporal::kLanesOf<T> <= run.hi;
            k += temporal::kLanesOf<T>, m += temporal::kLanesOf<T> * step) {

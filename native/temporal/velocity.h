@@ -114,6 +114,14 @@ inline bool stillFootprint(const ImageView& motion, int x, int y, int width, int
 // still): each column of the shifted image is tested once over the 5 rows,
 // then a window of 5 columns, instead of 25 motion taps per pixel.
 // `columns` holds width + 4 bytes of scratch.
+// A motion view whose pixels loadFirstTwoChannels (lanes.h) may read a lane
+// group at a time: 2 or 4 floats apart, and the view's own (a 2- or
+// 3-channel view may have a 16-byte stride, and its last pixel then ends 8
+// or 4 bytes before the next would start).
+inline bool motionLanesReadable(const ImageView& motion) {
+  return (motion.pixelStride == 8 || motion.pixelStride == 16) &&
+         std::size_t(motion.channels()) * sizeof(float) == motion.pixelStride;
+}
 // V (Vec4, Vec8) takes whole pixels of 2 or 4 packed floats a lane group at
 // a time, de-interleaved by shuffles; the flags are the same.
 template <class V = float>
@@ -123,7 +131,7 @@ CRISP_LANES_INLINE void movingRow(const ImageView& motion, int y, std::uint8_t* 
     using M = MaskOfT<V>;
     constexpr int n = kLanesOf<V>;
     const int step = int(motion.pixelStride / sizeof(float));
-    if (motion.pixelStride % sizeof(float) == 0 && (step == 2 || step == 4) && motion.channels() == step)
+    if (motionLanesReadable(motion))
       for (const float* m = motion.pixel(0, y); x + n <= motion.width; x += n, m += n * step) {
         V mx, my;
         loadFirstTwoChannels(m, step, mx, my);
