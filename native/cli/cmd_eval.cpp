@@ -136,15 +136,31 @@ int runEval(const ParsedArgs& args) {
   const fs::path renders = outDir / "renders", logs = outDir / "logs";
   makeDirectories(renders.string());
   makeDirectories(logs.string());
-  // A resumed run must be the same scene at the same size: refuse to mix.
+  // A resumed run reuses the renders it finds, so what changes a render and is not checked frame by
+  // frame must match the first run's: the scene, its size and EEVEE's pixel filter
+  // (CRISP_EVAL_FILTER_SIZE, batch_eval.py), which shapes the reference, the curve and the
+  // Blackman-Harris jitter. (A changed --jitter renders the jittered set again: its sidecars say
+  // how it was drawn.) Settings files of older builds have no filter size: theirs was the scene's.
   const fs::path settings = outDir / "eval_settings.json";
-  nlohmann::json want = {{"scene", scene}, {"resolution", args.getOr("resolution", "")}};
+  const char* filterSize = std::getenv("CRISP_EVAL_FILTER_SIZE");
+  const nlohmann::json want = {{"scene", scene},
+                               {"resolution", args.getOr("resolution", "")},
+                               {"filter_size", filterSize ? filterSize : ""}};
   if (fs::exists(settings)) {
     std::ifstream in(settings);
     nlohmann::json have = nlohmann::json::parse(in, nullptr, false);
-    if (have != want)
-      throw UsageError("'" + outDir.string() + "' holds an evaluation of another scene or size (" + have.dump() +
+    if (have.is_object() && !have.contains("filter_size")) have["filter_size"] = "";
+    if (have != want) {
+      std::string differences;
+      for (const auto& [key, value] : want.items()) {
+        const nlohmann::json there = have.is_object() && have.contains(key) ? have[key] : nlohmann::json();
+        if (there != value)
+          differences += (differences.empty() ? "" : ", ") + key + " " + there.dump() + " there, " + value.dump() +
+                         " here";
+      }
+      throw UsageError("'" + outDir.string() + "' holds renders made with other settings (" + differences +
                        "); use another -o folder or delete it");
+    }
   }
   writeTextFile(settings.string(), want.dump() + "\n");
 

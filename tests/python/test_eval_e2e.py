@@ -131,11 +131,21 @@ def test_frames_of_another_build_are_computed_again(run):
 
 
 def test_settings_of_another_run_are_refused(run):
+    """A resumed run reuses the renders it finds, so a setting that changes them and is not checked frame
+    by frame (the size, EEVEE's pixel filter) must match the first run's, or nothing runs. (A changed
+    --jitter renders the jittered set again: test_eval_warp.py.)"""
     out, _, _ = run
-    args = list(ARGS)
-    args[args.index("96x54")] = "64x36"
-    p = subprocess.run([CRISP, "eval"] + args + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    assert p.returncode == 2 and b"another scene or size" in p.stderr
+    smaller = list(ARGS)
+    smaller[smaller.index("96x54")] = "64x36"
+    settings = open(os.path.join(out, "eval_settings.json")).read()
+    for args, env, message in ((smaller, {}, b'resolution "96x54" there, "64x36" here'),
+                               (ARGS, {"CRISP_EVAL_FILTER_SIZE": "0.5"}, b'filter_size "" there, "0.5" here')):
+        p = subprocess.run([CRISP, "eval"] + args + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           env=dict(os.environ, **env), timeout=60)
+        assert p.returncode == 2 and b"holds renders made with other settings" in p.stderr, p.stderr.decode()[-500:]
+        assert message in p.stderr, p.stderr.decode()[-500:]
+        assert b"rendering in Blender" not in p.stderr, "refused before Blender starts"
+    assert open(os.path.join(out, "eval_settings.json")).read() == settings, "the first run's settings are kept"
 
 
 def test_method_variants_share_the_renders(run):
