@@ -231,7 +231,8 @@
 #include "core/error.h"
 #include "core/filter.h"
 #include "core/parallel.h"
-#include "core/row_stage.h"
+#include "filters/phlm_feature.h"
+#include "filters/phlm_stage.h"
 #include "temporal/history_fetch.h"
 #include "temporal/isa.h"
 #include "temporal/rows.h"
@@ -329,21 +330,6 @@ CRISP_PHLM_INLINE bool isRun(const std::size_t pixel[kBatch]) {
   for (int i = 1; i < kBatch; ++i) run &= pixel[i] == pixel[0] + std::size_t(i);
   return run;
 }
-// YCgCo luminance (R + 2G + B) / 4 (§5.1); T the scalar, V T or lanes of T.
-template <class T, class V>
-CRISP_PHLM_INLINE V lumaYCgCo(const V c[3]) {
-  return T(0.25) * c[0] + T(0.5) * c[1] + T(0.25) * c[2];
-}
-
-// The feature space: c / (1 + Y(c)) of the colour clamped to >= 0.
-template <class T, class V>
-CRISP_PHLM_INLINE void toFeature(const V c[3], V out[3]) {
-  V p[3];
-  for (int k = 0; k < 3; ++k) p[k] = c[k] < zeroOf<V>() ? zeroOf<V>() : c[k];  // std::max(c, 0)
-  const V scale = oneOf<V>() / (oneOf<V>() + lumaYCgCo<T>(p));
-  for (int k = 0; k < 3; ++k) out[k] = p[k] * scale;
-}
-
 // The footprint's extremes: the 25 taps of the 5x5 around (x, y), each
 // clamped to the image (shiftedSource) in every path, as the merge
 // (mergeExtremes, left to right) of its five columns' extremes (each top to
@@ -1410,58 +1396,6 @@ CRISP_TEMPORAL_AVX2 void phlmRowsAvx2(const Frame<T>& f, int y0, int y1, bool re
   phlmRowsBody<T, std::is_same_v<T, float>>(f, y0, y1, reference, rowStats);
   _mm_sfence();
 }
-#endif
-
-// What Kernel::run stages of one input row: the sanitised colour with the
-// tonemapped luminance in lane 3 (the luminance range of §5.1, Delta and l,
-// on tonemapped YCgCo luminance), whether every alpha of the row is 1 (or
-// absent: finishBatch then does not read it again for the output's alpha),
-// the sanitised depth and, on the fast path with motion, the moving flags.
-struct StagedRow {
-  ImageView color, depth, motion;
-  float* staged;             // width x height packed RGBA
-  std::uint8_t* alphaOne;    // per row
-  float* depthOut;           // or null
-  std::uint8_t* movingFlags;  // or null
-};
-// Lane groups of V (Vec4 or Vec8), then pixel by pixel: the same operations
-// in every lane, so both copies give the same bits (the reference path runs
-// the baseline one; the tests compare it with the AVX2 copy).
-template <class V>
-CRISP_PHLM_INLINE void stageRowBody(const StagedRow& r, int y) {
-  using M = temporal::MaskOfT<V>;
-  constexpr int n = temporal::kLanesOf<V>;
-  const int w = r.color.width;
-  float* d = r.staged + std::size_t(y) * w * 4;
-  stageColorRow(r.color, y, d);  // sanitised RGBA (core/row_stage.h); lane 3 replaced below
-  auto luma = [](auto red, auto green, auto blue) __attribute__((always_inline)) {
-    using L = decltype(red);
-    // std::max(v, 0) as selects; then Y / (1 + Y).
-    const L c[3] = {red < L{} ? L{} : red, green < L{} ? L{} : green, blue < L{} ? L{} : blue};
-    const L l = lumaYCgCo<float>(c);
-    return l / (1.0f + l);
-  };
-  M alphaOne = M{} == M{};
-  int x = 0;
-  for (; x + n <= w; x += n) {
-    V red, green, blue, alpha;
-    temporal::loadInterleaved4(d + 4 * x, red, green, blue, alpha);
-    alphaOne &= alpha == 1.0f;
-    temporal::storeInterleaved4(d + 4 * x, red, green, blue, V(luma(red, green, blue)));
-  }
-  bool one = temporal::allOf(alphaOne);
-  for (; x < w; ++x) {
-    float* p = d + 4 * x;
-    one &= p[3] == 1.0f;
-    p[3] = luma(p[0], p[1], p[2]);
-  }
-  r.alphaOne[std::size_t(y)] = one;
-  if (r.depthOut) stageDepthRow(r.depth, y, r.depthOut + std::size_t(y) * w);
-  if (r.movingFlags) temporal::movingRow<V>(r.motion, y, r.movingFlags + std::size_t(y) * w);
-}
-void stageRowBaseline(const StagedRow& r, int y) { stageRowBody<temporal::Vec4>(r, y); }
-#ifdef CRISP_TEMPORAL_HAS_AVX2
-CRISP_TEMPORAL_AVX2 void stageRowAvx2(const StagedRow& r, int y) { stageRowBody<temporal::Vec8>(r, y); }
 #endif
 
 }  // namespace

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
-// PHLM (native/filters/phlm*.h): the stabilised RLS against the paper's
-// equations, quality on the moving synthetic sequences of synth/moving.h
-// (exact motion, depth and references), the reference vs fast path, and the
-// filter interface. The 20 000-frame stability suite is test_phlm_stability.cpp.
+// PHLM (native/filters/phlm*): the stabilised RLS against the paper's
+// equations, the row staging against its formulas, quality on the moving
+// synthetic sequences of synth/moving.h (exact motion, depth and
+// references), the reference vs fast path, and the filter interface. The 20 000-frame stability suite is test_phlm_stability.cpp.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -18,6 +18,7 @@
 #include "core/error.h"
 #include "core/filter.h"
 #include "filters/phlm.h"
+#include "filters/phlm_stage.h"
 #include "metrics/metrics.h"
 #include "synth/moving.h"
 #include "temporal_test_util.h"
@@ -583,4 +584,94 @@ TEST(Phlm, ReturningShadowLeavesNoLag) {
               "shadowed %.2f dB\n",
               back0, back1, sumShadowed / n, sumPaper / n, sumUnshadowed / n);
   EXPECT_GT(sumShadowed / n, sumPaper / n - 0.5);
+}
+
+// PHLM's row staging (phlm_stage.h) against the formulas, in both copies:
+// the kernel's two paths read the same staged rows, so comparing them cannot
+// catch a wrong formula here. Width 21: two whole Vec8 groups (five Vec4)
+// and a partial tail in each copy.
+TEST(PhlmStage, StagesSanitisedColourTonemappedLuminanceAlphaDepthAndMotion) {
+  constexpr int w = 21, h = 4;
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> value(-0.5f, 4.0f);
+  Image color(w, h, 4), depth(w, h, 1), motion(w, h, 2);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      float* c = color.at(x, y);
+      for (int k = 0; k < 3; ++k) c[k] = value(rng);
+      c[3] = 1.0f;
+      depth.at(x, y)[0] = value(rng) + 1.0f;
+      motion.at(x, y)[0] = (x + y) % 3 == 0 ? 0.25f : 0.0f;
+      motion.at(x, y)[1] = (x * y) % 5 == 1 ? -0.5f : 0.0f;
+    }
+  // Extremes: HDR, non-finite colour, far and non-finite depth, NaN and -0 motion.
+  color.at(3, 0)[1] = 1e6f;
+  color.at(9, 0)[0] = nan;
+  color.at(17, 0)[2] = inf;
+  color.at(20, 0)[0] = -inf;
+  depth.at(4, 0)[0] = inf;
+  depth.at(5, 0)[0] = nan;
+  depth.at(19, 0)[0] = 1e9f;
+  motion.at(6, 0)[0] = nan;
+  motion.at(7, 0)[1] = -0.0f;
+  // Alpha: row 0 all 1; row 1 not 1 in the tail only; row 2 not 1 in the first group; row 3 NaN (read as 0).
+  color.at(20, 1)[3] = 0.5f;
+  color.at(2, 2)[3] = 0.0f;
+  color.at(11, 3)[3] = nan;
+
+  using Stage = void (*)(const phlm::StagedRow&, int);
+  std::vector<std::pair<const char*, Stage>> copies = {{"baseline", phlm::stageRowBaseline}};
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+  if (temporal::cpuHasAvx2()) copies.push_back({"avx2", phlm::stageRowAvx2});
+#endif
+  for (const auto& [name, stage] : copies) {
+    SCOPED_TRACE(name);
+    std::vector<float> staged(std::size_t(w) * h * 4, -1.0f), depthOut(std::size_t(w) * h, -1.0f);
+    std::vector<std::uint8_t> alphaOne(h, 7), moving(std::size_t(w) * h, 7);
+    phlm::StagedRow row;
+    row.color = color.view();
+    row.depth = depth.view();
+    row.motion = motion.view();
+    row.staged = staged.data();
+    row.alphaOne = alphaOne.data();
+    row.depthOut = depthOut.data();
+    row.movingFlags = moving.data();
+    for (int y = 0; y < h; ++y) stage(row, y);
+    for (int y = 0; y < h; ++y) {
+      EXPECT_EQ(alphaOne[y], y == 0 ? 1 : 0) << "row " << y;
+      for (int x = 0; x < w; ++x) {
+        const std::size_t i = std::size_t(y) * w + x;
+        const float* in = color.at(x, y);
+        const float* out = &staged[i * 4];
+        double rgb[3];
+        for (int k = 0; k < 3; ++k) {
+          // NaN -> 0, +-Inf -> +-kMaxColor (conventions.h), otherwise as given.
+          const float expected = std::isnan(in[k]) ? 0.0f : std::clamp(in[k], -kMaxColor, kMaxColor);
+          EXPECT_EQ(out[k], expected) << x << "," << y << " channel " << k;
+          rgb[k] = std::max(double(expected), 0.0);
+        }
+        // Y / (1 + Y), Y the YCgCo luminance (R + 2G + B) / 4 of the colour clamped to >= 0 (§5.1).
+        const double luma = (rgb[0] + 2.0 * rgb[1] + rgb[2]) / 4.0, expected = luma / (1.0 + luma);
+        EXPECT_NEAR(out[3], expected, 4e-7 * std::max(expected, 1e-3)) << x << "," << y;
+        const float d = depth.at(x, y)[0];
+        EXPECT_EQ(depthOut[i], d < kFarDepth ? d : kBackgroundDepth) << x << "," << y;
+        const float* m = motion.at(x, y);
+        EXPECT_EQ(moving[i], (m[0] != 0.0f || m[1] != 0.0f) ? 1 : 0) << x << "," << y;
+      }
+    }
+  }
+  // Without alpha (RGB input) every row's alpha counts as 1.
+  Image rgb(w, 1, 3, 0.5f);
+  std::vector<float> staged(std::size_t(w) * 4);
+  std::uint8_t one = 7;
+  phlm::StagedRow row;
+  row.color = rgb.view();
+  row.staged = staged.data();
+  row.alphaOne = &one;
+  row.depthOut = nullptr;
+  row.movingFlags = nullptr;
+  phlm::stageRowBaseline(row, 0);
+  EXPECT_EQ(one, 1);
+  EXPECT_NEAR(staged[3], 0.5 / 1.5, 1e-7);
 }
