@@ -71,6 +71,21 @@ std::vector<std::string> blenderDriverCommand(const ParsedArgs& args, const std:
   return cmd;
 }
 
+std::string sceneFingerprint(const ParsedArgs& args) {
+  const std::string scene = args.get("scene");
+  std::vector<fs::path> files;
+  if (fs::path(scene).extension() == ".blend") {
+    files = {scene};
+  } else {
+    const fs::path scenes = addonDir("batch.py").parent_path() / "test_scenes";
+    files = {scenes / (scene + ".py"), scenes / "common.py"};
+  }
+  std::uint64_t hash = kFnv1a64Seed;
+  for (const fs::path& f : files)
+    if (!fnv1a64OfFile(f.string(), hash)) fail(CRISP_ERROR_IO, "cannot read the scene file '" + f.string() + "'");
+  return "fnv1a64:" + hex64(hash);
+}
+
 void appendJitterOption(const ParsedArgs& args, std::vector<std::string>& cmd) {
   if (!args.has("jitter")) return;
   const std::string dist = args.get("jitter");

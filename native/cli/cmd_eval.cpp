@@ -137,19 +137,23 @@ int runEval(const ParsedArgs& args) {
   makeDirectories(renders.string());
   makeDirectories(logs.string());
   // A resumed run reuses the renders it finds, so what changes a render and is not checked frame by
-  // frame must match the first run's: the scene, its size and EEVEE's pixel filter
-  // (CRISP_EVAL_FILTER_SIZE, batch_eval.py), which shapes the reference, the curve and the
-  // Blackman-Harris jitter. (A changed --jitter renders the jittered set again: its sidecars say
-  // how it was drawn.) Settings files of older builds have no filter size: theirs was the scene's.
+  // frame must match the first run's: the scene (its name or path, and what its .blend or script
+  // holds: sceneFingerprint), its size and EEVEE's pixel filter (CRISP_EVAL_FILTER_SIZE,
+  // batch_eval.py), which shapes the reference, the curve and the Blackman-Harris jitter. (A changed
+  // --jitter renders the jittered set again: its sidecars say how it was drawn.) Settings files of
+  // older builds lack the last two: the filter size was the scene's; the contents are taken as
+  // they are now.
   const fs::path settings = outDir / "eval_settings.json";
   const char* filterSize = std::getenv("CRISP_EVAL_FILTER_SIZE");
   const nlohmann::json want = {{"scene", scene},
+                               {"scene_contents", sceneFingerprint(args)},
                                {"resolution", args.getOr("resolution", "")},
                                {"filter_size", filterSize ? filterSize : ""}};
   if (fs::exists(settings)) {
     std::ifstream in(settings);
     nlohmann::json have = nlohmann::json::parse(in, nullptr, false);
     if (have.is_object() && !have.contains("filter_size")) have["filter_size"] = "";
+    if (have.is_object() && !have.contains("scene_contents")) have["scene_contents"] = want["scene_contents"];
     if (have != want) {
       std::string differences;
       for (const auto& [key, value] : want.items()) {

@@ -2,6 +2,7 @@
 // One function per subcommand; each returns the process exit code.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
@@ -33,10 +34,19 @@ void writeTextFile(const std::string& path, const std::string& text);
 void makeDirectories(const std::string& path);
 std::string fileStem(const std::string& path);
 std::string joinPath(const std::string& dir, const std::string& name);
+// FNV-1a (64 bits) over a file's bytes, continuing from hash (start from
+// kFnv1a64Seed); false if it cannot be read. hex64: 16 hex digits.
+constexpr std::uint64_t kFnv1a64Seed = 0xcbf29ce484222325ull;
+bool fnv1a64OfFile(const std::string& path, std::uint64_t& hash);
+std::string hex64(std::uint64_t v);
 // The command line running addon/crisp/<script> in headless Blender on the
 // --scene of args (a .blend to open, or a bundled test scene to build); it ends
 // after "--" with the driver's scene arguments, callers append the rest.
 std::vector<std::string> blenderDriverCommand(const ParsedArgs& args, const std::string& script);
+// What the --scene of args is made of, as "fnv1a64:<hex>": the bytes of the
+// .blend, or of the bundled scene's script and the test_scenes/common.py it
+// imports. Files the scene links or loads (textures, libraries) are not in it.
+std::string sceneFingerprint(const ParsedArgs& args);
 // Appends "--jitter DIST" for the driver when args has --jitter; a distribution
 // the add-on does not know (render.JITTER_DISTRIBUTIONS) is a UsageError.
 void appendJitterOption(const ParsedArgs& args, std::vector<std::string>& cmd);

@@ -2,11 +2,13 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #include "cli/commands.h"
 #include "core/error.h"
@@ -16,6 +18,24 @@
 namespace crisp::cli {
 
 namespace fs = std::filesystem;
+
+bool fnv1a64OfFile(const std::string& path, std::uint64_t& hash) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return false;
+  std::vector<char> chunk(1 << 20);
+  while (in.read(chunk.data(), std::streamsize(chunk.size())) || in.gcount() > 0)
+    for (std::streamsize i = 0; i < in.gcount(); ++i) {
+      hash ^= static_cast<unsigned char>(chunk[std::size_t(i)]);
+      hash *= 0x100000001b3ull;
+    }
+  return !in.bad();
+}
+
+std::string hex64(std::uint64_t v) {
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(v));
+  return hex;
+}
 
 void writeTextFile(const std::string& path, const std::string& text) {
   fs::path target(path);

@@ -134,19 +134,9 @@ const std::string& buildStamp() {
   static const std::string stamp = [] {
     std::string s = "crisp " + std::to_string(CRISP_VERSION_MAJOR) + "." + std::to_string(CRISP_VERSION_MINOR) + "." +
                     std::to_string(CRISP_VERSION_PATCH);
-    std::ifstream exe("/proc/self/exe", std::ios::binary);
-    if (!exe) return s + " (executable unreadable)";
-    std::uint64_t hash = 0xcbf29ce484222325ull;
-    std::vector<char> chunk(1 << 20);
-    while (exe.read(chunk.data(), std::streamsize(chunk.size())) || exe.gcount() > 0) {
-      for (std::streamsize i = 0; i < exe.gcount(); ++i) {
-        hash ^= static_cast<unsigned char>(chunk[std::size_t(i)]);
-        hash *= 0x100000001b3ull;
-      }
-    }
-    char hex[17];
-    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash));
-    return s + " executable fnv1a64:" + hex;
+    std::uint64_t hash = cli::kFnv1a64Seed;
+    if (!cli::fnv1a64OfFile("/proc/self/exe", hash)) return s + " (executable unreadable)";
+    return s + " executable fnv1a64:" + cli::hex64(hash);
   }();
   return stamp;
 }

@@ -20,7 +20,7 @@ import tempfile
 import numpy as np
 import pytest
 
-from crisp_test_util import CRISP, LIBRARY, Lib, psnr
+from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, psnr
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 ARGS = ["--scene", "still_life", "--resolution", "96x54", "--frames", "1-3", "--reference-samples", "8",
@@ -132,20 +132,38 @@ def test_frames_of_another_build_are_computed_again(run):
 
 def test_settings_of_another_run_are_refused(run):
     """A resumed run reuses the renders it finds, so a setting that changes them and is not checked frame
-    by frame (the size, EEVEE's pixel filter) must match the first run's, or nothing runs. (A changed
-    --jitter renders the jittered set again: test_eval_warp.py.)"""
+    by frame (the size, what the scene's script holds, EEVEE's pixel filter) must match the first run's,
+    or nothing runs. (A changed --jitter renders the jittered set again: test_eval_warp.py.)"""
     out, _, _ = run
     smaller = list(ARGS)
     smaller[smaller.index("96x54")] = "64x36"
     settings = open(os.path.join(out, "eval_settings.json")).read()
-    for args, env, message in ((smaller, {}, b'resolution "96x54" there, "64x36" here'),
-                               (ARGS, {"CRISP_EVAL_FILTER_SIZE": "0.5"}, b'filter_size "" there, "0.5" here')):
-        p = subprocess.run([CRISP, "eval"] + args + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                           env=dict(os.environ, **env), timeout=60)
-        assert p.returncode == 2 and b"holds renders made with other settings" in p.stderr, p.stderr.decode()[-500:]
-        assert message in p.stderr, p.stderr.decode()[-500:]
-        assert b"rendering in Blender" not in p.stderr, "refused before Blender starts"
+    # The same bundled scene name, built by an edited script (CRISP_ADDON_DIR: the add-on and test
+    # scenes of another tree).
+    tree = tempfile.mkdtemp(prefix="crisp_edited_scene_")
+    for d in ("addon", "test_scenes"):
+        shutil.copytree(os.path.join(SOURCE, d), os.path.join(tree, d))
+    with open(os.path.join(tree, "test_scenes", "still_life.py"), "a") as f:
+        f.write("\n# edited\n")
+    cases = ((smaller, {}, b'resolution "96x54" there, "64x36" here'),
+             (ARGS, {"CRISP_EVAL_FILTER_SIZE": "0.5"}, b'filter_size "" there, "0.5" here'),
+             (ARGS, {"CRISP_ADDON_DIR": os.path.join(tree, "addon")}, b"scene_contents \"fnv1a64:"))
+    try:
+        for args, env, message in cases:
+            p = subprocess.run([CRISP, "eval"] + args + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               env=dict(os.environ, **env), timeout=60)
+            assert p.returncode == 2 and b"holds renders made with other settings" in p.stderr, p.stderr.decode()[-500:]
+            assert message in p.stderr, p.stderr.decode()[-500:]
+            assert b"rendering in Blender" not in p.stderr, "refused before Blender starts"
+    finally:
+        shutil.rmtree(tree, ignore_errors=True)
     assert open(os.path.join(out, "eval_settings.json")).read() == settings, "the first run's settings are kept"
+    # A settings file of an older build (no scene contents, no filter size) is taken as it is.
+    with open(os.path.join(out, "eval_settings.json"), "w") as f:
+        json.dump({"resolution": "96x54", "scene": "still_life"}, f)
+    p = subprocess.run([CRISP, "eval"] + ARGS + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=300)
+    assert p.returncode == 0, p.stderr.decode()[-2000:]
+    assert json.load(open(os.path.join(out, "eval_settings.json"))) == json.loads(settings)
 
 
 def test_method_variants_share_the_renders(run):
