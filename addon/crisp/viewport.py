@@ -49,16 +49,18 @@ ONE_SAMPLE = (("display", "viewport_aa", "OFF"), ("eevee", "taa_samples", 1))
 
 class _State:
     handle = None        # the draw handler, or None when the preview is off
-    filters = {}         # method -> gpu_filters.GpuFilter
+    filters = {}         # (region, method) -> gpu_filters.GpuFilter: each 3D view keeps its own history
     offscreen = None
     offscreen_size = None
     decoded = None       # gpu_filters.Target: the linear input
     stack_guard = None   # a 4x4 offscreen bound around the work to restore the region's framebuffer
     saved_settings = None  # (scene name, [(group, name, value before)]) of ONE_SAMPLE
-    view_key = None
-    frame = 0            # taa: index into the Halton sequence
+    views = {}           # region -> (view key, taa's index into the Halton sequence); {}: every view restarts
+    last_region = None   # the region drawn last (accumulated_frames)
     drawing = False      # re-entrancy guard (draw_view3d inside a draw handler)
     last_ms = 0.0
+
+MAX_VIEWS = 8  # regions with a filter of their own; more (views closed and opened) start the set afresh
 
 
 def gpu_unavailable_reason():
@@ -178,21 +180,27 @@ def _filter_view(context, region, space, rv3d, width, height):
     from . import gpu_filters
 
     method = _settings(context).method
-    filt = _State.filters.get(method)
+    # Each 3D view (region) has its own filter and history: views of a split layout draw in turn, and
+    # one shared history would restart at every draw.
+    region_key = region.as_pointer()
+    filt = _State.filters.get((region_key, method))
     if filt is None:
-        filt = _State.filters[method] = gpu_filters.GpuFilter(method)
+        if len(_State.filters) >= MAX_VIEWS:
+            _State.filters, _State.views = {}, {}
+        filt = _State.filters[(region_key, method)] = gpu_filters.GpuFilter(method)
     filt.set_params(_filter_params(context, method))
+    _State.last_region = region_key
 
     view = rv3d.view_matrix.copy()
     projection = rv3d.window_matrix.copy()
     key = (tuple(tuple(r) for r in view), tuple(tuple(r) for r in projection), width, height, method)
-    if key != _State.view_key:
-        _State.view_key = key
-        _State.frame = 0
+    seen, frame = _State.views.get(region_key, (None, 0))
+    if key != seen:
+        frame = 0
         filt.reset()
+    _State.views[region_key] = (key, frame + 1)
     if method == "taa":
-        sx, sy = halton_jitter(_State.frame)
-        _State.frame += 1
+        sx, sy = halton_jitter(frame)
         # The shaders' y is the texture row and offscreen row 0 is the bottom: their y is up, like sy.
         filt.set_params({"jitterX": sx, "jitterY": sy})
         projection = jittered_projection(projection, sx, sy, width, height)
@@ -213,7 +221,7 @@ def _on_scene_change(*_args):
     """An edit, a selection or a frame change: taa's history no longer matches the scene (there are no
     motion vectors to reproject it), so it restarts."""
     if not _State.drawing:
-        _State.view_key = None
+        _State.views = {}
 
 
 _SCENE_HANDLERS = (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post)
@@ -246,7 +254,7 @@ def _install():
         _State.handle = bpy.types.SpaceView3D.draw_handler_add(_draw, (), "WINDOW", "POST_PIXEL")
         for handlers in _SCENE_HANDLERS:
             handlers.append(_on_scene_change)
-        _State.view_key = None
+        _State.views = {}
     _tag_redraw()
 
 
@@ -263,7 +271,7 @@ def _remove():
         if offscreen is not None:
             offscreen.free()
     _State.offscreen = _State.offscreen_size = _State.decoded = _State.stack_guard = None
-    _State.view_key = None
+    _State.views, _State.last_region = {}, None
     try:
         _tag_redraw()
     except Exception:
@@ -296,7 +304,7 @@ def _on_enabled(self, context):
 
 
 def _on_method(self, context):
-    _State.view_key = None
+    _State.views = {}
     if self.enabled:
         _tag_redraw()
 
@@ -311,8 +319,9 @@ def last_draw_ms():
 
 
 def accumulated_frames():
-    """taa: redraws accumulated in the history since its last reset (0 for the spatial methods)."""
-    filt = _State.filters.get("taa")
+    """taa: redraws accumulated in the history of the view drawn last since its reset (0 for the spatial
+    methods)."""
+    filt = _State.filters.get((_State.last_region, "taa"))
     return filt.frames if filt is not None and _State.handle is not None else 0
 
 
