@@ -360,6 +360,31 @@ class FrameFilter:
         self._zero_motion = None
         self._shape = None
         self._previous_sidecar = None
+        self._last_shot = None  # (frame, camera) of the last frame filtered, from its sidecar
+        self.restart_reason = None  # why the last frame's history restarted (None: it carried over)
+
+    def _continue_or_restart(self, input_path):
+        """A temporal filter's history carries over only to the next frame of the same camera: a gap in
+        the frame numbers (frames rendered out of order, a frame step, a second run's frames) or
+        another camera (a cut at a timeline marker) restarts it, with zero motion for the frame. Frames
+        without a sidecar say nothing and carry over."""
+        sidecar = os.path.splitext(input_path)[0] + ".json"
+        self.restart_reason = None
+        if not os.path.exists(sidecar):
+            return
+        with open(sidecar) as fh:
+            side = json.load(fh)
+        shot = (side.get("frame"), (side.get("camera") or {}).get("name"))
+        last, self._last_shot = self._last_shot, shot
+        if last is None or shot[0] is None:
+            return
+        if shot[1] != last[1]:
+            self.restart_reason = "camera '%s' after '%s'" % (shot[1], last[1])
+        elif shot[0] != last[0] + 1:
+            self.restart_reason = "frame %d after frame %d" % (shot[0], last[0])
+        if self.restart_reason:
+            self.filter.reset()
+            self._previous_sidecar = None
 
     def _bind_motion(self, frame, input_path, present):
         """Motion from the frame's Vector pass if it has one, else reconstructed from the previous
@@ -400,6 +425,8 @@ class FrameFilter:
                 frame.attach_subsamples(self.context, self.filter)
                 self.passes += [p for p in SUBSAMPLE_PASSES if p not in self.passes]
             present = set(frame.passes())
+            if self._takes_jitter:
+                self._continue_or_restart(input_path)
             for role in self.passes:
                 if role == "motion":
                     self._bind_motion(frame, input_path, present)

@@ -162,6 +162,9 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                 outs.append(os.path.join(filtered_dir, render.frame_name(f, ".png")))
             times = frame_filter.run(info["exr"], outs)
             entry.update({k: round(v, 4) for k, v in times.items()})
+            if frame_filter.restart_reason:
+                entry["history_restarted"] = frame_filter.restart_reason
+                log("frame %d: temporal history restarts (%s)" % (f, frame_filter.restart_reason))
         result["frames"].append(entry)
         log("frame %d: render %.3f s%s" % (f, info["render_s"], ", load %.3f s, filter %.3f s, write %.3f s" % (
             entry["load_s"], entry["filter_s"], entry["write_s"]) if "filter_s" in entry else ""))

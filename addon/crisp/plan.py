@@ -85,6 +85,7 @@ class SceneFacts:
     deforming_objects: list = field(default_factory=list)   # names with animated geometry
     visible_objects: list = field(default_factory=list)     # renderable, visible object names
     renderer_motion_pass: bool = False                      # the renderer writes a Vector pass
+    camera_cuts: list = field(default_factory=list)         # frames whose camera is another than the frame before's
 
 
 @dataclass
@@ -271,27 +272,34 @@ def _same(a, b, eps=1e-6):
 
 
 def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_pass=False):
-    """Steps through the frame range and compares world matrices with the first frame's.
+    """Steps through the frame range and compares world matrices with the first frame's (each camera's
+    with its own: a switch of cameras at a timeline marker is a cut, listed in camera_cuts, where
+    temporal history restarts; FrameFilter and `crisp filter` see it in the sidecars).
 
-    Restores the current frame. Checks matrices (not only animation data) so constraints, drivers
+    Restores the current frame and camera. Checks matrices (not only animation data) so constraints, drivers
     and parenting count too."""
     layer = view_layer or scene.view_layers[0]
-    saved = (scene.frame_current, scene.frame_subframe)
-    cam = scene.camera
-    first_cam, first = None, {}
-    moving, names = set(), []
+    saved = (scene.frame_current, scene.frame_subframe, scene.camera)
+    first_cam = {}  # camera object name -> its matrix at the first frame it is the scene's camera
+    first, moving, names, cuts = {}, set(), [], []
     camera_moves = False
+    previous_cam = None
     try:
         for f in range(frame_start, frame_end + 1):
-            scene.frame_set(f)
+            scene.frame_set(f)  # switches scene.camera at timeline markers bound to cameras
+            cam = scene.camera
+            if f > frame_start and (cam.name if cam else None) != previous_cam:
+                cuts.append(f)
+            previous_cam = cam.name if cam else None
             obs = visible_objects(scene, layer)
             if f == frame_start:
                 names = [o.name for o in obs]
-            cm = [list(r) for r in cam.matrix_world] if cam else None
-            if first_cam is None:
-                first_cam = cm
-            elif cm is not None and not _same(cm, first_cam):
-                camera_moves = True
+            if cam is not None:
+                cm = [list(r) for r in cam.matrix_world]
+                if cam.name not in first_cam:
+                    first_cam[cam.name] = cm
+                elif not _same(cm, first_cam[cam.name]):
+                    camera_moves = True
             for o in obs:
                 m = [list(r) for r in o.matrix_world]
                 if o.name not in first:
@@ -301,6 +309,7 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
         deforming = [o.name for o in visible_objects(scene, layer) if _deforms(o)]
     finally:
         scene.frame_set(saved[0], subframe=saved[1])
+        scene.camera = saved[2]
     return SceneFacts(frame_start=frame_start, frame_end=frame_end, camera_moves=camera_moves,
                       moving_objects=sorted(moving), deforming_objects=sorted(deforming),
-                      visible_objects=names, renderer_motion_pass=renderer_motion_pass)
+                      visible_objects=names, renderer_motion_pass=renderer_motion_pass, camera_cuts=cuts)

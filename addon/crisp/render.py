@@ -322,20 +322,30 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
     engine = engine or eevee_engine(scene)
     os.makedirs(out_dir, exist_ok=True)
     infos = []
-    cam_data = scene.camera.data
     with Snapshot(scene) as snap:
-        base_shift = (cam_data.shift_x, cam_data.shift_y)
-        snap.set(cam_data, "shift_x", base_shift[0])
-        snap.set(cam_data, "shift_y", base_shift[1])
+        # The camera of each frame (timeline markers may switch cameras): its shift as the user left
+        # it, registered once for the restore.
+        base_shifts = {}
+
+        def frame_camera():
+            data = scene.camera.data
+            if data.name not in base_shifts:
+                base_shifts[data.name] = (data.shift_x, data.shift_y)
+                snap.set(data, "shift_x", data.shift_x)
+                snap.set(data, "shift_y", data.shift_y)
+            return data, base_shifts[data.name]
+
+        cam_data, base_shift = frame_camera()
         snap.set(scene.render, "filepath", scene.render.filepath)
         _prepare(snap, scene, view_layer, engine, samples, set(the_plan.render_flags()))
-        unit = shift_per_pixel(scene) if the_plan.jitter else 0.0
         filter_size = scene.render.filter_size
         for f in frames:
             if should_cancel and should_cancel():
                 break
             scene.frame_set(f)
+            cam_data, base_shift = frame_camera()
             cam_data.shift_x, cam_data.shift_y = base_shift
+            unit = shift_per_pixel(scene) if the_plan.jitter else 0.0
             depsgraph = bpy.context.evaluated_depsgraph_get()
             depsgraph.update()
             view, proj_plain = camera_matrices(scene, depsgraph)

@@ -119,11 +119,19 @@ int runFilter(const ParsedArgs& args) {
   const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
   Image output;
   Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, args.has("quiet"));
+  ShotPosition shot;
   for (std::size_t i = std::size_t(run.start - 1); i < std::size_t(run.last); ++i) {
     const std::string& in = args.positional[i];
     const bool write = int(i) + 1 >= run.first;
     Frame frame = readFrame(in);
-    if (rebuildMotion) addReconstructedMotion(frame, args.positional, i, context.numThreads());
+    // A gap in the frame numbers or a cut to another camera: the history starts over, and the
+    // frame gets zero motion as a first frame does.
+    const std::string cut = historyBreak(*filter, in, shot);
+    if (!cut.empty()) {
+      filter->reset();
+      std::fprintf(stderr, "filter: '%s': %s history starts over (%s)\n", in.c_str(), filter->type(), cut.c_str());
+    }
+    if (rebuildMotion) addReconstructedMotion(frame, args.positional, cut.empty() ? i : 0, context.numThreads());
     bindFrame(*filter, frame);
     if (output.width != frame.width || output.height != frame.height) {
       // A size change part-way is legitimate (a cut to another camera) but

@@ -109,6 +109,21 @@ void bindJitter(Filter& filter, const Frame& frame) {
 
 }  // namespace
 
+std::string historyBreak(const Filter& filter, const std::string& framePath, ShotPosition& last) {
+  if (!hasParam(filter, "jitterX")) return "";  // the temporal filters take a jitter; nothing else keeps history
+  const std::string side = sidecarPathFor(framePath);
+  std::error_code ec;
+  if (!fs::is_regular_file(side, ec)) return "";
+  const Sidecar s = readSidecar(side);
+  const ShotPosition before = last;
+  last = {true, s.frame, s.camera};
+  if (!before.known) return "";
+  if (s.camera != before.camera) return "camera '" + s.camera + "' after '" + before.camera + "'";
+  if (s.frame != before.frame + 1)
+    return "frame " + std::to_string(s.frame) + " after frame " + std::to_string(before.frame);
+  return "";
+}
+
 void bindFrame(Filter& filter, Frame& frame) {
   if (readsSubsamples(filter)) attachRsaaInputs(filter, frame);
   bindJitter(filter, frame);

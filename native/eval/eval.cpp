@@ -276,6 +276,7 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   std::unique_ptr<Filter> filter = createFilter(context, e.method);
   for (const auto& [key, value] : parseMethodSpec(e.name).params) filter->params().setFromText(key, value);
   Image output;
+  cli::ShotPosition shot;
   for (int f : frames) {
     if (!e.temporal ? done(f) : allDone) {
       progress.step(e.name + " frame " + std::to_string(f) + " (done before)");
@@ -283,7 +284,14 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
     }
     const fs::path in = inputDir / frameName(f);
     Frame frame = readFrame(in.string());
-    addMotion(frame, inputDir, f, frames.front(), sceneMoves, o.threads);
+    // A cut to another camera (or a gap in the frame numbers): the history starts over (cli/files.cpp).
+    const std::string cut = cli::historyBreak(*filter, in.string(), shot);
+    if (!cut.empty()) {
+      filter->reset();
+      if (!o.quiet)
+        std::fprintf(stderr, "crisp eval: %s frame %d: history starts over (%s)\n", e.name.c_str(), f, cut.c_str());
+    }
+    addMotion(frame, inputDir, f, cut.empty() ? frames.front() : f, sceneMoves, o.threads);
     cli::bindFrame(*filter, frame);
     if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
     filter->setImage("output", output.view());

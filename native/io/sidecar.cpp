@@ -101,6 +101,10 @@ Sidecar parseSidecar(const std::string& text, const std::string& path) {
   s.jitterY = rd.number(rd.get(jitter, "jitter", "y"), "jitter.y");
 
   const Json& camera = rd.get(root, "", "camera");
+  if (camera.is_object() && camera.contains("name")) {
+    if (!camera["name"].is_string()) rd.bad("camera.name", "is not a string");
+    s.camera = camera["name"].get<std::string>();
+  }
   s.view = rd.matrix(rd.get(camera, "camera", "view"), "camera.view");
   s.projection = rd.matrix(rd.get(camera, "camera", "projection"), "camera.projection");
   s.projectionUnjittered = rd.matrix(rd.get(camera, "camera", "projection_unjittered"), "camera.projection_unjittered");
@@ -148,8 +152,13 @@ bool sameCameraAndObjects(const Sidecar& a, const Sidecar& b) {
 }
 
 bool sequenceIsStill(const std::vector<std::string>& sidecarPaths) {
-  for (std::size_t i = 1; i < sidecarPaths.size(); ++i)
-    if (!sameCameraAndObjects(readSidecar(sidecarPaths[i - 1]), readSidecar(sidecarPaths[i]))) return false;
+  for (std::size_t i = 1; i < sidecarPaths.size(); ++i) {
+    const Sidecar a = readSidecar(sidecarPaths[i - 1]), b = readSidecar(sidecarPaths[i]);
+    // A cut to another camera or a gap in the frame numbers restarts a temporal filter's history
+    // (cli/files.cpp historyBreak): nothing is reprojected across it.
+    if (b.camera != a.camera || b.frame != a.frame + 1) continue;
+    if (!sameCameraAndObjects(a, b)) return false;
+  }
   return true;
 }
 

@@ -28,6 +28,7 @@ struct Sidecar {
   // shift moved every sample point by (+jitterX, +jitterY)). 0 when disabled.
   double jitterX = 0.0;
   double jitterY = 0.0;
+  std::string camera;         // camera.name: the scene's camera this frame (empty if not given)
   Mat4 view;                  // world -> camera (camera.view; camera looks down -Z)
   Mat4 projection;            // camera -> clip, with the jitter shift (camera.projection)
   Mat4 projectionUnjittered;  // camera -> clip, without it (camera.projection_unjittered)
@@ -55,7 +56,9 @@ std::string sidecarPathFor(const std::string& framePath);
 // projection) and the same objects at the same world matrices: nothing moves
 // between them, so they need no motion vectors (jitter is not motion).
 bool sameCameraAndObjects(const Sidecar& a, const Sidecar& b);
-// The same over a sequence of sidecar files (consecutive pairs).
+// The same over a sequence of sidecar files (consecutive pairs), except across
+// a cut to another camera or a gap in the frame numbers, where a temporal
+// filter's history starts over (cli/files.cpp historyBreak).
 bool sequenceIsStill(const std::vector<std::string>& sidecarPaths);
 
 }  // namespace crisp

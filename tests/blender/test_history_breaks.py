@@ -1,0 +1,105 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""Where a temporal filter's history must start over: a cut to another camera at a timeline marker,
+and a gap in the frame numbers. still_life at 64x36 with a second camera bound to a marker at frame 4:
+  * the plan lists the cut, and every frame is jittered through its own camera (the sidecar's
+    projection differs from the unjittered one on both sides of the cut);
+  * the add-on's run restarts the history at the cut (run.json says so) and its frames 4-6 equal, bit
+    for bit, `crisp filter` over frames 4-6 alone, and so do `crisp filter`'s over frames 1-6;
+  * `crisp filter` over frames 4 and 6 (5 missing) says the history starts over at 6 and gives the
+    frame 6 of a run over frame 6 alone."""
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import harness  # noqa: E402
+
+import common  # noqa: E402  (test_scenes/common.py)
+from crisp import native, pipeline, plan  # noqa: E402
+
+CRISP = os.path.join(harness.BUILD_DIR, "bin", "crisp")
+
+
+def cut_scene():
+    scene = harness.build_scene("still_life")
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 64, 36, 100
+    scene.frame_start, scene.frame_end = 1, 6
+    first = scene.camera
+    second = common.camera((3.5, -4.0, 2.0), (0, 0.3, 0.6), lens=40, name="CamB")
+    scene.camera = first
+    scene.timeline_markers.new("A", frame=1).camera = first
+    scene.timeline_markers.new("B", frame=4).camera = second
+    return scene
+
+
+def pixels(path):
+    """The colour of an EXR as bytes, read by the library."""
+    import ctypes
+    with native.Context(1) as context, native.Frame(context, path) as frame:
+        ptr, fmt = frame.pass_pointer("color")
+        return ctypes.string_at(ptr, frame.width * frame.height * native.FORMAT_CHANNELS[fmt] * 4)
+
+
+class HistoryBreakTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        ok, why = harness.library_usable()
+        if not ok:
+            raise unittest.SkipTest(why)
+        cls.scene = cut_scene()
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.out = os.path.join(cls.tmp.name, "run")
+        cls.result = pipeline.run(cls.scene, "taa", range(1, 7), cls.out, threads=1, log=lambda s: None)
+        cls.inputs = [os.path.join(cls.out, "input", "frame_%04d.exr" % f) for f in range(1, 7)]
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def crisp_filter(self, name, inputs):
+        out = os.path.join(self.tmp.name, name)
+        p = subprocess.run([CRISP, "filter", "-m", "taa", "--threads", "1", "--quiet", "-o", out] + inputs,
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr.decode())
+        return out, p.stderr.decode()
+
+    def test_plan_lists_the_cut_and_each_camera_is_jittered(self):
+        facts = plan.scene_facts(self.scene, 1, 6)
+        self.assertEqual(facts.camera_cuts, [4])
+        self.assertEqual(self.scene.camera.name, "Camera", "the scene's camera is put back")
+        for f in range(1, 7):
+            with open(os.path.join(self.out, "input", "frame_%04d.json" % f)) as fh:
+                side = json.load(fh)
+            self.assertEqual(side["camera"]["name"], "Camera" if f < 4 else "CamB")
+            jittered = abs(side["jitter"]["x"]) + abs(side["jitter"]["y"]) > 1e-6
+            self.assertEqual(side["camera"]["projection"] != side["camera"]["projection_unjittered"], jittered,
+                             "frame %d: the jitter reached the frame's own camera" % f)
+        self.assertEqual(self.scene.objects["CamB"].data.shift_x, 0.0, "CamB's shift is put back")
+
+    def test_cut_restarts_the_history(self):
+        restarts = {e["frame"]: e.get("history_restarted") for e in self.result["frames"]}
+        self.assertEqual([f for f, why in restarts.items() if why], [4])
+        self.assertIn("CamB", restarts[4])
+        alone, _ = self.crisp_filter("from4", self.inputs[3:])
+        whole, err = self.crisp_filter("whole", self.inputs)
+        self.assertIn("history starts over (camera 'CamB' after 'Camera')", err)
+        for f in (4, 5, 6):
+            want = pixels(os.path.join(alone, "frame_%04d.exr" % f))
+            for folder in (os.path.join(self.out, "filtered"), whole):
+                self.assertEqual(pixels(os.path.join(folder, "frame_%04d.exr" % f)), want, (folder, f))
+
+    def test_gap_restarts_the_history(self):
+        gap, err = self.crisp_filter("gap", [self.inputs[3], self.inputs[5]])  # frames 4 and 6 of CamB
+        self.assertIn("history starts over (frame 6 after frame 4)", err)
+        alone, _ = self.crisp_filter("from6", [self.inputs[5]])
+        self.assertEqual(pixels(os.path.join(gap, "frame_0006.exr")), pixels(os.path.join(alone, "frame_0006.exr")))
+        # With frame 5 between them the history carries over: the check above can fail.
+        self.assertNotEqual(pixels(os.path.join(alone, "frame_0006.exr")),
+                            pixels(os.path.join(self.out, "filtered", "frame_0006.exr")))
+
+if __name__ == "__main__":
+    harness.run(HistoryBreakTest)
