@@ -96,6 +96,26 @@ def scene_script_path(text):
     fail(2, "scene script '%s' not found (bundled scenes: %s)" % (text, ", ".join(known)))
 
 
+def scene_key(script_path):
+    """What the scene is made of, for reuse checks (pipeline.run scene_key): a hash of the bundled
+    scene's script and the test_scenes/common.py it imports, or of the .blend Blender opened (as saved:
+    call before anything changes the scene); None for an unsaved scene. Linked files are not in it."""
+    import hashlib
+    import bpy
+    if script_path:
+        files = [script_path, os.path.join(os.path.dirname(script_path), "common.py")]
+    elif bpy.data.filepath:
+        files = [bpy.data.filepath]
+    else:
+        return None
+    h = hashlib.sha256()
+    for path in files:
+        if os.path.isfile(path):
+            with open(path, "rb") as f:
+                h.update(f.read())
+    return "sha256:" + h.hexdigest()[:16]
+
+
 def main(argv):
     import runpy
     import bpy
@@ -124,6 +144,7 @@ def main(argv):
         k, v = kv.split("=", 1)
         params[k.strip()] = v.strip()
 
+    key = scene_key(scene_script_path(args.scene_script) if args.scene_script else None)
     if args.scene_script:
         path = scene_script_path(args.scene_script)
         sys.path.insert(0, os.path.dirname(path))
@@ -147,7 +168,7 @@ def main(argv):
                      samples=args.samples, reference_samples=args.reference_samples, plan_only=args.plan_only,
                      filter_frames=not args.no_filter, threads=args.threads, jitter_distribution=args.jitter,
                      write_png=not args.no_png, log=lambda s: print(s, flush=True), engine_name=args.engine,
-                     preroll=args.preroll, shot=shot, resume=args.resume)
+                     preroll=args.preroll, shot=shot, resume=args.resume, scene_key=key)
     except pipeline.InputError as e:
         fail(2, str(e))
     except render.RenderError as e:

@@ -89,6 +89,49 @@ def _write_json(path, data):
     os.replace(tmp, path)
 
 
+def _read_json(path):
+    try:
+        with open(path) as f:
+            data = json.load(f)
+        return data if isinstance(data, dict) else None
+    except (OSError, ValueError):
+        return None
+
+
+RUN_SETTINGS = "run_settings.json"
+
+
+def run_settings(scene, method, params, samples, reference_samples, jitter, engine, filter_frames, scene_key):
+    """What makes an output folder's frames what they are (OUTDIR/run_settings.json)."""
+    return {"scene": scene.name, "scene_key": scene_key, "resolution": list(render.render_size(scene)),
+            "method": method if filter_frames else None, "params": dict(params or {}), "samples": samples,
+            "reference_samples": reference_samples, "jitter_distribution": jitter, "engine": engine}
+
+
+def check_run_settings(out_dir, settings, resume):
+    """A resume (which keeps the frames it finds) into a folder whose frames were made with other
+    settings is refused, naming them; any other run records its settings. Concurrent chunks of one job
+    write the same record. A scene_key of None (unknown) matches any."""
+    path = os.path.join(out_dir, RUN_SETTINGS)
+    have = _read_json(path)
+    if resume and have is not None:
+        differences = []
+        for key, value in settings.items():
+            there = have.get(key)
+            if key == "scene_key" and (there is None or value is None):
+                continue
+            if there != value:
+                differences.append("%s %s there, %s here" % (key, json.dumps(there), json.dumps(value)))
+        if differences:
+            raise InputError("%s holds frames made with other settings (%s): resume only with the same settings, "
+                             "or run without --resume to make them again" % (out_dir, "; ".join(differences)))
+    os.makedirs(out_dir, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix="." + RUN_SETTINGS + ".", dir=out_dir)
+    with os.fdopen(fd, "w") as f:
+        json.dump(settings, f, indent=1)
+    os.replace(tmp, path)
+
+
 def chunk_run(frames, shot_first, preroll, is_complete=None):
     """(pre-roll frames, frames to write) of a chunk: with is_complete (resume) the frames to write start
     at the first frame that is not complete, and the pre-roll is the `preroll` frames before that one,
@@ -103,12 +146,15 @@ def chunk_run(frames, shot_first, preroll, is_complete=None):
 
 def run(scene, method, frames, out_dir, params=None, samples=1, reference_samples=0, plan_only=False,
         filter_frames=True, threads=0, jitter_distribution="blackman-harris", write_png=True, log=print,
-        view_layer=None, should_cancel=None, engine_name="eevee", preroll=0, shot=None, resume=False):
+        view_layer=None, should_cancel=None, engine_name="eevee", preroll=0, shot=None, resume=False,
+        scene_key=None):
     """Returns the run.json dictionary (also written to out_dir/run.json). engine_name: 'eevee', or
     'cycles' to render the same frames with Cycles (cheap settings, its own Vector pass) for checks.
     A chunk of a shot: shot (a range holding frames; the plan is made over it), preroll (frames before
     the chunk filtered but not written), resume (start at the first frame with a missing output); the
-    result then goes to run_AAAA-BBBB.json so concurrent chunks never write the same file."""
+    result then goes to run_AAAA-BBBB.json so concurrent chunks never write the same file.
+    scene_key: what the scene file holds (batch.py scene_key), or None when unknown (a scene edited in
+    this session); with it, frames of another scene file are never reused or resumed."""
     frames = list(frames)
     if not frames:
         raise InputError("no frames to render (empty frame range)")
@@ -147,6 +193,11 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         _write_json(run_json, result)
         return result
 
+    check_run_settings(out_dir, run_settings(scene, method, params, samples, reference_samples,
+                                             jitter_distribution if the_plan.jitter else "none", engine,
+                                             filter_frames, scene_key), resume)
+    previous_record = _read_json(run_json) if resume else None
+
     input_dir = os.path.join(out_dir, "input")
     filtered_dir = os.path.join(out_dir, "filtered")
     frame_filter = None
@@ -183,7 +234,7 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     preroll_frames, todo = chunk_run(frames, (shot or frames)[0], preroll if warms else 0,
                                      is_complete if resume else None)
     reused = [f for f in preroll_frames if render.reusable_input(scene, engine, input_dir, f, the_plan, samples,
-                                                                     jitter_distribution)]
+                                                                     jitter_distribution, scene_key)]
     result["chunk"] = {"shot": [shot[0], shot[-1]] if shot else None, "preroll": preroll,
                        "preroll_frames": [preroll_frames[0], preroll_frames[-1]] if preroll_frames else None,
                        "preroll_reused": reused, "resumed_at": todo[0] if resume and todo else None}
@@ -208,12 +259,12 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
             render.render_frames(scene, the_plan, group, preroll_dir, samples=samples,
                                  jitter_distribution=jitter_distribution, view_layer=view_layer,
                                  on_frame=on_preroll, should_cancel=should_cancel,
-                                 engine=engine if engine == "CYCLES" else None)
+                                 engine=engine if engine == "CYCLES" else None, scene_key=scene_key)
         if todo:
             render.render_frames(scene, the_plan, todo, input_dir, samples=samples,
                                  jitter_distribution=jitter_distribution, view_layer=view_layer,
                                  on_frame=on_frame, should_cancel=should_cancel,
-                                 engine=engine if engine == "CYCLES" else None)
+                                 engine=engine if engine == "CYCLES" else None, scene_key=scene_key)
     finally:
         if frame_filter is not None:
             frame_filter.close()
@@ -225,6 +276,14 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                                       view_layer=view_layer, should_cancel=should_cancel)
         result["reference"] = {"samples": reference_samples,
                                "frames": [{"frame": r["frame"], "render_s": round(r["render_s"], 4)} for r in ref]}
+    if previous_record:
+        # A resume keeps the record of the frames made before it (the settings matched: check_run_settings).
+        made_now = {e["frame"] for e in result["frames"]}
+        kept = [e for e in previous_record.get("frames", []) if isinstance(e, dict)
+                and e.get("frame") in frames and e.get("frame") not in made_now]
+        result["frames"] = sorted(kept + result["frames"], key=lambda e: e["frame"])
+        if "reference" in previous_record and "reference" not in result:
+            result["reference"] = previous_record["reference"]
     _write_json(run_json, result)
     return result
 

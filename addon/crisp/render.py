@@ -312,8 +312,9 @@ def _checked_inputs(scene, frames, view_layer):
 
 
 def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distribution="blackman-harris",
-                  view_layer=None, on_frame=None, should_cancel=None, engine=None):
-    """Renders `frames` of `scene` into out_dir/frame_NNNN.exr + .json with the plan's passes.
+                  view_layer=None, on_frame=None, should_cancel=None, engine=None, scene_key=None):
+    """Renders `frames` of `scene` into out_dir/frame_NNNN.exr + .json with the plan's passes; the
+    sidecar records scene_key (what the scene file holds, batch.py scene_key) when given.
 
     on_frame(frame, info) is called after each frame (info: dict with render_s, paths); it may raise to
     stop. should_cancel() -> True stops after the current frame. Returns the list of infos. The scene
@@ -373,6 +374,8 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
                 "render_settings": render_settings(scene, engine, samples),
                 "blender_version": bpy.app.version_string, "render_s": render_s,
             }
+            if scene_key is not None:
+                sidecar["scene_key"] = scene_key
             if "subsamples" in the_plan.passes:
                 sidecar["subsamples"] = _render_subsamples(snap, scene, view_layer, f, out_dir, base_shift,
                                                            shift_per_pixel(scene), dx, dy)
@@ -439,10 +442,10 @@ def input_complete(input_dir, f):
     return all(os.path.isfile(os.path.join(input_dir, frame_name(f, ext))) for ext in (".exr", ".json"))
 
 
-def reusable_input(scene, engine, input_dir, f, the_plan, samples, jitter_distribution):
+def reusable_input(scene, engine, input_dir, f, the_plan, samples, jitter_distribution, scene_key=None):
     """Whether input/frame f was rendered as this run would render it (same passes, size, samples and
-    jitter), so it can be read instead of rendered again (a pre-roll, eval's input sets); stale or foreign
-    inputs are not."""
+    jitter, and with scene_key given the same scene file: render_frames records it), so it can be read
+    instead of rendered again (a pre-roll, eval's input sets); stale or foreign inputs are not."""
     if not input_complete(input_dir, f):
         return False
     try:
@@ -452,6 +455,7 @@ def reusable_input(scene, engine, input_dir, f, the_plan, samples, jitter_distri
         settings = side["render_settings"]
         return (side["passes"] == list(the_plan.passes) and settings["samples"] == samples
                 and settings["engine"] == engine and settings["resolution"] == list(render_size(scene))
-                and jitter["distribution"] == (jitter_distribution if the_plan.jitter else "none"))
+                and jitter["distribution"] == (jitter_distribution if the_plan.jitter else "none")
+                and (scene_key is None or side.get("scene_key") == scene_key))
     except (OSError, ValueError, KeyError, TypeError):
         return False

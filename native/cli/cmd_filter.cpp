@@ -13,8 +13,11 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <set>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
 #include "cli/frame_range.h"
@@ -104,6 +107,29 @@ int runFilter(const ParsedArgs& args) {
         throw UsageError("output for '" + in + "' would overwrite an input file; choose another -o folder");
   }
 
+  // A resume keeps the outputs it finds, so they must be this method's with these parameters: the
+  // folder records them (filter_settings.json; the chunks of one job write the same record).
+  nlohmann::json settings = {{"method", args.get("method")}, {"params", nlohmann::json::object()}};
+  for (const std::string& kv : args.all("set")) {
+    const std::size_t eq = kv.find('=');
+    settings["params"][kv.substr(0, eq)] = kv.substr(eq + 1);
+  }
+  const std::string record = joinPath(outDir, "filter_settings.json");
+  if (args.has("resume") && fs::exists(record)) {
+    std::ifstream in(record);
+    const nlohmann::json have = nlohmann::json::parse(in, nullptr, false);
+    std::string differences;
+    for (const auto& [key, value] : settings.items()) {
+      const nlohmann::json there = have.is_object() && have.contains(key) ? have[key] : nlohmann::json();
+      if (there != value)
+        differences += (differences.empty() ? "" : ", ") + key + " " + there.dump() + " there, " + value.dump() + " here";
+    }
+    if (!differences.empty())
+      throw UsageError("'" + outDir + "' holds outputs made with other settings (" + differences +
+                       "): resume only with the same settings, or run without --resume to make them again");
+  }
+  bool recorded = false;  // written with the first output, so a run that fails before leaves nothing
+
   auto isComplete = [&](int position) {
     const std::string base = joinPath(outDir, fileStem(args.positional[std::size_t(position - 1)]));
     std::error_code ec;
@@ -154,6 +180,8 @@ int runFilter(const ParsedArgs& args) {
       continue;
     }
     const std::string base = joinPath(outDir, fileStem(in));
+    if (!recorded) writeTextFile(record, settings.dump() + "\n");
+    recorded = true;
     writeImage(base + ".exr", output);
     if (png) writeImage(base + ".png", output);
     progress.step(fileStem(in));

@@ -269,8 +269,19 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
     std::fprintf(stderr, "crisp eval: methods/%s: frames whose input frame changed (or was not recorded); computing "
                  "them again\n", e.name.c_str());
   bool allDone = std::all_of(frames.begin(), frames.end(), done);
-  // A temporal method's frame depends on the history of all earlier ones: a partial run starts over.
-  if (!allDone && e.temporal) times = json::object();
+  // A temporal method's frame depends on the history of all earlier ones: a partial run starts over,
+  // and so does a run whose history started at another frame (inputs.json "history_from"; frames 3-4
+  // of a run over 1-4 are not those of a run over 3-4).
+  if (e.temporal && inputs.value("history_from", json()) != json(frames.front())) {
+    if (allDone && !o.quiet)
+      std::fprintf(stderr, "crisp eval: methods/%s: its history started at another frame; computing it again\n",
+                   e.name.c_str());
+    allDone = false;
+  }
+  if (!allDone && e.temporal) {
+    times = json::object();
+    inputs["history_from"] = frames.front();
+  }
   Context context;
   context.setInt("numThreads", o.threads);
   std::unique_ptr<Filter> filter = createFilter(context, e.method);

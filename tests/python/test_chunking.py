@@ -103,7 +103,7 @@ def test_filter_chunks_equal_sequential(shot, lib, tmp_path, method):
     # Every chunk's pre-roll reaches frame 1; a spatial method has no history and needs none.
     filter_chunks(inputs, method, full, chunks, 0 if method == "fxaa" else 6)
     frames = range(1, 9)
-    assert sorted(os.listdir(full)) == [frame(f) for f in frames]
+    assert sorted(os.listdir(full)) == ["filter_settings.json"] + [frame(f) for f in frames]
     assert max_diff(lib, seq, full, frames) == 0.0
     if method == "fxaa":
         return
@@ -112,7 +112,8 @@ def test_filter_chunks_equal_sequential(shot, lib, tmp_path, method):
     cold = tmp_path / "cold"
     filter_chunks(inputs, method, short, [(5, 8)], 2)
     filter_chunks(inputs, method, cold, [(5, 8)], 0)
-    assert sorted(os.listdir(short)) == [frame(f) for f in range(5, 9)]  # pre-roll inputs 3, 4 not written
+    # Pre-roll inputs 3, 4 not written.
+    assert sorted(os.listdir(short)) == ["filter_settings.json"] + [frame(f) for f in range(5, 9)]
     assert max_diff(lib, seq, cold, range(5, 9)) > 0.0  # history matters
     assert mean_psnr(lib, seq, short, range(5, 9)) > mean_psnr(lib, seq, cold, range(5, 9))
 
@@ -135,6 +136,12 @@ def test_filter_resume_at_first_missing_output(shot, lib, tmp_path):
     assert max_diff(lib, seq, out, range(1, 9)) == 0.0  # pre-roll 8 before frame 5 reaches frame 1
     again = crisp("filter", "--method", "taa", "--frames", "1-8", "--resume", "--png", "-o", out, *inputs)
     assert "nothing to do" in again.stdout
+    # The outputs found are taa's: a resume with another method or parameters is refused.
+    for extra, says in ((("--method", "fxaa"), 'method "taa" there, "fxaa" here'),
+                        (("--method", "taa", "--set", "feedbackMin=0.5"), 'params {} there, {"feedbackMin":"0.5"} here')):
+        p = crisp("filter", *extra, "--resume", "--png", "-o", out, *inputs, ok=False)
+        assert p.returncode == 2 and "holds outputs made with other settings" in p.stderr and says in p.stderr, p.stderr
+    assert {f: os.stat(out / frame(f)).st_mtime_ns for f in range(1, 5)} == kept
 
 
 def test_filter_chunk_errors(shot, tmp_path):
@@ -154,6 +161,7 @@ def test_render_chunks_equal_sequential_and_resume(shot, lib, tmp_path):
     chunk_args = ("--shot", "1-8", "--preroll", "6")
     # The second chunk alone first: its pre-roll (6, clipped to frames 1-4) goes to a temporary folder.
     render(out, (5, 8), "taa-improved", *chunk_args)
+    alone = json.loads((out / "run_0005-0008.json").read_text())
     assert sorted(os.listdir(out / "filtered")) == [frame(f, e) for f in range(5, 9) for e in (".exr", ".png")]
     assert sorted(os.listdir(out / "input")) == [frame(f, e) for f in range(5, 9) for e in (".exr", ".json")]
     assert not os.path.exists(out / "run.json") and os.path.isfile(out / "run_0005-0008.json")
@@ -170,17 +178,60 @@ def test_render_chunks_equal_sequential_and_resume(shot, lib, tmp_path):
     for p in procs:
         _, err = p.communicate(timeout=300)
         assert p.returncode == 0, err[-3000:]
-    assert sorted(os.listdir(out)) == ["filtered", "input", "run_0001-0004.json", "run_0005-0008.json"]
+    assert sorted(os.listdir(out)) == ["filtered", "input", "run_0001-0004.json", "run_0005-0008.json",
+                                       "run_settings.json"]
     assert sorted(os.listdir(out / "input")) == [frame(f, e) for f in range(1, 9) for e in (".exr", ".json")]
     assert max_diff(lib, seq / "filtered", out / "filtered", range(1, 9)) == 0.0
     assert max_diff(lib, seq / "input", out / "input", range(1, 9)) == 0.0
+    before = {e["frame"]: e for e in alone["frames"]}
     result = json.loads((out / "run_0005-0008.json").read_text())
     assert result["chunk"]["resumed_at"] == 7 and result["chunk"]["preroll_frames"] == [1, 6]
     assert {5, 6} <= set(result["chunk"]["preroll_reused"])
-    assert [e["frame"] for e in result["frames"]] == [7, 8]
+    # The resume's record keeps the frames made before it (5, 6), beside those it made (7, 8).
+    assert [e["frame"] for e in result["frames"]] == [5, 6, 7, 8]
+    assert [result["frames"][i] for i in (0, 1)] == [before[5], before[6]]
     assert os.stat(out / "filtered" / frame(6)).st_mtime_ns == kept
     first = json.loads((out / "run_0001-0004.json").read_text())
     assert first["chunk"]["preroll_frames"] is None and [e["frame"] for e in first["frames"]] == [1, 2, 3, 4]
+
+
+def test_render_reuses_only_what_the_same_settings_made(shot, tmp_path):
+    """A resume keeps the frames it finds, so one with another method (or parameters, sample counts,
+    scene file) is refused and leaves the folder as it was; a resume with nothing to do keeps the
+    folder's record; a chunk's pre-roll does not read input frames rendered from another version of
+    the scene's file."""
+    seq, _ = shot
+    out = tmp_path / "copy"
+    shutil.copytree(seq, out)
+    record = (out / "run.json").read_text()
+    mtime = os.stat(out / "filtered" / frame(3)).st_mtime_ns
+    for extra, says in ((("--method", "fxaa"), 'method "taa-improved" there, "fxaa" here'),
+                        (("--set", "feedbackMin=0.5"), 'params {} there, {"feedbackMin": "0.5"} here')):
+        args = ["render", "--scene", "spinning_cube", "--resolution", SIZE, "--frames", "1-8", "--quiet",
+                "-o", out, "--resume"] + list(extra)
+        if "--method" not in extra:
+            args += ["--method", "taa-improved"]
+        p = crisp(*args, ok=False)
+        assert p.returncode == 2 and "holds frames made with other settings" in p.stderr and says in p.stderr, \
+            p.stderr[-2000:]
+    assert (out / "run.json").read_text() == record
+    assert os.stat(out / "filtered" / frame(3)).st_mtime_ns == mtime
+    render(out, SHOT, "taa-improved", "--resume")  # nothing to do
+    assert [e["frame"] for e in json.loads((out / "run.json").read_text())["frames"]] == list(range(1, 9))
+
+    # The same scene name from an edited script (CRISP_ADDON_DIR: another tree's add-on and scenes).
+    tree = tmp_path / "tree"
+    for d in ("addon", "test_scenes"):
+        shutil.copytree(os.path.join(SOURCE, d), tree / d)
+    with open(tree / "test_scenes" / "spinning_cube.py", "a") as f:
+        f.write("\n# edited\n")
+    env = dict(os.environ, CRISP_ADDON_DIR=str(tree / "addon"))
+    p = subprocess.run([CRISP, "render", "--scene", "spinning_cube", "--resolution", SIZE, "--frames", "5-8",
+                        "--shot", "1-8", "--preroll", "4", "--method", "taa-improved", "--quiet", "-o", str(out)],
+                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, timeout=300)
+    assert p.returncode == 0, p.stderr[-3000:]
+    chunk = json.loads((out / "run_0005-0008.json").read_text())["chunk"]
+    assert chunk["preroll_frames"] == [1, 4] and chunk["preroll_reused"] == []
 
 
 # ---- the pre-roll table (not a test) ---------------------------------------------------------------

@@ -130,6 +130,39 @@ def test_frames_of_another_build_are_computed_again(run):
     assert open(os.path.join(taa, "build.txt")).read() == stamp
 
 
+def test_temporal_frames_of_a_run_from_another_frame_are_made_again(run):
+    """A temporal method's frame depends on where its history started: resumed over frames 2-3, the taa
+    frames of the run over 1-3 are made again (and equal those of a fresh run over 2-3); spatial
+    methods' frames are kept."""
+    out, _, _ = run
+    later = list(ARGS)
+    later[later.index("1-3")] = "2-3"
+    copy = tempfile.mkdtemp(prefix="crisp_eval_later_")
+    fresh = tempfile.mkdtemp(prefix="crisp_eval_fresh_")
+    try:
+        subprocess.run(["cp", "-a", out + "/.", copy], check=True)
+        before = {m: os.stat(os.path.join(copy, "methods", m, "frame_0002.exr")).st_mtime_ns for m in ("taa", "fxaa")}
+        p = subprocess.run([CRISP, "eval"] + later + ["-o", copy], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           timeout=300)
+        assert p.returncode == 0, p.stderr.decode()[-2000:]
+        assert b"methods/taa: its history started at another frame" in p.stderr, p.stderr.decode()[-2000:]
+        after = {m: os.stat(os.path.join(copy, "methods", m, "frame_0002.exr")).st_mtime_ns for m in ("taa", "fxaa")}
+        assert after["taa"] != before["taa"] and after["fxaa"] == before["fxaa"]
+        p = subprocess.run([CRISP, "eval"] + later + ["-o", fresh], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           timeout=600)
+        assert p.returncode == 0, p.stderr.decode()[-2000:]
+        lib = Lib()
+        for f in (2, 3):
+            name = "frame_%04d.exr" % f
+            a = lib.color(os.path.join(copy, "methods", "taa", name))
+            assert np.array_equal(a, lib.color(os.path.join(fresh, "methods", "taa", name))), f
+        assert not np.array_equal(lib.color(os.path.join(out, "methods", "taa", "frame_0002.exr")),
+                                  lib.color(os.path.join(copy, "methods", "taa", "frame_0002.exr")))
+    finally:
+        shutil.rmtree(copy, ignore_errors=True)
+        shutil.rmtree(fresh, ignore_errors=True)
+
+
 def test_settings_of_another_run_are_refused(run):
     """A resumed run reuses the renders it finds, so a setting that changes them and is not checked frame
     by frame (the size, what the scene's script holds, EEVEE's pixel filter) must match the first run's,
