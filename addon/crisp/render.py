@@ -258,7 +258,10 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
     snap.set(r, "use_motion_blur", False)
     snap.set(r, "use_compositing", False)
     snap.set(r, "use_sequencer", False)
-    snap.set(r, "use_single_layer", True)
+    # Only view_layer, which need not be the context's: "single layer" would render the context's.
+    snap.set(r, "use_single_layer", False)
+    for layer in scene.view_layers:
+        snap.set(layer, "use", layer.name == view_layer.name)
     snap.set(r, "use_stamp", False)
     snap.set(r, "use_border", False)
     snap.set(r, "use_file_extension", False)
@@ -279,7 +282,8 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
 
 
 def _render_to(scene, path):
-    """Renders the current frame to `path` through a temporary name, renamed once complete."""
+    """Renders the current frame (the view layer _prepare left on) to `path` through a temporary name,
+    renamed once complete."""
     folder, name = os.path.split(path)
     tmp = os.path.join(folder, "." + name + ".tmp")
     scene.render.filepath = tmp
