@@ -77,7 +77,8 @@ def check_method(method, need_library):
 
 def scene_plan(scene, method, frames, view_layer=None, engine_name="eevee"):
     engine = render.render_engine(scene, engine_name)
-    facts = plan_mod.scene_facts(scene, frames[0], frames[-1], view_layer=view_layer,
+    # Over the whole span whatever the order (a list given backwards, as the Python API allows).
+    facts = plan_mod.scene_facts(scene, min(frames), max(frames), view_layer=view_layer,
                                  renderer_motion_pass=render.renderer_motion_pass(engine))
     return plan_mod.make_plan(method, facts), facts
 

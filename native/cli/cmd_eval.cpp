@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -130,6 +131,17 @@ int runEval(const ParsedArgs& args) {
     if (*end || v < 1 || v > 65536) throw UsageError("--curve expects sample counts like 1,2,4,8; got '" + c + "'");
   }
 
+  // Checked here too: the folder's settings file is written before Blender starts, and a size Blender
+  // then refused would lock the folder against the corrected command.
+  if (args.has("resolution")) {
+    int w = 0, h = 0, consumed = 0;
+    const std::string r = args.get("resolution");
+    std::string lower = r;
+    std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (std::sscanf(lower.c_str(), "%dx%d%n", &w, &h, &consumed) != 2 || consumed != int(r.size()) || w < 1 || h < 1 ||
+        w > 65536 || h > 65536)
+      throw UsageError("bad --resolution '" + r + "' (expected WxH, e.g. 480x270)");
+  }
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch_eval.py");
   appendJitterOption(args, cmd);
   makeDirectories(outDir.string());

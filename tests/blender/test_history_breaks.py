@@ -79,6 +79,10 @@ class HistoryBreakTest(unittest.TestCase):
             self.assertEqual(side["camera"]["projection"] != side["camera"]["projection_unjittered"], jittered,
                              "frame %d: the jitter reached the frame's own camera" % f)
         self.assertEqual(self.scene.objects["CamB"].data.shift_x, 0.0, "CamB's shift is put back")
+        # A frame list given backwards (the Python API allows it) is planned over its whole span.
+        _, backwards = pipeline.scene_plan(self.scene, "taa", [6, 5, 3])
+        self.assertEqual((backwards.frame_start, backwards.frame_end, backwards.camera_cuts), (3, 6, [4]))
+        self.assertIn("Ball", backwards.visible_objects)
 
     def test_cut_restarts_the_history(self):
         restarts = {e["frame"]: e.get("history_restarted") for e in self.result["frames"]}

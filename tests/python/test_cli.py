@@ -84,6 +84,8 @@ def test_help_prints_parameter_tables():
      ["--jitter: unknown distribution 'halton'", "blackman-harris, uniform"]),
     (["render", "--scene", "still_life", "--jitter", "halton", "-o", "OUT"], 2,
      ["--jitter: unknown distribution 'halton'"]),
+    # Before its settings file is written: a folder made by a refused size would refuse the right one.
+    (["eval", "--scene", "still_life", "--resolution", "64x36x", "-o", "OUT"], 2, ["bad --resolution '64x36x'"]),
 ])
 def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
     args = [str(chart / "chart_1spp.exr") if a == "IN" else str(tmp_path / "out") if a == "OUT" else a for a in args]
