@@ -142,6 +142,12 @@ int runEval(const ParsedArgs& args) {
         w > 65536 || h > 65536)
       throw UsageError("bad --resolution '" + r + "' (expected WxH, e.g. 480x270)");
   }
+  if (const char* size = std::getenv("CRISP_EVAL_FILTER_SIZE"); size && *size) {
+    char* end = nullptr;
+    const double v = std::strtod(size, &end);
+    if (*end || !(v >= 0.0 && v <= 100.0))
+      throw UsageError(std::string("bad CRISP_EVAL_FILTER_SIZE '") + size + "' (pixels, e.g. 0.5)");
+  }
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch_eval.py");
   appendJitterOption(args, cmd);
   makeDirectories(outDir.string());
@@ -203,6 +209,14 @@ int runEval(const ParsedArgs& args) {
   double blenderSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!run.started) return 1;  // said by runBlender
   if (code != 0) {
+    // Nothing rendered (Blender refused the scene or the arguments): the settings file must not lock the
+    // folder against the corrected command.
+    bool rendered = false;
+    std::error_code ec;
+    for (auto it = fs::recursive_directory_iterator(renders, ec); !ec && it != fs::recursive_directory_iterator();
+         it.increment(ec))
+      rendered |= it->path().extension() == ".exr";
+    if (!rendered) fs::remove(settings, ec);
     std::fprintf(stderr, "crisp: error: Blender failed (exit %d); from %s:\n%s", code, log.c_str(),
                  blenderErrors(log).c_str());
     return code == 2 ? 2 : 1;

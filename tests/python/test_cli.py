@@ -98,6 +98,21 @@ def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
         assert not (tmp_path / "out").exists()  # refused before anything is made
 
 
+@pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
+def test_eval_that_renders_nothing_leaves_no_settings(tmp_path):
+    """eval_settings.json makes a later run into the folder match this one; a run that renders nothing
+    (a bad CRISP_EVAL_FILTER_SIZE refused by the CLI, a frame range Blender refuses) must not leave it,
+    or the corrected command would be refused."""
+    out = tmp_path / "out"
+    p = subprocess.run([str(CRISP), "eval", "--scene", "still_life", "-o", str(out)], capture_output=True, text=True,
+                       env=dict(os.environ, CRISP_EVAL_FILTER_SIZE="abc"), timeout=60)
+    assert p.returncode == 2 and "bad CRISP_EVAL_FILTER_SIZE 'abc'" in p.stderr, p.stderr
+    assert not out.exists()
+    p = run("eval", "--scene", "still_life", "--frames", "5-3", "--resolution", "64x36", "-o", out, ok=False)
+    assert p.returncode == 2 and "5-3" in p.stderr, p.stderr
+    assert not (out / "eval_settings.json").exists()
+
+
 def test_bad_files_name_the_file_and_write_nothing(chart, tmp_path):
     good = (chart / "chart_1spp.exr").read_bytes()
     cases = {
