@@ -378,7 +378,7 @@ class FrameFilter:
         last, self._last_shot = self._last_shot, shot
         if last is None or shot[0] is None:
             return
-        if shot[1] != last[1]:
+        if shot[1] and last[1] and shot[1] != last[1]:  # sidecars of older builds name no camera
             self.restart_reason = "camera '%s' after '%s'" % (shot[1], last[1])
         elif shot[0] != last[0] + 1:
             self.restart_reason = "frame %d after frame %d" % (shot[0], last[0])

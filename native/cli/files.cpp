@@ -118,7 +118,9 @@ std::string historyBreak(const Filter& filter, const std::string& framePath, Sho
   const ShotPosition before = last;
   last = {true, s.frame, s.camera};
   if (!before.known) return "";
-  if (s.camera != before.camera) return "camera '" + s.camera + "' after '" + before.camera + "'";
+  // Sidecars of older builds name no camera: only two names can differ.
+  if (!s.camera.empty() && !before.camera.empty() && s.camera != before.camera)
+    return "camera '" + s.camera + "' after '" + before.camera + "'";
   if (s.frame != before.frame + 1)
     return "frame " + std::to_string(s.frame) + " after frame " + std::to_string(before.frame);
   return "";

@@ -156,7 +156,7 @@ bool sequenceIsStill(const std::vector<std::string>& sidecarPaths) {
     const Sidecar a = readSidecar(sidecarPaths[i - 1]), b = readSidecar(sidecarPaths[i]);
     // A cut to another camera or a gap in the frame numbers restarts a temporal filter's history
     // (cli/files.cpp historyBreak): nothing is reprojected across it.
-    if (b.camera != a.camera || b.frame != a.frame + 1) continue;
+    if ((!a.camera.empty() && !b.camera.empty() && b.camera != a.camera) || b.frame != a.frame + 1) continue;
     if (!sameCameraAndObjects(a, b)) return false;
   }
   return true;
