@@ -99,38 +99,29 @@ def _read_json(path):
         return None
 
 
-RUN_SETTINGS = "run_settings.json"
-
-
-def run_settings(scene, method, params, samples, reference_samples, jitter, engine, filter_frames, scene_key):
-    """What makes an output folder's frames what they are (OUTDIR/run_settings.json)."""
+def made_with(scene, method, params, samples, reference_samples, jitter, engine, filter_frames, scene_key):
+    """What makes a frame's outputs what they are, recorded in its input sidecar ("made_with"): a resume
+    makes again every frame made otherwise. scene_key None (unknown: a scene edited in this session)
+    matches any."""
     return {"scene": scene.name, "scene_key": scene_key, "resolution": list(render.render_size(scene)),
-            "method": method if filter_frames else None, "params": dict(params or {}), "samples": samples,
-            "reference_samples": reference_samples, "jitter_distribution": jitter, "engine": engine}
+            "method": method if filter_frames else None, "params": {k: str(v) for k, v in (params or {}).items()},
+            "samples": samples, "reference_samples": reference_samples, "jitter_distribution": jitter,
+            "engine": engine}
 
 
-def check_run_settings(out_dir, settings, resume):
-    """A resume (which keeps the frames it finds) into a folder whose frames were made with other
-    settings is refused, naming them; any other run records its settings. Concurrent chunks of one job
-    write the same record. A scene_key of None (unknown) matches any."""
-    path = os.path.join(out_dir, RUN_SETTINGS)
-    have = _read_json(path)
-    if resume and have is not None:
-        differences = []
-        for key, value in settings.items():
-            there = have.get(key)
-            if key == "scene_key" and (there is None or value is None):
-                continue
-            if there != value:
-                differences.append("%s %s there, %s here" % (key, json.dumps(there), json.dumps(value)))
-        if differences:
-            raise InputError("%s holds frames made with other settings (%s): resume only with the same settings, "
-                             "or run without --resume to make them again" % (out_dir, "; ".join(differences)))
-    os.makedirs(out_dir, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix="." + RUN_SETTINGS + ".", dir=out_dir)
-    with os.fdopen(fd, "w") as f:
-        json.dump(settings, f, indent=1)
-    os.replace(tmp, path)
+def same_making(recorded, wanted):
+    """Whether a sidecar's made_with (or None: an older build's frame) matches wanted; the differences
+    as text otherwise."""
+    if not isinstance(recorded, dict):
+        return False, "made by an older build"
+    differences = []
+    for key, value in wanted.items():
+        there = recorded.get(key)
+        if key == "scene_key" and (there is None or value is None):
+            continue
+        if there != value:
+            differences.append("%s %s there, %s here" % (key, json.dumps(there), json.dumps(value)))
+    return not differences, "; ".join(differences)
 
 
 def chunk_run(frames, shot_first, preroll, is_complete=None):
@@ -175,6 +166,7 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         log("note: the scene's engine is %s; Crisp renders with EEVEE and puts %s back afterwards"
             % (user_engine, user_engine))
     engine = render.render_engine(scene, engine_name)
+    view_layer = render.default_view_layer(scene, view_layer)  # one layer planned and rendered
     the_plan, facts = scene_plan(scene, method, shot or frames, view_layer, engine_name)
     log(the_plan.describe())
     result = {"blender_version": bpy.app.version_string, "method": method, "params": dict(params or {}),
@@ -183,7 +175,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
               "plan": the_plan.to_json(), "facts": {"camera_moves": facts.camera_moves,
                                                    "moving_objects": facts.moving_objects,
                                                    "deforming_objects": facts.deforming_objects,
-                                                   "visible_objects": facts.visible_objects},
+                                                   "visible_objects": facts.visible_objects,
+                                                   "camera_cuts": facts.camera_cuts},
               "jitter_distribution": jitter_distribution if the_plan.jitter else "none",
               "gi_cubemap_resolution": render.CUBEMAP_RESOLUTION, "frames": []}
     if native._lib is not None or (filter_frames and not plan_only):
@@ -194,9 +187,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         _write_json(run_json, result)
         return result
 
-    check_run_settings(out_dir, run_settings(scene, method, params, samples, reference_samples,
-                                             jitter_distribution if the_plan.jitter else "none", engine,
-                                             filter_frames, scene_key), resume)
+    stamp = made_with(scene, method, params, samples, reference_samples,
+                      jitter_distribution if the_plan.jitter else "none", engine, filter_frames, scene_key)
     previous_record = _read_json(run_json) if resume else None
 
     input_dir = os.path.join(out_dir, "input")
@@ -228,7 +220,12 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         if frame_filter is not None:
             outs += [os.path.join(filtered_dir, render.frame_name(f, ext)) for ext in ((".exr", ".png") if write_png
                                                                                      else (".exr",))]
-        return render.input_complete(input_dir, f) and all(os.path.isfile(p) for p in outs)
+        if not (render.input_complete(input_dir, f) and all(os.path.isfile(p) for p in outs)):
+            return False
+        same, why = same_making(render.read_sidecar(input_dir, f).get("made_with"), stamp)
+        if not same:
+            log("frame %d was made with other settings (%s): making it again" % (f, why))
+        return same
 
     # Pre-roll warms temporal history: nothing to warm without a filter or for a spatial method.
     warms = frame_filter is not None and method in plan_mod.TEMPORAL_METHODS
@@ -260,12 +257,12 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
             render.render_frames(scene, the_plan, group, preroll_dir, samples=samples,
                                  jitter_distribution=jitter_distribution, view_layer=view_layer,
                                  on_frame=on_preroll, should_cancel=should_cancel,
-                                 engine=engine if engine == "CYCLES" else None, scene_key=scene_key)
+                                 engine=engine if engine == "CYCLES" else None, made_with=stamp)
         if todo:
             render.render_frames(scene, the_plan, todo, input_dir, samples=samples,
                                  jitter_distribution=jitter_distribution, view_layer=view_layer,
                                  on_frame=on_frame, should_cancel=should_cancel,
-                                 engine=engine if engine == "CYCLES" else None, scene_key=scene_key)
+                                 engine=engine if engine == "CYCLES" else None, made_with=stamp)
     finally:
         if frame_filter is not None:
             frame_filter.close()
@@ -278,13 +275,19 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         result["reference"] = {"samples": reference_samples,
                                "frames": [{"frame": r["frame"], "render_s": round(r["render_s"], 4)} for r in ref]}
     if previous_record:
-        # A resume keeps the record of the frames made before it (the settings matched: check_run_settings).
+        # A resume keeps the record of the frames made before it (with these settings: is_complete).
         made_now = {e["frame"] for e in result["frames"]}
         kept = [e for e in previous_record.get("frames", []) if isinstance(e, dict)
                 and e.get("frame") in frames and e.get("frame") not in made_now]
         result["frames"] = sorted(kept + result["frames"], key=lambda e: e["frame"])
-        if "reference" in previous_record and "reference" not in result:
-            result["reference"] = previous_record["reference"]
+        before = previous_record.get("reference")
+        if isinstance(before, dict) and before.get("samples") == reference_samples:
+            now = result.get("reference", {"samples": reference_samples, "frames": []})
+            made_ref = {e["frame"] for e in now["frames"]}
+            now["frames"] = sorted([e for e in before.get("frames", []) if isinstance(e, dict)
+                                    and e.get("frame") in frames and e.get("frame") not in made_ref] + now["frames"],
+                                   key=lambda e: e["frame"])
+            result["reference"] = now
     _write_json(run_json, result)
     return result
 

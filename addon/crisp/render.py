@@ -309,16 +309,24 @@ def _checked_inputs(scene, frames, view_layer):
     frames = list(frames)
     if not frames:
         raise RenderError("no frames to render (empty frame range)")
-    view_layer = view_layer or bpy.context.view_layer
-    if view_layer.name not in scene.view_layers:
-        view_layer = scene.view_layers[0]
-    return frames, view_layer
+    return frames, default_view_layer(scene, view_layer)
+
+
+def default_view_layer(scene, view_layer=None):
+    """The view layer to plan and render: the one given, else the context's if it is this scene's and
+    renders (its "use" is on), else the first that renders, else the first."""
+    if view_layer is not None and view_layer.name in scene.view_layers:
+        return scene.view_layers[view_layer.name]
+    context = getattr(bpy.context, "view_layer", None)
+    if context is not None and context.name in scene.view_layers and scene.view_layers[context.name].use:
+        return scene.view_layers[context.name]
+    return next((layer for layer in scene.view_layers if layer.use), scene.view_layers[0])
 
 
 def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distribution="blackman-harris",
-                  view_layer=None, on_frame=None, should_cancel=None, engine=None, scene_key=None):
+                  view_layer=None, on_frame=None, should_cancel=None, engine=None, made_with=None):
     """Renders `frames` of `scene` into out_dir/frame_NNNN.exr + .json with the plan's passes; the
-    sidecar records scene_key (what the scene file holds, batch.py scene_key) when given.
+    sidecar records made_with (what the frame's outputs are made with, pipeline.made_with) when given.
 
     on_frame(frame, info) is called after each frame (info: dict with render_s, paths); it may raise to
     stop. should_cancel() -> True stops after the current frame. Returns the list of infos. The scene
@@ -378,8 +386,8 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
                 "render_settings": render_settings(scene, engine, samples),
                 "blender_version": bpy.app.version_string, "render_s": render_s,
             }
-            if scene_key is not None:
-                sidecar["scene_key"] = scene_key
+            if made_with is not None:
+                sidecar["made_with"] = made_with
             if "subsamples" in the_plan.passes:
                 sidecar["subsamples"] = _render_subsamples(snap, scene, view_layer, f, out_dir, base_shift,
                                                            shift_per_pixel(scene), dx, dy)
@@ -446,9 +454,19 @@ def input_complete(input_dir, f):
     return all(os.path.isfile(os.path.join(input_dir, frame_name(f, ext))) for ext in (".exr", ".json"))
 
 
+def read_sidecar(input_dir, f):
+    """Frame f's sidecar as a dict ({} if missing or unreadable)."""
+    try:
+        with open(os.path.join(input_dir, frame_name(f, ".json"))) as fh:
+            side = json.load(fh)
+        return side if isinstance(side, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
 def reusable_input(scene, engine, input_dir, f, the_plan, samples, jitter_distribution, scene_key=None):
     """Whether input/frame f was rendered as this run would render it (same passes, size, samples and
-    jitter, and with scene_key given the same scene file: render_frames records it), so it can be read
+    jitter, and with scene_key given the same scene file: its sidecar's made_with), so it can be read
     instead of rendered again (a pre-roll, eval's input sets); stale or foreign inputs are not."""
     if not input_complete(input_dir, f):
         return False
@@ -460,6 +478,6 @@ def reusable_input(scene, engine, input_dir, f, the_plan, samples, jitter_distri
         return (side["passes"] == list(the_plan.passes) and settings["samples"] == samples
                 and settings["engine"] == engine and settings["resolution"] == list(render_size(scene))
                 and jitter["distribution"] == (jitter_distribution if the_plan.jitter else "none")
-                and (scene_key is None or side.get("scene_key") == scene_key))
+                and (scene_key is None or (side.get("made_with") or {}).get("scene_key") == scene_key))
     except (OSError, ValueError, KeyError, TypeError):
         return False

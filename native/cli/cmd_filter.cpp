@@ -14,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <set>
 #include <vector>
 
@@ -107,33 +108,29 @@ int runFilter(const ParsedArgs& args) {
         throw UsageError("output for '" + in + "' would overwrite an input file; choose another -o folder");
   }
 
-  // A resume keeps the outputs it finds, so they must be this method's with these parameters: the
-  // folder records them (filter_settings.json; the chunks of one job write the same record).
+  // A resume keeps the outputs it finds that this method made with these parameters: each output
+  // has a stamp of them (OUT/.crisp/<name>.json, written after it), and one made otherwise (or by a
+  // build before the stamps) counts as missing.
   nlohmann::json settings = {{"method", args.get("method")}, {"params", nlohmann::json::object()}};
   for (const std::string& kv : args.all("set")) {
     const std::size_t eq = kv.find('=');
     settings["params"][kv.substr(0, eq)] = kv.substr(eq + 1);
   }
-  const std::string record = joinPath(outDir, "filter_settings.json");
-  if (args.has("resume") && fs::exists(record)) {
-    std::ifstream in(record);
-    const nlohmann::json have = nlohmann::json::parse(in, nullptr, false);
-    std::string differences;
-    for (const auto& [key, value] : settings.items()) {
-      const nlohmann::json there = have.is_object() && have.contains(key) ? have[key] : nlohmann::json();
-      if (there != value)
-        differences += (differences.empty() ? "" : ", ") + key + " " + there.dump() + " there, " + value.dump() + " here";
-    }
-    if (!differences.empty())
-      throw UsageError("'" + outDir + "' holds outputs made with other settings (" + differences +
-                       "): resume only with the same settings, or run without --resume to make them again");
-  }
-  bool recorded = false;  // written with the first output, so a run that fails before leaves nothing
+  const std::string stampText = settings.dump() + "\n";
+  const std::string stampDir = joinPath(outDir, ".crisp");
+  auto stampOf = [&](const std::string& stem) { return joinPath(stampDir, stem + ".json"); };
 
   auto isComplete = [&](int position) {
-    const std::string base = joinPath(outDir, fileStem(args.positional[std::size_t(position - 1)]));
+    const std::string stem = fileStem(args.positional[std::size_t(position - 1)]);
+    const std::string base = joinPath(outDir, stem);
     std::error_code ec;
-    return fs::is_regular_file(base + ".exr", ec) && (!png || fs::is_regular_file(base + ".png", ec));
+    if (!fs::is_regular_file(base + ".exr", ec) || (png && !fs::is_regular_file(base + ".png", ec))) return false;
+    std::ifstream in(stampOf(stem));
+    const std::string have((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (have == stampText) return true;
+    std::fprintf(stderr, "filter: '%s' was made with other settings (%s); making it again\n", base.c_str(),
+                 have.empty() ? "no record" : have.substr(0, have.size() - 1).c_str());
+    return false;
   };
   const ChunkRun run = planChunk(chunk, preroll, 1, args.has("resume"), isComplete);
   if (run.nothingToDo()) {
@@ -180,10 +177,10 @@ int runFilter(const ParsedArgs& args) {
       continue;
     }
     const std::string base = joinPath(outDir, fileStem(in));
-    if (!recorded) writeTextFile(record, settings.dump() + "\n");
-    recorded = true;
     writeImage(base + ".exr", output);
     if (png) writeImage(base + ".png", output);
+    makeDirectories(stampDir);
+    writeTextFile(stampOf(fileStem(in)), stampText);
     progress.step(fileStem(in));
   }
   return 0;

@@ -3,7 +3,8 @@
 leaves the Ball out. pipeline.run(view_layer=that layer) must render that layer, with the passes its
 plan switched on there (taa-improved reads depth and object IDs), and its sidecar must list that
 layer's objects; rendering the context's layer instead failed with "no 'depth' pass" or, for a
-colour-only method, filtered the wrong picture."""
+colour-only method, filtered the wrong picture. Without a layer given, the one planned and rendered
+is the context's if it renders, else the first that does."""
 
 import json
 import os
@@ -15,7 +16,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import harness  # noqa: E402
 
 import bpy  # noqa: E402
-from crisp import native, pipeline  # noqa: E402
+from crisp import native, pipeline, render  # noqa: E402
 
 
 def colour(path):
@@ -52,6 +53,13 @@ class ViewLayerTest(unittest.TestCase):
                 self.assertEqual("Ball" in objects, layer is first, objects)
                 made[layer.name] = colour(os.path.join(out, "input", "frame_0001.exr"))
             self.assertTrue(made[first.name] != made[second.name], "the Ball is not in the second layer's render")
+        self.assertEqual([layer.use for layer in scene.view_layers], [True, True], "the layers' use is put back")
+        # No layer given: the context's if it renders, else the first that does (planned and rendered alike).
+        self.assertEqual(render.default_view_layer(scene).name, first.name)
+        first.use = False
+        self.assertEqual(render.default_view_layer(scene).name, second.name)
+        self.assertEqual(render.default_view_layer(scene, first).name, first.name, "a layer given is kept")
+        first.use = True
 
 
 if __name__ == "__main__":
