@@ -112,7 +112,8 @@ def scene_key(script_path):
     for path in files:
         if os.path.isfile(path):
             with open(path, "rb") as f:
-                h.update(f.read())
+                for chunk in iter(lambda: f.read(1 << 20), b""):  # a .blend may be large
+                    h.update(chunk)
     return "sha256:" + h.hexdigest()[:16]
 
 
