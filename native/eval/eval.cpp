@@ -620,6 +620,16 @@ int run(const Options& o) {
              "(object ID / depth test)";
     }
   }
+  // A cut to another camera (a timeline marker): nothing on screen continues the frame before, and the
+  // temporal methods start over there, so its temporal error is not measured (as the first frame's).
+  std::set<int> cuts;
+  for (const json& c : facts.value("camera_cuts", json::array()))
+    if (c.is_number_integer()) cuts.insert(c.get<int>());
+  if (!cuts.empty()) {
+    std::string list;
+    for (int c : cuts) list += (list.empty() ? "" : ", ") + std::to_string(c);
+    warp += "; not measured at the camera cuts (frames " + list + ")";
+  }
 
   // Geometric-edge pixels (geometricEdgeMask) where some method's input set has the geometric
   // sub-samples (rsaa): the PSNR over them is a figure of every entry.
@@ -698,6 +708,7 @@ int run(const Options& o) {
           continue;
         }
         Image test = readFrame(file.string()).pass("color");
+        if (cuts.count(f)) previous = Image();  // no temporal error across a cut
         Image err, ssim, flip;
         MetricMaps maps;
         bool wantMaps = f == mapFrame && e.kind != "eevee";

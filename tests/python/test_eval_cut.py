@@ -1,0 +1,84 @@
+# SPDX-License-Identifier: Apache-2.0
+"""`crisp eval` on a shot with a camera cut: still_life saved as a .blend with a second camera bound
+to a timeline marker at frame 3 (64x36, frames 1-4, reference 4 samples). The scene facts list the
+cut; no entry's temporal error is measured across it (frame 3 has none, as frame 1) and the report
+says so; taa's history starts over there, so its frames 3-4 equal `crisp filter` over the jittered
+frames 3-4 alone.
+Needs Blender and the built CLI and library (CRISP_BUILD_DIR)."""
+
+import json
+import math
+import os
+import shutil
+import subprocess
+import tempfile
+
+import numpy as np
+import pytest
+
+from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib
+
+pytestmark = [
+    pytest.mark.skipif(not os.path.isfile(CRISP), reason="crisp CLI not built at %s" % CRISP),
+    pytest.mark.skipif(not os.path.isfile(LIBRARY), reason="libcrisp not built at %s" % LIBRARY),
+    pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed"),
+]
+
+MAKE_CUT = """
+import sys, importlib
+sys.path[:0] = [%r]
+import bpy, common
+scene = importlib.import_module("still_life").build()
+scene.frame_start, scene.frame_end = 1, 4
+first = scene.camera
+second = common.camera((3.5, -4.0, 2.0), (0, 0.3, 0.6), lens=40, name="CamB")
+scene.camera = first
+scene.timeline_markers.new("A", frame=1).camera = first
+scene.timeline_markers.new("B", frame=3).camera = second
+bpy.ops.wm.save_as_mainfile(filepath=%r)
+"""
+
+
+@pytest.fixture(scope="module")
+def evaluated():
+    tmp = tempfile.mkdtemp(prefix="crisp_eval_cut_")
+    blend = os.path.join(tmp, "cut.blend")
+    p = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr",
+                        MAKE_CUT % (os.path.join(SOURCE, "test_scenes"), blend)],
+                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=300)
+    assert p.returncode == 0 and os.path.isfile(blend), p.stdout.decode()[-2000:]
+    out = os.path.join(tmp, "eval")
+    p = subprocess.run([CRISP, "eval", "--scene", blend, "--resolution", "64x36", "--frames", "1-4",
+                        "--reference-samples", "4", "--curve", "1", "--methods", "taa,fxaa", "--quiet", "-o", out],
+                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=600)
+    assert p.returncode == 0, p.stderr.decode()[-3000:]
+    yield tmp, out
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+def measured(v):
+    return v is not None and math.isfinite(v)
+
+
+def test_no_temporal_error_across_the_cut(evaluated):
+    _, out = evaluated
+    scene = json.load(open(os.path.join(out, "results.json")))["scenes"][0]
+    assert scene["facts"]["camera_cuts"] == [3]
+    assert "camera cuts (frames 3)" in scene["temporal_error_warp"]
+    for m in scene["methods"]:
+        te = {f["frame"]: f["temporal_error"] for f in m["frames"]}
+        assert not measured(te[1]) and not measured(te[3]), (m["name"], te)
+        assert measured(te[2]) and measured(te[4]), (m["name"], te)
+
+
+def test_taa_starts_over_at_the_cut(evaluated):
+    tmp, out = evaluated
+    inputs = [os.path.join(out, "renders", "jittered", "frame_%04d.exr" % f) for f in (3, 4)]
+    alone = os.path.join(tmp, "alone")
+    p = subprocess.run([CRISP, "filter", "-m", "taa", "--quiet", "-o", alone] + inputs,
+                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=120)
+    assert p.returncode == 0, p.stderr.decode()
+    lib = Lib()
+    for f in (3, 4):
+        name = "frame_%04d.exr" % f
+        assert np.array_equal(lib.color(os.path.join(out, "methods", "taa", name)), lib.color(os.path.join(alone, name)))
