@@ -40,6 +40,20 @@ def build_scene(name):
     return importlib.import_module(name).build()
 
 
+def cut_scene(cut_frame, last_frame):
+    """still_life over frames 1..last_frame with a second camera ("CamB", elsewhere and with another lens)
+    bound to a timeline marker at cut_frame: a camera cut. The scene's camera stays the first."""
+    import common  # test_scenes/common.py
+    scene = build_scene("still_life")
+    scene.frame_start, scene.frame_end = 1, last_frame
+    first = scene.camera
+    second = common.camera((3.5, -4.0, 2.0), (0, 0.3, 0.6), lens=40, name="CamB")
+    scene.camera = first
+    scene.timeline_markers.new("A", frame=1).camera = first
+    scene.timeline_markers.new("B", frame=cut_frame).camera = second
+    return scene
+
+
 def blender_batch(args, blend=None, env=None, timeout=300):
     """Runs batch.py in a fresh Blender; returns (returncode, stdout + stderr)."""
     cmd = [sys.argv[0] if sys.argv and sys.argv[0].endswith("blender") else "blender", "-b"]

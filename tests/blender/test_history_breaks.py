@@ -18,21 +18,14 @@ import unittest
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import harness  # noqa: E402
 
-import common  # noqa: E402  (test_scenes/common.py)
 from crisp import native, pipeline, plan  # noqa: E402
 
 CRISP = os.path.join(harness.BUILD_DIR, "bin", "crisp")
 
 
 def cut_scene():
-    scene = harness.build_scene("still_life")
+    scene = harness.cut_scene(4, 6)
     scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 64, 36, 100
-    scene.frame_start, scene.frame_end = 1, 6
-    first = scene.camera
-    second = common.camera((3.5, -4.0, 2.0), (0, 0.3, 0.6), lens=40, name="CamB")
-    scene.camera = first
-    scene.timeline_markers.new("A", frame=1).camera = first
-    scene.timeline_markers.new("B", frame=4).camera = second
     return scene
 
 

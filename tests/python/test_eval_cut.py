@@ -24,17 +24,12 @@ pytestmark = [
     pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed"),
 ]
 
+# tests/blender/harness.py cut_scene, saved as a .blend.
 MAKE_CUT = """
-import sys, importlib
+import sys
 sys.path[:0] = [%r]
-import bpy, common
-scene = importlib.import_module("still_life").build()
-scene.frame_start, scene.frame_end = 1, 4
-first = scene.camera
-second = common.camera((3.5, -4.0, 2.0), (0, 0.3, 0.6), lens=40, name="CamB")
-scene.camera = first
-scene.timeline_markers.new("A", frame=1).camera = first
-scene.timeline_markers.new("B", frame=3).camera = second
+import bpy, harness
+harness.cut_scene(3, 4)
 bpy.ops.wm.save_as_mainfile(filepath=%r)
 """
 
@@ -44,7 +39,7 @@ def evaluated():
     tmp = tempfile.mkdtemp(prefix="crisp_eval_cut_")
     blend = os.path.join(tmp, "cut.blend")
     p = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr",
-                        MAKE_CUT % (os.path.join(SOURCE, "test_scenes"), blend)],
+                        MAKE_CUT % (os.path.join(SOURCE, "tests", "blender"), blend)],
                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=300)
     assert p.returncode == 0 and os.path.isfile(blend), p.stdout.decode()[-2000:]
     out = os.path.join(tmp, "eval")
