@@ -142,11 +142,12 @@ int runEval(const ParsedArgs& args) {
         w > 65536 || h > 65536)
       throw UsageError("bad --resolution '" + r + "' (expected WxH, e.g. 480x270)");
   }
-  if (const char* size = std::getenv("CRISP_EVAL_FILTER_SIZE"); size && *size) {
+  const char* filterSize = std::getenv("CRISP_EVAL_FILTER_SIZE");  // batch_eval.py reads it too
+  if (filterSize && *filterSize) {
     char* end = nullptr;
-    const double v = std::strtod(size, &end);
+    const double v = std::strtod(filterSize, &end);
     if (*end || !(v >= 0.0 && v <= 100.0))
-      throw UsageError(std::string("bad CRISP_EVAL_FILTER_SIZE '") + size + "' (pixels, e.g. 0.5)");
+      throw UsageError(std::string("bad CRISP_EVAL_FILTER_SIZE '") + filterSize + "' (pixels, e.g. 0.5)");
   }
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch_eval.py");
   appendJitterOption(args, cmd);
@@ -162,7 +163,6 @@ int runEval(const ParsedArgs& args) {
   // older builds lack the last two: the filter size was the scene's; the contents are taken as
   // they are now.
   const fs::path settings = outDir / "eval_settings.json";
-  const char* filterSize = std::getenv("CRISP_EVAL_FILTER_SIZE");
   const nlohmann::json want = {{"scene", scene},
                                {"scene_contents", sceneFingerprint(args)},
                                {"resolution", args.getOr("resolution", "")},

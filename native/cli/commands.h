@@ -11,6 +11,7 @@
 #include "core/filter.h"
 #include "core/params.h"  // jsonQuote
 #include "io/frame.h"
+#include "io/sidecar.h"
 
 namespace crisp::cli {
 
@@ -28,17 +29,16 @@ int runBench(const ParsedArgs& args, const char* argv0);
 // rsaa's sub-samples and camera (attached to the frame, so they live as long
 // as it does) and a temporal filter's jitterX / jitterY.
 void bindFrame(Filter& filter, Frame& frame);
-// Where a sequence is, for a temporal filter's history: the frame number and
-// camera of the last frame it filtered (from its sidecar).
+// Where a sequence is, for a temporal filter's history: the sidecar of the
+// last frame it filtered.
 struct ShotPosition {
   bool known = false;
-  int frame = 0;
-  std::string camera;
+  Sidecar sidecar;
 };
 // A temporal filter's history carries over only to the next frame of the same
 // camera: for the frame at framePath, "" if it does (or it has no sidecar, or
-// the filter keeps no history), else why not ("frame 8 after frame 3", "camera
-// 'B' after 'A'"), and the caller restarts the history. Updates last.
+// the filter keeps no history), else why not (io/sidecar.h shotBreak), and the
+// caller restarts the history. Updates last.
 std::string historyBreak(const Filter& filter, const std::string& framePath, ShotPosition& last);
 
 // File helpers: text written through a temporary file renamed into place.

@@ -114,16 +114,10 @@ std::string historyBreak(const Filter& filter, const std::string& framePath, Sho
   const std::string side = sidecarPathFor(framePath);
   std::error_code ec;
   if (!fs::is_regular_file(side, ec)) return "";
-  const Sidecar s = readSidecar(side);
-  const ShotPosition before = last;
-  last = {true, s.frame, s.camera};
-  if (!before.known) return "";
-  // Sidecars of older builds name no camera: only two names can differ.
-  if (!s.camera.empty() && !before.camera.empty() && s.camera != before.camera)
-    return "camera '" + s.camera + "' after '" + before.camera + "'";
-  if (s.frame != before.frame + 1)
-    return "frame " + std::to_string(s.frame) + " after frame " + std::to_string(before.frame);
-  return "";
+  Sidecar s = readSidecar(side);
+  const std::string reason = last.known ? shotBreak(last.sidecar, s) : "";
+  last = {true, std::move(s)};
+  return reason;
 }
 
 void bindFrame(Filter& filter, Frame& frame) {

@@ -151,13 +151,18 @@ bool sameCameraAndObjects(const Sidecar& a, const Sidecar& b) {
   return true;
 }
 
+std::string shotBreak(const Sidecar& previous, const Sidecar& next) {
+  if (!previous.camera.empty() && !next.camera.empty() && next.camera != previous.camera)
+    return "camera '" + next.camera + "' after '" + previous.camera + "'";
+  if (next.frame != previous.frame + 1)
+    return "frame " + std::to_string(next.frame) + " after frame " + std::to_string(previous.frame);
+  return "";
+}
+
 bool sequenceIsStill(const std::vector<std::string>& sidecarPaths) {
   for (std::size_t i = 1; i < sidecarPaths.size(); ++i) {
     const Sidecar a = readSidecar(sidecarPaths[i - 1]), b = readSidecar(sidecarPaths[i]);
-    // A cut to another camera or a gap in the frame numbers restarts a temporal filter's history
-    // (cli/files.cpp historyBreak): nothing is reprojected across it.
-    if ((!a.camera.empty() && !b.camera.empty() && b.camera != a.camera) || b.frame != a.frame + 1) continue;
-    if (!sameCameraAndObjects(a, b)) return false;
+    if (shotBreak(a, b).empty() && !sameCameraAndObjects(a, b)) return false;
   }
   return true;
 }

@@ -56,9 +56,14 @@ std::string sidecarPathFor(const std::string& framePath);
 // projection) and the same objects at the same world matrices: nothing moves
 // between them, so they need no motion vectors (jitter is not motion).
 bool sameCameraAndObjects(const Sidecar& a, const Sidecar& b);
-// The same over a sequence of sidecar files (consecutive pairs), except across
-// a cut to another camera or a gap in the frame numbers, where a temporal
-// filter's history starts over (cli/files.cpp historyBreak).
+// Why `next` does not continue the shot of `previous`, where a temporal
+// filter's history starts over: "camera 'B' after 'A'" (a cut at a timeline
+// marker) or "frame 8 after frame 3" (a gap in the frame numbers); "" if it is
+// the next frame of the same camera. Cameras are compared only when both
+// sidecars name one (older builds named none).
+std::string shotBreak(const Sidecar& previous, const Sidecar& next);
+// The same as sameCameraAndObjects over a sequence of sidecar files
+// (consecutive pairs), except across a shotBreak: nothing is reprojected there.
 bool sequenceIsStill(const std::vector<std::string>& sidecarPaths);
 
 }  // namespace crisp
