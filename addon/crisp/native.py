@@ -363,17 +363,14 @@ class FrameFilter:
         self._last_shot = None  # (frame, camera) of the last frame filtered, from its sidecar
         self.restart_reason = None  # why the last frame's history restarted (None: it carried over)
 
-    def _continue_or_restart(self, input_path):
+    def _continue_or_restart(self, side):
         """A temporal filter's history carries over only to the next frame of the same camera: a gap in
         the frame numbers (frames rendered out of order, a frame step, a second run's frames) or
         another camera (a cut at a timeline marker) restarts it, with zero motion for the frame. Frames
-        without a sidecar say nothing and carry over."""
-        sidecar = os.path.splitext(input_path)[0] + ".json"
+        without a sidecar (side None) say nothing and carry over."""
         self.restart_reason = None
-        if not os.path.exists(sidecar):
+        if side is None:
             return
-        with open(sidecar) as fh:
-            side = json.load(fh)
         shot = (side.get("frame"), (side.get("camera") or {}).get("name"))
         last, self._last_shot = self._last_shot, shot
         if last is None or shot[0] is None:
@@ -386,10 +383,9 @@ class FrameFilter:
             self.filter.reset()
             self._previous_sidecar = None
 
-    def _bind_motion(self, frame, input_path, present):
+    def _bind_motion(self, frame, sidecar, present):
         """Motion from the frame's Vector pass if it has one, else reconstructed from the previous
         frame's sidecar; the first frame (nothing to reproject from) gets zero motion."""
-        sidecar = os.path.splitext(input_path)[0] + ".json"
         previous, self._previous_sidecar = self._previous_sidecar, (sidecar if os.path.exists(sidecar) else None)
         if "motion" not in present:
             if previous is None or self._previous_sidecar is None:
@@ -402,13 +398,11 @@ class FrameFilter:
         ptr, fmt = frame.pass_pointer("motion")
         self.filter.set_image("motion", ptr, fmt, frame.width, frame.height)
 
-    def _bind_jitter(self, input_path):
+    def _bind_jitter(self, side):
         """jitterX / jitterY of this frame from its sidecar (y up there, down in the library)."""
-        sidecar = os.path.splitext(input_path)[0] + ".json"
-        if not os.path.exists(sidecar):
+        if side is None:
             return
-        with open(sidecar) as fh:
-            jitter = json.load(fh).get("jitter") or {}
+        jitter = side.get("jitter") or {}
         self.filter.set_param("jitterX", float(jitter.get("x", 0.0)))
         self.filter.set_param("jitterY", -float(jitter.get("y", 0.0)))
 
@@ -425,11 +419,16 @@ class FrameFilter:
                 frame.attach_subsamples(self.context, self.filter)
                 self.passes += [p for p in SUBSAMPLE_PASSES if p not in self.passes]
             present = set(frame.passes())
+            sidecar = os.path.splitext(input_path)[0] + ".json"
+            side = None  # the sidecar, read once, for the filters that keep history
+            if self._takes_jitter and os.path.exists(sidecar):
+                with open(sidecar) as fh:
+                    side = json.load(fh)
             if self._takes_jitter:
-                self._continue_or_restart(input_path)
+                self._continue_or_restart(side)
             for role in self.passes:
                 if role == "motion":
-                    self._bind_motion(frame, input_path, present)
+                    self._bind_motion(frame, sidecar, present)
                     continue
                 if role not in present:
                     raise CrispError("%s has no '%s' pass (has: %s)" % (input_path, role, ", ".join(sorted(present))))
@@ -437,7 +436,7 @@ class FrameFilter:
                 self.filter.set_image(role, ptr, fmt, w, h)
             self.filter.set_image("output", ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)
             if self._takes_jitter:
-                self._bind_jitter(input_path)
+                self._bind_jitter(side)
             t1 = time.perf_counter()
             self.filter.commit()
             self.filter.execute()

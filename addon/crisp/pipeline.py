@@ -276,17 +276,17 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                                "frames": [{"frame": r["frame"], "render_s": round(r["render_s"], 4)} for r in ref]}
     if previous_record:
         # A resume keeps the record of the frames made before it (with these settings: is_complete).
-        made_now = {e["frame"] for e in result["frames"]}
-        kept = [e for e in previous_record.get("frames", []) if isinstance(e, dict)
-                and e.get("frame") in frames and e.get("frame") not in made_now]
-        result["frames"] = sorted(kept + result["frames"], key=lambda e: e["frame"])
+        def merged(before, now):
+            made_now = {e["frame"] for e in now}
+            kept = [e for e in before if isinstance(e, dict) and e.get("frame") in frames
+                    and e.get("frame") not in made_now]
+            return sorted(kept + now, key=lambda e: e["frame"])
+
+        result["frames"] = merged(previous_record.get("frames", []), result["frames"])
         before = previous_record.get("reference")
         if isinstance(before, dict) and before.get("samples") == reference_samples:
             now = result.get("reference", {"samples": reference_samples, "frames": []})
-            made_ref = {e["frame"] for e in now["frames"]}
-            now["frames"] = sorted([e for e in before.get("frames", []) if isinstance(e, dict)
-                                    and e.get("frame") in frames and e.get("frame") not in made_ref] + now["frames"],
-                                   key=lambda e: e["frame"])
+            now["frames"] = merged(before.get("frames", []), now["frames"])
             result["reference"] = now
     _write_json(run_json, result)
     return result

@@ -470,14 +470,13 @@ def reusable_input(scene, engine, input_dir, f, the_plan, samples, jitter_distri
     instead of rendered again (a pre-roll, eval's input sets); stale or foreign inputs are not."""
     if not input_complete(input_dir, f):
         return False
+    side = read_sidecar(input_dir, f)
     try:
-        with open(os.path.join(input_dir, frame_name(f, ".json"))) as fh:
-            side = json.load(fh)
         jitter = side["jitter"]
         settings = side["render_settings"]
         return (side["passes"] == list(the_plan.passes) and settings["samples"] == samples
                 and settings["engine"] == engine and settings["resolution"] == list(render_size(scene))
                 and jitter["distribution"] == (jitter_distribution if the_plan.jitter else "none")
                 and (scene_key is None or (side.get("made_with") or {}).get("scene_key") == scene_key))
-    except (OSError, ValueError, KeyError, TypeError):
+    except (KeyError, TypeError):
         return False
