@@ -66,12 +66,39 @@ void addReconstructedMotion(Frame& frame, const std::vector<std::string>& inputs
   reconstructFrameMotion(frame, sidecarPathFor(inputs[index - 1]), next, numThreads);
 }
 
+// A PNG beside an output written without --png shows an earlier run's result.
+// One this command made (its stamp is there) is removed; any other is named.
+struct StalePngs {
+  int removed = 0;
+  std::vector<std::string> foreign;
+
+  void check(const std::string& pngPath, const std::string& stampPath) {
+    std::error_code ec;
+    if (!fs::is_regular_file(pngPath, ec)) return;
+    if (fs::is_regular_file(stampPath, ec) && fs::remove(pngPath, ec)) {
+      ++removed;
+    } else {
+      foreign.push_back(pngPath);
+    }
+  }
+
+  void report(bool quiet) const {
+    if (removed > 0 && !quiet)
+      std::fprintf(stderr, "filter: removed %d PNG(s) of an earlier run that no longer matched their EXR (--png "
+                   "writes new ones)\n", removed);
+    for (const std::string& p : foreign)
+      std::fprintf(stderr, "filter: warning: '%s' was not made by this run and does not show its result\n",
+                   p.c_str());
+  }
+};
+
 }  // namespace
 
 int runFilter(const ParsedArgs& args) {
   if (args.positional.empty()) throw UsageError("'filter' needs at least one INPUT file");
   const std::string outDir = args.get("output");
   const bool png = args.has("png");
+  const bool quiet = args.has("quiet");
 
   Context context;
   context.setInt("numThreads", parseIntOption(args, "threads", 0, 0, 1024));
@@ -134,14 +161,15 @@ int runFilter(const ParsedArgs& args) {
   };
   const ChunkRun run = planChunk(chunk, preroll, 1, args.has("resume"), isComplete);
   if (run.nothingToDo()) {
-    if (!args.has("quiet"))
+    if (!quiet)
       std::printf("filter: every output of frames %d-%d exists; nothing to do\n", chunk.first, chunk.last);
     return 0;
   }
 
+  StalePngs stalePngs;
   const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
   Image output;
-  Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, args.has("quiet"));
+  Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, quiet);
   ShotPosition shot;
   for (std::size_t i = std::size_t(run.start - 1); i < std::size_t(run.last); ++i) {
     const std::string& in = args.positional[i];
@@ -152,10 +180,11 @@ int runFilter(const ParsedArgs& args) {
     const std::string cut = historyBreak(*filter, in, shot);
     if (!cut.empty()) {
       filter->reset();
-      std::fprintf(stderr, "filter: '%s': %s history starts over (%s)\n", in.c_str(), filter->type(), cut.c_str());
+      if (!quiet)
+        std::fprintf(stderr, "filter: '%s': %s history starts over (%s)\n", in.c_str(), filter->type(), cut.c_str());
     }
     if (rebuildMotion) addReconstructedMotion(frame, args.positional, cut.empty() ? i : 0, context.numThreads());
-    bindFrame(*filter, frame);
+    bindFrame(*filter, frame, &shot);
     if (output.width != frame.width || output.height != frame.height) {
       // A size change part-way is legitimate (a cut to another camera) but
       // more often mixed-up folders: carry on, and say so.
@@ -179,10 +208,12 @@ int runFilter(const ParsedArgs& args) {
     const std::string base = joinPath(outDir, fileStem(in));
     writeImage(base + ".exr", output);
     if (png) writeImage(base + ".png", output);
+    else stalePngs.check(base + ".png", stampOf(fileStem(in)));
     makeDirectories(stampDir);
     writeTextFile(stampOf(fileStem(in)), stampText);
     progress.step(fileStem(in));
   }
+  stalePngs.report(quiet);
   return 0;
 }
 

@@ -28,13 +28,16 @@ int runBench(const ParsedArgs& args, const char* argv0);
 // sidecar beside the frame it also adds what the sidecar holds for the filter:
 // rsaa's sub-samples and camera (attached to the frame, so they live as long
 // as it does) and a temporal filter's jitterX / jitterY.
-void bindFrame(Filter& filter, Frame& frame);
 // Where a sequence is, for a temporal filter's history: the sidecar of the
-// last frame it filtered.
+// last frame it filtered, and that sidecar's path.
 struct ShotPosition {
   bool known = false;
   Sidecar sidecar;
+  std::string path;
 };
+// shot: the position historyBreak just updated for this frame, whose sidecar
+// is then not read again for the jitter (optional).
+void bindFrame(Filter& filter, Frame& frame, const ShotPosition* shot = nullptr);
 // A temporal filter's history carries over only to the next frame of the same
 // camera: for the frame at framePath, "" if it does (or it has no sidecar, or
 // the filter keeps no history), else why not (io/sidecar.h shotBreak), and the

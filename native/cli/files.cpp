@@ -93,13 +93,19 @@ bool hasParam(const Filter& f, const char* name) {
 }
 
 // This frame's sub-pixel jitter from its sidecar, for filters that take it
-// (the sidecar's y is up, the library's down). Re-commit only on a change.
-void bindJitter(Filter& filter, const Frame& frame) {
+// (the sidecar's y is up, the library's down), parsed already when shot holds
+// this frame's sidecar. Re-commit only on a change.
+void bindJitter(Filter& filter, const Frame& frame, const ShotPosition* shot) {
   if (!hasParam(filter, "jitterX") || !hasParam(filter, "jitterY")) return;
   const std::string side = sidecarPathFor(frame.path);
-  std::error_code ec;
-  if (!fs::is_regular_file(side, ec)) return;
-  const Sidecar s = readSidecar(side);
+  Sidecar parsed;
+  const bool have = shot && shot->known && shot->path == side;
+  if (!have) {
+    std::error_code ec;
+    if (!fs::is_regular_file(side, ec)) return;
+    parsed = readSidecar(side);
+  }
+  const Sidecar& s = have ? shot->sidecar : parsed;
   const float x = float(s.jitterX), y = float(-s.jitterY);
   if (filter.params().getFloat("jitterX") == x && filter.params().getFloat("jitterY") == y) return;
   filter.params().setFloat("jitterX", x);
@@ -116,13 +122,13 @@ std::string historyBreak(const Filter& filter, const std::string& framePath, Sho
   if (!fs::is_regular_file(side, ec)) return "";
   Sidecar s = readSidecar(side);
   const std::string reason = last.known ? shotBreak(last.sidecar, s) : "";
-  last = {true, std::move(s)};
+  last = {true, std::move(s), side};
   return reason;
 }
 
-void bindFrame(Filter& filter, Frame& frame) {
+void bindFrame(Filter& filter, Frame& frame, const ShotPosition* shot) {
   if (readsSubsamples(filter)) attachRsaaInputs(filter, frame);
-  bindJitter(filter, frame);
+  bindJitter(filter, frame, shot);
   for (const ImageRole& role : filter.roles()) {
     std::string name = role.name;
     if (name == "output") continue;

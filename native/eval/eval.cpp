@@ -303,7 +303,7 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
         std::fprintf(stderr, "crisp eval: %s frame %d: history starts over (%s)\n", e.name.c_str(), f, cut.c_str());
     }
     addMotion(frame, inputDir, f, cut.empty() ? frames.front() : f, sceneMoves, o.threads);
-    cli::bindFrame(*filter, frame);
+    cli::bindFrame(*filter, frame, &shot);
     if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
     filter->setImage("output", output.view());
     auto t0 = Clock::now();

@@ -53,9 +53,9 @@ class HistoryBreakTest(unittest.TestCase):
     def tearDownClass(cls):
         cls.tmp.cleanup()
 
-    def crisp_filter(self, name, inputs):
+    def crisp_filter(self, name, inputs, quiet=True):
         out = os.path.join(self.tmp.name, name)
-        p = subprocess.run([CRISP, "filter", "-m", "taa", "--threads", "1", "--quiet", "-o", out] + inputs,
+        p = subprocess.run([CRISP, "filter", "-m", "taa", "--threads", "1", "-o", out] + ["--quiet"] * quiet + inputs,
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=120)
         self.assertEqual(p.returncode, 0, p.stderr.decode())
         return out, p.stderr.decode()
@@ -82,7 +82,7 @@ class HistoryBreakTest(unittest.TestCase):
         self.assertEqual([f for f, why in restarts.items() if why], [4])
         self.assertIn("CamB", restarts[4])
         alone, _ = self.crisp_filter("from4", self.inputs[3:])
-        whole, err = self.crisp_filter("whole", self.inputs)
+        whole, err = self.crisp_filter("whole", self.inputs, quiet=False)
         self.assertIn("history starts over (camera 'CamB' after 'Camera')", err)
         for f in (4, 5, 6):
             want = pixels(os.path.join(alone, "frame_%04d.exr" % f))
@@ -90,10 +90,14 @@ class HistoryBreakTest(unittest.TestCase):
                 self.assertEqual(pixels(os.path.join(folder, "frame_%04d.exr" % f)), want, (folder, f))
 
     def test_gap_restarts_the_history(self):
-        gap, err = self.crisp_filter("gap", [self.inputs[3], self.inputs[5]])  # frames 4 and 6 of CamB
+        gap, err = self.crisp_filter("gap", [self.inputs[3], self.inputs[5]], quiet=False)  # frames 4 and 6 of CamB
         self.assertIn("history starts over (frame 6 after frame 4)", err)
+        quiet, quiet_err = self.crisp_filter("gap_quiet", [self.inputs[3], self.inputs[5]])
+        self.assertEqual(quiet_err, "", "--quiet: the restart is not announced")
         alone, _ = self.crisp_filter("from6", [self.inputs[5]])
-        self.assertEqual(pixels(os.path.join(gap, "frame_0006.exr")), pixels(os.path.join(alone, "frame_0006.exr")))
+        for folder in (gap, quiet):
+            self.assertEqual(pixels(os.path.join(folder, "frame_0006.exr")),
+                             pixels(os.path.join(alone, "frame_0006.exr")), folder)
         # With frame 5 between them the history carries over: the check above can fail.
         self.assertNotEqual(pixels(os.path.join(alone, "frame_0006.exr")),
                             pixels(os.path.join(self.out, "filtered", "frame_0006.exr")))

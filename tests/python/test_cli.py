@@ -159,6 +159,25 @@ def test_size_change_mid_sequence_is_reported(chart, tmp_path):
     assert "warning" not in p.stderr
 
 
+def test_rerun_without_png_leaves_no_stale_png(chart, tmp_path):
+    out = tmp_path / "out"
+    run("filter", "--method", "fxaa", "--png", chart / "chart_1spp.exr", "-o", out)
+    assert (out / "chart_1spp.png").is_file()
+    p = run("filter", "--method", "repair", chart / "chart_1spp.exr", "-o", out)
+    assert not (out / "chart_1spp.png").exists(), "the PNG showed fxaa's result beside repair's EXR"
+    assert "removed 1 PNG" in p.stderr
+    assert run("filter", "-q", "--method", "fxaa", "--png", chart / "chart_1spp.exr", "-o", out).stderr == ""
+    assert run("filter", "-q", "--method", "fxaa", chart / "chart_1spp.exr", "-o", out).stderr == ""
+    assert not (out / "chart_1spp.png").exists()
+    # A PNG this command did not make (no stamp) is left alone, and named.
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "chart_1spp.png").write_bytes(b"mine")
+    p = run("filter", "--method", "fxaa", chart / "chart_1spp.exr", "-o", other)
+    assert (other / "chart_1spp.png").read_bytes() == b"mine"
+    assert "chart_1spp.png" in p.stderr and "not made by this run" in p.stderr
+
+
 def test_existing_output_survives_a_failed_run(chart, tmp_path):
     out = tmp_path / "out"
     run("filter", "--method", "fxaa", chart / "chart_1spp.exr", "-o", out)
