@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 """Filtered frames back into Blender: an image sequence inside a compositor node group
-"Crisp Result" (an add-on cannot run its own code as a compositor node, BLENDER.md), and a
-still-frame preview in the Image Editor."""
+"Crisp Result: <scene>" (an add-on cannot run its own code as a compositor node, BLENDER.md), and a
+still-frame preview in the Image Editor. Each scene has its own group, so two scenes of one file
+show their own frames."""
 
 import os
 
@@ -10,8 +11,15 @@ import bpy
 GROUP_NAME = "Crisp Result"
 
 
+def group_name(scene):
+    return "%s: %s" % (GROUP_NAME, scene.name)
+
+
 def _group_output(group, name):
-    """Adds an output socket: NodeTree.interface on 4.x, NodeTree.outputs on 3.x."""
+    """Adds an output socket unless the group has it: NodeTree.interface on 4.x, NodeTree.outputs on 3.x."""
+    sockets = group.interface.items_tree if hasattr(group, "interface") else group.outputs
+    if any(getattr(s, "in_out", "OUTPUT") == "OUTPUT" and s.name == name for s in sockets):
+        return
     if hasattr(group, "interface"):
         group.interface.new_socket(name=name, in_out="OUTPUT", socket_type="NodeSocketColor" if name == "Image"
                                    else "NodeSocketFloat")
@@ -19,23 +27,23 @@ def _group_output(group, name):
         group.outputs.new("NodeSocketColor" if name == "Image" else "NodeSocketFloat", name)
 
 
-def load_sequence(first_path, frame_start, frame_end):
+def load_sequence(first_path, name):
     """The filtered frames as one image datablock with source SEQUENCE."""
     if not os.path.isfile(first_path):
         raise FileNotFoundError("no filtered frame at %s: render with Crisp first" % first_path)
     image = bpy.data.images.load(first_path, check_existing=True)
     image.source = "SEQUENCE"
-    image.name = "Crisp " + os.path.basename(os.path.dirname(first_path))
+    image.name = name
     return image
 
 
-def result_group(image, frame_start, frame_end):
+def result_group(name, image, frame_start, frame_end):
     """Creates or updates the node group: Image node (the sequence) -> Group Output (Image, Alpha)."""
-    group = bpy.data.node_groups.get(GROUP_NAME)
+    group = bpy.data.node_groups.get(name)
     if group is None or group.bl_idname != "CompositorNodeTree":
-        group = bpy.data.node_groups.new(GROUP_NAME, "CompositorNodeTree")
-        _group_output(group, "Image")
-        _group_output(group, "Alpha")
+        group = bpy.data.node_groups.new(name, "CompositorNodeTree")
+    _group_output(group, "Image")
+    _group_output(group, "Alpha")
     nodes = group.nodes
     img = nodes.get("Crisp Frames") or nodes.new("CompositorNodeImage")
     img.name = img.label = "Crisp Frames"
@@ -53,11 +61,18 @@ def result_group(image, frame_start, frame_end):
 
 
 def add_to_compositor(scene, group):
-    """Puts one group node in the scene's compositor (turning it on); leaves existing links alone."""
+    """Puts one group node in the scene's compositor (turning it on); leaves existing links alone. A node
+    of another Crisp result group (the one all scenes shared before, or another scene's, copied with
+    that scene) is switched to this scene's group."""
     scene.use_nodes = True
     tree = scene.node_tree
-    node = next((n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup" and n.node_tree == group), None)
-    if node is None:
+    groups = [n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup" and n.node_tree is not None]
+    node = next((n for n in groups if n.node_tree == group), None) or \
+        next((n for n in groups if n.node_tree.name == GROUP_NAME or
+              n.node_tree.name.startswith(GROUP_NAME + ": ")), None)
+    if node is not None:
+        node.node_tree = group
+    else:
         node = tree.nodes.new("CompositorNodeGroup")
         node.node_tree = group
         node.location = (-200, -350)
@@ -67,8 +82,8 @@ def add_to_compositor(scene, group):
 
 def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
     first = os.path.join(filtered_dir, "frame_%04d%s" % (frame_start, ext))
-    image = load_sequence(first, frame_start, frame_end)
-    group = result_group(image, frame_start, frame_end)
+    image = load_sequence(first, "Crisp " + scene.name)
+    group = result_group(group_name(scene), image, frame_start, frame_end)
     return add_to_compositor(scene, group)
 
 

@@ -9,8 +9,13 @@ from . import compositor, native, pipeline, preferences, render
 from . import properties as props
 
 
-def _out_dir(settings):
-    return os.path.abspath(bpy.path.abspath(settings.output_dir or "//crisp/"))
+def default_out_dir(scene):
+    """The output folder when none is set: one per scene."""
+    return "//crisp/%s/" % bpy.path.clean_name(scene.name)
+
+
+def _out_dir(scene):
+    return os.path.abspath(bpy.path.abspath(scene.crisp.output_dir or default_out_dir(scene)))
 
 
 def _frames(scene):
@@ -44,7 +49,7 @@ class CRISP_OT_render(bpy.types.Operator):
 
     def execute(self, context):
         scene, s = context.scene, context.scene.crisp
-        out = _out_dir(s)
+        out = _out_dir(scene)
         wm = context.window_manager
         frames = list(_frames(scene))
         wm.progress_begin(0, len(frames))
@@ -79,7 +84,7 @@ class CRISP_OT_render_reference(bpy.types.Operator):
 
     def execute(self, context):
         scene, s = context.scene, context.scene.crisp
-        out = os.path.join(_out_dir(s), "reference")
+        out = os.path.join(_out_dir(scene), "reference")
         try:
             pipeline.check_output_dir(out)
             infos = render.render_reference(scene, _frames(scene), out, s.reference_samples,
@@ -99,7 +104,7 @@ class CRISP_OT_compare(bpy.types.Operator):
 
     def execute(self, context):
         scene, s = context.scene, context.scene.crisp
-        out = _out_dir(s)
+        out = _out_dir(scene)
         try:
             res = pipeline.compare_dirs(os.path.join(out, "filtered"), os.path.join(out, "reference"),
                                         _frames(scene), preferences.threads(context))
@@ -119,7 +124,7 @@ class CRISP_OT_load_result(bpy.types.Operator):
     def execute(self, context):
         scene = context.scene
         try:
-            compositor.load_result(scene, os.path.join(_out_dir(scene.crisp), "filtered"),
+            compositor.load_result(scene, os.path.join(_out_dir(scene), "filtered"),
                                    scene.frame_start, scene.frame_end)
         except OSError as e:
             return _fail(self, e)
@@ -133,7 +138,7 @@ class CRISP_OT_preview(bpy.types.Operator):
 
     def execute(self, context):
         scene = context.scene
-        folder = os.path.join(_out_dir(scene.crisp), "filtered")
+        folder = os.path.join(_out_dir(scene), "filtered")
         path = os.path.join(folder, render.frame_name(scene.frame_current, ".png"))
         if not os.path.isfile(path):
             path = os.path.join(folder, render.frame_name(scene.frame_current))

@@ -202,9 +202,13 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         entry = {"frame": f, "render_s": round(info["render_s"], 4), "jitter": info["jitter"]}
         if frame_filter is not None:
             outs = [os.path.join(filtered_dir, render.frame_name(f))]
+            png = os.path.join(filtered_dir, render.frame_name(f, ".png"))
             if write_png:
-                outs.append(os.path.join(filtered_dir, render.frame_name(f, ".png")))
+                outs.append(png)
             times = frame_filter.run(info["exr"], outs)
+            if not write_png and os.path.isfile(png):
+                os.remove(png)  # an earlier run's: Preview Frame would show it instead of this EXR
+                log("frame %d: removed the PNG of an earlier run" % f)
             entry.update({k: round(v, 4) for k, v in times.items()})
             if frame_filter.restart_reason:
                 entry["history_restarted"] = frame_filter.restart_reason

@@ -108,7 +108,10 @@ class CrispSettings(bpy.types.PropertyGroup):
                                    description="Anti-aliasing filter (from the loaded library's list)")
     reference_samples: bpy.props.IntProperty(name="Reference samples", default=256, min=1, max=65536,
                                              description="EEVEE samples of the reference frames (>= 256 for final figures)")
-    output_dir: bpy.props.StringProperty(name="Output", subtype="DIR_PATH", default="//crisp/")
+    output_dir: bpy.props.StringProperty(
+        name="Output", subtype="DIR_PATH", default="",
+        description="Folder of this scene's frames; empty: //crisp/<scene name>/ beside the .blend file, so two "
+                    "scenes of one file never share one")
     jitter_distribution: bpy.props.EnumProperty(
         name="Jitter", items=[("blackman-harris", "Blackman-Harris", "EEVEE's own sample distribution"),
                               ("uniform", "Uniform", "Halton points inside the pixel")])

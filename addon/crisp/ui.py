@@ -3,7 +3,7 @@
 
 import bpy
 
-from . import native
+from . import native, operators
 from . import properties as props
 
 
@@ -30,6 +30,8 @@ class CRISP_PT_render(bpy.types.Panel):
         layout.prop(s, "jitter_distribution")
         layout.prop(s, "reference_samples")
         layout.prop(s, "output_dir")
+        if not s.output_dir:
+            layout.label(text="Output: " + operators.default_out_dir(context.scene), icon="FILE_FOLDER")
         row = layout.row()
         row.prop(s, "write_png")
         row.prop(s, "load_result")

@@ -210,8 +210,14 @@ class AddonTest(unittest.TestCase):
                 img.filepath_raw = os.path.join(d, "frame_%04d.png" % f)
                 img.file_format = "PNG"
                 img.save()
+            # A node of the one group all scenes shared before is switched to this scene's own group.
+            shared = bpy.data.node_groups.new("Crisp Result", "CompositorNodeTree")
+            scene.use_nodes = True
+            old_node = scene.node_tree.nodes.new("CompositorNodeGroup")
+            old_node.node_tree = shared
             node = crisp.compositor.load_result(scene, d, 3, 4, ext=".png")
-            group = bpy.data.node_groups["Crisp Result"]
+            group = bpy.data.node_groups["Crisp Result: " + scene.name]
+            self.assertEqual(node, old_node)
             self.assertEqual(node.node_tree, group)
             self.assertTrue(scene.use_nodes)
             frames = group.nodes["Crisp Frames"]

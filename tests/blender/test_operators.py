@@ -51,13 +51,63 @@ class OperatorTest(unittest.TestCase):
         self.assertTrue(0.5 < s.last_ssim <= 1.0, s.last_compare)
         self.assertIn("2 frames", s.last_compare)
         self.assertEqual(scene.render.engine, "CYCLES", "the user's engine was not restored")
-        self.assertIn("Crisp Result", bpy.data.node_groups)
+        self.assertIn("Crisp Result: " + scene.name, bpy.data.node_groups)
         # Still-frame preview: the current frame's filtered PNG becomes an image Blender can show.
         scene.frame_set(2)
         self.assertEqual(bpy.ops.crisp.preview(), {"FINISHED"})
         shown = [i for i in bpy.data.images if i.filepath.endswith("frame_0002.png")]
         self.assertEqual(len(shown), 1)
         self.assertEqual(tuple(shown[0].size), (64, 36))
+
+    def test_two_scenes_of_one_file_keep_their_own_frames(self):
+        # Both scenes keep the default output folder: //crisp/<scene name>/ beside the saved file.
+        a = harness.build_scene("still_life")
+        a.render.resolution_x, a.render.resolution_y, a.render.resolution_percentage = 64, 36, 100
+        a.frame_start, a.frame_end = 1, 1
+        a.crisp.method = "fxaa"
+        a.crisp.load_result = a.crisp.write_png = True
+        a.crisp.property_unset("output_dir")  # build_scene may hand back the scene an earlier test set
+        a.use_nodes = True  # a result loaded before the copy: the copy's compositor holds a's node
+        a.node_tree.nodes.clear()
+        for g in [g for g in bpy.data.node_groups if g.name.startswith("Crisp Result")]:
+            bpy.data.node_groups.remove(g)
+        a.node_tree.nodes.new("CompositorNodeGroup").node_tree = bpy.data.node_groups.new(
+            "Crisp Result: " + a.name, "CompositorNodeTree")
+        b = a.copy()
+        b.name = "Other Shot"
+        b.render.resolution_x, b.render.resolution_y = 48, 28
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(self.tmp.name, "two.blend"))
+
+        def in_scene(scene, op):
+            with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0]):
+                self.assertEqual(op(), {"FINISHED"})
+
+        for scene in (a, b):
+            self.assertEqual(scene.crisp.output_dir, "")
+            in_scene(scene, bpy.ops.crisp.render)
+        folder = {a: os.path.join(self.tmp.name, "crisp", a.name), b: os.path.join(self.tmp.name, "crisp", "Other_Shot")}
+        for scene, size in ((a, (64, 36)), (b, (48, 28))):
+            exr = bpy.data.images.load(os.path.join(folder[scene], "filtered", "frame_0001.exr"))
+            self.assertEqual(tuple(exr.size), size, exr.filepath)
+            bpy.data.images.remove(exr)
+            # One node each (the copy's node of the first scene's group was switched to its own group).
+            node, = [n for n in scene.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]
+            self.assertEqual(node.node_tree.name, "Crisp Result: " + scene.name)
+            shown = bpy.path.abspath(node.node_tree.nodes["Crisp Frames"].image.filepath)
+            self.assertEqual(os.path.dirname(os.path.normpath(shown)), os.path.join(folder[scene], "filtered"))
+
+        # Again without PNGs: the first run's PNG goes, so Preview Frame shows this run's EXR.
+        png = os.path.join(folder[a], "filtered", "frame_0001.png")
+        self.assertTrue(os.path.isfile(png))
+        a.crisp.write_png = False
+        a.crisp.method = "repair"
+        in_scene(a, bpy.ops.crisp.render)
+        self.assertFalse(os.path.exists(png), "a PNG of the fxaa run beside repair's EXR")
+        a.frame_current = 1
+        in_scene(a, bpy.ops.crisp.preview)
+        shown = {os.path.basename(i.filepath) for i in bpy.data.images}
+        self.assertIn("frame_0001.exr", shown)
+        self.assertNotIn("frame_0001.png", shown)
 
     def test_compare_without_reference_says_what_is_missing(self):
         scene = harness.build_scene("still_life")
