@@ -165,6 +165,9 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     if user_engine not in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):
         log("note: the scene's engine is %s; Crisp renders with EEVEE and puts %s back afterwards"
             % (user_engine, user_engine))
+    if scene.frame_step != 1:
+        log("note: the scene's frame step %d is not used: a temporal filter's history needs every frame, so "
+            "each frame of %d-%d is rendered and filtered" % (scene.frame_step, frames[0], frames[-1]))
     engine = render.render_engine(scene, engine_name)
     view_layer = render.default_view_layer(scene, view_layer)  # one layer planned and rendered
     the_plan, facts = scene_plan(scene, method, shot or frames, view_layer, engine_name)

@@ -200,6 +200,17 @@ class AddonTest(unittest.TestCase):
             self.assertFalse(os.path.exists(out), "nothing written on bad input")
         self.assertEqual(touched_state(scene), before_state)
 
+    def test_frame_step_is_named_not_silently_ignored(self):
+        scene = harness.build_scene("still_life")
+        scene.frame_step = 2
+        lines = []
+        try:
+            with tempfile.TemporaryDirectory() as d:
+                pipeline.run(scene, "taa", range(1, 4), d, plan_only=True, log=lines.append)
+        finally:
+            scene.frame_step = 1
+        self.assertIn("note: the scene's frame step 2 is not used", "\n".join(lines))
+
     def test_compositor_node_group(self):
         scene = harness.build_scene("still_life")
         with tempfile.TemporaryDirectory() as d:
