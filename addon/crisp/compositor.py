@@ -9,9 +9,11 @@ import os
 import bpy
 
 GROUP_NAME = "Crisp Result"
+SCENE_TAG = "crisp_scene"  # custom property on a scene's group and its node: the scene's name
 
 
 def group_name(scene):
+    """The name a new group gets (Blender may shorten a long one: groups are found by SCENE_TAG)."""
     return "%s: %s" % (GROUP_NAME, scene.name)
 
 
@@ -37,11 +39,14 @@ def load_sequence(first_path, name):
     return image
 
 
-def result_group(name, image, frame_start, frame_end):
-    """Creates or updates the node group: Image node (the sequence) -> Group Output (Image, Alpha)."""
-    group = bpy.data.node_groups.get(name)
-    if group is None or group.bl_idname != "CompositorNodeTree":
-        group = bpy.data.node_groups.new(name, "CompositorNodeTree")
+def result_group(scene, image, frame_start, frame_end):
+    """Creates or updates the scene's node group: Image node (the sequence) -> Group Output (Image,
+    Alpha)."""
+    group = next((g for g in bpy.data.node_groups
+                  if g.bl_idname == "CompositorNodeTree" and g.get(SCENE_TAG) == scene.name), None)
+    if group is None:
+        group = bpy.data.node_groups.new(group_name(scene), "CompositorNodeTree")
+        group[SCENE_TAG] = scene.name
     _group_output(group, "Image")
     _group_output(group, "Alpha")
     nodes = group.nodes
@@ -62,14 +67,15 @@ def result_group(name, image, frame_start, frame_end):
 
 def add_to_compositor(scene, group):
     """Puts one group node in the scene's compositor (turning it on); leaves existing links alone. A node
-    of another Crisp result group (the one all scenes shared before, or another scene's, copied with
-    that scene) is switched to this scene's group."""
+    Crisp put there for another scene (tagged with that scene's name: the scene was copied or
+    renamed), or of the one group all scenes shared before, is switched to this scene's group; a node
+    the user added for another scene's group is left alone."""
     scene.use_nodes = True
     tree = scene.node_tree
     groups = [n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup" and n.node_tree is not None]
     node = next((n for n in groups if n.node_tree == group), None) or \
         next((n for n in groups if n.node_tree.name == GROUP_NAME or
-              n.node_tree.name.startswith(GROUP_NAME + ": ")), None)
+              n.get(SCENE_TAG) not in (None, scene.name)), None)
     if node is not None:
         node.node_tree = group
     else:
@@ -77,13 +83,14 @@ def add_to_compositor(scene, group):
         node.node_tree = group
         node.location = (-200, -350)
     node.label = GROUP_NAME
+    node[SCENE_TAG] = scene.name
     return node
 
 
 def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
     first = os.path.join(filtered_dir, "frame_%04d%s" % (frame_start, ext))
     image = load_sequence(first, "Crisp " + scene.name)
-    group = result_group(group_name(scene), image, frame_start, frame_end)
+    group = result_group(scene, image, frame_start, frame_end)
     return add_to_compositor(scene, group)
 
 

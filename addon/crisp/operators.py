@@ -1,7 +1,9 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 """Operators: Render with Crisp, Render reference, Compare, Update plan, Load result, Preview."""
 
+import json
 import os
+import zlib
 
 import bpy
 
@@ -9,9 +11,27 @@ from . import compositor, native, pipeline, preferences, render
 from . import properties as props
 
 
+def folder_name(name):
+    """A scene name as a folder name: kept where every file system takes it; else the characters some
+    refuse become '_' and a hash of the name is added, so two names never share a folder."""
+    safe = "".join("_" if c in '<>:"/\\|?*' or ord(c) < 32 else c for c in name).rstrip(" .")
+    if safe != name or safe in ("", ".", ".."):
+        safe = "%s-%08x" % (safe.strip(".") or "scene", zlib.crc32(name.encode("utf-8")))
+    return safe
+
+
 def default_out_dir(scene):
-    """The output folder when none is set: one per scene."""
-    return "//crisp/%s/" % bpy.path.clean_name(scene.name)
+    """The output folder when none is set: //crisp/<scene name>/, one per scene. A file saved by an
+    add-on before that, whose runs of this scene went to //crisp/ (its run.json names the scene),
+    keeps //crisp/."""
+    if bpy.data.filepath:
+        try:
+            with open(bpy.path.abspath("//crisp/run.json")) as f:
+                if json.load(f).get("scene") == scene.name:
+                    return "//crisp/"
+        except (OSError, ValueError, AttributeError):
+            pass
+    return "//crisp/%s/" % folder_name(scene.name)
 
 
 def _out_dir(scene):
@@ -119,7 +139,7 @@ class CRISP_OT_compare(bpy.types.Operator):
 class CRISP_OT_load_result(bpy.types.Operator):
     bl_idname = "crisp.load_result"
     bl_label = "Load into Compositor"
-    bl_description = "Load the filtered sequence into the compositor node group 'Crisp Result'"
+    bl_description = "Load the filtered sequence into this scene's compositor node group 'Crisp Result: <scene>'"
 
     def execute(self, context):
         scene = context.scene

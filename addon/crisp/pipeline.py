@@ -84,6 +84,8 @@ def scene_plan(scene, method, frames, view_layer=None, engine_name="eevee"):
 
 
 def _write_json(path, data):
+    if os.path.dirname(path):
+        os.makedirs(os.path.dirname(path), exist_ok=True)
     tmp = path + ".tmp"
     with open(tmp, "w") as f:
         json.dump(data, f, indent=1)
@@ -97,6 +99,29 @@ def _read_json(path):
         return data if isinstance(data, dict) else None
     except (OSError, ValueError):
         return None
+
+
+def _png_record_path(png):
+    return os.path.join(os.path.dirname(png), ".crisp", os.path.basename(png) + ".json")
+
+
+def _png_record(png):
+    """What a run knows of a PNG it wrote (filtered/.crisp/<name>.png.json): a PNG changed since, or
+    never written by a run, is not its own."""
+    st = os.stat(png)
+    return {"size": st.st_size, "mtime_ns": st.st_mtime_ns}
+
+
+def _drop_stale_png(png, log):
+    """A run without PNGs: the filtered PNG an earlier run wrote shows that run's result (and Preview
+    Frame prefers it to the EXR), so it goes; one the user made or changed is kept, and named."""
+    record = _png_record_path(png)
+    if _read_json(record) == _png_record(png):
+        os.remove(png)
+        os.remove(record)
+        log("note: removed %s, written by an earlier run" % png)
+    else:
+        log("note: kept %s (not written by Crisp, or changed since): it does not show this run's result" % png)
 
 
 def made_with(scene, method, params, samples, reference_samples, jitter, engine, filter_frames, scene_key):
@@ -209,9 +234,10 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
             if write_png:
                 outs.append(png)
             times = frame_filter.run(info["exr"], outs)
-            if not write_png and os.path.isfile(png):
-                os.remove(png)  # an earlier run's: Preview Frame would show it instead of this EXR
-                log("frame %d: removed the PNG of an earlier run" % f)
+            if write_png:
+                _write_json(_png_record_path(png), _png_record(png))
+            elif os.path.isfile(png):
+                _drop_stale_png(png, log)
             entry.update({k: round(v, 4) for k, v in times.items()})
             if frame_filter.restart_reason:
                 entry["history_restarted"] = frame_filter.restart_reason

@@ -66,29 +66,41 @@ void addReconstructedMotion(Frame& frame, const std::vector<std::string>& inputs
   reconstructFrameMotion(frame, sidecarPathFor(inputs[index - 1]), next, numThreads);
 }
 
+// What this command knows of a PNG it wrote, in OUT/.crisp/<name>.png.stamp:
+// its size and modification time, so that a PNG changed since, or never
+// written by it, is told apart from its own.
+std::string pngStampOf(const std::string& pngPath) {
+  const std::string stamp = sizeAndTime(pngPath);
+  return stamp.empty() ? "" : stamp + "\n";
+}
+
 // A PNG beside an output written without --png shows an earlier run's result.
-// One this command made (its stamp is there) is removed; any other is named.
+// One this command wrote and nobody changed since is removed; any other is
+// kept and named.
 struct StalePngs {
   int removed = 0;
-  std::vector<std::string> foreign;
+  std::vector<std::string> kept;
 
-  void check(const std::string& pngPath, const std::string& stampPath) {
+  void check(const std::string& pngPath, const std::string& recordPath) {
     std::error_code ec;
     if (!fs::is_regular_file(pngPath, ec)) return;
-    if (fs::is_regular_file(stampPath, ec) && fs::remove(pngPath, ec)) {
+    std::ifstream in(recordPath);
+    const std::string record((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (!record.empty() && record == pngStampOf(pngPath) && fs::remove(pngPath, ec)) {
+      fs::remove(recordPath, ec);
       ++removed;
     } else {
-      foreign.push_back(pngPath);
+      kept.push_back(pngPath);
     }
   }
 
   void report(bool quiet) const {
     if (removed > 0 && !quiet)
-      std::fprintf(stderr, "filter: removed %d PNG(s) of an earlier run that no longer matched their EXR (--png "
-                   "writes new ones)\n", removed);
-    for (const std::string& p : foreign)
-      std::fprintf(stderr, "filter: warning: '%s' was not made by this run and does not show its result\n",
-                   p.c_str());
+      std::fprintf(stderr, "filter: removed %d PNG(s) an earlier run wrote: this run writes none, and they could "
+                   "show another result than the EXR beside them (--png writes new ones)\n", removed);
+    for (const std::string& p : kept)
+      std::fprintf(stderr, "filter: warning: kept '%s' (not written by crisp filter, or changed since): it does not "
+                   "show this run's result\n", p.c_str());
   }
 };
 
@@ -184,7 +196,7 @@ int runFilter(const ParsedArgs& args) {
         std::fprintf(stderr, "filter: '%s': %s history starts over (%s)\n", in.c_str(), filter->type(), cut.c_str());
     }
     if (rebuildMotion) addReconstructedMotion(frame, args.positional, cut.empty() ? i : 0, context.numThreads());
-    bindFrame(*filter, frame, &shot);
+    bindFrame(*filter, frame, shot);
     if (output.width != frame.width || output.height != frame.height) {
       // A size change part-way is legitimate (a cut to another camera) but
       // more often mixed-up folders: carry on, and say so.
@@ -206,10 +218,15 @@ int runFilter(const ParsedArgs& args) {
       continue;
     }
     const std::string base = joinPath(outDir, fileStem(in));
+    const std::string pngRecord = joinPath(stampDir, fileStem(in) + ".png.stamp");
     writeImage(base + ".exr", output);
-    if (png) writeImage(base + ".png", output);
-    else stalePngs.check(base + ".png", stampOf(fileStem(in)));
     makeDirectories(stampDir);
+    if (png) {
+      writeImage(base + ".png", output);
+      writeTextFile(pngRecord, pngStampOf(base + ".png"));
+    } else {
+      stalePngs.check(base + ".png", pngRecord);
+    }
     writeTextFile(stampOf(fileStem(in)), stampText);
     progress.step(fileStem(in));
   }

@@ -29,20 +29,29 @@ int runBench(const ParsedArgs& args, const char* argv0);
 // rsaa's sub-samples and camera (attached to the frame, so they live as long
 // as it does) and a temporal filter's jitterX / jitterY.
 // Where a sequence is, for a temporal filter's history: the sidecar of the
-// last frame it filtered, and that sidecar's path.
+// last frame it filtered, and that sidecar's path; and the jitter the filter
+// had before the first frame (its default or --set), for frames without a
+// sidecar.
 struct ShotPosition {
   bool known = false;
   Sidecar sidecar;
   std::string path;
+  bool jitterSaved = false;
+  float jitterX = 0.0f, jitterY = 0.0f;
 };
-// shot: the position historyBreak just updated for this frame, whose sidecar
-// is then not read again for the jitter (optional).
-void bindFrame(Filter& filter, Frame& frame, const ShotPosition* shot = nullptr);
+// Binds the frame's passes and its jitter (from its sidecar, or the jitter
+// saved in shot when it has none). shot: the position historyBreak just
+// updated for this frame, whose sidecar is then not parsed again.
+void bindFrame(Filter& filter, Frame& frame, ShotPosition& shot);
 // A temporal filter's history carries over only to the next frame of the same
 // camera: for the frame at framePath, "" if it does (or it has no sidecar, or
 // the filter keeps no history), else why not (io/sidecar.h shotBreak), and the
 // caller restarts the history. Updates last.
 std::string historyBreak(const Filter& filter, const std::string& framePath, ShotPosition& last);
+
+// A file's size and modification time as "SIZE TIME", "" when it cannot be
+// read: what tells a file apart from the one a run wrote or read before.
+std::string sizeAndTime(const std::string& path);
 
 // File helpers: text written through a temporary file renamed into place.
 void writeTextFile(const std::string& path, const std::string& text);

@@ -37,6 +37,15 @@ std::string hex64(std::uint64_t v) {
   return hex;
 }
 
+std::string sizeAndTime(const std::string& path) {
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  if (ec) return "";
+  const auto time = fs::last_write_time(path, ec);
+  if (ec) return "";
+  return std::to_string(size) + " " + std::to_string(time.time_since_epoch().count());
+}
+
 void writeTextFile(const std::string& path, const std::string& text) {
   fs::path target(path);
   fs::path tmp = target.parent_path() / ("." + target.filename().string() + ".tmp-" + std::to_string(getpid()));
@@ -94,19 +103,25 @@ bool hasParam(const Filter& f, const char* name) {
 
 // This frame's sub-pixel jitter from its sidecar, for filters that take it
 // (the sidecar's y is up, the library's down), parsed already when shot holds
-// this frame's sidecar. Re-commit only on a change.
-void bindJitter(Filter& filter, const Frame& frame, const ShotPosition* shot) {
+// this frame's sidecar; without a sidecar, the jitter the filter had before
+// the first frame (a frame of another renderer is not jittered, or --set says
+// how). Re-commit only on a change.
+void bindJitter(Filter& filter, const Frame& frame, ShotPosition& shot) {
   if (!hasParam(filter, "jitterX") || !hasParam(filter, "jitterY")) return;
-  const std::string side = sidecarPathFor(frame.path);
-  Sidecar parsed;
-  const bool have = shot && shot->known && shot->path == side;
-  if (!have) {
-    std::error_code ec;
-    if (!fs::is_regular_file(side, ec)) return;
-    parsed = readSidecar(side);
+  if (!shot.jitterSaved) {
+    shot.jitterSaved = true;
+    shot.jitterX = filter.params().getFloat("jitterX");
+    shot.jitterY = filter.params().getFloat("jitterY");
   }
-  const Sidecar& s = have ? shot->sidecar : parsed;
-  const float x = float(s.jitterX), y = float(-s.jitterY);
+  const std::string side = sidecarPathFor(frame.path);
+  float x = shot.jitterX, y = shot.jitterY;
+  std::error_code ec;
+  if (shot.known && shot.path == side) {
+    x = float(shot.sidecar.jitterX), y = float(-shot.sidecar.jitterY);
+  } else if (fs::is_regular_file(side, ec)) {
+    const Sidecar s = readSidecar(side);
+    x = float(s.jitterX), y = float(-s.jitterY);
+  }
   if (filter.params().getFloat("jitterX") == x && filter.params().getFloat("jitterY") == y) return;
   filter.params().setFloat("jitterX", x);
   filter.params().setFloat("jitterY", y);
@@ -126,7 +141,7 @@ std::string historyBreak(const Filter& filter, const std::string& framePath, Sho
   return reason;
 }
 
-void bindFrame(Filter& filter, Frame& frame, const ShotPosition* shot) {
+void bindFrame(Filter& filter, Frame& frame, ShotPosition& shot) {
   if (readsSubsamples(filter)) attachRsaaInputs(filter, frame);
   bindJitter(filter, frame, shot);
   for (const ImageRole& role : filter.roles()) {

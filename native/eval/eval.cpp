@@ -228,13 +228,8 @@ WarpGeometry warpGeometry(const fs::path& renders, const json& scene, const std:
 // with a new time, and a method's frame made from the old one is then stale. (A copy of an eval
 // folder must keep modification times, as cp -a does, or every method is computed again.)
 std::string inputStamp(const fs::path& file) {
-  std::error_code ec;
-  const auto size = fs::file_size(file, ec);
-  if (ec) return "";
-  const auto time = fs::last_write_time(file, ec);
-  if (ec) return "";
-  return (file.parent_path().filename() / file.filename()).string() + " " + std::to_string(size) + " " +
-         std::to_string(time.time_since_epoch().count());
+  const std::string stamp = cli::sizeAndTime(file.string());
+  return stamp.empty() ? "" : (file.parent_path().filename() / file.filename()).string() + " " + stamp;
 }
 
 void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const fs::path& inputDir, bool sceneMoves,
@@ -303,7 +298,7 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
         std::fprintf(stderr, "crisp eval: %s frame %d: history starts over (%s)\n", e.name.c_str(), f, cut.c_str());
     }
     addMotion(frame, inputDir, f, cut.empty() ? frames.front() : f, sceneMoves, o.threads);
-    cli::bindFrame(*filter, frame, &shot);
+    cli::bindFrame(*filter, frame, shot);
     if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
     filter->setImage("output", output.view());
     auto t0 = Clock::now();

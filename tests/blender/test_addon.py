@@ -3,6 +3,7 @@
 for every method, scene state restored after a render and after an error mid-render, the compositor
 node group, and in-process bad input (no camera, empty range) touching nothing of the user's."""
 
+import json
 import os
 import sys
 import tempfile
@@ -210,6 +211,54 @@ class AddonTest(unittest.TestCase):
         finally:
             scene.frame_step = 1
         self.assertIn("note: the scene's frame step 2 is not used", "\n".join(lines))
+
+    def test_each_scene_its_own_folder_and_group(self):
+        names = ["Shot_1", "Shot/1", "Shot:1", "Shot 1", "Shot 1.", "..", "Scène", "a\\b"]
+        folders = [crisp.operators.folder_name(n) for n in names]
+        self.assertEqual(len(set(folders)), len(names), folders)
+        self.assertEqual(folders[0], "Shot_1")
+        self.assertEqual(folders[3], "Shot 1")
+        self.assertEqual(folders[6], "Scène")
+        for f in folders:
+            self.assertFalse(set(f) & set('<>:"/\\|?*') or f in ("", ".", "..") or f.endswith((".", " ")), f)
+        scene = harness.build_scene("still_life")
+        scene.name = "Shot"
+        with tempfile.TemporaryDirectory() as d:
+            bpy.ops.wm.save_as_mainfile(filepath=os.path.join(d, "old.blend"))
+            self.assertEqual(crisp.operators.default_out_dir(scene), "//crisp/Shot/")
+            # A file an older add-on rendered into //crisp/ for this scene keeps that folder.
+            os.makedirs(os.path.join(d, "crisp"))
+            with open(os.path.join(d, "crisp", "run.json"), "w") as f:
+                json.dump({"scene": "Shot"}, f)
+            self.assertEqual(crisp.operators.default_out_dir(scene), "//crisp/")
+            scene.name = "Shot B"
+            self.assertEqual(crisp.operators.default_out_dir(scene), "//crisp/Shot B/")
+
+            img = bpy.data.images.new("stand_in", 8, 4)
+            img.filepath_raw = os.path.join(d, "frame_0001.png")
+            img.file_format = "PNG"
+            img.save()
+            # A node the user added for another group stays as it is.
+            scene.use_nodes = True
+            scene.node_tree.nodes.clear()
+            theirs = bpy.data.node_groups.new("Crisp Result: elsewhere", "CompositorNodeTree")
+            user_node = scene.node_tree.nodes.new("CompositorNodeGroup")
+            user_node.node_tree = theirs
+            # A name longer than Blender keeps for a group: loading twice still makes one group.
+            scene.name = "A scene whose name is much longer than any node group name may be, 70 c"
+            for _ in range(2):
+                node = crisp.compositor.load_result(scene, d, 1, 1, ext=".png")
+            mine = [g for g in bpy.data.node_groups if g.get("crisp_scene") == scene.name]
+            self.assertEqual(len(mine), 1, [g.name for g in bpy.data.node_groups])
+            self.assertEqual(node.node_tree, mine[0])
+            self.assertEqual(user_node.node_tree, theirs)
+            # A copy of the scene (its compositor holds the node Crisp put there) gets its own group.
+            copy = scene.copy()
+            copy.name = "Copy"
+            copied = crisp.compositor.load_result(copy, d, 1, 1, ext=".png")
+            self.assertEqual(copied.node_tree.get("crisp_scene"), "Copy")
+            self.assertEqual(len([n for n in copy.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]), 2)
+            self.assertEqual(node.node_tree, mine[0], "the first scene's node is untouched")
 
     def test_compositor_node_group(self):
         scene = harness.build_scene("still_life")

@@ -71,8 +71,9 @@ class OperatorTest(unittest.TestCase):
         a.node_tree.nodes.clear()
         for g in [g for g in bpy.data.node_groups if g.name.startswith("Crisp Result")]:
             bpy.data.node_groups.remove(g)
-        a.node_tree.nodes.new("CompositorNodeGroup").node_tree = bpy.data.node_groups.new(
-            "Crisp Result: " + a.name, "CompositorNodeTree")
+        earlier = a.node_tree.nodes.new("CompositorNodeGroup")
+        earlier.node_tree = bpy.data.node_groups.new("Crisp Result: " + a.name, "CompositorNodeTree")
+        earlier["crisp_scene"] = earlier.node_tree["crisp_scene"] = a.name  # as compositor.load_result tags them
         b = a.copy()
         b.name = "Other Shot"
         b.render.resolution_x, b.render.resolution_y = 48, 28
@@ -85,7 +86,7 @@ class OperatorTest(unittest.TestCase):
         for scene in (a, b):
             self.assertEqual(scene.crisp.output_dir, "")
             in_scene(scene, bpy.ops.crisp.render)
-        folder = {a: os.path.join(self.tmp.name, "crisp", a.name), b: os.path.join(self.tmp.name, "crisp", "Other_Shot")}
+        folder = {a: os.path.join(self.tmp.name, "crisp", a.name), b: os.path.join(self.tmp.name, "crisp", "Other Shot")}
         for scene, size in ((a, (64, 36)), (b, (48, 28))):
             exr = bpy.data.images.load(os.path.join(folder[scene], "filtered", "frame_0001.exr"))
             self.assertEqual(tuple(exr.size), size, exr.filepath)
@@ -96,9 +97,16 @@ class OperatorTest(unittest.TestCase):
             shown = bpy.path.abspath(node.node_tree.nodes["Crisp Frames"].image.filepath)
             self.assertEqual(os.path.dirname(os.path.normpath(shown)), os.path.join(folder[scene], "filtered"))
 
-        # Again without PNGs: the first run's PNG goes, so Preview Frame shows this run's EXR.
+        # Again without PNGs: the first run's PNG goes, so Preview Frame shows this run's EXR; one the
+        # user changed since stays.
         png = os.path.join(folder[a], "filtered", "frame_0001.png")
         self.assertTrue(os.path.isfile(png))
+        b.crisp.write_png = False
+        edited = os.path.join(folder[b], "filtered", "frame_0001.png")
+        with open(edited, "ab") as f:
+            f.write(b"painted")
+        in_scene(b, bpy.ops.crisp.render)
+        self.assertTrue(os.path.isfile(edited), "a PNG the user changed was deleted")
         a.crisp.write_png = False
         a.crisp.method = "repair"
         in_scene(a, bpy.ops.crisp.render)

@@ -43,7 +43,8 @@ class BatchTest(unittest.TestCase):
         self.assertEqual(files(os.path.join(out, "input")),
                          ["frame_0001.exr", "frame_0001.json", "frame_0002.exr", "frame_0002.json"])
         self.assertEqual(files(os.path.join(out, "filtered")),
-                         ["frame_0001.exr", "frame_0001.png", "frame_0002.exr", "frame_0002.png"])
+                         [".crisp", "frame_0001.exr", "frame_0001.png", "frame_0002.exr", "frame_0002.png"])
+        self.assertEqual(files(os.path.join(out, "filtered", ".crisp")), ["frame_0001.png.json", "frame_0002.png.json"])
         with open(os.path.join(out, "run.json")) as f:
             run = json.load(f)
         self.assertEqual(run["blender_version"], bpy.app.version_string)

@@ -169,7 +169,9 @@ def test_render_chunks_equal_sequential_and_resume(shot, lib, tmp_path):
     # The second chunk alone first: its pre-roll (6, clipped to frames 1-4) goes to a temporary folder.
     render(out, (5, 8), "taa-improved", *chunk_args)
     alone = json.loads((out / "run_0005-0008.json").read_text())
-    assert sorted(os.listdir(out / "filtered")) == [frame(f, e) for f in range(5, 9) for e in (".exr", ".png")]
+    assert sorted(os.listdir(out / "filtered")) == [".crisp"] + [frame(f, e) for f in range(5, 9) for e in (".exr", ".png")]
+    # The records of the PNGs written (so a later run without PNGs knows them from the user's).
+    assert sorted(os.listdir(out / "filtered" / ".crisp")) == [frame(f, ".png.json") for f in range(5, 9)]
     assert sorted(os.listdir(out / "input")) == [frame(f, e) for f in range(5, 9) for e in (".exr", ".json")]
     assert not os.path.exists(out / "run.json") and os.path.isfile(out / "run_0005-0008.json")
 
@@ -309,3 +311,42 @@ def test_cli_and_addon_take_each_frames_jitter_from_its_sidecar(shot, lib, tmp_p
     frames = range(SHOT[0], SHOT[1] + 1)
     assert max_diff(lib, tmp_path / "cli", tmp_path / "addon", frames) == 0.0
     assert max_diff(lib, tmp_path / "cli", tmp_path / "plain", frames) > 0.0
+
+
+def test_a_frame_without_sidecar_is_not_given_the_previous_frames_jitter(shot, lib, tmp_path):
+    """A frame with no sidecar (another renderer's) takes the jitter given with --set, or none: not
+    the jitter of the frame before it, which the filter would otherwise keep. Frame 1 has no sidecar
+    in every run, so no run rebuilds motion (that needs every frame's sidecar) and only frame 3's
+    jitter differs between them."""
+    _, inputs = shot
+
+    def folder(name, third_jitter):
+        d = tmp_path / name
+        d.mkdir()
+        for f in (1, 2, 3):
+            shutil.copy(inputs[f - 1], d / frame(f))
+            side = inputs[f - 1][:-len(".exr")] + ".json"
+            if f == 2 or (f == 3 and third_jitter is not None):
+                with open(side) as fh:
+                    data = json.load(fh)
+                if f == 3:
+                    data["jitter"]["x"], data["jitter"]["y"] = third_jitter
+                with open(d / frame(f, ".json"), "w") as fh:
+                    json.dump(data, fh)
+        return [d / frame(f) for f in (1, 2, 3)]
+
+    with open(inputs[1][:-len(".exr")] + ".json") as fh:
+        second = json.load(fh)["jitter"]
+    runs = {"none": (folder("no_sidecar", None), ()), "zero": (folder("zero", (0.0, 0.0)), ()),
+            "second": (folder("second", (second["x"], second["y"])), ()),
+            "set": (folder("no_sidecar_set", None), ("--set", "jitterX=0.25")),
+            "quarter": (folder("quarter", (0.25, 0.0)), ("--set", "jitterX=0.25"))}
+    assert abs(second["x"]) + abs(second["y"]) > 0.05, second
+    for name, (files, extra) in runs.items():
+        crisp("filter", "--method", "taa", "--quiet", *extra, "-o", tmp_path / ("out_" + name), *files)
+
+    def third(name):
+        return lib.color(str(tmp_path / ("out_" + name) / frame(3)))
+    assert np.array_equal(third("none"), third("zero"))
+    assert not np.array_equal(third("none"), third("second")), "the jitter matters to this check"
+    assert np.array_equal(third("set"), third("quarter"))

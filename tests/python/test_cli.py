@@ -169,13 +169,21 @@ def test_rerun_without_png_leaves_no_stale_png(chart, tmp_path):
     assert run("filter", "-q", "--method", "fxaa", "--png", chart / "chart_1spp.exr", "-o", out).stderr == ""
     assert run("filter", "-q", "--method", "fxaa", chart / "chart_1spp.exr", "-o", out).stderr == ""
     assert not (out / "chart_1spp.png").exists()
-    # A PNG this command did not make (no stamp) is left alone, and named.
+    # A PNG this command did not write is kept and named, on every run (the EXR's stamp of the first
+    # run says nothing of the PNG).
     other = tmp_path / "other"
     other.mkdir()
     (other / "chart_1spp.png").write_bytes(b"mine")
-    p = run("filter", "--method", "fxaa", chart / "chart_1spp.exr", "-o", other)
-    assert (other / "chart_1spp.png").read_bytes() == b"mine"
-    assert "chart_1spp.png" in p.stderr and "not made by this run" in p.stderr
+    for _ in range(2):
+        p = run("filter", "--method", "fxaa", chart / "chart_1spp.exr", "-o", other)
+        assert (other / "chart_1spp.png").read_bytes() == b"mine"
+        assert "kept" in p.stderr and "chart_1spp.png" in p.stderr
+    # Nor is one it wrote that the user changed since.
+    run("filter", "--method", "fxaa", "--png", chart / "chart_1spp.exr", "-o", other)
+    (other / "chart_1spp.png").write_bytes(b"painted over")
+    p = run("filter", "--method", "repair", chart / "chart_1spp.exr", "-o", other)
+    assert (other / "chart_1spp.png").read_bytes() == b"painted over"
+    assert "kept" in p.stderr
 
 
 def test_existing_output_survives_a_failed_run(chart, tmp_path):
