@@ -39,11 +39,19 @@ def load_sequence(first_path, name):
     return image
 
 
+def _shown_elsewhere(group, scene):
+    """Whether another scene's compositor shows the group: then it is that scene's (a scene renamed
+    since it was tagged, or a copy not loaded yet) and this scene gets a group of its own."""
+    return any(other != scene and other.node_tree is not None and
+               any(n.bl_idname == "CompositorNodeGroup" and n.node_tree == group for n in other.node_tree.nodes)
+               for other in bpy.data.scenes)
+
+
 def result_group(scene, image, frame_start, frame_end):
     """Creates or updates the scene's node group: Image node (the sequence) -> Group Output (Image,
     Alpha)."""
-    group = next((g for g in bpy.data.node_groups
-                  if g.bl_idname == "CompositorNodeTree" and g.get(SCENE_TAG) == scene.name), None)
+    group = next((g for g in bpy.data.node_groups if g.bl_idname == "CompositorNodeTree" and
+                  g.get(SCENE_TAG) == scene.name and not _shown_elsewhere(g, scene)), None)
     if group is None:
         group = bpy.data.node_groups.new(group_name(scene), "CompositorNodeTree")
         group[SCENE_TAG] = scene.name
@@ -66,16 +74,15 @@ def result_group(scene, image, frame_start, frame_end):
 
 
 def add_to_compositor(scene, group):
-    """Puts one group node in the scene's compositor (turning it on); leaves existing links alone. A node
-    Crisp put there for another scene (tagged with that scene's name: the scene was copied or
-    renamed), or of the one group all scenes shared before, is switched to this scene's group; a node
-    the user added for another scene's group is left alone."""
+    """Puts one group node in the scene's compositor (turning it on); leaves existing links alone. The
+    node Crisp put there before (tagged; it may show an older group of this scene's, or another
+    scene's if the scene was copied or renamed), or a node of the one group all scenes shared
+    before, is switched to this scene's group; a node the user added is left alone."""
     scene.use_nodes = True
     tree = scene.node_tree
     groups = [n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup" and n.node_tree is not None]
     node = next((n for n in groups if n.node_tree == group), None) or \
-        next((n for n in groups if n.node_tree.name == GROUP_NAME or
-              n.get(SCENE_TAG) not in (None, scene.name)), None)
+        next((n for n in groups if n.node_tree.name == GROUP_NAME or n.get(SCENE_TAG) is not None), None)
     if node is not None:
         node.node_tree = group
     else:

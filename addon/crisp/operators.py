@@ -11,27 +11,49 @@ from . import compositor, native, pipeline, preferences, render
 from . import properties as props
 
 
+WINDOWS_RESERVED = {"CON", "PRN", "AUX", "NUL"} | {"%s%d" % (p, i) for p in ("COM", "LPT") for i in range(1, 10)}
+
+
 def folder_name(name):
     """A scene name as a folder name: kept where every file system takes it; else the characters some
     refuse become '_' and a hash of the name is added, so two names never share a folder."""
     safe = "".join("_" if c in '<>:"/\\|?*' or ord(c) < 32 else c for c in name).rstrip(" .")
-    if safe != name or safe in ("", ".", ".."):
-        safe = "%s-%08x" % (safe.strip(".") or "scene", zlib.crc32(name.encode("utf-8")))
+    if safe != name or safe in ("", ".", "..") or safe.split(".")[0].upper() in WINDOWS_RESERVED:
+        safe = "%s-%08x" % (safe.replace(".", "_") or "scene", zlib.crc32(name.encode("utf-8")))
     return safe
+
+
+def folder_scene(folder):
+    """The scene whose runs went to folder (an absolute path), from its run.json or a chunk's
+    run_AAAA-BBBB.json; None if there are none."""
+    try:
+        names = sorted(n for n in os.listdir(folder) if n.startswith("run") and n.endswith(".json"))
+    except OSError:
+        return None
+    for name in names:
+        try:
+            with open(os.path.join(folder, name)) as f:
+                scene = json.load(f).get("scene")
+        except (OSError, ValueError, AttributeError):
+            continue
+        if isinstance(scene, str):
+            return scene
+    return None
 
 
 def default_out_dir(scene):
     """The output folder when none is set: //crisp/<scene name>/, one per scene. A file saved by an
-    add-on before that, whose runs of this scene went to //crisp/ (its run.json names the scene),
-    keeps //crisp/."""
-    if bpy.data.filepath:
-        try:
-            with open(bpy.path.abspath("//crisp/run.json")) as f:
-                if json.load(f).get("scene") == scene.name:
-                    return "//crisp/"
-        except (OSError, ValueError, AttributeError):
-            pass
-    return "//crisp/%s/" % folder_name(scene.name)
+    add-on before that, whose runs of this scene went to //crisp/, keeps //crisp/. A folder that holds
+    another scene's runs (two names one file system takes for the same, as "Shot" and "shot" on
+    macOS or Windows) is not shared: the name gets its hash."""
+    if not bpy.data.filepath:
+        return "//crisp/%s/" % folder_name(scene.name)
+    if folder_scene(bpy.path.abspath("//crisp/")) == scene.name:
+        return "//crisp/"
+    folder = folder_name(scene.name)
+    if folder_scene(bpy.path.abspath("//crisp/%s/" % folder)) not in (None, scene.name):
+        folder = "%s-%08x" % (folder, zlib.crc32(scene.name.encode("utf-8")))
+    return "//crisp/%s/" % folder
 
 
 def _out_dir(scene):

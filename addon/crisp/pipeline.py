@@ -116,12 +116,15 @@ def _drop_stale_png(png, log):
     """A run without PNGs: the filtered PNG an earlier run wrote shows that run's result (and Preview
     Frame prefers it to the EXR), so it goes; one the user made or changed is kept, and named."""
     record = _png_record_path(png)
-    if _read_json(record) == _png_record(png):
-        os.remove(png)
-        os.remove(record)
-        log("note: removed %s, written by an earlier run" % png)
-    else:
-        log("note: kept %s (not written by Crisp, or changed since): it does not show this run's result" % png)
+    try:
+        if _read_json(record) == _png_record(png):
+            os.remove(png)
+            os.remove(record)
+            log("note: removed %s, written by an earlier run" % png)
+            return
+    except OSError:
+        pass
+    log("note: kept %s (not written by Crisp, or changed since): it does not show this run's result" % png)
 
 
 def made_with(scene, method, params, samples, reference_samples, jitter, engine, filter_frames, scene_key):
@@ -224,6 +227,11 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     frame_filter = None
     if filter_frames:
         os.makedirs(filtered_dir, exist_ok=True)
+        try:  # the PNG records' folder, before any frame: a file in the way stops the run here
+            if write_png:
+                os.makedirs(os.path.dirname(_png_record_path(os.path.join(filtered_dir, "x"))), exist_ok=True)
+        except OSError as e:
+            raise InputError("cannot make the folder %s: %s" % (os.path.join(filtered_dir, ".crisp"), e.strerror or e))
         frame_filter = native.FrameFilter(method, params, threads, the_plan.passes)
 
     def on_frame(f, info):

@@ -179,6 +179,11 @@ int runFilter(const ParsedArgs& args) {
   }
 
   StalePngs stalePngs;
+  {  // a file in the stamps' way fails the run before the first output, not after it
+    std::error_code ec;
+    if (fs::exists(stampDir, ec) && !fs::is_directory(stampDir, ec))
+      ioError("cannot keep stamps in '" + stampDir + "': it is a file, not a folder");
+  }
   const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
   Image output;
   Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, quiet);
@@ -219,8 +224,8 @@ int runFilter(const ParsedArgs& args) {
     }
     const std::string base = joinPath(outDir, fileStem(in));
     const std::string pngRecord = joinPath(stampDir, fileStem(in) + ".png.stamp");
-    writeImage(base + ".exr", output);
     makeDirectories(stampDir);
+    writeImage(base + ".exr", output);
     if (png) {
       writeImage(base + ".png", output);
       writeTextFile(pngRecord, pngStampOf(base + ".png"));

@@ -137,7 +137,9 @@ std::string historyBreak(const Filter& filter, const std::string& framePath, Sho
   if (!fs::is_regular_file(side, ec)) return "";
   Sidecar s = readSidecar(side);
   const std::string reason = last.known ? shotBreak(last.sidecar, s) : "";
-  last = {true, std::move(s), side};
+  last.known = true;  // field by field: the jitter saved before the first frame stays
+  last.sidecar = std::move(s);
+  last.path = side;
   return reason;
 }
 

@@ -213,7 +213,7 @@ class AddonTest(unittest.TestCase):
         self.assertIn("note: the scene's frame step 2 is not used", "\n".join(lines))
 
     def test_each_scene_its_own_folder_and_group(self):
-        names = ["Shot_1", "Shot/1", "Shot:1", "Shot 1", "Shot 1.", "..", "Scène", "a\\b"]
+        names = ["Shot_1", "Shot/1", "Shot:1", "Shot 1", "Shot 1.", "..", "Scène", "a\\b", "CON", "aux.txt", "con"]
         folders = [crisp.operators.folder_name(n) for n in names]
         self.assertEqual(len(set(folders)), len(names), folders)
         self.assertEqual(folders[0], "Shot_1")
@@ -221,6 +221,7 @@ class AddonTest(unittest.TestCase):
         self.assertEqual(folders[6], "Scène")
         for f in folders:
             self.assertFalse(set(f) & set('<>:"/\\|?*') or f in ("", ".", "..") or f.endswith((".", " ")), f)
+            self.assertNotIn(f.split(".")[0].upper(), crisp.operators.WINDOWS_RESERVED, f)
         scene = harness.build_scene("still_life")
         scene.name = "Shot"
         with tempfile.TemporaryDirectory() as d:
@@ -233,6 +234,13 @@ class AddonTest(unittest.TestCase):
             self.assertEqual(crisp.operators.default_out_dir(scene), "//crisp/")
             scene.name = "Shot B"
             self.assertEqual(crisp.operators.default_out_dir(scene), "//crisp/Shot B/")
+            # A folder holding another scene's runs (as "Shot" and "shot" on a case-insensitive file
+            # system; a chunk's run file names the scene too) is not shared.
+            os.makedirs(os.path.join(d, "crisp", "Shot B"))
+            with open(os.path.join(d, "crisp", "Shot B", "run_0001-0004.json"), "w") as f:
+                json.dump({"scene": "shot b"}, f)
+            hashed = crisp.operators.default_out_dir(scene)
+            self.assertTrue(hashed.startswith("//crisp/Shot B-") and hashed.endswith("/"), hashed)
 
             img = bpy.data.images.new("stand_in", 8, 4)
             img.filepath_raw = os.path.join(d, "frame_0001.png")
@@ -259,6 +267,14 @@ class AddonTest(unittest.TestCase):
             self.assertEqual(copied.node_tree.get("crisp_scene"), "Copy")
             self.assertEqual(len([n for n in copy.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]), 2)
             self.assertEqual(node.node_tree, mine[0], "the first scene's node is untouched")
+            # Renamed, then a new scene takes the old name: each keeps showing its own frames.
+            old_name = scene.name
+            scene.name = "Renamed"
+            newcomer = bpy.data.scenes.new(old_name)
+            self.assertEqual(newcomer.name, old_name)
+            theirs_now = crisp.compositor.load_result(newcomer, d, 1, 1, ext=".png")
+            self.assertEqual(node.node_tree, mine[0])
+            self.assertNotEqual(theirs_now.node_tree, mine[0], "took the renamed scene's group")
 
     def test_compositor_node_group(self):
         scene = harness.build_scene("still_life")

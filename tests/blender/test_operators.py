@@ -93,7 +93,8 @@ class OperatorTest(unittest.TestCase):
             bpy.data.images.remove(exr)
             # One node each (the copy's node of the first scene's group was switched to its own group).
             node, = [n for n in scene.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]
-            self.assertEqual(node.node_tree.name, "Crisp Result: " + scene.name)
+            self.assertEqual(node.node_tree.get("crisp_scene"), scene.name)
+            self.assertTrue(node.node_tree.name.startswith("Crisp Result: " + scene.name), node.node_tree.name)
             shown = bpy.path.abspath(node.node_tree.nodes["Crisp Frames"].image.filepath)
             self.assertEqual(os.path.dirname(os.path.normpath(shown)), os.path.join(folder[scene], "filtered"))
 

@@ -316,27 +316,27 @@ def test_cli_and_addon_take_each_frames_jitter_from_its_sidecar(shot, lib, tmp_p
 def test_a_frame_without_sidecar_is_not_given_the_previous_frames_jitter(shot, lib, tmp_path):
     """A frame with no sidecar (another renderer's) takes the jitter given with --set, or none: not
     the jitter of the frame before it, which the filter would otherwise keep. Frame 1 has no sidecar
-    in every run, so no run rebuilds motion (that needs every frame's sidecar) and only frame 3's
-    jitter differs between them."""
+    in every run, so no run rebuilds motion (that needs every frame's sidecar); frames 2 and 3 have
+    theirs, and only frame 4's jitter differs between the runs."""
     _, inputs = shot
 
-    def folder(name, third_jitter):
+    def folder(name, last_jitter):
         d = tmp_path / name
         d.mkdir()
-        for f in (1, 2, 3):
+        for f in (1, 2, 3, 4):
             shutil.copy(inputs[f - 1], d / frame(f))
             side = inputs[f - 1][:-len(".exr")] + ".json"
-            if f == 2 or (f == 3 and third_jitter is not None):
+            if f in (2, 3) or (f == 4 and last_jitter is not None):
                 with open(side) as fh:
                     data = json.load(fh)
-                if f == 3:
-                    data["jitter"]["x"], data["jitter"]["y"] = third_jitter
+                if f == 4:
+                    data["jitter"]["x"], data["jitter"]["y"] = last_jitter
                 with open(d / frame(f, ".json"), "w") as fh:
                     json.dump(data, fh)
-        return [d / frame(f) for f in (1, 2, 3)]
+        return [d / frame(f) for f in (1, 2, 3, 4)]
 
-    with open(inputs[1][:-len(".exr")] + ".json") as fh:
-        second = json.load(fh)["jitter"]
+    with open(inputs[2][:-len(".exr")] + ".json") as fh:
+        second = json.load(fh)["jitter"]  # frame 3's, which the old code kept for frame 4
     runs = {"none": (folder("no_sidecar", None), ()), "zero": (folder("zero", (0.0, 0.0)), ()),
             "second": (folder("second", (second["x"], second["y"])), ()),
             "set": (folder("no_sidecar_set", None), ("--set", "jitterX=0.25")),
@@ -346,7 +346,7 @@ def test_a_frame_without_sidecar_is_not_given_the_previous_frames_jitter(shot, l
         crisp("filter", "--method", "taa", "--quiet", *extra, "-o", tmp_path / ("out_" + name), *files)
 
     def third(name):
-        return lib.color(str(tmp_path / ("out_" + name) / frame(3)))
+        return lib.color(str(tmp_path / ("out_" + name) / frame(4)))
     assert np.array_equal(third("none"), third("zero"))
     assert not np.array_equal(third("none"), third("second")), "the jitter matters to this check"
     assert np.array_equal(third("set"), third("quarter"))

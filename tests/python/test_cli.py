@@ -186,6 +186,15 @@ def test_rerun_without_png_leaves_no_stale_png(chart, tmp_path):
     assert "kept" in p.stderr
 
 
+def test_a_file_in_the_way_of_the_stamps_fails_before_any_output(chart, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ".crisp").write_text("not a folder")
+    p = run("filter", "--method", "fxaa", chart / "chart_1spp.exr", "-o", out, ok=False)
+    assert p.returncode == 1 and ".crisp" in p.stderr
+    assert sorted(os.listdir(out)) == [".crisp"]
+
+
 def test_existing_output_survives_a_failed_run(chart, tmp_path):
     out = tmp_path / "out"
     run("filter", "--method", "fxaa", chart / "chart_1spp.exr", "-o", out)
