@@ -1,19 +1,19 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""Filtered frames back into Blender: an image sequence inside a compositor node group
-"Crisp Result: <scene>" (an add-on cannot run its own code as a compositor node, BLENDER.md), and a
-still-frame preview in the Image Editor. Each scene has its own group, so two scenes of one file
-show their own frames."""
+"""Filtered frames back into Blender: an image sequence inside a compositor node group (an add-on
+cannot run its own code as a compositor node, BLENDER.md), and a still-frame preview in the Image
+Editor. A group belongs to a folder of filtered frames (tagged with it), so scenes with their own
+output folders (output_folder.py) have their own groups, named "Crisp Result: <scene>" when made."""
 
 import os
 
 import bpy
 
 GROUP_NAME = "Crisp Result"
-SCENE_TAG = "crisp_scene"  # custom property on a scene's group and its node: the scene's name
+FOLDER_TAG = "crisp_folder"  # custom property of a result group: the folder whose frames it shows
+NODE_TAG = "crisp_result"  # custom property of the node Crisp put in a scene's compositor
 
 
 def group_name(scene):
-    """The name a new group gets (Blender may shorten a long one: groups are found by SCENE_TAG)."""
     return "%s: %s" % (GROUP_NAME, scene.name)
 
 
@@ -39,22 +39,15 @@ def load_sequence(first_path, name):
     return image
 
 
-def _shown_elsewhere(group, scene):
-    """Whether another scene's compositor shows the group: then it is that scene's (a scene renamed
-    since it was tagged, or a copy not loaded yet) and this scene gets a group of its own."""
-    return any(other != scene and other.node_tree is not None and
-               any(n.bl_idname == "CompositorNodeGroup" and n.node_tree == group for n in other.node_tree.nodes)
-               for other in bpy.data.scenes)
-
-
-def result_group(scene, image, frame_start, frame_end):
-    """Creates or updates the scene's node group: Image node (the sequence) -> Group Output (Image,
-    Alpha)."""
-    group = next((g for g in bpy.data.node_groups if g.bl_idname == "CompositorNodeTree" and
-                  g.get(SCENE_TAG) == scene.name and not _shown_elsewhere(g, scene)), None)
+def result_group(scene, folder, image, frame_start, frame_end):
+    """Creates or updates the group of a folder of filtered frames: Image node (the sequence) -> Group
+    Output (Image, Alpha). Every node showing the group, the user's too, follows the update."""
+    key = os.path.normcase(os.path.abspath(folder))
+    group = next((g for g in bpy.data.node_groups
+                  if g.bl_idname == "CompositorNodeTree" and g.get(FOLDER_TAG) == key), None)
     if group is None:
         group = bpy.data.node_groups.new(group_name(scene), "CompositorNodeTree")
-        group[SCENE_TAG] = scene.name
+        group[FOLDER_TAG] = key
     _group_output(group, "Image")
     _group_output(group, "Alpha")
     nodes = group.nodes
@@ -75,14 +68,14 @@ def result_group(scene, image, frame_start, frame_end):
 
 def add_to_compositor(scene, group):
     """Puts one group node in the scene's compositor (turning it on); leaves existing links alone. The
-    node Crisp put there before (tagged; it may show an older group of this scene's, or another
-    scene's if the scene was copied or renamed), or a node of the one group all scenes shared
-    before, is switched to this scene's group; a node the user added is left alone."""
+    node Crisp put there before (tagged; it may show the group of the scene's earlier folder, or of
+    the scene it was copied from), or a node of the one group all scenes shared before, is switched
+    to the group; nodes the user added are left alone."""
     scene.use_nodes = True
     tree = scene.node_tree
     groups = [n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup" and n.node_tree is not None]
     node = next((n for n in groups if n.node_tree == group), None) or \
-        next((n for n in groups if n.node_tree.name == GROUP_NAME or n.get(SCENE_TAG) is not None), None)
+        next((n for n in groups if n.get(NODE_TAG) or n.node_tree.name == GROUP_NAME), None)
     if node is not None:
         node.node_tree = group
     else:
@@ -90,14 +83,14 @@ def add_to_compositor(scene, group):
         node.node_tree = group
         node.location = (-200, -350)
     node.label = GROUP_NAME
-    node[SCENE_TAG] = scene.name
+    node[NODE_TAG] = True
     return node
 
 
 def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
     first = os.path.join(filtered_dir, "frame_%04d%s" % (frame_start, ext))
     image = load_sequence(first, "Crisp " + scene.name)
-    group = result_group(scene, image, frame_start, frame_end)
+    group = result_group(scene, filtered_dir, image, frame_start, frame_end)
     return add_to_compositor(scene, group)
 
 

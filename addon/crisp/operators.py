@@ -1,63 +1,12 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 """Operators: Render with Crisp, Render reference, Compare, Update plan, Load result, Preview."""
 
-import json
 import os
-import zlib
 
 import bpy
 
-from . import compositor, native, pipeline, preferences, render
+from . import compositor, native, output_folder, pipeline, preferences, render
 from . import properties as props
-
-
-WINDOWS_RESERVED = {"CON", "PRN", "AUX", "NUL"} | {"%s%d" % (p, i) for p in ("COM", "LPT") for i in range(1, 10)}
-
-
-def folder_name(name):
-    """A scene name as a folder name: kept where every file system takes it; else the characters some
-    refuse become '_' and a hash of the name is added, so two names never share a folder."""
-    safe = "".join("_" if c in '<>:"/\\|?*' or ord(c) < 32 else c for c in name).rstrip(" .")
-    if safe != name or safe in ("", ".", "..") or safe.split(".")[0].upper() in WINDOWS_RESERVED:
-        safe = "%s-%08x" % (safe.replace(".", "_") or "scene", zlib.crc32(name.encode("utf-8")))
-    return safe
-
-
-def folder_scene(folder):
-    """The scene whose runs went to folder (an absolute path), from its run.json or a chunk's
-    run_AAAA-BBBB.json; None if there are none."""
-    try:
-        names = sorted(n for n in os.listdir(folder) if n.startswith("run") and n.endswith(".json"))
-    except OSError:
-        return None
-    for name in names:
-        try:
-            with open(os.path.join(folder, name)) as f:
-                scene = json.load(f).get("scene")
-        except (OSError, ValueError, AttributeError):
-            continue
-        if isinstance(scene, str):
-            return scene
-    return None
-
-
-def default_out_dir(scene):
-    """The output folder when none is set: //crisp/<scene name>/, one per scene. A file saved by an
-    add-on before that, whose runs of this scene went to //crisp/, keeps //crisp/. A folder that holds
-    another scene's runs (two names one file system takes for the same, as "Shot" and "shot" on
-    macOS or Windows) is not shared: the name gets its hash."""
-    if not bpy.data.filepath:
-        return "//crisp/%s/" % folder_name(scene.name)
-    if folder_scene(bpy.path.abspath("//crisp/")) == scene.name:
-        return "//crisp/"
-    folder = folder_name(scene.name)
-    if folder_scene(bpy.path.abspath("//crisp/%s/" % folder)) not in (None, scene.name):
-        folder = "%s-%08x" % (folder, zlib.crc32(scene.name.encode("utf-8")))
-    return "//crisp/%s/" % folder
-
-
-def _out_dir(scene):
-    return os.path.abspath(bpy.path.abspath(scene.crisp.output_dir or default_out_dir(scene)))
 
 
 def _frames(scene):
@@ -91,7 +40,11 @@ class CRISP_OT_render(bpy.types.Operator):
 
     def execute(self, context):
         scene, s = context.scene, context.scene.crisp
-        out = _out_dir(scene)
+        out = output_folder.out_dir(scene)
+        shared = output_folder.sharing(scene)
+        if shared:
+            self.report({"WARNING"}, "Crisp: scene %s writes to %s too (a copied scene keeps its Output): set "
+                        "another Output in one of them to keep both" % (", ".join("'%s'" % n for n in shared), out))
         wm = context.window_manager
         frames = list(_frames(scene))
         wm.progress_begin(0, len(frames))
@@ -126,7 +79,7 @@ class CRISP_OT_render_reference(bpy.types.Operator):
 
     def execute(self, context):
         scene, s = context.scene, context.scene.crisp
-        out = os.path.join(_out_dir(scene), "reference")
+        out = os.path.join(output_folder.out_dir(scene), "reference")
         try:
             pipeline.check_output_dir(out)
             infos = render.render_reference(scene, _frames(scene), out, s.reference_samples,
@@ -146,7 +99,7 @@ class CRISP_OT_compare(bpy.types.Operator):
 
     def execute(self, context):
         scene, s = context.scene, context.scene.crisp
-        out = _out_dir(scene)
+        out = output_folder.out_dir(scene)
         try:
             res = pipeline.compare_dirs(os.path.join(out, "filtered"), os.path.join(out, "reference"),
                                         _frames(scene), preferences.threads(context))
@@ -166,7 +119,7 @@ class CRISP_OT_load_result(bpy.types.Operator):
     def execute(self, context):
         scene = context.scene
         try:
-            compositor.load_result(scene, os.path.join(_out_dir(scene), "filtered"),
+            compositor.load_result(scene, os.path.join(output_folder.out_dir(scene), "filtered"),
                                    scene.frame_start, scene.frame_end)
         except OSError as e:
             return _fail(self, e)
@@ -180,7 +133,7 @@ class CRISP_OT_preview(bpy.types.Operator):
 
     def execute(self, context):
         scene = context.scene
-        folder = os.path.join(_out_dir(scene), "filtered")
+        folder = os.path.join(output_folder.out_dir(scene), "filtered")
         path = os.path.join(folder, render.frame_name(scene.frame_current, ".png"))
         if not os.path.isfile(path):
             path = os.path.join(folder, render.frame_name(scene.frame_current))

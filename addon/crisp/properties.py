@@ -110,8 +110,8 @@ class CrispSettings(bpy.types.PropertyGroup):
                                              description="EEVEE samples of the reference frames (>= 256 for final figures)")
     output_dir: bpy.props.StringProperty(
         name="Output", subtype="DIR_PATH", default="",
-        description="Folder of this scene's frames; empty: //crisp/<scene name>/ beside the .blend file, so two "
-                    "scenes of one file never share one")
+        description="Folder of this scene's frames; empty: //crisp/<scene name>/ beside the .blend file (set here "
+                    "on the first render, so the scene keeps it when renamed and two scenes never share one)")
     jitter_distribution: bpy.props.EnumProperty(
         name="Jitter", items=[("blackman-harris", "Blackman-Harris", "EEVEE's own sample distribution"),
                               ("uniform", "Uniform", "Halton points inside the pixel")])

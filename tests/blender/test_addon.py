@@ -14,7 +14,7 @@ import harness  # noqa: E402
 
 import bpy  # noqa: E402
 import crisp  # noqa: E402
-from crisp import native, pipeline, plan, render  # noqa: E402
+from crisp import native, output_folder, pipeline, plan, render  # noqa: E402
 
 # What each scene is, by construction (see each scene's docstring): which kind of motion, how many
 # objects are visible. The expected plans below follow from these facts and METHODS.md.
@@ -212,69 +212,85 @@ class AddonTest(unittest.TestCase):
             scene.frame_step = 1
         self.assertIn("note: the scene's frame step 2 is not used", "\n".join(lines))
 
-    def test_each_scene_its_own_folder_and_group(self):
+    def test_folder_names(self):
         names = ["Shot_1", "Shot/1", "Shot:1", "Shot 1", "Shot 1.", "..", "Scène", "a\\b", "CON", "aux.txt", "con"]
-        folders = [crisp.operators.folder_name(n) for n in names]
+        folders = [output_folder.folder_name(n) for n in names]
         self.assertEqual(len(set(folders)), len(names), folders)
-        self.assertEqual(folders[0], "Shot_1")
-        self.assertEqual(folders[3], "Shot 1")
-        self.assertEqual(folders[6], "Scène")
+        self.assertEqual((folders[0], folders[3], folders[6]), ("Shot_1", "Shot 1", "Scène"))
         for f in folders:
             self.assertFalse(set(f) & set('<>:"/\\|?*') or f in ("", ".", "..") or f.endswith((".", " ")), f)
-            self.assertNotIn(f.split(".")[0].upper(), crisp.operators.WINDOWS_RESERVED, f)
+            self.assertNotIn(f.split(".")[0].upper(), output_folder.WINDOWS_RESERVED, f)
+
+    def test_each_scene_its_own_folder_kept_when_renamed(self):
+        crisp.register()
+        self.addCleanup(crisp.unregister)
         scene = harness.build_scene("still_life")
         scene.name = "Shot"
+        scene.crisp.property_unset("output_dir")
         with tempfile.TemporaryDirectory() as d:
-            bpy.ops.wm.save_as_mainfile(filepath=os.path.join(d, "old.blend"))
-            self.assertEqual(crisp.operators.default_out_dir(scene), "//crisp/Shot/")
+            bpy.ops.wm.save_as_mainfile(filepath=os.path.join(d, "f.blend"))
+            self.assertEqual(output_folder.default_out_dir(scene), "//crisp/Shot/")
             # A file an older add-on rendered into //crisp/ for this scene keeps that folder.
             os.makedirs(os.path.join(d, "crisp"))
             with open(os.path.join(d, "crisp", "run.json"), "w") as f:
                 json.dump({"scene": "Shot"}, f)
-            self.assertEqual(crisp.operators.default_out_dir(scene), "//crisp/")
-            scene.name = "Shot B"
-            self.assertEqual(crisp.operators.default_out_dir(scene), "//crisp/Shot B/")
-            # A folder holding another scene's runs (as "Shot" and "shot" on a case-insensitive file
-            # system; a chunk's run file names the scene too) is not shared.
-            os.makedirs(os.path.join(d, "crisp", "Shot B"))
-            with open(os.path.join(d, "crisp", "Shot B", "run_0001-0004.json"), "w") as f:
-                json.dump({"scene": "shot b"}, f)
-            hashed = crisp.operators.default_out_dir(scene)
-            self.assertTrue(hashed.startswith("//crisp/Shot B-") and hashed.endswith("/"), hashed)
+            self.assertEqual(output_folder.default_out_dir(scene), "//crisp/")
+            os.remove(os.path.join(d, "crisp", "run.json"))
+            # The first operator pins the folder into the scene; renamed, the scene keeps it, and a new
+            # scene given the old name gets another (so does one whose name differs only in case).
+            self.assertEqual(output_folder.out_dir(scene), os.path.join(d, "crisp", "Shot"))
+            self.assertEqual(scene.crisp.output_dir, "//crisp/Shot/")
+            scene.name = "Renamed"
+            self.assertEqual(output_folder.out_dir(scene), os.path.join(d, "crisp", "Shot"))
+            newcomer, lower = bpy.data.scenes.new("Shot"), bpy.data.scenes.new("shot")
+            self.assertEqual(output_folder.default_out_dir(newcomer), "//crisp/Shot-2/")
+            self.assertEqual(output_folder.default_out_dir(lower), "//crisp/shot-2/")
+            # A folder holding another scene's runs (a chunk's run file names the scene too) is not taken.
+            os.makedirs(os.path.join(d, "crisp", "Shot-2"))
+            with open(os.path.join(d, "crisp", "Shot-2", "run_0001-0004.json"), "w") as f:
+                json.dump({"scene": "Elsewhere"}, f)
+            self.assertEqual(output_folder.default_out_dir(newcomer), "//crisp/Shot-3/")
+            # A copy keeps the Output, as a copied scene keeps its render path; Render with Crisp warns.
+            copy = scene.copy()
+            self.assertEqual(output_folder.sharing(copy), ["Renamed"])
+            self.assertEqual(output_folder.sharing(newcomer), [])
+            for s in (newcomer, lower, copy):
+                bpy.data.scenes.remove(s)
 
-            img = bpy.data.images.new("stand_in", 8, 4)
-            img.filepath_raw = os.path.join(d, "frame_0001.png")
-            img.file_format = "PNG"
-            img.save()
-            # A node the user added for another group stays as it is.
+    def test_compositor_group_per_folder(self):
+        scene = harness.build_scene("still_life")
+        with tempfile.TemporaryDirectory() as d:
+            folders = [os.path.join(d, "one"), os.path.join(d, "two")]
+            for folder in folders:
+                os.makedirs(folder)
+                img = bpy.data.images.new("stand_in", 8, 4)
+                img.filepath_raw = os.path.join(folder, "frame_0001.png")
+                img.file_format = "PNG"
+                img.save()
             scene.use_nodes = True
             scene.node_tree.nodes.clear()
-            theirs = bpy.data.node_groups.new("Crisp Result: elsewhere", "CompositorNodeTree")
+            # A node the user added, showing another scene's result group, stays as it is.
+            other = bpy.data.scenes.new("Other")
+            theirs = crisp.compositor.load_result(other, folders[1], 1, 1, ext=".png").node_tree
             user_node = scene.node_tree.nodes.new("CompositorNodeGroup")
             user_node.node_tree = theirs
-            # A name longer than Blender keeps for a group: loading twice still makes one group.
-            scene.name = "A scene whose name is much longer than any node group name may be, 70 c"
             for _ in range(2):
-                node = crisp.compositor.load_result(scene, d, 1, 1, ext=".png")
-            mine = [g for g in bpy.data.node_groups if g.get("crisp_scene") == scene.name]
+                node = crisp.compositor.load_result(scene, folders[0], 1, 1, ext=".png")
+            mine = [g for g in bpy.data.node_groups if g.get("crisp_folder") == os.path.normcase(folders[0])]
             self.assertEqual(len(mine), 1, [g.name for g in bpy.data.node_groups])
             self.assertEqual(node.node_tree, mine[0])
             self.assertEqual(user_node.node_tree, theirs)
-            # A copy of the scene (its compositor holds the node Crisp put there) gets its own group.
+            # A longer range for the other scene: the user's node follows it.
+            crisp.compositor.load_result(other, folders[1], 1, 3, ext=".png")
+            self.assertEqual(user_node.node_tree.nodes["Crisp Frames"].frame_duration, 3)
+            # A copy of the scene, given its own folder, gets its own group in the node Crisp put there.
             copy = scene.copy()
-            copy.name = "Copy"
-            copied = crisp.compositor.load_result(copy, d, 1, 1, ext=".png")
-            self.assertEqual(copied.node_tree.get("crisp_scene"), "Copy")
+            copied = crisp.compositor.load_result(copy, folders[1], 1, 1, ext=".png")
+            self.assertEqual(copied.node_tree, theirs)
             self.assertEqual(len([n for n in copy.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]), 2)
             self.assertEqual(node.node_tree, mine[0], "the first scene's node is untouched")
-            # Renamed, then a new scene takes the old name: each keeps showing its own frames.
-            old_name = scene.name
-            scene.name = "Renamed"
-            newcomer = bpy.data.scenes.new(old_name)
-            self.assertEqual(newcomer.name, old_name)
-            theirs_now = crisp.compositor.load_result(newcomer, d, 1, 1, ext=".png")
-            self.assertEqual(node.node_tree, mine[0])
-            self.assertNotEqual(theirs_now.node_tree, mine[0], "took the renamed scene's group")
+            for s in (other, copy):
+                bpy.data.scenes.remove(s)
 
     def test_compositor_node_group(self):
         scene = harness.build_scene("still_life")
@@ -289,10 +305,12 @@ class AddonTest(unittest.TestCase):
             # A node of the one group all scenes shared before is switched to this scene's own group.
             shared = bpy.data.node_groups.new("Crisp Result", "CompositorNodeTree")
             scene.use_nodes = True
+            scene.node_tree.nodes.clear()
             old_node = scene.node_tree.nodes.new("CompositorNodeGroup")
             old_node.node_tree = shared
             node = crisp.compositor.load_result(scene, d, 3, 4, ext=".png")
-            group = bpy.data.node_groups["Crisp Result: " + scene.name]
+            group = node.node_tree
+            self.assertEqual(group.get("crisp_folder"), os.path.normcase(d))
             self.assertEqual(node, old_node)
             self.assertEqual(node.node_tree, group)
             self.assertTrue(scene.use_nodes)

@@ -51,7 +51,7 @@ class OperatorTest(unittest.TestCase):
         self.assertTrue(0.5 < s.last_ssim <= 1.0, s.last_compare)
         self.assertIn("2 frames", s.last_compare)
         self.assertEqual(scene.render.engine, "CYCLES", "the user's engine was not restored")
-        self.assertIn("Crisp Result: " + scene.name, bpy.data.node_groups)
+        self.assertIn("Crisp Result: " + scene.name, [g.name for g in bpy.data.node_groups])
         # Still-frame preview: the current frame's filtered PNG becomes an image Blender can show.
         scene.frame_set(2)
         self.assertEqual(bpy.ops.crisp.preview(), {"FINISHED"})
@@ -73,7 +73,7 @@ class OperatorTest(unittest.TestCase):
             bpy.data.node_groups.remove(g)
         earlier = a.node_tree.nodes.new("CompositorNodeGroup")
         earlier.node_tree = bpy.data.node_groups.new("Crisp Result: " + a.name, "CompositorNodeTree")
-        earlier["crisp_scene"] = earlier.node_tree["crisp_scene"] = a.name  # as compositor.load_result tags them
+        earlier["crisp_result"] = True  # as compositor.load_result tags its node
         b = a.copy()
         b.name = "Other Shot"
         b.render.resolution_x, b.render.resolution_y = 48, 28
@@ -93,8 +93,8 @@ class OperatorTest(unittest.TestCase):
             bpy.data.images.remove(exr)
             # One node each (the copy's node of the first scene's group was switched to its own group).
             node, = [n for n in scene.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]
-            self.assertEqual(node.node_tree.get("crisp_scene"), scene.name)
-            self.assertTrue(node.node_tree.name.startswith("Crisp Result: " + scene.name), node.node_tree.name)
+            self.assertEqual(node.node_tree.get("crisp_folder"), os.path.join(folder[scene], "filtered"))
+            self.assertEqual(scene.crisp.output_dir, "//crisp/%s/" % os.path.basename(folder[scene]), "pinned")
             shown = bpy.path.abspath(node.node_tree.nodes["Crisp Frames"].image.filepath)
             self.assertEqual(os.path.dirname(os.path.normpath(shown)), os.path.join(folder[scene], "filtered"))
 
