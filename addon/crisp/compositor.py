@@ -74,14 +74,15 @@ def add_to_compositor(scene, group):
     scene.use_nodes = True
     tree = scene.node_tree
     groups = [n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup" and n.node_tree is not None]
-    node = next((n for n in groups if n.node_tree == group), None) or \
-        next((n for n in groups if n.get(NODE_TAG) or n.node_tree.name == GROUP_NAME), None)
-    if node is not None:
-        node.node_tree = group
-    else:
+    node = next((n for n in groups if n.get(NODE_TAG)), None) or \
+        next((n for n in groups if n.node_tree.name == GROUP_NAME), None)
+    if node is None:
+        shown = next((n for n in groups if n.node_tree == group), None)
+        if shown is not None:
+            return shown  # the user's own node shows the group already: left as it is, untagged
         node = tree.nodes.new("CompositorNodeGroup")
-        node.node_tree = group
         node.location = (-200, -350)
+    node.node_tree = group
     node.label = GROUP_NAME
     node[NODE_TAG] = True
     return node

@@ -13,6 +13,17 @@ def _frames(scene):
     return pipeline.parse_frames("%d-%d" % (scene.frame_start, scene.frame_end))
 
 
+def _done(op, scene, text):
+    """The operator's last report: a warning when another scene writes to the same folder (an Output
+    the user set in both), else information."""
+    shared = output_folder.sharing(scene)
+    if shared:
+        op.report({"WARNING"}, "%s; note: scene %s writes to this folder too: set another Output in one of them "
+                  "to keep both" % (text, ", ".join("'%s'" % n for n in shared)))
+    else:
+        op.report({"INFO"}, text)
+
+
 def _fail(op, e):
     op.report({"ERROR"}, str(e))
     return {"CANCELLED"}
@@ -40,11 +51,10 @@ class CRISP_OT_render(bpy.types.Operator):
 
     def execute(self, context):
         scene, s = context.scene, context.scene.crisp
-        out = output_folder.out_dir(scene)
-        shared = output_folder.sharing(scene)
-        if shared:
-            self.report({"WARNING"}, "Crisp: scene %s writes to %s too (a copied scene keeps its Output): set "
-                        "another Output in one of them to keep both" % (", ".join("'%s'" % n for n in shared), out))
+        try:
+            out = output_folder.out_dir(scene, writing=True)
+        except output_folder.UnsavedFile as e:
+            return _fail(self, e)
         wm = context.window_manager
         frames = list(_frames(scene))
         wm.progress_begin(0, len(frames))
@@ -68,7 +78,7 @@ class CRISP_OT_render(bpy.types.Operator):
             return _fail(self, e)
         finally:
             wm.progress_end()
-        self.report({"INFO"}, "Crisp: %d frames filtered with %s into %s" % (len(result["frames"]), s.method, out))
+        _done(self, scene, "Crisp: %d frames filtered with %s into %s" % (len(result["frames"]), s.method, out))
         return {"FINISHED"}
 
 
@@ -79,16 +89,16 @@ class CRISP_OT_render_reference(bpy.types.Operator):
 
     def execute(self, context):
         scene, s = context.scene, context.scene.crisp
-        out = os.path.join(output_folder.out_dir(scene), "reference")
         try:
+            out = os.path.join(output_folder.out_dir(scene, writing=True), "reference")
             pipeline.check_output_dir(out)
             infos = render.render_reference(scene, _frames(scene), out, s.reference_samples,
                                             view_layer=context.view_layer)
-        except (pipeline.InputError, render.RenderError, OSError) as e:
+        except (pipeline.InputError, render.RenderError, output_folder.UnsavedFile, OSError) as e:
             return _fail(self, e)
         mean = sum(i["render_s"] for i in infos) / max(len(infos), 1)
-        self.report({"INFO"}, "Crisp: %d reference frames at %d samples (%.2f s/frame)"
-                    % (len(infos), s.reference_samples, mean))
+        _done(self, scene, "Crisp: %d reference frames at %d samples (%.2f s/frame)"
+              % (len(infos), s.reference_samples, mean))
         return {"FINISHED"}
 
 
@@ -99,11 +109,11 @@ class CRISP_OT_compare(bpy.types.Operator):
 
     def execute(self, context):
         scene, s = context.scene, context.scene.crisp
-        out = output_folder.out_dir(scene)
         try:
+            out = output_folder.out_dir(scene, writing=False)
             res = pipeline.compare_dirs(os.path.join(out, "filtered"), os.path.join(out, "reference"),
                                         _frames(scene), preferences.threads(context))
-        except (pipeline.InputError, native.CrispError) as e:
+        except (pipeline.InputError, native.CrispError, output_folder.UnsavedFile) as e:
             return _fail(self, e)
         s.last_psnr, s.last_ssim = res["mean"]["psnr"], res["mean"]["ssim"]
         s.last_compare = "%d frames: PSNR %.2f dB, SSIM %.4f" % (len(res["frames"]), s.last_psnr, s.last_ssim)
@@ -119,9 +129,9 @@ class CRISP_OT_load_result(bpy.types.Operator):
     def execute(self, context):
         scene = context.scene
         try:
-            compositor.load_result(scene, os.path.join(output_folder.out_dir(scene), "filtered"),
+            compositor.load_result(scene, os.path.join(output_folder.out_dir(scene, writing=False), "filtered"),
                                    scene.frame_start, scene.frame_end)
-        except OSError as e:
+        except (OSError, output_folder.UnsavedFile) as e:
             return _fail(self, e)
         return {"FINISHED"}
 
@@ -133,7 +143,10 @@ class CRISP_OT_preview(bpy.types.Operator):
 
     def execute(self, context):
         scene = context.scene
-        folder = os.path.join(output_folder.out_dir(scene), "filtered")
+        try:
+            folder = os.path.join(output_folder.out_dir(scene, writing=False), "filtered")
+        except output_folder.UnsavedFile as e:
+            return _fail(self, e)
         path = os.path.join(folder, render.frame_name(scene.frame_current, ".png"))
         if not os.path.isfile(path):
             path = os.path.join(folder, render.frame_name(scene.frame_current))

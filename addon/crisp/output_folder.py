@@ -1,9 +1,11 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""Where a scene's Crisp frames go when the panel's Output is empty: //crisp/<scene name>/, a folder
-of its own. The first operator that needs it writes it into the scene's Output (pins it), as a
-render output path is kept with its scene: renaming the scene keeps its folder and its results, and
-a new scene given the old name gets another folder. A folder is another scene's when that scene's
-Output names it (compared without case, as macOS and Windows do) or its run files name that scene."""
+"""Where a scene's Crisp frames go when the panel's Output is empty: //crisp/<scene name>/ beside the
+saved .blend, a folder of its own. The first render writes it into the scene's Output (pins it), as a
+render output path is kept with its scene, so a renamed scene keeps its folder. A default never
+takes a folder that holds runs already, or that another scene's Output names (compared without
+case, as macOS and Windows do): it moves on to //crisp/<name>-2/, -3, ... A copied scene keeps the
+pinned Output; its first render gives it a folder of its own. An Output the user set is used as it
+is, shared or not (the operators then warn)."""
 
 import itertools
 import json
@@ -57,20 +59,22 @@ def sharing(scene):
 
 
 def _taken(path, scene):
-    """Whether the folder is another scene's: its Output names it, or its runs went there."""
+    """Whether a default may not take the folder: another scene's Output names it, or it holds runs."""
     key = _key(path)
     if any(other != scene and other.crisp.output_dir and _key(other.crisp.output_dir) == key
            for other in bpy.data.scenes):
         return True
-    return folder_scene(bpy.path.abspath(path)) not in (None, scene.name)
+    return folder_scene(bpy.path.abspath(path)) is not None
 
 
 def default_out_dir(scene):
     """The folder the scene's Output gets when it is empty. A file saved by an earlier add-on, whose
     runs of this scene went to //crisp/, keeps //crisp/."""
-    if bpy.data.filepath and folder_scene(bpy.path.abspath("//crisp/")) == scene.name and \
-            not _taken("//crisp/", scene):
-        return "//crisp/"
+    legacy = "//crisp/"
+    if bpy.data.filepath and folder_scene(bpy.path.abspath(legacy)) == scene.name and \
+            not any(other != scene and other.crisp.output_dir and _key(other.crisp.output_dir) == _key(legacy)
+                    for other in bpy.data.scenes):
+        return legacy
     base = folder_name(scene.name)
     for k in itertools.count(1):
         path = "//crisp/%s/" % (base if k == 1 else "%s-%d" % (base, k))
@@ -78,8 +82,28 @@ def default_out_dir(scene):
             return path
 
 
-def out_dir(scene):
-    """The scene's output folder as an absolute path; an empty Output is pinned to the default."""
-    if not scene.crisp.output_dir:
-        scene.crisp.output_dir = default_out_dir(scene)
-    return os.path.abspath(bpy.path.abspath(scene.crisp.output_dir))
+def _owns(scene, path):
+    """Of scenes sharing a pinned folder (a copy and its original), the one whose runs went there, or
+    before any run the one it was named after: the other moves on its next render."""
+    owner = folder_scene(bpy.path.abspath(path))
+    if owner is not None:
+        return owner == scene.name
+    return os.path.basename(os.path.normpath(bpy.path.abspath(path))) == folder_name(scene.name)
+
+
+class UnsavedFile(RuntimeError):
+    """An unsaved .blend and an empty Output: // has no folder to mean."""
+
+
+def out_dir(scene, writing):
+    """The scene's output folder as an absolute path. writing (the renders): an empty Output is pinned
+    to the default, and so is a pinned one another scene shares (a copy's). Otherwise (compare,
+    load, preview) nothing is written into the scene."""
+    s = scene.crisp
+    if not s.output_dir and not bpy.data.filepath:
+        raise UnsavedFile("save the .blend file first (Crisp's frames go to //crisp/<scene>/ beside it), "
+                          "or set the Output folder in the Crisp panel")
+    if writing and (not s.output_dir or (s.output_dir == s.output_pinned and sharing(scene) and
+                                         not _owns(scene, s.output_dir))):
+        s.output_dir = s.output_pinned = default_out_dir(scene)
+    return os.path.abspath(bpy.path.abspath(s.output_dir or default_out_dir(scene)))

@@ -112,6 +112,8 @@ class CrispSettings(bpy.types.PropertyGroup):
         name="Output", subtype="DIR_PATH", default="",
         description="Folder of this scene's frames; empty: //crisp/<scene name>/ beside the .blend file (set here "
                     "on the first render, so the scene keeps it when renamed and two scenes never share one)")
+    output_pinned: bpy.props.StringProperty(options={"HIDDEN"}, description="The Output Crisp set itself "
+                                            "(output_folder.py); empty or other: the user's")
     jitter_distribution: bpy.props.EnumProperty(
         name="Jitter", items=[("blackman-harris", "Blackman-Harris", "EEVEE's own sample distribution"),
                               ("uniform", "Uniform", "Halton points inside the pixel")])

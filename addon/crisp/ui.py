@@ -31,7 +31,8 @@ class CRISP_PT_render(bpy.types.Panel):
         layout.prop(s, "reference_samples")
         layout.prop(s, "output_dir")
         if not s.output_dir:
-            layout.label(text="Output: " + output_folder.default_out_dir(context.scene), icon="FILE_FOLDER")
+            layout.label(text=("Output: " + output_folder.default_out_dir(context.scene)) if bpy.data.filepath
+                         else "Output: save the .blend first, or set a folder", icon="FILE_FOLDER")
         row = layout.row()
         row.prop(s, "write_png")
         row.prop(s, "load_result")

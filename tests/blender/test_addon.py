@@ -227,6 +227,11 @@ class AddonTest(unittest.TestCase):
         scene = harness.build_scene("still_life")
         scene.name = "Shot"
         scene.crisp.property_unset("output_dir")
+        # Unsaved, // means no folder: the renders say so instead of writing to the working folder.
+        self.assertEqual(bpy.data.filepath, "", "no earlier test in this file saves")
+        with self.assertRaisesRegex(output_folder.UnsavedFile, "save the .blend"):
+            output_folder.out_dir(scene, writing=True)
+        self.assertEqual(scene.crisp.output_dir, "")
         with tempfile.TemporaryDirectory() as d:
             bpy.ops.wm.save_as_mainfile(filepath=os.path.join(d, "f.blend"))
             self.assertEqual(output_folder.default_out_dir(scene), "//crisp/Shot/")
@@ -238,10 +243,12 @@ class AddonTest(unittest.TestCase):
             os.remove(os.path.join(d, "crisp", "run.json"))
             # The first operator pins the folder into the scene; renamed, the scene keeps it, and a new
             # scene given the old name gets another (so does one whose name differs only in case).
-            self.assertEqual(output_folder.out_dir(scene), os.path.join(d, "crisp", "Shot"))
+            self.assertEqual(output_folder.out_dir(scene, writing=False), os.path.join(d, "crisp", "Shot"))
+            self.assertEqual(scene.crisp.output_dir, "", "only a render pins the folder")
+            self.assertEqual(output_folder.out_dir(scene, writing=True), os.path.join(d, "crisp", "Shot"))
             self.assertEqual(scene.crisp.output_dir, "//crisp/Shot/")
             scene.name = "Renamed"
-            self.assertEqual(output_folder.out_dir(scene), os.path.join(d, "crisp", "Shot"))
+            self.assertEqual(output_folder.out_dir(scene, writing=True), os.path.join(d, "crisp", "Shot"))
             newcomer, lower = bpy.data.scenes.new("Shot"), bpy.data.scenes.new("shot")
             self.assertEqual(output_folder.default_out_dir(newcomer), "//crisp/Shot-2/")
             self.assertEqual(output_folder.default_out_dir(lower), "//crisp/shot-2/")
@@ -250,11 +257,29 @@ class AddonTest(unittest.TestCase):
             with open(os.path.join(d, "crisp", "Shot-2", "run_0001-0004.json"), "w") as f:
                 json.dump({"scene": "Elsewhere"}, f)
             self.assertEqual(output_folder.default_out_dir(newcomer), "//crisp/Shot-3/")
-            # A copy keeps the Output, as a copied scene keeps its render path; Render with Crisp warns.
+            # Nor one holding runs of a scene of the same name: the scene that made them may have lost
+            # its Output (an undo, a cleared field), and a newcomer must not overwrite them.
+            solo = bpy.data.scenes.new("Solo")
+            os.makedirs(os.path.join(d, "crisp", "Solo"))
+            with open(os.path.join(d, "crisp", "Solo", "run.json"), "w") as f:
+                json.dump({"scene": "Solo"}, f)
+            self.assertEqual(output_folder.default_out_dir(solo), "//crisp/Solo-2/")
+            # A copy keeps the pinned Output, as a copied scene keeps its render path; its first render
+            # gives it its own folder, and the scene the folder was named after keeps it.
             copy = scene.copy()
             self.assertEqual(output_folder.sharing(copy), ["Renamed"])
-            self.assertEqual(output_folder.sharing(newcomer), [])
-            for s in (newcomer, lower, copy):
+            original = bpy.data.scenes.new("Shot.0")  # the folder's namesake, sharing it too
+            original.crisp.output_dir = original.crisp.output_pinned = "//crisp/Shot/"
+            self.assertEqual(output_folder.out_dir(copy, writing=True), os.path.join(d, "crisp", "Renamed.001"))
+            self.assertEqual(output_folder.sharing(copy), [])
+            bpy.data.scenes.remove(newcomer)
+            namesake = bpy.data.scenes.new("Shot")  # the name the folder was made for: it stays
+            namesake.crisp.output_dir = namesake.crisp.output_pinned = "//crisp/Shot/"
+            self.assertEqual(output_folder.out_dir(namesake, writing=True), os.path.join(d, "crisp", "Shot"))
+            # An Output the user set is used as it is, shared or not.
+            lower.crisp.output_dir = "//crisp/Shot/"
+            self.assertEqual(output_folder.out_dir(lower, writing=True), os.path.join(d, "crisp", "Shot"))
+            for s in (lower, copy, solo, original, namesake):
                 bpy.data.scenes.remove(s)
 
     def test_compositor_group_per_folder(self):
@@ -283,12 +308,21 @@ class AddonTest(unittest.TestCase):
             # A longer range for the other scene: the user's node follows it.
             crisp.compositor.load_result(other, folders[1], 1, 3, ext=".png")
             self.assertEqual(user_node.node_tree.nodes["Crisp Frames"].frame_duration, 3)
-            # A copy of the scene, given its own folder, gets its own group in the node Crisp put there.
+            # A copy of the scene (its compositor holds copies of both nodes), given the other folder:
+            # Crisp's node is switched to that folder's group, the user's stays untagged.
             copy = scene.copy()
             copied = crisp.compositor.load_result(copy, folders[1], 1, 1, ext=".png")
+            group_nodes = [n for n in copy.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]
+            self.assertEqual(len(group_nodes), 2)
+            self.assertTrue(copied.get("crisp_result"))
             self.assertEqual(copied.node_tree, theirs)
-            self.assertEqual(len([n for n in copy.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]), 2)
-            self.assertEqual(node.node_tree, mine[0], "the first scene's node is untouched")
+            self.assertEqual([n.get("crisp_result") for n in group_nodes].count(True), 1)
+            # Without Crisp's node, a user's node already showing the group is used as it is: not
+            # tagged, no second node.
+            copy.node_tree.nodes.remove(copied)
+            again = crisp.compositor.load_result(copy, folders[1], 1, 1, ext=".png")
+            self.assertIsNone(again.get("crisp_result"))
+            self.assertEqual(len([n for n in copy.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]), 1)
             for s in (other, copy):
                 bpy.data.scenes.remove(s)
 
