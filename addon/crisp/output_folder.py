@@ -2,8 +2,8 @@
 """Where a scene's Crisp frames go when the panel's Output is empty: //crisp/<scene name>/ beside the
 saved .blend, a folder of its own. The first render writes it into the scene's Output (pins it), as a
 render output path is kept with its scene, so a renamed scene keeps its folder. A default never
-takes a folder that holds runs already, or that another scene's Output names (compared without
-case, as macOS and Windows do): it moves on to //crisp/<name>-2/, -3, ... A copied scene keeps the
+takes a folder that holds another scene's runs, or that another scene's Output names (compared
+without case, as macOS and Windows do): it moves on to //crisp/<name>-2/, -3, ... A copied scene keeps the
 pinned Output; its first render gives it a folder of its own. An Output the user set is used as it
 is, shared or not (the operators then warn)."""
 
@@ -59,12 +59,14 @@ def sharing(scene):
 
 
 def _taken(path, scene):
-    """Whether a default may not take the folder: another scene's Output names it, or it holds runs."""
+    """Whether a default may not take the folder: another scene's Output names it, or it holds runs of
+    another scene. Runs of a scene of this name are taken as its own (its Output emptied by an undo,
+    or a farm's `crisp render` into //crisp/<scene>/)."""
     key = _key(path)
     if any(other != scene and other.crisp.output_dir and _key(other.crisp.output_dir) == key
            for other in bpy.data.scenes):
         return True
-    return folder_scene(bpy.path.abspath(path)) is not None
+    return folder_scene(bpy.path.abspath(path)) not in (None, scene.name)
 
 
 def default_out_dir(scene):

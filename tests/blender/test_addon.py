@@ -257,13 +257,13 @@ class AddonTest(unittest.TestCase):
             with open(os.path.join(d, "crisp", "Shot-2", "run_0001-0004.json"), "w") as f:
                 json.dump({"scene": "Elsewhere"}, f)
             self.assertEqual(output_folder.default_out_dir(newcomer), "//crisp/Shot-3/")
-            # Nor one holding runs of a scene of the same name: the scene that made them may have lost
-            # its Output (an undo, a cleared field), and a newcomer must not overwrite them.
+            # Runs of a scene of this name are its own: its Output emptied by an undo, or a farm's
+            # chunks rendered by `crisp render` (run_AAAA-BBBB.json) into //crisp/<scene>/.
             solo = bpy.data.scenes.new("Solo")
             os.makedirs(os.path.join(d, "crisp", "Solo"))
-            with open(os.path.join(d, "crisp", "Solo", "run.json"), "w") as f:
+            with open(os.path.join(d, "crisp", "Solo", "run_0001-0001.json"), "w") as f:
                 json.dump({"scene": "Solo"}, f)
-            self.assertEqual(output_folder.default_out_dir(solo), "//crisp/Solo-2/")
+            self.assertEqual(output_folder.default_out_dir(solo), "//crisp/Solo/")
             # A copy keeps the pinned Output, as a copied scene keeps its render path; its first render
             # gives it its own folder, and the scene the folder was named after keeps it.
             copy = scene.copy()
