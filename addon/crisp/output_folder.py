@@ -48,25 +48,24 @@ def _key(path):
     return os.path.normpath(os.path.abspath(bpy.path.abspath(path))).casefold()
 
 
+def _outputs_naming(path, scene):
+    """The other scenes whose Output is the folder path (compared without case)."""
+    key = _key(path)
+    return [other.name for other in bpy.data.scenes
+            if other != scene and other.crisp.output_dir and _key(other.crisp.output_dir) == key]
+
+
 def sharing(scene):
     """The other scenes whose Output is this scene's folder (a copied scene keeps its Output, as it
     keeps its render output path): their renders overwrite each other's frames."""
-    if not scene.crisp.output_dir:
-        return []
-    key = _key(scene.crisp.output_dir)
-    return [other.name for other in bpy.data.scenes
-            if other != scene and other.crisp.output_dir and _key(other.crisp.output_dir) == key]
+    return _outputs_naming(scene.crisp.output_dir, scene) if scene.crisp.output_dir else []
 
 
 def _taken(path, scene):
     """Whether a default may not take the folder: another scene's Output names it, or it holds runs of
     another scene. Runs of a scene of this name are taken as its own (its Output emptied by an undo,
     or a farm's `crisp render` into //crisp/<scene>/)."""
-    key = _key(path)
-    if any(other != scene and other.crisp.output_dir and _key(other.crisp.output_dir) == key
-           for other in bpy.data.scenes):
-        return True
-    return folder_scene(bpy.path.abspath(path)) not in (None, scene.name)
+    return bool(_outputs_naming(path, scene)) or folder_scene(bpy.path.abspath(path)) not in (None, scene.name)
 
 
 def default_out_dir(scene):
@@ -74,8 +73,7 @@ def default_out_dir(scene):
     runs of this scene went to //crisp/, keeps //crisp/."""
     legacy = "//crisp/"
     if bpy.data.filepath and folder_scene(bpy.path.abspath(legacy)) == scene.name and \
-            not any(other != scene and other.crisp.output_dir and _key(other.crisp.output_dir) == _key(legacy)
-                    for other in bpy.data.scenes):
+            not _outputs_naming(legacy, scene):
         return legacy
     base = folder_name(scene.name)
     for k in itertools.count(1):

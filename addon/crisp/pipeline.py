@@ -101,8 +101,12 @@ def _read_json(path):
         return None
 
 
+def _png_records_dir(folder):
+    return os.path.join(folder, ".crisp")
+
+
 def _png_record_path(png):
-    return os.path.join(os.path.dirname(png), ".crisp", os.path.basename(png) + ".json")
+    return os.path.join(_png_records_dir(os.path.dirname(png)), os.path.basename(png) + ".json")
 
 
 def _png_record(png):
@@ -227,11 +231,11 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     frame_filter = None
     if filter_frames:
         os.makedirs(filtered_dir, exist_ok=True)
-        try:  # the PNG records' folder, before any frame: a file in the way stops the run here
-            if write_png:
-                os.makedirs(os.path.dirname(_png_record_path(os.path.join(filtered_dir, "x"))), exist_ok=True)
-        except OSError as e:
-            raise InputError("cannot make the folder %s: %s" % (os.path.join(filtered_dir, ".crisp"), e.strerror or e))
+        if write_png:  # the PNG records' folder, before any frame: a file in the way stops the run here
+            try:
+                os.makedirs(_png_records_dir(filtered_dir), exist_ok=True)
+            except OSError as e:
+                raise InputError("cannot make the folder %s: %s" % (_png_records_dir(filtered_dir), e.strerror or e))
         frame_filter = native.FrameFilter(method, params, threads, the_plan.passes)
 
     def on_frame(f, info):

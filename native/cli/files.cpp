@@ -114,14 +114,16 @@ void bindJitter(Filter& filter, const Frame& frame, ShotPosition& shot) {
     shot.jitterY = filter.params().getFloat("jitterY");
   }
   const std::string side = sidecarPathFor(frame.path);
-  float x = shot.jitterX, y = shot.jitterY;
+  Sidecar parsed;
+  const Sidecar* s = nullptr;
   std::error_code ec;
   if (shot.known && shot.path == side) {
-    x = float(shot.sidecar.jitterX), y = float(-shot.sidecar.jitterY);
+    s = &shot.sidecar;
   } else if (fs::is_regular_file(side, ec)) {
-    const Sidecar s = readSidecar(side);
-    x = float(s.jitterX), y = float(-s.jitterY);
+    parsed = readSidecar(side);
+    s = &parsed;
   }
+  const float x = s ? float(s->jitterX) : shot.jitterX, y = s ? float(-s->jitterY) : shot.jitterY;
   if (filter.params().getFloat("jitterX") == x && filter.params().getFloat("jitterY") == y) return;
   filter.params().setFloat("jitterX", x);
   filter.params().setFloat("jitterY", y);
