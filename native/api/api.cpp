@@ -3,6 +3,7 @@
 // thrown inside the library crosses it; errors go to the per-thread state.
 #include <cstring>
 #include <exception>
+#include <map>
 #include <new>
 #include <string>
 
@@ -22,7 +23,14 @@ struct CrispFilterImpl {
   std::unique_ptr<crisp::Filter> filter;
   CrispContextImpl* owner = nullptr;
   std::atomic<int> refCount{1};
-  std::string scratch;
+  // The strings the getters return, one per parameter name and one each for the doc and the
+  // info: a string stays valid until its own value changes (crisp.h), whatever else is read.
+  std::map<std::string, std::string> strings;
+  std::string doc, info;
+  const char* keep(std::string& slot, std::string value) {
+    if (slot != value) slot = std::move(value);
+    return slot.c_str();
+  }
 };
 struct CrispFrameImpl {
   crisp::Frame frame;
@@ -180,6 +188,10 @@ void crispSetFilterImage(CrispFilter filter, const char* name, void* ptr, CrispF
   guardedVoid([&] {
     need(filter, "filter");
     std::string n = nameOf(name, "image");
+    if (!ptr) {  // crisp.h: NULL unsets the image, whatever the other arguments say
+      filter->filter->unsetImage(n);
+      return;
+    }
     if (format < CRISP_FORMAT_FLOAT || format > CRISP_FORMAT_RSAA_SUBSAMPLES)
       crisp::invalidArgument("image '" + n + "': unknown format " + std::to_string(int(format)));
     if (width > (1u << 16) || height > (1u << 16))
@@ -244,8 +256,9 @@ const char* crispGetFilterString(CrispFilter filter, const char* name) {
   return guarded(
       [&]() -> const char* {
         need(filter, "filter");
-        filter->scratch = filter->filter->params().getString(nameOf(name, "parameter"));
-        return filter->scratch.c_str();
+        const std::string n = nameOf(name, "parameter");
+        std::string value = filter->filter->params().getString(n);
+        return filter->keep(filter->strings[n], std::move(value));
       },
       static_cast<const char*>(nullptr));
 }
@@ -254,8 +267,7 @@ const char* crispGetFilterDoc(CrispFilter filter) {
   return guarded(
       [&]() -> const char* {
         need(filter, "filter");
-        filter->scratch = filter->filter->doc();
-        return filter->scratch.c_str();
+        return filter->keep(filter->doc, filter->filter->doc());
       },
       static_cast<const char*>(nullptr));
 }
@@ -264,8 +276,7 @@ const char* crispGetFilterInfo(CrispFilter filter) {
   return guarded(
       [&]() -> const char* {
         need(filter, "filter");
-        filter->scratch = filter->filter->infoJson();
-        return filter->scratch.c_str();
+        return filter->keep(filter->info, filter->filter->infoJson());
       },
       static_cast<const char*>(nullptr));
 }

@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "core/filter.h"
 
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
 #include <sstream>
 
 #include "core/color.h"
@@ -47,7 +50,17 @@ void Filter::setImage(const std::string& name, const ImageView& view) {
   if (view.width <= 0 || view.height <= 0 || view.width > kMaxDimension || view.height > kMaxDimension)
     invalidArgument("image '" + name + "': size " + std::to_string(view.width) + "x" + std::to_string(view.height) +
                     " is out of range [1, " + std::to_string(kMaxDimension) + "]");
-  if (view.pixelStride < formatBytes(view.format) || view.rowStride < view.pixelStride * std::size_t(view.width - 1) + formatBytes(view.format))
+  // The bytes the view spans, with overflow checked: a stride near SIZE_MAX would wrap the
+  // products below and let pixel addresses run wild.
+  std::size_t rowSpan = 0, span = 0;
+  const bool wraps = __builtin_mul_overflow(view.pixelStride, std::size_t(view.width - 1), &rowSpan) ||
+                     __builtin_add_overflow(rowSpan, formatBytes(view.format), &rowSpan) ||
+                     __builtin_mul_overflow(view.rowStride, std::size_t(view.height - 1), &span) ||
+                     __builtin_add_overflow(span, rowSpan, &span) || span > std::size_t(PTRDIFF_MAX);
+  if (wraps)
+    invalidArgument("image '" + name + "': strides (pixel " + std::to_string(view.pixelStride) + ", row " +
+                    std::to_string(view.rowStride) + " bytes) span more memory than a process can address");
+  if (view.pixelStride < formatBytes(view.format) || view.rowStride < rowSpan)
     invalidArgument("image '" + name + "': strides (pixel " + std::to_string(view.pixelStride) + ", row " +
                     std::to_string(view.rowStride) + " bytes) are smaller than the pixels they hold");
   auto it = images_.find(name);
@@ -113,6 +126,19 @@ std::string Filter::infoJson() const {
   }
   o << "], \"params\": " << params_.json() << "}";
   return o.str();
+}
+
+ImageView Filter::inputApartFromOutput(const std::string& role, std::vector<float>& copy) const {
+  const ImageView& in = image(role);
+  if (!hasImage("output") || !viewsOverlap(in, image("output"))) return in;
+  const std::size_t pixelBytes = formatBytes(in.format);
+  copy.resize(std::size_t(in.width) * std::size_t(in.height) * (pixelBytes / 4));
+  const ImageView packed = makeView(copy.data(), in.format, in.width, in.height);
+  parallelRows(in.width, in.height, numThreads(), [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < in.width; ++x) std::memcpy(packed.pixel(x, y), in.pixel(x, y), pixelBytes);
+  });
+  return packed;
 }
 
 void Filter::stageColor(Image& rgba) const {

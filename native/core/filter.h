@@ -57,7 +57,6 @@ class Filter {
   Context& context() { return context_; }
 
   std::atomic<int> refCount{1};
-  std::string stringScratch;  // backs strings returned through the C API
 
  protected:
   virtual void onCommit() = 0;   // params_ and images are valid; allocate here
@@ -68,6 +67,10 @@ class Filter {
   void stageColor(Image& rgba) const;
   // Writes a packed RGBA image to the "output" view (3 or 4 channels).
   void writeOutput(const Image& rgba) const;
+  // The input image `role`, or a packed copy of it (held in `copy`) when the output shares its
+  // memory: for kernels that read an input's neighbours after other rows of the output are
+  // written, so that in-place use gives the same result as separate buffers.
+  ImageView inputApartFromOutput(const std::string& role, std::vector<float>& copy) const;
 
  private:
   Context& context_;

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "core/image.h"
 
+#include <utility>
+
 namespace crisp {
 
 const char* formatName(Format f) {
@@ -13,6 +15,17 @@ const char* formatName(Format f) {
     case Format::RsaaSubsamples: return "rsaa_subsamples";
     default: return "undefined";
   }
+}
+
+bool viewsOverlap(const ImageView& a, const ImageView& b) {
+  auto span = [](const ImageView& v) {
+    const char* p = static_cast<const char*>(v.ptr);
+    return std::make_pair(p, p + std::size_t(v.height - 1) * v.rowStride + std::size_t(v.width - 1) * v.pixelStride +
+                                 formatBytes(v.format));
+  };
+  auto [a0, a1] = span(a);
+  auto [b0, b1] = span(b);
+  return a.valid() && b.valid() && a0 < b1 && b0 < a1;
 }
 
 ImageView makeView(void* ptr, Format format, int width, int height, std::size_t pixelStride, std::size_t rowStride) {

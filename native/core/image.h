@@ -52,6 +52,9 @@ struct ImageView {
   bool packed() const { return pixelStride == formatBytes(format) && rowStride == pixelStride * std::size_t(width); }
 };
 
+// True if the bytes two views address may overlap (an output given an input's buffer).
+bool viewsOverlap(const ImageView& a, const ImageView& b);
+
 // Fills in packed strides where 0 was given.
 ImageView makeView(void* ptr, Format format, int width, int height, std::size_t pixelStride = 0,
                    std::size_t rowStride = 0);

@@ -320,22 +320,10 @@ void checkViews(const ImageView& color, const ImageView& output, const Workspace
     invalidArgument("fxaa: color and output need 3 or 4 float channels");
 }
 
-bool overlaps(const ImageView& a, const ImageView& b) {
-  auto span = [](const ImageView& v) {
-    const char* begin = static_cast<const char*>(v.ptr);
-    const char* end = begin + std::size_t(v.height - 1) * v.rowStride + std::size_t(v.width - 1) * v.pixelStride +
-                      formatBytes(v.format);
-    return std::make_pair(begin, end);
-  };
-  auto [a0, a1] = span(a);
-  auto [b0, b1] = span(b);
-  return a0 < b1 && b0 < a1;
-}
-
 // Reads colour from the input, or from a sanitised packed copy when the
 // output would overwrite pixels still to be read.
 ColorSource colorSource(const ImageView& color, const ImageView& output, Workspace& ws, int numThreads) {
-  if (!overlaps(color, output))
+  if (!viewsOverlap(color, output))
     return {static_cast<const char*>(color.ptr), color.pixelStride, color.rowStride, color.channels()};
   std::vector<float>& staged = Access::staging(ws);
   const ColorSource in{static_cast<const char*>(color.ptr), color.pixelStride, color.rowStride, color.channels()};

@@ -825,20 +825,6 @@ void Kernel::runReference(const ImageView& color, const ImageView& output, const
   }
 }
 
-namespace {
-// True if the bytes the two views address may overlap (in-place filtering).
-bool overlaps(const ImageView& a, const ImageView& b) {
-  auto span = [](const ImageView& v) {
-    const char* p = static_cast<const char*>(v.ptr);
-    return std::make_pair(p, p + std::size_t(v.height - 1) * v.rowStride + std::size_t(v.width - 1) * v.pixelStride +
-                                 formatBytes(v.format));
-  };
-  auto [a0, a1] = span(a);
-  auto [b0, b1] = span(b);
-  return a0 < b1 && b0 < a1;
-}
-}  // namespace
-
 // The fast path: two passes, each over row bands in parallel.
 //  1. Per band of kBandRows rows, top to bottom: sanitise each colour row
 //     (into the output when both are packed RGBA and distinct, else into the
@@ -853,7 +839,7 @@ bool overlaps(const ImageView& a, const ImageView& b) {
 //     colour (sanitised on read). No clamping away from the border.
 void Kernel::runFast(const ImageView& color, const ImageView& output, const Settings& s, int numThreads) {
   const int W = width_, H = height_, cout = output.channels();
-  const bool inPlace = overlaps(color, output);
+  const bool inPlace = viewsOverlap(color, output);
   const bool direct = !inPlace && color.channels() == 4 && color.pixelStride == 16 && cout == 4 &&
                       output.pixelStride == 16;
   float* gradient = gradient_.data.data();

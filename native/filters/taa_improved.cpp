@@ -712,11 +712,11 @@ class TaaImprovedFilter final : public Filter {
   }
   void onExecute() override {
     taa_improved::Inputs in;
-    in.color = image("color");
-    if (hasImage("motion")) in.motion = image("motion");
-    if (hasImage("depth")) in.depth = image("depth");
-    if (hasImage("id")) in.id = image("id");
-    if (hasImage("albedo")) in.albedo = image("albedo");
+    in.color = inputApartFromOutput("color", apart_[0]);
+    if (hasImage("motion")) in.motion = inputApartFromOutput("motion", apart_[1]);
+    if (hasImage("depth")) in.depth = inputApartFromOutput("depth", apart_[2]);
+    if (hasImage("id")) in.id = inputApartFromOutput("id", apart_[3]);
+    if (hasImage("albedo")) in.albedo = inputApartFromOutput("albedo", apart_[4]);
     in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
   }
@@ -724,6 +724,7 @@ class TaaImprovedFilter final : public Filter {
  private:
   taa_improved::Settings settings_;
   bool reference_ = false;
+  std::vector<float> apart_[5];  // inputs the caller gave as the output buffer too
   taa_improved::Kernel kernel_;
 };
 

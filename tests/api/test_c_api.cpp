@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <map>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -175,4 +178,115 @@ TEST(CApi, InfoJsonDescribesImagesAndParameters) {
             std::string::npos)
       << info;
   EXPECT_NE(info.find("\"name\": \"patchSize\", \"type\": \"int\", \"default\": 5, \"min\": 3"), std::string::npos) << info;
+}
+
+// The output may be given an input's buffer (crisp.h): every filter then gives the bits it gives
+// with separate buffers, frame after frame, including the temporal ones whose row bands read
+// neighbours that other bands have already overwritten.
+TEST(CApi, InPlaceEqualsSeparateBuffers) {
+  auto ctx = crisp::ContextRef::create();
+  ctx.set("numThreads", 2);
+  ctx.commit();
+  const int w = 96, h = 72;
+  const std::size_t n = std::size_t(w) * h * 4;
+  struct Case {
+    const char* type;
+    const char* aliased;
+  };
+  const Case cases[] = {{"none", "color"},         {"fxaa", "color"},        {"repair", "color"},
+                        {"taa", "color"},          {"taa", "motion"},        {"taa", "depth"},
+                        {"taa-improved", "color"}, {"taa-improved", "depth"}, {"phlm", "color"},
+                        {"phlm", "motion"},        {"phlm", "depth"}};
+  for (const Case& c : cases) {
+    const bool temporal = std::string(c.type).rfind("taa", 0) == 0 || std::string(c.type) == "phlm";
+    auto separate = ctx.newFilter(c.type);
+    auto inPlace = ctx.newFilter(c.type);
+    std::vector<float> out(n), shared(n);
+    for (int frame = 0; frame < 4; ++frame) {
+      std::map<std::string, std::vector<float>> inputs;
+      inputs["color"] = noise(w, h, 4, 100u + unsigned(frame));
+      for (int y = 0; y < h; ++y)  // an edge moving right, so history and clipping have work to do
+        for (int x = 0; x < w; ++x)
+          if (x < 30 + 2 * frame) inputs["color"][(std::size_t(y) * w + x) * 4 + 1] += 4.0f;
+      if (temporal) {
+        inputs["motion"].assign(n, 0.0f);
+        inputs["depth"].assign(n, 0.0f);
+        for (std::size_t i = 0; i < n; i += 4) {
+          inputs["motion"][i] = -0.7f, inputs["motion"][i + 1] = -0.3f;
+          inputs["depth"][i] = 5.0f + float(i % 97) * 0.01f;
+        }
+      }
+      for (auto* f : {&separate, &inPlace}) {
+        const bool aliasing = f == &inPlace;
+        for (auto& [role, data] : inputs) {
+          float* p = data.data();
+          if (aliasing && role == c.aliased) {
+            shared = data;
+            p = shared.data();
+          }
+          f->setImage(role.c_str(), p, CRISP_FORMAT_FLOAT4, w, h);
+        }
+        f->setImage("output", aliasing ? shared.data() : out.data(), CRISP_FORMAT_FLOAT4, w, h);
+        if (temporal) {
+          f->set("jitterX", 0.25f * float(frame % 3) - 0.25f);
+          f->set("jitterY", 0.2f - 0.2f * float(frame % 2));
+        }
+        f->commit();
+        f->execute();
+      }
+      ASSERT_EQ(0, std::memcmp(out.data(), shared.data(), n * sizeof(float)))
+          << c.type << " with the output in the '" << c.aliased << "' buffer, frame " << frame;
+    }
+  }
+}
+
+// crisp.h: a returned string stays valid until the filter changes, whatever else is read.
+TEST(CApi, ReturnedStringsSurviveOtherGetters) {
+  auto ctx = crisp::ContextRef::create();
+  auto f = ctx.newFilter("repair");
+  const char* mask = crispGetFilterString(f.handle(), "mask");
+  const std::string maskWas = mask;
+  const char* doc = crispGetFilterDoc(f.handle());
+  const std::string docWas = doc;
+  const char* estimator = crispGetFilterString(f.handle(), "angleEstimator");
+  const std::string estimatorWas = estimator;
+  crispGetFilterInfo(f.handle());
+  crispGetFilterString(f.handle(), "angleEstimator");
+  EXPECT_EQ(std::string(mask), maskWas);
+  EXPECT_EQ(std::string(doc), docWas);
+  EXPECT_EQ(std::string(estimator), estimatorWas);
+  EXPECT_FALSE(maskWas.empty());
+  EXPECT_NE(maskWas, estimatorWas);
+}
+
+// Strides whose span wraps around size_t are refused at once, not left to crash execute.
+TEST(CApi, StridesThatWrapAreRefused) {
+  auto ctx = crisp::ContextRef::create();
+  auto f = ctx.newFilter("fxaa");
+  std::vector<float> img(3 * 4);
+  const std::size_t huge = std::size_t(1) << 63;
+  crispSetFilterImage(f.handle(), "color", img.data(), CRISP_FORMAT_FLOAT4, 3, 1, huge, 16);
+  CrispError code;
+  EXPECT_NE(lastError(&code).find("span more memory"), std::string::npos);
+  EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT);
+  crispSetFilterImage(f.handle(), "color", img.data(), CRISP_FORMAT_FLOAT4, 1, 3, 16, huge);
+  EXPECT_NE(lastError(&code).find("span more memory"), std::string::npos);
+  crispSetFilterImage(f.handle(), "color", img.data(), CRISP_FORMAT_FLOAT4, 3, 1, 0, 0);
+  EXPECT_EQ(crispGetError(nullptr), CRISP_ERROR_NONE);
+}
+
+// crisp.h: ptr = NULL unsets the image, with any format and size.
+TEST(CApi, NullPointerUnsetsTheImage) {
+  auto ctx = crisp::ContextRef::create();
+  auto f = ctx.newFilter("taa");
+  std::vector<float> img(4 * 4 * 4, 0.5f), out(img.size()), depth(5 * 5);
+  f.setImage("color", img.data(), CRISP_FORMAT_FLOAT4, 4, 4);
+  f.setImage("output", out.data(), CRISP_FORMAT_FLOAT4, 4, 4);
+  f.setImage("depth", depth.data(), CRISP_FORMAT_FLOAT, 5, 5);
+  crispCommitFilter(f.handle());
+  EXPECT_NE(lastError().find("'depth' is 5x5"), std::string::npos);  // the wrong size is seen...
+  crispSetFilterImage(f.handle(), "depth", nullptr, CRISP_FORMAT_UNDEFINED, 0, 0, 0, 0);
+  EXPECT_EQ(lastError(), "");
+  crispCommitFilter(f.handle());  // ...and gone once unset
+  EXPECT_EQ(lastError(), "");
 }

@@ -90,7 +90,8 @@ CRISP_API void crispRetainFilter(CrispFilter filter);
 CRISP_API void crispReleaseFilter(CrispFilter filter);
 
 // Non-owning strided view. pixelByteStride/rowByteStride 0 = packed.
-// Passing ptr = NULL unsets the image.
+// Passing ptr = NULL unsets the image. The "output" image may share an input's
+// buffer (in place): the result is the same as with separate buffers.
 CRISP_API void crispSetFilterImage(CrispFilter filter, const char* name, void* ptr,
                                    CrispFormat format, size_t width, size_t height,
                                    size_t pixelByteStride, size_t rowByteStride);
@@ -116,7 +117,9 @@ CRISP_API const char* crispGetFilterInfo(CrispFilter filter);
 
 // Validates images and parameters and allocates what execute needs.
 CRISP_API void crispCommitFilter(CrispFilter filter);
-// Runs one frame. Never allocates. Temporal filters keep history between calls.
+// Runs one frame. Allocates nothing, except on the first in-place run of a
+// size (a copy of the inputs the output overwrites, kept for the next frames).
+// Temporal filters keep history between calls.
 CRISP_API void crispExecuteFilter(CrispFilter filter);
 // Forgets temporal history (camera cut).
 CRISP_API void crispResetFilter(CrispFilter filter);
