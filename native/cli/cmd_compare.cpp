@@ -1,7 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 // crisp compare --reference REF... --test TEST... [--mask M] [--json FILE] [--maps DIR]
 #include <cstdio>
+#include <filesystem>
+#include <set>
 #include <sstream>
+#include <vector>
 
 #include "cli/commands.h"
 #include "cli/progress.h"
@@ -11,6 +14,43 @@
 namespace crisp::cli {
 
 namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kMapSuffixes[] = {".error.exr", ".ssim.exr", ".flip.exr", ".flip.png"};
+
+// The name each --test file's maps take in --maps: its stem, or where two tests share a stem (the
+// usual "two methods, one frame" comparison) its folder's name and stem, or failing that the
+// stem and its position.
+std::vector<std::string> mapStems(const std::vector<std::string>& tests) {
+  auto unique = [](const std::vector<std::string>& names) {
+    return std::set<std::string>(names.begin(), names.end()).size() == names.size();
+  };
+  std::vector<std::string> stems, qualified, numbered;
+  for (std::size_t i = 0; i < tests.size(); ++i) {
+    stems.push_back(fileStem(tests[i]));
+    const std::string folder = fs::absolute(tests[i]).parent_path().filename().string();
+    qualified.push_back(folder + "_" + stems.back());
+    numbered.push_back(stems.back() + "_" + std::to_string(i + 1));
+  }
+  return unique(stems) ? stems : unique(qualified) ? qualified : numbered;
+}
+
+// Refuses, before anything is written, a map or --json file that is an input file.
+void refuseClobbering(const ParsedArgs& args, const std::string& mapsDir, const std::vector<std::string>& stems) {
+  std::set<fs::path> inputs;
+  std::error_code ec;
+  for (const char* option : {"reference", "test", "mask"})
+    for (const std::string& in : args.all(option)) inputs.insert(fs::weakly_canonical(in, ec));
+  auto refuse = [&](const std::string& out, const std::string& what) {
+    if (inputs.count(fs::weakly_canonical(out, ec)))
+      throw UsageError(what + " '" + out + "' is an input file; choose another");
+  };
+  if (args.has("json")) refuse(args.get("json"), "--json");
+  if (mapsDir.empty()) return;
+  for (const std::string& stem : stems)
+    for (const char* suffix : kMapSuffixes) refuse(joinPath(mapsDir, stem + suffix), "map");
+}
 
 void writeMap(const std::string& path, const Image& map) {
   // Single-channel maps are written as grey RGB so any viewer shows them.
@@ -46,6 +86,8 @@ int runCompare(const ParsedArgs& args) {
       for (int x = 0; x < c.width; ++x) *mask.at(x, y) = c.at(x, y)[0];
   }
   const std::string mapsDir = args.getOr("maps", "");
+  const std::vector<std::string> stems = mapStems(tests);
+  refuseClobbering(args, mapsDir, stems);
   if (!mapsDir.empty()) makeDirectories(mapsDir);
 
   std::vector<Metrics> all;
@@ -68,13 +110,13 @@ int runCompare(const ParsedArgs& args) {
     std::printf("%-28.28s %-28.28s %10.3e %9.3f %9.3f %8.5f %8.5f\n", fileStem(refs[i]).c_str(),
                 fileStem(tests[i]).c_str(), m.mse, m.psnr, m.snr, m.ssim, m.flip);
     frames << (i ? ",\n    " : "\n    ") << "{\"reference\": " << jsonQuote(refs[i]) << ", \"test\": " << jsonQuote(tests[i])
-           << ", " << figuresJson(m) << ", \"pixels\": " << m.pixels << "}";
+           << ", " << figuresJson(m) << ", \"pixels\": " << m.pixels;
+    if (!mapsDir.empty()) frames << ", \"maps\": " << jsonQuote(joinPath(mapsDir, stems[i]));
+    frames << "}";
     if (!mapsDir.empty()) {
-      const std::string base = joinPath(mapsDir, fileStem(tests[i]));
-      writeMap(base + ".error.exr", errMap);
-      writeMap(base + ".ssim.exr", ssimMap);
-      writeMap(base + ".flip.exr", flipMap);
-      writeMap(base + ".flip.png", flipMap);
+      const std::string base = joinPath(mapsDir, stems[i]);
+      const Image* images[] = {&errMap, &ssimMap, &flipMap, &flipMap};
+      for (int k = 0; k < 4; ++k) writeMap(base + kMapSuffixes[k], *images[k]);
     }
     progress.step(fileStem(tests[i]));
   }

@@ -34,6 +34,14 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// Removes an output's settings record; one that cannot be removed fails the run before the
+// outputs are replaced.
+void removeRecord(const std::string& path) {
+  std::error_code ec;
+  fs::remove(path, ec);
+  if (ec) ioError("cannot remove the old record '" + path + "': " + ec.message());
+}
+
 // Whether motion should be rebuilt for this run: the method reads "motion",
 // every input has an add-on sidecar (frame_NNNN.json) and something moves over
 // the inputs. A still sequence gets no motion pass at all, as the pass plan
@@ -201,7 +209,11 @@ int runFilter(const ParsedArgs& args) {
         std::fprintf(stderr, "filter: '%s': %s history starts over (%s)\n", in.c_str(), filter->type(), cut.c_str());
     }
     if (rebuildMotion) addReconstructedMotion(frame, args.positional, cut.empty() ? i : 0, context.numThreads());
-    bindFrame(*filter, frame, shot);
+    try {
+      bindFrame(*filter, frame, shot);
+    } catch (const Exception& e) {
+      throw Exception(e.code(), "'" + in + "': " + e.what());
+    }
     if (output.width != frame.width || output.height != frame.height) {
       // A size change part-way is legitimate (a cut to another camera) but
       // more often mixed-up folders: carry on, and say so.
@@ -225,6 +237,9 @@ int runFilter(const ParsedArgs& args) {
     const std::string base = joinPath(outDir, fileStem(in));
     const std::string pngRecord = joinPath(stampDir, fileStem(in) + ".png.stamp");
     makeDirectories(stampDir);
+    // The old record goes first: a run stopped between the outputs and the new record must not
+    // leave new pixels under the old settings, which --resume would keep.
+    removeRecord(stampOf(fileStem(in)));
     writeImage(base + ".exr", output);
     if (png) {
       writeImage(base + ".png", output);

@@ -1,16 +1,19 @@
 // SPDX-License-Identifier: Apache-2.0
-// crisp info FILE...: the passes in each file, and per method what is missing.
+// crisp info FILE...: the passes in each file, and per method what is missing,
+// checked as `crisp filter` checks it (rsaa: its sidecar and sub-sample files too).
 #include <cstdio>
+#include <cstring>
 
 #include "cli/commands.h"
+#include "core/error.h"
 #include "core/filter.h"
+#include "io/subsamples.h"
 
 namespace crisp::cli {
 
 int runInfo(const ParsedArgs& args) {
   if (args.positional.empty()) throw UsageError("'info' needs at least one FILE");
   Context context;
-  int missingAny = 0;
   for (const std::string& path : args.positional) {
     Frame frame = readFrame(path);
     std::printf("%s\n  size: %dx%d\n  channels:", path.c_str(), frame.width, frame.height);
@@ -25,11 +28,21 @@ int runInfo(const ParsedArgs& args) {
     for (const std::string& type : filterTypes()) {
       auto filter = createFilter(context, type);
       std::string missing, optional;
+      const bool subsamples = readsSubsamples(*filter);
       for (const ImageRole& r : filter->roles()) {
         if (std::string(r.name) == "output" || frame.has(r.name)) continue;
+        // rsaa's sub-samples come from the files its sidecar names, checked below.
+        if (subsamples && (std::strcmp(r.name, kPackedSubsamplePass) == 0 || std::strncmp(r.name, "sub", 3) == 0))
+          continue;
         (r.required ? missing : optional) += std::string(" ") + r.name;
       }
-      if (!missing.empty()) ++missingAny;
+      if (subsamples) {
+        try {
+          attachRsaaInputs(*filter, frame);
+        } catch (const Exception& e) {
+          missing += std::string(" sub-samples (") + e.what() + ")";
+        }
+      }
       std::printf("    %-14s %s%s%s\n", type.c_str(), missing.empty() ? "ready" : ("missing:" + missing).c_str(),
                   optional.empty() ? "" : "; optional, absent:", optional.c_str());
     }

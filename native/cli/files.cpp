@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -13,6 +14,7 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "io/sidecar.h"
+#include "io/temporary_file.h"
 #include "io/subsamples.h"
 
 namespace crisp::cli {
@@ -47,26 +49,14 @@ std::string sizeAndTime(const std::string& path) {
 }
 
 void writeTextFile(const std::string& path, const std::string& text) {
-  fs::path target(path);
-  fs::path tmp = target.parent_path() / ("." + target.filename().string() + ".tmp-" + std::to_string(getpid()));
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) ioError("cannot write '" + path + "': cannot create a file in its folder");
-    out << text;
-    out.flush();
-    if (!out) {
-      out.close();
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      ioError("cannot write '" + path + "': write failed (disk full?)");
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, target, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    ioError("cannot write '" + path + "': " + ec.message());
-  }
+  TemporaryFile tmp(path);
+  std::FILE* out = std::fopen(tmp.path().c_str(), "wb");
+  if (!out) ioError("cannot write '" + path + "': " + std::strerror(errno));
+  const bool wrote = std::fwrite(text.data(), 1, text.size(), out) == text.size();
+  const int writeErrno = errno;
+  if (std::fclose(out) != 0 || !wrote)
+    ioError("cannot write '" + path + "': " + std::strerror(wrote ? errno : writeErrno));
+  tmp.commit();
 }
 
 void makeDirectories(const std::string& path) {
@@ -125,8 +115,14 @@ void bindJitter(Filter& filter, const Frame& frame, ShotPosition& shot) {
   }
   const float x = s ? float(s->jitterX) : shot.jitterX, y = s ? float(-s->jitterY) : shot.jitterY;
   if (filter.params().getFloat("jitterX") == x && filter.params().getFloat("jitterY") == y) return;
-  filter.params().setFloat("jitterX", x);
-  filter.params().setFloat("jitterY", y);
+  try {
+    filter.params().setFloat("jitterX", x);
+    filter.params().setFloat("jitterY", y);
+  } catch (const Exception& e) {
+    if (!s) throw;
+    throw Exception(e.code(), "sidecar '" + side + "' gives jitter (" + jsonNumber(s->jitterX) + ", " +
+                                  jsonNumber(s->jitterY) + ") px (y up): " + e.what());
+  }
   filter.markDirty();
 }
 

@@ -7,6 +7,7 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "crisp/crisp.h"
+#include "io/temporary_file.h"
 
 using namespace crisp;
 using namespace crisp::cli;
@@ -28,6 +29,7 @@ static int runHelp(const ParsedArgs& args) {
 }
 
 int main(int argc, char** argv) {
+  removeTemporaryFilesOnSignals();  // Ctrl-C leaves no half-written ".name.tmp-*" behind
   std::vector<std::string> args(argv + 1, argv + argc);
   try {
     ParsedArgs a = parseArgs(args);

@@ -36,7 +36,7 @@ const std::vector<OptionSpec>& options() {
       {"compare", "test", 't', "TEST...", true, true, "images to measure"},
       {"compare", "mask", 0, "MASK", false, false, "only count pixels where this image's first channel > 0"},
       {"compare", "json", 0, "FILE", false, false, "write per-frame and mean figures as JSON"},
-      {"compare", "maps", 0, "DIR", false, false, "write per-pixel error, SSIM and perceptual-error maps"},
+      {"compare", "maps", 0, "DIR", false, false, "write per-pixel error, SSIM and perceptual-error maps, named by the test file (FOLDER_NAME where two share a name)"},
       {"render", "scene", 0, "SCENE", false, true, "a .blend file, or the name of a bundled test scene"},
       {"render", "frames", 0, "A-B", false, false, "frame range (default: the scene's)"},
       {"render", "preroll", 0, "N", false, false, "render and filter N frames before --frames first, write none of them"},

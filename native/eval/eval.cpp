@@ -709,7 +709,13 @@ int run(const Options& o) {
         bool wantMaps = f == mapFrame && e.kind != "eevee";
         if (e.name == "none" || wantMaps) maps.error = &err;
         if (wantMaps) maps.ssim = &ssim, maps.flip = &flip;
-        Metrics m = compareImages(refs[f], test, nullptr, maps, o.threads);
+        Metrics m;
+        try {
+          m = compareImages(refs[f], test, nullptr, maps, o.threads);
+        } catch (const Exception& ex) {
+          throw Exception(ex.code(), "comparing '" + file.string() + "' with the reference '" +
+                                         (refDir / frameName(f)).string() + "': " + ex.what());
+        }
         ff.psnr = m.psnr, ff.ssim = m.ssim, ff.flip = m.flip, ff.rmse = m.rmse;
         if (edgeMasks.count(f)) {
           CompareOptions cheap;

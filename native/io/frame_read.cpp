@@ -9,6 +9,8 @@
 //   ViewLayer.CryptoObject00.r/g/b/a (lowercase), CryptoObject01.., and the
 //   manifest in the header attribute "cryptomatte/<7 hex>/manifest".
 // View layer names may contain dots, so names are split from the right.
+#include <unistd.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
@@ -263,6 +265,7 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   if (std::filesystem::is_directory(status)) ioError("cannot read '" + path + "': it is a directory");
   if (std::filesystem::is_regular_file(status) && std::filesystem::file_size(path, ec) == 0 && !ec)
     ioError("cannot read '" + path + "': the file is empty");
+  if (::access(path.c_str(), R_OK) != 0) ioError("cannot read '" + path + "': " + std::strerror(errno));
 
   std::unique_ptr<OIIO::ImageInput> in;
   try {

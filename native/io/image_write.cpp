@@ -1,15 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
-// writeImage: RGBA float EXR or 8-bit sRGB PNG, written to a temporary file in
-// the target folder and renamed into place (rename(2) within one filesystem is
-// atomic), so `path` holds either its old content or the whole new image.
-#include <unistd.h>
+// writeImage: RGBA float EXR or 8-bit sRGB PNG, written through a temporary
+// file renamed into place (io/temporary_file.h), so `path` holds either its old
+// content or the whole new image.
 
 #include <algorithm>
-#include <atomic>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -23,6 +19,7 @@
 #include "io/frame.h"
 #include "io/image_write_testing.h"
 #include "io/oiio_util.h"
+#include "io/temporary_file.h"
 
 namespace crisp {
 
@@ -38,27 +35,6 @@ std::function<void(const std::string&)>& faultHook() {
   static std::function<void(const std::string&)> hook;
   return hook;
 }
-
-// ".<name>.tmp-<pid>-<n><ext>" beside the target: same filesystem (so rename
-// is atomic), hidden, unique per process and call, and the real extension
-// last because OIIO picks the file format from it. The name part is cut to 64
-// bytes so a target name near NAME_MAX (255) still gets a valid sibling.
-std::string temporaryPathFor(const std::string& path) {
-  static std::atomic<unsigned> counter{0};
-  const std::filesystem::path p(path);
-  const std::string name = "." + p.stem().string().substr(0, 64) + ".tmp-" + std::to_string(long(::getpid())) + "-" +
-                           std::to_string(counter.fetch_add(1)) + p.extension().string();
-  return (p.parent_path() / name).string();
-}
-
-// Removes the temporary file on every exit that did not commit it.
-struct TemporaryFile {
-  std::string path;
-  bool committed = false;
-  ~TemporaryFile() {
-    if (!committed && !path.empty()) std::remove(path.c_str());
-  }
-};
 
 }  // namespace
 
@@ -104,9 +80,8 @@ void writeImage(const std::string& path, const ImageView& image) {
     }
   }
 
-  TemporaryFile tmp;
-  tmp.path = temporaryPathFor(path);
-  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(tmp.path);
+  TemporaryFile tmp(path);
+  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(tmp.path());
   if (!out) ioError("cannot write '" + path + "': " + oiioErrors(static_cast<OIIO::ImageOutput*>(nullptr)));
   OIIO::ImageSpec spec(image.width, image.height, 4, png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
   spec.channelnames = {"R", "G", "B", "A"};
@@ -120,7 +95,7 @@ void writeImage(const std::string& path, const ImageView& image) {
   // Values are written as given: OIIO would otherwise un-premultiply colour for
   // PNG. The reader reads PNG alpha unassociated too, so a round trip is exact.
   spec.attribute("oiio:UnassociatedAlpha", 1);
-  if (!out->open(tmp.path, spec)) ioError("cannot write '" + path + "': " + oiioErrors(out.get()));
+  if (!out->open(tmp.path(), spec)) ioError("cannot write '" + path + "': " + oiioErrors(out.get()));
   const bool wrote = png ? out->write_image(OIIO::TypeDesc::UINT8, rgba8.data())
                          : out->write_image(OIIO::TypeDesc::FLOAT, rgbaFloat.data());
   if (!wrote) {
@@ -130,10 +105,8 @@ void writeImage(const std::string& path, const ImageView& image) {
   }
   if (!out->close()) ioError("cannot write '" + path + "': " + oiioErrors(out.get()));
   out.reset();
-  if (faultHook()) faultHook()(tmp.path);
-  if (std::rename(tmp.path.c_str(), path.c_str()) != 0)
-    ioError("cannot write '" + path + "': renaming the temporary file into place failed: " + std::strerror(errno));
-  tmp.committed = true;
+  if (faultHook()) faultHook()(tmp.path());
+  tmp.commit();
 }
 
 void writeImage(const std::string& path, const Image& image) {

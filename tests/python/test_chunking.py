@@ -350,3 +350,23 @@ def test_a_frame_without_sidecar_is_not_given_the_previous_frames_jitter(shot, l
     assert np.array_equal(third("none"), third("zero"))
     assert not np.array_equal(third("none"), third("second")), "the jitter matters to this check"
     assert np.array_equal(third("set"), third("quarter"))
+
+
+def test_a_sidecar_jitter_out_of_range_names_the_sidecar(shot, tmp_path):
+    """A sidecar holding a jitter the filters refuse fails the run with a message that names the
+    sidecar and the frame, not only the parameter."""
+    _, inputs = shot
+    d = tmp_path / "bad"
+    d.mkdir()
+    for f in (1, 2):
+        shutil.copy(inputs[f - 1], d / frame(f))
+        with open(inputs[f - 1][:-len(".exr")] + ".json") as fh:
+            data = json.load(fh)
+        if f == 2:
+            data["jitter"]["x"] = 10.0
+        with open(d / frame(f, ".json"), "w") as fh:
+            json.dump(data, fh)
+    p = crisp("filter", "--method", "taa", "--quiet", "-o", tmp_path / "out", d / frame(1), d / frame(2), ok=False)
+    assert p.returncode == 1, p.stderr
+    assert str(d / frame(2, ".json")) in p.stderr and str(d / frame(2)) in p.stderr, p.stderr
+    assert "jitterX" in p.stderr and "out of range" in p.stderr, p.stderr

@@ -44,7 +44,11 @@ def test_synth_filter_compare_roundtrip(chart, tmp_path):
     unfiltered, filtered = data["frames"]
     assert data["mean"]["psnr"] == pytest.approx((unfiltered["psnr"] + filtered["psnr"]) / 2, rel=1e-6)
     assert "mean" in p.stdout
-    assert (tmp_path / "maps" / "chart_1spp.ssim.exr").is_file()
+    # the two tests share a name, so each map takes its folder's name too
+    assert sorted(f["maps"] for f in data["frames"]) == sorted(
+        str(tmp_path / "maps" / (d.name + "_chart_1spp")) for d in (chart, out))
+    for f in data["frames"]:
+        assert os.path.isfile(f["maps"] + ".ssim.exr") and os.path.isfile(f["maps"] + ".flip.png")
 
 
 def test_edge_mask_restricts_compare(chart, tmp_path):
@@ -279,3 +283,63 @@ def test_jitter_distributions_match_the_add_ons():
     p = run("eval", "--scene", "still_life", "--jitter", "x", "-o", "/nonexistent/never", ok=False)
     known = p.stderr.split("(known: ")[1].split(")")[0].split(", ")
     assert p.returncode == 2 and sorted(known) == sorted(addon), (known, addon)
+
+
+def test_an_interrupted_rewrite_is_not_kept_by_resume(chart, tmp_path):
+    """The settings record of an output goes before the output is replaced: a run stopped between
+    the two (here the PNG cannot be put in place) leaves no record, so --resume with the first
+    settings makes the frame again instead of keeping the second run's pixels."""
+    out = tmp_path / "out"
+    src = chart / "chart_1spp.exr"
+    run("filter", "-q", "-m", "fxaa", "-o", out, src)
+    first = (out / "chart_1spp.exr").read_bytes()
+    (out / "chart_1spp.png").mkdir()  # the PNG's rename fails
+    p = run("filter", "-q", "-m", "fxaa", "--set", "subpix=0", "--png", "-o", out, src, ok=False)
+    assert p.returncode == 1 and "chart_1spp.png" in p.stderr, p.stderr
+    assert not (out / ".crisp" / "chart_1spp.json").exists()
+    (out / "chart_1spp.png").rmdir()
+    p = run("filter", "-m", "fxaa", "--resume", "-o", out, src)
+    assert "nothing to do" not in p.stdout, p.stdout
+    assert (out / "chart_1spp.exr").read_bytes() == first
+
+
+def test_long_file_names_get_their_records(chart, tmp_path):
+    """A stem near the 255-byte name limit still gets its outputs, PNG stamp and settings record:
+    the temporary names are shortened, not the stem longer than the limit allows."""
+    src = tmp_path / "in"
+    src.mkdir()
+    stem = "f" * 238
+    shutil.copy(chart / "chart_1spp.exr", src / (stem + ".exr"))
+    out = tmp_path / "out"
+    run("filter", "-q", "-m", "fxaa", "--png", "-o", out, src / (stem + ".exr"))
+    assert sorted(os.listdir(out)) == [".crisp", stem + ".exr", stem + ".png"]
+    assert sorted(os.listdir(out / ".crisp")) == [stem + ".json", stem + ".png.stamp"]
+
+
+def test_compare_refuses_maps_and_json_that_would_replace_files(chart, tmp_path):
+    ref, test = chart / "chart_reference.exr", chart / "chart_1spp.exr"
+    a, b = tmp_path / "a", tmp_path / "b"
+    for d in (a, b):
+        d.mkdir()
+        shutil.copy(test, d / "frame.exr")
+    run("compare", "-q", "-r", ref, ref, "-t", a / "frame.exr", b / "frame.exr", "--maps", tmp_path / "maps")
+    assert sorted(os.listdir(tmp_path / "maps")) == sorted(d + s for d in ("a_frame", "b_frame")
+                                                           for s in (".error.exr", ".ssim.exr", ".flip.exr", ".flip.png"))
+    victim = a / "frame.error.exr"  # a test file that frame.exr's error map would replace
+    shutil.copy(test, victim)
+    before = victim.read_bytes()
+    p = run("compare", "-r", ref, ref, "-t", victim, a / "frame.exr", "--maps", a, ok=False)
+    assert p.returncode == 2 and "is an input file" in p.stderr, p.stderr
+    p = run("compare", "-r", ref, "-t", a / "frame.exr", "--json", a / "frame.exr", ok=False)
+    assert p.returncode == 2 and "--json" in p.stderr, p.stderr
+    assert victim.read_bytes() == before and (a / "frame.exr").read_bytes() == test.read_bytes()
+
+
+def test_info_checks_rsaa_as_filter_does(chart, tmp_path):
+    """rsaa needs its sidecar's sub-sample renders; `info` says so for a frame without one, as
+    `filter -m rsaa` refuses it."""
+    p = run("info", chart / "chart_1spp.exr")
+    line = next(l for l in p.stdout.splitlines() if l.strip().startswith("rsaa"))
+    assert "missing" in line and "sidecar" in line, line
+    p = run("filter", "-q", "-m", "rsaa", "-o", tmp_path / "o", chart / "chart_1spp.exr", ok=False)
+    assert p.returncode == 1 and "sidecar" in p.stderr

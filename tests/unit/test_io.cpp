@@ -3,10 +3,12 @@
 // channel names Blender 3.4 writes (checked on a real render), plain EXR/PNG
 // round trips through writeImage, damaged files and failed writes.
 #include <gtest/gtest.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <cstdint>
 #include <cstring>
@@ -24,6 +26,7 @@
 #include "io/cryptomatte.h"
 #include "io/frame.h"
 #include "io/image_write_testing.h"
+#include "io/temporary_file.h"
 
 namespace fs = std::filesystem;
 using namespace crisp;
@@ -580,6 +583,29 @@ TEST_F(IoTest, FailedWritesLeaveNoTraceAndTheOldFileIntact) {
   expectError([&] { writeImage(file("ids.exr"), ids); }, CRISP_ERROR_INVALID_ARGUMENT, "ids.exr");
   expectError([&] { writeImage(file("empty.exr"), Image()); }, CRISP_ERROR_INVALID_ARGUMENT, "empty.exr");
   EXPECT_FALSE(fs::exists(dir / "ids.exr"));
+  EXPECT_TRUE(temporaries().empty());
+}
+
+// Ctrl-C (SIGINT) while a file is being written, in a program that asked for it (the crisp
+// command): the temporary file is removed, the old file keeps its bytes, and the process still
+// ends by the signal.
+TEST_F(IoTest, InterruptRemovesTheFileBeingWritten) {
+  Image old(7, 5, 4, 0.125f), im(7, 5, 4, 0.5f);
+  writeImage(file("sig.exr"), old);
+  const std::vector<char> before = readBytes(file("sig.exr"));
+  // A fresh process (not a fork of this one, whose OIIO threads a fork would leave locked).
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  EXPECT_EXIT(
+      {
+        removeTemporaryFilesOnSignals();
+        setWriteImageFaultForTesting([](const std::string& tmp) {
+          if (fs::exists(tmp)) ::raise(SIGINT);  // the temporary file is complete, not yet renamed
+        });
+        writeImage(file("sig.exr"), im);
+        std::exit(0);  // not reached unless the signal went astray
+      },
+      ::testing::KilledBySignal(SIGINT), "");
+  EXPECT_EQ(readBytes(file("sig.exr")), before);
   EXPECT_TRUE(temporaries().empty());
 }
 

@@ -1,0 +1,40 @@
+// SPDX-License-Identifier: Apache-2.0
+// Files written under a temporary name beside their target, then renamed into
+// place (rename(2) within one filesystem is atomic), so the target holds
+// either its old content or the whole new one. The temporary file is removed
+// on every exit that did not commit it: a thrown error (the destructor), and
+// SIGINT / SIGTERM / SIGHUP once removeTemporaryFilesOnSignals() has run.
+#pragma once
+
+#include <string>
+
+namespace crisp {
+
+class TemporaryFile {
+ public:
+  // ".<name>.tmp-<pid>-<n><ext>" beside target: same filesystem, hidden,
+  // unique per process and call, the real extension last (OIIO picks the
+  // format from it); the name part cut to 64 bytes so a target name near
+  // NAME_MAX (255) still gets a valid sibling.
+  explicit TemporaryFile(const std::string& target);
+  ~TemporaryFile();
+  TemporaryFile(const TemporaryFile&) = delete;
+  TemporaryFile& operator=(const TemporaryFile&) = delete;
+
+  const std::string& path() const { return path_; }
+  // Renames the temporary file to the target; an IO error naming the target
+  // (the temporary file is then removed).
+  void commit();
+
+ private:
+  std::string target_, path_;
+  int slot_ = -1;  // in the signal handler's list, or -1
+  bool committed_ = false;
+};
+
+// Installs handlers for SIGINT, SIGTERM and SIGHUP that remove the temporary
+// files being written, then end the process by the same signal. For programs
+// (the crisp command); a library must not take a host's signals.
+void removeTemporaryFilesOnSignals();
+
+}  // namespace crisp
