@@ -50,14 +50,9 @@ void Filter::setImage(const std::string& name, const ImageView& view) {
   if (view.width <= 0 || view.height <= 0 || view.width > kMaxDimension || view.height > kMaxDimension)
     invalidArgument("image '" + name + "': size " + std::to_string(view.width) + "x" + std::to_string(view.height) +
                     " is out of range [1, " + std::to_string(kMaxDimension) + "]");
-  // The bytes the view spans, with overflow checked: a stride near SIZE_MAX would wrap the
-  // products below and let pixel addresses run wild.
+  // Checked: a stride near SIZE_MAX would wrap the span and let pixel addresses run wild.
   std::size_t rowSpan = 0, span = 0;
-  const bool wraps = __builtin_mul_overflow(view.pixelStride, std::size_t(view.width - 1), &rowSpan) ||
-                     __builtin_add_overflow(rowSpan, formatBytes(view.format), &rowSpan) ||
-                     __builtin_mul_overflow(view.rowStride, std::size_t(view.height - 1), &span) ||
-                     __builtin_add_overflow(span, rowSpan, &span) || span > std::size_t(PTRDIFF_MAX);
-  if (wraps)
+  if (!viewSpan(view, rowSpan, span))
     invalidArgument("image '" + name + "': strides (pixel " + std::to_string(view.pixelStride) + ", row " +
                     std::to_string(view.rowStride) + " bytes) span more memory than a process can address");
   if (view.pixelStride < formatBytes(view.format) || view.rowStride < rowSpan)
@@ -128,10 +123,11 @@ std::string Filter::infoJson() const {
   return o.str();
 }
 
-ImageView Filter::inputApartFromOutput(const std::string& role, std::vector<float>& copy) const {
+ImageView Filter::inputApartFromOutput(const std::string& role) {
   const ImageView& in = image(role);
   if (!hasImage("output") || !viewsOverlap(in, image("output"))) return in;
   const std::size_t pixelBytes = formatBytes(in.format);
+  std::vector<float>& copy = apartCopies_[role];
   copy.resize(std::size_t(in.width) * std::size_t(in.height) * (pixelBytes / 4));
   const ImageView packed = makeView(copy.data(), in.format, in.width, in.height);
   parallelRows(in.width, in.height, numThreads(), [&](int y0, int y1) {

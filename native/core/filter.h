@@ -67,16 +67,17 @@ class Filter {
   void stageColor(Image& rgba) const;
   // Writes a packed RGBA image to the "output" view (3 or 4 channels).
   void writeOutput(const Image& rgba) const;
-  // The input image `role`, or a packed copy of it (held in `copy`) when the output shares its
-  // memory: for kernels that read an input's neighbours after other rows of the output are
-  // written, so that in-place use gives the same result as separate buffers.
-  ImageView inputApartFromOutput(const std::string& role, std::vector<float>& copy) const;
+  // The input image `role`, or a packed copy of it (kept for the next frames) when the output
+  // shares its memory: for kernels that read an input's neighbours after other rows of the
+  // output are written, so that in-place use gives the same result as separate buffers.
+  ImageView inputApartFromOutput(const std::string& role);
 
  private:
   Context& context_;
   ParamSet params_;
   std::vector<ImageRole> roles_;
   std::map<std::string, ImageView> images_;
+  std::map<std::string, std::vector<float>> apartCopies_;  // inputApartFromOutput's copies
   bool committed_ = false;
   int width_ = 0;
   int height_ = 0;

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "core/image.h"
 
-#include <utility>
+#include <cstddef>
+#include <cstdint>
 
 namespace crisp {
 
@@ -17,15 +18,19 @@ const char* formatName(Format f) {
   }
 }
 
+bool viewSpan(const ImageView& v, std::size_t& rowBytes, std::size_t& bytes) {
+  return !__builtin_mul_overflow(v.pixelStride, std::size_t(v.width - 1), &rowBytes) &&
+         !__builtin_add_overflow(rowBytes, formatBytes(v.format), &rowBytes) &&
+         !__builtin_mul_overflow(v.rowStride, std::size_t(v.height - 1), &bytes) &&
+         !__builtin_add_overflow(bytes, rowBytes, &bytes) && bytes <= std::size_t(PTRDIFF_MAX);
+}
+
 bool viewsOverlap(const ImageView& a, const ImageView& b) {
-  auto span = [](const ImageView& v) {
-    const char* p = static_cast<const char*>(v.ptr);
-    return std::make_pair(p, p + std::size_t(v.height - 1) * v.rowStride + std::size_t(v.width - 1) * v.pixelStride +
-                                 formatBytes(v.format));
-  };
-  auto [a0, a1] = span(a);
-  auto [b0, b1] = span(b);
-  return a.valid() && b.valid() && a0 < b1 && b0 < a1;
+  std::size_t rowBytes = 0, aBytes = 0, bBytes = 0;
+  if (!a.valid() || !b.valid() || !viewSpan(a, rowBytes, aBytes) || !viewSpan(b, rowBytes, bBytes)) return false;
+  const char* a0 = static_cast<const char*>(a.ptr);
+  const char* b0 = static_cast<const char*>(b.ptr);
+  return a0 < b0 + bBytes && b0 < a0 + aBytes;
 }
 
 ImageView makeView(void* ptr, Format format, int width, int height, std::size_t pixelStride, std::size_t rowStride) {

@@ -52,6 +52,9 @@ struct ImageView {
   bool packed() const { return pixelStride == formatBytes(format) && rowStride == pixelStride * std::size_t(width); }
 };
 
+// The bytes a view addresses from its first pixel: one row's (rowBytes) and the whole view's
+// (bytes). False when they overflow what a process can address (a stride near SIZE_MAX).
+bool viewSpan(const ImageView& v, std::size_t& rowBytes, std::size_t& bytes);
 // True if the bytes two views address may overlap (an output given an input's buffer).
 bool viewsOverlap(const ImageView& a, const ImageView& b);
 

@@ -1726,9 +1726,9 @@ class PhlmFilter final : public Filter {
   }
   void onExecute() override {
     phlm::Inputs in;
-    in.color = inputApartFromOutput("color", apart_[0]);
-    if (hasImage("motion")) in.motion = inputApartFromOutput("motion", apart_[1]);
-    if (hasImage("depth")) in.depth = inputApartFromOutput("depth", apart_[2]);
+    in.color = inputApartFromOutput("color");
+    if (hasImage("motion")) in.motion = inputApartFromOutput("motion");
+    if (hasImage("depth")) in.depth = inputApartFromOutput("depth");
     in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
   }
@@ -1736,7 +1736,6 @@ class PhlmFilter final : public Filter {
  private:
   phlm::Settings settings_;
   bool reference_ = false;
-  std::vector<float> apart_[3];  // inputs the caller gave as the output buffer too
   phlm::Kernel<float> kernel_;
 };
 

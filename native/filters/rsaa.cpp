@@ -1142,8 +1142,8 @@ class RsaaFilter final : public Filter {
   void onExecute() override {
     rsaa::Inputs in;
     in.color = image("color");  // the kernel reads colour in place itself
-    in.depth = inputApartFromOutput("depth", apart_[0]);
-    in.normal = inputApartFromOutput("normal", apart_[1]);
+    in.depth = inputApartFromOutput("depth");
+    in.normal = inputApartFromOutput("normal");
     if (hasImage("subsamples"))
       in.packed = image("subsamples");
     else
@@ -1154,7 +1154,6 @@ class RsaaFilter final : public Filter {
  private:
   bool reference_ = false;
   rsaa::Kernel kernel_;
-  std::vector<float> apart_[2];  // inputs the caller gave as the output buffer too
 };
 
 }  // namespace

@@ -1272,9 +1272,9 @@ class TaaFilter final : public Filter {
   }
   void onExecute() override {
     taa::Inputs in;
-    in.color = inputApartFromOutput("color", apart_[0]);
-    if (hasImage("motion")) in.motion = inputApartFromOutput("motion", apart_[1]);
-    if (hasImage("depth")) in.depth = inputApartFromOutput("depth", apart_[2]);
+    in.color = inputApartFromOutput("color");
+    if (hasImage("motion")) in.motion = inputApartFromOutput("motion");
+    if (hasImage("depth")) in.depth = inputApartFromOutput("depth");
     in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
   }
@@ -1282,7 +1282,6 @@ class TaaFilter final : public Filter {
  private:
   taa::Settings settings_;
   bool reference_ = false;
-  std::vector<float> apart_[3];  // inputs the caller gave as the output buffer too
   taa::Kernel kernel_;
 };
 

@@ -712,11 +712,11 @@ class TaaImprovedFilter final : public Filter {
   }
   void onExecute() override {
     taa_improved::Inputs in;
-    in.color = inputApartFromOutput("color", apart_[0]);
-    if (hasImage("motion")) in.motion = inputApartFromOutput("motion", apart_[1]);
-    if (hasImage("depth")) in.depth = inputApartFromOutput("depth", apart_[2]);
-    if (hasImage("id")) in.id = inputApartFromOutput("id", apart_[3]);
-    if (hasImage("albedo")) in.albedo = inputApartFromOutput("albedo", apart_[4]);
+    in.color = inputApartFromOutput("color");
+    if (hasImage("motion")) in.motion = inputApartFromOutput("motion");
+    if (hasImage("depth")) in.depth = inputApartFromOutput("depth");
+    if (hasImage("id")) in.id = inputApartFromOutput("id");
+    if (hasImage("albedo")) in.albedo = inputApartFromOutput("albedo");
     in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
   }
@@ -724,7 +724,6 @@ class TaaImprovedFilter final : public Filter {
  private:
   taa_improved::Settings settings_;
   bool reference_ = false;
-  std::vector<float> apart_[5];  // inputs the caller gave as the output buffer too
   taa_improved::Kernel kernel_;
 };
 
