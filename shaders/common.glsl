@@ -3,15 +3,33 @@
 // native/core/color.h and core/conventions.h.
 //
 // Addressing, for every filter: one fragment = one pixel; (x, y) are integer
-// texel indices, x = column, y = texture row. Every fetch is texelFetch with
-// explicit clamp-to-edge (fetchClamped), never the sampler's filtering, so a
-// "bilinear" tap is the same two lerps the C++ code does, in the same order
-// (hardware filtering would quantise the weights, e.g. to 8 bits on llvmpipe).
-// Row 0 of a texture is the library's row 0 (the parity test uploads rows
-// top-down); in the viewport, row 0 is the BOTTOM of the screen, so the
-// viewport sees a vertically mirrored picture: every filter here is defined
-// in pixel coordinates and mirrors with it, except the y sign of taa's jitter
-// (only used for the optional Blackman-Harris weight; symmetric anyway).
+// pixel indices, x = column, y = row: the texture's row (taa) or the
+// library's (fxaa, repair; see "Row order"). Every fetch is texelFetch with
+// explicit clamp-to-edge (fetchClamped, fetchPicture), never the sampler's
+// filtering, so a "bilinear" tap is the same two lerps the C++ code does, in
+// the same order (hardware filtering would quantise the weights, e.g. to 8
+// bits on llvmpipe).
+//
+// Row order: the library's row 0 is the top of the picture
+// (core/conventions.h). A texture may hold it either way: the parity test
+// uploads rows top-down, the viewport's offscreen has row 0 at the BOTTOM.
+//  * fxaa and repair work in the library's pixel coordinates whichever way
+//    the texture holds the rows: each fragment filters pixel
+//    picturePixel(fragment) and reads its neighbours with fetchPicture, so
+//    rowsUp (a push constant, 1: row 0 is the bottom) gives the library's
+//    arithmetic in the library's order. A mirrored computation would not
+//    match: FXAA breaks ties toward the row above and the lower search end,
+//    and an exact tie between its two second-difference sums (a dark pixel
+//    in a brighter ring) is then decided by the sums' rounding; REPAIR's
+//    thesis estimator keeps tan theta = beta1 / alpha1 when the rows are
+//    reversed (both slopes change sign), so it does not mirror with the
+//    picture (its regression estimator does, up to rounding).
+//  * taa works in texel coordinates and is symmetric in y up to rounding:
+//    its jitterY (and motion's y) are along the texture's rows, i.e. the
+//    library's values for a top-down texture and their negation for a
+//    bottom-up one (the viewport passes its y-up jitter as is). The unjitter
+//    shift and 3x3 weights and the Blackman-Harris weight then mirror with
+//    the picture.
 //
 // Known numeric differences against the C++ kernels, for all filters:
 //  * GLSL does not promise IEEE rounding: the compiler may contract a * b + c
@@ -58,3 +76,14 @@ vec4 fetchClamped(sampler2D image, int x, int y) {
 }
 
 ivec2 fragmentPixel() { return ivec2(gl_FragCoord.xy); }
+
+// The library's pixel (row 0 at the top) held by texel p of a texture of the
+// given height, and back (the map is its own inverse): rowsUp = 1 when the
+// texture's row 0 is the bottom of the picture.
+ivec2 picturePixel(ivec2 p, int height, int rowsUp) { return rowsUp != 0 ? ivec2(p.x, height - 1 - p.y) : p; }
+
+// fetchClamped at the library's pixel (x, y): clamped there, then mapped.
+vec4 fetchPicture(sampler2D image, int x, int y, int rowsUp) {
+  ivec2 size = textureSize(image, 0);
+  return texelFetch(image, picturePixel(ivec2(clampIndex(x, size.x), clampIndex(y, size.y)), size.y, rowsUp), 0);
+}

@@ -10,13 +10,14 @@
 //     = the luma plane of runReference (fxaa.h perceptualLuma of the
 //       sanitised colour);
 //  2. fxaaResolvePass samplers colorImage, lumaImage;
-//     push constants edgeThreshold, edgeThresholdMin, subpix -> out vec4 fragColor
+//     push constants edgeThreshold, edgeThresholdMin, subpix, rowsUp -> out vec4 fragColor
 //     = blendFor + resolve of fxaa.cpp, clamp-to-edge fetches (runReference's
 //       ClampedLuma), i.e. the reference path; the C++ fast path is
 //       bit-identical to it.
 //
 // Parameters (fxaa.cpp table): edgeThreshold 0.166, edgeThresholdMin 0.0833,
-// subpix 0.75. Known differences from the C++ kernel (besides common.glsl's):
+// subpix 0.75; rowsUp (not a library parameter): common.glsl "Row order".
+// Known differences from the C++ kernel (besides common.glsl's):
 //  * sqrt in perceptualLuma is the driver's; a luma one ulp off can flip the
 //    contrast check or a search end exactly at a threshold (rare, local).
 //  * The colour fetch of step 7 is an explicit lerp of two texelFetch taps,
@@ -39,8 +40,8 @@ float toneLuma(float luminance) {
 }
 float perceptualLuma(float r, float g, float b) { return toneLuma(luminance709(r, g, b)); }
 
-// fxaa.cpp ClampedLuma::at.
-float lumaAt(int x, int y) { return fetchClamped(lumaImage, x, y).r; }
+// fxaa.cpp ClampedLuma::at; (x, y) is the library's pixel (common.glsl "Row order").
+float lumaAt(int x, int y) { return fetchPicture(lumaImage, x, y, rowsUp).r; }
 
 float lerpf(float a, float b, float t) { return a + (b - a) * t; }
 float maxOf(float a, float b) { return a < b ? b : a; }
@@ -150,7 +151,7 @@ Blend blendFor(int x, int y) {
 }
 
 // fxaa.cpp ColorSource::rgba (sanitised read).
-vec4 colorAt(int x, int y) { return sanitizeColor4(fetchClamped(colorImage, x, y)); }
+vec4 colorAt(int x, int y) { return sanitizeColor4(fetchPicture(colorImage, x, y, rowsUp)); }
 
 // fxaa.cpp resolve<kClamp = true>: step 7.
 vec4 resolve(int x, int y, Blend blend) {
@@ -181,7 +182,7 @@ void fxaaLumaPass() {
 
 #ifdef FXAA_RESOLVE_PASS
 void fxaaResolvePass() {
-  ivec2 p = fragmentPixel();
+  ivec2 p = picturePixel(fragmentPixel(), textureSize(colorImage, 0).y, rowsUp);
   fragColor = resolve(p.x, p.y, blendFor(p.x, p.y));
 }
 #endif

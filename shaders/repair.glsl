@@ -18,7 +18,9 @@
 // (GLSL 3.3 has no compute shaders or atomics on float), never read back.
 //
 // Parameters (repair.cpp table): kappa 0 (float), patchSize 5 (odd, 3..15),
-// mask 0 = gauss5 / 1 = box3, angleEstimator 0 = regression / 1 = thesis.
+// mask 0 = gauss5 / 1 = box3, angleEstimator 0 = regression / 1 = thesis;
+// rowsUp (not a library parameter, read by the gradient and resolve passes):
+// common.glsl "Row order".
 //
 // Known differences from the C++ kernel (besides common.glsl's):
 //  * step 1: sRGB encoding with pow() (C++: a 16257-entry table, within 3e-6
@@ -83,9 +85,10 @@ struct SlopeFit {
 };
 
 // repair.cpp gatherPatch<true> + the patch indexing of fitPatch: thresholded
-// gradient at patch (column i, row j) around (x, y), clamp-to-edge.
+// gradient at patch (column i, row j) around (x, y), clamp-to-edge. Here and
+// below (x, y) is the library's pixel (common.glsl "Row order").
 float patchAt(int x, int y, int i, int j, int a, float threshold) {
-  return edgeValue(fetchClamped(gradientImage, x + i - a, y + j - a).r, threshold);
+  return edgeValue(fetchPicture(gradientImage, x + i - a, y + j - a, rowsUp).r, threshold);
 }
 
 // repair.cpp fitPatch (eq. 3.2-3.3), reading the patch from the texture.
@@ -171,7 +174,7 @@ float maskWeight(int kind, int w, int h) {
 }
 
 // repair.cpp Source::fetch (sanitised).
-vec4 stagedAt(int x, int y) { return sanitizeColor4(fetchClamped(colorImage, x, y)); }
+vec4 stagedAt(int x, int y) { return sanitizeColor4(fetchPicture(colorImage, x, y, rowsUp)); }
 
 // repair.cpp smoothAt<Clamp = true> (eq. 3.7-3.9, plain bilinear).
 vec4 smoothAt(int x, int y, Direction d, int kind) {
@@ -207,10 +210,10 @@ void repairGreyPass() {
 
 #ifdef REPAIR_GRADIENT_PASS
 void repairGradientPass() {
-  ivec2 p = fragmentPixel();
+  ivec2 p = picturePixel(fragmentPixel(), textureSize(greyImage, 0).y, rowsUp);
   float n[9];
   for (int j = 0; j < 3; ++j)
-    for (int i = 0; i < 3; ++i) n[j * 3 + i] = fetchClamped(greyImage, p.x + i - 1, p.y + j - 1).r;
+    for (int i = 0; i < 3; ++i) n[j * 3 + i] = fetchPicture(greyImage, p.x + i - 1, p.y + j - 1, rowsUp).r;
   gradientOut = sobelMagnitude(n);
 }
 #endif
@@ -249,9 +252,9 @@ void repairReducePass() {
 #ifdef REPAIR_RESOLVE_PASS
 // repair.cpp Kernel::runReference, steps 4-5 for one pixel.
 void repairResolvePass() {
-  ivec2 p = fragmentPixel();
+  ivec2 p = picturePixel(fragmentPixel(), textureSize(colorImage, 0).y, rowsUp);
   float T = thresholdOf(texelFetch(statsImage, ivec2(0, 0), 0), kappa);
-  if (edgeValue(texelFetch(gradientImage, p, 0).r, T) > 0.0) {
+  if (edgeValue(texelFetch(gradientImage, fragmentPixel(), 0).r, T) > 0.0) {
     Direction d = edgeDirection(fitPatch(p.x, p.y, patchSize, T), angleEstimator);
     fragColor = smoothAt(p.x, p.y, d, mask);
   } else {

@@ -10,7 +10,12 @@ file holds the functions, guarded by one macro per pass.
 
 Needs a window (the gpu module refuses background mode). Textures are RGBA32F; each filter owns its
 targets, allocated for one size and kept until the size changes, and taa keeps two history textures
-between runs (ping-pong) until reset() or a size change.
+between runs (ping-pong) until reset(), a size change or a new clipSpace (as the library: taa.cpp).
+
+Parameters are checked by the library itself (native.check_params) before a GpuFilter takes them: values it
+rejects (an even patchSize, feedbackMin > feedbackMax) raise GpuParamsError with its message and are never
+run. A texture whose row 0 is the bottom of the picture (the viewport's) needs rows_up=True: see
+common.glsl "Row order".
 """
 
 import os
@@ -45,11 +50,12 @@ DEFAULTS = {
 FILES = {
     "fxaa": {
         "samplers": ("colorImage", "lumaImage"),
-        "push": (("FLOAT", "edgeThreshold"), ("FLOAT", "edgeThresholdMin"), ("FLOAT", "subpix")),
+        "push": (("FLOAT", "edgeThreshold"), ("FLOAT", "edgeThresholdMin"), ("FLOAT", "subpix"), ("INT", "rowsUp")),
     },
     "repair": {
         "samplers": ("colorImage", "greyImage", "gradientImage", "statsImage"),
-        "push": (("FLOAT", "kappa"), ("INT", "patchSize"), ("INT", "mask"), ("INT", "angleEstimator")),
+        "push": (("FLOAT", "kappa"), ("INT", "patchSize"), ("INT", "mask"), ("INT", "angleEstimator"),
+                 ("INT", "rowsUp")),
     },
     "taa": {
         "samplers": ("colorImage", "historyImage", "motionImage", "markImage"),
@@ -102,6 +108,10 @@ void displayPass() {
 
 class GpuFilterError(RuntimeError):
     """A shader that does not build, a missing shader file, or a GPU module that is unavailable."""
+
+
+class GpuParamsError(GpuFilterError):
+    """Parameter values the library rejects (its message); the filter keeps its previous ones."""
 
 
 def shader_dirs():
@@ -205,6 +215,10 @@ def run_pass(pass_name, target, samplers, constants=()):
         batch.draw(sh)
 
 
+def _choice_index(name, value):
+    return CHOICES[name].index(value) if isinstance(value, str) else int(value)
+
+
 def _constants(file_key, params):
     out = []
     for kind, name in FILES[file_key]["push"]:
@@ -212,9 +226,21 @@ def _constants(file_key, params):
             continue
         v = params[name]
         if name in CHOICES:
-            v = CHOICES[name].index(v) if isinstance(v, str) else int(v)
+            v = _choice_index(name, v)
         out.append((kind, name, v))
     return out
+
+
+def library_check(method, params):
+    """None when the library accepts params for method, else its message (native.check_params). Without
+    the library there is nothing to check against: the add-on then offers only the defaults (properties.py)."""
+    from . import native
+    try:
+        native.load()
+    except native.CrispError:
+        return None
+    named = {k: CHOICES[k][v] if k in CHOICES and not isinstance(v, str) else v for k, v in params.items()}
+    return native.check_params(method, named)
 
 
 def texture_from_rgba(width, height, values):
@@ -226,23 +252,34 @@ def texture_from_rgba(width, height, values):
 class GpuFilter:
     """One filter on the GPU: run(color_texture) -> the output texture (RGBA32F, owned by the filter)."""
 
-    def __init__(self, method, params=None):
+    def __init__(self, method, params=None, rows_up=False):
+        """rows_up: the textures run() gets have row 0 at the bottom of the picture (common.glsl)."""
         if method not in METHODS:
             raise GpuFilterError("no GPU version of filter '%s' (have: %s)" % (method, ", ".join(METHODS)))
         self.method = method
+        self.rows_up = rows_up
         self.params = dict(DEFAULTS[method])
         self.set_params(params or {})
         self.size = None
         self.frames = 0  # taa: frames since reset
+        self.history_space = None  # taa: the clipSpace the history is stored in
         for name in [p for p in PASSES if p.startswith(method + "_")]:
             shader(name)  # build now, so a broken shader fails here and not mid-redraw
 
     def set_params(self, params):
-        for k, v in params.items():
+        """Takes the values if the library accepts them all (with the others in use), else raises
+        GpuParamsError and keeps the previous ones."""
+        for k in params:
             if k not in DEFAULTS[self.method]:
                 raise GpuFilterError("filter '%s' has no parameter '%s' on the GPU (has: %s)"
                                      % (self.method, k, ", ".join(DEFAULTS[self.method])))
-            self.params[k] = v
+        merged = dict(self.params, **params)
+        if merged == self.params:
+            return
+        why = library_check(self.method, merged)
+        if why is not None:
+            raise GpuParamsError(why)
+        self.params = merged
 
     def reset(self):
         """taa: forget the history (the next run is a first frame)."""
@@ -281,14 +318,14 @@ class GpuFilter:
         """Filters the RGBA32F texture `color` (width x height); returns the output texture.
         motion (taa only): an RGBA32F texture of pixel offsets previous - current, or None (static)."""
         self._allocate(width, height)
-        p = self.params
+        p = dict(self.params, rowsUp=1 if self.rows_up else 0)
         if self.method == "fxaa":
             run_pass("fxaa_luma", self.luma, {"colorImage": color})
             run_pass("fxaa_resolve", self.output, {"colorImage": color, "lumaImage": self.luma.texture},
                      _constants("fxaa", p))
         elif self.method == "repair":
             run_pass("repair_grey", self.grey, {"colorImage": color})
-            run_pass("repair_gradient", self.gradient, {"greyImage": self.grey.texture})
+            run_pass("repair_gradient", self.gradient, {"greyImage": self.grey.texture}, _constants("repair", p))
             run_pass("repair_stats", self.stats[0], {"gradientImage": self.gradient.texture})
             for lower, upper in zip(self.stats, self.stats[1:]):
                 run_pass("repair_reduce", upper, {"statsImage": lower.texture})
@@ -301,6 +338,10 @@ class GpuFilter:
 
     def _run_taa(self, color, width, height, motion):
         p = dict(self.params)
+        space = _choice_index("clipSpace", p["clipSpace"])
+        if self.frames > 0 and space != self.history_space:
+            self.reset()  # the history is stored in the clip space (taa.cpp Kernel::run)
+        self.history_space = space
         p["hasHistory"] = 1 if self.frames > 0 else 0
         p["hasMotion"] = 1 if motion is not None else 0
         for b in ("staticAccumulation", "staticClip"):

@@ -24,7 +24,12 @@ ERROR_NAMES = {0: "none", 1: "unknown", 2: "invalid argument", 3: "invalid opera
 
 
 class CrispError(RuntimeError):
-    """Any failure of the native library (or of loading it)."""
+    """Any failure of the native library (or of loading it). `detail`: the library's own message (the
+    text without the call and error kind), for showing to artists."""
+
+    def __init__(self, text, detail=None):
+        super().__init__(text)
+        self.detail = detail or text
 
 
 class Metrics(ctypes.Structure):
@@ -122,7 +127,7 @@ class _Library:
             code = self.fns["crispGetError"](ctypes.byref(msg))
             if code:
                 text = msg.value.decode("utf-8", "replace") if msg.value else "(no message)"
-                raise CrispError("%s: %s error: %s" % (name, ERROR_NAMES.get(code, code), text))
+                raise CrispError("%s: %s error: %s" % (name, ERROR_NAMES.get(code, code), text), text)
         return result
 
 
@@ -178,6 +183,26 @@ def filter_info(method):
             return f.info()
         finally:
             f.close()
+
+
+def check_params(method, params):
+    """None when the library accepts `params` ({name: value}) for `method`, else its message saying why
+    not: the library's own checks (ranges, choices, rules between parameters such as an odd patchSize),
+    run by setting them on a filter and committing it on a 1x1 image (about 0.1 ms)."""
+    pixel, out = (ctypes.c_float * 4)(), (ctypes.c_float * 4)()
+    with Context(threads=1) as ctx:
+        f = Filter(ctx, method)
+        try:
+            for k, v in params.items():
+                f.set_param(k, v)
+            f.set_image("color", ctypes.addressof(pixel), FORMAT_FLOAT4, 1, 1)
+            f.set_image("output", ctypes.addressof(out), FORMAT_FLOAT4, 1, 1)
+            f.commit()
+        except CrispError as e:
+            return e.detail
+        finally:
+            f.close()
+    return None
 
 
 # ---- objects with owned handles ----------------------------------------------------------------

@@ -5,8 +5,11 @@ When on, a POST_PIXEL draw handler renders the view into an offscreen buffer eac
 (GPUOffScreen.draw_view3d, colour-managed: what the viewport shows), decodes it to linear with the sRGB
 curve, runs the chosen filter's GLSL twin (gpu_filters.py), and draws the result sRGB-encoded over the
 region. For taa the projection is jittered by Halton(2,3) (uniform inside the pixel) each redraw, the
-history is kept between redraws and reset when the view matrix, projection, size or method changes;
-while the history holds fewer than ACCUMULATE_FRAMES frames the preview asks for another redraw.
+history is kept between redraws and reset when the view matrix, projection, size, method or the filter's
+settings (scene.crisp) change; while the history holds fewer than ACCUMULATE_FRAMES frames the preview
+asks for another redraw. Settings the library rejects (native.check_params: an even REPAIR patchSize,
+feedbackMin > feedbackMax) are not run: the view is left unfiltered and the panel shows the library's
+message until they are valid again.
 Motion vectors and depth are not available to an add-on in the viewport (BLENDER.md), so taa runs its
 static path: moving the view, editing the scene or changing frame restarts the accumulation.
 
@@ -57,6 +60,7 @@ class _State:
     saved_settings = None  # (scene name, [(group, name, value before)]) of ONE_SAMPLE
     views = {}           # region -> (view key, taa's index into the Halton sequence); {}: every view restarts
     last_region = None   # the region drawn last (accumulated_frames)
+    rejected = None      # the library's message when it rejects the scene's settings (not filtered), else None
     drawing = False      # re-entrancy guard (draw_view3d inside a draw handler)
     last_ms = 0.0
 
@@ -163,6 +167,8 @@ def _draw_preview(context):
     blend = gpu.state.blend_get()
     with _State.stack_guard.bind():
         out, filt, method = _filter_view(context, region, space, rv3d, width, height)
+    if out is None:  # settings the library rejects: the view stays as Blender drew it
+        return
     gpu.state.blend_set("NONE")
     gpu.state.depth_test_set("NONE")
     gpu_filters.draw_display(out, width, height)
@@ -174,7 +180,7 @@ def _draw_preview(context):
 
 def _filter_view(context, region, space, rv3d, width, height):
     """Renders the view (jittered for taa) into the offscreen buffer and filters it; returns (output
-    texture, filter, method)."""
+    texture, filter, method), the texture None when the library rejects the scene's settings."""
     import gpu
 
     from . import gpu_filters
@@ -187,13 +193,27 @@ def _filter_view(context, region, space, rv3d, width, height):
     if filt is None:
         if len(_State.filters) >= MAX_VIEWS:
             _State.filters, _State.views = {}, {}
-        filt = _State.filters[(region_key, method)] = gpu_filters.GpuFilter(method)
-    filt.set_params(_filter_params(context, method))
+        # The offscreen's row 0 is the bottom of the view (common.glsl "Row order").
+        filt = _State.filters[(region_key, method)] = gpu_filters.GpuFilter(method, rows_up=True)
     _State.last_region = region_key
+    params = _filter_params(context, method)
+    try:
+        filt.set_params(params)
+        rejected = None
+    except gpu_filters.GpuParamsError as e:
+        rejected = str(e)
+    if rejected != _State.rejected:
+        _State.rejected = rejected
+        if not bpy.app.timers.is_registered(_tag_redraw):  # the panel shows it
+            bpy.app.timers.register(_tag_redraw, first_interval=0.0)
+    if rejected is not None:
+        return None, filt, method
 
     view = rv3d.view_matrix.copy()
     projection = rv3d.window_matrix.copy()
-    key = (tuple(tuple(r) for r in view), tuple(tuple(r) for r in projection), width, height, method)
+    # Settings edits (scene.crisp) fire no depsgraph update (_on_scene_change): they are part of the key.
+    key = (tuple(tuple(r) for r in view), tuple(tuple(r) for r in projection), width, height, method,
+           tuple(sorted(params.items())))
     seen, frame = _State.views.get(region_key, (None, 0))
     if key != seen:
         frame = 0
@@ -201,7 +221,8 @@ def _filter_view(context, region, space, rv3d, width, height):
     _State.views[region_key] = (key, frame + 1)
     if method == "taa":
         sx, sy = halton_jitter(frame)
-        # The shaders' y is the texture row and offscreen row 0 is the bottom: their y is up, like sy.
+        # taa's jitterY is along the texture's rows (common.glsl "Row order"); offscreen row 0 is the
+        # bottom, so it is y up, like sy.
         filt.set_params({"jitterX": sx, "jitterY": sy})
         projection = jittered_projection(projection, sx, sy, width, height)
 
@@ -271,7 +292,7 @@ def _remove():
         if offscreen is not None:
             offscreen.free()
     _State.offscreen = _State.offscreen_size = _State.decoded = _State.stack_guard = None
-    _State.views, _State.last_region = {}, None
+    _State.views, _State.last_region, _State.rejected = {}, None, None
     try:
         _tag_redraw()
     except Exception:
@@ -318,6 +339,12 @@ def last_draw_ms():
     return _State.last_ms
 
 
+def rejected_settings():
+    """The library's message when it rejects the scene's settings for the preview's method (the view is
+    then not filtered), else None."""
+    return _State.rejected if _State.handle is not None else None
+
+
 def accumulated_frames():
     """taa: redraws accumulated in the history of the view drawn last since its reset (0 for the spatial
     methods)."""
@@ -349,6 +376,10 @@ class CRISP_PT_viewport(bpy.types.Panel):
             row = layout.row()
             row.alert = True
             row.label(text=s.status, icon="ERROR")
+        elif rejected_settings():
+            row = layout.row()
+            row.alert = True
+            row.label(text="Not filtered: " + rejected_settings(), icon="ERROR")
         elif is_active():
             layout.label(text="%.1f ms per redraw" % _State.last_ms)
         if _State.saved_settings and _State.saved_settings[1]:

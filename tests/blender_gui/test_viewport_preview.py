@@ -218,6 +218,50 @@ class ViewportPreview(unittest.TestCase):
         self.switch_off()
         self.check_filtered("taa (%d redraws)" % frames, shown)
 
+    def test_taa_restarts_on_settings_edit(self):
+        """An edit of the filter's settings (scene.crisp, which fires no depsgraph update) restarts the
+        history, like a view change."""
+        params = bpy.context.scene.crisp.taa
+        before = params.feedbackMax
+        self.addCleanup(setattr, params, "feedbackMax", before)
+        self.addCleanup(setattr, self.settings, "enabled", False)
+        self.switch_on("taa")
+        redraw(TAA_REDRAWS)
+        self.assertGreaterEqual(viewport.accumulated_frames(), TAA_REDRAWS)
+        params.feedbackMax = 0.9
+        redraw(1)
+        self.assertEqual(viewport.accumulated_frames(), 1, "a settings edit must reset the history")
+        self.switch_off()
+
+    def test_settings_the_library_rejects_are_not_run(self):
+        """Settings the library refuses (an even REPAIR patchSize, TAA feedbackMin > feedbackMax) are not
+        run: the view stays unfiltered, the panel names the library's reason, and the preview stays on and
+        filters again once they are valid."""
+        scene = bpy.context.scene
+        self.addCleanup(setattr, self.settings, "enabled", False)
+        for method, group, bad, reason in (("repair", scene.crisp.repair, {"patchSize": 6}, "must be odd"),
+                                           ("taa", scene.crisp.taa, {"feedbackMin": 0.9, "feedbackMax": 0.8},
+                                            "must not exceed")):
+            before = {k: getattr(group, k) for k in bad}
+            for k, v in bad.items():
+                setattr(group, k, v)
+            try:
+                self.switch_on(method)
+                shown = screenshot()
+                diff = float(np.abs(shown - self.base).max())
+                print("preview %s with rejected settings: differs from the unfiltered view by up to %.1f/255; %s"
+                      % (method, 255 * diff, viewport.rejected_settings()), file=sys.stderr)
+                self.assertLessEqual(diff, 0.5 / 255, method + ": rejected settings must not be run")
+                self.assertIn(reason, viewport.rejected_settings() or "", method)
+            finally:
+                for k, v in before.items():
+                    setattr(group, k, v)
+            self.assertTrue(viewport.is_active(), method + ": the preview must stay on")
+            shown = screenshot()
+            self.assertIsNone(viewport.rejected_settings())
+            self.assertGreater(float(np.abs(shown - self.base).max()), 0.1, method + " must filter again")
+            self.switch_off()
+
     def test_z_off_restores_view(self):
         """Runs last: after on/off cycles, no handler and no buffers remain and the view is unfiltered."""
         before = screenshot()
