@@ -260,7 +260,6 @@ struct Frame {
   T* next;                     // records written
   int blocksPerRow;            // blocks of kBatch pixels per row of records
   ImageView output;
-  long* rowStats;
   T inverseLambda, regulariserVariance[kDims], regulariserWeight[kDims], sampleVariance, sampleWeight, p0, ps;
   // Moving pixels (header "Forgetting"): lambdaMoving (1 - resampleDamping s) per lane.
   T lambdaMoving, resampleDamping, p0Diagonal[kDims];
@@ -1066,9 +1065,10 @@ CRISP_PHLM_INLINE void fetchInterceptsCatmullRom(const Frame<T>& f, const Batch<
 // so every path (and the float64 kernel, lane type double) gives the bits of
 // the one-pixel form. Output beta' x = f + g e (clamped to the box: only
 // rounding and the inside-test slack can reach past it). Writes the records
-// and the output; counts the box corrections in boxResets.
+// and the output; counts the box corrections and the guards that fired
+// (FrameStats) in `stats`.
 template <class T>
-CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& boxResets) {
+CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, FrameStats& stats) {
   using V = typename Batch<T>::V;
   using M = typename Batch<T>::M;
   const int n = batch.count;
@@ -1197,7 +1197,7 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
   for (int i = 0; i < n; ++i)
     if (corrected[i]) {
       anyCorrected = true;
-      ++boxResets;
+      ++stats.boxResets;
       const std::size_t pixel = std::size_t(batch.y) * std::size_t(f.width) + std::size_t(batch.x0 + i);
       if (f.narrowBox) f.narrowBox[pixel] = 1;
       if (f.stillSamples[pixel] != 0) f.stillSamples[pixel] = 1;  // the model restarts from the corrected value
@@ -1278,6 +1278,11 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
         putLanes(interceptRow(f.interceptsNext, f.blocksPerRow, c, batch.y) + batch.x0,
                  V(overflow ? restart[kBeta + c] : m[kBeta + c]), f.streamNext);
   }
+  // The guards (FrameStats::guards): a non-finite prediction, an overflowed
+  // beta, an output that needs the sanitise below to be finite.
+  M guarded = overflow | ~finite;
+  for (int c = 0; c < 3; ++c) guarded |= (out[c] - out[c]) != zeroOf<V>();
+  for (int i = 0; i < n; ++i) stats.guards += guarded[i] != 0;
   // sanitizeColor on all lanes at once (sanitizeColorLanes: the same values), then pixel by pixel.
   const int y = batch.y;
   using F = typename LanesOf<float>::V;
@@ -1302,8 +1307,8 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, long& box
 // Rows [y0, y1), counting the resets per row; two copies (temporal/isa.h).
 template <class T, bool Groups>
 __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y0, int y1, bool reference,
-                                                        long* rowStats) {
-  for (int y = y0; y < y1; ++y) rowStats[2 * y] = rowStats[2 * y + 1] = 0;
+                                                        FrameStats* rowStats) {
+  for (int y = y0; y < y1; ++y) rowStats[y] = {};
   Batch<T> batch;
   const bool clampAll = reference || f.unjitter.shiftX != 0 || f.unjitter.shiftY != 0;
   // Step 1's closest-depth taps, a row at a time on the fast path (the
@@ -1348,8 +1353,8 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
   if (!Groups || reference || !(movingGroups || stillGroups)) {
     temporal::rowsWithBorder(w, h, y0, y1, clampAll, [&](auto clamp, int x, int y) __attribute__((always_inline)) {
       if (tapsAhead && x == 0) stageTaps(y);
-      phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[2 * y], batch, rowTaps);
-      if (batch.count == kBatch || x == f.width - 1) finishBatch(f, batch, rowStats[2 * y + 1]);
+      phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[y].reprojectionResets, batch, rowTaps);
+      if (batch.count == kBatch || x == f.width - 1) finishBatch(f, batch, rowStats[y]);
     });
     return;
   }
@@ -1366,16 +1371,16 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
       for (int x = 0; x < w;) {
         if (groupRow && x >= kBatch && x % kBatch == 0 && x + kBatch <= w - 1 && x - 1 - sx >= 0 &&
             x + kBatch - sx < w &&
-            phlmGroup(f, x, y, rowStats[2 * y], batch, rowTaps, movingGroups, stillGroups)) {
+            phlmGroup(f, x, y, rowStats[y].reprojectionResets, batch, rowTaps, movingGroups, stillGroups)) {
           x += kBatch;
         } else {
           if (clampRow || x == 0 || x == w - 1)
-            phlmPixel<T, true>(f, x, y, rowStats[2 * y], batch, rowTaps);
+            phlmPixel<T, true>(f, x, y, rowStats[y].reprojectionResets, batch, rowTaps);
           else
-            phlmPixel<T, false>(f, x, y, rowStats[2 * y], batch, rowTaps);
+            phlmPixel<T, false>(f, x, y, rowStats[y].reprojectionResets, batch, rowTaps);
           ++x;
         }
-        if (batch.count == kBatch || x == w) finishBatch(f, batch, rowStats[2 * y + 1]);
+        if (batch.count == kBatch || x == w) finishBatch(f, batch, rowStats[y]);
       }
     }
   }
@@ -1384,7 +1389,7 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
 // Each copy ends with a store fence: the streaming stores of its rows are
 // visible before the thread pool reports the band done.
 template <class T>
-void phlmRowsBaseline(const Frame<T>& f, int y0, int y1, bool reference, long* rowStats) {
+void phlmRowsBaseline(const Frame<T>& f, int y0, int y1, bool reference, FrameStats* rowStats) {
   phlmRowsBody<T, false>(f, y0, y1, reference, rowStats);
 #if defined(__SSE2__)
   _mm_sfence();
@@ -1392,7 +1397,7 @@ void phlmRowsBaseline(const Frame<T>& f, int y0, int y1, bool reference, long* r
 }
 #ifdef CRISP_TEMPORAL_HAS_AVX2
 template <class T>
-CRISP_TEMPORAL_AVX2 void phlmRowsAvx2(const Frame<T>& f, int y0, int y1, bool reference, long* rowStats) {
+CRISP_TEMPORAL_AVX2 void phlmRowsAvx2(const Frame<T>& f, int y0, int y1, bool reference, FrameStats* rowStats) {
   phlmRowsBody<T, std::is_same_v<T, float>>(f, y0, y1, reference, rowStats);
   _mm_sfence();
 }
@@ -1420,7 +1425,7 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
     depth_[1].clear();
     current_ = 0;
     withMotion_ = withDepth_ = false;
-    rowStats_.assign(std::size_t(height) * 2, 0);
+    rowStats_.assign(std::size_t(height), FrameStats{});
     alphaOne_.assign(std::size_t(height), 0);
     reset();
   }
@@ -1465,7 +1470,7 @@ std::size_t Kernel<T>::bytesKeptBetweenFrames() const {
 
 template <class T>
 std::size_t Kernel<T>::bytesScratch() const {
-  return staged_.data.size() * sizeof(float) + rowStats_.size() * sizeof(long) + alphaOne_.size() + movingFlags_.size();
+  return staged_.data.size() * sizeof(float) + rowStats_.size() * sizeof(FrameStats) + alphaOne_.size() + movingFlags_.size();
 }
 
 // Next records at least this large (with motion) are written with streaming
@@ -1590,7 +1595,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.featureB = T(s.featureB);
   f.featureAlphaMin = T(s.featureAlphaMin);
   f.depthTolerance = s.depthTolerance;
-  long* rowStats = rowStats_.data();
+  FrameStats* rowStats = rowStats_.data();
 
   auto pixelRows = phlmRowsBaseline<T>;
 #ifdef CRISP_TEMPORAL_HAS_AVX2
@@ -1601,8 +1606,9 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
 
   stats_ = {};
   for (int y = 0; y < height_; ++y) {
-    stats_.reprojectionResets += rowStats[2 * y];
-    stats_.boxResets += rowStats[2 * y + 1];
+    stats_.reprojectionResets += rowStats[y].reprojectionResets;
+    stats_.boxResets += rowStats[y].boxResets;
+    stats_.guards += rowStats[y].guards;
   }
   current_ = next;
   interceptsValid_ = moving;  // with motion every record's intercepts went to the planes too

@@ -106,6 +106,11 @@ struct Inputs {
 struct FrameStats {
   long reprojectionResets = 0;  // off-screen, non-finite motion, disocclusion, first frame
   long boxResets = 0;           // prediction outside the 3x3 box (Algorithm 1 line 16)
+  // Safety nets that fired: a non-finite prediction, a beta that overflowed
+  // (the model restarts), an output not finite before its sanitise. Inputs
+  // are sanitised first and P is bounded, so this stays 0 unless the kernel
+  // is wrong; the stability tests assert it.
+  long guards = 0;
 };
 
 template <class T>
@@ -157,7 +162,7 @@ class Kernel {
   bool interceptsValid_ = false;   // intercepts_[current_] holds the current records' intercepts
   std::vector<std::uint8_t> narrowBox_;  // with motion: per pixel, its model keeps the 3x3 box (phlm.cpp "Box")
   std::vector<std::uint8_t> movingFlags_;  // with motion: this frame's temporal::movingRow flags (fast path)
-  std::vector<long> rowStats_;  // 2 per row: reprojection resets, box resets
+  std::vector<FrameStats> rowStats_;  // this frame's counts, per row
   std::vector<std::uint8_t> alphaOne_;  // per row of this frame: every input alpha is 1 (or there is none)
   int current_ = 0;
   int frames_ = 0;

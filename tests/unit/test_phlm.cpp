@@ -297,9 +297,10 @@ static ::testing::AssertionResult runBothPaths(phlm::Kernel<float>& fast, phlm::
   if (std::memcmp(outFast.data.data(), outReference.data.data(), outFast.data.size() * sizeof(float)) != 0)
     return ::testing::AssertionFailure() << "outputs differ";
   const phlm::FrameStats &a = fast.lastStats(), &b = reference.lastStats();
-  if (a.reprojectionResets != b.reprojectionResets || a.boxResets != b.boxResets)
-    return ::testing::AssertionFailure() << "reset counts differ: reprojection " << a.reprojectionResets << " / "
-                                         << b.reprojectionResets << ", box " << a.boxResets << " / " << b.boxResets;
+  if (a.reprojectionResets != b.reprojectionResets || a.boxResets != b.boxResets || a.guards != b.guards)
+    return ::testing::AssertionFailure() << "counts differ: reprojection " << a.reprojectionResets << " / "
+                                         << b.reprojectionResets << ", box " << a.boxResets << " / " << b.boxResets
+                                         << ", guards " << a.guards << " / " << b.guards;
   for (int y = 0; y < fast.height(); ++y)
     for (int x = 0; x < fast.width(); ++x) {
       const std::array<float, phlm::kRecord> a = fast.record(x, y), b = reference.record(x, y);

@@ -1,0 +1,223 @@
+// SPDX-License-Identifier: Apache-2.0
+// The synthetic long runs of the temporal filters' stability suite (issue 4:
+// constant colour, slow gradients, black/white flicker, HDR fireflies,
+// NaN/+-Inf pixels, zero and huge motion, off-screen reprojection,
+// disocclusion, depth at infinity, camera cut), shared by
+// test_phlm_stability.cpp and test_taa_stability.cpp, with the colour range
+// each output pixel must stay inside.
+//
+// The frame is kWidth x kHeight = 32 x 8: wide enough that the fast paths'
+// 8-lane groups run on its interior (phlm.cpp phlmGroup needs 17 columns,
+// taa.cpp's rows are 8 lanes at a time) next to the clamped edge pixels.
+// Every frame carries EEVEE's jitter (temporal::jitterForFrame,
+// Blackman-Harris, +-1.5 px), so the unjitter shift moves the 3x3 as it does
+// on a real render.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <cstdint>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "core/color.h"
+#include "core/image.h"
+#include "temporal/jitter.h"
+#include "temporal/velocity.h"
+
+namespace crisp::test::stability {
+
+constexpr int kWidth = 32, kHeight = 8;
+constexpr int kFrames = 20000;
+
+struct Input {
+  Image color{kWidth, kHeight, 4, 0.0f};
+  Image motion{kWidth, kHeight, 2, 0.0f};
+  Image depth{kWidth, kHeight, 1, 10.0f};
+};
+
+struct Scenario {
+  const char* name;
+  bool motion, depth;  // the filter is given these images
+  std::function<void(int t, Input&)> make;
+};
+
+// This frame's sample offset (pixels, library convention).
+inline temporal::Jitter jitterAt(int t) {
+  return temporal::jitterForFrame(t, temporal::JitterDistribution::BlackmanHarris);
+}
+
+inline void fill(Image& im, float r, float g, float b) {
+  for (int y = 0; y < im.height; ++y)
+    for (int x = 0; x < im.width; ++x) {
+      float* p = im.at(x, y);
+      p[0] = r, p[1] = g, p[2] = b, p[3] = 1.0f;
+    }
+}
+
+// A static texture: every pixel its own colour, periods 6, 5 and 4.
+inline void texture(Image& im, float scale) {
+  for (int y = 0; y < im.height; ++y)
+    for (int x = 0; x < im.width; ++x) {
+      float* p = im.at(x, y);
+      p[0] = scale * (0.1f + 0.13f * float((x * 7 + y * 3) % 6));
+      p[1] = scale * (0.2f + 0.11f * float((x * 5 + y) % 5));
+      p[2] = scale * (0.05f + 0.17f * float((x + y * 4) % 4));
+      p[3] = 1.0f;
+    }
+}
+
+inline std::vector<Scenario> scenarios() {
+  constexpr int W = kWidth, H = kHeight;
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  std::vector<Scenario> v;
+  v.push_back({"constant colour", false, false, [](int, Input& in) { fill(in.color, 0.3f, 0.5f, 0.7f); }});
+  v.push_back({"slow gradient", false, false, [](int t, Input& in) {
+                 const float phase = 0.5f + 0.5f * std::sin(6.2831853f * float(t) / 5000.0f);
+                 for (int y = 0; y < H; ++y)
+                   for (int x = 0; x < W; ++x) {
+                     float* p = in.color.at(x, y);
+                     p[0] = phase * (0.1f + 0.03f * float(x));
+                     p[1] = 0.5f * phase + 0.05f * float(y);
+                     p[2] = 1.0f - 0.8f * phase;
+                     p[3] = 1.0f;
+                   }
+               }});
+  v.push_back({"black/white flicker", false, false, [](int t, Input& in) {
+                 const float c = (t & 1) ? 1.0f : 0.0f;
+                 fill(in.color, c, c, c);
+               }});
+  v.push_back({"checker flicker", false, false, [](int t, Input& in) {
+                 for (int y = 0; y < H; ++y)
+                   for (int x = 0; x < W; ++x) {
+                     const float c = ((x + y + t) & 1) ? 1.0f : 0.0f;
+                     float* p = in.color.at(x, y);
+                     p[0] = p[1] = p[2] = c, p[3] = 1.0f;
+                   }
+               }});
+  // Inputs are sanitised to +-65504 (conventions.h kMaxColor), so 1e5 and 1e6 arrive as 65504.
+  v.push_back({"HDR fireflies 1e4-1e6", false, false, [](int t, Input& in) {
+                 texture(in.color, 1.0f);
+                 std::mt19937 rng{unsigned(t)};
+                 for (int i = 0; i < 2; ++i)
+                   if (rng() % 3 == 0) {
+                     float* p = in.color.at(int(rng() % W), int(rng() % H));
+                     const float mag = std::pow(10.0f, 4.0f + 2.0f * float(rng() % 1000) / 999.0f);
+                     p[0] = p[1] = p[2] = mag;
+                   }
+               }});
+  v.push_back({"NaN/+-Inf pixels", true, true, [nan, inf](int t, Input& in) {
+                 texture(in.color, 2.0f);
+                 std::mt19937 rng(unsigned(t) * 7u + 1u);
+                 const float bad[4] = {nan, inf, -inf, -3.0f};
+                 for (int i = 0; i < 6; ++i) in.color.at(int(rng() % W), int(rng() % H))[rng() % 3] = bad[rng() % 4];
+                 for (int i = 0; i < W * H; ++i) {
+                   in.motion.data[2 * i] = (rng() % 5 == 0) ? nan : 0.0f;
+                   in.motion.data[2 * i + 1] = (rng() % 7 == 0) ? inf : 0.0f;
+                   in.depth.data[i] = (rng() % 6 == 0) ? nan : 10.0f;
+                 }
+               }});
+  v.push_back({"zero motion, noisy", true, true, [](int t, Input& in) {
+                 std::mt19937 rng(unsigned(t) * 13u + 5u);
+                 for (int y = 0; y < H; ++y)
+                   for (int x = 0; x < W; ++x) {
+                     float* p = in.color.at(x, y);
+                     const float n = float(rng() % 1000) / 1000.0f;
+                     p[0] = 0.2f + 0.6f * n, p[1] = 0.5f, p[2] = 0.8f - 0.6f * n, p[3] = 1.0f;
+                   }
+                 std::fill(in.motion.data.begin(), in.motion.data.end(), 0.0f);
+               }});
+  v.push_back({"huge motion", true, false, [](int t, Input& in) {
+                 texture(in.color, 1.0f);
+                 for (int i = 0; i < W * H; ++i) {
+                   in.motion.data[2 * i] = (t % 2 ? 1e6f : -3e4f) * float(1 + i % 3);
+                   in.motion.data[2 * i + 1] = (t % 3 ? -1e7f : 5e5f);
+                 }
+               }});
+  v.push_back({"pan, off-screen reprojection", true, true, [](int t, Input& in) {
+                 // Content scrolls left 0.7 px per frame: pixels near the right edge reproject off-screen.
+                 for (int y = 0; y < H; ++y)
+                   for (int x = 0; x < W; ++x) {
+                     const float u = float(x) + 0.7f * float(t);
+                     float* p = in.color.at(x, y);
+                     p[0] = 0.5f + 0.5f * std::sin(0.9f * u), p[1] = 0.5f + 0.4f * std::cos(0.3f * u + float(y));
+                     p[2] = 0.25f, p[3] = 1.0f;
+                   }
+                 for (int i = 0; i < W * H; ++i) in.motion.data[2 * i] = 0.7f, in.motion.data[2 * i + 1] = 0.0f;
+               }});
+  v.push_back({"disocclusion", true, true, [](int t, Input& in) {
+                 // A near bar 3 px wide moving right 1 px/frame over a far static background, wrapping around.
+                 const int bar = t % (W + 4) - 2;
+                 for (int y = 0; y < H; ++y)
+                   for (int x = 0; x < W; ++x) {
+                     const bool near = x >= bar && x < bar + 3;
+                     float* p = in.color.at(x, y);
+                     p[0] = near ? 1.0f : 0.1f * float(x % 3), p[1] = near ? 0.9f : 0.2f, p[2] = near ? 0.0f : 0.6f;
+                     p[3] = 1.0f;
+                     in.motion.at(x, y)[0] = near ? -1.0f : 0.0f;
+                     in.motion.at(x, y)[1] = 0.0f;
+                     in.depth.at(x, y)[0] = near ? 2.0f : 50.0f;
+                   }
+               }});
+  v.push_back({"depth at infinity", true, true, [inf](int t, Input& in) {
+                 texture(in.color, 0.5f);
+                 const float far[4] = {inf, 1e10f, 65504.0f, 3e38f};
+                 for (int i = 0; i < W * H; ++i) {
+                   in.depth.data[i] = far[(i + t) % 4];
+                   in.motion.data[2 * i] = 0.25f * float((t % 4) - 2), in.motion.data[2 * i + 1] = 0.0f;
+                 }
+               }});
+  v.push_back({"camera cut at 10000", false, false, [](int t, Input& in) {
+                 if (t < 10000) texture(in.color, 1.0f);
+                 else fill(in.color, 0.9f, 0.1f, 0.4f);
+               }});
+  return v;
+}
+
+// The colour range each output pixel must stay inside: the (sanitised)
+// range of this frame's 3x3 that the unjitter reads (taa.cpp "Jitter": the
+// 3x3 around the sample nearest the pixel centre, temporal::shiftedSource),
+// or, where footprintExcept and nothing in the shifted 5x5 moves (as
+// temporal::stillFootprint), of that 5x5 (the documented exception: still
+// history is tested against the footprint box, taa.cpp "Deliberate choices",
+// phlm.cpp "Box"). No motion image: nothing moves. Row-major, one per pixel.
+struct Range {
+  float lo[3], hi[3];
+  // Rounding slack on a check against channel c: relative to the values involved.
+  double slack(int c) const { return 1e-6 * (1.0 + std::fabs(lo[c]) + std::fabs(hi[c])); }
+  bool contains(int c, double v) const { return v >= lo[c] - slack(c) && v <= hi[c] + slack(c); }  // false on NaN
+};
+inline std::vector<Range> outputRanges(const Image& color, const Image* motion, const temporal::Unjitter& u,
+                                       bool footprintExcept) {
+  const int w = color.width, h = color.height;
+  std::vector<float> clean(std::size_t(w) * h * 3);
+  std::vector<std::uint8_t> moving(std::size_t(w) * h, 0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const std::size_t i = std::size_t(y) * w + x;
+      for (int c = 0; c < 3; ++c) clean[3 * i + c] = sanitizeColor(color.at(x, y)[c]);
+      if (motion) moving[i] = temporal::movesAt(motion->at(x, y));
+    }
+  std::vector<Range> ranges(std::size_t(w) * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      int xs[5], ys[5];
+      for (int k = 0; k < 5; ++k)
+        xs[k] = temporal::shiftedSource(x + k - 2, w, u.shiftX), ys[k] = temporal::shiftedSource(y + k - 2, h, u.shiftY);
+      bool still = footprintExcept;
+      for (int k = 0; k < 25 && still; ++k) still = !moving[std::size_t(ys[k / 5]) * w + xs[k % 5]];
+      const int first = still ? 0 : 1, last = still ? 4 : 3;
+      Range& r = ranges[std::size_t(y) * w + x];
+      for (int c = 0; c < 3; ++c) r.lo[c] = std::numeric_limits<float>::infinity(), r.hi[c] = -r.lo[c];
+      for (int j = first; j <= last; ++j)
+        for (int i = first; i <= last; ++i) {
+          const float* p = &clean[3 * (std::size_t(ys[j]) * w + xs[i])];
+          for (int c = 0; c < 3; ++c) r.lo[c] = std::min(r.lo[c], p[c]), r.hi[c] = std::max(r.hi[c], p[c]);
+        }
+    }
+  return ranges;
+}
+
+}  // namespace crisp::test::stability
