@@ -177,6 +177,7 @@
 #include "filters/taa.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -234,6 +235,7 @@ struct Frame {
   // Fast path: plane index k of a staged row holds input column
   // sourceColumn[k] (shiftedSource(k - 1)), k < planeFloats(width).
   const int* sourceColumn;
+  std::atomic<long>* guards;   // Kernel::guards_: lanes whose guard fired (rare: counted on the spot)
 };
 
 // The current frame as the kernel reads it (conventions.h): sanitised, in
@@ -382,6 +384,7 @@ struct ResolvedLanes {
   T signedWeight;   // its lane 3: -W moving, +W static
   T output[3];      // color as sanitised RGB (unless reset without unjitter: the input itself)
   M reset;          // took the current colour as is
+  M guarded;        // the non-finite guard fired (Kernel::guardsLastFrame)
   M feedbackSinceReset;
   T framesSinceReset;
 };
@@ -517,8 +520,9 @@ __attribute__((always_inline)) inline ResolvedLanes<T> resolveLanes(const Frame&
   // removes it, and the footprint box would let it stay.
   M feedbackSinceReset = M(in.feedbackSinceReset | M(notOf(reset) & notOf(useAverage)));
   // Guard: never let a non-finite value into the history.
-  reset = M(reset | notOf(M(temporal::finiteOf(r.color[0]) & temporal::finiteOf(r.color[1]) &
-                            temporal::finiteOf(r.color[2]))));
+  r.guarded = notOf(M(temporal::finiteOf(r.color[0]) & temporal::finiteOf(r.color[1]) &
+                      temporal::finiteOf(r.color[2])));
+  reset = M(reset | r.guarded);
   for (int c = 0; c < 3; ++c) r.color[c] = reset ? in.current[c] : r.color[c];
   newWeight = reset ? lanesOf<T>(weight) : newWeight;
   r.feedbackSinceReset = reset ? M{} : feedbackSinceReset;
@@ -647,6 +651,7 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
     return true;
   });
   f.historyState[index] = historyStateOf(r.feedbackSinceReset, r.framesSinceReset);
+  if (r.guarded) f.guards->fetch_add(1, std::memory_order_relaxed);
   storePixel(f, x, y, r.color, r.signedWeight, r.output, r.reset, current[3]);
 }
 
@@ -942,6 +947,11 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
                                     excess);
         return true;
       });
+      if (temporal::anyOf(r.guarded)) {
+        long hits = 0;
+        for (int l = 0; l < lanes; ++l) hits += r.guarded[l] != 0;
+        f.guards->fetch_add(hits, std::memory_order_relaxed);
+      }
 
       if (lanes == kL) {
         // historyStateOf, a lane group at a time.
@@ -1111,6 +1121,8 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   for (std::size_t k = 0; k < sourceColumn_.size(); ++k)
     sourceColumn_[k] = temporal::shiftedSource(int(k) - 1, width_, f.unjitter.shiftX);
   f.sourceColumn = sourceColumn_.data();
+  guards_ = 0;
+  f.guards = &guards_;
 
   if (reference) {
     for (int y = 0; y < height_; ++y)

@@ -19,6 +19,7 @@
 // (temporal/isa.h).
 #pragma once
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -90,6 +91,10 @@ class Kernel {
   std::size_t bytesScratch() const;
   int framesSinceReset() const { return frames_; }
   ClipSpace historySpace() const { return historySpace_; }
+  // Pixels of the last run whose non-finite guard fired (a blend that was not
+  // finite, reset to the current colour). Inputs are sanitised first, so
+  // this stays 0 unless the kernel is wrong; the stability tests assert it.
+  long guardsLastFrame() const { return guards_.load(std::memory_order_relaxed); }
   // The previous frame's sanitised depth plane (width x height), or null when
   // the previous frame had none or there is no history. Valid until run().
   const float* previousDepth() const {
@@ -123,6 +128,7 @@ class Kernel {
   int frames_ = 0;            // frames since reset; 0 = no history
   bool previousDepthValid_ = false;
   ClipSpace historySpace_ = ClipSpace::YCoCg;
+  std::atomic<long> guards_{0};
 };
 
 }  // namespace crisp::taa

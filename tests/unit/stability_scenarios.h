@@ -220,4 +220,41 @@ inline std::vector<Range> outputRanges(const Image& color, const Image* motion, 
   return ranges;
 }
 
+// One firefly (1e6, sanitised to 65504) at frame `at` of the still image
+// `still` (frames carry the jitter of jitterAt), put on every pixel in turn,
+// against the same run without it. makeRun() gives a fresh filter as a
+// callable (int t, const Image& color) -> const Image& (its output).
+struct FireflyFade {
+  bool sameBefore = true;   // no output differed before the firefly
+  double atFirefly = INFINITY;  // the smallest largest-difference in its frame, over the positions
+  double after[4] = {};     // the largest difference from frame at + afterFrames[i] on, over the positions
+};
+template <class MakeRun>
+FireflyFade fireflyOnEveryPixel(const Image& still, const MakeRun& makeRun, int at, int frames,
+                                const int (&afterFrames)[4]) {
+  FireflyFade fade;
+  std::vector<Image> clean;
+  {
+    auto run = makeRun();
+    for (int t = 0; t < frames; ++t) clean.push_back(run(t, still));
+  }
+  for (int fy = 0; fy < still.height; ++fy)
+    for (int fx = 0; fx < still.width; ++fx) {
+      auto run = makeRun();
+      for (int t = 0; t < frames; ++t) {
+        Image color = still;
+        if (t == at) color.at(fx, fy)[0] = color.at(fx, fy)[1] = color.at(fx, fy)[2] = 1e6f;
+        const Image& out = run(t, color);
+        double diff = 0;
+        for (std::size_t i = 0; i < out.data.size(); ++i)
+          diff = std::max(diff, double(std::fabs(clean[std::size_t(t)].data[i] - out.data[i])));
+        if (t < at) fade.sameBefore &= diff == 0.0;
+        if (t == at) fade.atFirefly = std::min(fade.atFirefly, diff);
+        for (int i = 0; i < 4; ++i)
+          if (t >= at + afterFrames[i]) fade.after[i] = std::max(fade.after[i], diff);
+      }
+    }
+  return fade;
+}
+
 }  // namespace crisp::test::stability

@@ -20,6 +20,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <memory>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -225,38 +226,27 @@ TEST(PhlmStability, SingleFireflyStopsAffectingOutput) {
     Input in;
     if (scene == 0) fill(in.color, 0.3f, 0.5f, 0.7f);
     else texture(in.color, 1.0f);
-    auto frame = [&](phlm::Kernel<float>& k, int t, const Image& color, Image& out) {
-      phlm::Settings st = s;
-      const temporal::Jitter j = jitterAt(t);
-      st.jitterX = j.x, st.jitterY = j.y;
-      phlm::Inputs a;
-      a.color = color.view();
-      a.output = out.view();
-      k.run(a, st, false, 1);
-    };
-    std::vector<Image> clean(kRun, Image(kW, kH, 4));
-    phlm::Kernel<float> k;
-    k.allocate(kW, kH, false, false);
-    for (int t = 0; t < kRun; ++t) frame(k, t, in.color, clean[t]);
-    double atFirefly = INFINITY, after[4] = {};
-    for (int fy = 0; fy < kH; ++fy)
-      for (int fx = 0; fx < kW; ++fx) {
-        phlm::Kernel<float> hit;
-        hit.allocate(kW, kH, false, false);
-        Image out(kW, kH, 4);
-        for (int t = 0; t < kRun; ++t) {
-          Image color = in.color;
-          if (t == kFirefly) color.at(fx, fy)[0] = color.at(fx, fy)[1] = color.at(fx, fy)[2] = 1e6f;
-          frame(hit, t, color, out);
-          double diff = 0;
-          for (std::size_t i = 0; i < out.data.size(); ++i)
-            diff = std::max(diff, double(std::fabs(clean[t].data[i] - out.data[i])));
-          if (t < kFirefly) ASSERT_EQ(diff, 0.0);
-          if (t == kFirefly) atFirefly = std::min(atFirefly, diff);
-          for (int i = 0; i < 4; ++i)
-            if (t >= kFirefly + kAfter[i]) after[i] = std::max(after[i], diff);
-        }
-      }
+    const FireflyFade fade = fireflyOnEveryPixel(
+        in.color,
+        [&] {
+          auto k = std::make_shared<phlm::Kernel<float>>();
+          k->allocate(kW, kH, false, false);
+          auto out = std::make_shared<Image>(kW, kH, 4);
+          return [=](int t, const Image& color) -> const Image& {
+            phlm::Settings st = s;
+            const temporal::Jitter j = jitterAt(t);
+            st.jitterX = j.x, st.jitterY = j.y;
+            phlm::Inputs a;
+            a.color = color.view();
+            a.output = out->view();
+            k->run(a, st, false, 1);
+            return *out;
+          };
+        },
+        kFirefly, kRun, kAfter);
+    EXPECT_TRUE(fade.sameBefore);
+    const double atFirefly = fade.atFirefly;
+    const double* after = fade.after;
     std::printf("single firefly at each of %dx%d pixels (%s, %s): smallest difference in its frame %.3g; largest "
                 "from +1 / +5 / +20 / +100 frames on: %.3g / %.3g / %.3g / %.3g\n",
                 kW, kH, scene == 0 ? "constant colour" : "static texture", hold ? "held" : "holdPeriod 0", atFirefly,

@@ -1,0 +1,214 @@
+// SPDX-License-Identifier: Apache-2.0
+// Numerical stability of "taa" and "taa-improved" (issue 4's stability
+// suite): 20 000-frame runs of the scenarios of stability_scenarios.h (32x8,
+// EEVEE's jitter) through each kernel's fast path (8-lane rows) and its
+// scalar reference path on the same input, with the
+// defaults and with holdPeriod 0 (still history keeps averaging). At EVERY
+// frame and pixel:
+//  * the non-finite guard never fired (taa::Kernel::guardsLastFrame: a
+//    blend that was not finite, reset to the current colour), so finite
+//    outputs are the kernel's, not the guard's;
+//  * the output is inside the colour range of the pixel's unjittered 3x3 (or
+//    its 5x5 where nothing there moves: the footprint-box exception) of the
+//    sanitised input (stability::outputRanges; clip in RGB, no sharpen: every
+//    path is a convex mix of values inside that box);
+//  * the fast path's output equals the reference's bit for bit (with the
+//    default hold; the reference path is most of the run time).
+// Then a single firefly on every pixel in turn, with a stated bound on how
+// long it affects the output.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "filters/taa.h"
+#include "filters/taa_improved.h"
+#include "stability_scenarios.h"
+
+using namespace crisp;
+using namespace crisp::test::stability;
+
+namespace {
+
+constexpr int kW = kWidth, kH = kHeight;
+
+// taa or taa-improved on one path, driven through its kernel.
+class Runner {
+ public:
+  Runner(bool improved, bool depth, int holdPeriod) : improved_(improved) {
+    if (improved) {
+      improvedKernel_.allocate(kW, kH, depth);
+      improvedSettings_.base.holdPeriod = holdPeriod;
+    } else {
+      taaKernel_.allocate(kW, kH, depth);
+      taaSettings_.holdPeriod = holdPeriod;
+    }
+  }
+  // One frame; id: the object-id image (taa-improved only).
+  const Image& run(const Input& in, const Image& id, bool motion, bool depth, temporal::Jitter j, bool reference) {
+    const int threads = 1;  // 8 rows: one band either way (band borders: test_taa.cpp)
+    if (improved_) {
+      taa_improved::Inputs a;
+      a.color = in.color.view();
+      if (motion) a.motion = in.motion.view();
+      if (depth) a.depth = in.depth.view();
+      a.id = id.view();
+      a.output = output_.view();
+      improvedSettings_.base.jitterX = j.x, improvedSettings_.base.jitterY = j.y;
+      improvedKernel_.run(a, improvedSettings_, reference, threads);
+    } else {
+      taa::Inputs a;
+      a.color = in.color.view();
+      if (motion) a.motion = in.motion.view();
+      if (depth) a.depth = in.depth.view();
+      a.output = output_.view();
+      taaSettings_.jitterX = j.x, taaSettings_.jitterY = j.y;
+      taaKernel_.run(a, taaSettings_, reference, threads);
+    }
+    return output_;
+  }
+  long guards() const {
+    return improved_ ? improvedKernel_.baseline().guardsLastFrame() : taaKernel_.guardsLastFrame();
+  }
+
+ private:
+  bool improved_;
+  taa::Kernel taaKernel_;
+  taa::Settings taaSettings_;
+  taa_improved::Kernel improvedKernel_;
+  taa_improved::Settings improvedSettings_;
+  Image output_{kW, kH, 4};
+};
+
+// The object ids of a frame: the near surface (depth < 5) is object 2.
+void idsOf(const Input& in, bool depth, Image& id) {
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) id.setUint(x, y, depth && in.depth.at(x, y)[0] < 5.0f ? 2u : 1u);
+}
+
+const char* filterName(bool improved) { return improved ? "taa-improved" : "taa"; }
+
+}  // namespace
+
+TEST(TemporalStability, TaaTwentyThousandFrameRuns) {
+  const taa::Settings defaults;  // the range check below assumes these
+  ASSERT_EQ(defaults.clipSpace, taa::ClipSpace::Rgb);
+  ASSERT_EQ(defaults.sharpen, 0.0f);
+  ASSERT_TRUE(defaults.staticAccumulation);
+  for (const Scenario& sc : scenarios()) {
+    struct Variant {
+      bool improved;
+      int holdPeriod;
+      std::unique_ptr<Runner> fast, reference;  // reference: with the default hold only (run time)
+      double worstInside = 0;  // how far inside its range the output stays (0 = on the edge), minimum over all
+    };
+    std::vector<Variant> variants;
+    for (bool improved : {false, true})
+      for (int hold : {defaults.holdPeriod, 0})
+        variants.push_back({improved, hold, std::make_unique<Runner>(improved, sc.depth, hold),
+                            hold == defaults.holdPeriod ? std::make_unique<Runner>(improved, sc.depth, hold) : nullptr});
+    Input in;
+    Image id = Image::uintImage(kW, kH);
+    for (int t = 0; t < kFrames; ++t) {
+      sc.make(t, in);
+      idsOf(in, sc.depth, id);
+      const temporal::Jitter j = jitterAt(t);
+      const temporal::Unjitter u = temporal::unjitterFor(defaults.unjitter, j.x, j.y, defaults.filterSize);
+      const std::vector<Range> ranges = outputRanges(in.color, sc.motion ? &in.motion : nullptr, u, true);
+      for (Variant& v : variants) {
+        const auto name = [&] {
+          return std::string(filterName(v.improved)) + " holdPeriod " + std::to_string(v.holdPeriod) + ", " + sc.name +
+                 ", frame " + std::to_string(t);
+        };
+        const Image& fast = v.fast->run(in, id, sc.motion, sc.depth, j, false);
+        if (v.fast->guards() != 0) {
+          ADD_FAILURE() << name() << ": the non-finite guard fired on " << v.fast->guards() << " pixels";
+          return;
+        }
+        if (v.reference) {
+          const Image& reference = v.reference->run(in, id, sc.motion, sc.depth, j, true);
+          if (std::memcmp(fast.data.data(), reference.data.data(), fast.data.size() * sizeof(float)) != 0) {
+            ADD_FAILURE() << name() << ": fast path differs from the reference";
+            return;
+          }
+        }
+        for (int y = 0; y < kH; ++y)
+          for (int x = 0; x < kW; ++x) {
+            const Range& r = ranges[std::size_t(y) * kW + x];
+            for (int c = 0; c < 3; ++c) {
+              const float o = fast.at(x, y)[c];
+              if (!r.contains(c, o)) {
+                ADD_FAILURE() << name() << " (" << x << "," << y << ") ch " << c << ": output " << o
+                              << " outside [" << r.lo[c] << ", " << r.hi[c] << "]";
+                return;
+              }
+            }
+          }
+      }
+    }
+    std::printf("%-30s 20000 frames: taa and taa-improved (holdPeriod %d and 0): no guard fired, inside the range, "
+                "fast == reference (holdPeriod %d)\n", sc.name, defaults.holdPeriod, defaults.holdPeriod);
+  }
+}
+
+// A single firefly (1e6, sanitised to 65504) at frame 100, with EEVEE's
+// jitter, on a constant colour and on a static texture, on every pixel in
+// turn: the largest output difference against the same run without it from
+// +1, +5, +20 and +80 frames after it on, worst over the positions, against
+// the stated bounds (kBound: about 1.5x the measured worst, printed).
+//  * Defaults (holdPeriod 16): on a constant colour only its own frame shows
+//    it; on the texture the neighbours' unjittered mixes carry a fraction of
+//    it into their averages for a few frames, and from +80 frames on the
+//    output is the clean run's (to 1e-6).
+//  * holdPeriod 0 on the texture: A WEAKNESS, measured here, not fixed. A
+//    neighbour whose average took the firefly's share is rejected by the
+//    static clip and moves to the feedback blend for good (taa.cpp:
+//    historyState_ bit 0 is kept until a reset, and a still pixel is never
+//    reset), so it follows each frame's jittered mix with ~7 frames of memory
+//    instead of its converged average: up to 0.18 (taa) / 0.21
+//    (taa-improved) away from the clean run, not fading. A feedback bit that
+//    expires once the history is back inside the footprint box would fix it.
+TEST(TemporalStability, TaaSingleFireflyOnEveryPixel) {
+  // [held][scene: constant, texture][from +1, +5, +20, +80]
+  const double kBound[2][2][4] = {{{1e-6, 1e-6, 1e-6, 1e-6}, {0.4, 0.33, 0.33, 0.33}},
+                                  {{1e-6, 1e-6, 1e-6, 1e-6}, {0.25, 0.1, 0.004, 1e-6}}};
+  constexpr int kFirefly = 100, kRun = 200;
+  constexpr int kAfter[4] = {1, 5, 20, 80};
+  for (bool improved : {false, true})
+    for (int run = 0; run < 4; ++run) {
+      const int scene = run % 2;
+      const int hold = run >= 2 ? 16 : 0;
+      Input in;
+      if (scene == 0) fill(in.color, 0.3f, 0.5f, 0.7f);
+      else texture(in.color, 1.0f);
+      Image id = Image::uintImage(kW, kH);
+      idsOf(in, false, id);
+      const FireflyFade fade = fireflyOnEveryPixel(
+          in.color,
+          [&] {
+            auto runner = std::make_shared<Runner>(improved, false, hold);
+            return [runner, &in, &id](int t, const Image& color) -> const Image& {
+              Input frame = in;
+              frame.color = color;
+              return runner->run(frame, id, false, false, jitterAt(t), false);
+            };
+          },
+          kFirefly, kRun, kAfter);
+      EXPECT_TRUE(fade.sameBefore);
+      const double atFirefly = fade.atFirefly;
+      const double* after = fade.after;
+      std::printf("%s, single firefly at each of %dx%d pixels (%s, holdPeriod %d): smallest difference in its frame "
+                  "%.3g; largest from +1 / +5 / +20 / +80 frames on: %.3g / %.3g / %.3g / %.3g\n",
+                  filterName(improved), kW, kH, scene == 0 ? "constant colour" : "static texture", hold, atFirefly,
+                  after[0], after[1], after[2], after[3]);
+      if (!(scene == 1 && hold)) {
+        EXPECT_GT(atFirefly, 1.0);  // it showed, wherever it landed
+      }
+      for (int i = 0; i < 4; ++i)
+        EXPECT_LE(after[i], kBound[hold ? 1 : 0][scene][i]) << filterName(improved) << " from frame +" << kAfter[i];
+    }
+}
