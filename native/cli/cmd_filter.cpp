@@ -63,6 +63,15 @@ bool rebuildsMotion(const Filter& filter, const std::vector<std::string>& inputs
 // An input without a motion pass gets motion reconstructed from its depth and
 // the sidecars of the previous input (and of the next one, for zw) in the
 // order given; the first input gets zero motion.
+// Non-finite colour is read as the library reads it (NaN -> 0, +-Inf ->
+// +-65504, conventions.h), which hides a broken render: say so, per file.
+void warnNonFiniteColour(const Frame& frame) {
+  const long count = frame.nonFiniteColour;
+  if (count > 0)
+    std::fprintf(stderr, "filter: warning: '%s': %ld non-finite colour value%s, read as 0 (NaN) or +-65504 (Inf)\n",
+                 frame.path.c_str(), count, count == 1 ? "" : "s");
+}
+
 void addReconstructedMotion(Frame& frame, const std::vector<std::string>& inputs, std::size_t index,
                             int numThreads) {
   if (frame.has("motion")) return;
@@ -142,18 +151,19 @@ int runFilter(const ParsedArgs& args) {
   std::set<std::string> stems;
   std::set<fs::path> inputs;
   for (const std::string& in : args.positional) {
+    checkReadable(in);
     if (!stems.insert(fileStem(in)).second)
       throw UsageError("two inputs are named '" + fileStem(in) + "': their outputs would overwrite each other");
     std::error_code ec;
     inputs.insert(fs::weakly_canonical(in, ec));
   }
-  makeDirectories(outDir);
   for (const std::string& in : args.positional) {
     std::error_code ec;
     for (const char* ext : {".exr", ".png"})
       if (inputs.count(fs::weakly_canonical(joinPath(outDir, fileStem(in) + ext), ec)))
         throw UsageError("output for '" + in + "' would overwrite an input file; choose another -o folder");
   }
+  makeDirectories(outDir);
 
   // A resume keeps the outputs it finds that this method made with these parameters: each output
   // has a stamp of them (OUT/.crisp/<name>.json, written after it), and one made otherwise (or by a
@@ -200,6 +210,7 @@ int runFilter(const ParsedArgs& args) {
     const std::string& in = args.positional[i];
     const bool write = int(i) + 1 >= run.first;
     Frame frame = readFrame(in);
+    warnNonFiniteColour(frame);
     // A gap in the frame numbers or a cut to another camera: the history starts over, and the
     // frame gets zero motion as a first frame does.
     const std::string cut = historyBreak(*filter, in, shot);

@@ -25,6 +25,9 @@ struct Frame {
   std::map<std::string, Image> passes;
   std::map<std::string, std::uint32_t> objectIds;  // Cryptomatte manifest: name -> hash
   std::vector<std::string> channelNames;           // every channel in the file, as named there
+  // Colour values (RGBA) that were NaN or +-Inf in the file; the colour pass
+  // holds them sanitised (NaN -> 0, +-Inf -> +-65504, conventions.h).
+  long nonFiniteColour = 0;
 
   bool has(const std::string& role) const { return passes.count(role) != 0; }
   // Throws CRISP_ERROR_INVALID_DATA naming the file and the pass if absent.
@@ -36,6 +39,10 @@ struct Frame {
 // CRISP_ERROR_IO (unreadable, truncated, corrupt) or CRISP_ERROR_INVALID_DATA
 // (no colour, inconsistent layers), always naming the file.
 Frame readFrame(const std::string& path);
+// CRISP_ERROR_IO naming the file unless `path` is a non-empty file this
+// process may read (readFrame's first check; commands run it on every input
+// before they write anything).
+void checkReadable(const std::string& path);
 // The same, reading the named view layer of a multilayer EXR (throws
 // CRISP_ERROR_INVALID_DATA listing the layers if it is absent). readFrame(path)
 // picks "ViewLayer" (Blender's default name) if present, else the first layer,

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <memory>
@@ -256,9 +257,7 @@ std::string Frame::passList() const {
 
 Frame readFrame(const std::string& path) { return readFrame(path, std::string()); }
 
-Frame readFrame(const std::string& path, const std::string& viewLayer) {
-  OiioErrorDrain drain;  // whatever happens, leave no message in OIIO's global queue
-
+void checkReadable(const std::string& path) {
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
   if (!std::filesystem::exists(status)) ioError("cannot read '" + path + "': no such file");
@@ -266,6 +265,11 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   if (std::filesystem::is_regular_file(status) && std::filesystem::file_size(path, ec) == 0 && !ec)
     ioError("cannot read '" + path + "': the file is empty");
   if (::access(path.c_str(), R_OK) != 0) ioError("cannot read '" + path + "': " + std::strerror(errno));
+}
+
+Frame readFrame(const std::string& path, const std::string& viewLayer) {
+  OiioErrorDrain drain;  // whatever happens, leave no message in OIIO's global queue
+  checkReadable(path);
 
   std::unique_ptr<OIIO::ImageInput> in;
   try {
@@ -328,8 +332,9 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
 
   // ---- colour ----
   const bool decode = needsSrgbDecode(spec);
-  auto colorConvert = [decode](const float* s, Image& im, int x, int y) {
+  auto colorConvert = [decode, &frame](const float* s, Image& im, int x, int y) {
     float* d = im.at(x, y);
+    for (int k = 0; k < 4; ++k) frame.nonFiniteColour += !std::isfinite(s[k]);
     for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(decode ? srgbDecode(s[k]) : s[k]);
     d[3] = sanitizeColor(s[3]);
   };

@@ -347,3 +347,22 @@ def test_info_checks_rsaa_as_filter_does(chart, tmp_path):
     assert "missing" in line and "sidecar" in line, line
     p = run("filter", "-q", "-m", "rsaa", "-o", tmp_path / "o", chart / "chart_1spp.exr", ok=False)
     assert p.returncode == 1 and "sidecar" in p.stderr
+
+
+def test_a_missing_input_fails_before_the_output_folder_is_made(chart, tmp_path):
+    out = tmp_path / "new" / "out"
+    p = run("filter", "--method", "fxaa", chart / "chart_1spp.exr", tmp_path / "missing.exr", "-o", out, ok=False)
+    assert p.returncode == 1 and "missing.exr" in p.stderr and "no such file" in p.stderr, p.stderr
+    assert not (tmp_path / "new").exists()  # nothing made, not even the folder
+
+
+def test_non_finite_colour_is_reported_per_file(chart, tmp_path):
+    bad = tmp_path / "nan.exr"
+    # Every colour value negative, then its square root: NaN in R, G, B; alpha stays finite.
+    subprocess.run(["oiiotool", str(chart / "chart_1spp.exr"), "--subc", "1", "--powc", "0.5", "-o", str(bad)],
+                   check=True, capture_output=True)
+    p = run("filter", "--method", "fxaa", chart / "chart_1spp.exr", bad, "-o", tmp_path / "out")
+    warnings = [line for line in p.stderr.splitlines() if "non-finite" in line]
+    assert len(warnings) == 1 and "nan.exr" in warnings[0], p.stderr
+    assert " %d non-finite colour values" % (97 * 61 * 3) in warnings[0], warnings[0]
+    assert (tmp_path / "out" / "nan.exr").exists()  # still filtered, as the library reads it
