@@ -456,6 +456,9 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
                 " but the filter was committed for " + std::to_string(width_) + "x" + std::to_string(height_));
   const int w = width_, h = height_;
   const int threads = reference ? 1 : numThreads;
+  // The baseline starts over when the clip space changes (its history is
+  // kept in that space); so do the passes below, which read the last frames.
+  if (taa_.framesSinceReset() > 0 && s.base.clipSpace != taa_.historySpace()) reset();
   const bool hasHistory = taa_.framesSinceReset() > 0;
   const bool useAlbedo = s.sobelUnlit && in.albedo.ptr;
   const bool useDepth = in.depth.ptr != nullptr;

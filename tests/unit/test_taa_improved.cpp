@@ -326,3 +326,36 @@ TEST(TaaImproved, LuminanceOfRgbaEqualsRgb) {
         ASSERT_EQ(0, std::memcmp(out4.at(x, y), out3.at(x, y), 3 * sizeof(float))) << x << ", " << y << ", frame " << t;
   }
 }
+
+// A change of clipSpace starts the whole filter over (the baseline's history
+// is stored in the clip space, taa.cpp): the frame after the change equals a
+// new filter's first frame in the new space, its aliasedValue plane too (the
+// Sobel stabilisation and temporal depth variance do not read the old
+// frames either).
+TEST(TaaImproved, ClipSpaceChangeStartsOver) {
+  const int w = 40, h = 24;
+  synth::Sequence seq = synth::ghostingSequence(w, h, 6.0f, 1.3f, 0.4f);
+  std::vector<synth::FrameData> frames;
+  for (int t = 0; t < 4; ++t) frames.push_back(synth::renderFrame(seq, w, h, t, {}));
+  auto inputsOf = [&](const synth::FrameData& f, Image& out) {
+    taa_improved::Inputs in;
+    in.color = f.color.view();
+    in.motion = f.motion.view();
+    in.depth = f.depth.view();
+    in.id = f.id.view();
+    in.output = out.view();
+    return in;
+  };
+  taa_improved::Settings rgb, ycocg;
+  rgb.base.clipSpace = taa::ClipSpace::Rgb;
+  ycocg.base.clipSpace = taa::ClipSpace::YCoCg;
+  taa_improved::Kernel switched, fresh;
+  switched.allocate(w, h, true);
+  fresh.allocate(w, h, true);
+  Image a(w, h, 4), b(w, h, 4);
+  for (int t = 0; t < 3; ++t) switched.run(inputsOf(frames[std::size_t(t)], a), rgb, false, 1);
+  switched.run(inputsOf(frames[3], a), ycocg, false, 1);
+  fresh.run(inputsOf(frames[3], b), ycocg, false, 1);
+  EXPECT_EQ(0, std::memcmp(a.data.data(), b.data.data(), a.data.size() * sizeof(float)));
+  EXPECT_EQ(switched.aliasedValue(), fresh.aliasedValue());
+}
