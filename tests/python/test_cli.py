@@ -366,3 +366,25 @@ def test_non_finite_colour_is_reported_per_file(chart, tmp_path):
     assert len(warnings) == 1 and "nan.exr" in warnings[0], p.stderr
     assert " %d non-finite colour values" % (97 * 61 * 3) in warnings[0], warnings[0]
     assert (tmp_path / "out" / "nan.exr").exists()  # still filtered, as the library reads it
+
+
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="needs root to run crisp as nobody")
+def test_an_unreadable_input_is_named_with_the_reason(chart):
+    # Root reads every file, so the check runs as nobody, on a copy in a folder nobody may enter.
+    import tempfile
+    nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+    if subprocess.run(nobody + [str(CRISP), "help"], capture_output=True).returncode != 0:
+        pytest.skip("nobody cannot run %s (a folder on its path is private)" % CRISP)
+    d = pathlib.Path(tempfile.mkdtemp())
+    try:
+        d.chmod(0o755)
+        f = d / "locked.exr"
+        shutil.copy(chart / "chart_1spp.exr", f)
+        f.chmod(0)
+        p = subprocess.run(nobody + [str(CRISP), "filter", "--method", "fxaa", str(f), "-o", str(d / "out")],
+                           capture_output=True, text=True, timeout=60)
+        assert p.returncode == 1, p.stderr
+        assert "cannot read '%s': Permission denied" % f in p.stderr, p.stderr
+        assert not (d / "out").exists()
+    finally:
+        shutil.rmtree(d)
