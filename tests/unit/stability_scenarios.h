@@ -6,9 +6,10 @@
 // test_phlm_stability.cpp and test_taa_stability.cpp, with the colour range
 // each output pixel must stay inside.
 //
-// The frame is kWidth x kHeight = 32 x 8: wide enough that the fast paths'
+// The frame is kWidth x kHeight = 35 x 8: wide enough that the fast paths'
 // 8-lane groups run on its interior (phlm.cpp phlmGroup needs 17 columns,
-// taa.cpp's rows are 8 lanes at a time) next to the clamped edge pixels.
+// taa.cpp's rows are 8 lanes at a time) next to the clamped edge pixels,
+// and not a multiple of 8, so the partial lane group at a row's end runs too.
 // Every frame carries EEVEE's jitter (temporal::jitterForFrame,
 // Blackman-Harris, +-1.5 px), so the unjitter shift moves the 3x3 as it does
 // on a real render.
@@ -29,7 +30,7 @@
 
 namespace crisp::test::stability {
 
-constexpr int kWidth = 32, kHeight = 8;
+constexpr int kWidth = 35, kHeight = 8;
 constexpr int kFrames = 20000;
 
 struct Input {
