@@ -60,9 +60,6 @@ bool rebuildsMotion(const Filter& filter, const std::vector<std::string>& inputs
   return !sequenceIsStill(sidecars);
 }
 
-// An input without a motion pass gets motion reconstructed from its depth and
-// the sidecars of the previous input (and of the next one, for zw) in the
-// order given; the first input gets zero motion.
 // Non-finite colour is read as the library reads it (NaN -> 0, +-Inf ->
 // +-65504, conventions.h), which hides a broken render: say so, per file.
 void warnNonFiniteColour(const Frame& frame) {
@@ -72,6 +69,9 @@ void warnNonFiniteColour(const Frame& frame) {
                  frame.path.c_str(), count, count == 1 ? "" : "s");
 }
 
+// An input without a motion pass gets motion reconstructed from its depth and
+// the sidecars of the previous input (and of the next one, for zw) in the
+// order given; the first input gets zero motion.
 void addReconstructedMotion(Frame& frame, const std::vector<std::string>& inputs, std::size_t index,
                             int numThreads) {
   if (frame.has("motion")) return;

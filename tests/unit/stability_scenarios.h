@@ -15,12 +15,16 @@
 // on a real render.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <functional>
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "core/color.h"
@@ -256,6 +260,23 @@ FireflyFade fireflyOnEveryPixel(const Image& still, const MakeRun& makeRun, int 
       }
     }
   return fade;
+}
+
+// Prints `fade` under `label` and checks it against stated bounds: no output
+// differed before the firefly, it showed in its own frame wherever it landed
+// (when mustShow), and the difference from frame +afterFrames[i] on stays
+// within bound[i].
+inline void expectFade(const FireflyFade& fade, const std::string& label, const int (&afterFrames)[4],
+                       const double (&bound)[4], bool mustShow) {
+  std::printf("%s, single firefly at each of %dx%d pixels: smallest difference in its frame %.3g; largest from +%d / "
+              "+%d / +%d / +%d frames on: %.3g / %.3g / %.3g / %.3g\n",
+              label.c_str(), kWidth, kHeight, fade.atFirefly, afterFrames[0], afterFrames[1], afterFrames[2],
+              afterFrames[3], fade.after[0], fade.after[1], fade.after[2], fade.after[3]);
+  EXPECT_TRUE(fade.sameBefore) << label;
+  if (mustShow) {
+    EXPECT_GT(fade.atFirefly, 1.0) << label;
+  }
+  for (int i = 0; i < 4; ++i) EXPECT_LE(fade.after[i], bound[i]) << label << " from frame +" << afterFrames[i];
 }
 
 }  // namespace crisp::test::stability

@@ -199,17 +199,9 @@ TEST(TemporalStability, TaaSingleFireflyOnEveryPixel) {
             };
           },
           kFirefly, kRun, kAfter);
-      EXPECT_TRUE(fade.sameBefore);
-      const double atFirefly = fade.atFirefly;
-      const double* after = fade.after;
-      std::printf("%s, single firefly at each of %dx%d pixels (%s, holdPeriod %d): smallest difference in its frame "
-                  "%.3g; largest from +1 / +5 / +20 / +80 frames on: %.3g / %.3g / %.3g / %.3g\n",
-                  filterName(improved), kW, kH, scene == 0 ? "constant colour" : "static texture", hold, atFirefly,
-                  after[0], after[1], after[2], after[3]);
-      if (!(scene == 1 && hold)) {
-        EXPECT_GT(atFirefly, 1.0);  // it showed, wherever it landed
-      }
-      for (int i = 0; i < 4; ++i)
-        EXPECT_LE(after[i], kBound[hold ? 1 : 0][scene][i]) << filterName(improved) << " from frame +" << kAfter[i];
+      expectFade(fade,
+                 std::string(filterName(improved)) + " (" + (scene == 0 ? "constant colour" : "static texture") +
+                     ", holdPeriod " + std::to_string(hold) + ")",
+                 kAfter, kBound[hold ? 1 : 0][scene], !(scene == 1 && hold));
     }
 }
