@@ -236,6 +236,7 @@ struct Frame {
   // sourceColumn[k] (shiftedSource(k - 1)), k < planeFloats(width).
   const int* sourceColumn;
   std::atomic<long>* guards;   // Kernel::guards_: lanes whose guard fired (rare: counted on the spot)
+  std::atomic<long>* resets;   // Kernel::resets_: lanes that started over (summed per row)
 };
 
 // The current frame as the kernel reads it (conventions.h): sanitised, in
@@ -652,6 +653,7 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
   });
   f.historyState[index] = historyStateOf(r.feedbackSinceReset, r.framesSinceReset);
   if (r.guarded) f.guards->fetch_add(1, std::memory_order_relaxed);
+  if (r.reset) f.resets->fetch_add(1, std::memory_order_relaxed);
   storePixel(f, x, y, r.color, r.signedWeight, r.output, r.reset, current[3]);
 }
 
@@ -832,6 +834,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
   const bool packedOutput = f.writeOutput && f.unjitter.enabled && f.output.channels() == 4 &&
                             f.output.pixelStride == 4 * sizeof(float);
   for (int y = y0; y < y1; ++y) {
+    long resets = 0;  // Kernel::resetsLastFrame, this row's
     if (y + 2 < h) stageRow<T>(f, s, y + 2, y + 2 < y1 ? depthNow : nullptr);
     const int up = std::max(y - 1, 0) % kRing, mid = y % kRing, down = std::min(y + 1, h - 1) % kRing;
     float* const* rows[3] = {s.planes[up], s.planes[mid], s.planes[down]};
@@ -952,6 +955,8 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         for (int l = 0; l < lanes; ++l) hits += r.guarded[l] != 0;
         f.guards->fetch_add(hits, std::memory_order_relaxed);
       }
+      if (temporal::anyOf(r.reset))
+        for (int l = 0; l < lanes; ++l) resets += r.reset[l] != 0;
 
       if (lanes == kL) {
         // historyStateOf, a lane group at a time.
@@ -978,6 +983,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         }
       }
     }
+    if (resets) f.resets->fetch_add(resets, std::memory_order_relaxed);
   }
 }
 
@@ -1065,6 +1071,15 @@ std::size_t Kernel::bytesKeptBetweenFrames() const {
 
 std::size_t Kernel::bytesScratch() const { return bandScratch_.size() * sizeof(float); }
 
+float Kernel::largestSampleWeight() const {
+  if (frames_ == 0) return 0.0f;
+  const std::size_t planeSize = std::size_t(width_) * height_;
+  const float* weight = history_[current_].data.data() + 3 * planeSize;
+  float largest = 0.0f;
+  for (std::size_t i = 0; i < planeSize; ++i) largest = std::max(largest, std::fabs(weight[i]));
+  return largest;
+}
+
 void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThreads) {
   if (in.color.width != width_ || in.color.height != height_)
     invalidData("taa: colour is " + std::to_string(in.color.width) + "x" + std::to_string(in.color.height) +
@@ -1123,6 +1138,8 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   f.sourceColumn = sourceColumn_.data();
   guards_ = 0;
   f.guards = &guards_;
+  resets_ = 0;
+  f.resets = &resets_;
 
   if (reference) {
     for (int y = 0; y < height_; ++y)

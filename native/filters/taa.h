@@ -95,6 +95,18 @@ class Kernel {
   // finite, reset to the current colour). Inputs are sanitised first, so
   // this stays 0 unless the kernel is wrong; the stability tests assert it.
   long guardsLastFrame() const { return guards_.load(std::memory_order_relaxed); }
+  // Pixels of the last run whose history started over at the current colour:
+  // no usable history (the first frame, an off-screen, non-finite or
+  // disoccluded reprojection, a zero sample weight) or the guard above.
+  // Counted per row. Where nothing moved (zero or no motion, the same depth)
+  // no pixel has a reason to start over after the first frame; the stability
+  // tests assert that, and that the count is live where things move.
+  long resetsLastFrame() const { return resets_.load(std::memory_order_relaxed); }
+  // The largest accumulated sample weight W (Kernel::history_'s fourth plane,
+  // either sign) over the pixels after the last run; 0 without history. The
+  // running average caps it at Settings::maxSamples (taa.cpp "Static-scene
+  // accumulation"). Scans the plane on each call: for tests and diagnostics.
+  float largestSampleWeight() const;
   // The previous frame's sanitised depth plane (width x height), or null when
   // the previous frame had none or there is no history. Valid until run().
   const float* previousDepth() const {
@@ -129,6 +141,7 @@ class Kernel {
   bool previousDepthValid_ = false;
   ClipSpace historySpace_ = ClipSpace::YCoCg;
   std::atomic<long> guards_{0};
+  std::atomic<long> resets_{0};
 };
 
 }  // namespace crisp::taa
