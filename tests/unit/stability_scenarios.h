@@ -22,6 +22,7 @@
 #include <functional>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <string>
@@ -180,6 +181,31 @@ inline std::vector<Scenario> scenarios() {
                }});
   return v;
 }
+
+// Frames in which nothing moved since the previous one: no motion image, or
+// one of exact zeros, and (with depth) the previous frame's depth bit for
+// bit. Every reprojection is then on screen, finite and onto the same
+// surface, so after the first frame a filter has no reason to start a
+// pixel's history over (taa::Kernel::resetsLastFrame, phlm's
+// FrameStats::reprojectionResets), border pixels included.
+class StillFrames {
+ public:
+  // This frame t (its inputs in `in`) of `sc`: still after the first frame?
+  bool next(const Scenario& sc, int t, const Input& in) {
+    bool still = t > 0 && t == previous_ + 1;
+    if (sc.motion)
+      for (std::size_t i = 0; i < in.motion.data.size() && still; ++i) still = in.motion.data[i] == 0.0f;
+    if (sc.depth)
+      still = still && std::memcmp(in.depth.data.data(), depth_.data.data(), in.depth.data.size() * sizeof(float)) == 0;
+    depth_ = in.depth;
+    previous_ = t;
+    return still;
+  }
+
+ private:
+  Image depth_{kWidth, kHeight, 1};
+  int previous_ = -2;
+};
 
 // The colour range each output pixel must stay inside: the (sanitised)
 // range of this frame's 3x3 that the unjitter reads (taa.cpp "Jitter": the
