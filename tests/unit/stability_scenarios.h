@@ -305,4 +305,39 @@ inline void expectFade(const FireflyFade& fade, const std::string& label, const 
   for (int i = 0; i < 4; ++i) EXPECT_LE(fade.after[i], bound[i]) << label << " from frame +" << afterFrames[i];
 }
 
+// The hold (taa.cpp and phlm.cpp "Hold") on the still image `still` (frames
+// carry the jitter of jitterAt), `frames` frames through run(t, color) ->
+// const Image& (its output): the pixels whose output stays the same over
+// frames [from, from + window] count as held; from then on their output must
+// not change, bit for bit, however long the run. A frames-since-reset count
+// that wrapped (taa's 7 bits) would release them every 128 frames.
+struct HeldOutputs {
+  int held = 0;          // pixels held over the window
+  int firstChange = -1;  // the first later frame in which a held pixel's output changed (-1: none)
+  int x = -1, y = -1;    // that pixel
+};
+template <class Run>
+HeldOutputs heldOutputs(const Image& still, Run&& run, int from, int window, int frames) {
+  HeldOutputs result;
+  Image fixed;  // the output at `from`
+  std::vector<std::uint8_t> held(std::size_t(still.width) * still.height, 1);
+  for (int t = 0; t < frames; ++t) {
+    const Image& out = run(t, still);
+    if (t < from) continue;
+    if (t == from) fixed = out;
+    for (int y = 0; y < still.height; ++y)
+      for (int x = 0; x < still.width; ++x) {
+        std::uint8_t& h = held[std::size_t(y) * still.width + x];
+        if (!h || std::memcmp(out.at(x, y), fixed.at(x, y), 3 * sizeof(float)) == 0) continue;
+        if (t <= from + window) {
+          h = 0;
+        } else if (result.firstChange < 0) {
+          result.firstChange = t, result.x = x, result.y = y;
+        }
+      }
+  }
+  for (std::uint8_t h : held) result.held += h;
+  return result;
+}
+
 }  // namespace crisp::test::stability

@@ -312,3 +312,36 @@ TEST(PhlmStability, SingleFireflyOnPanFades) {
     }
   }
 }
+
+// The hold (phlm.cpp "Hold") on a static texture with EEVEE's jitter and the
+// default holdPeriod 16, 4000 frames through the fast path: the pixels held
+// over frames 48-80 (kMinHeld of the 280 at least, so the check is not
+// vacuous) keep their output bit for bit to the end. A held model's sample
+// count (one byte, Kernel::stillSamples_) stops at holdPeriod; one that kept
+// counting and wrapped would let the model learn again every 256 frames.
+TEST(PhlmStability, HeldPixelsStayHeld) {
+  constexpr int kMinHeld = 180;  // measured: 204
+  Image still(kW, kH, 4);
+  texture(still, 1.0f);
+  phlm::Kernel<float> k;
+  k.allocate(kW, kH, false, false);
+  Image out(kW, kH, 4);
+  const phlm::Settings defaults;
+  const HeldOutputs held = heldOutputs(
+      still,
+      [&](int t, const Image& color) -> const Image& {
+        phlm::Settings s = defaults;
+        const temporal::Jitter j = jitterAt(t);
+        s.jitterX = j.x, s.jitterY = j.y;
+        phlm::Inputs a;
+        a.color = color.view();
+        a.output = out.view();
+        k.run(a, s, false, 2);
+        return out;
+      },
+      48, 32, 4000);
+  std::printf("phlm: %d of %dx%d pixels held from frame 48 on\n", held.held, kW, kH);
+  EXPECT_GE(held.held, kMinHeld);
+  EXPECT_EQ(held.firstChange, -1) << "held pixel (" << held.x << "," << held.y << ") changed at frame "
+                                  << held.firstChange;
+}

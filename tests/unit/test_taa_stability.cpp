@@ -265,3 +265,34 @@ TEST(TemporalStability, TaaSingleFireflyOnEveryPixel) {
                  kAfter, kBound[hold ? 1 : 0][scene], !(scene == 1 && hold));
     }
 }
+
+// The hold (taa.cpp "Hold") on a static texture with EEVEE's jitter and the
+// default holdPeriod 16, 4000 frames through the fast path: the pixels held
+// over frames 48-80 (two jitter periods; kMinHeld of the 280 at least, so the
+// check is not vacuous) keep their output bit for bit to the end. The
+// frames since a pixel's reset live in 7 bits (Kernel::historyState_); if the
+// count wrapped instead of saturating at 127, the hold would let go every
+// 128 frames and the output move again.
+TEST(TemporalStability, TaaHeldPixelsStayHeld) {
+  constexpr int kMinHeld = 180;  // measured: 204 (taa and taa-improved)
+  Input in;
+  texture(in.color, 1.0f);
+  Image id = Image::uintImage(kW, kH);
+  idsOf(in, false, id);
+  const taa::Settings defaults;
+  for (bool improved : {false, true}) {
+    Runner runner(improved, false, defaults.holdPeriod);
+    const HeldOutputs held = heldOutputs(
+        in.color,
+        [&](int t, const Image& color) -> const Image& {
+          Input frame = in;
+          frame.color = color;
+          return runner.run(frame, id, false, false, jitterAt(t), false);
+        },
+        48, 32, 4000);
+    std::printf("%s: %d of %dx%d pixels held from frame 48 on\n", filterName(improved), held.held, kW, kH);
+    EXPECT_GE(held.held, kMinHeld) << filterName(improved);
+    EXPECT_EQ(held.firstChange, -1) << filterName(improved) << ": held pixel (" << held.x << "," << held.y
+                                    << ") changed at frame " << held.firstChange;
+  }
+}
