@@ -15,7 +15,9 @@
 //  * the model record is finite; P = U D U' is symmetric by construction and
 //    positive definite iff every D > 0 (asserted), with
 //    trace P <= (p0 + 3 ps) / lambda^3 (the bound of phlm_rls.h); P rebuilt
-//    in double also passes a Cholesky factorisation (its conditioning);
+//    in double also passes a Cholesky factorisation (its conditioning), and
+//    P stays above a floor set by lambda (checkState), which skipped
+//    forgetting breaks;
 //  * float32 and float64 outputs agree within kTolerance times the local box
 //    extent (+ rounding slack), over the whole run.
 #include <gtest/gtest.h>
@@ -39,6 +41,13 @@ constexpr int kW = kWidth, kH = kHeight;
 // float32 vs float64: |out32 - out64| <= kTolerance * (box extent) + slack.
 constexpr double kTolerance = 1e-4;
 
+// What checkState saw of one kernel over a run.
+struct StateSeen {
+  double maxTrace = 0.0;
+  double maxFeature = 1.0;  // the largest |x|^2 = 1 + |z|^2 of a record so far (phlm_rls.h: x = [1, z])
+  double floor = 0.0;       // the last floor of P asserted (checkState)
+};
+
 // One settings variant of a run: its two kernels and what they showed.
 struct Variant {
   const char* label;
@@ -48,20 +57,76 @@ struct Variant {
   phlm::Kernel<double> k64;
   Image out32{kW, kH, 4}, out32reference{kW, kH, 4}, out64{kW, kH, 4};
   double worstRelativeDiff = 0.0;  // float vs double, relative to box extent
-  double maxTrace = 0.0;
+  StateSeen seen32, seen64;
   long boxResets32 = 0, boxResets64 = 0, reprojectionResets = 0;
 };
 
+// The smallest pivot of the Cholesky factorisation of P - floor I (P: 4x4,
+// symmetric), or the first one <= 0: positive iff P - floor I is positive
+// definite, i.e. every eigenvalue of P exceeds floor.
+inline double smallestPivot(const double P[4][4], double floor) {
+  double L[4][4] = {}, smallest = INFINITY;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double sum = P[i][j] - (i == j ? floor : 0.0);
+      for (int k = 0; k < j; ++k) sum -= L[i][k] * L[j][k];
+      if (i != j) {
+        L[i][j] = sum / L[j][j];
+        continue;
+      }
+      if (!(sum > 0.0)) return sum;
+      smallest = std::min(smallest, sum);
+      L[i][i] = std::sqrt(sum);
+    }
+  return smallest;
+}
+
 // The record of every pixel: finite, D > 0 (P = U D U' positive definite),
 // trace P within the bound; every 8th frame also P rebuilt in double and
-// factorised by Cholesky (its conditioning).
+// factorised by Cholesky (its conditioning), and P above its floor.
+//
+// The floor (against skipped forgetting, which lets P shrink toward 0 and
+// the models stop adapting, inside every other bound). In information form
+// R = P^-1 (phlm_rls.h), a still frame makes R' = lambda R + r e_k e_k' +
+// w x x' (forgetting, this frame's regulariser axis k with r = 4 (1 -
+// lambda) / P0_kk, the sample of weight w = 1 without jitter weighting), so
+// the largest eigenvalue obeys Rmax' <= lambda Rmax + 4 (1 - lambda) / P0min
+// + w |x|^2; a moving frame forgets with lm <= lambda and refreshes every
+// axis with (1 - lm) / P0_kk: Rmax' <= lm Rmax + (1 - lm) / P0min + w |x|^2.
+// A reset gives Rmax = 1 / P0min, a box correction 1 / (scale P0min) (scale
+// = boxResetCovariance / p0); a held model keeps its R, a moved one brings
+// another pixel's. So with X the largest |x|^2 used so far (|z| < 4: X < 17),
+//   Rmax <= B = w X / (1 - lambda) + max(4, 1 / scale) / P0min
+// at every frame (each step above keeps it, for lm <= lambda), i.e.
+// P >= I / B: every eigenvalue of P at least 1 / B (asserted as P - I / B
+// positive definite, with 1e-3 of slack for rounding). A
+// model that learns from a steady x converges to Rmax ~ |x|^2 / (1 - lambda) +
+// 1 / P0min, just under B; without the forgetting R grows by |x|^2 a frame
+// and passes B within ~B / |x|^2 frames (about 500 at the defaults). The
+// records' z are the x of their last update, so X is taken over every
+// record of every frame (first, then the check). Measured: with holdPeriod 0
+// the smallest eigenvalue of P comes within 0.6 % of the floor on the
+// constant colour and the camera cut (0.4 % in the 3000-frame runs with
+// slopeCovariance 1000, not quite converged), so the floor is not vacuous.
 template <class T, class Name>
-void checkState(const phlm::Kernel<T>& k, const phlm::Settings& s, int t, const Name& name, double& maxTrace) {
+void checkState(const phlm::Kernel<T>& k, const phlm::Settings& s, int t, const Name& name, StateSeen& seen) {
+  ASSERT_EQ(s.weighting, phlm::JitterWeighting::None) << "the floor of P below takes w = 1";
   // Regularised forgetting bounds P by P0 / (lambda^3 c), c for moving frames
   // forgetting with lambdaMoving (phlm.cpp, "Stabilised RLS").
   const double l3 = std::pow(s.lambda, 3), lm = s.lambdaMoving;
   const double cMoving = std::min(1.0, (1.0 - lm) / (1.0 - lm * l3));
   const double bound = (s.initialCovariance + 3.0 * s.slopeCovariance) / (l3 * cMoving) * (1.0 + 1e-4);
+  ASSERT_LE(lm, s.lambda) << "the floor of P below takes lambdaMoving <= lambda";
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      const std::array<T, phlm::kRecord> record = k.record(x, y);
+      double feature = 1.0;
+      for (int c = 0; c < 3; ++c) feature += double(record[phlm::kZ + c]) * double(record[phlm::kZ + c]);
+      seen.maxFeature = std::max(seen.maxFeature, feature);
+    }
+  const double p0min = std::min(s.initialCovariance, s.slopeCovariance);
+  const double scale = s.boxResetCovariance / s.initialCovariance;
+  seen.floor = (1.0 - 1e-3) / (seen.maxFeature / (1.0 - s.lambda) + std::max(4.0, 1.0 / scale) / p0min);
   for (int y = 0; y < kH; ++y)
     for (int x = 0; x < kW; ++x) {
       const std::array<T, phlm::kRecord> record = k.record(x, y);
@@ -77,23 +142,18 @@ void checkState(const phlm::Kernel<T>& k, const phlm::Settings& s, int t, const 
         for (int i = 0; i < j; ++i) column += double(m[phlm::uIndex(i, j)]) * double(m[phlm::uIndex(i, j)]);
         trace += d * column;
       }
-      maxTrace = std::max(maxTrace, trace);
+      seen.maxTrace = std::max(seen.maxTrace, trace);
       ASSERT_TRUE(trace <= bound) << name() << " frame " << t << " (" << x << "," << y << "): trace P " << trace
                                   << " > " << bound;
       if (t % 8 != 7) continue;
-      double P[4][4], L[4][4] = {};
+      double P[4][4];
       phlm::covariance(m, P);
-      for (int i = 0; i < 4; ++i)
-        for (int j = 0; j <= i; ++j) {
-          double sum = P[i][j];
-          for (int k2 = 0; k2 < j; ++k2) sum -= L[i][k2] * L[j][k2];
-          if (i == j) {
-            ASSERT_TRUE(sum > 0.0) << name() << " frame " << t << " (" << x << "," << y << "): Cholesky pivot " << sum;
-            L[i][i] = std::sqrt(sum);
-          } else {
-            L[i][j] = sum / L[j][j];
-          }
-        }
+      const double pivot = smallestPivot(P, 0.0);
+      ASSERT_TRUE(pivot > 0.0) << name() << " frame " << t << " (" << x << "," << y << "): Cholesky pivot " << pivot;
+      const double above = smallestPivot(P, seen.floor);
+      ASSERT_TRUE(above > 0.0) << name() << " frame " << t << " (" << x << "," << y
+                               << "): P has an eigenvalue below its floor " << seen.floor
+                               << " (Cholesky pivot of P - floor I: " << above << ")";
     }
 }
 
@@ -161,16 +221,16 @@ void runScenario(const Scenario& sc, std::vector<Variant>& variants, int frames 
             if (extent > 0) v.worstRelativeDiff = std::max(v.worstRelativeDiff, diff / extent);
           }
         }
-      checkState(v.k32, s, t, name, v.maxTrace);
-      checkState(v.k64, s, t, name, v.maxTrace);
+      checkState(v.k32, s, t, name, v.seen32);
+      checkState(v.k64, s, t, name, v.seen64);
       if (::testing::Test::HasFailure()) return;
     }
   }
   for (const Variant& v : variants)
-    std::printf("%-30s %-36s max trace P %7.1f, float-vs-double worst %.2e of box extent, box resets %ld/%ld "
-                "(f32/f64), reprojection resets %ld\n",
-                sc.name, v.label, v.maxTrace, v.worstRelativeDiff, v.boxResets32, v.boxResets64,
-                v.reprojectionResets);
+    std::printf("%-30s %-36s max trace P %7.1f, floor of P %.3g, float-vs-double worst %.2e of box extent, box resets "
+                "%ld/%ld (f32/f64), reprojection resets %ld\n",
+                sc.name, v.label, std::max(v.seen32.maxTrace, v.seen64.maxTrace), v.seen32.floor, v.worstRelativeDiff,
+                v.boxResets32, v.boxResets64, v.reprojectionResets);
 }
 
 }  // namespace
