@@ -18,6 +18,11 @@
 //    in double also passes a Cholesky factorisation (its conditioning), and
 //    P stays above a floor set by lambda (checkState), which skipped
 //    forgetting breaks;
+//  * where nothing moved since the previous frame (stability::StillFrames),
+//    no model was reset for its reprojection (FrameStats::reprojectionResets,
+//    border pixels included; the same count on both paths and in float64),
+//    and models were reset on the scenarios that need it
+//    (stability::startsOver);
 //  * float32 and float64 outputs agree within kTolerance times the local box
 //    extent (+ rounding slack), over the whole run.
 #include <gtest/gtest.h>
@@ -58,7 +63,7 @@ struct Variant {
   Image out32{kW, kH, 4}, out32reference{kW, kH, 4}, out64{kW, kH, 4};
   double worstRelativeDiff = 0.0;  // float vs double, relative to box extent
   StateSeen seen32, seen64;
-  long boxResets32 = 0, boxResets64 = 0, reprojectionResets = 0;
+  long boxResets32 = 0, boxResets64 = 0, reprojectionResets = 0;  // after the first frame
 };
 
 // The smallest pivot of the Cholesky factorisation of P - floor I (P: 4x4,
@@ -165,8 +170,10 @@ void runScenario(const Scenario& sc, std::vector<Variant>& variants, int frames 
     v.k64.allocate(kW, kH, sc.motion, sc.depth);
   }
   Input in;
+  StillFrames stillFrames;
   for (int t = 0; t < frames; ++t) {
     sc.make(t, in);
+    const bool still = stillFrames.next(sc, t, in);
     const temporal::Jitter j = jitterAt(t);
     // The variants differ in neither unjitter nor footprintBox: one set of ranges.
     const phlm::Settings& first = variants.front().settings;
@@ -193,8 +200,19 @@ void runScenario(const Scenario& sc, std::vector<Variant>& variants, int frames 
       }
       v.boxResets32 += v.k32.lastStats().boxResets;
       v.boxResets64 += v.k64.lastStats().boxResets;
-      v.reprojectionResets += v.k32.lastStats().reprojectionResets;
       const auto name = [&] { return std::string(sc.name) + ", " + v.label; };
+      const long resets = v.k32.lastStats().reprojectionResets;
+      if (resets != v.k32reference.lastStats().reprojectionResets || resets != v.k64.lastStats().reprojectionResets) {
+        ADD_FAILURE() << name() << " frame " << t << ": reprojection resets " << resets << " (float), "
+                      << v.k32reference.lastStats().reprojectionResets << " (its reference), "
+                      << v.k64.lastStats().reprojectionResets << " (double)";
+        return;
+      }
+      if (still && resets != 0) {
+        ADD_FAILURE() << name() << " frame " << t << ": nothing moved, yet " << resets << " models were reset";
+        return;
+      }
+      if (t > 0) v.reprojectionResets += resets;
       if (v.k32.lastStats().guards != 0 || v.k64.lastStats().guards != 0) {
         ADD_FAILURE() << name() << " frame " << t << ": guards fired, float " << v.k32.lastStats().guards
                       << ", double " << v.k64.lastStats().guards;
@@ -228,9 +246,13 @@ void runScenario(const Scenario& sc, std::vector<Variant>& variants, int frames 
   }
   for (const Variant& v : variants)
     std::printf("%-30s %-36s max trace P %7.1f, floor of P %.3g, float-vs-double worst %.2e of box extent, box resets "
-                "%ld/%ld (f32/f64), reprojection resets %ld\n",
+                "%ld/%ld (f32/f64), reprojection resets after the first frame %ld\n",
                 sc.name, v.label, std::max(v.seen32.maxTrace, v.seen64.maxTrace), v.seen32.floor, v.worstRelativeDiff,
                 v.boxResets32, v.boxResets64, v.reprojectionResets);
+  for (const Variant& v : variants)
+    if (startsOver(sc)) {
+      EXPECT_GT(v.reprojectionResets, 0) << sc.name << ", " << v.label << ": no model was reset";
+    }
 }
 
 }  // namespace

@@ -21,7 +21,7 @@
 //  * where nothing moved since the previous frame (stability::StillFrames),
 //    no pixel started over (taa::Kernel::resetsLastFrame), border pixels
 //    included, and pixels did on the scenarios with off-screen, non-finite or
-//    disoccluded reprojection (kStartingOver).
+//    disoccluded reprojection (stability::startsOver).
 // Then a single firefly on every pixel in turn, with a stated bound on how
 // long it affects the output.
 #include <gtest/gtest.h>
@@ -111,12 +111,6 @@ const char* filterName(bool improved) { return improved ? "taa-improved" : "taa"
 // box and takes the feedback blend, whose W stays near 1 / (1 - k)).
 const std::set<std::string> kAccumulating = {"constant colour", "checker flicker", "HDR fireflies 1e4-1e6",
                                              "zero motion, noisy", "camera cut at 10000"};
-// Scenarios where history becomes unusable after the first frame (off
-// screen, non-finite motion, disocclusion), so pixels start over. Not the
-// camera cut: it has no motion image, and the static clip replaces the old
-// history without a reset.
-const std::set<std::string> kStartingOver = {"NaN/+-Inf pixels", "huge motion", "pan, off-screen reprojection",
-                                             "disocclusion"};
 
 TEST(TemporalStability, TaaTwentyThousandFrameRuns) {
   const taa::Settings defaults;  // the range check below assumes these
@@ -205,7 +199,7 @@ TEST(TemporalStability, TaaTwentyThousandFrameRuns) {
       if (v.holdPeriod == 0 && kAccumulating.count(name)) {
         EXPECT_EQ(v.heaviest, float(defaults.maxSamples)) << label << ": the running average never reached its cap";
       }
-      if (kStartingOver.count(name)) {
+      if (startsOver(sc)) {
         EXPECT_GT(v.resets, 0) << label << ": no pixel started over";
       }
     }
