@@ -104,7 +104,9 @@ struct Inputs {
 
 // Per-frame counts (diagnostics and tests).
 struct FrameStats {
-  long reprojectionResets = 0;  // off-screen, non-finite motion, disocclusion, first frame (else none where nothing moved: test_phlm_stability.cpp)
+  // Off-screen, non-finite motion, disocclusion, first frame; none where
+  // nothing moved (test_phlm_stability.cpp asserts it).
+  long reprojectionResets = 0;
   long boxResets = 0;           // prediction outside the 3x3 box (Algorithm 1 line 16)
   // Safety nets that fired: a non-finite prediction, a beta that overflowed
   // (the model restarts), an output not finite before its sanitise. Inputs
