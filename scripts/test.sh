@@ -15,7 +15,9 @@ export LSAN_OPTIONS="suppressions=$PWD/tests/fuzz/lsan.supp"
 
 echo "== sanitizer build (ASan + UBSan)"
 scripts/build.sh sanitize --target crisp_unit crisp_api_test
-ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+# The stability suite's long runs at 2000 frames here (the same code paths;
+# the release stage below runs the full 20 000).
+ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 CRISP_STABILITY_FRAMES=2000 \
   ctest --test-dir build-sanitize -L 'unit|api' -j 2 --output-on-failure
 
 echo "== fuzzing (${CRISP_FUZZ_SECONDS:-30} s per target)"

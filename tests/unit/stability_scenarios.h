@@ -22,6 +22,7 @@
 #include <functional>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <random>
@@ -36,7 +37,18 @@
 namespace crisp::test::stability {
 
 constexpr int kWidth = 35, kHeight = 8;
-constexpr int kFrames = 20000;
+// The long runs' length: 20 000 frames (issue 4). CRISP_STABILITY_FRAMES (at
+// least 1000) shortens them where the code paths matter and the long-run
+// drift does not: scripts/test.sh's sanitizer stage, where the 20 000-frame
+// runs took over 6 minutes each.
+inline int runFrames() {
+  static const int frames = [] {
+    const char* e = std::getenv("CRISP_STABILITY_FRAMES");
+    const int n = e ? std::atoi(e) : 0;
+    return n >= 1000 ? n : 20000;
+  }();
+  return frames;
+}
 
 struct Input {
   Image color{kWidth, kHeight, 4, 0.0f};
@@ -175,8 +187,8 @@ inline std::vector<Scenario> scenarios() {
                    in.motion.data[2 * i] = 0.25f * float((t % 4) - 2), in.motion.data[2 * i + 1] = 0.0f;
                  }
                }});
-  v.push_back({"camera cut at 10000", false, false, [](int t, Input& in) {
-                 if (t < 10000) texture(in.color, 1.0f);
+  v.push_back({"camera cut halfway", false, false, [](int t, Input& in) {
+                 if (t < runFrames() / 2) texture(in.color, 1.0f);
                  else fill(in.color, 0.9f, 0.1f, 0.4f);
                }});
   return v;

@@ -163,7 +163,7 @@ void checkState(const phlm::Kernel<T>& k, const phlm::Settings& s, int t, const 
 }
 
 // `frames` frames of `sc` through every variant (the same input and ranges).
-void runScenario(const Scenario& sc, std::vector<Variant>& variants, int frames = kFrames) {
+void runScenario(const Scenario& sc, std::vector<Variant>& variants, int frames = runFrames()) {
   for (Variant& v : variants) {
     v.k32.allocate(kW, kH, sc.motion, sc.depth);
     v.k32reference.allocate(kW, kH, sc.motion, sc.depth);
