@@ -66,7 +66,12 @@ static void checkType(const ParamSpec& s, ParamType want) {
 }
 
 static void checkRange(const ParamSpec& s, double v) {
-  if (!std::isfinite(v) || v < s.minValue || v > s.maxValue)
+  // A float parameter holds a float: its bounds as floats too, so the value
+  // a caller reads from the specs (0.01 becomes 0.0099999998f) is accepted.
+  const bool single = s.type == ParamType::Float;
+  const double lo = single ? double(float(s.minValue)) : s.minValue;
+  const double hi = single ? double(float(s.maxValue)) : s.maxValue;
+  if (!std::isfinite(v) || v < lo || v > hi)
     invalidArgument(std::string("parameter '") + s.name + "' = " + formatNumber(v) + " is out of range [" +
                     formatNumber(s.minValue) + ", " + formatNumber(s.maxValue) + "]");
 }

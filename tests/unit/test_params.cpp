@@ -3,8 +3,11 @@
 
 #include <cmath>
 #include <functional>
+#include <sstream>
 
+#include "core/context.h"
 #include "core/error.h"
+#include "core/filter.h"
 #include "core/params.h"
 
 using namespace crisp;
@@ -57,4 +60,28 @@ TEST(Params, ErrorsNameTheParameter) {
 TEST(Params, TableListsEveryParameter) {
   std::string t = makeSet().table();
   for (const char* n : {"`k`", "`n`", "`on`", "`mask`", "eq. 3.1", "gauss5|box3"}) EXPECT_NE(t.find(n), std::string::npos) << n;
+}
+
+// Every filter's float parameters accept their own bounds, as the specs
+// (crispGetFilterInfo, the add-on's sliders) give them: set as a float and as
+// the text the help table prints. Once, 0.01 read as 0.0099999998f was below
+// the double bound 0.01 and refused with "0.01 is out of range [0.01, 4]".
+TEST(Params, FloatBoundsAreAccepted) {
+  Context context;
+  int checked = 0;
+  for (const std::string& type : filterTypes()) {
+    std::unique_ptr<Filter> f = createFilter(context, type);
+    ParamSet& p = f->params();
+    for (const ParamSpec& s : p.specs()) {
+      if (s.type != ParamType::Float) continue;
+      for (double bound : {s.minValue, s.maxValue}) {
+        EXPECT_NO_THROW(p.setFloat(s.name, float(bound))) << type << " " << s.name << " = " << bound;
+        EXPECT_NO_THROW(p.setFromText(s.name, (std::ostringstream() << bound).str())) << type << " " << s.name << " = " << bound;
+        ++checked;
+      }
+      EXPECT_THROW(p.setFloat(s.name, std::nextafter(float(s.maxValue), INFINITY)), Exception) << type << " " << s.name;
+      p.setFloat(s.name, float(s.defaultValue));
+    }
+  }
+  EXPECT_GT(checked, 20);
 }
