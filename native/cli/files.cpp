@@ -132,7 +132,12 @@ std::string historyBreak(const Filter& filter, const std::string& framePath, Sho
   if (!hasParam(filter, "jitterX")) return "";  // the temporal filters take a jitter; nothing else keeps history
   const std::string side = sidecarPathFor(framePath);
   std::error_code ec;
-  if (!fs::is_regular_file(side, ec)) return "";
+  if (!fs::is_regular_file(side, ec)) {
+    // This frame's position is unknown: the next sidecar is not compared
+    // with an older frame's (a chunk starting here could not do so either).
+    last.known = false;
+    return "";
+  }
   Sidecar s = readSidecar(side);
   const std::string reason = last.known ? shotBreak(last.sidecar, s) : "";
   last.known = true;  // field by field: the jitter saved before the first frame stays

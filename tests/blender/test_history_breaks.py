@@ -6,7 +6,8 @@ and a gap in the frame numbers. still_life at 64x36 with a second camera bound t
   * the add-on's run restarts the history at the cut (run.json says so) and its frames 4-6 equal, bit
     for bit, `crisp filter` over frames 4-6 alone, and so do `crisp filter`'s over frames 1-6;
   * `crisp filter` over frames 4 and 6 (5 missing) says the history starts over at 6 and gives the
-    frame 6 of a run over frame 6 alone."""
+    frame 6 of a run over frame 6 alone;
+  * a frame without a sidecar between frames 4 and 6 is no gap: the history carries over to 6."""
 
 import json
 import os
@@ -101,6 +102,23 @@ class HistoryBreakTest(unittest.TestCase):
         # With frame 5 between them the history carries over: the check above can fail.
         self.assertNotEqual(pixels(os.path.join(alone, "frame_0006.exr")),
                             pixels(os.path.join(self.out, "filtered", "frame_0006.exr")))
+
+    def test_frame_without_sidecar_is_no_gap(self):
+        """A frame without a sidecar (its position unknown) between frames 4 and 6 is no gap: the
+        history carries over to 6 (the run once compared 6 with 4, saw a gap and restarted, where a
+        chunk starting at 5 did not)."""
+        folder = os.path.join(self.tmp.name, "no_sidecar_5")
+        os.makedirs(folder)
+        for f in (4, 5, 6):
+            for ext in (".exr", ".json") if f != 5 else (".exr",):
+                src = os.path.join(self.out, "input", "frame_%04d%s" % (f, ext))
+                with open(src, "rb") as a, open(os.path.join(folder, os.path.basename(src)), "wb") as b:
+                    b.write(a.read())
+        inputs = [os.path.join(folder, "frame_%04d.exr" % f) for f in (4, 5, 6)]
+        whole, err = self.crisp_filter("no_sidecar_whole", inputs, quiet=False)
+        self.assertNotIn("starts over", err)
+        alone, _ = self.crisp_filter("no_sidecar_6", inputs[2:])
+        self.assertNotEqual(pixels(os.path.join(whole, "frame_0006.exr")), pixels(os.path.join(alone, "frame_0006.exr")))
 
 if __name__ == "__main__":
     harness.run(HistoryBreakTest)
