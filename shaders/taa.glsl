@@ -234,7 +234,7 @@ void taaResolvePass() {
     for (int i = 0; i < 9; ++i)
       if (i != 4) current = current + taps[i] * uw[i];
   }
-  float alpha = current.w;
+  float alpha = sanitizeColor(texelFetch(colorImage, p, 0).a);  // taa.cpp alphaOf: the input's, passed through
 
   // Step 3: velocity of the centre's tap (no depth to follow).
   float vx = 0.0, vy = 0.0;

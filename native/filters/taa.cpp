@@ -367,7 +367,7 @@ __attribute__((always_inline)) inline Vec4 fetchHistory(const Frame& f, int x, i
 template <class T>
 struct PixelLanes {
   using M = temporal::MaskOfT<T>;
-  T current[4];  // the current colour in the clip space (the unjittered mix, or the centre tap); [3] = alpha
+  T current[3];  // the current colour in the clip space (the unjittered mix, or the centre tap)
   T boxMin[3], boxMax[3];      // 3x3 box of the current frame
   T crossMin[3], crossMax[3];  // cross (5-tap) box
   T mean[3], sigma[3];         // of the 3x3 (only with varianceClip)
@@ -530,7 +530,7 @@ __attribute__((always_inline)) inline ResolvedLanes<T> resolveLanes(const Frame&
   r.framesSinceReset = reset ? lanesOf<T>(1.0f) : minOf(in.framesSinceReset + 1.0f, lanesOf<T>(127.0f));
   r.reset = reset;
   r.signedWeight = in.moving ? -newWeight : newWeight;  // sign: was this pixel static this frame
-  // Output: back to RGB, sanitised (the alpha, current[3], is not).
+  // Output: back to RGB, sanitised.
   T rgb[3];
   if (f.space == ClipSpace::YCoCg) {  // R = Y + Co - Cg, G = Y + Cg, B = Y - Co - Cg (color_space.h)
     rgb[0] = r.color[0] + r.color[1] - r.color[2];
@@ -543,9 +543,16 @@ __attribute__((always_inline)) inline ResolvedLanes<T> resolveLanes(const Frame&
   return r;
 }
 
+// The output's alpha: the input's at the pixel, sanitised (1 for RGB input).
+// It passes through: the unjittered mix and the history are colour only.
+inline float alphaOf(const ImageView& color, int x, int y) {
+  return color.channels() > 3 ? sanitizeColor(color.pixel(x, y)[3]) : 1.0f;
+}
+
 // Writes one resolved pixel's output, unless sharpening.
-inline void storeOutputPixel(const Frame& f, int x, int y, const float output[3], bool reset, float alpha) {
+inline void storeOutputPixel(const Frame& f, int x, int y, const float output[3], bool reset) {
   if (!f.writeOutput) return;
+  const float alpha = alphaOf(f.color, x, y);
   if (reset && !f.unjitter.enabled) {
     // Reset to current: the input colour itself (sanitised), not its YCoCg
     // round trip, which can differ in the last bit.
@@ -562,11 +569,11 @@ inline void storeOutputPixel(const Frame& f, int x, int y, const float output[3]
 }
 // Writes one resolved pixel: its history and its output.
 inline void storePixel(const Frame& f, int x, int y, const float color[3], float signedWeight, const float output[3],
-                       bool reset, float alpha) {
+                       bool reset) {
   const std::size_t i = std::size_t(y) * f.width + x;
   for (int c = 0; c < 3; ++c) f.history[c][i] = color[c];
   f.history[3][i] = signedWeight;
-  storeOutputPixel(f, x, y, output, reset, alpha);
+  storeOutputPixel(f, x, y, output, reset);
 }
 
 // Mean and standard deviation of 9 taps (variance clipping), summed in tap order.
@@ -616,10 +623,8 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
 
   const std::size_t index = std::size_t(y) * w + x;
   PixelLanes<float> in;
-  for (int c = 0; c < 4; ++c) {
-    in.current[c] = current[c];
-    in.hist[c] = hist[c];
-  }
+  for (int c = 0; c < 3; ++c) in.current[c] = current[c];
+  for (int c = 0; c < 4; ++c) in.hist[c] = hist[c];
   for (int c = 0; c < 3; ++c) {
     in.boxMin[c] = box3x3.min[c];
     in.boxMax[c] = box3x3.max[c];
@@ -654,7 +659,7 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
   f.historyState[index] = historyStateOf(r.feedbackSinceReset, r.framesSinceReset);
   if (r.guarded) f.guards->fetch_add(1, std::memory_order_relaxed);
   if (r.reset) f.resets->fetch_add(1, std::memory_order_relaxed);
-  storePixel(f, x, y, r.color, r.signedWeight, r.output, r.reset, current[3]);
+  storePixel(f, x, y, r.color, r.signedWeight, r.output, r.reset);
 }
 
 // Fast path scratch of one row band: a ring of five staged rows, one plane
@@ -807,6 +812,20 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
   if (depthNow) std::memcpy(depthNow + std::size_t(y) * w, d + 1, std::size_t(w) * sizeof(float));
 }
 
+// alphaOf for a whole lane group x0 .. x0 + lanes - 1 of row y: packed RGBA a
+// lane group at a time, other layouts pixel by pixel.
+template <class T>
+__attribute__((always_inline)) inline T inputAlphaLanes(const ImageView& color, int x0, int y) {
+  if (color.channels() == 4 && color.pixelStride == 4 * sizeof(float)) {
+    T r, g, b, a;
+    temporal::loadInterleaved4(color.pixel(x0, y), r, g, b, a);
+    return sanitizeColorLanes(a);
+  }
+  T a;
+  for (int l = 0; l < temporal::kLanesOf<T>; ++l) temporal::setLane(a, l, alphaOf(color, x0 + l, y));
+  return a;
+}
+
 // Rows [y0, y1) on the fast path: each row staged once per band (plus two
 // halo rows above and below), then eight pixels at a time: their taps, boxes,
 // unjittered mix and reprojection from the planes, their history fetched as
@@ -845,15 +864,10 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
     for (int x0 = 0; x0 < w; x0 += kL) {
       const int lanes = std::min(kL, w - x0), i = x0 + 1;  // i: plane index of pixel x0
       PixelLanes<T> in;
-      for (int c = 0; c < 4; ++c) {
+      for (int c = 0; c < 3; ++c) {
         T t[9];
-        if (c == 3 && !f.unjitter.enabled) {
-          in.current[3] = load(rows[1][3] + i);
-          break;
-        }
         for (int k = 0; k < 9; ++k) t[k] = load(rows[k / 3][c] + i + k % 3 - 1);
         in.current[c] = f.unjitter.enabled ? temporal::unjitteredMix(t, mixWeights) : t[4];
-        if (c == 3) break;  // alpha: only mixed
         // Column-first boxes (neighbourhood.h columnFirstBoxes4).
         const T minL = minOf(minOf(t[0], t[3]), t[6]), minC = minOf(minOf(t[1], t[4]), t[7]),
                    minR = minOf(minOf(t[2], t[5]), t[8]);
@@ -965,13 +979,14 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         for (int c = 0; c < 3; ++c) temporal::storeLanes(f.history[c] + rowStart + x0, r.color[c]);
         temporal::storeLanes(f.history[3] + rowStart + x0, r.signedWeight);
         if (packedOutput) {
-          // storeOutputPixel on packed RGBA, where it never reads the input
-          // (the unjittered mix is the current colour even on a reset).
-          temporal::storeInterleaved4(f.output.pixel(x0, y), r.output[0], r.output[1], r.output[2], in.current[3]);
+          // storeOutputPixel on packed RGBA, where it reads the input for the
+          // alpha only (the unjittered mix is the current colour even on a reset).
+          temporal::storeInterleaved4(f.output.pixel(x0, y), r.output[0], r.output[1], r.output[2],
+                                      inputAlphaLanes<T>(f.color, x0, y));
         } else {
           for (int l = 0; l < kL; ++l) {
             const float output[3] = {r.output[0][l], r.output[1][l], r.output[2][l]};
-            storeOutputPixel(f, x0 + l, y, output, r.reset[l] != 0, in.current[3][l]);
+            storeOutputPixel(f, x0 + l, y, output, r.reset[l] != 0);
           }
         }
       } else {
@@ -979,7 +994,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
           f.historyState[rowStart + x0 + l] = historyStateOf(r.feedbackSinceReset[l] != 0, r.framesSinceReset[l]);
           const float color[3] = {r.color[0][l], r.color[1][l], r.color[2][l]};
           const float output[3] = {r.output[0][l], r.output[1][l], r.output[2][l]};
-          storePixel(f, x0 + l, y, color, r.signedWeight[l], output, r.reset[l] != 0, in.current[3][l]);
+          storePixel(f, x0 + l, y, color, r.signedWeight[l], output, r.reset[l] != 0);
         }
       }
     }
@@ -997,9 +1012,6 @@ CRISP_TEMPORAL_AVX2 void fastRowsAvx2(const Frame& f, const BandScratch& s, int 
 }
 #endif
 
-inline float alphaOf(const ImageView& color, int x, int y) {
-  return color.channels() > 3 ? sanitizeColor(color.pixel(x, y)[3]) : 1.0f;
-}
 
 // Step 7: sharpen the blended image (eq. 3.1; eq. 4.17 is the same stencil at
 // a quarter of the amount) into the output, clamped to the range of the 5 taps.

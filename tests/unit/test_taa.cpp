@@ -714,3 +714,51 @@ TEST(Taa, UnjitterSteadiesMovingEdges) {
     EXPECT_LT(flicker[1], 0.8 * flicker[0]) << c.name;
   }
 }
+
+// The output's alpha is the input's at the pixel, sanitised (1 for RGB
+// input), as documented ("alpha passes through") and as phlm does: for taa
+// and taa-improved, with and without unjitter, with and without sharpen, on
+// the fast path (each copy, whole and partial lane groups) and the reference.
+// It once was the unjittered mix of the alpha (0.696 for 1 beside 0), and an
+// RGB input's came out as 0.99999994 or 1.00000012.
+TEST(Taa, OutputAlphaIsTheInputAlpha) {
+  const int w = 37, h = 12, frames = 3;
+  synth::FrameOptions jitter;
+  jitter.jitter = synth::JitterKind::BlackmanHarris;
+  std::vector<synth::FrameData> pan = test::pannedChart(w, h, frames, 0.37f, -0.21f, jitter);
+  ASSERT_EQ(pan[0].color.channels, 4);
+  for (synth::FrameData& f : pan)
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) f.color.at(x, y)[3] = (x + y) % 2 ? 1.0f : 0.0f;  // a checkerboard
+  pan[1].color.at(36, 5)[3] = std::numeric_limits<float>::quiet_NaN();  // last, partial group: 0
+  pan[1].color.at(20, 6)[3] = 1e30f;                                     // kMaxColor
+  int checked = 0;
+  for (const char* type : {"taa", "taa-improved"})
+    for (int run = 0; run < 12; ++run) {
+      const bool reference = run % 2, rgbInput = run / 2 % 2;
+      const float sharpen = run / 4 % 3 == 2 ? 0.5f : 0.0f;
+      const test::FastPathIsa isa(test::kFastPathIsas[run / 4 % 3]);
+      test::TemporalDriver d(type, 2);
+      d.filter->params().setBool("reference", reference);
+      d.filter->params().setFloat("sharpen", sharpen);
+      d.filter->params().setString("unjitter", run / 4 % 3 == 1 ? "none" : "blackman-harris");
+      for (int t = 0; t < frames; ++t) {
+        synth::FrameData f = pan[std::size_t(t)];
+        if (rgbInput) {
+          Image rgb(w, h, 3);
+          for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) std::memcpy(rgb.at(x, y), f.color.at(x, y), 3 * sizeof(float));
+          f.color = std::move(rgb);
+        }
+        const Image& out = d.run(f);
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x, ++checked) {
+            const float want = rgbInput ? 1.0f : sanitizeColor(f.color.at(x, y)[3]);
+            ASSERT_EQ(out.at(x, y)[3], want) << type << " (" << x << "," << y << ") frame " << t << " run " << run
+                                            << (reference ? " reference" : " fast") << " "
+                                            << temporal::fastPathIsaName();
+          }
+      }
+    }
+  EXPECT_EQ(checked, 2 * 12 * frames * w * h);
+}
