@@ -289,6 +289,24 @@ struct ReprojectionLanes {
   temporal::MaskOfT<T> valid;    // usable history at p + v
   temporal::MaskOfT<T> moving;   // v != 0
 };
+// A still silhouette under the jitter: the surface of the previous frame's
+// sample at (x, y), depth d, is still in this frame's (shifted) 5x5 around
+// (x, y) and does not move there. Then a failed depth test at a still pixel
+// is the jitter flipping which surface the pixel's own sample hits, not a
+// disocclusion (an object that moved on leaves with its non-zero motion or
+// is gone from the 5x5). Reads the images, so both paths ask it alike.
+inline bool stillSurfaceNear(const Frame& f, int x, int y, float d) {
+  if (!f.depth.ptr || !f.motion.ptr) return false;
+  for (int i = 0; i < 25; ++i) {
+    const int sx = temporal::shiftedSource(x + i % 5 - 2, f.width, f.unjitter.shiftX),
+              sy = temporal::shiftedSource(y + i / 5 - 2, f.height, f.unjitter.shiftY);
+    if (temporal::sameSurfaceDepth(temporal::sanitizeDepth(f.depth.pixel(sx, sy)[0]), d, f.depthTolerance) &&
+        !temporal::movesAt(f.motion.pixel(sx, sy)))
+      return true;
+  }
+  return false;
+}
+
 template <class T>
 __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const Frame& f, T px, T py, T vx, T vy,
                                                                           T tapDepth) {
@@ -339,10 +357,18 @@ __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const 
     }
     const float tol = f.depthTolerance;
     const M x1 = r.tx != 0.0f, y1 = r.ty != 0.0f;
-    const M same = M(temporal::sameSurfaceDepth(tapDepth, d00, tol) |
-                     M(x1 & temporal::sameSurfaceDepth(tapDepth, d10, tol)) |
-                     M(y1 & temporal::sameSurfaceDepth(tapDepth, d01, tol)) |
-                     M(x1 & y1 & temporal::sameSurfaceDepth(tapDepth, d11, tol)));
+    M same = M(temporal::sameSurfaceDepth(tapDepth, d00, tol) | M(x1 & temporal::sameSurfaceDepth(tapDepth, d10, tol)) |
+               M(y1 & temporal::sameSurfaceDepth(tapDepth, d01, tol)) |
+               M(x1 & y1 & temporal::sameSurfaceDepth(tapDepth, d11, tol)));
+    // A still pixel (its footprint is the pixel: d00) that failed: keep it
+    // where that surface is still, and still, nearby (stillSurfaceNear).
+    temporal::forEachLane(M(valid & temporal::notOf(r.moving) & temporal::notOf(same)), [&](int l) {
+      if constexpr (std::is_same_v<T, float>) {
+        if (stillSurfaceNear(f, int(px), int(py), d00)) same = true;
+      } else {
+        if (stillSurfaceNear(f, int(px[l]), int(py[l]), d00[l])) same[l] = -1;
+      }
+    });
     valid = M(valid & same);
   }
   r.valid = valid;
