@@ -734,10 +734,10 @@ TEST(Taa, OutputAlphaIsTheInputAlpha) {
   pan[1].color.at(20, 6)[3] = 1e30f;                                     // kMaxColor
   int checked = 0;
   for (const char* type : {"taa", "taa-improved"})
-    for (int run = 0; run < 12; ++run) {
+    for (int run = 0; run < 24; ++run) {
       const bool reference = run % 2, rgbInput = run / 2 % 2;
       const float sharpen = run / 4 % 3 == 2 ? 0.5f : 0.0f;
-      const test::FastPathIsa isa(test::kFastPathIsas[run / 4 % 3]);
+      const test::FastPathIsa isa(test::kFastPathIsas[run / 12]);
       test::TemporalDriver d(type, 2);
       d.filter->params().setBool("reference", reference);
       d.filter->params().setFloat("sharpen", sharpen);
@@ -760,7 +760,7 @@ TEST(Taa, OutputAlphaIsTheInputAlpha) {
           }
       }
     }
-  EXPECT_EQ(checked, 2 * 12 * frames * w * h);
+  EXPECT_EQ(checked, 2 * 24 * frames * w * h);
 }
 
 // A still scene given a zero motion image and depth (a still part of a shot
