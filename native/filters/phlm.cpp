@@ -442,6 +442,25 @@ CRISP_PHLM_INLINE bool followedSurfaceAround(const Frame<T>& f, int qx, int qy, 
   return false;
 }
 
+// A still pixel (x, y) that failed the depth test above keeps its model when
+// the surface of its own previous sample is still, and still, in this frame's
+// 5x5: under the jitter a silhouette pixel's sample flips between the two
+// surfaces (taa.cpp stillSurfaceNear). The depth planes are unshifted, so the
+// 5x5 is read around (x, y) itself.
+template <class T>
+CRISP_PHLM_INLINE bool stillSurfaceNear(const Frame<T>& f, int x, int y) {
+  if (!f.motion.ptr || !f.depth || !f.previousDepth) return false;
+  const int w = f.width, h = f.height;
+  const float d = f.previousDepth[std::size_t(y) * w + x];
+  for (int i = 0; i < 25; ++i) {
+    const int sx = std::clamp(x + i % 5 - 2, 0, w - 1), sy = std::clamp(y + i / 5 - 2, 0, h - 1);
+    if (temporal::sameSurfaceDepth(f.depth[std::size_t(sy) * w + sx], d, f.depthTolerance) &&
+        !temporal::movesAt(f.motion.pixel(sx, sy)))
+      return true;
+  }
+  return false;
+}
+
 // Always inlined: into both copies of the row loop (temporal/isa.h).
 template <class T, bool Clamp>
 __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
@@ -505,7 +524,8 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     qx = std::clamp(int(std::floor(px + 0.5f)), 0, w - 1);
     qy = std::clamp(int(std::floor(py + 0.5f)), 0, h - 1);
   }
-  if (valid && f.previousDepth) valid = followedSurfaceAround(f, qx, qy, tapDepth);
+  if (valid && f.previousDepth)
+    valid = followedSurfaceAround(f, qx, qy, tapDepth) || (!moving && stillSurfaceNear(f, x, y));
 
   // The footprint box trusts a still model. A model that moved, saw
   // something move in its 5x5 or was box-corrected since its reset may hold
@@ -786,6 +806,9 @@ __attribute__((always_inline)) inline void phlmStillGroup(const Frame<T>& f, int
     for (int i = 0; i < 9; ++i)
       match |= temporal::sameSurfaceDepth(v.tapDepth, temporal::loadLanes<Vec8>(around + std::size_t(i / 3) * w + i % 3),
                                           f.depthTolerance);
+    if (!temporal::allOf(match))
+      for (int l = 0; l < kBatch; ++l)
+        if (!match[l] && stillSurfaceNear(f, x0 + l, y)) match[l] = -1;
     valid &= match;
   }
   // Nothing in the 5x5 moves (always, without motion); the narrow box; the

@@ -88,6 +88,18 @@ struct TemporalDriver {
   }
 };
 
+// The still chart (depth: its shapes in front of the background; the motion
+// image all zero) under EEVEE's jitter, frames 0 .. frames - 1, no references.
+inline std::vector<synth::FrameData> stillChartUnderEeveeJitter(int w, int h, int frames) {
+  const synth::Sequence seq = synth::staticChartSequence(w, h);
+  synth::FrameOptions jitter;
+  jitter.jitter = synth::JitterKind::BlackmanHarris;
+  jitter.reference = synth::ReferenceKind::None;
+  std::vector<synth::FrameData> input;
+  for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, jitter));
+  return input;
+}
+
 // The test chart panned by (vx, vy) pixels per frame (a uniform motion
 // image): frames 0 .. frames - 1.
 // With movingShapes >= 0, a still camera instead: only the chart's first

@@ -676,3 +676,30 @@ TEST(PhlmStage, StagesSanitisedColourTonemappedLuminanceAlphaDepthAndMotion) {
   EXPECT_EQ(one, 1);
   EXPECT_NEAR(staged[3], 0.5 / 1.5, 1e-7);
 }
+
+// Taa.StillSilhouettesUnderJitterAreNotReset for phlm: a still scene with depth
+// and a zero motion image resets next to no model after the first frame, where
+// a silhouette pixel's jittered depth sample flips between the two surfaces
+// (phlm.cpp stillSurfaceNear), on the fast path and the reference.
+TEST(Phlm, StillSilhouettesUnderJitterAreNotReset) {
+  const int w = 48, h = 32, frames = 48;
+  const std::vector<synth::FrameData> input = test::stillChartUnderEeveeJitter(w, h, frames);
+  for (const bool reference : {false, true}) {
+    phlm::Kernel<float> k;
+    k.allocate(w, h, true, true);
+    phlm::Settings s;
+    Image out(w, h, 4);
+    long resets = 0;
+    for (int t = 0; t < frames; ++t) {
+      const synth::FrameData& f = input[std::size_t(t)];
+      phlm::Inputs in = movingInputs(f);  // the motion image is all zero: nothing moves
+      in.output = out.view();
+      s.jitterX = f.jitter.x, s.jitterY = f.jitter.y;
+      k.run(in, s, reference, 2);
+      if (t > 0) resets += k.lastStats().reprojectionResets;
+    }
+    std::printf("phlm still chart, EEVEE jitter, zero motion image%s: %ld model resets after the first frame\n",
+                reference ? " (reference)" : "", resets);
+    EXPECT_LE(resets, 16) << (reference ? "reference" : "fast");
+  }
+}

@@ -775,12 +775,7 @@ TEST(Taa, OutputAlphaIsTheInputAlpha) {
 // (Taa.DisocclusionResetsRevealedBackground: revealed background still resets.)
 TEST(Taa, StillSilhouettesUnderJitterAreNotReset) {
   const int w = 48, h = 32, frames = 64;
-  const synth::Sequence seq = synth::staticChartSequence(w, h);
-  synth::FrameOptions jitter;
-  jitter.jitter = synth::JitterKind::BlackmanHarris;
-  jitter.reference = synth::ReferenceKind::None;
-  std::vector<synth::FrameData> input;
-  for (int t = 0; t < frames; ++t) input.push_back(synth::renderFrame(seq, w, h, t, jitter));
+  const std::vector<synth::FrameData> input = test::stillChartUnderEeveeJitter(w, h, frames);
   std::vector<std::vector<float>> outputs[2];  // [zero motion image][frame]
   for (const bool reference : {false, true})
     for (const bool motion : {false, true}) {
