@@ -206,6 +206,7 @@ int runFilter(const ParsedArgs& args) {
   Image output;
   Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, quiet);
   ShotPosition shot;
+  std::set<std::string> optionalBound;  // the optional passes bound for the frame before
   for (std::size_t i = std::size_t(run.start - 1); i < std::size_t(run.last); ++i) {
     const std::string& in = args.positional[i];
     const bool write = int(i) + 1 >= run.first;
@@ -224,6 +225,21 @@ int runFilter(const ParsedArgs& args) {
       bindFrame(*filter, frame, shot);
     } catch (const Exception& e) {
       throw Exception(e.code(), "'" + in + "': " + e.what());
+    }
+    {
+      // An optional pass the frame before had and this one lacks (motion,
+      // depth, ...): the filter goes on without it, which changes its output
+      // for several frames; more often a mixed-up folder than intended.
+      std::set<std::string> bound;
+      std::string missing;
+      for (const ImageRole& role : filter->roles())
+        if (!role.required && std::string(role.name) != "output" && filter->hasImage(role.name)) bound.insert(role.name);
+      for (const std::string& name : optionalBound)
+        if (!bound.count(name)) missing += std::string(missing.empty() ? "'" : ", '") + name + "'";
+      if (!missing.empty())
+        std::fprintf(stderr, "filter: warning: '%s' has no %s pass, which the frame before it had: %s goes on without\n",
+                     in.c_str(), missing.c_str(), filter->type());
+      optionalBound = std::move(bound);
     }
     if (output.width != frame.width || output.height != frame.height) {
       // A size change part-way is legitimate (a cut to another camera) but

@@ -163,6 +163,22 @@ def test_size_change_mid_sequence_is_reported(chart, tmp_path):
     assert "warning" not in p.stderr
 
 
+def test_a_pass_missing_mid_sequence_is_reported(chart, tmp_path):
+    """A frame without an optional pass the frame before had (here depth, a top-level Z channel) is
+    filtered without it, with a warning naming the file and the pass; frames that keep their passes
+    give none."""
+    a, b, c = tmp_path / "a.exr", tmp_path / "b.exr", tmp_path / "c.exr"
+    subprocess.run(["oiiotool", str(chart / "chart_1spp.exr"), "--ch", "R,G,B,A,Z=0.5", "-o", str(a)], check=True)
+    shutil.copy(chart / "chart_1spp.exr", b)
+    shutil.copy(a, c)
+    assert "depth" in run("info", a).stdout and "depth" not in run("info", b).stdout.split("passes:")[1].split("\n")[0]
+    p = run("filter", "-q", "--method", "taa", a, b, c, "-o", tmp_path / "out")
+    assert "warning" in p.stderr and "b.exr" in p.stderr and "'depth'" in p.stderr, p.stderr
+    assert "c.exr" not in p.stderr  # depth coming back is no loss
+    p = run("filter", "-q", "--method", "taa", a, c, "-o", tmp_path / "same")
+    assert "warning" not in p.stderr
+
+
 def test_rerun_without_png_leaves_no_stale_png(chart, tmp_path):
     out = tmp_path / "out"
     run("filter", "--method", "fxaa", "--png", chart / "chart_1spp.exr", "-o", out)
