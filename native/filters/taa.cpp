@@ -1038,7 +1038,6 @@ CRISP_TEMPORAL_AVX2 void fastRowsAvx2(const Frame& f, const BandScratch& s, int 
 }
 #endif
 
-
 // Step 7: sharpen the blended image (eq. 3.1; eq. 4.17 is the same stencil at
 // a quarter of the amount) into the output, clamped to the range of the 5 taps.
 template <bool Clamp>
