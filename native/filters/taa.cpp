@@ -689,12 +689,14 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
 }
 
 // Fast path scratch of one row band: a ring of five staged rows, one plane
-// per channel (Y Co Cg A, or R G B A, then motion x and y), each padded by one
+// per channel (Y Co Cg, or R G B, then motion x and y; no alpha, which the
+// output takes from the input, alphaOf), each padded by one
 // pixel left (a copy of the edge pixel = clamp-to-edge) and by at least one
 // right, up to a multiple of 8 past the last group's loads; five depth rows
 // likewise; the current row's closest-depth taps.
 constexpr int kRing = 5;
-constexpr int kPlanes = 6;  // colour 4, motion 2
+constexpr int kPlanes = 5;  // colour 3, motion 2
+constexpr int kMotionX = 3, kMotionY = 4;  // plane indices
 inline int planeFloats(int width) { return (width + 10 + 7) / 8 * 8; }
 struct BandScratch {
   float* planes[kRing][kPlanes];
@@ -729,15 +731,15 @@ using temporal::forEachClampedIndex;
 inline void stageColorTap(const float* px, int channels, float* const* p, int k) {
   float rgba[4];
   stageColorPixel(px, channels, rgba);
-  for (int c = 0; c < 4; ++c) p[c][k] = rgba[c];
+  for (int c = 0; c < 3; ++c) p[c][k] = rgba[c];
 }
 // stageColorTap over `count` packed pixels of C = 3 or 4 floats, into plane
 // indices 0 .. count - 1. RGBA runs a lane group at a time (T: the lane type):
 // GCC's own vectorisation of the packed loop if-converts the clamp into about
 // twice the operations of sanitizeColorLanes on lanes. RGB is left to GCC.
 template <class T, int C>
-__attribute__((always_inline)) inline void stageColorRun(const float* src, int count, float* p0, float* p1, float* p2,
-                                                         float* p3) {
+__attribute__((always_inline)) inline void stageColorRun(const float* src, int count, float* p0, float* p1,
+                                                         float* p2) {
   const auto sanitize = sanitizeColorLanes<float>;
   int i = 0;
   if constexpr (C == 4) {
@@ -748,7 +750,6 @@ __attribute__((always_inline)) inline void stageColorRun(const float* src, int c
       temporal::storeLanes(p0 + i, sanitizeColorLanes(r));
       temporal::storeLanes(p1 + i, sanitizeColorLanes(g));
       temporal::storeLanes(p2 + i, sanitizeColorLanes(b));
-      temporal::storeLanes(p3 + i, sanitizeColorLanes(a));
     }
   }
   for (; i < count; ++i) {
@@ -756,7 +757,6 @@ __attribute__((always_inline)) inline void stageColorRun(const float* src, int c
     p0[i] = sanitize(px[0]);
     p1[i] = sanitize(px[1]);
     p2[i] = sanitize(px[2]);
-    p3[i] = C > 3 ? sanitize(px[3]) : 1.0f;
   }
 }
 
@@ -780,9 +780,9 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
     forEachClampedIndex(run, n, [&](int k) { stageColorTap(f.color.pixel(column[k], source), cc, p, k); });
     const float* src = f.color.pixel(std::clamp(first, 0, w - 1), source);  // = first where the run is not empty
     if (cc == 4)
-      stageColorRun<T, 4>(src, run.hi - run.lo, p[0] + run.lo, p[1] + run.lo, p[2] + run.lo, p[3] + run.lo);
+      stageColorRun<T, 4>(src, run.hi - run.lo, p[0] + run.lo, p[1] + run.lo, p[2] + run.lo);
     else
-      stageColorRun<T, 3>(src, run.hi - run.lo, p[0] + run.lo, p[1] + run.lo, p[2] + run.lo, p[3] + run.lo);
+      stageColorRun<T, 3>(src, run.hi - run.lo, p[0] + run.lo, p[1] + run.lo, p[2] + run.lo);
   } else {
     stageColorRow(f.color, source, s.row);
     for (int k = 0; k < n; ++k) {
@@ -790,7 +790,6 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
       p[0][k] = px[0];
       p[1][k] = px[1];
       p[2][k] = px[2];
-      p[3][k] = px[3];
     }
   }
   if (f.space == ClipSpace::YCoCg)
@@ -804,8 +803,8 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
   if (f.motion.ptr) {
     auto motionTap = [&](int k) {
       const float* m = f.motion.pixel(column[k], source);
-      p[4][k] = m[0];
-      p[5][k] = m[1];
+      p[kMotionX][k] = m[0];
+      p[kMotionY][k] = m[1];
     };
     const std::size_t stride = f.motion.pixelStride;
     if (stride == 8 || stride == 16) {
@@ -818,12 +817,12 @@ __attribute__((always_inline)) inline void stageRow(const Frame& f, const BandSc
            k += temporal::kLanesOf<T>, m += temporal::kLanesOf<T> * step) {
         T mx, my;
         temporal::loadFirstTwoChannels(m, step, mx, my);
-        temporal::storeLanes(p[4] + k, mx);
-        temporal::storeLanes(p[5] + k, my);
+        temporal::storeLanes(p[kMotionX] + k, mx);
+        temporal::storeLanes(p[kMotionY] + k, my);
       }
       for (; k < run.hi; ++k, m += step) {
-        p[4][k] = m[0];
-        p[5][k] = m[1];
+        p[kMotionX][k] = m[0];
+        p[kMotionY][k] = m[1];
       }
     } else {
       for (int k = 0; k < n; ++k) motionTap(k);
@@ -916,8 +915,8 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         }
         for (int k = 0; k < 9; ++k) {
           const Int chosen = tap == k;
-          vx = chosen ? load(rows[k / 3][4] + i + k % 3 - 1) : vx;
-          vy = chosen ? load(rows[k / 3][5] + i + k % 3 - 1) : vy;
+          vx = chosen ? load(rows[k / 3][kMotionX] + i + k % 3 - 1) : vx;
+          vy = chosen ? load(rows[k / 3][kMotionY] + i + k % 3 - 1) : vy;
         }
       }
       const ReprojectionLanes<T> rp =
@@ -979,7 +978,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         auto tap5 = [&](int k) {
           const int column = std::clamp(i + l + k % 5 - 2, 0, w + 1);
           float* const* p = rows5[k / 5];
-          return Vec4{p[0][column], p[1][column], p[2][column], p[3][column]};
+          return Vec4{p[0][column], p[1][column], p[2][column], 0.0f};  // lane 3: unused by the clip
         };
         temporal::TwoExtremes4 e = temporal::twoExtremesOf(tap5(0), tap5(1));
         for (int k = 2; k < 25; ++k) temporal::addTap(e, tap5(k));
