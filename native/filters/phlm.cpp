@@ -444,21 +444,15 @@ CRISP_PHLM_INLINE bool followedSurfaceAround(const Frame<T>& f, int qx, int qy, 
 
 // A still pixel (x, y) that failed the depth test above keeps its model when
 // the surface of its own previous sample is still, and still, in this frame's
-// 5x5: under the jitter a silhouette pixel's sample flips between the two
-// surfaces (taa.cpp stillSurfaceNear). The depth planes are unshifted, so the
+// 5x5 (temporal::stillSurfaceNear). The depth planes are unshifted, so the
 // 5x5 is read around (x, y) itself.
 template <class T>
 CRISP_PHLM_INLINE bool stillSurfaceNear(const Frame<T>& f, int x, int y) {
   if (!f.motion.ptr || !f.depth || !f.previousDepth) return false;
-  const int w = f.width, h = f.height;
-  const float d = f.previousDepth[std::size_t(y) * w + x];
-  for (int i = 0; i < 25; ++i) {
-    const int sx = std::clamp(x + i % 5 - 2, 0, w - 1), sy = std::clamp(y + i / 5 - 2, 0, h - 1);
-    if (temporal::sameSurfaceDepth(f.depth[std::size_t(sy) * w + sx], d, f.depthTolerance) &&
-        !temporal::movesAt(f.motion.pixel(sx, sy)))
-      return true;
-  }
-  return false;
+  const int w = f.width;
+  return temporal::stillSurfaceNear(f.motion, x, y, w, f.height, 0, 0, f.previousDepth[std::size_t(y) * w + x],
+                                    f.depthTolerance,
+                                    [&](int sx, int sy) { return f.depth[std::size_t(sy) * w + sx]; });
 }
 
 // Always inlined: into both copies of the row loop (temporal/isa.h).

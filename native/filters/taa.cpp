@@ -289,22 +289,12 @@ struct ReprojectionLanes {
   temporal::MaskOfT<T> valid;    // usable history at p + v
   temporal::MaskOfT<T> moving;   // v != 0
 };
-// A still silhouette under the jitter: the surface of the previous frame's
-// sample at (x, y), depth d, is still in this frame's (shifted) 5x5 around
-// (x, y) and does not move there. Then a failed depth test at a still pixel
-// is the jitter flipping which surface the pixel's own sample hits, not a
-// disocclusion (an object that moved on leaves with its non-zero motion or
-// is gone from the 5x5). Reads the images, so both paths ask it alike.
+// temporal::stillSurfaceNear on the input images (the shifted 5x5).
 inline bool stillSurfaceNear(const Frame& f, int x, int y, float d) {
   if (!f.depth.ptr || !f.motion.ptr) return false;
-  for (int i = 0; i < 25; ++i) {
-    const int sx = temporal::shiftedSource(x + i % 5 - 2, f.width, f.unjitter.shiftX),
-              sy = temporal::shiftedSource(y + i / 5 - 2, f.height, f.unjitter.shiftY);
-    if (temporal::sameSurfaceDepth(temporal::sanitizeDepth(f.depth.pixel(sx, sy)[0]), d, f.depthTolerance) &&
-        !temporal::movesAt(f.motion.pixel(sx, sy)))
-      return true;
-  }
-  return false;
+  return temporal::stillSurfaceNear(f.motion, x, y, f.width, f.height, f.unjitter.shiftX, f.unjitter.shiftY, d,
+                                    f.depthTolerance,
+                                    [&](int sx, int sy) { return temporal::sanitizeDepth(f.depth.pixel(sx, sy)[0]); });
 }
 
 template <class T>

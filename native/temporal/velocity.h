@@ -92,19 +92,39 @@ inline MaskOfT<T> sameSurfaceDepth(T a, T b, float tolerance) {
 // A motion vector usable for reprojection: finite.
 inline bool finiteMotion(float mx, float my) { return std::isfinite(mx) && std::isfinite(my); }
 
+// A pixel m of a motion image moves: either component is not zero (NaN moves).
+inline bool movesAt(const float* m) { return m[0] != 0.0f || m[1] != 0.0f; }
+
 // Nothing in the 5x5 around (x, y) of the image shifted by (shiftX, shiftY)
 // (jitter.h shiftedSource) moves: only then may a still pixel's history be
 // tested against the wider footprint box, so that a moving object's colour (a
 // trail, or a first frame's mix next to it) cannot hide in it (taa.cpp,
 // phlm.cpp). No motion image: a still scene.
-// A pixel m of a motion image moves: either component is not zero (NaN moves).
-inline bool movesAt(const float* m) { return m[0] != 0.0f || m[1] != 0.0f; }
 inline bool stillFootprint(const ImageView& motion, int x, int y, int width, int height, int shiftX, int shiftY) {
   if (!motion.ptr) return true;
   for (int i = 0; i < 25; ++i)
     if (movesAt(motion.pixel(shiftedSource(x + i % 5 - 2, width, shiftX), shiftedSource(y + i / 5 - 2, height, shiftY))))
       return false;
   return true;
+}
+
+// A still silhouette under the jitter: the surface of the previous frame's
+// sample at (x, y), depth d, is in this frame's 5x5 around (x, y) (of the
+// image shifted by (shiftX, shiftY)) and does not move there. Then a failed
+// depth test at a still pixel is the jitter flipping which surface the
+// pixel's own sample hits, not a disocclusion (an object that moved on leaves
+// with its non-zero motion or is gone from the 5x5), and the pixel keeps its
+// history (taa.cpp reprojectLanes, phlm.cpp phlmPixel).
+// depthAt(sx, sy): the sanitised depth of source pixel (sx, sy), from the
+// filter's own depth source. Both paths of a filter ask it alike.
+template <class DepthAt>
+inline bool stillSurfaceNear(const ImageView& motion, int x, int y, int width, int height, int shiftX, int shiftY,
+                             float d, float tolerance, DepthAt depthAt) {
+  for (int i = 0; i < 25; ++i) {
+    const int sx = shiftedSource(x + i % 5 - 2, width, shiftX), sy = shiftedSource(y + i / 5 - 2, height, shiftY);
+    if (sameSurfaceDepth(depthAt(sx, sy), d, tolerance) && !movesAt(motion.pixel(sx, sy))) return true;
+  }
+  return false;
 }
 
 // stillFootprint a row at a time, in two steps. movingRow: 1 where pixel
