@@ -1065,23 +1065,28 @@ std::size_t Kernel::scratchFloatsPerBand() const { return bandFloats(width_); }
 
 void Kernel::allocate(int width, int height, bool withDepth) {
   const bool sameShape = width == width_ && height == height_ && !history_[0].empty();
-  if (sameShape && withDepth == !depth_[0].empty()) return;  // keep the history
+  if (withDepth != !depth_[0].empty()) {
+    // A depth image that appears or goes keeps the colour history (as phlm
+    // keeps its models): the next frame has no previous depth to test against.
+    for (auto& d : depth_) {
+      if (withDepth)
+        d.assign(std::size_t(width) * height, kBackgroundDepth);
+      else
+        std::vector<float>().swap(d);
+    }
+    previousDepthValid_ = false;
+  }
+  if (sameShape) return;  // keep the history
   width_ = width;
   height_ = height;
-  if (!sameShape) {
-    bands_ = bandCount(height);
-    bandScratch_.assign(std::size_t(bands_) * bandFloats(width), 0.0f);
-    history_[0] = Image(width, height, 4);
-    history_[1] = Image(width, height, 4);
-    historyState_.assign(std::size_t(width) * height, 0);
-    sourceColumn_.assign(std::size_t(planeFloats(width)), 0);
-  }
-  for (auto& d : depth_) {
-    if (withDepth)
-      d.assign(std::size_t(width) * height, kBackgroundDepth);
-    else
-      std::vector<float>().swap(d);
-  }
+  bands_ = bandCount(height);
+  bandScratch_.assign(std::size_t(bands_) * bandFloats(width), 0.0f);
+  history_[0] = Image(width, height, 4);
+  history_[1] = Image(width, height, 4);
+  historyState_.assign(std::size_t(width) * height, 0);
+  sourceColumn_.assign(std::size_t(planeFloats(width)), 0);
+  if (withDepth)
+    for (auto& d : depth_) d.assign(std::size_t(width) * height, kBackgroundDepth);
   reset();
 }
 

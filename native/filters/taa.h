@@ -78,7 +78,8 @@ void readSettings(const ParamSet& p, const char* filterName, Settings& settings)
 class Kernel {
  public:
   // withDepth: keep depth planes (needed to run with depth; without, runs
-  // given depth throw). Same size and depth: keeps the history.
+  // given depth throw). Same size: keeps the history, also when depth
+  // appears or goes.
   void allocate(int width, int height, bool withDepth = true);
   // Forgets the history: the next frame is a first frame (bootstrap).
   void reset();

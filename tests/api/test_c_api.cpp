@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 #include <map>
@@ -289,4 +290,75 @@ TEST(CApi, NullPointerUnsetsTheImage) {
   EXPECT_EQ(lastError(), "");
   crispCommitFilter(f.handle());  // ...and gone once unset
   EXPECT_EQ(lastError(), "");
+}
+
+// crisp.h "History": which changes between frames keep a temporal filter's
+// history and which drop it. Six frames of one noise image, then a seventh of
+// another, with a change made at the seventh. Dropped history gives exactly
+// a new filter's first frame on the seventh; kept history differs from it
+// (the first six frames still show through the clip box).
+TEST(CApi, TemporalHistoryIsKeptOrDroppedAsDocumented) {
+  auto ctx = crisp::ContextRef::create();
+  ctx.set("numThreads", 2);
+  ctx.commit();
+  const int w = 40, h = 24;
+  struct Inputs {
+    int w, h;
+    std::vector<float> color, motion, depth, output;
+    std::vector<std::uint32_t> id;
+    Inputs(int width, int height, unsigned seed)
+        : w(width), h(height), color(noise(width, height, 4, seed)), motion(std::size_t(width) * height * 2, 0.0f),
+          depth(std::size_t(width) * height, 5.0f), output(std::size_t(width) * height * 4),
+          id(std::size_t(width) * height, 7u) {}
+  };
+  struct Change {
+    const char* what;
+    bool drops;
+    bool motionBefore, depthBefore, motionAfter, depthAfter;
+    int widthAfter;
+    const char* clipSpaceAfter;  // or nullptr
+    bool resetFilter;
+  };
+  const Change changes[] = {
+      {"nothing", false, true, true, true, true, w, nullptr, false},
+      {"depth goes", false, true, true, true, false, w, nullptr, false},
+      {"depth appears", false, true, false, true, true, w, nullptr, false},
+      {"motion goes", false, true, true, false, true, w, nullptr, false},
+      {"motion appears", false, false, true, true, true, w, nullptr, false},
+      {"both go", false, true, true, false, false, w, nullptr, false},
+      {"a new size", true, true, true, true, true, w - 8, nullptr, false},
+      {"crispResetFilter", true, true, true, true, true, w, nullptr, true},
+      {"clipSpace ycocg", true, true, true, true, true, w, "ycocg", false},
+  };
+  for (const char* type : {"taa", "taa-improved", "phlm"}) {
+    for (const Change& c : changes) {
+      if (c.clipSpaceAfter && std::string(type) == "phlm") continue;  // phlm has no clip space
+      const std::string where = std::string(type) + ", " + c.what;
+      auto bind = [&](crisp::FilterRef& f, Inputs& in, bool motion, bool depth, int frame) {
+        f.setImage("color", in.color.data(), CRISP_FORMAT_FLOAT4, in.w, in.h);
+        if (motion) f.setImage("motion", in.motion.data(), CRISP_FORMAT_FLOAT2, in.w, in.h);
+        else f.unsetImage("motion");
+        if (depth) f.setImage("depth", in.depth.data(), CRISP_FORMAT_FLOAT, in.w, in.h);
+        else f.unsetImage("depth");
+        if (std::string(type) == "taa-improved") f.setImage("id", in.id.data(), CRISP_FORMAT_UINT, in.w, in.h);
+        f.setImage("output", in.output.data(), CRISP_FORMAT_FLOAT4, in.w, in.h);
+        f.set("jitterX", 0.25f * float(frame % 3) - 0.25f);
+        f.set("jitterY", 0.2f - 0.2f * float(frame % 2));
+        f.commit();
+        f.execute();
+      };
+      auto kept = ctx.newFilter(type), fresh = ctx.newFilter(type);
+      Inputs before(w, h, 11u), after(c.widthAfter, h, 12u), first(c.widthAfter, h, 12u);
+      for (int frame = 0; frame < 6; ++frame) bind(kept, before, c.motionBefore, c.depthBefore, frame);
+      if (c.resetFilter) kept.reset();
+      if (c.clipSpaceAfter) {
+        kept.set("clipSpace", c.clipSpaceAfter);
+        fresh.set("clipSpace", c.clipSpaceAfter);
+      }
+      bind(kept, after, c.motionAfter, c.depthAfter, 6);
+      bind(fresh, first, c.motionAfter, c.depthAfter, 6);
+      const bool same = after.output == first.output;
+      EXPECT_EQ(same, c.drops) << where << (c.drops ? ": the history was kept" : ": the history was dropped");
+    }
+  }
 }

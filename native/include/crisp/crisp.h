@@ -82,8 +82,9 @@ CRISP_API int crispGetContextInt(CrispContext context, const char* name);
 CRISP_API void crispCommitContext(CrispContext context);
 
 // ---- filters --------------------------------------------------------------
-// Types: "none", "fxaa", "repair" (and the temporal ones as they land).
-// crispGetFilterTypes returns a comma-separated list.
+// Types: "none", "fxaa", "repair", "rsaa" (spatial: each frame alone) and
+// "taa", "taa-improved", "phlm" (temporal). crispGetFilterTypes returns them
+// as a comma-separated list.
 CRISP_API const char* crispGetFilterTypes(void);
 CRISP_API CrispFilter crispNewFilter(CrispContext context, const char* type);
 CRISP_API void crispRetainFilter(CrispFilter filter);
@@ -119,10 +120,19 @@ CRISP_API const char* crispGetFilterInfo(CrispFilter filter);
 CRISP_API void crispCommitFilter(CrispFilter filter);
 // Runs one frame. Allocates nothing, except on the first in-place run of a
 // size (a copy of the inputs the output overwrites, kept for the next frames).
-// Temporal filters keep history between calls.
+// Temporal filters keep history between calls (below).
 CRISP_API void crispExecuteFilter(CrispFilter filter);
-// Forgets temporal history (camera cut).
+// Forgets temporal history: call it at a camera cut, a jump in time or a
+// change of lighting; the next frame is filtered as a first frame.
 CRISP_API void crispResetFilter(CrispFilter filter);
+// History of the temporal filters between executes. Kept: across re-commits
+// for a new jitter or other parameters, and when the optional "motion" or
+// "depth" image appears or goes (the frame after depth appears has no
+// previous depth, so it skips the disocclusion test). Dropped (the next frame
+// is a first frame): crispResetFilter, a new size, and for "taa" and
+// "taa-improved" a new "clipSpace" (the history is stored in it). A filter
+// is not told of a cut by its images: without crispResetFilter only the clip
+// box and the depth test keep the old shot out of the new one.
 
 // ---- frames: reading passes from files -----------------------------------
 // Reads a Blender multilayer EXR (Combined, Depth.Z, Normal, Vector, DiffCol,
