@@ -10,6 +10,7 @@
 // sequence (motion rebuilt or not, output names) still look at every input, so
 // every chunk of one sequence makes the same ones.
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -40,6 +41,17 @@ void removeRecord(const std::string& path) {
   std::error_code ec;
   fs::remove(path, ec);
   if (ec) ioError("cannot remove the old record '" + path + "': " + ec.message());
+}
+
+// The input an output is made from, as its stamp records it: size and
+// modification time (as make and rsync tell a changed file), so a resume
+// makes again an output whose input was rendered again since.
+nlohmann::json inputIdentity(const std::string& path) {
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  const auto modified = fs::last_write_time(path, ec);
+  if (ec) ioError("cannot read the size and time of '" + path + "': " + ec.message());
+  return {{"size", size}, {"modified_ns", std::int64_t(modified.time_since_epoch().count())}};
 }
 
 // Whether motion should be rebuilt for this run: the method reads "motion",
@@ -165,28 +177,39 @@ int runFilter(const ParsedArgs& args) {
   }
   makeDirectories(outDir);
 
-  // A resume keeps the outputs it finds that this method made with these parameters: each output
-  // has a stamp of them (OUT/.crisp/<name>.json, written after it), and one made otherwise (or by a
-  // build before the stamps) counts as missing.
+  // A resume keeps the outputs it finds that this method made with these parameters from these
+  // inputs: each output has a stamp of them (OUT/.crisp/<name>.json, written after it), and one made
+  // otherwise (or by a build before the stamps) counts as missing.
   nlohmann::json settings = {{"method", args.get("method")}, {"params", nlohmann::json::object()}};
   for (const std::string& kv : args.all("set")) {
     const std::size_t eq = kv.find('=');
     settings["params"][kv.substr(0, eq)] = kv.substr(eq + 1);
   }
-  const std::string stampText = settings.dump() + "\n";
+  auto stampTextOf = [&](const std::string& input) {
+    nlohmann::json stamp = settings;
+    stamp["input"] = inputIdentity(input);
+    return stamp.dump() + "\n";
+  };
   const std::string stampDir = joinPath(outDir, ".crisp");
   auto stampOf = [&](const std::string& stem) { return joinPath(stampDir, stem + ".json"); };
 
   auto isComplete = [&](int position) {
-    const std::string stem = fileStem(args.positional[std::size_t(position - 1)]);
-    const std::string base = joinPath(outDir, stem);
+    const std::string& input = args.positional[std::size_t(position - 1)];
+    const std::string base = joinPath(outDir, fileStem(input));
     std::error_code ec;
     if (!fs::is_regular_file(base + ".exr", ec) || (png && !fs::is_regular_file(base + ".png", ec))) return false;
-    std::ifstream in(stampOf(stem));
+    std::ifstream in(stampOf(fileStem(input)));
     const std::string have((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (have == stampText) return true;
-    std::fprintf(stderr, "filter: '%s' was made with other settings (%s); making it again\n", base.c_str(),
-                 have.empty() ? "no record" : have.substr(0, have.size() - 1).c_str());
+    const std::string want = stampTextOf(input);
+    if (have == want) return true;
+    const nlohmann::json had = nlohmann::json::parse(have, nullptr, false);
+    if (had.is_object() && had.value("method", nlohmann::json()) == settings["method"] &&
+        had.value("params", nlohmann::json()) == settings["params"])
+      std::fprintf(stderr, "filter: '%s' was made from another version of '%s' (changed since); making it again\n",
+                   base.c_str(), input.c_str());
+    else
+      std::fprintf(stderr, "filter: '%s' was made with other settings (%s); making it again\n", base.c_str(),
+                   have.empty() ? "no record" : have.substr(0, have.size() - 1).c_str());
     return false;
   };
   const ChunkRun run = planChunk(chunk, preroll, 1, args.has("resume"), isComplete);
@@ -202,6 +225,12 @@ int runFilter(const ParsedArgs& args) {
     if (fs::exists(stampDir, ec) && !fs::is_directory(stampDir, ec))
       ioError("cannot keep stamps in '" + stampDir + "': it is a file, not a folder");
   }
+  // This run writes every output from run.first to the chunk's end: their old stamps go before
+  // any output is replaced. A run stopped between an output and its new stamp leaves no stamp
+  // under the new pixels, and one that fails part-way leaves the outputs after the failure
+  // unstamped (an earlier run's, made after other frames than this run's): a resume starts there.
+  for (int position = run.first; position <= run.last; ++position)
+    removeRecord(stampOf(fileStem(args.positional[std::size_t(position - 1)])));
   const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
   Image output;
   Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, quiet);
@@ -264,9 +293,6 @@ int runFilter(const ParsedArgs& args) {
     const std::string base = joinPath(outDir, fileStem(in));
     const std::string pngRecord = joinPath(stampDir, fileStem(in) + ".png.stamp");
     makeDirectories(stampDir);
-    // The old record goes first: a run stopped between the outputs and the new record must not
-    // leave new pixels under the old settings, which --resume would keep.
-    removeRecord(stampOf(fileStem(in)));
     writeImage(base + ".exr", output);
     if (png) {
       writeImage(base + ".png", output);
@@ -274,7 +300,7 @@ int runFilter(const ParsedArgs& args) {
     } else {
       stalePngs.check(base + ".png", pngRecord);
     }
-    writeTextFile(stampOf(fileStem(in)), stampText);
+    writeTextFile(stampOf(fileStem(in)), stampTextOf(in));
     progress.step(fileStem(in));
   }
   stalePngs.report(quiet);

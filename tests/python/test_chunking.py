@@ -8,7 +8,8 @@ read; its filtered/ is the sequential taa-improved result of the add-on's filter
     spatial method needs no pre-roll at all); a shorter pre-roll is not bit-exact (the history is
     younger; docs/farm.md has the measured table) but closer to sequential than none;
   * `--resume` starts at the first missing output, leaves complete outputs untouched and, with its
-    pre-roll taken before that frame, writes what an uninterrupted run writes;
+    pre-roll taken before that frame, writes what an uninterrupted run writes; after a failed run it
+    starts at the failure, and it makes again the outputs of an input changed since (and later ones);
   * `crisp render --frames A-B --preroll N --shot S-E`: chunks rendered out of order, two of them at
     the same time, into one output folder equal the sequential render; pre-roll frames never reach
     input/ or filtered/; a resumed chunk reads its pre-roll from input/ instead of rendering it again.
@@ -149,6 +150,47 @@ def test_filter_resume_at_first_missing_output(shot, lib, tmp_path):
     fxaa = tmp_path / "fxaa"
     crisp("filter", "--method", "fxaa", "--quiet", "-o", fxaa, *inputs)
     assert max_diff(lib, fxaa, out, range(1, 9)) == 0.0
+
+
+def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_path):
+    """Each output's stamp names its input (size, modification time), and a run drops the stamps of
+    every output it is about to write before it writes any. So a run that fails part-way leaves the
+    outputs after the failure (an earlier run's) unstamped, and a resume starts at the failure; an
+    input rendered again since makes its output and every later one again."""
+    source, _ = shot
+    folder = tmp_path / "input"
+    shutil.copytree(source / "input", folder)  # copy2: sizes and times kept
+    inputs = [str(folder / frame(f)) for f in range(SHOT[0], SHOT[1] + 1)]
+    seq, out = tmp_path / "seq", tmp_path / "out"
+    crisp("filter", "--method", "taa", "--quiet", "-o", seq, *inputs)
+    crisp("filter", "--method", "taa", "--quiet", "-o", out, *inputs)  # the earlier run
+    # Frame 5 is broken: the run fails there. Outputs 5-8 stay (never lost) but lose their stamps.
+    whole = tmp_path / "frame_0005.exr"
+    shutil.copy2(folder / frame(5), whole)
+    with open(folder / frame(5), "r+b") as f:
+        f.truncate(os.path.getsize(whole) // 2)
+    p = crisp("filter", "--method", "taa", "--quiet", "-o", out, *inputs, ok=False)
+    assert p.returncode != 0 and frame(5) in p.stderr, p.stderr
+    assert all((out / frame(f)).is_file() for f in range(1, 9))
+    stamps = sorted(os.listdir(out / ".crisp"))
+    assert stamps == [frame(f, ".json") for f in range(1, 5)], stamps
+    # Frame 5 mended (its old size and time back): the resume starts at 5, not "nothing to do".
+    shutil.copy2(whole, folder / frame(5))
+    kept = {f: os.stat(out / frame(f)).st_mtime_ns for f in range(1, 9)}
+    p = crisp("filter", "--method", "taa", "--resume", "--preroll", "8", "-o", out, *inputs)
+    assert "nothing to do" not in p.stdout and "5/8 frame_0005 (pre-roll)" not in p.stderr, p.stderr
+    assert "4/8 frame_0004 (pre-roll)" in p.stderr, p.stderr
+    now = {f: os.stat(out / frame(f)).st_mtime_ns for f in range(1, 9)}
+    assert [f for f in range(1, 9) if now[f] != kept[f]] == [5, 6, 7, 8]
+    assert max_diff(lib, seq, out, range(1, 9)) == 0.0
+    # Frame 3 rendered again (here: a new modification time): 3-8 are made again, 1-2 kept.
+    os.utime(folder / frame(3), ns=(now[3], now[3] + 10**9))
+    p = crisp("filter", "--method", "taa", "--resume", "--preroll", "8", "-o", out, *inputs)
+    assert "frame_0003' was made from another version of" in p.stderr, p.stderr
+    after = {f: os.stat(out / frame(f)).st_mtime_ns for f in range(1, 9)}
+    assert [f for f in range(1, 9) if after[f] != now[f]] == [3, 4, 5, 6, 7, 8]
+    p = crisp("filter", "--method", "taa", "--resume", "-o", out, *inputs)
+    assert "nothing to do" in p.stdout, p.stderr
 
 
 def test_filter_chunk_errors(shot, tmp_path):
