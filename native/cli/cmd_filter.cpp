@@ -43,15 +43,11 @@ void removeRecord(const std::string& path) {
   if (ec) ioError("cannot remove the old record '" + path + "': " + ec.message());
 }
 
-// The input an output is made from, as its stamp records it: size and
-// modification time (as make and rsync tell a changed file), so a resume
-// makes again an output whose input was rendered again since.
-nlohmann::json inputIdentity(const std::string& path) {
-  std::error_code ec;
-  const auto size = fs::file_size(path, ec);
-  const auto modified = fs::last_write_time(path, ec);
-  if (ec) ioError("cannot read the size and time of '" + path + "': " + ec.message());
-  return {{"size", size}, {"modified_ns", std::int64_t(modified.time_since_epoch().count())}};
+// What an output is made from, as its stamp records it: its input file and
+// the input's sidecar (jitter, camera, shot position), each as size and
+// modification time (files.cpp sizeAndTime; "" for a missing sidecar).
+std::string inputIdentity(const std::string& input) {
+  return sizeAndTime(input) + " | " + sizeAndTime(sidecarPathFor(input));
 }
 
 // Whether motion should be rebuilt for this run: the method reads "motion",
@@ -178,16 +174,36 @@ int runFilter(const ParsedArgs& args) {
   makeDirectories(outDir);
 
   // A resume keeps the outputs it finds that this method made with these parameters from these
-  // inputs: each output has a stamp of them (OUT/.crisp/<name>.json, written after it), and one made
-  // otherwise (or by a build before the stamps) counts as missing.
+  // inputs. Each output has a stamp (OUT/.crisp/<name>.json, written after it) of the method, its
+  // --set parameters, its input ("input": inputIdentity) and, for a filter that keeps history,
+  // the inputs its history went through ("history": a digest of the identities of the inputs from
+  // the chunk's first pre-roll frame to its own). An output made otherwise, or by a build before
+  // these stamps, counts as missing; so does every output of a temporal filter after a changed
+  // input, whether that input is in the chunk or in its pre-roll.
   nlohmann::json settings = {{"method", args.get("method")}, {"params", nlohmann::json::object()}};
   for (const std::string& kv : args.all("set")) {
     const std::size_t eq = kv.find('=');
     settings["params"][kv.substr(0, eq)] = kv.substr(eq + 1);
   }
-  auto stampTextOf = [&](const std::string& input) {
+  const bool temporal = keepsHistory(*filter);
+  const int historyFirst = std::max(1, chunk.first - preroll);  // where the chunk's history starts
+  std::vector<std::string> identity;  // by position - 1; a frame read by this run gets what the read saw
+  for (const std::string& in : args.positional) identity.push_back(inputIdentity(in));
+  auto foldIdentity = [&](int position, std::uint64_t& digest) {
+    fnv1a64OfText(identity[std::size_t(position - 1)] + "\n", digest);
+  };
+  std::vector<std::string> plannedHistory(std::size_t(count) + 1);  // by position, as the files are now
+  {
+    std::uint64_t digest = kFnv1a64Seed;
+    for (int position = historyFirst; position <= count; ++position) {
+      foldIdentity(position, digest);
+      plannedHistory[std::size_t(position)] = "fnv1a64:" + hex64(digest);
+    }
+  }
+  auto stampTextOf = [&](int position, const std::string& history) {
     nlohmann::json stamp = settings;
-    stamp["input"] = inputIdentity(input);
+    stamp["input"] = identity[std::size_t(position - 1)];
+    if (temporal) stamp["history"] = history;
     return stamp.dump() + "\n";
   };
   const std::string stampDir = joinPath(outDir, ".crisp");
@@ -200,16 +216,22 @@ int runFilter(const ParsedArgs& args) {
     if (!fs::is_regular_file(base + ".exr", ec) || (png && !fs::is_regular_file(base + ".png", ec))) return false;
     std::ifstream in(stampOf(fileStem(input)));
     const std::string have((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    const std::string want = stampTextOf(input);
-    if (have == want) return true;
+    if (have == stampTextOf(position, plannedHistory[std::size_t(position)])) return true;
     const nlohmann::json had = nlohmann::json::parse(have, nullptr, false);
-    if (had.is_object() && had.value("method", nlohmann::json()) == settings["method"] &&
-        had.value("params", nlohmann::json()) == settings["params"])
-      std::fprintf(stderr, "filter: '%s' was made from another version of '%s' (changed since); making it again\n",
-                   base.c_str(), input.c_str());
+    std::string why;
+    if (have.empty())
+      why = "has no stamp (a run stopped before stamping it, or another program wrote it)";
+    else if (!had.is_object() || had.value("method", nlohmann::json()) != settings["method"] ||
+             had.value("params", nlohmann::json()) != settings["params"])
+      why = "was made with other settings (" + have.substr(0, have.size() - 1) + ")";
+    else if (!had.contains("input"))
+      why = "has a stamp from an older crisp, which did not record its input";
+    else if (had["input"] != identity[std::size_t(position - 1)])
+      why = "was made from another version of '" + input + "' or its sidecar (changed since)";
     else
-      std::fprintf(stderr, "filter: '%s' was made with other settings (%s); making it again\n", base.c_str(),
-                   have.empty() ? "no record" : have.substr(0, have.size() - 1).c_str());
+      why = "was made after other frames before it than these (one changed since, or another --preroll; its "
+            "history starts at '" + args.positional[std::size_t(historyFirst - 1)] + "')";
+    std::fprintf(stderr, "filter: '%s' %s; making it again\n", base.c_str(), why.c_str());
     return false;
   };
   const ChunkRun run = planChunk(chunk, preroll, 1, args.has("resume"), isComplete);
@@ -225,12 +247,10 @@ int runFilter(const ParsedArgs& args) {
     if (fs::exists(stampDir, ec) && !fs::is_directory(stampDir, ec))
       ioError("cannot keep stamps in '" + stampDir + "': it is a file, not a folder");
   }
-  // This run writes every output from run.first to the chunk's end: their old stamps go before
-  // any output is replaced. A run stopped between an output and its new stamp leaves no stamp
-  // under the new pixels, and one that fails part-way leaves the outputs after the failure
-  // unstamped (an earlier run's, made after other frames than this run's): a resume starts there.
-  for (int position = run.first; position <= run.last; ++position)
-    removeRecord(stampOf(fileStem(args.positional[std::size_t(position - 1)])));
+  // The history digest of the frames read so far (plannedHistory's, with the identities this run's
+  // reads saw): the frames before run.start, which this run does not read, as planned.
+  std::uint64_t history = kFnv1a64Seed;
+  for (int position = historyFirst; position < run.start; ++position) foldIdentity(position, history);
   const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
   Image output;
   Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, quiet);
@@ -239,6 +259,8 @@ int runFilter(const ParsedArgs& args) {
   for (std::size_t i = std::size_t(run.start - 1); i < std::size_t(run.last); ++i) {
     const std::string& in = args.positional[i];
     const bool write = int(i) + 1 >= run.first;
+    identity[i] = inputIdentity(in);  // before the read: a file replaced meanwhile is not stamped as read
+    foldIdentity(int(i) + 1, history);  // run.start >= historyFirst
     Frame frame = readFrame(in);
     warnNonFiniteColour(frame);
     // A gap in the frame numbers or a cut to another camera: the history starts over, and the
@@ -293,6 +315,9 @@ int runFilter(const ParsedArgs& args) {
     const std::string base = joinPath(outDir, fileStem(in));
     const std::string pngRecord = joinPath(stampDir, fileStem(in) + ".png.stamp");
     makeDirectories(stampDir);
+    // The old record goes first: a run stopped between the outputs and the new record must not
+    // leave new pixels under the old settings, which --resume would keep.
+    removeRecord(stampOf(fileStem(in)));
     writeImage(base + ".exr", output);
     if (png) {
       writeImage(base + ".png", output);
@@ -300,7 +325,7 @@ int runFilter(const ParsedArgs& args) {
     } else {
       stalePngs.check(base + ".png", pngRecord);
     }
-    writeTextFile(stampOf(fileStem(in)), stampTextOf(in));
+    writeTextFile(stampOf(fileStem(in)), stampTextOf(int(i) + 1, "fnv1a64:" + hex64(history)));
     progress.step(fileStem(in));
   }
   stalePngs.report(quiet);

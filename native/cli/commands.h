@@ -48,6 +48,9 @@ void bindFrame(Filter& filter, Frame& frame, ShotPosition& shot);
 // the filter keeps no history), else why not (io/sidecar.h shotBreak), and the
 // caller restarts the history. Updates last.
 std::string historyBreak(const Filter& filter, const std::string& framePath, ShotPosition& last);
+// Whether the filter keeps history between frames (the temporal filters,
+// which take a jitter): its output depends on the frames before.
+bool keepsHistory(const Filter& filter);
 
 // A file's size and modification time as "SIZE TIME", "" when it cannot be
 // read: what tells a file apart from the one a run wrote or read before.
@@ -62,6 +65,7 @@ std::string joinPath(const std::string& dir, const std::string& name);
 // kFnv1a64Seed); false if it cannot be read. hex64: 16 hex digits.
 constexpr std::uint64_t kFnv1a64Seed = 0xcbf29ce484222325ull;
 bool fnv1a64OfFile(const std::string& path, std::uint64_t& hash);
+void fnv1a64OfText(const std::string& text, std::uint64_t& hash);
 std::string hex64(std::uint64_t v);
 // The command line running addon/crisp/<script> in headless Blender on the
 // --scene of args (a .blend to open, or a bundled test scene to build); it ends

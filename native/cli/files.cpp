@@ -21,17 +21,25 @@ namespace crisp::cli {
 
 namespace fs = std::filesystem;
 
+namespace {
+void fnv1a64Bytes(const char* data, std::size_t n, std::uint64_t& hash) {
+  for (std::size_t i = 0; i < n; ++i) {
+    hash ^= static_cast<unsigned char>(data[i]);
+    hash *= 0x100000001b3ull;
+  }
+}
+}  // namespace
+
 bool fnv1a64OfFile(const std::string& path, std::uint64_t& hash) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return false;
   std::vector<char> chunk(1 << 20);
   while (in.read(chunk.data(), std::streamsize(chunk.size())) || in.gcount() > 0)
-    for (std::streamsize i = 0; i < in.gcount(); ++i) {
-      hash ^= static_cast<unsigned char>(chunk[std::size_t(i)]);
-      hash *= 0x100000001b3ull;
-    }
+    fnv1a64Bytes(chunk.data(), std::size_t(in.gcount()), hash);
   return !in.bad();
 }
+
+void fnv1a64OfText(const std::string& text, std::uint64_t& hash) { fnv1a64Bytes(text.data(), text.size(), hash); }
 
 std::string hex64(std::uint64_t v) {
   char hex[17];
@@ -91,6 +99,12 @@ bool hasParam(const Filter& f, const char* name) {
   return false;
 }
 
+}  // namespace
+
+bool keepsHistory(const Filter& filter) { return hasParam(filter, "jitterX"); }
+
+namespace {
+
 // This frame's sub-pixel jitter from its sidecar, for filters that take it
 // (the sidecar's y is up, the library's down), parsed already when shot holds
 // this frame's sidecar; without a sidecar, the jitter the filter had before
@@ -129,7 +143,7 @@ void bindJitter(Filter& filter, const Frame& frame, ShotPosition& shot) {
 }  // namespace
 
 std::string historyBreak(const Filter& filter, const std::string& framePath, ShotPosition& last) {
-  if (!hasParam(filter, "jitterX")) return "";  // the temporal filters take a jitter; nothing else keeps history
+  if (!keepsHistory(filter)) return "";
   const std::string side = sidecarPathFor(framePath);
   std::error_code ec;
   if (!fs::is_regular_file(side, ec)) {

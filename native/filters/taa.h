@@ -10,8 +10,8 @@
 // depth planes (this frame's and the previous frame's), and a 1-byte
 // history-state plane (feedback since reset, frames since reset). Scratch
 // (bytesScratch): per row band of the fast path, a ring of five staged rows
-// as planes (colour in the clip space, alpha,
-// motion x and y), five depth rows and the row's closest-depth taps; the
+// as planes (colour in the clip space, motion x and y; the output's alpha is
+// read from the input), five depth rows and the row's closest-depth taps; the
 // current frame is staged on the fly (core/row_stage.h), never as a whole
 // image. The per-pixel core is written once against temporal/lanes.h and run
 // on one pixel (the scalar reference) or eight (the fast path), so both give

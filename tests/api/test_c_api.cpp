@@ -321,8 +321,8 @@ TEST(CApi, TemporalHistoryIsKeptOrDroppedAsDocumented) {
   };
   const Change changes[] = {
       {"nothing", false, true, true, true, true, w, nullptr, false},
-      {"depth goes", false, true, true, true, false, w, nullptr, false},
-      {"depth appears", false, true, false, true, true, w, nullptr, false},
+      {"depth (and taa-improved's id) goes", false, true, true, true, false, w, nullptr, false},
+      {"depth (and taa-improved's id) appears", false, true, false, true, true, w, nullptr, false},
       {"motion goes", false, true, true, false, true, w, nullptr, false},
       {"motion appears", false, false, true, true, true, w, nullptr, false},
       {"both go", false, true, true, false, false, w, nullptr, false},
@@ -340,7 +340,11 @@ TEST(CApi, TemporalHistoryIsKeptOrDroppedAsDocumented) {
         else f.unsetImage("motion");
         if (depth) f.setImage("depth", in.depth.data(), CRISP_FORMAT_FLOAT, in.w, in.h);
         else f.unsetImage("depth");
-        if (std::string(type) == "taa-improved") f.setImage("id", in.id.data(), CRISP_FORMAT_UINT, in.w, in.h);
+        // taa-improved's id goes with the depth (and comes back with it).
+        if (std::string(type) == "taa-improved" && depth)
+          f.setImage("id", in.id.data(), CRISP_FORMAT_UINT, in.w, in.h);
+        else if (std::string(type) == "taa-improved")
+          f.unsetImage("id");
         f.setImage("output", in.output.data(), CRISP_FORMAT_FLOAT4, in.w, in.h);
         f.set("jitterX", 0.25f * float(frame % 3) - 0.25f);
         f.set("jitterY", 0.2f - 0.2f * float(frame % 2));

@@ -153,44 +153,75 @@ def test_filter_resume_at_first_missing_output(shot, lib, tmp_path):
 
 
 def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_path):
-    """Each output's stamp names its input (size, modification time), and a run drops the stamps of
-    every output it is about to write before it writes any. So a run that fails part-way leaves the
-    outputs after the failure (an earlier run's) unstamped, and a resume starts at the failure; an
-    input rendered again since makes its output and every later one again."""
+    """Each output's stamp names its input and sidecar (size, modification time) and, for a temporal
+    method, every input its history went through (from the chunk's first pre-roll frame on). So
+    after a run that failed part-way, a resume starts where the outputs no longer match the inputs;
+    an input or sidecar changed since makes its own output and every later one of a temporal
+    method again (a spatial method's only its own), also when it is in a chunk's pre-roll."""
     source, _ = shot
     folder = tmp_path / "input"
     shutil.copytree(source / "input", folder)  # copy2: sizes and times kept
     inputs = [str(folder / frame(f)) for f in range(SHOT[0], SHOT[1] + 1)]
-    seq, out = tmp_path / "seq", tmp_path / "out"
-    crisp("filter", "--method", "taa", "--quiet", "-o", seq, *inputs)
-    crisp("filter", "--method", "taa", "--quiet", "-o", out, *inputs)  # the earlier run
-    # Frame 5 is broken: the run fails there. Outputs 5-8 stay (never lost) but lose their stamps.
+    out, seq = tmp_path / "out", tmp_path / "seq"
+    crisp("filter", "--method", "taa", "--quiet", "-o", out, *inputs)  # an earlier run
+
+    def mtimes(d):
+        return {f: os.stat(d / frame(f)).st_mtime_ns for f in range(1, 9)}
+
+    def rewritten(before, d=out):
+        now = mtimes(d)
+        return [f for f in range(1, 9) if now[f] != before[f]]
+
+    # Frame 3 rendered again (here: a new modification time) and frame 5 broken: the next run makes
+    # 1-4 and fails at 5; outputs 5-8 stay (never lost), made after the old frame 3.
+    st = os.stat(folder / frame(3))
+    os.utime(folder / frame(3), ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
     whole = tmp_path / "frame_0005.exr"
     shutil.copy2(folder / frame(5), whole)
     with open(folder / frame(5), "r+b") as f:
         f.truncate(os.path.getsize(whole) // 2)
+    before = mtimes(out)
     p = crisp("filter", "--method", "taa", "--quiet", "-o", out, *inputs, ok=False)
     assert p.returncode != 0 and frame(5) in p.stderr, p.stderr
-    assert all((out / frame(f)).is_file() for f in range(1, 9))
-    stamps = sorted(os.listdir(out / ".crisp"))
-    assert stamps == [frame(f, ".json") for f in range(1, 5)], stamps
+    assert rewritten(before) == [1, 2, 3, 4]
     # Frame 5 mended (its old size and time back): the resume starts at 5, not "nothing to do".
     shutil.copy2(whole, folder / frame(5))
-    kept = {f: os.stat(out / frame(f)).st_mtime_ns for f in range(1, 9)}
+    before = mtimes(out)
     p = crisp("filter", "--method", "taa", "--resume", "--preroll", "8", "-o", out, *inputs)
-    assert "nothing to do" not in p.stdout and "5/8 frame_0005 (pre-roll)" not in p.stderr, p.stderr
-    assert "4/8 frame_0004 (pre-roll)" in p.stderr, p.stderr
-    now = {f: os.stat(out / frame(f)).st_mtime_ns for f in range(1, 9)}
-    assert [f for f in range(1, 9) if now[f] != kept[f]] == [5, 6, 7, 8]
+    assert "frame_0005' was made after other frames before it" in p.stderr, p.stderr
+    assert rewritten(before) == [5, 6, 7, 8]
+    crisp("filter", "--method", "taa", "--quiet", "-o", seq, *inputs)
     assert max_diff(lib, seq, out, range(1, 9)) == 0.0
-    # Frame 3 rendered again (here: a new modification time): 3-8 are made again, 1-2 kept.
-    os.utime(folder / frame(3), ns=(now[3], now[3] + 10**9))
+    # A sidecar changed since (frame 6's): its output and the later ones again.
+    sidecar = folder / "frame_0006.json"
+    st = os.stat(sidecar)
+    os.utime(sidecar, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    before = mtimes(out)
     p = crisp("filter", "--method", "taa", "--resume", "--preroll", "8", "-o", out, *inputs)
-    assert "frame_0003' was made from another version of" in p.stderr, p.stderr
-    after = {f: os.stat(out / frame(f)).st_mtime_ns for f in range(1, 9)}
-    assert [f for f in range(1, 9) if after[f] != now[f]] == [3, 4, 5, 6, 7, 8]
+    assert "frame_0006' was made from another version of" in p.stderr, p.stderr
+    assert rewritten(before) == [6, 7, 8]
     p = crisp("filter", "--method", "taa", "--resume", "-o", out, *inputs)
     assert "nothing to do" in p.stdout, p.stderr
+    # A farm chunk 5-8 whose pre-roll (1-4) holds a changed frame 2: remade; chunk 1-4 from 2 on.
+    chunks = tmp_path / "chunks"
+    filter_chunks(inputs, "taa", chunks, [(1, 4), (5, 8)], 4)
+    st = os.stat(folder / frame(2))
+    os.utime(folder / frame(2), ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    before = mtimes(chunks)
+    p = crisp("filter", "--method", "taa", "--frames", "5-8", "--preroll", "4", "--resume", "-o", chunks, *inputs)
+    assert "frame_0005' was made after other frames before it" in p.stderr, p.stderr
+    filter_chunks(inputs, "taa", chunks, [(1, 4)], 4, "--resume")
+    assert rewritten(before, chunks) == [2, 3, 4, 5, 6, 7, 8]
+    # A spatial method: a changed frame 3 leaves the outputs of 4-8 valid (a resume from 3 makes
+    # them again only because it runs to the chunk's end).
+    spatial = tmp_path / "fxaa"
+    crisp("filter", "--method", "fxaa", "--quiet", "-o", spatial, *inputs)
+    st = os.stat(folder / frame(3))
+    os.utime(folder / frame(3), ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    p = crisp("filter", "--method", "fxaa", "--frames", "4-8", "--resume", "-o", spatial, *inputs)
+    assert "nothing to do" in p.stdout, p.stderr
+    p = crisp("filter", "--method", "fxaa", "--frames", "3-8", "--resume", "-o", spatial, *inputs)
+    assert "frame_0003' was made from another version of" in p.stderr, p.stderr
 
 
 def test_filter_chunk_errors(shot, tmp_path):

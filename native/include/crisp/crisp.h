@@ -126,13 +126,14 @@ CRISP_API void crispExecuteFilter(CrispFilter filter);
 // change of lighting; the next frame is filtered as a first frame.
 CRISP_API void crispResetFilter(CrispFilter filter);
 // History of the temporal filters between executes. Kept: across re-commits
-// for a new jitter or other parameters, and when the optional "motion" or
-// "depth" image appears or goes (the frame after depth appears has no
-// previous depth, so it skips the disocclusion test). Dropped (the next frame
-// is a first frame): crispResetFilter, a new size, and for "taa" and
-// "taa-improved" a new "clipSpace" (the history is stored in it). A filter
-// is not told of a cut by its images: without crispResetFilter only the clip
-// box and the depth test keep the old shot out of the new one.
+// for a new jitter or other parameters, and when an optional image
+// ("motion", "depth"; taa-improved's "id", "albedo") appears or goes (the
+// frame after depth appears has no previous depth, so it skips the
+// disocclusion test). Dropped (the next frame is a first frame):
+// crispResetFilter, a new size, and for "taa" and "taa-improved" a new
+// "clipSpace" (the history is stored in it). A filter is not told of a cut
+// by its images: without crispResetFilter only the clip box and the depth
+// test keep the old shot out of the new one.
 
 // ---- frames: reading passes from files -----------------------------------
 // Reads a Blender multilayer EXR (Combined, Depth.Z, Normal, Vector, DiffCol,
