@@ -233,7 +233,6 @@ void taaResolvePass() {
     current = taps[4] * uw[4];
     for (int i = 0; i < 9; ++i)
       if (i != 4) current = current + taps[i] * uw[i];
-    current.rgb = clamp(current.rgb, box3x3.lo.rgb, box3x3.hi.rgb);  // taa.cpp unjitteredInBox: rounding kept in the box
   }
   float alpha = sanitizeColor(texelFetch(colorImage, p, 0).a);  // taa.cpp alphaOf: the input's, passed through
 

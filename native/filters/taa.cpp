@@ -601,15 +601,6 @@ inline void momentsOf(const T t[9], T& mean, T& sigma) {
   sigma = temporal::sqrtOf(temporal::maxOf(squares * (1.0f / 9.0f) - mean * mean, temporal::lanesOf<T>(0.0f)));
 }
 
-// The unjittered mix (non-negative weights summing to 1) lies in the 3x3 box
-// of its taps; float rounding can leave it by an ulp, and a flat region's
-// mix then differs from the box [c, c] by more than the clip's epsilon, so
-// its history never holds (see "Hold"). Clamped back in. T: Vec4 or lanes.
-template <class T>
-inline T unjitteredInBox(T mix, T lo, T hi) {
-  return temporal::clampOf(mix, lo, hi);
-}
-
 // Kernel::historyState_ of one pixel.
 inline std::uint8_t historyStateOf(bool feedbackSinceReset, float framesSinceReset) {
   return std::uint8_t((feedbackSinceReset ? 1 : 0) | int(framesSinceReset) << 1);
@@ -629,11 +620,9 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
     taps[i] = stagePixel(f.color.pixel(tx, ty), cc, f.space);
     depth9[i] = f.depth.ptr ? temporal::sanitizeDepth(f.depth.pixel(tx, ty)[0]) : kBackgroundDepth;
   }
+  const Vec4 current = f.unjitter.enabled ? temporal::unjitteredMix(taps, f.unjitter.weights) : taps[4];
   temporal::MinMax4 box3x3, cross;
   temporal::columnFirstBoxes4(taps, box3x3, cross);
-  const Vec4 current = f.unjitter.enabled ? unjitteredInBox(temporal::unjitteredMix(taps, f.unjitter.weights),
-                                                            box3x3.min, box3x3.max)
-                                          : taps[4];
   const int tap = (f.depth.ptr && f.motion.ptr) ? temporal::closestDepthTap(depth9) : 4;
   if (depthNow) depthNow[std::size_t(y) * w + x] = depth9[4];
   // Step 3: velocity of the followed tap (clamped to the image, as the taps are).
@@ -893,6 +882,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
       for (int c = 0; c < 3; ++c) {
         T t[9];
         for (int k = 0; k < 9; ++k) t[k] = load(rows[k / 3][c] + i + k % 3 - 1);
+        in.current[c] = f.unjitter.enabled ? temporal::unjitteredMix(t, mixWeights) : t[4];
         // Column-first boxes (neighbourhood.h columnFirstBoxes4).
         const T minL = minOf(minOf(t[0], t[3]), t[6]), minC = minOf(minOf(t[1], t[4]), t[7]),
                    minR = minOf(minOf(t[2], t[5]), t[8]);
@@ -900,9 +890,6 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
                    maxR = maxOf(maxOf(t[2], t[5]), t[8]);
         in.boxMin[c] = minOf(minOf(minL, minC), minR);
         in.boxMax[c] = maxOf(maxOf(maxL, maxC), maxR);
-        in.current[c] = f.unjitter.enabled
-                            ? unjitteredInBox(temporal::unjitteredMix(t, mixWeights), in.boxMin[c], in.boxMax[c])
-                            : t[4];
         in.crossMin[c] = minOf(minOf(t[3], minC), t[5]);
         in.crossMax[c] = maxOf(maxOf(t[3], maxC), t[5]);
         if (f.varianceClip > 0.0f) momentsOf(t, in.mean[c], in.sigma[c]);
