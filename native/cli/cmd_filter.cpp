@@ -175,12 +175,16 @@ int runFilter(const ParsedArgs& args) {
 
   // A resume keeps the outputs it finds that this method made with these parameters from these
   // inputs. Each output has a stamp (OUT/.crisp/<name>.json, written after it) of the method, its
-  // --set parameters, its input ("input": inputIdentity) and, for a filter that keeps history,
-  // the inputs its history went through ("history": a digest of the identities of the inputs from
-  // the chunk's first pre-roll frame to its own). An output made otherwise, or by a build before
-  // these stamps, counts as missing; so does every output of a temporal filter after a changed
-  // input, whether that input is in the chunk or in its pre-roll.
-  nlohmann::json settings = {{"method", args.get("method")}, {"params", nlohmann::json::object()}};
+  // --set parameters, whether motion was rebuilt from the sidecars (a decision over the whole
+  // sequence), its input ("input": inputIdentity), the output EXR as written ("output"), and, for
+  // a filter that keeps history, the inputs its history went through ("history": a digest of the
+  // identities of the inputs from the chunk's first pre-roll frame to its own). An output made
+  // otherwise, or by a build before these stamps, counts as missing; so does every output of a
+  // temporal filter after a changed input, whether that input is in the chunk or in its pre-roll.
+  const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
+  nlohmann::json settings = {{"method", args.get("method")},
+                             {"params", nlohmann::json::object()},
+                             {"motion_from_sidecars", rebuildMotion}};
   for (const std::string& kv : args.all("set")) {
     const std::size_t eq = kv.find('=');
     settings["params"][kv.substr(0, eq)] = kv.substr(eq + 1);
@@ -200,46 +204,65 @@ int runFilter(const ParsedArgs& args) {
       plannedHistory[std::size_t(position)] = "fnv1a64:" + hex64(digest);
     }
   }
-  auto stampTextOf = [&](int position, const std::string& history) {
+  auto stampOf = [&](int position, const std::string& history, const std::string& output) {
     nlohmann::json stamp = settings;
     stamp["input"] = identity[std::size_t(position - 1)];
+    stamp["output"] = output;
     if (temporal) stamp["history"] = history;
-    return stamp.dump() + "\n";
+    return stamp;
   };
   const std::string stampDir = joinPath(outDir, ".crisp");
-  auto stampOf = [&](const std::string& stem) { return joinPath(stampDir, stem + ".json"); };
+  auto stampPathOf = [&](const std::string& stem) { return joinPath(stampDir, stem + ".json"); };
+  auto pngRecordOf = [&](const std::string& stem) { return joinPath(stampDir, stem + ".png.stamp"); };
+  auto readText = [](const std::string& path) {
+    std::ifstream in(path);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
 
-  auto isComplete = [&](int position) {
+  // Why position's outputs must be made again ("" when they are complete and match).
+  auto whyRemake = [&](int position) -> std::string {
     const std::string& input = args.positional[std::size_t(position - 1)];
-    const std::string base = joinPath(outDir, fileStem(input));
+    const std::string stem = fileStem(input), base = joinPath(outDir, stem);
     std::error_code ec;
-    if (!fs::is_regular_file(base + ".exr", ec) || (png && !fs::is_regular_file(base + ".png", ec))) return false;
-    std::ifstream in(stampOf(fileStem(input)));
-    const std::string have((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (have == stampTextOf(position, plannedHistory[std::size_t(position)])) return true;
+    if (!fs::is_regular_file(base + ".exr", ec)) return "is missing";
+    if (png && !fs::is_regular_file(base + ".png", ec)) return "has no PNG";
+    if (png && readText(pngRecordOf(stem)) != pngStampOf(base + ".png"))
+      return "has a PNG this command did not write (or one changed since)";
+    const std::string have = readText(stampPathOf(stem));
+    const nlohmann::json want = stampOf(position, plannedHistory[std::size_t(position)], sizeAndTime(base + ".exr"));
+    if (have == want.dump() + "\n") return "";
     const nlohmann::json had = nlohmann::json::parse(have, nullptr, false);
-    std::string why;
-    if (have.empty())
-      why = "has no stamp (a run stopped before stamping it, or another program wrote it)";
-    else if (!had.is_object() || had.value("method", nlohmann::json()) != settings["method"] ||
-             had.value("params", nlohmann::json()) != settings["params"])
-      why = "was made with other settings (" + have.substr(0, have.size() - 1) + ")";
-    else if (!had.contains("input"))
-      why = "has a stamp from an older crisp, which did not record its input";
-    else if (had["input"] != identity[std::size_t(position - 1)])
-      why = "was made from another version of '" + input + "' or its sidecar (changed since)";
-    else
-      why = "was made after other frames before it than these (one changed since, or another --preroll; its "
-            "history starts at '" + args.positional[std::size_t(historyFirst - 1)] + "')";
-    std::fprintf(stderr, "filter: '%s' %s; making it again\n", base.c_str(), why.c_str());
+    if (have.empty()) return "has no stamp (a run stopped before stamping it, or another program wrote it)";
+    if (!had.is_object() || had.value("method", nlohmann::json()) != settings["method"] ||
+        had.value("params", nlohmann::json()) != settings["params"])
+      return "was made with other settings (" + have.substr(0, have.size() - 1) + ")";
+    if (!had.contains("input") || !had["input"].is_string() || !had.contains("output"))
+      return "has a stamp from an older crisp, which did not record all it was made from";
+    if (had.value("motion_from_sidecars", nlohmann::json()) != settings["motion_from_sidecars"])
+      return rebuildMotion ? "was made before the motion was rebuilt from the sidecars (every input has one now)"
+                           : "was made with motion rebuilt from the sidecars (not every input has one now, or the "
+                             "sequence is still)";
+    if (had["input"] != want["input"]) return "was made from another version of '" + input + "' or its sidecar";
+    if (had["output"] != want["output"]) return "was replaced since this command wrote it";
+    return "was made after other inputs before it than these (one changed since, another input list, or another "
+           "--preroll; its history starts at '" + args.positional[std::size_t(historyFirst - 1)] + "')";
+  };
+  auto isComplete = [&](int position) {
+    const std::string why = whyRemake(position);
+    if (why.empty()) return true;
+    std::fprintf(stderr, "filter: '%s' %s; making it again\n",
+                 joinPath(outDir, fileStem(args.positional[std::size_t(position - 1)])).c_str(), why.c_str());
     return false;
   };
-  const ChunkRun run = planChunk(chunk, preroll, 1, args.has("resume"), isComplete);
+  ChunkRun run = planChunk(chunk, preroll, 1, args.has("resume"), isComplete);
   if (run.nothingToDo()) {
     if (!quiet)
       std::printf("filter: every output of frames %d-%d exists; nothing to do\n", chunk.first, chunk.last);
     return 0;
   }
+  // A temporal filter reads from where the chunk's history starts, also when it resumes later in
+  // the chunk, so what it writes is what an uninterrupted run writes (and what the stamps say).
+  if (temporal) run.start = std::min(run.start, historyFirst);
 
   StalePngs stalePngs;
   {  // a file in the stamps' way fails the run before the first output, not after it
@@ -247,11 +270,9 @@ int runFilter(const ParsedArgs& args) {
     if (fs::exists(stampDir, ec) && !fs::is_directory(stampDir, ec))
       ioError("cannot keep stamps in '" + stampDir + "': it is a file, not a folder");
   }
-  // The history digest of the frames read so far (plannedHistory's, with the identities this run's
-  // reads saw): the frames before run.start, which this run does not read, as planned.
+  // The history digest of the frames read so far: plannedHistory's, with the identities this run's
+  // reads saw (a temporal filter reads from historyFirst; a spatial one's stamps have none).
   std::uint64_t history = kFnv1a64Seed;
-  for (int position = historyFirst; position < run.start; ++position) foldIdentity(position, history);
-  const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
   Image output;
   Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, quiet);
   ShotPosition shot;
@@ -260,7 +281,7 @@ int runFilter(const ParsedArgs& args) {
     const std::string& in = args.positional[i];
     const bool write = int(i) + 1 >= run.first;
     identity[i] = inputIdentity(in);  // before the read: a file replaced meanwhile is not stamped as read
-    foldIdentity(int(i) + 1, history);  // run.start >= historyFirst
+    foldIdentity(int(i) + 1, history);
     Frame frame = readFrame(in);
     warnNonFiniteColour(frame);
     // A gap in the frame numbers or a cut to another camera: the history starts over, and the
@@ -313,11 +334,11 @@ int runFilter(const ParsedArgs& args) {
       continue;
     }
     const std::string base = joinPath(outDir, fileStem(in));
-    const std::string pngRecord = joinPath(stampDir, fileStem(in) + ".png.stamp");
+    const std::string pngRecord = pngRecordOf(fileStem(in));
     makeDirectories(stampDir);
     // The old record goes first: a run stopped between the outputs and the new record must not
     // leave new pixels under the old settings, which --resume would keep.
-    removeRecord(stampOf(fileStem(in)));
+    removeRecord(stampPathOf(fileStem(in)));
     writeImage(base + ".exr", output);
     if (png) {
       writeImage(base + ".png", output);
@@ -325,7 +346,8 @@ int runFilter(const ParsedArgs& args) {
     } else {
       stalePngs.check(base + ".png", pngRecord);
     }
-    writeTextFile(stampOf(fileStem(in)), stampTextOf(int(i) + 1, "fnv1a64:" + hex64(history)));
+    writeTextFile(stampPathOf(fileStem(in)),
+                  stampOf(int(i) + 1, "fnv1a64:" + hex64(history), sizeAndTime(base + ".exr")).dump() + "\n");
     progress.step(fileStem(in));
   }
   stalePngs.report(quiet);

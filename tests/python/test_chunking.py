@@ -184,11 +184,13 @@ def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_pat
     p = crisp("filter", "--method", "taa", "--quiet", "-o", out, *inputs, ok=False)
     assert p.returncode != 0 and frame(5) in p.stderr, p.stderr
     assert rewritten(before) == [1, 2, 3, 4]
-    # Frame 5 mended (its old size and time back): the resume starts at 5, not "nothing to do".
+    # Frame 5 mended (its old size and time back): the resume starts at 5, not "nothing to do", and
+    # (no --preroll needed) re-reads from frame 1, so it writes what one run writes.
     shutil.copy2(whole, folder / frame(5))
     before = mtimes(out)
-    p = crisp("filter", "--method", "taa", "--resume", "--preroll", "8", "-o", out, *inputs)
-    assert "frame_0005' was made after other frames before it" in p.stderr, p.stderr
+    p = crisp("filter", "--method", "taa", "--resume", "-o", out, *inputs)
+    assert "1/8 frame_0001 (pre-roll)" in p.stderr, p.stderr
+    assert "frame_0005' was made after other inputs before it" in p.stderr, p.stderr
     assert rewritten(before) == [5, 6, 7, 8]
     crisp("filter", "--method", "taa", "--quiet", "-o", seq, *inputs)
     assert max_diff(lib, seq, out, range(1, 9)) == 0.0
@@ -209,7 +211,7 @@ def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_pat
     os.utime(folder / frame(2), ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
     before = mtimes(chunks)
     p = crisp("filter", "--method", "taa", "--frames", "5-8", "--preroll", "4", "--resume", "-o", chunks, *inputs)
-    assert "frame_0005' was made after other frames before it" in p.stderr, p.stderr
+    assert "frame_0005' was made after other inputs before it" in p.stderr, p.stderr
     filter_chunks(inputs, "taa", chunks, [(1, 4)], 4, "--resume")
     assert rewritten(before, chunks) == [2, 3, 4, 5, 6, 7, 8]
     # A spatial method: a changed frame 3 leaves the outputs of 4-8 valid (a resume from 3 makes
@@ -222,6 +224,23 @@ def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_pat
     assert "nothing to do" in p.stdout, p.stderr
     p = crisp("filter", "--method", "fxaa", "--frames", "3-8", "--resume", "-o", spatial, *inputs)
     assert "frame_0003' was made from another version of" in p.stderr, p.stderr
+    # An output EXR replaced by another program, or a PNG this command did not write: made again.
+    shutil.copy2(folder / frame(4), spatial / frame(4))
+    p = crisp("filter", "--method", "fxaa", "--resume", "-o", spatial, *inputs)
+    assert "frame_0004' was replaced since this command wrote it" in p.stderr, p.stderr
+    crisp("filter", "--method", "taa", "--png", "--quiet", "-o", spatial, *inputs)
+    for f in range(1, 9):  # touched since (say the folder was copied): no longer known as taa's own
+        st = os.stat(spatial / frame(f, ".png"))
+        os.utime(spatial / frame(f, ".png"), ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    p = crisp("filter", "--method", "fxaa", "--quiet", "-o", spatial, *inputs)
+    assert "kept '%s'" % (spatial / frame(1, ".png")) in p.stderr, p.stderr  # taa's PNGs, kept and named
+    p = crisp("filter", "--method", "fxaa", "--png", "--resume", "-o", spatial, *inputs)
+    assert "frame_0001' has a PNG this command did not write" in p.stderr, p.stderr
+    # A sidecar gone: the motion of every frame is no longer rebuilt from the sidecars, so every
+    # output of a method that reads motion is made again.
+    os.remove(folder / "frame_0008.json")
+    p = crisp("filter", "--method", "taa", "--resume", "-o", out, *inputs)
+    assert "frame_0001' was made with motion rebuilt from the sidecars" in p.stderr, p.stderr
 
 
 def test_filter_chunk_errors(shot, tmp_path):
