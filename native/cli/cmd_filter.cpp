@@ -175,8 +175,8 @@ int runFilter(const ParsedArgs& args) {
 
   // A resume keeps the outputs it finds that this method made with these parameters from these
   // inputs. Each output has a stamp (OUT/.crisp/<name>.json, written after it) of the method, its
-  // --set parameters, whether motion was rebuilt from the sidecars (a decision over the whole
-  // sequence), its input ("input": inputIdentity), the output EXR as written ("output"), and, for
+  // --set parameters, the build (files.cpp buildStamp), whether motion was rebuilt from the
+  // sidecars (a decision over the whole sequence), its input ("input": inputIdentity), the output EXR as written ("output"), and, for
   // a filter that keeps history, the inputs its history went through ("history": a digest of the
   // identities of the inputs from the chunk's first pre-roll frame to its own). An output made
   // otherwise, or by a build before these stamps, counts as missing; so does every output of a
@@ -184,7 +184,8 @@ int runFilter(const ParsedArgs& args) {
   const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
   nlohmann::json settings = {{"method", args.get("method")},
                              {"params", nlohmann::json::object()},
-                             {"motion_from_sidecars", rebuildMotion}};
+                             {"motion_from_sidecars", rebuildMotion},
+                             {"build", buildStamp()}};
   for (const std::string& kv : args.all("set")) {
     const std::size_t eq = kv.find('=');
     settings["params"][kv.substr(0, eq)] = kv.substr(eq + 1);
@@ -236,8 +237,10 @@ int runFilter(const ParsedArgs& args) {
     if (!had.is_object() || had.value("method", nlohmann::json()) != settings["method"] ||
         had.value("params", nlohmann::json()) != settings["params"])
       return "was made with other settings (" + have.substr(0, have.size() - 1) + ")";
-    if (!had.contains("input") || !had["input"].is_string() || !had.contains("output"))
+    if (!had.contains("input") || !had["input"].is_string() || !had.contains("output") || !had.contains("build"))
       return "has a stamp from an older crisp, which did not record all it was made from";
+    if (had["build"] != settings["build"])
+      return "was made by another build of crisp (" + had["build"].get<std::string>() + ")";
     if (had.value("motion_from_sidecars", nlohmann::json()) != settings["motion_from_sidecars"])
       return rebuildMotion ? "was made before the motion was rebuilt from the sidecars (every input has one now)"
                            : "was made with motion rebuilt from the sidecars (not every input has one now, or the "

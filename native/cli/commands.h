@@ -66,6 +66,12 @@ std::string joinPath(const std::string& dir, const std::string& name);
 constexpr std::uint64_t kFnv1a64Seed = 0xcbf29ce484222325ull;
 bool fnv1a64OfFile(const std::string& path, std::uint64_t& hash);
 void fnv1a64OfText(const std::string& text, std::uint64_t& hash);
+// The build that runs: the library version and a hash (FNV-1a, 64 bits) of
+// the running executable, which holds libcrisp (the CLI links it
+// statically). Outputs stamped by another build are made again (crisp eval's
+// method folders, crisp filter's outputs), so a result never comes from
+// frames an older filter left behind.
+const std::string& buildStamp();
 std::string hex64(std::uint64_t v);
 // The command line running addon/crisp/<script> in headless Blender on the
 // --scene of args (a .blend to open, or a bundled test scene to build); it ends

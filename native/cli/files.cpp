@@ -13,6 +13,7 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "crisp/crisp.h"
 #include "io/sidecar.h"
 #include "io/temporary_file.h"
 #include "io/subsamples.h"
@@ -40,6 +41,17 @@ bool fnv1a64OfFile(const std::string& path, std::uint64_t& hash) {
 }
 
 void fnv1a64OfText(const std::string& text, std::uint64_t& hash) { fnv1a64Bytes(text.data(), text.size(), hash); }
+
+const std::string& buildStamp() {
+  static const std::string stamp = [] {
+    std::string s = "crisp " + std::to_string(CRISP_VERSION_MAJOR) + "." + std::to_string(CRISP_VERSION_MINOR) + "." +
+                    std::to_string(CRISP_VERSION_PATCH);
+    std::uint64_t hash = kFnv1a64Seed;
+    if (!fnv1a64OfFile("/proc/self/exe", hash)) return s + " (executable unreadable)";
+    return s + " executable fnv1a64:" + hex64(hash);
+  }();
+  return stamp;
+}
 
 std::string hex64(std::uint64_t v) {
   char hex[17];

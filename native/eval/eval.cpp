@@ -126,21 +126,6 @@ void addMotion(Frame& frame, const fs::path& inputDir, int f, int firstFrame, bo
   if (fs::exists(prev)) reconstructFrameMotion(frame, prev.string(), "", threads);
 }
 
-// The build that computes the methods' frames: the library version and a hash
-// (FNV-1a, 64 bits) of the running executable, which holds libcrisp (the CLI
-// links it statically). A method folder made by another build is computed
-// again, so a figure never comes from frames an older filter left behind.
-const std::string& buildStamp() {
-  static const std::string stamp = [] {
-    std::string s = "crisp " + std::to_string(CRISP_VERSION_MAJOR) + "." + std::to_string(CRISP_VERSION_MINOR) + "." +
-                    std::to_string(CRISP_VERSION_PATCH);
-    std::uint64_t hash = cli::kFnv1a64Seed;
-    if (!cli::fnv1a64OfFile("/proc/self/exe", hash)) return s + " (executable unreadable)";
-    return s + " executable fnv1a64:" + cli::hex64(hash);
-  }();
-  return stamp;
-}
-
 // The temporal error's warp W and disocclusion test (METHODS.md "Metrics") describe the pixel
 // centres of the images compared (the outputs and the reference): they come from renders/warp, the
 // unjittered 1-sample frames with depth, motion and IDs (plan.py TEMPORAL_ERROR). A jittered frame's
@@ -244,7 +229,7 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   const fs::path stampFile = dir / "build.txt";
   std::string stamp;
   if (std::ifstream in(stampFile); in) std::getline(in, stamp);
-  if (stamp != buildStamp()) {
+  if (stamp != cli::buildStamp()) {
     // Frames of another build (or of a folder from before the stamp): none counts as done. The
     // emptied times go first, so an interrupted run never pairs old frames with the new stamp.
     if (!times.empty() && !o.quiet)
@@ -252,7 +237,7 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
                    e.name.c_str());
     times = json::object();
     writeJson(dir / "times.json", times);
-    cli::writeTextFile(stampFile.string(), buildStamp() + "\n");
+    cli::writeTextFile(stampFile.string(), cli::buildStamp() + "\n");
   }
   std::map<int, std::string> inputNow;
   for (int f : frames) inputNow[f] = inputStamp(inputDir / frameName(f));

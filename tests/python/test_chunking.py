@@ -224,6 +224,13 @@ def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_pat
     assert "nothing to do" in p.stdout, p.stderr
     p = crisp("filter", "--method", "fxaa", "--frames", "3-8", "--resume", "-o", spatial, *inputs)
     assert "frame_0003' was made from another version of" in p.stderr, p.stderr
+    # An output another build of crisp made (its stamp says which): made again.
+    stamp = spatial / ".crisp" / frame(6, ".json")
+    record = json.loads(stamp.read_text())
+    record["build"] = "crisp 0.0.1 executable fnv1a64:0000000000000000"
+    stamp.write_text(json.dumps(record) + "\n")
+    p = crisp("filter", "--method", "fxaa", "--frames", "6-8", "--resume", "-o", spatial, *inputs)
+    assert "frame_0006' was made by another build of crisp (crisp 0.0.1" in p.stderr, p.stderr
     # An output EXR replaced by another program, or a PNG this command did not write: made again.
     shutil.copy2(folder / frame(4), spatial / frame(4))
     p = crisp("filter", "--method", "fxaa", "--resume", "-o", spatial, *inputs)
