@@ -164,7 +164,8 @@
 //    output stops changing. The prediction is still
 //    tested against the box, so a change that leaves the box corrects and
 //    restarts it; one that stays inside the box is not taken in (the price,
-//    as in taa). One byte per pixel counts the samples (saturating). A batch
+//    as in taa; a persistent one too: docs/temporal_figures.md, "Open
+//    weakness of the hold"). One byte per pixel counts the samples (saturating). A batch
 //    of held lanes skips step 5, and in place (static scene) its store.
 //    Measured: still_life's 16 jittered frames filtered twice over (32
 //    frames), frame 32 against the 64-sample reference: 39.674 dB held,

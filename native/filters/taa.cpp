@@ -46,7 +46,11 @@
 // still replaces it. The price: a change that leaves the held value inside
 // the pixel's box (a one-frame firefly, which then never shows; the rim of a
 // region that changed colour) is not taken in, where the running average
-// let it drift in by w/W per frame (W up to maxSamples). Frames since reset
+// let it drift in by w/W per frame (W up to maxSamples). A persistent change
+// pays it too: a band about two pixels wide along an edge that appears in a
+// still picture keeps the old colour for good, since the footprint box still
+// holds it (measured, with the release test it needs: docs/
+// temporal_figures.md, "Open weakness of the hold"). Frames since reset
 // live in bits 1-7 of the same byte.
 // Measured (crisp eval, ghosting 240x136, frames 9-48 vs 256 samples): temporal
 // error 0.00583 -> 0.00562, PSNR 29.03 dB either way; camera_dolly and
