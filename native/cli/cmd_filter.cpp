@@ -176,11 +176,12 @@ int runFilter(const ParsedArgs& args) {
   // A resume keeps the outputs it finds that this method made with these parameters from these
   // inputs. Each output has a stamp (OUT/.crisp/<name>.json, written after it) of the method, its
   // --set parameters, the build (files.cpp buildStamp), whether motion was rebuilt from the
-  // sidecars (a decision over the whole sequence), its input ("input": inputIdentity), the output EXR as written ("output"), and, for
-  // a filter that keeps history, the inputs its history went through ("history": a digest of the
-  // identities of the inputs from the chunk's first pre-roll frame to its own). An output made
-  // otherwise, or by a build before these stamps, counts as missing; so does every output of a
-  // temporal filter after a changed input, whether that input is in the chunk or in its pre-roll.
+  // sidecars (a decision over the whole sequence), its input ("input": inputIdentity), the output
+  // EXR as written ("output"), and, for a filter that keeps history, the inputs its history went
+  // through ("history": a digest of the identities of the inputs from the chunk's first pre-roll
+  // frame to its own). An output made otherwise, or by a build before these stamps, counts as
+  // missing; so does every output of a temporal filter after a changed input, whether that input
+  // is in the chunk or in its pre-roll.
   const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
   nlohmann::json settings = {{"method", args.get("method")},
                              {"params", nlohmann::json::object()},
