@@ -10,7 +10,6 @@
 // sequence (motion rebuilt or not, output names) still look at every input, so
 // every chunk of one sequence makes the same ones.
 #include <algorithm>
-#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -23,6 +22,7 @@
 
 #include "cli/commands.h"
 #include "cli/frame_range.h"
+#include "cli/output_stamps.h"
 #include "cli/progress.h"
 #include "core/error.h"
 #include "core/filter.h"
@@ -34,21 +34,6 @@ namespace crisp::cli {
 namespace fs = std::filesystem;
 
 namespace {
-
-// Removes an output's settings record; one that cannot be removed fails the run before the
-// outputs are replaced.
-void removeRecord(const std::string& path) {
-  std::error_code ec;
-  fs::remove(path, ec);
-  if (ec) ioError("cannot remove the old record '" + path + "': " + ec.message());
-}
-
-// What an output is made from, as its stamp records it: its input file and
-// the input's sidecar (jitter, camera, shot position), each as size and
-// modification time (files.cpp sizeAndTime; "" for a missing sidecar).
-std::string inputIdentity(const std::string& input) {
-  return sizeAndTime(input) + " | " + sizeAndTime(sidecarPathFor(input));
-}
 
 // Whether motion should be rebuilt for this run: the method reads "motion",
 // every input has an add-on sidecar (frame_NNNN.json) and something moves over
@@ -89,14 +74,6 @@ void addReconstructedMotion(Frame& frame, const std::vector<std::string>& inputs
   }
   const std::string next = index + 1 < inputs.size() ? sidecarPathFor(inputs[index + 1]) : std::string();
   reconstructFrameMotion(frame, sidecarPathFor(inputs[index - 1]), next, numThreads);
-}
-
-// What this command knows of a PNG it wrote, in OUT/.crisp/<name>.png.stamp:
-// its size and modification time, so that a PNG changed since, or never
-// written by it, is told apart from its own.
-std::string pngStampOf(const std::string& pngPath) {
-  const std::string stamp = sizeAndTime(pngPath);
-  return stamp.empty() ? "" : stamp + "\n";
 }
 
 // A PNG beside an output written without --png shows an earlier run's result.
@@ -173,15 +150,7 @@ int runFilter(const ParsedArgs& args) {
   }
   makeDirectories(outDir);
 
-  // A resume keeps the outputs it finds that this method made with these parameters from these
-  // inputs. Each output has a stamp (OUT/.crisp/<name>.json, written after it) of the method, its
-  // --set parameters, the build (files.cpp buildStamp), whether motion was rebuilt from the
-  // sidecars (a decision over the whole sequence), its input ("input": inputIdentity), the output
-  // EXR as written ("output"), and, for a filter that keeps history, the inputs its history went
-  // through ("history": a digest of the identities of the inputs from the chunk's first pre-roll
-  // frame to its own). An output made otherwise, or by a build before these stamps, counts as
-  // missing; so does every output of a temporal filter after a changed input, whether that input
-  // is in the chunk or in its pre-roll.
+  // What each output was made from, which a resume compares (output_stamps.h).
   const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
   nlohmann::json settings = {{"method", args.get("method")},
                              {"params", nlohmann::json::object()},
@@ -193,66 +162,9 @@ int runFilter(const ParsedArgs& args) {
   }
   const bool temporal = keepsHistory(*filter);
   const int historyFirst = std::max(1, chunk.first - preroll);  // where the chunk's history starts
-  std::vector<std::string> identity;  // by position - 1; a frame read by this run gets what the read saw
-  for (const std::string& in : args.positional) identity.push_back(inputIdentity(in));
-  auto foldIdentity = [&](int position, std::uint64_t& digest) {
-    fnv1a64OfText(identity[std::size_t(position - 1)] + "\n", digest);
-  };
-  std::vector<std::string> plannedHistory(std::size_t(count) + 1);  // by position, as the files are now
-  {
-    std::uint64_t digest = kFnv1a64Seed;
-    for (int position = historyFirst; position <= count; ++position) {
-      foldIdentity(position, digest);
-      plannedHistory[std::size_t(position)] = "fnv1a64:" + hex64(digest);
-    }
-  }
-  auto stampOf = [&](int position, const std::string& history, const std::string& output) {
-    nlohmann::json stamp = settings;
-    stamp["input"] = identity[std::size_t(position - 1)];
-    stamp["output"] = output;
-    if (temporal) stamp["history"] = history;
-    return stamp;
-  };
-  const std::string stampDir = joinPath(outDir, ".crisp");
-  auto stampPathOf = [&](const std::string& stem) { return joinPath(stampDir, stem + ".json"); };
-  auto pngRecordOf = [&](const std::string& stem) { return joinPath(stampDir, stem + ".png.stamp"); };
-  auto readText = [](const std::string& path) {
-    std::ifstream in(path);
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  };
-
-  // Why position's outputs must be made again ("" when they are complete and match).
-  auto whyRemake = [&](int position) -> std::string {
-    const std::string& input = args.positional[std::size_t(position - 1)];
-    const std::string stem = fileStem(input), base = joinPath(outDir, stem);
-    std::error_code ec;
-    if (!fs::is_regular_file(base + ".exr", ec)) return "is missing";
-    if (png && !fs::is_regular_file(base + ".png", ec)) return "has no PNG";
-    if (png && readText(pngRecordOf(stem)) != pngStampOf(base + ".png"))
-      return "has a PNG this command did not write (or one changed since)";
-    const std::string have = readText(stampPathOf(stem));
-    const nlohmann::json want = stampOf(position, plannedHistory[std::size_t(position)], sizeAndTime(base + ".exr"));
-    if (have == want.dump() + "\n") return "";
-    const nlohmann::json had = nlohmann::json::parse(have, nullptr, false);
-    if (have.empty()) return "has no stamp (a run stopped before stamping it, or another program wrote it)";
-    if (!had.is_object() || had.value("method", nlohmann::json()) != settings["method"] ||
-        had.value("params", nlohmann::json()) != settings["params"])
-      return "was made with other settings (" + have.substr(0, have.size() - 1) + ")";
-    if (!had.contains("input") || !had["input"].is_string() || !had.contains("output") || !had.contains("build"))
-      return "has a stamp from an older crisp, which did not record all it was made from";
-    if (had["build"] != settings["build"])
-      return "was made by another build of crisp (" + had["build"].get<std::string>() + ")";
-    if (had.value("motion_from_sidecars", nlohmann::json()) != settings["motion_from_sidecars"])
-      return rebuildMotion ? "was made before the motion was rebuilt from the sidecars (every input has one now)"
-                           : "was made with motion rebuilt from the sidecars (not every input has one now, or the "
-                             "sequence is still)";
-    if (had["input"] != want["input"]) return "was made from another version of '" + input + "' or its sidecar";
-    if (had["output"] != want["output"]) return "was replaced since this command wrote it";
-    return "was made after other inputs before it than these (one changed since, another input list, or another "
-           "--preroll; its history starts at '" + args.positional[std::size_t(historyFirst - 1)] + "')";
-  };
+  OutputStamps stamps(outDir, args.positional, settings, temporal, historyFirst, png);
   auto isComplete = [&](int position) {
-    const std::string why = whyRemake(position);
+    const std::string why = stamps.whyRemake(position);
     if (why.empty()) return true;
     std::fprintf(stderr, "filter: '%s' %s; making it again\n",
                  joinPath(outDir, fileStem(args.positional[std::size_t(position - 1)])).c_str(), why.c_str());
@@ -269,14 +181,7 @@ int runFilter(const ParsedArgs& args) {
   if (temporal) run.start = std::min(run.start, historyFirst);
 
   StalePngs stalePngs;
-  {  // a file in the stamps' way fails the run before the first output, not after it
-    std::error_code ec;
-    if (fs::exists(stampDir, ec) && !fs::is_directory(stampDir, ec))
-      ioError("cannot keep stamps in '" + stampDir + "': it is a file, not a folder");
-  }
-  // The history digest of the frames read so far: plannedHistory's, with the identities this run's
-  // reads saw (a temporal filter reads from historyFirst; a spatial one's stamps have none).
-  std::uint64_t history = kFnv1a64Seed;
+  stamps.checkFolder();  // a file in the stamps' way fails the run before the first output, not after it
   Image output;
   Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, quiet);
   ShotPosition shot;
@@ -284,8 +189,7 @@ int runFilter(const ParsedArgs& args) {
   for (std::size_t i = std::size_t(run.start - 1); i < std::size_t(run.last); ++i) {
     const std::string& in = args.positional[i];
     const bool write = int(i) + 1 >= run.first;
-    identity[i] = inputIdentity(in);  // before the read: a file replaced meanwhile is not stamped as read
-    foldIdentity(int(i) + 1, history);
+    stamps.reading(int(i) + 1);
     Frame frame = readFrame(in);
     warnNonFiniteColour(frame);
     // A gap in the frame numbers or a cut to another camera: the history starts over, and the
@@ -338,11 +242,8 @@ int runFilter(const ParsedArgs& args) {
       continue;
     }
     const std::string base = joinPath(outDir, fileStem(in));
-    const std::string pngRecord = pngRecordOf(fileStem(in));
-    makeDirectories(stampDir);
-    // The old record goes first: a run stopped between the outputs and the new record must not
-    // leave new pixels under the old settings, which --resume would keep.
-    removeRecord(stampPathOf(fileStem(in)));
+    const std::string pngRecord = stamps.pngRecordOf(int(i) + 1);
+    stamps.removeStamp(int(i) + 1);
     writeImage(base + ".exr", output);
     if (png) {
       writeImage(base + ".png", output);
@@ -350,8 +251,7 @@ int runFilter(const ParsedArgs& args) {
     } else {
       stalePngs.check(base + ".png", pngRecord);
     }
-    writeTextFile(stampPathOf(fileStem(in)),
-                  stampOf(int(i) + 1, "fnv1a64:" + hex64(history), sizeAndTime(base + ".exr")).dump() + "\n");
+    stamps.writeStamp(int(i) + 1);
     progress.step(fileStem(in));
   }
   stalePngs.report(quiet);

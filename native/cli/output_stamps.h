@@ -1,0 +1,72 @@
+// SPDX-License-Identifier: Apache-2.0
+// crisp filter's record of what each output was made from, which --resume
+// compares with the inputs as they are now (docs/farm.md "Resume").
+//
+// Each output has a stamp, OUT/.crisp/<name>.json, written after it: the
+// method, its --set parameters, the build (files.cpp buildStamp), whether
+// motion was rebuilt from the sidecars (a decision over the whole sequence),
+// its input ("input": inputIdentity), the output EXR as written ("output"),
+// and, for a filter that keeps history, the inputs its history went through
+// ("history": a digest of the identities of the inputs from the chunk's first
+// pre-roll frame to its own). An output made otherwise, or by a build before
+// these stamps, counts as missing; so does every output of a temporal filter
+// after a changed input, whether that input is in the chunk or its pre-roll.
+// A PNG written with --png has its own record, OUT/.crisp/<name>.png.stamp.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace crisp::cli {
+
+// What this command knows of a PNG it wrote: its size and modification time,
+// so that a PNG changed since, or never written by it, is told apart.
+std::string pngStampOf(const std::string& pngPath);
+
+class OutputStamps {
+ public:
+  // settings: the method, params, build and motion decision (recorded as
+  // given); inputs: every input, in order; historyFirst: the 1-based position
+  // where the chunk's history starts (temporal filters only).
+  OutputStamps(std::string outDir, const std::vector<std::string>& inputs, nlohmann::json settings, bool temporal,
+               int historyFirst, bool png);
+
+  // Why the outputs of input `position` (1-based) must be made again, from
+  // the files as they are now; "" when they are complete and match.
+  std::string whyRemake(int position) const;
+
+  // Fails before the first output when a file is in the stamps' way.
+  void checkFolder() const;
+  // Before reading input `position`: records it as the read will see it (a
+  // file replaced meanwhile is not stamped as read) and adds it to the
+  // history digest. Inputs are read in order, from historyFirst on for a
+  // temporal filter.
+  void reading(int position);
+  // Before `position`'s outputs are replaced: its old stamp goes first, so a
+  // run stopped between the outputs and the new stamp leaves no stamp under
+  // the new pixels.
+  void removeStamp(int position) const;
+  // After `position`'s outputs are in place.
+  void writeStamp(int position) const;
+
+  const std::string& folder() const { return dir_; }
+  std::string pngRecordOf(int position) const;
+
+ private:
+  std::string base(int position) const;       // OUT/<stem>
+  std::string stampPathOf(int position) const;  // OUT/.crisp/<stem>.json
+  nlohmann::json stampOf(int position, const std::string& history, const std::string& output) const;
+
+  std::string outDir_, dir_;
+  std::vector<std::string> inputs_, identity_;  // identity_ by position - 1
+  std::vector<std::string> plannedHistory_;     // by position: the digest as the files are now
+  nlohmann::json settings_;
+  bool temporal_, png_;
+  int historyFirst_;
+  std::uint64_t history_;  // the digest of the inputs read so far
+};
+
+}  // namespace crisp::cli
