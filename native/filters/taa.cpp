@@ -1069,9 +1069,20 @@ std::size_t Kernel::scratchFloatsPerBand() const { return bandFloats(width_); }
 
 void Kernel::allocate(int width, int height, bool withDepth) {
   const bool sameShape = width == width_ && height == height_ && !history_[0].empty();
-  if (withDepth != !depth_[0].empty()) {
-    // A depth image that appears or goes keeps the colour history (as phlm
-    // keeps its models): the next frame has no previous depth to test against.
+  if (!sameShape) {  // a new size starts over
+    width_ = width;
+    height_ = height;
+    bands_ = bandCount(height);
+    bandScratch_.assign(std::size_t(bands_) * bandFloats(width), 0.0f);
+    history_[0] = Image(width, height, 4);
+    history_[1] = Image(width, height, 4);
+    historyState_.assign(std::size_t(width) * height, 0);
+    sourceColumn_.assign(std::size_t(planeFloats(width)), 0);
+    reset();
+  }
+  // A depth image that appears or goes keeps the colour history (as phlm
+  // keeps its models): the next frame has no previous depth to test against.
+  if (!sameShape || withDepth == depth_[0].empty()) {
     for (auto& d : depth_) {
       if (withDepth)
         d.assign(std::size_t(width) * height, kBackgroundDepth);
@@ -1080,18 +1091,6 @@ void Kernel::allocate(int width, int height, bool withDepth) {
     }
     previousDepthValid_ = false;
   }
-  if (sameShape) return;  // keep the history
-  width_ = width;
-  height_ = height;
-  bands_ = bandCount(height);
-  bandScratch_.assign(std::size_t(bands_) * bandFloats(width), 0.0f);
-  history_[0] = Image(width, height, 4);
-  history_[1] = Image(width, height, 4);
-  historyState_.assign(std::size_t(width) * height, 0);
-  sourceColumn_.assign(std::size_t(planeFloats(width)), 0);
-  if (withDepth)
-    for (auto& d : depth_) d.assign(std::size_t(width) * height, kBackgroundDepth);
-  reset();
 }
 
 void Kernel::reset() {
