@@ -13,8 +13,6 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <set>
 #include <vector>
 
@@ -86,9 +84,7 @@ struct StalePngs {
   void check(const std::string& pngPath, const std::string& recordPath) {
     std::error_code ec;
     if (!fs::is_regular_file(pngPath, ec)) return;
-    std::ifstream in(recordPath);
-    const std::string record((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (!record.empty() && record == pngStampOf(pngPath) && fs::remove(pngPath, ec)) {
+    if (pngMatchesRecord(pngPath, recordPath) && fs::remove(pngPath, ec)) {
       fs::remove(recordPath, ec);
       ++removed;
     } else {

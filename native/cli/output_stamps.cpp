@@ -37,6 +37,11 @@ std::string pngStampOf(const std::string& pngPath) {
   return stamp.empty() ? "" : stamp + "\n";
 }
 
+bool pngMatchesRecord(const std::string& pngPath, const std::string& recordPath) {
+  const std::string stamp = pngStampOf(pngPath);
+  return !stamp.empty() && readText(recordPath) == stamp;
+}
+
 OutputStamps::OutputStamps(std::string outDir, const std::vector<std::string>& inputs, nlohmann::json settings,
                            bool temporal, int historyFirst, bool png)
     : outDir_(std::move(outDir)),
@@ -80,7 +85,7 @@ std::string OutputStamps::whyRemake(int position) const {
   std::error_code ec;
   if (!fs::is_regular_file(out + ".exr", ec)) return "is missing";
   if (png_ && !fs::is_regular_file(out + ".png", ec)) return "has no PNG";
-  if (png_ && readText(pngRecordOf(position)) != pngStampOf(out + ".png"))
+  if (png_ && !pngMatchesRecord(out + ".png", pngRecordOf(position)))
     return "has a PNG this command did not write (or one changed since)";
   const std::string have = readText(stampPathOf(position));
   const nlohmann::json want = stampOf(position, plannedHistory_[std::size_t(position)], sizeAndTime(out + ".exr"));

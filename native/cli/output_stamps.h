@@ -25,6 +25,9 @@ namespace crisp::cli {
 // What this command knows of a PNG it wrote: its size and modification time,
 // so that a PNG changed since, or never written by it, is told apart.
 std::string pngStampOf(const std::string& pngPath);
+// Whether the PNG at pngPath is the one its record (recordPath) describes:
+// written by this command and unchanged since.
+bool pngMatchesRecord(const std::string& pngPath, const std::string& recordPath);
 
 class OutputStamps {
  public:
