@@ -163,9 +163,14 @@
 //    since its reset or last box correction keeps its beta, P and z: its
 //    output stops changing. The prediction is still
 //    tested against the box, so a change that leaves the box corrects and
-//    restarts it; one that stays inside the box is not taken in (the price,
-//    as in taa; a persistent one too: docs/temporal_figures.md, "Open
-//    weakness of the hold"). One byte per pixel counts the samples (saturating). A batch
+//    restarts it. One that stays inside the box is caught by the release
+//    (parameter holdRelease; taa.cpp "Hold", temporal/hold_release.h): a
+//    still model, held or learning, whose input's window of P frames
+//    differs from the last matching one twice running restarts from y, as
+//    at a reset (before it, such a change was never taken in by a held
+//    model and over hundreds of frames by a learning one: docs/
+//    temporal_figures.md, "Weakness of the hold"). One byte per pixel
+//    counts the samples (saturating), a word per pixel keeps the windows. A batch
 //    of held lanes skips step 5, and in place (static scene) its store.
 //    Measured: still_life's 16 jittered frames filtered twice over (32
 //    frames), frame 32 against the 64-sample reference: 39.674 dB held,
@@ -206,6 +211,7 @@
 // | lambda | float | 0.998 | [0.5, 0.99999] | forgetting factor | eqs. 6-7 |
 // | lambdaMoving | float | 0.7 | [0.5, 0.99999] | forgetting factor of moving pixels | this file |
 // | holdPeriod | int | 16 | [0, 127] | a still model with this many samples since its reset stops learning | this file (Hold) |
+// | holdRelease | float | 0.002 | [0, 1] | a still model whose input's period mean changes by more, twice running, restarts; 1 = never | this file (Hold) |
 // | resampleDamping | float | 0.25 | [0, 0.9] | moving pixels forget with lambdaMoving (1 - beta s) at sub-pixel fraction s | this file |
 // | modelFetch | string | catmull-rom | catmull-rom, bilinear, nearest | how a moving pixel's model is read | §5.2, §6; this file |
 // | initialCovariance | float | 1000 | [1e-3, 1e6] | p0: intercept variance at init/reset, and its bound | §6 |
@@ -235,6 +241,7 @@
 #include "filters/phlm_feature.h"
 #include "filters/phlm_stage.h"
 #include "temporal/history_fetch.h"
+#include "temporal/hold_release.h"
 #include "temporal/isa.h"
 #include "temporal/rows.h"
 #include "temporal/jitter.h"
@@ -276,6 +283,7 @@ struct Frame {
   std::uint8_t* stillSamples;  // per pixel: samples since its reset or box correction, while still (header, "Hold")
   const std::uint8_t* movingFlags = nullptr;  // fast path with motion: per pixel, temporal::movingRow; else null
   int holdPeriod;              // a model with this many still samples is held; 0: off
+  temporal::HoldWindowFrame release;  // Kernel::holdWindows_ (temporal/hold_release.h)
   T boxResetScale;             // P after a box correction = boxResetScale * P0
   int axis;                    // regularised axis of this frame
   T featureA, featureB, featureAlphaMin;
@@ -458,7 +466,7 @@ CRISP_PHLM_INLINE bool stillSurfaceNear(const Frame<T>& f, int x, int y) {
 
 // Always inlined: into both copies of the row loop (temporal/isa.h).
 template <class T, bool Clamp>
-__attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, int y, long& reprojectionResets,
+__attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, int y, FrameStats& stats,
                                                      Batch<T>& batch, const RowTaps& rowTaps) {
   const int w = f.width, h = f.height;
   // 3x3 neighbourhood of this frame: box, average (the low-frequency colour),
@@ -532,6 +540,17 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
   const bool stillAround =
       !moving && (rowTaps.still ? rowTaps.still->of(f, y)[x] != 0
                                 : temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY));
+  // A still model whose input changed for two windows running restarts
+  // from y, as at a reset (header, "Hold").
+  if (f.release.words) {
+    std::uint32_t& word = f.release.words[std::size_t(y) * w + x];
+    const bool still = valid && !moving && stillAround;
+    bool released;
+    word = std::uint32_t(temporal::stepHoldWindow<float>(int(word), temporal::holdLumaOfTonemapped(sample[3]), still,
+                                                         still, f.release.windowEnd, f.release.limit, released));
+    valid = valid && !released;
+    if (released) ++stats.releases, --stats.reprojectionResets;  // counted below as a reset
+  }
   bool narrow = false;
   if (f.narrowBox) {
     std::uint8_t& flag = f.narrowBox[std::size_t(y) * w + x];
@@ -599,7 +618,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     speed = T(std::sqrt(vx * vx + vy * vy));
   } else {
     // Lines 7-9 / §6: reset to the input; z = y (finishBatch).
-    ++reprojectionResets;
+    ++stats.reprojectionResets;
     batch.allValid = batch.allBilinear = false;
   }
   for (int c = 0; c < 3; ++c) {
@@ -684,7 +703,7 @@ __attribute__((always_inline)) inline void groupNeighbourhood(const Frame<T>& f,
 // Moving pixels use neither the footprint box nor the hold, so those parts
 // reduce to constants here.
 template <class T>
-__attribute__((always_inline)) inline void phlmMovingGroup(const Frame<T>& f, int x0, int y, long& reprojectionResets,
+__attribute__((always_inline)) inline void phlmMovingGroup(const Frame<T>& f, int x0, int y, FrameStats& stats,
                                                            Batch<T>& batch, const GroupVelocity& v) {
   using temporal::Vec4;
   using temporal::Vec8;
@@ -730,6 +749,10 @@ __attribute__((always_inline)) inline void phlmMovingGroup(const Frame<T>& f, in
   const std::size_t row = std::size_t(y) * w + x0;
   if (f.narrowBox) std::memset(f.narrowBox + row, 1, kBatch);
   temporal::storeBytesOf<Vec8>(f.stillSamples + row, valid ? Int{} : Int{} + 1);
+  if (f.release.words) {  // nothing stands still: the windows restart
+    const Int restarted = Int{} + int(temporal::holdWindowRestarted(f.release.windowEnd));
+    temporal::storeHoldWords<Vec8>(f.release.words + row, restarted);
+  }
 
   // The batch, as phlmPixel leaves it after its eight pixels.
   batch.x0 = x0;
@@ -745,7 +768,7 @@ __attribute__((always_inline)) inline void phlmMovingGroup(const Frame<T>& f, in
   std::memcpy(batch.footY, &footY, sizeof footY);
   temporal::storeLanes(batch.tx, tx);
   temporal::storeLanes(batch.ty, ty);
-  for (int l = 0; l < kBatch; ++l) reprojectionResets += valid[l] == 0;
+  for (int l = 0; l < kBatch; ++l) stats.reprojectionResets += valid[l] == 0;
   // Where each lane reads (phlm.h paddedPixel; read only for valid lanes), as
   // int lanes: phlmRowsBody runs groups only where every padded index fits.
   const int rowPixels = f.blocksPerRow * kBatch;
@@ -781,7 +804,7 @@ __attribute__((always_inline)) inline void phlmMovingGroup(const Frame<T>& f, in
 // narrow box, the still count) are read and written a lane group at a time.
 // Needs the row's still footprints (rowTaps.still) with motion.
 template <class T>
-__attribute__((always_inline)) inline void phlmStillGroup(const Frame<T>& f, int x0, int y, long& reprojectionResets,
+__attribute__((always_inline)) inline void phlmStillGroup(const Frame<T>& f, int x0, int y, FrameStats& stats,
                                                           Batch<T>& batch, const RowTaps& rowTaps,
                                                           const GroupVelocity& v) {
   using temporal::Vec4;
@@ -809,6 +832,21 @@ __attribute__((always_inline)) inline void phlmStillGroup(const Frame<T>& f, int
   // Nothing in the 5x5 moves (always, without motion); the narrow box; the
   // hold (phlmPixel's order and rules).
   const M stillAround = rowTaps.still ? M(temporal::loadBytesOf<Vec8>(rowTaps.still->of(f, y) + x0) != 0) : all;
+  Vec4 lo4[kBatch], hi4[kBatch], sum4[kBatch], sample4[kBatch];
+  groupNeighbourhood(f, x0, y, lo4, hi4, sum4, sample4);
+  Vec8 sample[4];
+  temporal::transposeToLanes(sample4, sample);
+  if (f.release.words) {  // the release (phlmPixel's order and rules)
+    const M still = valid & stillAround;
+    M released;
+    const Int word = temporal::stepHoldWindow<Vec8>(temporal::loadHoldWords<Vec8>(f.release.words + row),
+                                                    temporal::holdLumaOfTonemapped(sample[3]), still, still,
+                                                    f.release.windowEnd, f.release.limit, released);
+    temporal::storeHoldWords<Vec8>(f.release.words + row, word);
+    valid &= ~released;
+    if (temporal::anyOf(released))
+      for (int l = 0; l < kBatch; ++l) stats.releases += released[l] != 0, stats.reprojectionResets -= released[l] != 0;
+  }
   M narrow{};
   if (f.narrowBox) {
     narrow = valid & M(temporal::loadBytesOf<Vec8>(f.narrowBox + row) != 0);
@@ -823,8 +861,6 @@ __attribute__((always_inline)) inline void phlmStillGroup(const Frame<T>& f, int
   // The boxes, pixel by pixel: the footprint box where phlmPixel takes it,
   // then united with the measurement; lane 3 keeps the 3x3's luminance
   // extreme (yMin, yMax).
-  Vec4 lo4[kBatch], hi4[kBatch], sum4[kBatch], sample4[kBatch];
-  groupNeighbourhood(f, x0, y, lo4, hi4, sum4, sample4);
   const M footprint = f.footprintBox ? M(~narrow & stillAround) : M{};
   for (int l = 0; l < kBatch; ++l) {
     Vec4 lo = lo4[l], hi = hi4[l];
@@ -836,11 +872,10 @@ __attribute__((always_inline)) inline void phlmStillGroup(const Frame<T>& f, int
     lo4[l] = __builtin_shufflevector(temporal::vmin(lo, sample4[l]), lo4[l], 0, 1, 2, 7);
     hi4[l] = __builtin_shufflevector(temporal::vmax(hi, sample4[l]), hi4[l], 0, 1, 2, 7);
   }
-  Vec8 lo[4], hi[4], sum[4], sample[4];
+  Vec8 lo[4], hi[4], sum[4];
   temporal::transposeToLanes(lo4, lo);
   temporal::transposeToLanes(hi4, hi);
   temporal::transposeToLanes(sum4, sum);
-  temporal::transposeToLanes(sample4, sample);
 
   // The batch, as phlmPixel leaves it after its eight pixels.
   batch.x0 = x0;
@@ -852,7 +887,7 @@ __attribute__((always_inline)) inline void phlmStillGroup(const Frame<T>& f, int
     batch.source[l] = paddedPixel(f.blocksPerRow, x0 + l, y);
     batch.tx[l] = batch.ty[l] = 0.0f;
     batch.footX[l] = batch.footY[l] = 0;
-    reprojectionResets += valid[l] == 0;
+    stats.reprojectionResets += valid[l] == 0;
   }
   const Vec8 one = temporal::lanesOf<Vec8>(1.0f), zero = temporal::lanesOf<Vec8>(0.0f);
   for (int c = 0; c < 3; ++c) {
@@ -875,18 +910,18 @@ __attribute__((always_inline)) inline void phlmStillGroup(const Frame<T>& f, int
 // having changed nothing, where they mix (or the kind has no group here):
 // the caller then runs phlmPixel on the eight.
 template <class T>
-__attribute__((always_inline)) inline bool phlmGroup(const Frame<T>& f, int x0, int y, long& reprojectionResets,
+__attribute__((always_inline)) inline bool phlmGroup(const Frame<T>& f, int x0, int y, FrameStats& stats,
                                                      Batch<T>& batch, const RowTaps& rowTaps, bool movingGroups,
                                                      bool stillGroups) {
   using M = temporal::MaskOfT<temporal::Vec8>;
   const GroupVelocity v = groupVelocity(f, x0, y, rowTaps);
   const M moves = M(v.vx != 0.0f) | M(v.vy != 0.0f);  // phlmPixel's `moving`
   if (movingGroups && temporal::allOf(moves)) {
-    phlmMovingGroup(f, x0, y, reprojectionResets, batch, v);
+    phlmMovingGroup(f, x0, y, stats, batch, v);
     return true;
   }
   if (stillGroups && !temporal::anyOf(moves)) {
-    phlmStillGroup(f, x0, y, reprojectionResets, batch, rowTaps, v);
+    phlmStillGroup(f, x0, y, stats, batch, rowTaps, v);
     return true;
   }
   return false;
@@ -1219,6 +1254,8 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, FrameStat
       const std::size_t pixel = std::size_t(batch.y) * std::size_t(f.width) + std::size_t(batch.x0 + i);
       if (f.narrowBox) f.narrowBox[pixel] = 1;
       if (f.stillSamples[pixel] != 0) f.stillSamples[pixel] = 1;  // the model restarts from the corrected value
+      // and so do its windows: the correction took the change in, no release needed ("Hold").
+      if (f.release.words) f.release.words[pixel] = temporal::holdWindowRestarted(f.release.windowEnd);
     }
   if (anyCorrected) {
     // Lines 14-18: onto the box along the ray toward y, the model reset there.
@@ -1371,7 +1408,7 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
   if (!Groups || reference || !(movingGroups || stillGroups)) {
     temporal::rowsWithBorder(w, h, y0, y1, clampAll, [&](auto clamp, int x, int y) __attribute__((always_inline)) {
       if (tapsAhead && x == 0) stageTaps(y);
-      phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[y].reprojectionResets, batch, rowTaps);
+      phlmPixel<T, decltype(clamp)::value>(f, x, y, rowStats[y], batch, rowTaps);
       if (batch.count == kBatch || x == f.width - 1) finishBatch(f, batch, rowStats[y]);
     });
     return;
@@ -1389,13 +1426,13 @@ __attribute__((always_inline)) inline void phlmRowsBody(const Frame<T>& f, int y
       for (int x = 0; x < w;) {
         if (groupRow && x >= kBatch && x % kBatch == 0 && x + kBatch <= w - 1 && x - 1 - sx >= 0 &&
             x + kBatch - sx < w &&
-            phlmGroup(f, x, y, rowStats[y].reprojectionResets, batch, rowTaps, movingGroups, stillGroups)) {
+            phlmGroup(f, x, y, rowStats[y], batch, rowTaps, movingGroups, stillGroups)) {
           x += kBatch;
         } else {
           if (clampRow || x == 0 || x == w - 1)
-            phlmPixel<T, true>(f, x, y, rowStats[y].reprojectionResets, batch, rowTaps);
+            phlmPixel<T, true>(f, x, y, rowStats[y], batch, rowTaps);
           else
-            phlmPixel<T, false>(f, x, y, rowStats[y].reprojectionResets, batch, rowTaps);
+            phlmPixel<T, false>(f, x, y, rowStats[y], batch, rowTaps);
           ++x;
         }
         if (batch.count == kBatch || x == w) finishBatch(f, batch, rowStats[y]);
@@ -1439,6 +1476,7 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
     movingFlags_.clear();
     for (auto& planes : intercepts_) planes.clear();
     stillSamples_.assign(pixels, 0);
+    holdWindows_.allocate(pixels);
     depth_[0].clear();
     depth_[1].clear();
     current_ = 0;
@@ -1483,7 +1521,7 @@ template <class T>
 std::size_t Kernel<T>::bytesKeptBetweenFrames() const {
   return (models_[0].size() + models_[1].size() + intercepts_[0].size() + intercepts_[1].size()) * sizeof(T) +
          (depth_[0].size() + depth_[1].size()) * sizeof(float) +
-         narrowBox_.size() + stillSamples_.size();
+         narrowBox_.size() + stillSamples_.size() + holdWindows_.bytes();
 }
 
 template <class T>
@@ -1606,6 +1644,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   f.movingFlags = movingFlags;
   f.stillSamples = stillSamples_.data();
   f.holdPeriod = s.holdPeriod;
+  f.release = temporal::holdWindowFrame(holdWindows_, frames_, s.holdPeriod, s.holdRelease);
   f.unjitter = temporal::unjitterFor(s.unjitter, s.jitterX, s.jitterY, s.filterSize);
   f.boxResetScale = T(s.boxResetCovariance) / f.p0;
   if (!(f.boxResetScale > T(0))) invalidArgument("phlm: parameter 'boxResetCovariance' must be > 0");
@@ -1625,6 +1664,7 @@ void Kernel<T>::run(const Inputs& in, const Settings& s, bool reference, int num
   stats_ = {};
   for (int y = 0; y < height_; ++y) {
     stats_.reprojectionResets += rowStats[y].reprojectionResets;
+    stats_.releases += rowStats[y].releases;
     stats_.boxResets += rowStats[y].boxResets;
     stats_.guards += rowStats[y].guards;
   }
@@ -1670,6 +1710,11 @@ std::vector<ParamSpec> phlmParams() {
        "the jitter's period: a still model (nothing in its 5x5 moves) that holds this many samples since its "
        "reset or last box correction stops learning, and its output stops changing; 0 = off",
        "this file (Hold; taa's holdPeriod)"},
+      {"holdRelease", ParamType::Float, 0.002, 0.0, 1.0, nullptr,
+       "a still model whose input, summed over a period as tonemapped luminance, differs from the period before by "
+       "more than this per frame, two periods running, restarts from the input (a change a held or slowly "
+       "forgetting model would hide); 0 = on any change, 1 = never",
+       "this file (Hold); temporal/hold_release.h"},
       {"initialCovariance", ParamType::Float, 1000.0, 1e-3, 1e6, nullptr,
        "p0: variance of the intercept at initialisation and every reset (large: the first sample after a reset "
        "dominates), and its bound: P <= diag(p0, ps, ps, ps) / lambda^3",
@@ -1735,6 +1780,7 @@ class PhlmFilter final : public Filter {
                            : fetch == "nearest" ? phlm::ModelFetch::Nearest
                                                 : phlm::ModelFetch::CatmullRom;
     settings_.holdPeriod = p.getInt("holdPeriod");
+    settings_.holdRelease = p.getFloat("holdRelease");
     settings_.initialCovariance = p.getFloat("initialCovariance");
     settings_.slopeCovariance = p.getFloat("slopeCovariance");
     settings_.boxResetCovariance = p.getFloat("boxResetCovariance");

@@ -22,7 +22,9 @@
 //    the 3x3 box; phlm.cpp "Box").
 //  * one byte per pixel: the samples in the pixel's still model since its
 //    reset or last box correction (phlm.cpp "Hold").
-// So at 1920x1080 (float): 209 MB static, 469 MB with motion, 485 MB with
+//  * four bytes per pixel: the hold's windows of the pixel's input
+//    (temporal/hold_release.h; phlm.cpp "Hold").
+// So at 1920x1080 (float): 218 MB static, 477 MB with motion, 494 MB with
 // motion and depth (test Phlm.MemoryKeptBetweenFrames, bench counter kept_MB).
 // Scratch (bytesScratch): the staged, sanitised frame (RGB + tonemapped
 // luminance, float) and two counters per row.
@@ -36,6 +38,7 @@
 #include "core/aligned_vector.h"
 #include "core/image.h"
 #include "filters/phlm_rls.h"
+#include "temporal/hold_release.h"
 #include "temporal/jitter.h"
 
 namespace crisp::phlm {
@@ -82,6 +85,7 @@ struct Settings {
   double lambda = 0.998;         // forgetting factor (eqs. 6-7)
   double lambdaMoving = 0.7;     // forgetting factor of moving pixels (phlm.cpp header, "Forgetting")
   int holdPeriod = 16;           // still models with this many samples are held (phlm.cpp, "Hold"); 0: off
+  float holdRelease = 0.002f;    // a still model whose input changes by this much restarts (phlm.cpp, "Hold"); 1: never
   double resampleDamping = 0.25;  // moving pixels forget with lambdaMoving (1 - beta s) (phlm.cpp, "Forgetting")
   double initialCovariance = 1000.0;  // p0: intercept variance at init/reset (§6) and its bound
   double slopeCovariance = 1.0;       // ps: slope variances at init/reset and their bound (§6 has 1000)
@@ -108,6 +112,7 @@ struct FrameStats {
   // nothing moved (test_phlm_stability.cpp asserts it).
   long reprojectionResets = 0;
   long boxResets = 0;           // prediction outside the 3x3 box (Algorithm 1 line 16)
+  long releases = 0;            // still models restarted by the hold's release (phlm.cpp "Hold"; not in the above)
   // Safety nets that fired: a non-finite prediction, a beta that overflowed
   // (the model restarts), an output not finite before its sanitise. Inputs
   // are sanitised first and P is bounded, so this stays 0 unless the kernel
@@ -159,6 +164,7 @@ class Kernel {
   Image staged_;
   AlignedVector<T> models_[2];  // aligned: written with streaming stores (phlm.cpp streamLanes)
   std::vector<float> depth_[2];
+  temporal::HoldWindows holdWindows_;  // per pixel: its input's windows (temporal/hold_release.h)
   std::vector<std::uint8_t> stillSamples_;  // per pixel: samples in its still model since its reset or box correction (phlm.cpp "Hold")
   AlignedVector<T> intercepts_[2];  // with motion: the records' intercepts as planes, ping-pong (phlm.cpp "Model fetch")
   bool interceptsValid_ = false;   // intercepts_[current_] holds the current records' intercepts

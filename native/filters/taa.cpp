@@ -43,15 +43,21 @@
 // equals the converged average. History that went through a feedback blend
 // keeps averaging (its old tail would otherwise stay forever), and the held
 // history is tested and clipped like any other, so a change in the scene
-// still replaces it. The price: a change that leaves the held value inside
-// the pixel's box (a one-frame firefly, which then never shows; the rim of a
-// region that changed colour) is not taken in, where the running average
-// let it drift in by w/W per frame (W up to maxSamples). A persistent change
-// pays it too: a band about two pixels wide along an edge that appears in a
-// still picture keeps the old colour for good, since the footprint box still
-// holds it (measured, with the release test it needs: docs/
-// temporal_figures.md, "Open weakness of the hold"). Frames since reset
-// live in bits 1-7 of the same byte.
+// that leaves the pixel's box still replaces it. A change that leaves the
+// held value inside the box (the rim of a region that changed colour: the
+// footprint box still holds the old colour) is caught by the release
+// (parameter holdRelease, temporal/hold_release.h): each pixel sums its input
+// over windows of P frames, which a periodic input makes all equal; a still
+// averaging pixel, held or not, whose window differs from the last matching
+// one twice running restarts from this frame's colour, as at a reset, and is
+// exact again P frames later (HoldRelease.HeldPixelsTakeInAPersistentChange:
+// before it, a band two pixels wide along an edge that appeared in a still
+// picture kept the old colour for good; docs/temporal_figures.md,
+// "Weakness of the hold"). One different window does not release, so a
+// one-frame firefly still never shows
+// (HoldRelease.AOneFrameFireflyInAHeldPictureChangesNothing). The window
+// sums take 4 bytes per pixel (Kernel::holdWindows_). Frames since
+// reset live in bits 1-7 of the state byte.
 // Measured (crisp eval, ghosting 240x136, frames 9-48 vs 256 samples): temporal
 // error 0.00583 -> 0.00562, PSNR 29.03 dB either way; camera_dolly and
 // spinning_cube unchanged (nothing still has edges there); chunked still_life
@@ -174,6 +180,7 @@
 // | resampleDamping | float | 0.3 | [0, 1] | history weight k (1 - beta s) at sub-pixel motion fraction s | this file |
 // | varianceClip | float | 1 | [0, 10] | gamma: the feedback box narrowed to mean +- gamma sigma of the 3x3 | Salvi 2016 |
 // | holdPeriod | int | 16 | [0, 127] | the jitter's period: pure still history stops averaging after it | this file (Hold) |
+// | holdRelease | float | 0.002 | [0, 1] | a still pixel whose input's period mean changes by more, twice running, restarts; 1 = never | this file (Hold) |
 // | staticClip | bool | true | - | clip static history too | this file |
 // | depthTolerance | float | 0.05 | [0, 10] | relative depth change still the same surface | this file |
 // | unjitter | string | blackman-harris | blackman-harris, nearest, none | the current colour: the unjittered 3x3 mix | Karis 2014 |
@@ -193,6 +200,7 @@
 #include "core/row_stage.h"
 #include "temporal/color_space.h"
 #include "temporal/history_fetch.h"
+#include "temporal/hold_release.h"
 #include "temporal/isa.h"
 #include "temporal/rows.h"
 #include "temporal/jitter.h"
@@ -228,6 +236,7 @@ struct Frame {
   std::uint8_t* historyState;  // Kernel::historyState_, read and written in place
   float maxSamples;
   float holdPeriod;            // see "Hold"; 0: off
+  temporal::HoldWindowFrame release;  // Kernel::holdWindows_ (temporal/hold_release.h)
   float varianceClip;          // gamma of the variance box; 0: off
   float resampleDamping;       // beta: k (1 - beta s) at sub-pixel fraction s; 0: off
   float depthTolerance;
@@ -241,6 +250,7 @@ struct Frame {
   const int* sourceColumn;
   std::atomic<long>* guards;   // Kernel::guards_: lanes whose guard fired (rare: counted on the spot)
   std::atomic<long>* resets;   // Kernel::resets_: lanes that started over (summed per row)
+  std::atomic<long>* releases;  // Kernel::releases_: lanes released from the hold (summed per row)
 };
 
 // The current frame as the kernel reads it (conventions.h): sanitised, in
@@ -397,6 +407,7 @@ struct PixelLanes {
   M feedbackSinceReset;  // Kernel::historyState_ before this frame: bit 0
   T framesSinceReset;    // and bits 1-7
   T aliased;             // aliasedValue (0 without a plane)
+  temporal::IntOf<T> holdWord;  // Kernel::holdWindows_ (with a hold)
 };
 template <class T>
 struct ResolvedLanes {
@@ -406,8 +417,10 @@ struct ResolvedLanes {
   T output[3];      // color as sanitised RGB (unless reset without unjitter: the input itself)
   M reset;          // took the current colour as is
   M guarded;        // the non-finite guard fired (Kernel::guardsLastFrame)
+  M released;       // released from the hold ("Hold"; Kernel::releasesLastFrame)
   M feedbackSinceReset;
   T framesSinceReset;
+  temporal::IntOf<T> holdWord;
 };
 
 template <class T>
@@ -488,6 +501,18 @@ __attribute__((always_inline)) inline ResolvedLanes<T> resolveLanes(const Frame&
   for (int c = 0; c < 3; ++c)
     average[c] = hold ? in.hist[c] : in.hist[c] + (in.current[c] - in.hist[c]) * averageWeight;
   const T averageSum = hold ? historyWeight : minOf(weightSum, lanesOf<T>(f.maxSamples));
+  // A still averaging pixel (held or not) whose input changed for two
+  // windows running is released: it restarts from this frame's colour, as
+  // at a reset ("Hold").
+  ResolvedLanes<T> r;
+  M released{};
+  if (f.release.words) {
+    const M averaging = M(useAverage & notOf(reset));
+    r.holdWord = temporal::stepHoldWindow<T>(in.holdWord, temporal::holdLumaOfLinear(lumaOf(in.current, f.space)),
+                                             averaging, averaging, f.release.windowEnd, f.release.limit, released);
+    reset = M(reset | released);
+  }
+  r.released = released;
 
   // The feedback path. The box: the rounded box (mean of 3x3 and cross), or
   // steered by aliasedValue a (seed 000 §4.3.4): mix(cross, 3x3, a) (eq. 4.15)
@@ -534,7 +559,6 @@ __attribute__((always_inline)) inline ResolvedLanes<T> resolveLanes(const Frame&
   T feedbackSum = oneMinusK > 0.0f ? minOf(weightSum, 1.0f / oneMinusK) : weightSum;
   feedbackSum = minOf(feedbackSum, lanesOf<T>(f.maxSamples));
 
-  ResolvedLanes<T> r;
   for (int c = 0; c < 3; ++c) r.color[c] = useAverage ? average[c] : feedback[c];
   T newWeight = useAverage ? averageSum : feedbackSum;
   // Kept until a reset: averaging dilutes a trail or a clipped firefly, never
@@ -663,6 +687,7 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
   in.feedbackSinceReset = (f.historyState[index] & 1) != 0;
   in.framesSinceReset = float(f.historyState[index] >> 1);
   in.aliased = f.aliased ? f.aliased[index] : 0.0f;
+  if (f.release.words) in.holdWord = int(f.release.words[index]);
   const ResolvedLanes<float> r = resolveLanes(f, in, [&](int, float* excess) {
     if (!temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY)) return false;
     auto tap5 = [&](int i) {
@@ -677,8 +702,10 @@ void referencePixel(const Frame& f, int x, int y, float* depthNow) {
     return true;
   });
   f.historyState[index] = historyStateOf(r.feedbackSinceReset, r.framesSinceReset);
+  if (f.release.words) f.release.words[index] = std::uint32_t(r.holdWord);
   if (r.guarded) f.guards->fetch_add(1, std::memory_order_relaxed);
-  if (r.reset) f.resets->fetch_add(1, std::memory_order_relaxed);
+  if (r.released) f.releases->fetch_add(1, std::memory_order_relaxed);
+  else if (r.reset) f.resets->fetch_add(1, std::memory_order_relaxed);
   storePixel(f, x, y, r.color, r.signedWeight, r.output, r.reset);
 }
 
@@ -872,7 +899,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
   const bool packedOutput = f.writeOutput && f.unjitter.enabled && f.output.channels() == 4 &&
                             f.output.pixelStride == 4 * sizeof(float);
   for (int y = y0; y < y1; ++y) {
-    long resets = 0;  // Kernel::resetsLastFrame, this row's
+    long resets = 0, releases = 0;  // Kernel::resetsLastFrame and releasesLastFrame, this row's
     if (y + 2 < h) stageRow<T>(f, s, y + 2, y + 2 < y1 ? depthNow : nullptr);
     const int up = std::max(y - 1, 0) % kRing, mid = y % kRing, down = std::min(y + 1, h - 1) % kRing;
     float* const* rows[3] = {s.planes[up], s.planes[mid], s.planes[down]};
@@ -947,6 +974,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         in.feedbackSinceReset = 0 - (state & 1);
         in.framesSinceReset = temporal::floatOf(state >> 1);
         in.aliased = f.aliased ? load(f.aliased + rowStart + x0) : temporal::lanesOf<T>(0.0f);
+        if (f.release.words) in.holdWord = temporal::loadHoldWords<T>(f.release.words + rowStart + x0);
       } else {
         alignas(32) float aliased[kL] = {}, frames[kL] = {};
         alignas(32) int since[kL] = {};
@@ -958,6 +986,11 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         std::memcpy(&in.feedbackSinceReset, since, sizeof since);
         in.framesSinceReset = load(frames);
         in.aliased = load(aliased);
+        if (f.release.words) {
+          alignas(32) std::uint32_t words[kL] = {};
+          std::memcpy(words, f.release.words + rowStart + x0, sizeof(std::uint32_t) * std::size_t(lanes));
+          in.holdWord = temporal::loadHoldWords<T>(words);
+        }
       }
       in.tx = rp.tx;
       in.ty = rp.ty;
@@ -989,12 +1022,16 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         f.guards->fetch_add(hits, std::memory_order_relaxed);
       }
       if (temporal::anyOf(r.reset))
-        for (int l = 0; l < lanes; ++l) resets += r.reset[l] != 0;
+        for (int l = 0; l < lanes; ++l) {
+          releases += r.released[l] != 0;
+          resets += r.reset[l] != 0 && r.released[l] == 0;
+        }
 
       if (lanes == kL) {
         // historyStateOf, a lane group at a time.
         temporal::storeBytesOf<T>(f.historyState + rowStart + x0,
                                   (r.feedbackSinceReset & 1) | temporal::truncOf(r.framesSinceReset) << 1);
+        if (f.release.words) temporal::storeHoldWords<T>(f.release.words + rowStart + x0, r.holdWord);
         for (int c = 0; c < 3; ++c) temporal::storeLanes(f.history[c] + rowStart + x0, r.color[c]);
         temporal::storeLanes(f.history[3] + rowStart + x0, r.signedWeight);
         if (packedOutput) {
@@ -1011,6 +1048,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
       } else {
         for (int l = 0; l < lanes; ++l) {
           f.historyState[rowStart + x0 + l] = historyStateOf(r.feedbackSinceReset[l] != 0, r.framesSinceReset[l]);
+          if (f.release.words) f.release.words[rowStart + x0 + l] = std::uint32_t(r.holdWord[l]);
           const float color[3] = {r.color[0][l], r.color[1][l], r.color[2][l]};
           const float output[3] = {r.output[0][l], r.output[1][l], r.output[2][l]};
           storePixel(f, x0 + l, y, color, r.signedWeight[l], output, r.reset[l] != 0);
@@ -1018,6 +1056,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
       }
     }
     if (resets) f.resets->fetch_add(resets, std::memory_order_relaxed);
+    if (releases) f.releases->fetch_add(releases, std::memory_order_relaxed);
   }
 }
 
@@ -1077,6 +1116,7 @@ void Kernel::allocate(int width, int height, bool withDepth) {
     history_[0] = Image(width, height, 4);
     history_[1] = Image(width, height, 4);
     historyState_.assign(std::size_t(width) * height, 0);
+    holdWindows_.allocate(std::size_t(width) * height);
     sourceColumn_.assign(std::size_t(planeFloats(width)), 0);
     reset();
   }
@@ -1100,7 +1140,7 @@ void Kernel::reset() {
 
 std::size_t Kernel::bytesKeptBetweenFrames() const {
   return (history_[0].data.size() + history_[1].data.size() + depth_[0].size() + depth_[1].size()) * sizeof(float) +
-         historyState_.size();
+         historyState_.size() + holdWindows_.bytes();
 }
 
 std::size_t Kernel::bytesScratch() const { return bandScratch_.size() * sizeof(float); }
@@ -1160,6 +1200,7 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   f.historyState = historyState_.data();
   f.maxSamples = float(std::max(1, s.maxSamples));
   f.holdPeriod = float(s.holdPeriod);
+  f.release = temporal::holdWindowFrame(holdWindows_, frames_, s.holdPeriod, s.holdRelease);
   f.varianceClip = s.varianceClip;
   f.resampleDamping = s.resampleDamping;
   f.depthTolerance = s.depthTolerance;
@@ -1174,6 +1215,8 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   f.guards = &guards_;
   resets_ = 0;
   f.resets = &resets_;
+  releases_ = 0;
+  f.releases = &releases_;
 
   if (reference) {
     for (int y = 0; y < height_; ++y)
@@ -1266,6 +1309,11 @@ std::vector<ParamSpec> parameterSpecs() {
        "and no feedback blend, keeps it instead of averaging more: the average of a whole period of a still, "
        "periodic input is final, so the output stops changing; 0 = keep averaging (up to maxSamples)",
        "this file (Hold)"},
+      {"holdRelease", ParamType::Float, 0.002, 0.0, 1.0, nullptr,
+       "a held pixel whose input, summed over a period as tonemapped luminance, differs from the period before by "
+       "more than this per frame, two periods running, is released and averages again (a change the held value "
+       "would hide: a light switched on, an object appearing in a still shot); 0 = on any change, 1 = never",
+       "this file (Hold); temporal/hold_release.h"},
       {"staticClip", ParamType::Bool, 1, 0, 1, nullptr,
        "test static history against its footprint box (3x3 united with the 5x5 values seen twice; 3x3 once the "
        "history went through a feedback blend) and fall back to the clipped feedback blend when outside (rejects "
@@ -1302,6 +1350,7 @@ void readSettings(const ParamSet& p, const char* filterName, Settings& settings)
   settings.staticAccumulation = p.getBool("staticAccumulation");
   settings.maxSamples = p.getInt("maxSamples");
   settings.holdPeriod = p.getInt("holdPeriod");
+  settings.holdRelease = p.getFloat("holdRelease");
   settings.varianceClip = p.getFloat("varianceClip");
   settings.resampleDamping = p.getFloat("resampleDamping");
   settings.staticClip = p.getBool("staticClip");

@@ -7,8 +7,9 @@
 // images (ping-pong: the reprojected fetch reads neighbours of the pixel being
 // written) holding the accumulated colour in the clip space plus a signed
 // sample weight, and, only when the filter is committed with depth, two float
-// depth planes (this frame's and the previous frame's), and a 1-byte
-// history-state plane (feedback since reset, frames since reset). Scratch
+// depth planes (this frame's and the previous frame's), a 1-byte
+// history-state plane (feedback since reset, frames since reset) and a
+// 4-byte plane of the hold's windows (temporal/hold_release.h). Scratch
 // (bytesScratch): per row band of the fast path, a ring of five staged rows
 // as planes (colour in the clip space, motion x and y; the output's alpha is
 // read from the input), five depth rows and the row's closest-depth taps; the
@@ -26,6 +27,7 @@
 
 #include "core/image.h"
 #include "core/params.h"
+#include "temporal/hold_release.h"
 #include "temporal/jitter.h"
 
 namespace crisp::taa {
@@ -49,6 +51,7 @@ struct Settings {
   float varianceClip = 1.0f;  // taa.cpp "Deliberate choices": the feedback box within mean +- gamma sigma; 0 = off
   float resampleDamping = 0.3f;  // taa.cpp "Deliberate choices": history weight lowered at sub-pixel motion
   int holdPeriod = 16;        // taa.cpp "Hold": the jitter sequence's period in frames; 0 = no hold
+  float holdRelease = 0.002f;  // taa.cpp "Hold": a held pixel whose input changes by this much is released; 1 = never
   bool staticClip = true;     // clip history in static pixels too (rejects cuts, fireflies, light changes)
   float depthTolerance = 0.05f;  // relative depth difference still the same surface
   temporal::UnjitterMode unjitter = temporal::UnjitterMode::BlackmanHarris;  // taa.cpp "Jitter"
@@ -103,6 +106,9 @@ class Kernel {
   // no pixel has a reason to start over after the first frame; the stability
   // tests assert that, and that the count is live where things move.
   long resetsLastFrame() const { return resets_.load(std::memory_order_relaxed); }
+  // Still pixels of the last run released from the hold (taa.cpp "Hold"):
+  // their input changed for two windows running. Not in resetsLastFrame.
+  long releasesLastFrame() const { return releases_.load(std::memory_order_relaxed); }
   // The largest accumulated sample weight W (Kernel::history_'s fourth plane,
   // either sign) over the pixels after the last run; 0 without history. The
   // running average caps it at Settings::maxSamples (taa.cpp "Static-scene
@@ -135,6 +141,9 @@ class Kernel {
   // is tested against the 3x3 box only, the rest against the footprint box.
   // Bits 1-7: frames since that reset, saturating at 127 (taa.cpp "Hold").
   std::vector<std::uint8_t> historyState_;
+  // Per pixel, in place, its input's windows of holdPeriod frames
+  // (temporal/hold_release.h).
+  temporal::HoldWindows holdWindows_;
   std::vector<float> depth_[2];
   std::vector<int> sourceColumn_;  // per frame: the input column of each staged plane index (taa.cpp)
   int current_ = 0;           // index of the history written last
@@ -143,6 +152,7 @@ class Kernel {
   ClipSpace historySpace_ = ClipSpace::YCoCg;
   std::atomic<long> guards_{0};
   std::atomic<long> resets_{0};
+  std::atomic<long> releases_{0};
 };
 
 }  // namespace crisp::taa

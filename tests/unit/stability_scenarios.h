@@ -205,6 +205,16 @@ inline bool startsOver(const Scenario& sc) {
   return false;
 }
 
+// The scenarios whose input repeats with a period that divides the jitter's
+// (16 frames): the hold's windows all match, so no still pixel is released
+// from the hold (taa::Kernel::releasesLastFrame, phlm's FrameStats::releases;
+// temporal/hold_release.h).
+inline bool periodic(const Scenario& sc) {
+  for (const char* name : {"constant colour", "black/white flicker", "checker flicker"})
+    if (std::string(sc.name) == name) return true;
+  return false;
+}
+
 // Frames in which nothing moved since the previous one: no motion image, or
 // one of exact zeros, and (with depth) the previous frame's depth bit for
 // bit. Every reprojection is then on screen, finite and onto the same

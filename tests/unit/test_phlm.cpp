@@ -497,23 +497,23 @@ TEST(Phlm, InterceptPlanesFollowTheRecords) {
   }
 }
 
-// Memory kept between frames: one 100-byte record and the hold's byte per
-// pixel when static; with motion two records, their intercepts as planes
+// Memory kept between frames: one 100-byte record, the hold's byte and its
+// 4-byte windows per pixel when static; with motion two records, their intercepts as planes
 // (2 x 12 bytes, phlm.cpp "Model fetch") and the narrow-box byte more; plus
 // two depth planes with depth; nothing allocated by run().
 // Record and intercept rows are padded to whole blocks of 8 pixels (phlm.h recordIndex).
 TEST(Phlm, MemoryKeptBetweenFrames) {
   phlm::Kernel<float> k;
   k.allocate(96, 10, false, false);
-  EXPECT_EQ(k.bytesKeptBetweenFrames(), 960u * (100u + 1u));
+  EXPECT_EQ(k.bytesKeptBetweenFrames(), 960u * (100u + 1u + 4u));
   k.allocate(96, 10, true, true);
-  EXPECT_EQ(k.bytesKeptBetweenFrames(), 960u * (200u + 24u + 1u + 1u + 8u));
+  EXPECT_EQ(k.bytesKeptBetweenFrames(), 960u * (200u + 24u + 1u + 1u + 4u + 8u));
   k.allocate(100, 10, true, true);  // 100 = 12.5 blocks: records of 104 pixels per row, depth of 100
-  EXPECT_EQ(k.bytesKeptBetweenFrames(), 1040u * (200u + 24u) + 1000u * (1u + 1u + 8u));
+  EXPECT_EQ(k.bytesKeptBetweenFrames(), 1040u * (200u + 24u) + 1000u * (1u + 1u + 4u + 8u));
   k.allocate(100, 10, false, false);  // motion dropped: its buffers freed
-  EXPECT_EQ(k.bytesKeptBetweenFrames(), 1040u * 100u + 1000u * 1u);
-  std::printf("phlm float32 state: %zu bytes/pixel static, %zu with motion and depth\n", std::size_t(101),
-              std::size_t(234));
+  EXPECT_EQ(k.bytesKeptBetweenFrames(), 1040u * 100u + 1000u * (1u + 4u));
+  std::printf("phlm float32 state: %zu bytes/pixel static, %zu with motion and depth\n", std::size_t(105),
+              std::size_t(238));
 }
 
 // The filter: registered, parameter table documented, bad input named,

@@ -21,7 +21,10 @@
 //  * where nothing moved since the previous frame (stability::StillFrames),
 //    no pixel started over (taa::Kernel::resetsLastFrame), border pixels
 //    included, and pixels did on the scenarios with off-screen, non-finite or
-//    disoccluded reprojection (stability::startsOver).
+//    disoccluded reprojection (stability::startsOver);
+//  * releases from the hold (taa.cpp "Hold") match between the paths and are
+//    none on the periodic scenarios (stability::periodic). (The slow drift
+//    leaves taa's box every frame, so its pixels never average or hold.)
 // Then a single firefly on every pixel in turn, with a stated bound on how
 // long it affects the output.
 #include <gtest/gtest.h>
@@ -124,6 +127,7 @@ TEST(TemporalStability, TaaTwentyThousandFrameRuns) {
       std::unique_ptr<Runner> fast, reference;
       float heaviest = 0;  // the largest sample weight W over the run (taa::Kernel::largestSampleWeight)
       long resets = 0;     // pixels that started over after the first frame (taa::Kernel::resetsLastFrame)
+      long releases = 0;   // still pixels released from the hold (taa::Kernel::releasesLastFrame)
     };
     std::vector<Variant> variants;
     for (bool improved : {false, true})
@@ -168,6 +172,12 @@ TEST(TemporalStability, TaaTwentyThousandFrameRuns) {
           return;
         }
         if (t > 0) v.resets += resets;
+        if (kernel.releasesLastFrame() != v.reference->kernel().releasesLastFrame()) {
+          ADD_FAILURE() << name() << ": " << kernel.releasesLastFrame() << " releases on the fast path, "
+                        << v.reference->kernel().releasesLastFrame() << " on the reference";
+          return;
+        }
+        v.releases += kernel.releasesLastFrame();
         const float heaviest = kernel.largestSampleWeight();
         if (!(heaviest <= float(defaults.maxSamples))) {
           ADD_FAILURE() << name() << ": sample weight " << heaviest << " above maxSamples " << defaults.maxSamples;
@@ -192,8 +202,9 @@ TEST(TemporalStability, TaaTwentyThousandFrameRuns) {
                 "fast == reference\n", sc.name, runFrames(), defaults.holdPeriod);
     const std::string name = sc.name;
     for (const Variant& v : variants) {
-      std::printf("  %-12s holdPeriod %2d: largest sample weight %g, resets after the first frame %ld\n",
-                  filterName(v.improved), v.holdPeriod, double(v.heaviest), v.resets);
+      std::printf("  %-12s holdPeriod %2d: largest sample weight %g, resets after the first frame %ld, releases "
+                  "from the hold %ld\n",
+                  filterName(v.improved), v.holdPeriod, double(v.heaviest), v.resets, v.releases);
       const std::string label = std::string(filterName(v.improved)) + " holdPeriod " + std::to_string(v.holdPeriod) +
                                 ", " + name;
       if (v.holdPeriod == 0 && kAccumulating.count(name)) {
@@ -201,6 +212,9 @@ TEST(TemporalStability, TaaTwentyThousandFrameRuns) {
       }
       if (startsOver(sc)) {
         EXPECT_GT(v.resets, 0) << label << ": no pixel started over";
+      }
+      if (periodic(sc)) {
+        EXPECT_EQ(v.releases, 0) << label << ": a periodic input released held pixels";
       }
     }
   }
