@@ -10,12 +10,13 @@
 //                       historyImage (the previous history, RGBA32F, colour in
 //                       the clip space + signed sample weight), motionImage
 //                       (optional, hasMotion; pixels, previous - current, the
-//                       texture's y), markImage (R32F: taa.cpp's historyState
-//                       of that history, feedbackSinceReset (0/1) + 2 x
-//                       framesSinceReset)
+//                       texture's y), markImage (RGBA32F: r = taa.cpp's
+//                       historyState of that history, feedbackSinceReset
+//                       (0/1) + 2 x framesSinceReset; gba = the pixel's
+//                       Kernel::holdWindows_ word, stepHoldWindow below)
 //                       -> out vec4 historyOut (location 0),
 //                       out vec4 fragColor (location 1, the output unless sharpening),
-//                       out float markOut (location 2, the mark of historyOut)
+//                       out vec4 markOut (location 2, the mark of historyOut)
 //     = taa.cpp referencePixel + resolvePixel without depth and aliasedValue;
 //  2. TAA_SHARPEN_PASS  historyImage (the history just written), colorImage
 //                       (alpha) -> out vec4 fragColor = taa.cpp sharpenPixel<true>.
@@ -28,8 +29,11 @@
 //   jitterWeighting 0 = none / 1 = blackman-harris, filterSize 1.5,
 //   historyFilter 0 = catmull-rom / 1 = bilinear, clipSpace 0 = ycocg / 1 = rgb,
 //   feedbackMin 0.7, feedbackMax 0.85, sharpen 0, staticAccumulation 1,
-//   maxSamples 128, holdPeriod 16, varianceClip 1, resampleDamping 0.3, staticClip 1, unjitter 0 = none / 1 = nearest /
-//   2 = blackman-harris (default 2). (depthTolerance: no depth here.)
+//   maxSamples 128, holdPeriod 16, holdRelease 0.002, varianceClip 1, resampleDamping 0.3, staticClip 1,
+//   unjitter 0 = none / 1 = nearest / 2 = blackman-harris (default 2). (depthTolerance: no depth here.)
+// Per frame, from gpu_filters.py: hasHistory, hasMotion, holdWindowEnd (this
+// frame closes a window of holdPeriod frames: temporal::holdWindowEnds of the
+// frames since reset), holdWindowsFresh (the windows restart: a new holdPeriod).
 //
 // Not in this version, on purpose: depth (closest-depth velocity and the
 // disocclusion test) and the aliasedValue plane of taa-improved. The viewport
@@ -39,6 +43,9 @@
 //
 // Known differences from the C++ kernel (besides common.glsl's):
 //  * blackmanHarrisWeight is evaluated in float (C++: double, then rounded);
+//  * holdLumaOfLinear divides with the GPU's division (GLSL allows 2.5 ulp),
+//    so a luminance within an ulp of a quantisation step may land one step
+//    off: a window's sum then differs by one from the C++ one;
 //  * a moving pixel's Catmull-Rom/bilinear fetch is explicit texelFetch taps
 //    with the C++ summation order (not the sampler's filtering).
 
@@ -190,6 +197,36 @@ void unjitterWeights(int sx, int sy, out float weights[9]) {
   for (int i = 0; i < 9; ++i) weights[i] /= sum;
 }
 
+// ---- temporal/hold_release.h (the release of held still pixels) -----------
+// The C++ word's fields as exact integers in floats: x = the running window's
+// sum (+ 32768 while it has none), y = the baseline (32767: none), z = pending.
+const vec3 kHoldWindowNone = vec3(32768.0, 32767.0, 0.0);
+float holdLumaOfLinear(float luminance) {
+  float y = luminance < 0.0 ? 0.0 : luminance;
+  float t = (1.0 - 1.0 / (1.0 + y)) * 255.0 + 0.5;
+  return (t > 0.0 && t < 256.0) ? floor(t) : 0.0;
+}
+vec3 holdWindowRestarted(bool windowEnd) { return windowEnd ? vec3(0.0, 32767.0, 0.0) : kHoldWindowNone; }
+vec3 stepHoldWindow(vec3 word, float luma, bool eligible, bool releasable, bool windowEnd, float limit,
+                    out bool released) {
+  float sum = word.x + luma, baseline = word.y;
+  bool pending = word.z > 0.0;
+  released = false;
+  if (windowEnd) {
+    bool hasSum = sum < 32768.0;
+    bool complete = hasSum && baseline != 32767.0;
+    float diff = sum - baseline;
+    bool differs = complete && (diff > limit || diff < -limit);
+    released = releasable && differs && pending;
+    bool wait = releasable && differs && !pending;
+    baseline = wait ? baseline : (hasSum ? sum : 32767.0);
+    pending = wait;
+    sum = 0.0;
+  }
+  if (!eligible || released) return holdWindowRestarted(windowEnd);
+  return vec3(sum, baseline, pending ? 1.0 : 0.0);
+}
+
 #ifdef TAA_RESOLVE_PASS
 // taa.cpp footprintBox of the reference path: the 3x3 box united with the 5x5
 // box of second-largest / second-smallest values (clamped taps, row order).
@@ -264,7 +301,9 @@ void taaResolvePass() {
   vec4 result = current;
   float newWeight = weight;
   bool reset = !valid || !(weightSum > 0.0);
-  float state = texelFetch(markImage, p, 0).r;  // historyState
+  vec4 marks = texelFetch(markImage, p, 0);
+  float state = marks.r;  // historyState
+  bool averaging = false;  // a still pixel that averaged (held or not), for the hold's release
   float framesSinceReset = floor(state / 2.0);
   float mark = state - 2.0 * framesSinceReset;  // feedbackSinceReset
   if (!reset) {
@@ -277,7 +316,8 @@ void taaResolvePass() {
         clipTowardCentre4(hist, box.lo, box.hi, excess);
       }
     }
-    if (staticPixel && (staticClip == 0 || !(excess > 1.0))) {
+    averaging = staticPixel && (staticClip == 0 || !(excess > 1.0));
+    if (averaging) {
       if (holdPeriod > 0 && !(mark > 0.0) && framesSinceReset >= float(holdPeriod)) {
         result = hist;  // taa.cpp "Hold"
         newWeight = historyWeight;
@@ -317,6 +357,16 @@ void taaResolvePass() {
     }
     reset = !(finiteValue(result.x) && finiteValue(result.y) && finiteValue(result.z));  // never a non-finite history
   }
+  // taa.cpp "Hold": a still averaging pixel whose input changed for two
+  // windows running restarts, as at a reset.
+  vec3 windows = kHoldWindowNone;
+  if (holdPeriod > 0) {
+    bool released;
+    windows = stepHoldWindow(holdWindowsFresh != 0 ? kHoldWindowNone : marks.gba,
+                             holdLumaOfLinear(lumaOf(current, clipSpace)), averaging, averaging, holdWindowEnd != 0,
+                             float(int(holdRelease * 255.0 * float(holdPeriod))), released);
+    reset = reset || released;
+  }
   framesSinceReset = min(framesSinceReset + 1.0, 127.0);
   if (reset) {
     result = current;
@@ -326,7 +376,7 @@ void taaResolvePass() {
   }
   result.w = moving ? -newWeight : newWeight;
   historyOut = result;
-  markOut = mark + 2.0 * framesSinceReset;
+  markOut = vec4(mark + 2.0 * framesSinceReset, windows);
   if (reset && unjitter == 0) {
     vec4 c = sanitizeColor4(texelFetch(colorImage, p, 0));  // the input itself, not its YCoCg round trip
     fragColor = vec4(c.rgb, alpha);

@@ -40,7 +40,8 @@ DEFAULTS = {
     "repair": {"kappa": 0.0, "patchSize": 5, "mask": "gauss5", "angleEstimator": "regression"},
     "taa": {"jitterX": 0.0, "jitterY": 0.0, "jitterWeighting": "none", "filterSize": 1.5,
             "historyFilter": "catmull-rom", "clipSpace": "rgb", "feedbackMin": 0.7, "feedbackMax": 0.85,
-            "sharpen": 0.0, "staticAccumulation": True, "maxSamples": 128, "holdPeriod": 16, "varianceClip": 1.0,
+            "sharpen": 0.0, "staticAccumulation": True, "maxSamples": 128, "holdPeriod": 16, "holdRelease": 0.002,
+            "varianceClip": 1.0,
             "resampleDamping": 0.3,
             "staticClip": True, "unjitter": "blackman-harris"},
 }
@@ -62,8 +63,9 @@ FILES = {
         "push": (("FLOAT", "jitterX"), ("FLOAT", "jitterY"), ("INT", "jitterWeighting"), ("FLOAT", "filterSize"),
                  ("INT", "historyFilter"), ("INT", "clipSpace"), ("FLOAT", "feedbackMin"),
                  ("FLOAT", "feedbackMax"), ("FLOAT", "sharpen"), ("INT", "staticAccumulation"),
-                 ("INT", "maxSamples"), ("INT", "holdPeriod"), ("FLOAT", "varianceClip"), ("FLOAT", "resampleDamping"), ("INT", "staticClip"), ("INT", "unjitter"), ("INT", "hasHistory"),
-                 ("INT", "hasMotion")),
+                 ("INT", "maxSamples"), ("INT", "holdPeriod"), ("FLOAT", "holdRelease"), ("FLOAT", "varianceClip"),
+                 ("FLOAT", "resampleDamping"), ("INT", "staticClip"), ("INT", "unjitter"), ("INT", "hasHistory"),
+                 ("INT", "hasMotion"), ("INT", "holdWindowEnd"), ("INT", "holdWindowsFresh")),
     },
 }
 PASSES = {
@@ -75,7 +77,7 @@ PASSES = {
     "repair_reduce": ("repair", "REPAIR_REDUCE_PASS", "repairReducePass", (("VEC4", "statsOut"),)),
     "repair_resolve": ("repair", "REPAIR_RESOLVE_PASS", "repairResolvePass", (("VEC4", "fragColor"),)),
     "taa_resolve": ("taa", "TAA_RESOLVE_PASS", "taaResolvePass",
-                    (("VEC4", "historyOut"), ("VEC4", "fragColor"), ("FLOAT", "markOut"))),
+                    (("VEC4", "historyOut"), ("VEC4", "fragColor"), ("VEC4", "markOut"))),
     "taa_sharpen": ("taa", "TAA_SHARPEN_PASS", "taaSharpenPass", (("VEC4", "fragColor"),)),
     # Viewport preview (common.glsl only): the colour-managed view decoded to linear by the sRGB curve, and
     # the filtered texture drawn at a pixel offset for the 3D view's overlay buffer (see DISPLAY_SOURCE).
@@ -262,6 +264,7 @@ class GpuFilter:
         self.set_params(params or {})
         self.size = None
         self.frames = 0  # taa: frames since reset
+        self.hold_windows_period = 0  # taa: the holdPeriod the mark textures' windows are kept for
         self.history_space = None  # taa: the clipSpace the history is stored in
         for name in [p for p in PASSES if p.startswith(method + "_")]:
             shader(name)  # build now, so a broken shader fails here and not mid-redraw
@@ -306,9 +309,10 @@ class GpuFilter:
                     break
         elif self.method == "taa":
             # history[i], the output and mark[i] share a framebuffer (MRT: history at slot 0, output at
-            # slot 1, mark at slot 2: taa.cpp's historyState, feedback-since-reset + 2 x frames since reset).
+            # slot 1, mark at slot 2: taa.cpp's historyState, feedback-since-reset + 2 x frames since reset, then
+            # the hold's windows, taa.glsl stepHoldWindow).
             self.history_tex = [gpu.types.GPUTexture((width, height), format="RGBA32F") for _ in range(2)]
-            self.mark_tex = [gpu.types.GPUTexture((width, height), format="R32F") for _ in range(2)]
+            self.mark_tex = [gpu.types.GPUTexture((width, height), format="RGBA32F") for _ in range(2)]
             self.history_fb = [gpu.types.GPUFrameBuffer(color_slots=(t, self.output.texture, m))
                                for t, m in zip(self.history_tex, self.mark_tex)]
             self.current = 0
@@ -344,6 +348,12 @@ class GpuFilter:
         self.history_space = space
         p["hasHistory"] = 1 if self.frames > 0 else 0
         p["hasMotion"] = 1 if motion is not None else 0
+        # The hold's windows (temporal/hold_release.h): aligned on the frames since reset, restarted for a
+        # new period (as taa.cpp Kernel::run).
+        period = int(p["holdPeriod"])
+        p["holdWindowEnd"] = 1 if period > 0 and (self.frames + 1) % period == 0 else 0
+        p["holdWindowsFresh"] = 1 if period != self.hold_windows_period else 0
+        self.hold_windows_period = period
         for b in ("staticAccumulation", "staticClip"):
             p[b] = 1 if p[b] else 0
         previous, nxt = self.history_tex[self.current], 1 - self.current

@@ -202,6 +202,23 @@ def taa_frames(n):
     return frames
 
 
+def changing_frames(n, change, period=3):
+    """n frames of the chart jittered through `period` Halton points (a periodic input), the right half 0.3
+    brighter from frame `change` on: a persistent change inside held pixels' boxes along the new edge."""
+    jittered = taa_frames(period)
+    frames = []
+    for k in range(n):
+        image, params = jittered[k % period]
+        if k >= change:
+            image = list(image)
+            for i in range(0, len(image), 4):
+                if (i // 4) % W >= W // 2:
+                    for c in range(3):
+                        image[i + c] += 0.3
+        frames.append((image, params))
+    return frames
+
+
 def moving_frames(n, vx, vy, **params):
     """n frames of the chart sliding by (vx, vy) px per frame (y down); motion = previous - current."""
     motion = [-vx, -vy, 0.0, 0.0] * (W * H)
@@ -262,6 +279,17 @@ class GpuParity(unittest.TestCase):
         # sharpen pass then reads the held history.
         self.check("taa 8 frames hold 3", "taa", taa_frames(8), {"holdPeriod": 3})
         self.check("taa 8 frames hold 3 sharpen", "taa", taa_frames(8), {"holdPeriod": 3, "sharpen": 0.5})
+
+    def test_taa_hold_release(self):
+        # taa.cpp "Hold", temporal/hold_release.h: windows of 3 frames; the change at frame 9 differs from the
+        # baseline in the windows closed at frames 11 and 14, which releases the held pixels it reaches.
+        frames = changing_frames(20, 9)
+        params = {"holdPeriod": 3}
+        self.check("taa 20 frames hold 3, change at 9", "taa", frames, params)
+        never = library_filter("taa", frames, dict(params, holdRelease=1.0))
+        released = library_filter("taa", frames, params)
+        self.assertGreater(max(abs(a - b) for a, b in zip(never, released)), 0.01,
+                           "the change must release held pixels")
 
     def test_taa_ycocg_sharpen_bh(self):
         self.check("taa 6 frames ycocg sharpen bh", "taa", taa_frames(6),
