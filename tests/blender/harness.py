@@ -19,7 +19,7 @@ for p in (ADDON_DIR, SCENES_DIR, HERE):
     if p not in sys.path:
         sys.path.insert(0, p)
 
-SCENES = ["still_life", "spinning_cube", "camera_dolly", "ghosting", "hairball", "foliage", "shiny"]
+SCENES = ["still_life", "spinning_cube", "camera_dolly", "ghosting", "hairball", "foliage", "shiny", "light_switch"]
 
 
 def library_usable():

@@ -20,7 +20,8 @@ from crisp import native, output_folder, pipeline, plan, render  # noqa: E402
 # objects are visible. The expected plans below follow from these facts and METHODS.md.
 STATIC, ONE_MOVING, CAMERA, OBJECT_AMONG_MANY = "static", "one-moving", "camera", "object-among-many"
 SCENE_KIND = {"still_life": STATIC, "spinning_cube": ONE_MOVING, "camera_dolly": CAMERA,
-              "ghosting": OBJECT_AMONG_MANY, "hairball": ONE_MOVING, "foliage": OBJECT_AMONG_MANY, "shiny": STATIC}
+              "ghosting": OBJECT_AMONG_MANY, "hairball": ONE_MOVING, "foliage": OBJECT_AMONG_MANY, "shiny": STATIC,
+              "light_switch": STATIC}
 # Expected logical passes on EEVEE 3.4 (no Vector pass: motion is reconstructed from depth (+ ids)).
 EXPECTED = {
     "none": {k: ["color"] for k in (STATIC, ONE_MOVING, CAMERA, OBJECT_AMONG_MANY)},

@@ -6,6 +6,9 @@ metrics.h on top. Not a test module (CTest runs tests/python/test_*.py)."""
 import ctypes
 import math
 import os
+import shutil
+import subprocess
+import tempfile
 
 import numpy as np
 
@@ -13,6 +16,23 @@ SOURCE = os.environ.get("CRISP_SOURCE_DIR") or os.path.dirname(os.path.dirname(o
 BUILD = os.environ.get("CRISP_BUILD_DIR") or os.path.join(SOURCE, "build")
 CRISP = os.path.join(BUILD, "bin", "crisp")
 LIBRARY = os.path.join(BUILD, "lib", "libcrisp.so")
+
+
+def needs_cli_and_blender():
+    """pytest marks of a module that runs the built CLI with Blender: skipped where either is missing."""
+    import pytest
+    return [pytest.mark.skipif(not os.path.isfile(CRISP), reason="crisp CLI not built at %s" % CRISP),
+            pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")]
+
+
+def run_eval(args, prefix, timeout=900):
+    """Runs `crisp eval ARGS -o OUT` into a new temporary folder OUT; returns (OUT, stdout, stderr) of a run
+    that must succeed. The caller removes OUT."""
+    out = tempfile.mkdtemp(prefix=prefix)
+    p = subprocess.run([CRISP, "eval"] + args + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                       timeout=timeout)
+    assert p.returncode == 0, p.stderr.decode()[-3000:]
+    return out, p.stdout.decode(), p.stderr.decode()
 
 
 class Lib:

@@ -20,25 +20,19 @@ import tempfile
 import numpy as np
 import pytest
 
-from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, psnr
+from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, needs_cli_and_blender, psnr, run_eval
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 ARGS = ["--scene", "still_life", "--resolution", "96x54", "--frames", "1-3", "--reference-samples", "8",
         "--curve", "1,2,4"]
 
-pytestmark = [
-    pytest.mark.skipif(not os.path.isfile(CRISP), reason="crisp CLI not built at %s" % CRISP),
-    pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed"),
-]
+pytestmark = needs_cli_and_blender()
 
 
 @pytest.fixture(scope="module")
 def run():
-    out = tempfile.mkdtemp(prefix="crisp_eval_")
-    p = subprocess.run([CRISP, "eval"] + ARGS + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                       timeout=600)
-    assert p.returncode == 0, p.stderr.decode()[-3000:]
-    yield out, p.stdout.decode(), p.stderr.decode()
+    out, stdout, stderr = run_eval(ARGS, "crisp_eval_", timeout=600)
+    yield out, stdout, stderr
     shutil.rmtree(out, ignore_errors=True)
 
 
