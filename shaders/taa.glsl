@@ -29,11 +29,12 @@
 //   jitterWeighting 0 = none / 1 = blackman-harris, filterSize 1.5,
 //   historyFilter 0 = catmull-rom / 1 = bilinear, clipSpace 0 = ycocg / 1 = rgb,
 //   feedbackMin 0.7, feedbackMax 0.85, sharpen 0, staticAccumulation 1,
-//   maxSamples 128, holdPeriod 16, holdRelease 0.002, varianceClip 1, resampleDamping 0.3, staticClip 1,
+//   maxSamples 128, holdPeriod 16, holdRelease 0.002 (as holdLimit, below), varianceClip 1, resampleDamping 0.3, staticClip 1,
 //   unjitter 0 = none / 1 = nearest / 2 = blackman-harris (default 2). (depthTolerance: no depth here.)
 // Per frame, from gpu_filters.py: hasHistory, hasMotion, holdWindowEnd (this
 // frame closes a window of holdPeriod frames: temporal::holdWindowEnds of the
-// frames since reset), holdWindowsFresh (the windows restart: a new holdPeriod).
+// frames since reset), holdWindowsFresh (the windows restart: a new holdPeriod),
+// holdLimit (temporal::holdWindowLimit of holdRelease, computed in float32 there).
 //
 // Not in this version, on purpose: depth (closest-depth velocity and the
 // disocclusion test) and the aliasedValue plane of taa-improved. The viewport
@@ -44,8 +45,10 @@
 // Known differences from the C++ kernel (besides common.glsl's):
 //  * blackmanHarrisWeight is evaluated in float (C++: double, then rounded);
 //  * holdLumaOfLinear divides with the GPU's division (GLSL allows 2.5 ulp),
-//    so a luminance within an ulp of a quantisation step may land one step
-//    off: a window's sum then differs by one from the C++ one;
+//    and the compiler may contract its multiply-add and lumaOf into FMAs
+//    (C++: -ffp-contract=off; GLSL 3.30 has no `precise`), so a luminance
+//    within an ulp of a quantisation step may land one step off: a window's
+//    sum then differs by one from the C++ one;
 //  * a moving pixel's Catmull-Rom/bilinear fetch is explicit texelFetch taps
 //    with the C++ summation order (not the sampler's filtering).
 
@@ -364,7 +367,7 @@ void taaResolvePass() {
     bool released;
     windows = stepHoldWindow(holdWindowsFresh != 0 ? kHoldWindowNone : marks.gba,
                              holdLumaOfLinear(lumaOf(current, clipSpace)), averaging, averaging, holdWindowEnd != 0,
-                             float(int(holdRelease * 255.0 * float(holdPeriod))), released);
+                             float(holdLimit), released);
     reset = reset || released;
   }
   framesSinceReset = min(framesSinceReset + 1.0, 127.0);

@@ -19,6 +19,7 @@ common.glsl "Row order".
 """
 
 import os
+import struct
 
 import gpu
 from gpu_extras.batch import batch_for_shader
@@ -63,7 +64,7 @@ FILES = {
         "push": (("FLOAT", "jitterX"), ("FLOAT", "jitterY"), ("INT", "jitterWeighting"), ("FLOAT", "filterSize"),
                  ("INT", "historyFilter"), ("INT", "clipSpace"), ("FLOAT", "feedbackMin"),
                  ("FLOAT", "feedbackMax"), ("FLOAT", "sharpen"), ("INT", "staticAccumulation"),
-                 ("INT", "maxSamples"), ("INT", "holdPeriod"), ("FLOAT", "holdRelease"), ("FLOAT", "varianceClip"),
+                 ("INT", "maxSamples"), ("INT", "holdPeriod"), ("INT", "holdLimit"), ("FLOAT", "varianceClip"),
                  ("FLOAT", "resampleDamping"), ("INT", "staticClip"), ("INT", "unjitter"), ("INT", "hasHistory"),
                  ("INT", "hasMotion"), ("INT", "holdWindowEnd"), ("INT", "holdWindowsFresh")),
     },
@@ -217,6 +218,19 @@ def run_pass(pass_name, target, samplers, constants=()):
         batch.draw(sh)
 
 
+def _float32(x):
+    return struct.unpack("f", struct.pack("f", x))[0]
+
+
+def hold_window_limit(hold_release, period):
+    """temporal/hold_release.h holdWindowLimit, in float32 operation by operation as the C++ (so the GPU
+    compiler cannot contract or regroup it)."""
+    release = min(hold_release, 1.0)
+    if not release >= 0.0:
+        release = 0.0 if release < 0.0 else 1.0  # NaN: never
+    return int(_float32(_float32(_float32(release) * 255.0) * float(period)))
+
+
 def _choice_index(name, value):
     return CHOICES[name].index(value) if isinstance(value, str) else int(value)
 
@@ -353,6 +367,7 @@ class GpuFilter:
         period = int(p["holdPeriod"])
         p["holdWindowEnd"] = 1 if period > 0 and (self.frames + 1) % period == 0 else 0
         p["holdWindowsFresh"] = 1 if period != self.hold_windows_period else 0
+        p["holdLimit"] = hold_window_limit(float(p["holdRelease"]), period)
         self.hold_windows_period = period
         for b in ("staticAccumulation", "staticClip"):
             p[b] = 1 if p[b] else 0

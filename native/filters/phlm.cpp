@@ -1711,9 +1711,10 @@ std::vector<ParamSpec> phlmParams() {
        "reset or last box correction stops learning, and its output stops changing; 0 = off",
        "this file (Hold; taa's holdPeriod)"},
       {"holdRelease", ParamType::Float, 0.002, 0.0, 1.0, nullptr,
-       "a still model whose input, summed over a period as tonemapped luminance, differs from the period before by "
-       "more than this per frame, two periods running, restarts from the input (a change a held or slowly "
-       "forgetting model would hide); 0 = on any change, 1 = never",
+       "a still model (held or learning) whose input, summed over a period of holdPeriod frames as tonemapped "
+       "luminance, differs from the last period that matched by more than this per frame, two periods running, "
+       "restarts from the input (a change a held or slowly forgetting model would hide); 0 = on any change, 1 = "
+       "never; no effect with holdPeriod 0",
        "this file (Hold); temporal/hold_release.h"},
       {"initialCovariance", ParamType::Float, 1000.0, 1e-3, 1e6, nullptr,
        "p0: variance of the intercept at initialisation and every reset (large: the first sample after a reset "

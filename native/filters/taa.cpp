@@ -1310,9 +1310,10 @@ std::vector<ParamSpec> parameterSpecs() {
        "periodic input is final, so the output stops changing; 0 = keep averaging (up to maxSamples)",
        "this file (Hold)"},
       {"holdRelease", ParamType::Float, 0.002, 0.0, 1.0, nullptr,
-       "a held pixel whose input, summed over a period as tonemapped luminance, differs from the period before by "
-       "more than this per frame, two periods running, is released and averages again (a change the held value "
-       "would hide: a light switched on, an object appearing in a still shot); 0 = on any change, 1 = never",
+       "a still averaging pixel (held or not) whose input, summed over a period of holdPeriod frames as "
+       "tonemapped luminance, differs from the last period that matched by more than this per frame, two periods "
+       "running, restarts from the current colour (a change the held value would hide: a light switched on, an "
+       "object appearing in a still shot); 0 = on any change, 1 = never; no effect with holdPeriod 0",
        "this file (Hold); temporal/hold_release.h"},
       {"staticClip", ParamType::Bool, 1, 0, 1, nullptr,
        "test static history against its footprint box (3x3 united with the 5x5 values seen twice; 3x3 once the "

@@ -51,7 +51,7 @@ struct Settings {
   float varianceClip = 1.0f;  // taa.cpp "Deliberate choices": the feedback box within mean +- gamma sigma; 0 = off
   float resampleDamping = 0.3f;  // taa.cpp "Deliberate choices": history weight lowered at sub-pixel motion
   int holdPeriod = 16;        // taa.cpp "Hold": the jitter sequence's period in frames; 0 = no hold
-  float holdRelease = 0.002f;  // taa.cpp "Hold": a held pixel whose input changes by this much is released; 1 = never
+  float holdRelease = 0.002f;  // taa.cpp "Hold": a still pixel whose input changes by this much restarts; 1 = never
   bool staticClip = true;     // clip history in static pixels too (rejects cuts, fireflies, light changes)
   float depthTolerance = 0.05f;  // relative depth difference still the same surface
   temporal::UnjitterMode unjitter = temporal::UnjitterMode::BlackmanHarris;  // taa.cpp "Jitter"

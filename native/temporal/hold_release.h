@@ -18,8 +18,10 @@
 // firefly) never releases anything. Windows are aligned on the kernel's frame
 // count (frames since its reset; holdWindowEnds); a pixel that restarted, or
 // did not stand still, has no complete window until the next boundary, and no
-// baseline until the one after. So a change is taken in 2P to 3P frames after
-// it began (before the release, never).
+// baseline until the one after. So a change is taken in P to 2P frames after
+// it began, up to 3P when the part of it in its first window stays within the
+// limit (before the release, never; with holdPeriod 0 there is no hold and no
+// release).
 //
 // limit = holdRelease x 255 x P: holdRelease is the change of a window's mean
 // tonemapped luminance that counts; 1 never releases (a mean changes by at
@@ -49,8 +51,14 @@ constexpr int kHoldPeriodMax = 127;                       // so a window's sum f
 // close a window of `period` frames?
 inline bool holdWindowEnds(long framesBefore, int period) { return period > 0 && (framesBefore + 1) % period == 0; }
 
-// The integer limit on |window - baseline| (see above).
-inline int holdWindowLimit(float holdRelease, int period) { return int(holdRelease * 255.0f * float(period)); }
+// The integer limit on |window - baseline| (see above), for holdRelease
+// clamped to [0, 1] (NaN: 1, never) and 0 < period <= kHoldPeriodMax. The
+// GLSL preview gets it from here (gpu_filters.py computes it in float32 too).
+inline int holdWindowLimit(float holdRelease, int period) {
+  float release = holdRelease > 1.0f ? 1.0f : holdRelease;
+  if (!(release >= 0.0f)) release = release < 0.0f ? 0.0f : 1.0f;  // NaN: never
+  return int(release * 255.0f * float(period));
+}
 
 // An already tonemapped luminance in [0, 1) quantised to 0..255.
 template <class T>
@@ -90,7 +98,8 @@ inline HoldWindowFrame holdWindowFrame(HoldWindows& windows, long framesBefore, 
     windows.period = period;
   }
   HoldWindowFrame f;
-  if (period > 0) f.words = windows.words.data();
+  if (period <= 0 || period > kHoldPeriodMax) return f;  // no hold (the parameter tables keep P in range)
+  f.words = windows.words.data();
   f.windowEnd = holdWindowEnds(framesBefore, period);
   f.limit = holdWindowLimit(holdRelease, period);
   return f;

@@ -290,6 +290,11 @@ class GpuParity(unittest.TestCase):
         released = library_filter("taa", frames, params)
         self.assertGreater(max(abs(a - b) for a, b in zip(never, released)), 0.01,
                            "the change must release held pixels")
+        # The limit gpu_filters.py passes, as temporal::holdWindowLimit computes it (HoldRelease unit tests).
+        self.assertEqual(gpu_filters.hold_window_limit(0.002, 16), 8)
+        self.assertEqual(gpu_filters.hold_window_limit(1.0, 127), 255 * 127)
+        self.assertEqual(gpu_filters.hold_window_limit(-1.0, 16), 0)
+        self.assertEqual(gpu_filters.hold_window_limit(float("nan"), 16), 255 * 16)
 
     def test_taa_ycocg_sharpen_bh(self):
         self.check("taa 6 frames ycocg sharpen bh", "taa", taa_frames(6),

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <string>
 
 #include "core/image.h"
@@ -144,6 +145,21 @@ TEST(HoldRelease, QuantisedLuminanceIsBoundedAndSaneOnEveryInput) {
   EXPECT_EQ(temporal::holdLumaOfLinear(std::numeric_limits<float>::infinity()), 255);
   EXPECT_EQ(temporal::holdLumaOfLinear(std::numeric_limits<float>::quiet_NaN()), 0);
   EXPECT_EQ(temporal::holdLumaOfLinear(1e30f), 255);
+}
+
+TEST(HoldRelease, LimitAndFrameKeepToTheirRanges) {
+  EXPECT_EQ(temporal::holdWindowLimit(0.002f, 16), 8);
+  EXPECT_EQ(temporal::holdWindowLimit(1.0f, 16), 255 * 16);  // never: |window - baseline| <= 255 P
+  EXPECT_EQ(temporal::holdWindowLimit(7.0f, 16), 255 * 16);
+  EXPECT_EQ(temporal::holdWindowLimit(-1.0f, 16), 0);
+  EXPECT_EQ(temporal::holdWindowLimit(std::numeric_limits<float>::quiet_NaN(), 16), 255 * 16);
+  temporal::HoldWindows windows;
+  windows.allocate(4);
+  EXPECT_NE(temporal::holdWindowFrame(windows, 0, 16, 0.002f).words, nullptr);
+  EXPECT_EQ(temporal::holdWindowFrame(windows, 0, 0, 0.002f).words, nullptr);  // no hold
+  EXPECT_EQ(temporal::holdWindowFrame(windows, 0, temporal::kHoldPeriodMax + 1, 0.002f).words, nullptr);  // sums would overflow
+  EXPECT_TRUE(temporal::holdWindowFrame(windows, 15, 16, 0.002f).windowEnd);
+  EXPECT_FALSE(temporal::holdWindowFrame(windows, 16, 16, 0.002f).windowEnd);
 }
 
 // docs/temporal_figures.md "Weakness of the hold": before the release, a

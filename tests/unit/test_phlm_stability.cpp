@@ -23,9 +23,8 @@
 //    border pixels included; the same count on both paths and in float64),
 //    and models were reset on the scenarios that need it
 //    (stability::startsOver);
-//  * releases from the hold (phlm.cpp "Hold") are the same on both paths
-//    and in float64, and none on the periodic scenarios
-//    (stability::periodic);
+//  * releases from the hold (phlm.cpp "Hold") are the same on both float
+//    paths, and none on the periodic scenarios (stability::periodic);
 //  * float32 and float64 outputs agree within kTolerance times the local box
 //    extent (+ rounding slack), over the whole run.
 #include <gtest/gtest.h>
@@ -67,7 +66,7 @@ struct Variant {
   double worstRelativeDiff = 0.0;  // float vs double, relative to box extent
   StateSeen seen32, seen64;
   long boxResets32 = 0, boxResets64 = 0, reprojectionResets = 0;  // after the first frame
-  long releases = 0;  // from the hold (FrameStats::releases)
+  long releases = 0, releases64 = 0;  // from the hold (FrameStats::releases), float and double
 };
 
 // The smallest pivot of the Cholesky factorisation of P - floor I (P: 4x4,
@@ -217,14 +216,15 @@ void runScenario(const Scenario& sc, std::vector<Variant>& variants, int frames 
         return;
       }
       if (t > 0) v.reprojectionResets += resets;
+      // (float64 may release other pixels: its box corrections, which restart the windows, may differ.)
       const long releases = v.k32.lastStats().releases;
-      if (releases != v.k32reference.lastStats().releases || releases != v.k64.lastStats().releases) {
+      if (releases != v.k32reference.lastStats().releases) {
         ADD_FAILURE() << name() << " frame " << t << ": releases " << releases << " (float), "
-                      << v.k32reference.lastStats().releases << " (its reference), " << v.k64.lastStats().releases
-                      << " (double)";
+                      << v.k32reference.lastStats().releases << " (its reference)";
         return;
       }
       v.releases += releases;
+      v.releases64 += v.k64.lastStats().releases;
       if (v.k32.lastStats().guards != 0 || v.k64.lastStats().guards != 0) {
         ADD_FAILURE() << name() << " frame " << t << ": guards fired, float " << v.k32.lastStats().guards
                       << ", double " << v.k64.lastStats().guards;
@@ -258,15 +258,16 @@ void runScenario(const Scenario& sc, std::vector<Variant>& variants, int frames 
   }
   for (const Variant& v : variants)
     std::printf("%-30s %-36s max trace P %7.1f, floor of P %.3g, float-vs-double worst %.2e of box extent, box resets "
-                "%ld/%ld (f32/f64), reprojection resets after the first frame %ld, releases from the hold %ld\n",
+                "%ld/%ld (f32/f64), reprojection resets after the first frame %ld, releases from the hold %ld/%ld\n",
                 sc.name, v.label, std::max(v.seen32.maxTrace, v.seen64.maxTrace), v.seen32.floor, v.worstRelativeDiff,
-                v.boxResets32, v.boxResets64, v.reprojectionResets, v.releases);
+                v.boxResets32, v.boxResets64, v.reprojectionResets, v.releases, v.releases64);
   for (const Variant& v : variants) {
     if (startsOver(sc)) {
       EXPECT_GT(v.reprojectionResets, 0) << sc.name << ", " << v.label << ": no model was reset";
     }
     if (periodic(sc)) {
       EXPECT_EQ(v.releases, 0) << sc.name << ", " << v.label << ": a periodic input released models";
+      EXPECT_EQ(v.releases64, 0) << sc.name << ", " << v.label << ": a periodic input released float64 models";
     }
   }
 }
