@@ -210,7 +210,7 @@ float holdLumaOfLinear(float luminance) {
   return (t > 0.0 && t < 256.0) ? floor(t) : 0.0;
 }
 vec3 holdWindowRestarted(bool windowEnd) { return windowEnd ? vec3(0.0, 32767.0, 0.0) : kHoldWindowNone; }
-vec3 stepHoldWindow(vec3 word, float luma, bool eligible, bool releasable, bool windowEnd, float limit,
+vec3 stepHoldWindow(vec3 word, float luma, bool still, bool windowEnd, float limit,
                     out bool released) {
   float sum = word.x + luma, baseline = word.y;
   bool pending = word.z > 0.0;
@@ -220,13 +220,13 @@ vec3 stepHoldWindow(vec3 word, float luma, bool eligible, bool releasable, bool 
     bool complete = hasSum && baseline != 32767.0;
     float diff = sum - baseline;
     bool differs = complete && (diff > limit || diff < -limit);
-    released = releasable && differs && pending;
-    bool wait = releasable && differs && !pending;
+    released = still && differs && pending;
+    bool wait = still && differs && !pending;
     baseline = wait ? baseline : (hasSum ? sum : 32767.0);
     pending = wait;
     sum = 0.0;
   }
-  if (!eligible || released) return holdWindowRestarted(windowEnd);
+  if (!still || released) return holdWindowRestarted(windowEnd);
   return vec3(sum, baseline, pending ? 1.0 : 0.0);
 }
 
@@ -366,7 +366,7 @@ void taaResolvePass() {
   if (holdPeriod > 0) {
     bool released;
     windows = stepHoldWindow(holdWindowsFresh != 0 ? kHoldWindowNone : marks.gba,
-                             holdLumaOfLinear(lumaOf(current, clipSpace)), averaging, averaging, holdWindowEnd != 0,
+                             holdLumaOfLinear(lumaOf(current, clipSpace)), averaging, holdWindowEnd != 0,
                              float(holdLimit), released);
     reset = reset || released;
   }

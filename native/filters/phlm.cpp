@@ -542,14 +542,13 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
                                 : temporal::stillFootprint(f.motion, x, y, w, h, f.unjitter.shiftX, f.unjitter.shiftY));
   // A still model whose input changed for two windows running restarts
   // from y, as at a reset (header, "Hold").
+  bool released = false;
   if (f.release.words) {
     std::uint32_t& word = f.release.words[std::size_t(y) * w + x];
     const bool still = valid && !moving && stillAround;
-    bool released;
     word = std::uint32_t(temporal::stepHoldWindow<float>(int(word), temporal::holdLumaOfTonemapped(sample[3]), still,
-                                                         still, f.release.windowEnd, f.release.limit, released));
+                                                         f.release.windowEnd, f.release.limit, released));
     valid = valid && !released;
-    if (released) ++stats.releases, --stats.reprojectionResets;  // counted below as a reset
   }
   bool narrow = false;
   if (f.narrowBox) {
@@ -618,7 +617,7 @@ __attribute__((always_inline)) inline void phlmPixel(const Frame<T>& f, int x, i
     speed = T(std::sqrt(vx * vx + vy * vy));
   } else {
     // Lines 7-9 / §6: reset to the input; z = y (finishBatch).
-    ++stats.reprojectionResets;
+    ++(released ? stats.releases : stats.reprojectionResets);
     batch.allValid = batch.allBilinear = false;
   }
   for (int c = 0; c < 3; ++c) {
@@ -836,16 +835,14 @@ __attribute__((always_inline)) inline void phlmStillGroup(const Frame<T>& f, int
   groupNeighbourhood(f, x0, y, lo4, hi4, sum4, sample4);
   Vec8 sample[4];
   temporal::transposeToLanes(sample4, sample);
+  M released{};
   if (f.release.words) {  // the release (phlmPixel's order and rules)
     const M still = valid & stillAround;
-    M released;
     const Int word = temporal::stepHoldWindow<Vec8>(temporal::loadHoldWords<Vec8>(f.release.words + row),
-                                                    temporal::holdLumaOfTonemapped(sample[3]), still, still,
+                                                    temporal::holdLumaOfTonemapped(sample[3]), still,
                                                     f.release.windowEnd, f.release.limit, released);
     temporal::storeHoldWords<Vec8>(f.release.words + row, word);
     valid &= ~released;
-    if (temporal::anyOf(released))
-      for (int l = 0; l < kBatch; ++l) stats.releases += released[l] != 0, stats.reprojectionResets -= released[l] != 0;
   }
   M narrow{};
   if (f.narrowBox) {
@@ -887,7 +884,8 @@ __attribute__((always_inline)) inline void phlmStillGroup(const Frame<T>& f, int
     batch.source[l] = paddedPixel(f.blocksPerRow, x0 + l, y);
     batch.tx[l] = batch.ty[l] = 0.0f;
     batch.footX[l] = batch.footY[l] = 0;
-    stats.reprojectionResets += valid[l] == 0;
+    stats.releases += released[l] != 0;
+    stats.reprojectionResets += valid[l] == 0 && released[l] == 0;
   }
   const Vec8 one = temporal::lanesOf<Vec8>(1.0f), zero = temporal::lanesOf<Vec8>(0.0f);
   for (int c = 0; c < 3; ++c) {

@@ -509,7 +509,7 @@ __attribute__((always_inline)) inline ResolvedLanes<T> resolveLanes(const Frame&
   if (f.release.words) {
     const M averaging = M(useAverage & notOf(reset));
     r.holdWord = temporal::stepHoldWindow<T>(in.holdWord, temporal::holdLumaOfLinear(lumaOf(in.current, f.space)),
-                                             averaging, averaging, f.release.windowEnd, f.release.limit, released);
+                                             averaging, f.release.windowEnd, f.release.limit, released);
     reset = M(reset | released);
   }
   r.released = released;

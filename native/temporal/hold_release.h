@@ -108,13 +108,12 @@ inline HoldWindowFrame holdWindowFrame(HoldWindows& windows, long framesBefore, 
 // The word of a pixel whose windows restart this frame.
 constexpr std::uint32_t holdWindowRestarted(bool windowEnd) { return windowEnd ? 0x7fff0000u : kHoldWindowNone; }
 
-// One frame of one pixel's windows (lanes: several pixels). eligible: the
-// pixel stood still in place this frame, without a reset (else its windows
-// restart); releasable: it averaged or learned as a still pixel (held or
-// not), so it may be released. Returns the new word; `released` gets the
-// lanes to restart.
+// One frame of one pixel's windows (lanes: several pixels). still: the pixel
+// averaged or learned in place this frame as a still pixel (held or not),
+// without a reset, so it may be released; else its windows restart. Returns
+// the new word; `released` gets the lanes to restart.
 template <class T>
-CRISP_LANES_INLINE IntOf<T> stepHoldWindow(IntOf<T> word, IntOf<T> luma, MaskOfT<T> eligible, MaskOfT<T> releasable,
+CRISP_LANES_INLINE IntOf<T> stepHoldWindow(IntOf<T> word, IntOf<T> luma, MaskOfT<T> still,
                                            bool windowEnd, int limit, MaskOfT<T>& released) {
   using Int = IntOf<T>;
   using M = MaskOfT<T>;
@@ -128,13 +127,13 @@ CRISP_LANES_INLINE IntOf<T> stepHoldWindow(IntOf<T> word, IntOf<T> luma, MaskOfT
     const M complete = M(hasSum & M(baseline != noBaseline));
     const Int diff = (sum & 0x7fff) - (baseline >> 16);
     const M differs = M(complete & M(M(diff > limit) | M(diff < -limit)));
-    released = M(M(releasable & differs) & pending);
-    const M wait = M(M(releasable & differs) & notOf(pending));
+    released = M(M(still & differs) & pending);
+    const M wait = M(M(still & differs) & notOf(pending));
     baseline = wait ? baseline : (hasSum ? Int(sum << 16) : noBaseline);
     pending = wait;
     sum = Int{};
   }
-  const M restart = M(notOf(eligible) | released);
+  const M restart = M(notOf(still) | released);
   const Int next = Int(pending ? Int{} + std::numeric_limits<int>::min() : Int{}) | baseline | sum;
   return restart ? Int{} + int(holdWindowRestarted(windowEnd)) : next;
 }

@@ -17,15 +17,12 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, display  # noqa: E402
+from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, display, needs_cli_and_blender  # noqa: E402
 
 sys.path.insert(0, os.path.join(SOURCE, "addon", "crisp"))
 import plan  # noqa: E402
 
-pytestmark = [
-    pytest.mark.skipif(not os.path.isfile(CRISP), reason="crisp CLI not built at %s" % CRISP),
-    pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed"),
-]
+pytestmark = needs_cli_and_blender()
 
 
 def env():

@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <initializer_list>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -194,15 +195,19 @@ inline std::vector<Scenario> scenarios() {
   return v;
 }
 
+inline bool isOneOf(const Scenario& sc, std::initializer_list<const char*> names) {
+  for (const char* name : names)
+    if (std::string(sc.name) == name) return true;
+  return false;
+}
+
 // The scenarios whose history becomes unusable after the first frame (off
 // screen, non-finite motion, disocclusion), so that a filter must start some
 // pixels over: the reset counts the tests assert to be 0 where nothing moves
 // must count there. Not the camera cut: it has no motion image, and the box
 // replaces the old history without a reset.
 inline bool startsOver(const Scenario& sc) {
-  for (const char* name : {"NaN/+-Inf pixels", "huge motion", "pan, off-screen reprojection", "disocclusion"})
-    if (std::string(sc.name) == name) return true;
-  return false;
+  return isOneOf(sc, {"NaN/+-Inf pixels", "huge motion", "pan, off-screen reprojection", "disocclusion"});
 }
 
 // The scenarios whose input repeats with a period that divides the jitter's
@@ -210,9 +215,7 @@ inline bool startsOver(const Scenario& sc) {
 // from the hold (taa::Kernel::releasesLastFrame, phlm's FrameStats::releases;
 // temporal/hold_release.h).
 inline bool periodic(const Scenario& sc) {
-  for (const char* name : {"constant colour", "black/white flicker", "checker flicker"})
-    if (std::string(sc.name) == name) return true;
-  return false;
+  return isOneOf(sc, {"constant colour", "black/white flicker", "checker flicker"});
 }
 
 // Frames in which nothing moved since the previous one: no motion image, or

@@ -23,9 +23,9 @@ namespace {
 struct Windows {
   std::uint32_t word = temporal::kHoldWindowNone;
   long frames = 0;
-  bool step(int luma, bool eligible = true, bool held = true) {
+  bool step(int luma, bool still = true) {
     bool released = false;
-    word = std::uint32_t(temporal::stepHoldWindow<float>(int(word), luma, eligible, held,
+    word = std::uint32_t(temporal::stepHoldWindow<float>(int(word), luma, still,
                                                          temporal::holdWindowEnds(frames++, 4), 8, released));
     return released;
   }
@@ -126,14 +126,14 @@ TEST(HoldRelease, APersistentChangeReleasesAtTheSecondDifferentWindow) {
 }
 
 TEST(HoldRelease, AChangeWithinTheLimitOrAOneWindowEventDoesNotRelease) {
-  Windows small, spike, unheld;
+  Windows small, spike, moving;
   for (int t = 0; t < 40; ++t) {
     EXPECT_FALSE(small.step(t < 12 ? 100 : 102));                 // 8 per window: not more than the limit
     EXPECT_FALSE(spike.step(t == 14 ? 255 : 100));               // one window differs, the next matches
-    EXPECT_FALSE(unheld.step(t < 12 ? 100 : 200, true, false));  // not held: nothing to release
+    EXPECT_FALSE(moving.step(t < 12 ? 100 : 200, false));        // not still: nothing to release
   }
   EXPECT_EQ(spike.word >> 31, 0u);
-  // An ineligible frame restarts the windows (no sum, no baseline).
+  // A frame that is not still restarts the windows (no sum, no baseline).
   EXPECT_FALSE(small.step(100, false));
   EXPECT_EQ(small.word & 0x7fff0000u, 0x7fff0000u);
 }
