@@ -24,38 +24,16 @@ inline void stageColorPixel(const float* p, int channels, float rgba[4]) {
 }
 
 // Row y of `color` (1-4 float channels) as packed RGBA: sanitizeColor on
-// every channel, a missing G or B repeats R, missing alpha is 1.
-inline void stageColorRow(const ImageView& color, int y, float* rgba) {
-  const int w = color.width, c = color.channels();
-  const char* src = static_cast<const char*>(color.ptr) + std::size_t(y) * color.rowStride;
-  if (c == 4 && color.pixelStride == 16) {
-    // Packed RGBA: one element-wise pass the compiler vectorises.
-    const float* p = reinterpret_cast<const float*>(src);
-    for (int i = 0; i < 4 * w; ++i) rgba[i] = sanitizeColorLanes(p[i]);
-    return;
-  }
-  for (int x = 0; x < w; ++x, src += color.pixelStride)
-    stageColorPixel(reinterpret_cast<const float*>(src), c, rgba + 4 * x);
-}
+// every channel, a missing G or B repeats R, missing alpha is 1. Out of line
+// (row_stage.cpp), called once per row: the AVX-512 unit (filters/taa_rows.h)
+// calls it and so never defines a copy of its own that others could take.
+void stageColorRow(const ImageView& color, int y, float* rgba);
 
 // Depth as the temporal filters use it (temporal/velocity.h sanitizeDepth):
 // non-finite and far values (>= kFarDepth, NaN) read as kBackgroundDepth.
 inline float sanitizedDepth(float d) { return d < kFarDepth ? d : kBackgroundDepth; }
 
-// Row y of `depth` (channel 0) as packed sanitised depths.
-inline void stageDepthRow(const ImageView& depth, int y, float* out) {
-  const char* src = static_cast<const char*>(depth.ptr) + std::size_t(y) * depth.rowStride;
-  const std::size_t stride = depth.pixelStride;
-  if (stride == 4) {
-    const float* p = reinterpret_cast<const float*>(src);
-    for (int x = 0; x < depth.width; ++x) out[x] = sanitizedDepth(p[x]);
-    return;
-  }
-  for (int x = 0; x < depth.width; ++x) {
-    float d;
-    std::memcpy(&d, src + std::size_t(x) * stride, sizeof d);
-    out[x] = sanitizedDepth(d);
-  }
-}
+// Row y of `depth` (channel 0) as packed sanitised depths (row_stage.cpp).
+void stageDepthRow(const ImageView& depth, int y, float* out);
 
 }  // namespace crisp

@@ -15,9 +15,10 @@
 // read from the input), five depth rows and the row's closest-depth taps; the
 // current frame is staged on the fly (core/row_stage.h), never as a whole
 // image. The per-pixel core is written once against temporal/lanes.h and run
-// on one pixel (the scalar reference) or eight (the fast path), so both give
-// the same bits; the fast row loop has an SSE2 and an AVX2 copy
-// (temporal/isa.h).
+// on one pixel (the scalar reference) or a lane group (the fast path), so
+// both give the same bits; the fast row loop has an SSE2 (4 lanes), an AVX2
+// (8) and an AVX-512 (16) copy (temporal/isa.h; the AVX-512 one is a unit of
+// its own, filters/taa_rows.h).
 #pragma once
 
 #include <atomic>

@@ -94,7 +94,7 @@ inline Vec4 tapOf(const HistoryPlanes& h, int x, int y) {
 // Bilinear fetch of the first 3 channels; out[3] = the carried channel of the
 // nearest tap (never interpolated). H: HistoryImage or HistoryPlanes.
 template <class H>
-inline Vec4 fetchBilinear4(const H& h, float x, float y) {
+CRISP_LANES_INLINE Vec4 fetchBilinear4(const H& h, float x, float y) {
   const Footprint f = footprintOf(x, y);
   const int xa = std::clamp(f.x0, 0, h.width - 1), xb = std::clamp(f.x0 + 1, 0, h.width - 1);
   const int ya = std::clamp(f.y0, 0, h.height - 1), yb = std::clamp(f.y0 + 1, 0, h.height - 1);
@@ -157,7 +157,7 @@ inline bool footprintInterior4x4(const Footprint& f, int width, int height) {
 // interior (footprintInterior4x4): the same taps without the clamps, so the
 // same bits.
 template <bool Clamp, class H>
-inline Vec4 fetchCatmullRomAt4(const H& h, const Footprint& f) {
+CRISP_LANES_INLINE Vec4 fetchCatmullRomAt4(const H& h, const Footprint& f) {
   float wx[4], wy[4];
   catmullRomWeights(f.tx, wx);
   catmullRomWeights(f.ty, wy);

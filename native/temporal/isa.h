@@ -1,10 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 // Run-time choice between the baseline (SSE2) copy of a temporal kernel's row
-// loop and a copy compiled for AVX2, as filters/repair.cpp chooses its row
-// functions. Both copies are the same source, always inlined into each; the
-// build has no FMA contraction (-ffp-contract=off) and no fast-math, so the
-// AVX2 copy performs the same IEEE operations in the same order (VEX-encoded,
-// fewer register moves) and gives the same bits; tests run both.
+// loop, a copy compiled for AVX2 and (taa's rows) one for AVX-512, as
+// filters/repair.cpp chooses its row functions. The copies are the same
+// source, always inlined into each, on 4, 8 and 16 lanes (lanes.h); the build
+// has no FMA contraction (-ffp-contract=off) and no fast-math, so every copy
+// performs the same IEEE operations in the same order per lane and gives the
+// same bits; tests run each one the CPU has.
 #pragma once
 
 #include <atomic>
@@ -13,7 +14,9 @@
 
 namespace crisp::temporal {
 
-enum class Isa { Auto, Baseline };  // Auto: AVX2 when the CPU has it
+// Auto: the widest copy the CPU runs; Avx2: AVX2 at most (tests and
+// benchmarks of the AVX2 copy on an AVX-512 machine); Baseline: SSE2.
+enum class Isa { Auto, Baseline, Avx2 };
 
 #if defined(__GNUC__) && defined(__x86_64__)
 #define CRISP_TEMPORAL_HAS_AVX2 1
@@ -27,6 +30,16 @@ inline bool cpuHasAvx2() {
   return false;
 #endif
 }
+// The AVX-512 copies are units of their own, compiled with AVX-512 flags
+// (filters/taa_rows.h says why), not target attributes, and built only in
+// optimised builds (native/CMakeLists.txt): false where they are not.
+inline bool cpuHasAvx512() {
+#ifdef CRISP_HAS_AVX512_ROWS
+  return crisp::cpuHasAvx512();
+#else
+  return false;
+#endif
+}
 
 // Process-wide choice for every temporal kernel (taa, taa-improved, phlm);
 // tests set Baseline to run the SSE2 copies on an AVX2 machine.
@@ -35,7 +48,10 @@ inline std::atomic<int>& fastPathIsaStorage() {
   return isa;
 }
 inline void setFastPathIsa(Isa isa) { fastPathIsaStorage().store(int(isa)); }
-inline bool useAvx2() { return fastPathIsaStorage().load() == int(Isa::Auto) && cpuHasAvx2(); }
-inline const char* fastPathIsaName() { return useAvx2() ? "avx2" : "sse2"; }
+inline bool useAvx512() { return fastPathIsaStorage().load() == int(Isa::Auto) && cpuHasAvx512(); }
+inline bool useAvx2() { return fastPathIsaStorage().load() != int(Isa::Baseline) && cpuHasAvx2(); }
+// The copy a kernel with an AVX-512 copy runs (taa's rows); the others run
+// "avx2" where this says "avx512".
+inline const char* fastPathIsaName() { return useAvx512() ? "avx512" : useAvx2() ? "avx2" : "sse2"; }
 
 }  // namespace crisp::temporal

@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
 // Lane types for per-pixel code written once and run either one pixel at a
-// time (float, bool: the scalar reference paths) or eight pixels at a time
-// (Vec8, Mask8: GCC vector extensions, one AVX register; two SSE registers in
-// the baseline copy). The helpers below have the same meaning for both, lane
+// time (float, bool: the scalar reference paths) or several at a time (GCC
+// vector extensions: Vec4 in the SSE2 baseline copies, Vec8 = one AVX
+// register in the AVX2 copies, Vec16 = one AVX-512 register in the AVX-512
+// copies). The helpers below have the same meaning for both, lane
 // by lane, and the build has no FMA contraction (-ffp-contract=off), so a
 // kernel written against them gives the same bits in either form.
 #pragma once
@@ -13,7 +14,7 @@
 #include <cstring>
 #include <type_traits>
 #if defined(__SSE2__)
-#include <xmmintrin.h>
+#include <immintrin.h>
 #endif
 
 #include "temporal/vec4.h"
@@ -30,6 +31,8 @@ namespace crisp::temporal {
 typedef float Vec8 __attribute__((vector_size(32)));
 typedef int Mask8 __attribute__((vector_size(32)));  // per lane: -1 true, 0 false
 typedef int Mask4 __attribute__((vector_size(16)));  // Vec4's (vec4.h)
+typedef float Vec16 __attribute__((vector_size(64)));
+typedef int Mask16 __attribute__((vector_size(64)));
 
 // What a lane type is made of: float (1 lane, bool mask), Vec4 (4 lanes, one
 // SSE register: the baseline copies of the fast paths) or Vec8 (8 lanes, one
@@ -54,6 +57,12 @@ struct Lanes<Vec8> {
   using Int = Mask8;
   static constexpr int kCount = 8;
 };
+template <>
+struct Lanes<Vec16> {
+  using Mask = Mask16;
+  using Int = Mask16;
+  static constexpr int kCount = 16;
+};
 template <class T>
 using MaskOfT = typename Lanes<T>::Mask;
 template <class T>
@@ -62,12 +71,21 @@ template <class T>
 constexpr int kLanesOf = Lanes<T>::kCount;
 // The float lane type of an integer/mask lane type.
 template <class M>
-using FloatLanesOf = std::conditional_t<std::is_same_v<M, Mask8>, Vec8, Vec4>;
+using FloatLanesOf =
+    std::conditional_t<std::is_same_v<M, Mask16>, Vec16, std::conditional_t<std::is_same_v<M, Mask8>, Vec8, Vec4>>;
 // Overloads for the vector lane types only (float and bool have their own).
 template <class T>
-using IfVector = std::enable_if_t<std::is_same_v<T, Vec4> || std::is_same_v<T, Vec8>, int>;
+using IfVector =
+    std::enable_if_t<std::is_same_v<T, Vec4> || std::is_same_v<T, Vec8> || std::is_same_v<T, Vec16>, int>;
 template <class M>
-using IfMask = std::enable_if_t<std::is_same_v<M, Mask4> || std::is_same_v<M, Mask8>, int>;
+using IfMask =
+    std::enable_if_t<std::is_same_v<M, Mask4> || std::is_same_v<M, Mask8> || std::is_same_v<M, Mask16>, int>;
+// A Vec16's halves, and two halves joined (shuffles: registers, not memory).
+CRISP_LANES_INLINE Vec8 lowHalf(Vec16 v) { return __builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7); }
+CRISP_LANES_INLINE Vec8 highHalf(Vec16 v) { return __builtin_shufflevector(v, v, 8, 9, 10, 11, 12, 13, 14, 15); }
+CRISP_LANES_INLINE Vec16 joinHalves(Vec8 lo, Vec8 hi) {
+  return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+}
 
 template <class T>
 CRISP_LANES_INLINE T loadLanes(const float* p) {
@@ -83,7 +101,10 @@ CRISP_LANES_INLINE void storeLanes(float* p, T v) {
 // transposed by shuffles instead of lane by lane.
 template <class T, IfVector<T> = 0>
 CRISP_LANES_INLINE void storeInterleaved4(float* p, T r, T g, T b, T a) {
-  if constexpr (kLanesOf<T> == 8) {
+  if constexpr (kLanesOf<T> == 16) {
+    storeInterleaved4(p, lowHalf(r), lowHalf(g), lowHalf(b), lowHalf(a));
+    storeInterleaved4(p + 32, highHalf(r), highHalf(g), highHalf(b), highHalf(a));
+  } else if constexpr (kLanesOf<T> == 8) {
     const T rgLo = __builtin_shufflevector(r, g, 0, 8, 1, 9, 4, 12, 5, 13);  // r0 g0 r1 g1 | r4 g4 r5 g5
     const T rgHi = __builtin_shufflevector(r, g, 2, 10, 3, 11, 6, 14, 7, 15);
     const T baLo = __builtin_shufflevector(b, a, 0, 8, 1, 9, 4, 12, 5, 13);
@@ -110,7 +131,15 @@ CRISP_LANES_INLINE void storeInterleaved4(float* p, T r, T g, T b, T a) {
 // r1 ...) into four channel lanes, by shuffles.
 template <class T, IfVector<T> = 0>
 CRISP_LANES_INLINE void loadInterleaved4(const float* p, T& r, T& g, T& b, T& a) {
-  if constexpr (kLanesOf<T> == 8) {
+  if constexpr (kLanesOf<T> == 16) {
+    Vec8 h[2][4];
+    loadInterleaved4(p, h[0][0], h[0][1], h[0][2], h[0][3]);
+    loadInterleaved4(p + 32, h[1][0], h[1][1], h[1][2], h[1][3]);
+    r = joinHalves(h[0][0], h[1][0]);
+    g = joinHalves(h[0][1], h[1][1]);
+    b = joinHalves(h[0][2], h[1][2]);
+    a = joinHalves(h[0][3], h[1][3]);
+  } else if constexpr (kLanesOf<T> == 8) {
     const T q0 = loadLanes<T>(p), q1 = loadLanes<T>(p + 8), q2 = loadLanes<T>(p + 16), q3 = loadLanes<T>(p + 24);
     const T p04 = __builtin_shufflevector(q0, q2, 0, 1, 2, 3, 8, 9, 10, 11);  // pixel 0 | pixel 4
     const T p15 = __builtin_shufflevector(q0, q2, 4, 5, 6, 7, 12, 13, 14, 15);
@@ -140,7 +169,13 @@ CRISP_LANES_INLINE void loadInterleaved4(const float* p, T& r, T& g, T& b, T& a)
 // of a lane-by-lane copy.
 template <class T, IfVector<T> = 0>
 CRISP_LANES_INLINE void loadFirstTwoChannels(const float* p, int step, T& x, T& y) {
-  if constexpr (std::is_same_v<T, Vec4>) {
+  if constexpr (std::is_same_v<T, Vec16>) {
+    Vec8 x0, y0, x1, y1;
+    loadFirstTwoChannels(p, step, x0, y0);
+    loadFirstTwoChannels(p + 8 * step, step, x1, y1);
+    x = joinHalves(x0, x1);
+    y = joinHalves(y0, y1);
+  } else if constexpr (std::is_same_v<T, Vec4>) {
     if (step == 2) {  // x0 y0 x1 y1 | x2 y2 x3 y3
       const T a = loadLanes<T>(p), b = loadLanes<T>(p + 4);
       x = __builtin_shufflevector(a, b, 0, 2, 4, 6);
@@ -193,10 +228,14 @@ typedef unsigned char Bytes4 __attribute__((vector_size(4)));
 typedef unsigned char Bytes8 __attribute__((vector_size(8)));
 typedef unsigned short Shorts4 __attribute__((vector_size(8)));
 typedef unsigned short Shorts8 __attribute__((vector_size(16)));
+typedef unsigned char Bytes16 __attribute__((vector_size(16)));
+typedef unsigned short Shorts16 __attribute__((vector_size(32)));
 template <class T>
-using BytesOf = std::conditional_t<std::is_same_v<T, Vec8>, Bytes8, Bytes4>;
+using BytesOf = std::conditional_t<std::is_same_v<T, Vec16>, Bytes16,
+                                   std::conditional_t<std::is_same_v<T, Vec8>, Bytes8, Bytes4>>;
 template <class T>
-using ShortsOf = std::conditional_t<std::is_same_v<T, Vec8>, Shorts8, Shorts4>;
+using ShortsOf = std::conditional_t<std::is_same_v<T, Vec16>, Shorts16,
+                                    std::conditional_t<std::is_same_v<T, Vec8>, Shorts8, Shorts4>>;
 template <class T, IfVector<T> = 0>
 CRISP_LANES_INLINE IntOf<T> loadBytesOf(const unsigned char* p) {
   BytesOf<T> b;
@@ -269,7 +308,14 @@ CRISP_LANES_INLINE Vec8 sqrtOf(Vec8 a) {
   const Vec4 hi = sqrtOf(Vec4(__builtin_shufflevector(a, a, 4, 5, 6, 7)));
   return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
 }
-#else
+#endif
+#if defined(__AVX512F__)
+// Vec16 runs only in units compiled for AVX-512 (filters/taa_rows_avx512.cpp).
+// The masked form with every lane set: the same vsqrtps, and GCC 12 does not
+// warn about _mm512_sqrt_ps's undefined pass-through operand.
+CRISP_LANES_INLINE Vec16 sqrtOf(Vec16 a) { return (Vec16)_mm512_mask_sqrt_ps((__m512)a, 0xffff, (__m512)a); }
+#endif
+#if !defined(__SSE2__)
 template <class T, IfVector<T> = 0>
 CRISP_LANES_INLINE T sqrtOf(T a) {
   for (int l = 0; l < kLanesOf<T>; ++l) a[l] = std::sqrt(a[l]);
@@ -291,7 +337,10 @@ CRISP_LANES_INLINE bool anyOf(bool m) { return m; }
 // Halves folded by shuffles (no lane-by-lane extraction; the same answer).
 template <class M, IfMask<M> = 0>
 CRISP_LANES_INLINE bool anyOf(M m) {
-  if constexpr (sizeof(M) == 8 * sizeof(int)) {
+  if constexpr (sizeof(M) == 16 * sizeof(int)) {
+    return anyOf(Mask8(__builtin_shufflevector(m, m, 0, 1, 2, 3, 4, 5, 6, 7) |
+                    __builtin_shufflevector(m, m, 8, 9, 10, 11, 12, 13, 14, 15)));
+  } else if constexpr (sizeof(M) == 8 * sizeof(int)) {
     return anyOf(Mask4(__builtin_shufflevector(m, m, 0, 1, 2, 3) | __builtin_shufflevector(m, m, 4, 5, 6, 7)));
   } else if constexpr (sizeof(M) == 4 * sizeof(int)) {
     const auto p = __builtin_shufflevector(m, m, 0, 1) | __builtin_shufflevector(m, m, 2, 3);
@@ -305,7 +354,10 @@ CRISP_LANES_INLINE bool anyOf(M m) {
 CRISP_LANES_INLINE bool allOf(bool m) { return m; }
 template <class M, IfMask<M> = 0>
 CRISP_LANES_INLINE bool allOf(M m) {
-  if constexpr (sizeof(M) == 8 * sizeof(int)) {
+  if constexpr (sizeof(M) == 16 * sizeof(int)) {
+    return allOf(Mask8(__builtin_shufflevector(m, m, 0, 1, 2, 3, 4, 5, 6, 7) &
+                    __builtin_shufflevector(m, m, 8, 9, 10, 11, 12, 13, 14, 15)));
+  } else if constexpr (sizeof(M) == 8 * sizeof(int)) {
     return allOf(Mask4(__builtin_shufflevector(m, m, 0, 1, 2, 3) & __builtin_shufflevector(m, m, 4, 5, 6, 7)));
   } else if constexpr (sizeof(M) == 4 * sizeof(int)) {
     const auto p = __builtin_shufflevector(m, m, 0, 1) & __builtin_shufflevector(m, m, 2, 3);

@@ -6,7 +6,9 @@
 // history fetch (Catmull-Rom default, bilinear), and a still scene without
 // motion and depth (the static accumulation path, no reprojection work), and
 // the fast path's x86-64 baseline (SSE2) row loop where AVX2 exists (.sse2),
-// and the defaults before the RGB box, variance clipping and the hold.
+// its AVX2 copy where AVX-512 exists (.avx2; the default runs the widest copy
+// the CPU has, temporal/isa.h), and the defaults before the RGB box, variance
+// clipping and the hold.
 // Counters: kept_MB = memory kept between frames (history), scratch_MB = the
 // fast path's per-band row rings. The memory-copy floor of the same run is floor.memcpy_rgba
 // (bench_floor.cpp).
@@ -30,14 +32,21 @@ void runTaa(benchmark::State& state, int width, int height, const Variant& v) {
   bench::setMemoryCounters(state, k);
 }
 
-// The same with the baseline copy of the row loop (temporal/isa.h).
+// The same with the baseline or the AVX2 copy of the row loop (temporal/isa.h).
 void runTaaBaselineRows(benchmark::State& state, int width, int height, const Variant& v) {
   crisp::temporal::setFastPathIsa(crisp::temporal::Isa::Baseline);
   runTaa(state, width, height, v);
   crisp::temporal::setFastPathIsa(crisp::temporal::Isa::Auto);
 }
+void runTaaAvx2Rows(benchmark::State& state, int width, int height, const Variant& v) {
+  crisp::temporal::setFastPathIsa(crisp::temporal::Isa::Avx2);
+  runTaa(state, width, height, v);
+  crisp::temporal::setFastPathIsa(crisp::temporal::Isa::Auto);
+}
 
 void registerAll() {
+  // The row copy the default variants run, in the run's header.
+  benchmark::AddCustomContext("temporal_rows", crisp::temporal::fastPathIsaName());
   const Variant variants[] = {{"taa.rgb_motion_depth.fast.mt", 0, false, true, "catmull-rom"},
                               {"taa.rgb_motion_depth.fast.st", 1, false, true, "catmull-rom"},
                               {"taa.rgb_motion_depth.reference", 1, true, true, "catmull-rom"},
@@ -53,6 +62,11 @@ void registerAll() {
   bench::registerVariants(variants, runTaa);
   const Variant baseline[] = {{"taa.rgb_motion_depth.fast.st.sse2", 1, false, true, "catmull-rom"}};
   bench::registerVariants(baseline, runTaaBaselineRows);
+  const Variant avx2[] = {{"taa.rgb_motion_depth.fast.mt.avx2", 0, false, true, "catmull-rom"},
+                          {"taa.rgb_motion_depth.fast.st.avx2", 1, false, true, "catmull-rom"},
+                          {"taa.rgb_static.fast.mt.avx2", 0, false, false, "catmull-rom"},
+                          {"taa.rgb_object_depth.fast.mt.avx2", 0, false, true, "catmull-rom", nullptr, true}};
+  bench::registerVariants(avx2, runTaaAvx2Rows);
 }
 
 const bool registered = (registerAll(), true);

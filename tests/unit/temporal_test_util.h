@@ -34,8 +34,10 @@ struct FastPathIsa {
   FastPathIsa(const FastPathIsa&) = delete;
   FastPathIsa& operator=(const FastPathIsa&) = delete;
 };
-// Both copies: AVX2 (when the CPU has it) and the SSE2 baseline.
-constexpr temporal::Isa kFastPathIsas[2] = {temporal::Isa::Auto, temporal::Isa::Baseline};
+// Every copy: the widest (AVX-512 for taa's rows where the CPU has it), AVX2
+// (when the CPU has it) and the SSE2 baseline. A kernel without an AVX-512
+// copy runs AVX2 for the first two.
+constexpr temporal::Isa kFastPathIsas[3] = {temporal::Isa::Auto, temporal::Isa::Avx2, temporal::Isa::Baseline};
 
 inline bool allFinite(const Image& im) {
   for (float v : im.data)

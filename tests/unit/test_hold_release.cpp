@@ -235,7 +235,7 @@ TEST(HoldRelease, FastPathEqualsReference) {
       const std::vector<Image> fast = filterPicture(type, picture, frames, -1.0f, 4);
       for (int t = 0; t < frames; ++t)
         ASSERT_EQ(std::memcmp(fast[t].data.data(), reference[t].data.data(), fast[t].data.size() * sizeof(float)), 0)
-            << type << " frame " << t << (isa == temporal::Isa::Baseline ? " (baseline copy)" : "")
+            << type << " frame " << t << " (" << temporal::fastPathIsaName() << " copy)"
             << (uniform ? ", uniform jitter" : ", EEVEE's jitter");
     }
   }

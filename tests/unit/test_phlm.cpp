@@ -341,7 +341,7 @@ TEST(Phlm, ReferencePathEqualsFastPath) {
   // whose footprint box is not the 3x3 box.
   const std::vector<synth::FrameData> object = test::pannedChart(w, h, frames, 0.37f, -0.21f, {}, 3);
   constexpr int kModes = 6;
-  for (int run = 0; run < 2 * kModes; ++run) {
+  for (int run = 0; run < 3 * kModes; ++run) {
     // 0: ghosting, motion + depth; 1: static (in place); 2: the pan; 3: the pan
     // with frames 4-5 given no motion (the planes go stale and are copied at
     // frame 6) and frame 8 fetched bilinearly (the planes are written anyway);

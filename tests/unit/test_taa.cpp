@@ -374,10 +374,10 @@ TEST(Taa, ReferencePathEqualsFastPath) {
   synth::FrameOptions jitters[3];
   jitters[1].jitter = jitters[2].jitter = synth::JitterKind::BlackmanHarris;
   jitters[2].filterSize = 2.5f;
-  for (int run = 0; run < 18; ++run) {
+  for (int run = 0; run < 27; ++run) {
     const Config& c = configs[run % 3];
-    const test::FastPathIsa isa(test::kFastPathIsas[run / 3 % 2]);
-    const synth::FrameOptions& jitter = jitters[run / 6];
+    const test::FastPathIsa isa(test::kFastPathIsas[run / 3 % 3]);
+    const synth::FrameOptions& jitter = jitters[run / 9];
     Driver ref(1), fast(2);
     for (Driver* d : {&ref, &fast}) {
       d->filter->params().setString("historyFilter", c.filter);
@@ -415,9 +415,9 @@ TEST(Taa, ReferencePathEqualsFastPath) {
 // sanitizer build flags any read of the 8 bytes a whole 16-byte pixel would
 // have (the lane staging once did that).
 TEST(Taa, StridedTwoChannelMotionIsReadAsTwoChannels) {
-  const int w = 32, h = 9;  // a whole number of 4- and 8-lane groups: the last pixel is in one
+  const int w = 32, h = 9;  // a whole number of 4-, 8- and 16-lane groups: the last pixel is in one
   synth::Sequence seq = synth::ghostingSequence(w, h, 4.0f, 1.4f, 0.3f);
-  for (int isaIndex = 0; isaIndex < 2; ++isaIndex) {
+  for (int isaIndex = 0; isaIndex < 3; ++isaIndex) {
     const test::FastPathIsa isa(test::kFastPathIsas[isaIndex]);
     Context context;
     std::unique_ptr<Filter> ref = createFilter(context, "taa"), fast = createFilter(context, "taa");
@@ -655,14 +655,14 @@ TEST(Taa, ReferencePathEqualsFastPathAcrossBands) {
   synth::FrameOptions wide;  // unjitter shifts the 3x3 across band borders too
   wide.jitter = synth::JitterKind::BlackmanHarris;
   wide.filterSize = 2.5f;
-  for (int run = 0; run < 12; ++run) {
+  for (int run = 0; run < 18; ++run) {
     const int mode = run % 3;
-    const test::FastPathIsa isa(test::kFastPathIsas[run / 3 % 2]);
+    const test::FastPathIsa isa(test::kFastPathIsas[run / 3 % 3]);
     const bool motion = mode < 2, depth = mode == 0;
     Driver ref(1), fast(4);
     ref.filter->params().setBool("reference", true);
     for (int t = 0; t < 6; ++t) {
-      synth::FrameData f = synth::renderFrame(seq, w, h, t, run < 6 ? synth::FrameOptions{} : wide);
+      synth::FrameData f = synth::renderFrame(seq, w, h, t, run < 9 ? synth::FrameOptions{} : wide);
       if (t == 3) f.color.at(w / 2, 32)[1] = std::numeric_limits<float>::quiet_NaN();  // on a band border
       const Image& a = ref.run(f, motion, depth);
       const Image& b = fast.run(f, motion, depth);
@@ -734,7 +734,7 @@ TEST(Taa, OutputAlphaIsTheInputAlpha) {
   pan[1].color.at(20, 6)[3] = 1e30f;                                     // kMaxColor
   int checked = 0;
   for (const char* type : {"taa", "taa-improved"})
-    for (int run = 0; run < 24; ++run) {
+    for (int run = 0; run < 36; ++run) {
       const bool reference = run % 2, rgbInput = run / 2 % 2;
       const float sharpen = run / 4 % 3 == 2 ? 0.5f : 0.0f;
       const test::FastPathIsa isa(test::kFastPathIsas[run / 12]);
@@ -760,7 +760,7 @@ TEST(Taa, OutputAlphaIsTheInputAlpha) {
           }
       }
     }
-  EXPECT_EQ(checked, 2 * 24 * frames * w * h);
+  EXPECT_EQ(checked, 2 * 36 * frames * w * h);
 }
 
 // A still scene given a zero motion image and depth (a still part of a shot

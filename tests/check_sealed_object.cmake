@@ -1,0 +1,61 @@
+# SPDX-License-Identifier: Apache-2.0
+# An object file compiled for an instruction set the CPU may lack (the AVX-512
+# rows, native/filters/taa_rows.h) must not define any symbol the linker could
+# hand to another unit: no weak or unique symbols (inline functions and
+# template instances, which the linker merges across units and could take
+# from this one; DW.ref.__gxx_personality_v0, a pointer to the C++ runtime's
+# exception personality, is data and the same in every unit), no global
+# symbol but the entry points, and no static initialiser that touches a
+# vector or mask register (initialisers run at load on any CPU; the
+# sanitizer's, which registers the unit's globals, is integer code).
+# cmake -DNM=nm -DOBJDUMP=objdump -DOBJECTS=a.o;b.o -DENTRIES=name1;name2 -P check_sealed_object.cmake
+foreach(object ${OBJECTS})
+  execute_process(COMMAND ${NM} -C --defined-only ${object} OUTPUT_VARIABLE symbols RESULT_VARIABLE rc)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "cannot list the symbols of ${object}")
+  endif()
+  string(REPLACE "\n" ";" lines "${symbols}")
+  set(entries_found 0)
+  foreach(line ${lines})
+    if(line MATCHES "^[0-9a-fA-F]* +([A-Za-z]) +(.*)$")
+      set(type ${CMAKE_MATCH_1})
+      set(name ${CMAKE_MATCH_2})
+      if(type MATCHES "^[WwVvui]$" AND NOT name STREQUAL "DW.ref.__gxx_personality_v0")
+        message(FATAL_ERROR "${object} defines the shareable symbol (${type}) ${name}")
+      endif()
+      if(type MATCHES "^[A-Z]$" AND NOT name STREQUAL "DW.ref.__gxx_personality_v0")
+        set(allowed FALSE)
+        foreach(entry ${ENTRIES})
+          string(FIND "${name}" "${entry}(" at)
+          if(at GREATER -1)
+            set(allowed TRUE)
+            math(EXPR entries_found "${entries_found} + 1")
+          endif()
+        endforeach()
+        if(NOT allowed)
+          message(FATAL_ERROR "${object} defines the global symbol (${type}) ${name}, not an entry point")
+        endif()
+      endif()
+    endif()
+  endforeach()
+  if(entries_found EQUAL 0)
+    message(FATAL_ERROR "${object} defines none of the entry points ${ENTRIES}")
+  endif()
+  execute_process(COMMAND ${OBJDUMP} -h ${object} OUTPUT_VARIABLE sections RESULT_VARIABLE rc)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "cannot list the sections of ${object}")
+  endif()
+  if(sections MATCHES "\\.(ctors|preinit_array)")
+    message(FATAL_ERROR "${object} has a static initialiser in .ctors or .preinit_array")
+  endif()
+  if(sections MATCHES "\\.init_array")
+    execute_process(COMMAND ${OBJDUMP} -d --section=.text.startup ${object} OUTPUT_VARIABLE startup RESULT_VARIABLE rc)
+    if(NOT rc EQUAL 0 OR NOT startup MATCHES "<[^>]+>:")
+      message(FATAL_ERROR "${object} has a static initialiser outside .text.startup")
+    endif()
+    if(startup MATCHES "%(xmm|ymm|zmm|k[0-7])")
+      message(FATAL_ERROR "${object} has a static initialiser that uses vector or mask registers")
+    endif()
+  endif()
+  message(STATUS "${object}: sealed (entry points only; no initialiser with vector code)")
+endforeach()
