@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
 // What the CPU we run on can do, asked once: the filters compile a copy of
-// their row loops for AVX2 (and the temporal kernels one for AVX-512; target
-// attribute, same source, no FMA contraction, so the same bits) and pick it at
-// run time when this says yes.
+// their row loops for AVX2 (target attribute, same source, no FMA
+// contraction, so the same bits), and taa's rows one for AVX-512 (a unit of
+// its own built with -mavx512* flags, filters/taa_rows.h), and pick it at run
+// time when this says yes.
 #pragma once
 
 namespace crisp {

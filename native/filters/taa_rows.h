@@ -8,9 +8,11 @@
 // compiled without AVX-512 (about 4x slower than the 8-lane copy).
 // Everything here except the two structs the units pass each other has
 // internal linkage (an anonymous namespace), so each unit keeps its own
-// copies, compiled for its own instruction set, and the linker never trades
-// one unit's for the other's (tests/CMakeLists.txt checks the AVX-512 object
-// defines no symbol another unit could share).
+// copies, compiled for its own instruction set. The helpers it includes from
+// other headers have external linkage and stay out of the AVX-512 object only
+// by being inlined: tests/check_sealed_object.cmake checks, at every build
+// of crisp_core and as a ctest, that the object defines no symbol another
+// unit could share, so the linker never trades one unit's copy for the other's.
 #pragma once
 
 #include <algorithm>

@@ -403,7 +403,7 @@ TEST(Taa, ReferencePathEqualsFastPath) {
       const Image& a = ref.run(f, true, c.depth);
       const Image& b = fast.run(f, true, c.depth);
       ASSERT_EQ(0, std::memcmp(a.data.data(), b.data.data(), a.data.size() * sizeof(float)))
-          << c.filter << " " << c.space << " jitter " << run / 6 << " frame " << t << " "
+          << c.filter << " " << c.space << " jitter " << run / 9 << " frame " << t << " "
           << temporal::fastPathIsaName();
     }
   }
