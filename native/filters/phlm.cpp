@@ -1041,10 +1041,14 @@ CRISP_PHLM_INLINE void forgetAndRegularise(const Frame<T>& f, const Batch<T>& ba
     }
     const V lm = splatOf<V>(f.lambdaMoving) * (oneOf<V>() - splatOf<V>(f.resampleDamping) * s);
     forget(m, oneOf<V>() / lm);
-    for (int k = 0; k < kDims; ++k) {
-      const V variance = splatOf<V>(f.p0Diagonal[k]) / (oneOf<V>() - lm);
-      regularise(m, k, variance, oneOf<V>() / variance);
-    }
+    auto refresh = [&](auto axis) __attribute__((always_inline)) {
+      const V variance = splatOf<V>(f.p0Diagonal[axis]) / (oneOf<V>() - lm);
+      regularise<decltype(axis)::value>(m, variance, oneOf<V>() / variance);
+    };
+    refresh(std::integral_constant<int, 0>{});
+    refresh(std::integral_constant<int, 1>{});
+    refresh(std::integral_constant<int, 2>{});
+    refresh(std::integral_constant<int, 3>{});
   } else {
     forget(m, splatOf<V>(f.inverseLambda));
     regularise(m, f.axis, splatOf<V>(f.regulariserVariance[f.axis]),

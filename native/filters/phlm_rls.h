@@ -98,8 +98,11 @@ CRISP_PHLM_INLINE void predict(const T* m, const T x[kDims], T f[3]) {
 // caller can hoist it): P <- P - P h h'P / (r + h'P h). gain[] (may be null)
 // receives K = P h / (r + h'P h) (the old P). Returns 1 / (r + h'P h).
 // One division per row: the reciprocal of alpha_j serves row j and j + 1.
-template <class T>
-CRISP_PHLM_INLINE T biermanUpdate(T* m, const T h[kDims], int first, const T& r, const T& inverseR, T* gain) {
+// `first` is a template argument so that the loops unroll with constant
+// indices and the record stays in registers (a run-time first kept it in
+// memory: about a fifth of phlm's time went to the store-to-load chains).
+template <int first, class T>
+CRISP_PHLM_INLINE T biermanUpdate(T* m, const T h[kDims], const T& r, const T& inverseR, T* gain) {
   T f[kDims], v[kDims], b[kDims];
   for (int j = first; j < kDims; ++j) {
     T s = h[j];
@@ -135,11 +138,21 @@ CRISP_PHLM_INLINE void forget(T* m, const T& inverseLambda) {
 }
 
 // Point 3 above: information w = 1 / variance on axis k, beta unchanged.
-template <class T>
-CRISP_PHLM_INLINE void regularise(T* m, int axis, const T& variance, const T& inverseVariance) {
+template <int axis, class T>
+CRISP_PHLM_INLINE void regularise(T* m, const T& variance, const T& inverseVariance) {
   T h[kDims] = {zeroOf<T>(), zeroOf<T>(), zeroOf<T>(), zeroOf<T>()};
   h[axis] = oneOf<T>();
-  biermanUpdate(m, h, axis, variance, inverseVariance, static_cast<T*>(nullptr));
+  biermanUpdate<axis>(m, h, variance, inverseVariance, static_cast<T*>(nullptr));
+}
+// The same on an axis known at run time (0-3).
+template <class T>
+CRISP_PHLM_INLINE void regularise(T* m, int axis, const T& variance, const T& inverseVariance) {
+  switch (axis) {
+    case 0: return regularise<0>(m, variance, inverseVariance);
+    case 1: return regularise<1>(m, variance, inverseVariance);
+    case 2: return regularise<2>(m, variance, inverseVariance);
+    default: return regularise<3>(m, variance, inverseVariance);
+  }
 }
 
 // One RLS step (eqs. 5-7) on the error e = y - beta'x of this frame, with
@@ -149,7 +162,7 @@ CRISP_PHLM_INLINE void regularise(T* m, int axis, const T& variance, const T& in
 template <class T>
 CRISP_PHLM_INLINE T rlsUpdate(T* m, const T x[kDims], const T e[3], const T& variance, const T& inverseVariance) {
   T k[kDims];
-  const T inverseAlpha = biermanUpdate(m, x, 0, variance, inverseVariance, k);
+  const T inverseAlpha = biermanUpdate<0>(m, x, variance, inverseVariance, k);
   for (int j = 0; j < kDims; ++j)
     for (int c = 0; c < 3; ++c) m[kBeta + 3 * j + c] += k[j] * e[c];
   return oneOf<T>() - variance * inverseAlpha;
