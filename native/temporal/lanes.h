@@ -398,13 +398,17 @@ template <class T, IfVector<T> = 0>
 CRISP_LANES_INLINE void setLane(T& v, int l, float x) {
   v[l] = x;
 }
-// Calls fn(l) for every set lane of m.
+// Calls fn(l) for every set lane of m. An empty mask (the common case at
+// every call) is tested as a vector first: the lane-by-lane loop reads the
+// mask back from memory one lane at a time (perf: 4 % of taa's 16-lane pan
+// on that loop when no lane was set).
 template <class Fn>
 CRISP_LANES_INLINE void forEachLane(bool m, Fn&& fn) {
   if (m) fn(0);
 }
 template <class M, class Fn, IfMask<M> = 0>
 CRISP_LANES_INLINE void forEachLane(M m, Fn&& fn) {
+  if (!anyOf(m)) return;
   for (int l = 0; l < int(sizeof(M) / sizeof(int)); ++l)
     if (m[l]) fn(l);
 }
