@@ -1146,7 +1146,8 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, FrameStat
   using M = typename Batch<T>::M;
   const int n = batch.count;
   // Unused lanes repeat lane 0 (finite, harmless values; written to the
-  // row's padding records only).
+  // row's padding records only). What follows reads every lane of these
+  // arrays as vectors (floatLanes of tx, ty) and relies on that.
   for (int i = n; i < kBatch; ++i) {
     for (int c = 0; c < 3; ++c) {
       batch.sum[c][i] = batch.sum[c][0];

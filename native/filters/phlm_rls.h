@@ -100,7 +100,7 @@ CRISP_PHLM_INLINE void predict(const T* m, const T x[kDims], T f[3]) {
 // One division per row: the reciprocal of alpha_j serves row j and j + 1.
 // `first` is a template argument so that the loops unroll with constant
 // indices and the record stays in registers (a run-time first kept it in
-// memory: about a fifth of phlm's time went to the store-to-load chains).
+// memory, and its store-to-load chain was the hottest line of phlm's pan).
 template <int first, class T>
 CRISP_PHLM_INLINE T biermanUpdate(T* m, const T h[kDims], const T& r, const T& inverseR, T* gain) {
   T f[kDims], v[kDims], b[kDims];
@@ -144,14 +144,15 @@ CRISP_PHLM_INLINE void regularise(T* m, const T& variance, const T& inverseVaria
   h[axis] = oneOf<T>();
   biermanUpdate<axis>(m, h, variance, inverseVariance, static_cast<T*>(nullptr));
 }
-// The same on an axis known at run time (0-3).
+// The same on an axis known at run time, 0-3 (the frame's axis, frame mod 4).
 template <class T>
 CRISP_PHLM_INLINE void regularise(T* m, int axis, const T& variance, const T& inverseVariance) {
   switch (axis) {
     case 0: return regularise<0>(m, variance, inverseVariance);
     case 1: return regularise<1>(m, variance, inverseVariance);
     case 2: return regularise<2>(m, variance, inverseVariance);
-    default: return regularise<3>(m, variance, inverseVariance);
+    case 3: return regularise<3>(m, variance, inverseVariance);
+    default: __builtin_unreachable();
   }
 }
 
