@@ -327,6 +327,58 @@ TEST(TaaImproved, LuminanceOfRgbaEqualsRgb) {
   }
 }
 
+// Motion given with 4 channels (Blender's Vector pass; channels 2-3 NaN
+// here) and with 2 gives the Sobel plane and output of the reference path
+// bit for bit, on every copy of the fast path (taa's staged motion and the
+// Sobel stabilisation read it in lane groups); the motion differs from pixel
+// to pixel, so a lane read from the wrong pixel shows.
+TEST(TaaImproved, FourChannelMotionEqualsTwo) {
+  const int w = 45, h = 29;
+  synth::Sequence seq = synth::ghostingSequence(w, h, 8.0f, 1.3f, 0.4f);
+  for (const temporal::Isa isa : test::kFastPathIsas) {
+    const test::FastPathIsa scope(isa);
+    taa_improved::Settings s;
+    taa_improved::Kernel two, four, ref;
+    for (auto* k : {&two, &four, &ref}) k->allocate(w, h, true);
+    for (int t = 0; t < 6; ++t) {
+      synth::FrameData f = synth::renderFrame(seq, w, h, t + 10, {});
+      for (float& v : f.color.data) v *= 0.05f;  // dim: the Sobel term stays below 1
+      ASSERT_EQ(2, f.motion.channels);
+      Image motion4(w, h, 4);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          float* m = f.motion.at(x, y);
+          m[0] += 0.03f * float((x * 7 + y) % 11);
+          m[1] -= 0.02f * float((x * 3 + y * 5) % 7);
+          float* m4 = motion4.at(x, y);
+          m4[0] = m[0];
+          m4[1] = m[1];
+          m4[2] = m4[3] = std::numeric_limits<float>::quiet_NaN();
+        }
+      Image outTwo(w, h, 4), outFour(w, h, 4), outRef(w, h, 4);
+      taa_improved::Inputs in;
+      in.color = f.color.view();
+      in.depth = f.depth.view();
+      in.id = f.id.view();
+      s.base.jitterX = f.jitter.x;
+      s.base.jitterY = f.jitter.y;
+      in.motion = f.motion.view();
+      in.output = outTwo.view();
+      two.run(in, s, false, 2);
+      in.output = outRef.view();
+      ref.run(in, s, true, 1);
+      in.motion = motion4.view();
+      in.output = outFour.view();
+      four.run(in, s, false, 2);
+      const std::string where = "frame " + std::to_string(t) + ", " + temporal::fastPathIsaName();
+      ASSERT_EQ(two.sobel(), ref.sobel()) << where;
+      ASSERT_EQ(four.sobel(), ref.sobel()) << where;
+      ASSERT_EQ(0, std::memcmp(outTwo.data.data(), outRef.data.data(), outRef.data.size() * sizeof(float))) << where;
+      ASSERT_EQ(0, std::memcmp(outFour.data.data(), outRef.data.data(), outRef.data.size() * sizeof(float))) << where;
+    }
+  }
+}
+
 // A change of clipSpace starts the whole filter over (the baseline's history
 // is stored in the clip space, taa.cpp): the frame after the change equals a
 // new filter's first frame in the new space, its aliasedValue plane too (the
