@@ -25,6 +25,7 @@
 #include "core/error.h"
 #include "core/filter.h"
 #include "io/sidecar.h"
+#include "io/subsamples.h"
 #include "motion/reconstruct.h"
 
 namespace crisp::cli {
@@ -158,7 +159,7 @@ int runFilter(const ParsedArgs& args) {
   }
   const bool temporal = keepsHistory(*filter);
   const int historyFirst = std::max(1, chunk.first - preroll);  // where the chunk's history starts
-  OutputStamps stamps(outDir, args.positional, settings, temporal, historyFirst, png);
+  OutputStamps stamps(outDir, args.positional, settings, temporal, historyFirst, png, readsSubsamples(*filter));
   auto isComplete = [&](int position) {
     const std::string why = stamps.whyRemake(position);
     if (why.empty()) return true;

@@ -9,6 +9,7 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "io/sidecar.h"
+#include "io/subsamples.h"
 
 namespace crisp::cli {
 
@@ -18,9 +19,21 @@ namespace {
 
 // What an output is made from, as its stamp records it: its input file and
 // the input's sidecar (jitter, camera, shot position), each as size and
-// modification time (files.cpp sizeAndTime; "" for a missing sidecar).
-std::string inputIdentity(const std::string& input) {
-  return sizeAndTime(input) + " | " + sizeAndTime(sidecarPathFor(input));
+// modification time (files.cpp sizeAndTime; "" for a missing sidecar); for
+// a method that reads geometric sub-samples (rsaa), also each sub-sample file
+// the sidecar lists, so that a sub-sample rendered again remakes the output.
+// A list that cannot be read is recorded as such (the filter then stops
+// with the reason when it reads the frame).
+std::string inputIdentity(const std::string& input, bool subsamples) {
+  std::string identity = sizeAndTime(input) + " | " + sizeAndTime(sidecarPathFor(input));
+  if (subsamples) {
+    try {
+      for (const SubsampleEntry& e : readSubsampleList(sidecarPathFor(input))) identity += " | " + sizeAndTime(e.file);
+    } catch (const Exception&) {
+      identity += " | no readable sub-sample list";
+    }
+  }
+  return identity;
 }
 
 std::string readText(const std::string& path) {
@@ -43,7 +56,7 @@ bool pngMatchesRecord(const std::string& pngPath, const std::string& recordPath)
 }
 
 OutputStamps::OutputStamps(std::string outDir, const std::vector<std::string>& inputs, nlohmann::json settings,
-                           bool temporal, int historyFirst, bool png)
+                           bool temporal, int historyFirst, bool png, bool subsamples)
     : outDir_(std::move(outDir)),
       dir_(joinPath(outDir_, ".crisp")),
       inputs_(inputs),
@@ -51,9 +64,10 @@ OutputStamps::OutputStamps(std::string outDir, const std::vector<std::string>& i
       settings_(std::move(settings)),
       temporal_(temporal),
       png_(png),
+      subsamples_(subsamples),
       historyFirst_(historyFirst),
       history_(kFnv1a64Seed) {
-  for (const std::string& in : inputs_) identity_.push_back(inputIdentity(in));
+  for (const std::string& in : inputs_) identity_.push_back(inputIdentity(in, subsamples_));
   std::uint64_t digest = kFnv1a64Seed;
   for (int position = historyFirst_; position <= int(inputs_.size()); ++position) {
     fnv1a64OfText(identity_[std::size_t(position - 1)] + "\n", digest);
@@ -105,7 +119,9 @@ std::string OutputStamps::whyRemake(int position) const {
                ? "was made before the motion was rebuilt from the sidecars (every input has one now)"
                : "was made with motion rebuilt from the sidecars (not every input has one now, or the sequence is "
                  "still)";
-  if (had["input"] != want["input"]) return "was made from another version of '" + input + "' or its sidecar";
+  if (had["input"] != want["input"])
+    return "was made from another version of '" + input + "' or its sidecar" +
+           (subsamples_ ? " or sub-samples" : "");
   if (had["output"] != want["output"]) return "was replaced since this command wrote it";
   return "was made after other inputs before it than these (one changed since, another input list, or another "
          "--preroll; its history starts at '" + inputs_[std::size_t(historyFirst_ - 1)] + "')";
@@ -118,7 +134,7 @@ void OutputStamps::checkFolder() const {
 }
 
 void OutputStamps::reading(int position) {
-  identity_[std::size_t(position - 1)] = inputIdentity(inputs_[std::size_t(position - 1)]);
+  identity_[std::size_t(position - 1)] = inputIdentity(inputs_[std::size_t(position - 1)], subsamples_);
   fnv1a64OfText(identity_[std::size_t(position - 1)] + "\n", history_);
 }
 

@@ -5,7 +5,8 @@
 // Each output has a stamp, OUT/.crisp/<name>.json, written after it: the
 // method, its --set parameters, the build (files.cpp buildStamp), whether
 // motion was rebuilt from the sidecars (a decision over the whole sequence),
-// its input ("input": inputIdentity), the output EXR as written ("output"),
+// its input ("input": inputIdentity: the input, its sidecar and, for rsaa,
+// the sub-sample files the sidecar lists), the output EXR as written ("output"),
 // and, for a filter that keeps history, the inputs its history went through
 // ("history": a digest of the identities of the inputs from the chunk's first
 // pre-roll frame to its own). An output made otherwise, or by a build before
@@ -33,9 +34,10 @@ class OutputStamps {
  public:
   // settings: the method, params, build and motion decision (recorded as
   // given); inputs: every input, in order; historyFirst: the 1-based position
-  // where the chunk's history starts (temporal filters only).
+  // where the chunk's history starts (temporal filters only); subsamples: the
+  // method reads the geometric sub-sample files each sidecar lists (rsaa).
   OutputStamps(std::string outDir, const std::vector<std::string>& inputs, nlohmann::json settings, bool temporal,
-               int historyFirst, bool png);
+               int historyFirst, bool png, bool subsamples);
 
   // Why the outputs of input `position` (1-based) must be made again, from
   // the files as they are now; "" when they are complete and match.
@@ -67,7 +69,7 @@ class OutputStamps {
   std::vector<std::string> inputs_, identity_;  // identity_ by position - 1
   std::vector<std::string> plannedHistory_;     // by position: the digest as the files are now
   nlohmann::json settings_;
-  bool temporal_, png_;
+  bool temporal_, png_, subsamples_;
   int historyFirst_;
   std::uint64_t history_;  // the digest of the inputs read so far
 };

@@ -81,14 +81,20 @@ def test_cli_filter_equals_the_addon(rendered):
         shutil.rmtree(out, ignore_errors=True)
 
 
+def copy_frame(rendered, prefix):
+    """A new folder with a copy of frame 1's files (frame, sidecar, sub-samples; times kept); returns
+    the folder and the frame's path in it."""
+    work = tempfile.mkdtemp(prefix=prefix)
+    src = os.path.join(rendered, "input")
+    for name in os.listdir(src):
+        if name.startswith("frame_0001"):
+            shutil.copy2(os.path.join(src, name), work)
+    return work, os.path.join(work, "frame_0001.exr")
+
+
 def test_missing_subsample_and_list_are_clear_errors(rendered):
-    work = tempfile.mkdtemp(prefix="crisp_rsaa_bad_")
+    work, frame = copy_frame(rendered, "crisp_rsaa_bad_")
     try:
-        src = os.path.join(rendered, "input")
-        for name in os.listdir(src):
-            if name.startswith("frame_0001"):
-                shutil.copy(os.path.join(src, name), work)
-        frame = os.path.join(work, "frame_0001.exr")
         os.remove(os.path.join(work, "frame_0001_sub5.exr"))
         p = filter_cli([frame], os.path.join(work, "out"))
         assert p.returncode != 0 and "frame_0001_sub5.exr" in p.stderr.decode(), p.stderr.decode()
@@ -98,6 +104,36 @@ def test_missing_subsample_and_list_are_clear_errors(rendered):
         json.dump(side, open(side_path, "w"))
         p = filter_cli([frame], os.path.join(work, "out"))
         assert p.returncode != 0 and "not rendered for rsaa" in p.stderr.decode(), p.stderr.decode()
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def test_resume_remakes_the_output_after_a_subsample_changed(rendered):
+    """An rsaa output's stamp records the sub-sample files its sidecar lists: a resume keeps the
+    output while they are unchanged and makes it again after one is rendered again (here: its
+    modification time moved)."""
+    work, frame = copy_frame(rendered, "crisp_rsaa_resume_")
+    try:
+        out = os.path.join(work, "out")
+        output = os.path.join(out, "frame_0001.exr")
+
+        def resume():
+            return subprocess.run([CRISP, "filter", "-m", "rsaa", "--resume", "-o", out, frame],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env(), timeout=120)
+
+        p = resume()
+        assert p.returncode == 0, p.stderr.decode()
+        made = os.stat(output).st_mtime_ns
+        p = resume()
+        assert p.returncode == 0 and "nothing to do" in p.stdout.decode(), (p.stdout.decode(), p.stderr.decode())
+        assert os.stat(output).st_mtime_ns == made
+        sub = os.path.join(work, "frame_0001_sub3.exr")
+        st = os.stat(sub)
+        os.utime(sub, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+        p = resume()
+        assert p.returncode == 0, p.stderr.decode()
+        assert "was made from another version of '%s'" % frame in p.stderr.decode(), p.stderr.decode()
+        assert os.stat(output).st_mtime_ns != made
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
