@@ -183,9 +183,16 @@ int runFilter(const ParsedArgs& args) {
   Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, quiet);
   ShotPosition shot;
   std::set<std::string> optionalBound;  // the optional passes bound for the frame before
+  const bool resume = args.has("resume");
   for (std::size_t i = std::size_t(run.start - 1); i < std::size_t(run.last); ++i) {
     const std::string& in = args.positional[i];
     const bool write = int(i) + 1 >= run.first;
+    // A spatial method's outputs stand alone: its resume keeps every complete
+    // output, also after the first one it makes again (planChunk asked up to it).
+    if (resume && !temporal && int(i) + 1 > run.first && isComplete(int(i) + 1)) {
+      progress.step(fileStem(in) + " (kept)");
+      continue;
+    }
     stamps.reading(int(i) + 1);
     Frame frame = readFrame(in);
     warnNonFiniteColour(frame);

@@ -214,16 +214,24 @@ def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_pat
     assert "frame_0005' was made after other inputs before it" in p.stderr, p.stderr
     filter_chunks(inputs, "taa", chunks, [(1, 4)], 4, "--resume")
     assert rewritten(before, chunks) == [2, 3, 4, 5, 6, 7, 8]
-    # A spatial method: a changed frame 3 leaves the outputs of 4-8 valid (a resume from 3 makes
-    # them again only because it runs to the chunk's end).
+    # A spatial method: a changed frame 3 leaves the outputs of 4-8 valid, and its resume makes
+    # only the frames that need it (3 and 6 here), keeping the others (progress says "kept").
     spatial = tmp_path / "fxaa"
     crisp("filter", "--method", "fxaa", "--quiet", "-o", spatial, *inputs)
     st = os.stat(folder / frame(3))
     os.utime(folder / frame(3), ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
     p = crisp("filter", "--method", "fxaa", "--frames", "4-8", "--resume", "-o", spatial, *inputs)
     assert "nothing to do" in p.stdout, p.stderr
+    os.remove(spatial / frame(6))
+    before = {f: os.stat(spatial / frame(f)).st_mtime_ns for f in range(1, 9) if f != 6}
     p = crisp("filter", "--method", "fxaa", "--frames", "3-8", "--resume", "-o", spatial, *inputs)
     assert "frame_0003' was made from another version of" in p.stderr, p.stderr
+    assert "frame_0006' is missing" in p.stderr and "frame_0005 (kept)" in p.stderr, p.stderr
+    now = {f: os.stat(spatial / frame(f)).st_mtime_ns for f in range(1, 9)}
+    assert [f for f in range(1, 9) if f == 6 or now[f] != before[f]] == [3, 6]
+    fresh = tmp_path / "fxaa_fresh"
+    crisp("filter", "--method", "fxaa", "--quiet", "-o", fresh, *inputs)
+    assert max_diff(lib, fresh, spatial, range(1, 9)) == 0.0
     # An output another build of crisp made (its stamp says which): made again.
     stamp = spatial / ".crisp" / frame(6, ".json")
     record = json.loads(stamp.read_text())
