@@ -160,6 +160,22 @@ int runFilter(const ParsedArgs& args) {
   const bool temporal = keepsHistory(*filter);
   const int historyFirst = std::max(1, chunk.first - preroll);  // where the chunk's history starts
   OutputStamps stamps(outDir, args.positional, settings, temporal, historyFirst, png, readsSubsamples(*filter));
+  if (temporal) {
+    // Where the history will start over (a cut, a gap), as the run below
+    // finds it: the planned digests restart there, so a changed input before
+    // a cut leaves the outputs after it complete. A sidecar that cannot be
+    // read ends the plan there (the outputs after it count as changed; the run
+    // names the file when it reaches it).
+    std::vector<int> breaks;
+    ShotPosition planned;
+    try {
+      for (int position = historyFirst; position <= chunk.last; ++position)
+        if (!historyBreak(*filter, args.positional[std::size_t(position - 1)], planned).empty())
+          breaks.push_back(position);
+    } catch (const std::exception&) {
+    }
+    stamps.plannedBreaks(breaks);
+  }
   auto isComplete = [&](int position) {
     const std::string why = stamps.whyRemake(position);
     if (why.empty()) return true;
@@ -201,6 +217,7 @@ int runFilter(const ParsedArgs& args) {
     const std::string cut = historyBreak(*filter, in, shot);
     if (!cut.empty()) {
       filter->reset();
+      stamps.historyStartsOver(int(i) + 1);
       if (!quiet)
         std::fprintf(stderr, "filter: '%s': %s history starts over (%s)\n", in.c_str(), filter->type(), cut.c_str());
     }

@@ -68,12 +68,21 @@ OutputStamps::OutputStamps(std::string outDir, const std::vector<std::string>& i
       historyFirst_(historyFirst),
       history_(kFnv1a64Seed) {
   for (const std::string& in : inputs_) identity_.push_back(inputIdentity(in, subsamples_));
+  planHistory({});
+}
+
+void OutputStamps::planHistory(const std::vector<int>& breaks) {
   std::uint64_t digest = kFnv1a64Seed;
+  auto next = breaks.begin();
   for (int position = historyFirst_; position <= int(inputs_.size()); ++position) {
+    while (next != breaks.end() && *next < position) ++next;
+    if (next != breaks.end() && *next == position) digest = kFnv1a64Seed;  // historyStartsOver's rule
     fnv1a64OfText(identity_[std::size_t(position - 1)] + "\n", digest);
     plannedHistory_[std::size_t(position)] = digestText(digest);
   }
 }
+
+void OutputStamps::plannedBreaks(const std::vector<int>& positions) { planHistory(positions); }
 
 std::string OutputStamps::base(int position) const {
   return joinPath(outDir_, fileStem(inputs_[std::size_t(position - 1)]));
@@ -135,6 +144,11 @@ void OutputStamps::checkFolder() const {
 
 void OutputStamps::reading(int position) {
   identity_[std::size_t(position - 1)] = inputIdentity(inputs_[std::size_t(position - 1)], subsamples_);
+  fnv1a64OfText(identity_[std::size_t(position - 1)] + "\n", history_);
+}
+
+void OutputStamps::historyStartsOver(int position) {
+  history_ = kFnv1a64Seed;
   fnv1a64OfText(identity_[std::size_t(position - 1)] + "\n", history_);
 }
 

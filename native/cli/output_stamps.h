@@ -9,7 +9,8 @@
 // the sub-sample files the sidecar lists), the output EXR as written ("output"),
 // and, for a filter that keeps history, the inputs its history went through
 // ("history": a digest of the identities of the inputs from the chunk's first
-// pre-roll frame to its own). An output made otherwise, or by a build before
+// pre-roll frame, or from the last cut or gap after it where the history
+// starts over (files.cpp historyBreak), to its own). An output made otherwise, or by a build before
 // these stamps, counts as missing; so does every output of a temporal filter
 // after a changed input, whether that input is in the chunk or its pre-roll.
 // A PNG written with --png has its own record, OUT/.crisp/<name>.png.stamp.
@@ -39,6 +40,10 @@ class OutputStamps {
   OutputStamps(std::string outDir, const std::vector<std::string>& inputs, nlohmann::json settings, bool temporal,
                int historyFirst, bool png, bool subsamples);
 
+  // The positions (1-based, ascending) where the history starts over, as
+  // historyBreak finds them in the sidecars as they are now: the planned
+  // digests restart there (call before whyRemake).
+  void plannedBreaks(const std::vector<int>& positions);
   // Why the outputs of input `position` (1-based) must be made again, from
   // the files as they are now; "" when they are complete and match.
   std::string whyRemake(int position) const;
@@ -50,6 +55,9 @@ class OutputStamps {
   // history digest. Inputs are read in order, from historyFirst on for a
   // temporal filter.
   void reading(int position);
+  // After reading `position`: the filter's history started over there, so
+  // the digest restarts with this input.
+  void historyStartsOver(int position);
   // Before `position`'s outputs are replaced: its old stamp goes first, so a
   // run stopped between the outputs and the new stamp leaves no stamp under
   // the new pixels.
@@ -64,6 +72,7 @@ class OutputStamps {
   std::string base(int position) const;       // OUT/<stem>
   std::string stampPathOf(int position) const;  // OUT/.crisp/<stem>.json
   nlohmann::json stampOf(int position, const std::string& history, const std::string& output) const;
+  void planHistory(const std::vector<int>& breaks);  // plannedHistory_ from identity_
 
   std::string outDir_, dir_;
   std::vector<std::string> inputs_, identity_;  // identity_ by position - 1

@@ -258,6 +258,39 @@ def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_pat
     assert "frame_0001' was made with motion rebuilt from the sidecars" in p.stderr, p.stderr
 
 
+def test_filter_resume_keeps_outputs_after_a_gap_when_an_earlier_input_changed(shot, lib, tmp_path):
+    """A temporal method's history starts over at a gap in the frame numbers (or a cut), so its
+    outputs after the gap do not depend on the inputs before it: a stamp's history digest restarts
+    there, and a chunk after the gap whose pre-roll reaches a changed earlier input stays complete."""
+    source, _ = shot
+    folder = tmp_path / "input"
+    shutil.copytree(source / "input", folder)
+    inputs = [str(folder / frame(f)) for f in (1, 2, 3, 5, 6, 7, 8)]  # frame 4 left out: a gap
+    out = tmp_path / "out"
+    p = crisp("filter", "--method", "taa", "-o", out, *inputs)
+    assert "history starts over (frame 5 after frame 3)" in p.stderr, p.stderr
+    p = crisp("filter", "--method", "taa", "--resume", "-o", out, *inputs)
+    assert "nothing to do" in p.stdout, p.stderr  # the digests written restart where the plan does
+
+    def mtimes():
+        return {f: os.stat(out / frame(f)).st_mtime_ns for f in (1, 2, 3, 5, 6, 7, 8)}
+
+    st = os.stat(folder / frame(2))
+    os.utime(folder / frame(2), ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    before = mtimes()
+    # The chunk of positions 4-7 (frames 5-8), its pre-roll reaching frame 2: still complete.
+    p = crisp("filter", "--method", "taa", "--frames", "4-7", "--preroll", "3", "--resume", "-o", out, *inputs)
+    assert "nothing to do" in p.stdout, p.stderr
+    # The chunk before the gap: frames 2 and 3 again, the outputs after the gap kept.
+    p = crisp("filter", "--method", "taa", "--frames", "1-3", "--resume", "-o", out, *inputs)
+    assert "frame_0002' was made from another version of" in p.stderr, p.stderr
+    now = mtimes()
+    assert [f for f in now if now[f] != before[f]] == [2, 3]
+    fresh = tmp_path / "fresh"
+    crisp("filter", "--method", "taa", "--quiet", "-o", fresh, *inputs)
+    assert max_diff(lib, fresh, out, (1, 2, 3, 5, 6, 7, 8)) == 0.0
+
+
 def test_filter_chunk_errors(shot, tmp_path):
     _, inputs = shot
     for frames, message in (("7-9", "reaches past the last input (8 given"), ("0-3", "--frames expects A-B"),
