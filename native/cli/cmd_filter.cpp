@@ -63,7 +63,8 @@ void warnNonFiniteColour(const Frame& frame) {
 
 // An input without a motion pass gets motion reconstructed from its depth and
 // the sidecars of the previous input (and of the next one, for zw) in the
-// order given; the first input gets zero motion.
+// order given; index 0 gets zero motion (the caller passes 0 at a cut or gap
+// too).
 void addReconstructedMotion(Frame& frame, const std::vector<std::string>& inputs, std::size_t index,
                             int numThreads) {
   if (frame.has("motion")) return;
@@ -160,20 +161,16 @@ int runFilter(const ParsedArgs& args) {
   const bool temporal = keepsHistory(*filter);
   const int historyFirst = std::max(1, chunk.first - preroll);  // where the chunk's history starts
   OutputStamps stamps(outDir, args.positional, settings, temporal, historyFirst, png, readsSubsamples(*filter));
-  if (temporal) {
+  if (temporal && args.has("resume")) {
     // Where the history will start over (a cut, a gap), as the run below
     // finds it: the planned digests restart there, so a changed input before
     // a cut leaves the outputs after it complete. A sidecar that cannot be
-    // read ends the plan there (the outputs after it count as changed; the run
-    // names the file when it reaches it).
+    // read stops the resume here, naming it, as the run would.
     std::vector<int> breaks;
     ShotPosition planned;
-    try {
-      for (int position = historyFirst; position <= chunk.last; ++position)
-        if (!historyBreak(*filter, args.positional[std::size_t(position - 1)], planned).empty())
-          breaks.push_back(position);
-    } catch (const std::exception&) {
-    }
+    for (int position = historyFirst; position <= chunk.last; ++position)
+      if (!historyBreak(*filter, args.positional[std::size_t(position - 1)], planned).empty())
+        breaks.push_back(position);
     stamps.plannedBreaks(breaks);
   }
   auto isComplete = [&](int position) {
@@ -205,7 +202,9 @@ int runFilter(const ParsedArgs& args) {
     const bool write = int(i) + 1 >= run.first;
     // A spatial method's outputs stand alone: its resume keeps every complete
     // output, also after the first one it makes again (planChunk asked up to it).
-    if (resume && !temporal && int(i) + 1 > run.first && isComplete(int(i) + 1)) {
+    // (Not with motion rebuilt from the sidecars, which reads the inputs beside it; no spatial
+    // method reads motion today.)
+    if (resume && !temporal && !rebuildMotion && int(i) + 1 > run.first && isComplete(int(i) + 1)) {
       progress.step(fileStem(in) + " (kept)");
       continue;
     }

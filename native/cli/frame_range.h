@@ -4,7 +4,9 @@
 // first frame) only warm the temporal history. With --resume the chunk starts
 // at its first frame whose output is missing, and the pre-roll is taken before
 // that frame, so a resumed run warms its history exactly like a fresh chunk
-// starting there would. Header-only so the CLI's source list needs no change.
+// starting there would (crisp filter then reads a temporal method's chunk
+// from its first pre-roll frame instead, cmd_filter.cpp). Header-only so the
+// CLI's source list needs no change.
 #pragma once
 
 #include <algorithm>

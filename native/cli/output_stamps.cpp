@@ -71,8 +71,22 @@ OutputStamps::OutputStamps(std::string outDir, const std::vector<std::string>& i
   planHistory({});
 }
 
-void OutputStamps::planHistory(const std::vector<int>& breaks) {
+// The digest before the chunk's first input: with motion rebuilt from the
+// sidecars, that input's motion is rebuilt from the sidecar of the input
+// before it (files.cpp), so the digest starts from that sidecar's identity.
+// A break (historyStartsOver) starts from the bare seed: there the frame gets
+// zero motion, so a chunk starting at a cut and a run across it differ, and
+// their digests do too.
+std::uint64_t OutputStamps::startDigest() const {
   std::uint64_t digest = kFnv1a64Seed;
+  if (historyFirst_ > 1 && settings_.value("motion_from_sidecars", false))
+    fnv1a64OfText("motion after " + sizeAndTime(sidecarPathFor(inputs_[std::size_t(historyFirst_ - 2)])) + "\n",
+                  digest);
+  return digest;
+}
+
+void OutputStamps::planHistory(const std::vector<int>& breaks) {
+  std::uint64_t digest = startDigest();
   auto next = breaks.begin();
   for (int position = historyFirst_; position <= int(inputs_.size()); ++position) {
     while (next != breaks.end() && *next < position) ++next;
@@ -133,7 +147,8 @@ std::string OutputStamps::whyRemake(int position) const {
            (subsamples_ ? " or sub-samples" : "");
   if (had["output"] != want["output"]) return "was replaced since this command wrote it";
   return "was made after other inputs before it than these (one changed since, another input list, or another "
-         "--preroll; its history starts at '" + inputs_[std::size_t(historyFirst_ - 1)] + "')";
+         "--preroll; its history starts at '" + inputs_[std::size_t(historyFirst_ - 1)] +
+         "' or at the last cut or gap after it)";
 }
 
 void OutputStamps::checkFolder() const {
@@ -144,6 +159,7 @@ void OutputStamps::checkFolder() const {
 
 void OutputStamps::reading(int position) {
   identity_[std::size_t(position - 1)] = inputIdentity(inputs_[std::size_t(position - 1)], subsamples_);
+  if (position == historyFirst_) history_ = startDigest();
   fnv1a64OfText(identity_[std::size_t(position - 1)] + "\n", history_);
 }
 

@@ -9,7 +9,8 @@ read; its filtered/ is the sequential taa-improved result of the add-on's filter
     younger; docs/farm.md has the measured table) but closer to sequential than none;
   * `--resume` starts at the first missing output, leaves complete outputs untouched and, with its
     pre-roll taken before that frame, writes what an uninterrupted run writes; after a failed run it
-    starts at the failure, and it makes again the outputs of an input changed since (and later ones);
+    starts at the failure, and it makes again the outputs of an input changed since (and, for a temporal
+    method, later ones up to the next gap or cut; a spatial method keeps every complete output);
   * `crisp render --frames A-B --preroll N --shot S-E`: chunks rendered out of order, two of them at
     the same time, into one output folder equal the sequential render; pre-roll frames never reach
     input/ or filtered/; a resumed chunk reads its pre-roll from input/ instead of rendering it again.
@@ -289,6 +290,16 @@ def test_filter_resume_keeps_outputs_after_a_gap_when_an_earlier_input_changed(s
     fresh = tmp_path / "fresh"
     crisp("filter", "--method", "taa", "--quiet", "-o", fresh, *inputs)
     assert max_diff(lib, fresh, out, (1, 2, 3, 5, 6, 7, 8)) == 0.0
+    # A chunk starting at the gap without pre-roll rebuilds its first frame's motion from the input
+    # before it (frame 3), a run across the gap gives that frame zero motion: phlm's later frames
+    # differ, so the chunk's outputs are not taken for the run's (their digests differ).
+    alone, across = tmp_path / "alone", tmp_path / "across"
+    crisp("filter", "--method", "phlm", "--frames", "4-7", "--quiet", "-o", alone, *inputs)
+    crisp("filter", "--method", "phlm", "--frames", "4-7", "--preroll", "3", "--quiet", "-o", across, *inputs)
+    assert max_diff(lib, alone, across, (6, 7, 8)) > 0.0  # the case is real
+    p = crisp("filter", "--method", "phlm", "--frames", "4-7", "--preroll", "3", "--resume", "-o", alone, *inputs)
+    assert "frame_0005' was made after other inputs before it" in p.stderr, p.stderr
+    assert max_diff(lib, alone, across, (5, 6, 7, 8)) == 0.0
 
 
 def test_filter_chunk_errors(shot, tmp_path):
