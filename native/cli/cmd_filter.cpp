@@ -161,7 +161,8 @@ int runFilter(const ParsedArgs& args) {
   const bool temporal = keepsHistory(*filter);
   const int historyFirst = std::max(1, chunk.first - preroll);  // where the chunk's history starts
   OutputStamps stamps(outDir, args.positional, settings, temporal, historyFirst, png, readsSubsamples(*filter));
-  if (temporal && args.has("resume")) {
+  const bool resume = args.has("resume");
+  if (temporal && resume) {
     // Where the history will start over (a cut, a gap), as the run below
     // finds it: the planned digests restart there, so a changed input before
     // a cut leaves the outputs after it complete. A sidecar that cannot be
@@ -180,7 +181,7 @@ int runFilter(const ParsedArgs& args) {
                  joinPath(outDir, fileStem(args.positional[std::size_t(position - 1)])).c_str(), why.c_str());
     return false;
   };
-  ChunkRun run = planChunk(chunk, preroll, 1, args.has("resume"), isComplete);
+  ChunkRun run = planChunk(chunk, preroll, 1, resume, isComplete);
   if (run.nothingToDo()) {
     if (!quiet)
       std::printf("filter: every output of frames %d-%d exists; nothing to do\n", chunk.first, chunk.last);
@@ -196,7 +197,6 @@ int runFilter(const ParsedArgs& args) {
   Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, quiet);
   ShotPosition shot;
   std::set<std::string> optionalBound;  // the optional passes bound for the frame before
-  const bool resume = args.has("resume");
   for (std::size_t i = std::size_t(run.start - 1); i < std::size_t(run.last); ++i) {
     const std::string& in = args.positional[i];
     const bool write = int(i) + 1 >= run.first;

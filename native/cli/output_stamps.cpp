@@ -25,10 +25,11 @@ namespace {
 // A list that cannot be read is recorded as such (the filter then stops
 // with the reason when it reads the frame).
 std::string inputIdentity(const std::string& input, bool subsamples) {
-  std::string identity = sizeAndTime(input) + " | " + sizeAndTime(sidecarPathFor(input));
+  const std::string sidecar = sidecarPathFor(input);
+  std::string identity = sizeAndTime(input) + " | " + sizeAndTime(sidecar);
   if (subsamples) {
     try {
-      for (const SubsampleEntry& e : readSubsampleList(sidecarPathFor(input))) identity += " | " + sizeAndTime(e.file);
+      for (const SubsampleEntry& e : readSubsampleList(sidecar)) identity += " | " + sizeAndTime(e.file);
     } catch (const Exception&) {
       identity += " | no readable sub-sample list";
     }
@@ -68,7 +69,7 @@ OutputStamps::OutputStamps(std::string outDir, const std::vector<std::string>& i
       historyFirst_(historyFirst),
       history_(kFnv1a64Seed) {
   for (const std::string& in : inputs_) identity_.push_back(inputIdentity(in, subsamples_));
-  planHistory({});
+  plannedBreaks({});
 }
 
 // The digest before the chunk's first input: with motion rebuilt from the
@@ -85,7 +86,7 @@ std::uint64_t OutputStamps::startDigest() const {
   return digest;
 }
 
-void OutputStamps::planHistory(const std::vector<int>& breaks) {
+void OutputStamps::plannedBreaks(const std::vector<int>& breaks) {
   std::uint64_t digest = startDigest();
   auto next = breaks.begin();
   for (int position = historyFirst_; position <= int(inputs_.size()); ++position) {
@@ -95,8 +96,6 @@ void OutputStamps::planHistory(const std::vector<int>& breaks) {
     plannedHistory_[std::size_t(position)] = digestText(digest);
   }
 }
-
-void OutputStamps::plannedBreaks(const std::vector<int>& positions) { planHistory(positions); }
 
 std::string OutputStamps::base(int position) const {
   return joinPath(outDir_, fileStem(inputs_[std::size_t(position - 1)]));

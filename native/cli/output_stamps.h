@@ -11,10 +11,10 @@
 // ("history": a digest of the identities of the inputs from the chunk's first
 // pre-roll frame, or from the last cut or gap after it where the history
 // starts over (files.cpp historyBreak), to its own; at the chunk's first
-// frame with motion rebuilt from the sidecars, also the sidecar before it). An output made otherwise, or by a build before
-// these stamps, counts as missing; so does every output of a temporal filter
-// after a changed input, whether that input is in the chunk or its pre-roll,
-// up to the next cut or gap.
+// frame with motion rebuilt from the sidecars, also the sidecar before it).
+// An output made otherwise, or by a build before these stamps, counts as
+// missing; so does every output of a temporal filter after a changed input,
+// whether that input is in the chunk or its pre-roll, up to the next cut or gap.
 // A PNG written with --png has its own record, OUT/.crisp/<name>.png.stamp.
 #pragma once
 
@@ -44,8 +44,9 @@ class OutputStamps {
 
   // The positions (1-based, ascending) where the history starts over, as
   // historyBreak finds them in the sidecars as they are now: the planned
-  // digests restart there (call before whyRemake).
-  void plannedBreaks(const std::vector<int>& positions);
+  // digests (plannedHistory_) restart there. The constructor plans none; call
+  // before whyRemake.
+  void plannedBreaks(const std::vector<int>& breaks);
   // Why the outputs of input `position` (1-based) must be made again, from
   // the files as they are now; "" when they are complete and match.
   std::string whyRemake(int position) const;
@@ -74,8 +75,7 @@ class OutputStamps {
   std::string base(int position) const;       // OUT/<stem>
   std::string stampPathOf(int position) const;  // OUT/.crisp/<stem>.json
   nlohmann::json stampOf(int position, const std::string& history, const std::string& output) const;
-  void planHistory(const std::vector<int>& breaks);  // plannedHistory_ from identity_
-  std::uint64_t startDigest() const;                  // the digest before input historyFirst_
+  std::uint64_t startDigest() const;  // the digest before input historyFirst_
 
   std::string outDir_, dir_;
   std::vector<std::string> inputs_, identity_;  // identity_ by position - 1

@@ -1174,14 +1174,17 @@ CRISP_PHLM_INLINE void finishBatch(const Frame<T>& f, Batch<T>& batch, FrameStat
   if (!f.reference)  // lane 0's model (source[] is set for valid lanes only), else the batch's own
     prefetchRecordsAhead(f, validLanes[0] ? batch.source[0] : paddedPixel(f.blocksPerRow, batch.x0, batch.y));
   V m[kZ], history[3];
-  bool anyValid = false;
-  for (int i = 0; i < kBatch; ++i) anyValid |= validLanes[i] != 0;
+  auto anyValid = [&validLanes] {
+    bool any = false;
+    for (int i = 0; i < kBatch; ++i) any |= validLanes[i] != 0;
+    return any;
+  };
   if (n == kBatch && batch.allValid && isRun(batch.source)) {
     // Lanes reading consecutive records (a still block reads its own; a
     // uniform motion a shifted run): whole vectors (loadRun).
     for (int j = 0; j < kZ; ++j) m[j] = loadRun<V>(f.previous, batch.source[0], j);
     for (int c = 0; c < 3; ++c) history[c] = loadRun<V>(f.previous, batch.source[0], kZ + c);
-  } else if (!anyValid) {
+  } else if (!anyValid()) {
     // No lane reprojected (a first frame, a cut): what the gather below
     // leaves, without its scalar stores (a vector load of eight of them
     // waits for them all).

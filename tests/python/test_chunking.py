@@ -91,6 +91,17 @@ def max_diff(lib, a_dir, b_dir, frames):
     return max(float(np.max(np.abs(colour(a_dir, f) - colour(b_dir, f)))) for f in frames)
 
 
+def mtimes(d, frames=range(1, 9)):
+    """The modification times of the frames' outputs in folder d."""
+    return {f: os.stat(d / frame(f)).st_mtime_ns for f in frames}
+
+
+def rewritten(before, d):
+    """The frames of `before` (mtimes) whose output in d has been written since."""
+    now = mtimes(d, before)
+    return [f for f in before if now[f] != before[f]]
+
+
 def mean_psnr(lib, a_dir, b_dir, frames):
     return np.mean([psnr(lib.color(os.path.join(a_dir, frame(f))), lib.color(os.path.join(b_dir, frame(f))))
                     for f in frames])
@@ -166,13 +177,6 @@ def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_pat
     out, seq = tmp_path / "out", tmp_path / "seq"
     crisp("filter", "--method", "taa", "--quiet", "-o", out, *inputs)  # an earlier run
 
-    def mtimes(d):
-        return {f: os.stat(d / frame(f)).st_mtime_ns for f in range(1, 9)}
-
-    def rewritten(before, d=out):
-        now = mtimes(d)
-        return [f for f in range(1, 9) if now[f] != before[f]]
-
     # Frame 3 rendered again (here: a new modification time) and frame 5 broken: the next run makes
     # 1-4 and fails at 5; outputs 5-8 stay (never lost), made after the old frame 3.
     st = os.stat(folder / frame(3))
@@ -184,7 +188,7 @@ def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_pat
     before = mtimes(out)
     p = crisp("filter", "--method", "taa", "--quiet", "-o", out, *inputs, ok=False)
     assert p.returncode != 0 and frame(5) in p.stderr, p.stderr
-    assert rewritten(before) == [1, 2, 3, 4]
+    assert rewritten(before, out) == [1, 2, 3, 4]
     # Frame 5 mended (its old size and time back): the resume starts at 5, not "nothing to do", and
     # (no --preroll needed) re-reads from frame 1, so it writes what one run writes.
     shutil.copy2(whole, folder / frame(5))
@@ -192,7 +196,7 @@ def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_pat
     p = crisp("filter", "--method", "taa", "--resume", "-o", out, *inputs)
     assert "1/8 frame_0001 (pre-roll)" in p.stderr, p.stderr
     assert "frame_0005' was made after other inputs before it" in p.stderr, p.stderr
-    assert rewritten(before) == [5, 6, 7, 8]
+    assert rewritten(before, out) == [5, 6, 7, 8]
     crisp("filter", "--method", "taa", "--quiet", "-o", seq, *inputs)
     assert max_diff(lib, seq, out, range(1, 9)) == 0.0
     # A sidecar changed since (frame 6's): its output and the later ones again.
@@ -202,7 +206,7 @@ def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_pat
     before = mtimes(out)
     p = crisp("filter", "--method", "taa", "--resume", "--preroll", "8", "-o", out, *inputs)
     assert "frame_0006' was made from another version of" in p.stderr, p.stderr
-    assert rewritten(before) == [6, 7, 8]
+    assert rewritten(before, out) == [6, 7, 8]
     p = crisp("filter", "--method", "taa", "--resume", "-o", out, *inputs)
     assert "nothing to do" in p.stdout, p.stderr
     # A farm chunk 5-8 whose pre-roll (1-4) holds a changed frame 2: remade; chunk 1-4 from 2 on.
@@ -223,13 +227,12 @@ def test_filter_resume_after_a_failed_run_and_a_changed_input(shot, lib, tmp_pat
     os.utime(folder / frame(3), ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
     p = crisp("filter", "--method", "fxaa", "--frames", "4-8", "--resume", "-o", spatial, *inputs)
     assert "nothing to do" in p.stdout, p.stderr
+    before = mtimes(spatial)
     os.remove(spatial / frame(6))
-    before = {f: os.stat(spatial / frame(f)).st_mtime_ns for f in range(1, 9) if f != 6}
     p = crisp("filter", "--method", "fxaa", "--frames", "3-8", "--resume", "-o", spatial, *inputs)
     assert "frame_0003' was made from another version of" in p.stderr, p.stderr
     assert "frame_0006' is missing" in p.stderr and "frame_0005 (kept)" in p.stderr, p.stderr
-    now = {f: os.stat(spatial / frame(f)).st_mtime_ns for f in range(1, 9)}
-    assert [f for f in range(1, 9) if f == 6 or now[f] != before[f]] == [3, 6]
+    assert rewritten(before, spatial) == [3, 6]
     fresh = tmp_path / "fxaa_fresh"
     crisp("filter", "--method", "fxaa", "--quiet", "-o", fresh, *inputs)
     assert max_diff(lib, fresh, spatial, range(1, 9)) == 0.0
@@ -266,30 +269,26 @@ def test_filter_resume_keeps_outputs_after_a_gap_when_an_earlier_input_changed(s
     source, _ = shot
     folder = tmp_path / "input"
     shutil.copytree(source / "input", folder)
-    inputs = [str(folder / frame(f)) for f in (1, 2, 3, 5, 6, 7, 8)]  # frame 4 left out: a gap
+    frames = (1, 2, 3, 5, 6, 7, 8)
+    inputs = [str(folder / frame(f)) for f in frames]  # frame 4 left out: a gap
     out = tmp_path / "out"
     p = crisp("filter", "--method", "taa", "-o", out, *inputs)
     assert "history starts over (frame 5 after frame 3)" in p.stderr, p.stderr
     p = crisp("filter", "--method", "taa", "--resume", "-o", out, *inputs)
     assert "nothing to do" in p.stdout, p.stderr  # the digests written restart where the plan does
-
-    def mtimes():
-        return {f: os.stat(out / frame(f)).st_mtime_ns for f in (1, 2, 3, 5, 6, 7, 8)}
-
     st = os.stat(folder / frame(2))
     os.utime(folder / frame(2), ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
-    before = mtimes()
+    before = mtimes(out, frames)
     # The chunk of positions 4-7 (frames 5-8), its pre-roll reaching frame 2: still complete.
     p = crisp("filter", "--method", "taa", "--frames", "4-7", "--preroll", "3", "--resume", "-o", out, *inputs)
     assert "nothing to do" in p.stdout, p.stderr
     # The chunk before the gap: frames 2 and 3 again, the outputs after the gap kept.
     p = crisp("filter", "--method", "taa", "--frames", "1-3", "--resume", "-o", out, *inputs)
     assert "frame_0002' was made from another version of" in p.stderr, p.stderr
-    now = mtimes()
-    assert [f for f in now if now[f] != before[f]] == [2, 3]
+    assert rewritten(before, out) == [2, 3]
     fresh = tmp_path / "fresh"
     crisp("filter", "--method", "taa", "--quiet", "-o", fresh, *inputs)
-    assert max_diff(lib, fresh, out, (1, 2, 3, 5, 6, 7, 8)) == 0.0
+    assert max_diff(lib, fresh, out, frames) == 0.0
     # A chunk starting at the gap without pre-roll rebuilds its first frame's motion from the input
     # before it (frame 3), a run across the gap gives that frame zero motion: phlm's later frames
     # differ, so the chunk's outputs are not taken for the run's (their digests differ).

@@ -37,6 +37,19 @@ double trailMse(const Image& ref, const Image& out) {
   return sum / double(ref.data.size() / 4 * 3);
 }
 
+// A synthetic frame's colour, motion, depth and ids as the kernel's inputs
+// (no albedo, no output yet), its jitter set in s.
+taa_improved::Inputs frameInputs(const synth::FrameData& f, taa_improved::Settings& s) {
+  taa_improved::Inputs in;
+  in.color = f.color.view();
+  in.motion = f.motion.view();
+  in.depth = f.depth.view();
+  in.id = f.id.view();
+  s.base.jitterX = f.jitter.x;
+  s.base.jitterY = f.jitter.y;
+  return in;
+}
+
 }  // namespace
 
 // Seed 000's ghosting protocol (§4.2.2): a light disk crossing a dark
@@ -306,13 +319,7 @@ TEST(TaaImproved, LuminanceOfRgbaEqualsRgb) {
     for (float& v : albedo.data) v = v == v && std::fabs(v) < 1.0f ? v * 0.5f : v;
     const Image color3 = rgbOf(f.color), albedo3 = rgbOf(albedo);
     Image out4(w, h, 4), out3(w, h, 4);
-    taa_improved::Inputs in;
-    in.motion = f.motion.view();
-    in.depth = f.depth.view();
-    in.id = f.id.view();
-    s.base.jitterX = f.jitter.x;
-    s.base.jitterY = f.jitter.y;
-    in.color = f.color.view();
+    taa_improved::Inputs in = frameInputs(f, s);
     in.albedo = albedo.view();
     in.output = out4.view();
     four.run(in, s, false, 2);
@@ -356,13 +363,7 @@ TEST(TaaImproved, FourChannelMotionEqualsTwo) {
           m4[2] = m4[3] = std::numeric_limits<float>::quiet_NaN();
         }
       Image outTwo(w, h, 4), outFour(w, h, 4), outRef(w, h, 4);
-      taa_improved::Inputs in;
-      in.color = f.color.view();
-      in.depth = f.depth.view();
-      in.id = f.id.view();
-      s.base.jitterX = f.jitter.x;
-      s.base.jitterY = f.jitter.y;
-      in.motion = f.motion.view();
+      taa_improved::Inputs in = frameInputs(f, s);
       in.output = outTwo.view();
       two.run(in, s, false, 2);
       in.output = outRef.view();
