@@ -3,6 +3,8 @@
 // Kernels never create threads themselves.
 #pragma once
 
+#include <cstdint>
+
 #include <OpenImageIO/imagebufalgo_util.h>
 
 namespace crisp {
@@ -15,6 +17,19 @@ void parallelRows(int width, int height, int numThreads, Fn&& fn) {
   OIIO::paropt opt(numThreads, OIIO::paropt::SplitDir::Y, 8192);
   OIIO::ImageBufAlgo::parallel_image(OIIO::ROI(0, width, 0, height), opt,
                                      [&](OIIO::ROI r) { fn(int(r.ybegin), int(r.yend)); });
+}
+
+// Calls fn(b, y0, y1) for each of `bands` bands of rows [0, height), band b
+// covering [b h / bands, (b + 1) h / bands), on up to numThreads threads: for
+// row loops whose bands own scratch (rings of rows) and restage a few rows
+// beyond their edges. parallelRows hands out the bands as the rows of a
+// virtual image 8192 wide, so every band is a task of its own.
+template <class Fn>
+void parallelBands(int height, int bands, int numThreads, Fn&& fn) {
+  parallelRows(8192, bands, numThreads, [&](int b0, int b1) {
+    for (int b = b0; b < b1; ++b)
+      fn(b, int(std::int64_t(b) * height / bands), int(std::int64_t(b + 1) * height / bands));
+  });
 }
 
 }  // namespace crisp

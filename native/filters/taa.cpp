@@ -470,9 +470,6 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
     for (int y = 0; y < height_; ++y)
       for (int x = 0; x < width_; ++x) referencePixel(f, x, y, depthNow);
   } else {
-    // Band b covers rows [b h / bands, (b + 1) h / bands) and owns scratch b;
-    // parallelRows hands out bands (a virtual image one band per row).
-    const int bands = bands_;
     auto fastRows = fastRowsBaseline;
 #ifdef CRISP_TEMPORAL_HAS_AVX2
     if (temporal::useAvx2()) fastRows = fastRowsAvx2;
@@ -480,12 +477,8 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
 #ifdef CRISP_HAS_AVX512_ROWS
     if (temporal::useAvx512()) fastRows = rows::fastRowsAvx512;
 #endif
-    parallelRows(8192, bands, numThreads, [&](int b0, int b1) {
-      for (int b = b0; b < b1; ++b) {
-        const BandScratch scratch = bandScratch(bandScratch_.data() + std::size_t(b) * bandFloats(width_), width_);
-        fastRows(f, scratch, int(std::int64_t(b) * height_ / bands), int(std::int64_t(b + 1) * height_ / bands),
-                 depthNow);
-      }
+    parallelBands(height_, bands_, numThreads, [&](int b, int y0, int y1) {  // band b owns scratch b
+      fastRows(f, bandScratch(bandScratch_.data() + std::size_t(b) * bandFloats(width_), width_), y0, y1, depthNow);
     });
   }
 

@@ -41,42 +41,31 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
-#include <type_traits>
+#include <cstdint>
+#include <string>
+#include <vector>
 
-#include "core/color.h"
+#include "core/conventions.h"
 #include "core/error.h"
 #include "core/filter.h"
 #include "core/parallel.h"
 #include "core/row_stage.h"
-#include "temporal/history_fetch.h"
+#include "filters/taa_improved_rows.h"
 #include "temporal/isa.h"
 #include "temporal/lanes.h"
-#include "temporal/rows.h"
-#include "temporal/vec4.h"
-#include "temporal/velocity.h"
 
 namespace crisp::taa_improved {
 
 namespace {
 
-// NaN -> 0; two selects, so one pixel (T = float) and a lane group
-// (temporal/lanes.h) perform the same operations.
-template <class T>
-__attribute__((always_inline)) inline T clamp01(T v) {
-  const T below = v < 1.0f ? v : temporal::lanesOf<T>(1.0f);
-  return v > 0.0f ? below : temporal::lanesOf<T>(0.0f);
-}
+using rows::clamp01;
 
-// A packed float plane read with clamp-to-edge addressing; at<false> skips
-// the clamps for taps known to be inside (temporal::rowsWithBorder).
+// A packed float plane read with clamp-to-edge addressing (the reference path).
 struct Plane {
   const float* data;
   int width, height;
-  template <bool Clamp = true>
   float at(int x, int y) const {
-    if constexpr (Clamp) return data[std::size_t(std::clamp(y, 0, height - 1)) * width + std::clamp(x, 0, width - 1)];
-    return data[std::size_t(y) * width + x];
+    return data[std::size_t(std::clamp(y, 0, height - 1)) * width + std::clamp(x, 0, width - 1)];
   }
 };
 
@@ -90,339 +79,116 @@ inline float sobelMagnitude(At&& at, int x, int y) {
   return std::sqrt(gx * gx + gy * gy);
 }
 
-// Pass 2 on the interior pixels x in [1, w - 2] of a row whose neighbours
-// above and below exist: sobelMagnitude's arithmetic, in its order, on
-// direct taps of packed planes (row pointers at the current row, stride w),
-// a lane group per step (temporal/lanes.h: lane-wise IEEE operations and
-// correctly rounded square roots, so the same bits as the per-pixel code),
-// then the remaining pixels one by one with the same template. Two copies of
-// the row loop (temporal/isa.h): 8 lanes with AVX2, 4 in the baseline copy.
-template <class V, bool Unlit, bool Depth>
-__attribute__((always_inline)) inline V sobelMixed(const float* lit, const float* unlit, const float* depth, int w,
-                                                   int x) {
-  auto load = [](const float* p) { return temporal::loadLanes<V>(p); };
-  auto sobelAt = [&](const float* p) {
-    const float* up = p - w;
-    const float* down = p + w;
-    const V gx = (load(up + x + 1) + 2.0f * load(p + x + 1) + load(down + x + 1)) -
-                 (load(up + x - 1) + 2.0f * load(p + x - 1) + load(down + x - 1));
-    const V gy = (load(down + x - 1) + 2.0f * load(down + x) + load(down + x + 1)) -
-                 (load(up + x - 1) + 2.0f * load(up + x) + load(up + x + 1));
-    return temporal::sqrtOf(gx * gx + gy * gy);
-  };
-  const V l = sobelAt(lit);
-  V g = l;
-  if constexpr (Unlit) g = 0.3f * sobelAt(unlit) + 0.7f * l;
-  if constexpr (Depth) g += sobelAt(depth) / load(depth + x);
-  g = clamp01(g);
-  return temporal::sqrtOf(g * g * (3.0f - 2.0f * g));
-}
-template <class V, bool Unlit, bool Depth>
-__attribute__((always_inline)) inline void sobelInteriorBody(const float* lit, const float* unlit, const float* depth,
-                                                             int w, float* out) {
-  constexpr int kL = temporal::kLanesOf<V>;
-  int x = 1;
-  for (; x + kL <= w - 1; x += kL)
-    temporal::storeLanes(out + x, sobelMixed<V, Unlit, Depth>(lit, unlit, depth, w, x));
-  for (; x < w - 1; ++x) out[x] = sobelMixed<float, Unlit, Depth>(lit, unlit, depth, w, x);
-}
-template <bool Unlit, bool Depth>
-void sobelInteriorBaseline(const float* lit, const float* unlit, const float* depth, int w, float* out) {
-  sobelInteriorBody<temporal::Vec4, Unlit, Depth>(lit, unlit, depth, w, out);
-}
-#ifdef CRISP_TEMPORAL_HAS_AVX2
-template <bool Unlit, bool Depth>
-CRISP_TEMPORAL_AVX2 void sobelInteriorAvx2(const float* lit, const float* unlit, const float* depth, int w,
-                                           float* out) {
-  sobelInteriorBody<temporal::Vec8, Unlit, Depth>(lit, unlit, depth, w, out);
-}
-#endif
-using SobelInteriorRow = void (*)(const float*, const float*, const float*, int, float*);
-template <bool Unlit, bool Depth>
-SobelInteriorRow sobelInteriorRow() {
-#ifdef CRISP_TEMPORAL_HAS_AVX2
-  if (temporal::useAvx2()) return sobelInteriorAvx2<Unlit, Depth>;
-#endif
-  return sobelInteriorBaseline<Unlit, Depth>;
-}
-
-inline float lumaOfView(const ImageView& v, int x, int y) {
-  const float* p = v.pixel(x, y);
-  const int c = v.channels();
-  return luminance709(sanitizeColor(p[0]), sanitizeColor(c > 1 ? p[1] : p[0]), sanitizeColor(c > 2 ? p[2] : p[0]));
-}
-
-// lumaOfView of row y into out[0 .. width): packed RGB(A) with the same
-// values, packed RGBA a lane group at a time (GCC left the strided loop
-// scalar, with a branch per channel: 13 % of taa-improved's time), in an
-// AVX2 copy where the CPU has it; other layouts pixel by pixel.
-template <class T, int C>
-__attribute__((always_inline)) inline void lumaRun(const float* p, int width, float* out) {
-  int x = 0;
-  if constexpr (C == 4) {
-    constexpr int kL = temporal::kLanesOf<T>;
-    for (; x + kL <= width; x += kL, p += 4 * kL) {
-      T r, g, b, a;
-      temporal::loadInterleaved4(p, r, g, b, a);
-      temporal::storeLanes(out + x, 0.2126f * sanitizeColorLanes(r) + 0.7152f * sanitizeColorLanes(g) +
-                                        0.0722f * sanitizeColorLanes(b));  // luminance709's order
+// Passes 1-4 on the reference path: whole planes, one pass after the other,
+// one pixel at a time with clamp-to-edge taps, on one thread. lit, unlit and
+// raw are the luminance and raw Sobel planes (sized here on first use).
+void referencePasses(const rows::Frame& f, float* depthPlane, std::vector<float>& litPlane,
+                     std::vector<float>& unlitPlane, std::vector<float>& rawPlane) {
+  const int w = f.width, h = f.height;
+  const std::size_t n = std::size_t(w) * h;
+  for (auto* v : {&litPlane, &unlitPlane, &rawPlane})
+    if (v->size() != n) v->assign(n, 0.0f);
+  const Plane dep{depthPlane, w, h}, lit{litPlane.data(), w, h}, unlit{unlitPlane.data(), w, h},
+      raw{rawPlane.data(), w, h};
+  // Pass 1: luminance planes and the depth plane.
+  for (int y = 0; y < h; ++y) {
+    if (f.depth) stageDepthRow(*f.depth, y, depthPlane + std::size_t(y) * w);
+    if (!f.sobel) continue;
+    for (int x = 0; x < w; ++x) {
+      litPlane[std::size_t(y) * w + x] = rows::lumaOfView(*f.color, x, y);
+      if (f.albedo) unlitPlane[std::size_t(y) * w + x] = rows::lumaOfView(*f.albedo, x, y);
     }
   }
-  for (; x < width; ++x, p += C)
-    out[x] = luminance709(sanitizeColorLanes(p[0]), sanitizeColorLanes(p[1]), sanitizeColorLanes(p[2]));
-}
-void lumaRunRgbaBaseline(const float* p, int width, float* out) { lumaRun<temporal::Vec4, 4>(p, width, out); }
-#ifdef CRISP_TEMPORAL_HAS_AVX2
-CRISP_TEMPORAL_AVX2 void lumaRunRgbaAvx2(const float* p, int width, float* out) {
-  lumaRun<temporal::Vec8, 4>(p, width, out);
-}
-#endif
-inline void lumaRow(const ImageView& v, int y, float* out) {
-  const int c = v.channels();
-  if (c == 4 && v.pixelStride == 4 * sizeof(float)) {
-#ifdef CRISP_TEMPORAL_HAS_AVX2
-    if (temporal::useAvx2()) return lumaRunRgbaAvx2(v.pixel(0, y), v.width, out);
-#endif
-    return lumaRunRgbaBaseline(v.pixel(0, y), v.width, out);
-  }
-  if (c == 3 && v.pixelStride == 3 * sizeof(float)) return lumaRun<temporal::Vec4, 3>(v.pixel(0, y), v.width, out);
-  for (int x = 0; x < v.width; ++x) out[x] = lumaOfView(v, x, y);
-}
-
-inline void motionAt(const ImageView& motion, int x, int y, float& vx, float& vy) {
-  vx = vy = 0.0f;
-  if (!motion.ptr) return;
-  const float* m = motion.pixel(x, y);
-  vx = m[0];
-  vy = m[1];
-}
-
-// Pass 3 (§4.3.3) on one pixel (T = float) or a lane group (Vec4, Vec8), written once
-// against temporal/lanes.h so both give the same bits: the bilinear fetch of
-// last frame's stabilised plane at p + v (clamp-to-edge taps), clamped to
-// this frame's 3x3 range [lo, hi] of raw values, blended with the baseline's
-// luma-difference feedback; the raw value c where there is no usable history
-// or the result is not finite.
-struct StabiliseParams {
-  const float* previous;  // last frame's stabilised plane
-  int width, height;
-  bool stabilise;         // history exists and the plane is valid
-  float feedbackMin, feedbackMax;
-};
-template <class T>
-__attribute__((always_inline)) inline T stabilisedSobel(const StabiliseParams& p, T c, T lo, T hi, T vx, T vy, T px,
-                                                        T py) {
-  using M = temporal::MaskOfT<T>;
-  using temporal::lanesOf;
-  if (!p.stabilise) return c;
-  const int w = p.width, h = p.height;
-  const T qx = px + vx, qy = py + vy;
-  const M valid = M(temporal::finiteOf(vx) & temporal::finiteOf(vy) & M(qx >= -0.5f) & M(qy >= -0.5f) &
-                    M(qx <= float(w) - 0.5f) & M(qy <= float(h) - 0.5f));  // finiteMotion, onScreen
-  if (!temporal::anyOf(valid)) return c;
-  const T zero = lanesOf<T>(0.0f);
-  const T sx = valid ? qx : zero, sy = valid ? qy : zero;
-  const T fx = temporal::floorExact(sx), fy = temporal::floorExact(sy);  // footprintOf
-  const auto x0 = temporal::truncOf(fx), y0 = temporal::truncOf(fy);
-  const T tx = sx - fx, ty = sy - fy;
-  T p00, p10, p01, p11;
-  bool loaded = false;
-  if constexpr (!std::is_same_v<T, float>) {
-    if (temporal::sharedInteriorOffset<T>(x0, y0, valid, 0, 1, 0, 1, w, h)) {
-      // Smooth motion: the lanes' taps are consecutive, the same values as the gathers.
-      const float* upper = p.previous + std::size_t(y0[0]) * w + x0[0];
-      p00 = temporal::loadLanes<T>(upper), p10 = temporal::loadLanes<T>(upper + 1);
-      p01 = temporal::loadLanes<T>(upper + w), p11 = temporal::loadLanes<T>(upper + w + 1);
-      loaded = true;
-    }
-  }
-  if (!loaded) {  // clamped to the image
-    auto clampIndex = [](temporal::IntOf<T> v, int top) { return v < 0 ? 0 : (top < v ? top : v); };
-    const auto xa = clampIndex(x0, w - 1), xb = clampIndex(x0 + 1, w - 1);
-    const auto ya = clampIndex(y0, h - 1), yb = clampIndex(y0 + 1, h - 1);
-    p00 = temporal::gatherOf(p.previous, w, xa, ya), p10 = temporal::gatherOf(p.previous, w, xb, ya);
-    p01 = temporal::gatherOf(p.previous, w, xa, yb), p11 = temporal::gatherOf(p.previous, w, xb, yb);
-  }
-  const T top = p00 + (p10 - p00) * tx;
-  const T bottom = p01 + (p11 - p01) * tx;
-  const T hist = temporal::clampOf(top + (bottom - top) * ty, lo, hi);
-  const T diff = temporal::clampOf(temporal::fabsOf(hist - c) / temporal::maxOf(temporal::maxOf(hist, c), lanesOf<T>(0.2f)),
-                                   zero, lanesOf<T>(1.0f));
-  const T k = p.feedbackMin + (p.feedbackMax - p.feedbackMin) * (1.0f - diff) * (1.0f - diff);
-  const T result = valid ? hist + (c - hist) * (1.0f - k) : c;
-  return temporal::finiteOf(result) ? result : c;
-}
-
-// Pass 3 on the interior of row y (1 <= y < height - 1), a lane group at a
-// time from x = 1 while a whole group fits before the last column; returns
-// the first pixel left for the caller. Two copies of one body, as the taa
-// kernel's rows (temporal/isa.h): 8 lanes with AVX2, 4 in the baseline copy.
-template <class T>
-__attribute__((always_inline)) inline int stabiliseInteriorBody(const StabiliseParams& sp, const float* raw,
-                                                                const ImageView& motion, float* out, int y) {
-  constexpr int kL = temporal::kLanesOf<T>;
-  const int w = sp.width;
-  const T laneIndex = temporal::laneIndexOf<T>();
-  int x = 1;
-  for (; x + kL <= w - 1; x += kL) {
-    const float* row = raw + std::size_t(y) * w + x;
-    const T c = temporal::loadLanes<T>(row);
-    T lo = c, hi = c;
-    for (int j = -1; j <= 1; ++j)
-      for (int i = -1; i <= 1; ++i) {
-        const T v = temporal::loadLanes<T>(row + std::ptrdiff_t(j) * w + i);
-        lo = temporal::minOf(lo, v);
-        hi = temporal::maxOf(hi, v);
+  if (f.sobel) {
+    // Pass 2: mixed, smoothstepped Sobel (eqs. 4.9-4.10).
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const float l = sobelMagnitude([&](int i, int j) { return lit.at(i, j); }, x, y);
+        float g = l;
+        if (f.albedo) g = 0.3f * sobelMagnitude([&](int i, int j) { return unlit.at(i, j); }, x, y) + 0.7f * l;
+        if (f.sobelOfDepth) g += sobelMagnitude([&](int i, int j) { return dep.at(i, j); }, x, y) / dep.at(x, y);
+        g = clamp01(g);
+        rawPlane[std::size_t(y) * w + x] = std::sqrt(g * g * (3.0f - 2.0f * g));
       }
-    T vx = temporal::lanesOf<T>(0.0f), vy = vx;
-    if (motion.ptr)
-      for (int l = 0; l < kL; ++l) {
-        const float* m = motion.pixel(x + l, y);
-        vx[l] = m[0];
-        vy[l] = m[1];
-      }
-    temporal::storeLanes(out + std::size_t(y) * w + x,
-                         stabilisedSobel(sp, c, lo, hi, vx, vy, float(x) + laneIndex, temporal::lanesOf<T>(float(y))));
-  }
-  return x;
-}
-int stabiliseInteriorBaseline(const StabiliseParams& sp, const float* raw, const ImageView& motion, float* out, int y) {
-  return stabiliseInteriorBody<temporal::Vec4>(sp, raw, motion, out, y);
-}
-#ifdef CRISP_TEMPORAL_HAS_AVX2
-CRISP_TEMPORAL_AVX2 int stabiliseInteriorAvx2(const StabiliseParams& sp, const float* raw, const ImageView& motion,
-                                              float* out, int y) {
-  return stabiliseInteriorBody<temporal::Vec8>(sp, raw, motion, out, y);
-}
-#endif
-int stabiliseInterior(const StabiliseParams& sp, const float* raw, const ImageView& motion, float* out, int y) {
-#ifdef CRISP_TEMPORAL_HAS_AVX2
-  if (temporal::useAvx2()) return stabiliseInteriorAvx2(sp, raw, motion, out, y);
-#endif
-  return stabiliseInteriorBaseline(sp, raw, motion, out, y);
-}
-
-// Pass 4's inputs (eqs. 4.1, 4.4-4.6, 4.12-4.14), shared by the per-pixel
-// form in Kernel::run and the lane-group rows below.
-struct AliasedParams {
-  const ImageView* id;      // object ids (packed uint32 on the lane path), or nullptr
-  const float* depth;       // this frame's sanitised depth plane, or nullptr
-  const float* pastDepth;   // last frame's, or nullptr
-  const float* sobel;       // the stabilised Sobel plane, or nullptr (Sobel off)
-  const ImageView* motion;  // may be empty (static)
-  float* aliased;           // the aliasedValue plane written
-  int width, height;
-  bool modelOn, depthStats, depthVariance, temporalDepthVariance;
-  float depthThreshold;
-};
-
-// Eqs. 4.5-4.6 where m passes the threshold (few pixels: depth edges).
-inline void depthVariances(const AliasedParams& p, int x, int y, float avg, float m, float dc, float& depthPV,
-                           float& depthTPV) {
-  if (p.depthVariance) depthPV = std::pow(std::fabs(1.0f - avg) / m, 2.0f);
-  if (p.temporalDepthVariance && p.pastDepth) {
-    float vx, vy;
-    motionAt(*p.motion, x, y, vx, vy);
-    const float qx = float(x) + vx, qy = float(y) + vy;
-    if (temporal::finiteMotion(vx, vy) && temporal::onScreen(qx, qy, p.width, p.height)) {
-      const int px = std::clamp(int(temporal::floorExact(qx + 0.5f)), 0, p.width - 1);
-      const int py = std::clamp(int(temporal::floorExact(qy + 0.5f)), 0, p.height - 1);
-      const float past = p.pastDepth[std::size_t(py) * p.width + px] / dc;
-      depthTPV = std::pow(std::fabs(past - avg) / m, 4.0f);
-    }
-  }
-}
-
-// Pass 4 on the interior of row y (1 <= y < height - 1), a lane group at a
-// time from x = 1 while a whole group fits before the last column: Kernel::
-// run's aliasedPixel lane-wise, the same operations in the same order per
-// lane, so the same bits; eqs. 4.5-4.6 per lane where needed. Returns the
-// first pixel left for the caller. Ids must be packed. Two copies
-// (temporal/isa.h): 8 lanes with AVX2, 4 in the baseline copy.
-template <class T>
-__attribute__((always_inline)) inline int aliasedInteriorBody(const AliasedParams& p, int y) {
-  using Int = temporal::IntOf<T>;
-  constexpr int kL = temporal::kLanesOf<T>;
-  const int w = p.width;
-  const T zero = temporal::lanesOf<T>(0.0f), one = temporal::lanesOf<T>(1.0f);
-  auto load = [](const float* q) { return temporal::loadLanes<T>(q); };
-  int x = 1;
-  for (; x + kL <= w - 1; x += kL) {
-    T model = zero;
-    if (p.modelOn) {
-      Int differ = Int{};
-      if (p.id) {
-        auto ids = [&](int i, int j) {
-          const char* row = static_cast<const char*>(p.id->ptr) + std::size_t(y + j) * p.id->rowStride;
-          Int v;
-          std::memcpy(&v, row + 4 * std::size_t(x + i), sizeof v);
-          return v;
-        };
-        const Int centre = ids(0, 0);
+    // Pass 3: one-channel TAA with clamping, no sharpen (§4.3.3).
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const float c = raw.at(x, y);
+        float lo = c, hi = c;
         for (int j = -1; j <= 1; ++j)
-          for (int i = -1; i <= 1; ++i) differ -= ids(i, j) != centre;  // a true lane is -1
-      } else {
-        auto background = [&](int i, int j) {  // isBackgroundDepth per lane: -1 background, 0 object
-          return ~(load(p.depth + std::size_t(y + j) * w + x + i) < kFarDepth);
-        };
-        const Int centre = background(0, 0);
-        for (int j = -1; j <= 1; ++j)
-          for (int i = -1; i <= 1; ++i) differ -= background(i, j) != centre;
-      }
-      model = __builtin_convertvector(differ, T) / 9.0f;
-    }
-    T sobelAvg = zero;
-    if (p.sobel) {
-      const float* r[3] = {p.sobel + std::size_t(y - 1) * w, p.sobel + std::size_t(y) * w,
-                           p.sobel + std::size_t(y + 1) * w};
-      const T centre = load(r[1] + x);
-      T sum9 = zero;
-      for (int j = 0; j < 3; ++j)
-        for (int i = -1; i <= 1; ++i) sum9 += load(r[j] + x + i);
-      const T sumCross = load(r[0] + x) + load(r[1] + x - 1) + centre + load(r[1] + x + 1) + load(r[2] + x);
-      const T avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
-      const T t = clamp01(model + centre);
-      sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
-    }
-    T depthPV = zero, depthTPV = zero;
-    if (p.depthStats) {
-      const T dc = load(p.depth + std::size_t(y) * w + x);
-      T lo = one, hi = one, sum = zero;
-      for (int j = -1; j <= 1; ++j)
-        for (int i = -1; i <= 1; ++i) {
-          const T d = load(p.depth + std::size_t(y + j) * w + x + i) / dc;
-          lo = temporal::minOf(lo, d);
-          hi = temporal::maxOf(hi, d);
-          sum += d;
-        }
-      const T avg = sum / 9.0f;
-      const T m = temporal::minOf(temporal::fabsOf(lo - avg), temporal::fabsOf(hi - avg));
-      if (temporal::anyOf(m >= p.depthThreshold))
-        for (int k = 0; k < kL; ++k)
-          if (m[k] >= p.depthThreshold) {
-            float pv = 0.0f, tpv = 0.0f;
-            depthVariances(p, x + k, y, avg[k], m[k], dc[k], pv, tpv);
-            depthPV[k] = pv;
-            depthTPV[k] = tpv;
+          for (int i = -1; i <= 1; ++i) {
+            lo = temporal::minOf(lo, raw.at(x + i, y + j));
+            hi = temporal::maxOf(hi, raw.at(x + i, y + j));
           }
-    }
-    const T a = sobelAvg + depthPV + depthTPV + model;
-    temporal::storeLanes(p.aliased + std::size_t(y) * w + x, a != a ? one : clamp01(a));
+        float vx, vy;
+        rows::motionAt(*f.motion, x, y, vx, vy);
+        f.stabilisedOut[std::size_t(y) * w + x] = rows::stabilisedSobel(f.stabilise, c, lo, hi, vx, vy, float(x), float(y));
+      }
   }
-  return x;
+  // Pass 4: aliasedValue (eqs. 4.1, 4.4-4.6, 4.12-4.14).
+  const rows::AliasedParams& p = f.aliased;
+  const Plane sob{f.stabilisedOut, w, h};
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      float model = 0.0f;
+      if (p.modelOn) {
+        auto objectAt = [&](int i, int j) -> std::uint32_t {
+          const int cx = std::clamp(i, 0, w - 1), cy = std::clamp(j, 0, h - 1);
+          if (p.id) return p.id->uintAt(cx, cy);
+          return isBackgroundDepth(dep.at(cx, cy)) ? 0u : 1u;  // object vs background
+        };
+        const std::uint32_t centre = objectAt(x, y);
+        int differ = 0;
+        for (int j = -1; j <= 1; ++j)
+          for (int i = -1; i <= 1; ++i) differ += objectAt(x + i, y + j) != centre;
+        model = float(differ) / 9.0f;
+      }
+      float sobelAvg = 0.0f;
+      if (f.sobel) {
+        const float centre = sob.at(x, y);
+        float sum9 = 0.0f;
+        for (int j = -1; j <= 1; ++j)
+          for (int i = -1; i <= 1; ++i) sum9 += sob.at(x + i, y + j);
+        const float sumCross = sob.at(x, y - 1) + sob.at(x - 1, y) + centre + sob.at(x + 1, y) + sob.at(x, y + 1);
+        const float avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
+        const float t = clamp01(model + centre);
+        sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
+      }
+      float depthPV = 0.0f, depthTPV = 0.0f;
+      if (p.depthStats) {
+        const float dc = dep.at(x, y);
+        float lo = 1.0f, hi = 1.0f, sum = 0.0f;
+        for (int j = -1; j <= 1; ++j)
+          for (int i = -1; i <= 1; ++i) {
+            const float d = dep.at(x + i, y + j) / dc;  // relative to the centre
+            lo = std::min(lo, d);
+            hi = std::max(hi, d);
+            sum += d;
+          }
+        const float avg = sum / 9.0f;
+        const float m = std::min(std::fabs(lo - avg), std::fabs(hi - avg));
+        if (m >= p.depthThreshold) rows::depthVariances(p, x, y, avg, m, dc, depthPV, depthTPV);
+      }
+      const float a = sobelAvg + depthPV + depthTPV + model;
+      // Non-finite (cannot happen with sanitised inputs): full TAA, the baseline's box.
+      f.aliasedOut[std::size_t(y) * w + x] = std::isnan(a) ? 1.0f : clamp01(a);
+    }
 }
-int aliasedInteriorBaseline(const AliasedParams& p, int y) { return aliasedInteriorBody<temporal::Vec4>(p, y); }
+
+// The fast path's copies of the fused band (taa_improved_rows.h): 4 lanes
+// (SSE2), 8 with AVX2 here; 16 with AVX-512 in taa_improved_rows_avx512.cpp.
+void bandBaseline(const rows::Frame& f, const rows::BandRings& r, int y0, int y1) {
+  rows::bandBody<temporal::Vec4>(f, r, y0, y1);
+}
 #ifdef CRISP_TEMPORAL_HAS_AVX2
-CRISP_TEMPORAL_AVX2 int aliasedInteriorAvx2(const AliasedParams& p, int y) {
-  return aliasedInteriorBody<temporal::Vec8>(p, y);
+CRISP_TEMPORAL_AVX2 void bandAvx2(const rows::Frame& f, const rows::BandRings& r, int y0, int y1) {
+  rows::bandBody<temporal::Vec8>(f, r, y0, y1);
 }
 #endif
-int aliasedInterior(const AliasedParams& p, int y) {
-#ifdef CRISP_TEMPORAL_HAS_AVX2
-  if (temporal::useAvx2()) return aliasedInteriorAvx2(p, y);
-#endif
-  return aliasedInteriorBaseline(p, y);
-}
+
+// Bands of about 96 rows: the halo rows each band recomputes (3 staged, 2
+// Sobel, 1 stabilised above and below) stay a few per cent.
+int bandCount(int height) { return std::clamp(height / 96, 1, 16); }
 
 }  // namespace
 
@@ -433,7 +199,10 @@ void Kernel::allocate(int width, int height, bool withDepth) {
   width_ = width;
   height_ = height;
   const std::size_t n = std::size_t(width) * height;
-  for (auto* v : {&lumaLit_, &lumaUnlit_, &sobelRaw_, &aliased_, &sobel_[0], &sobel_[1]}) v->assign(n, 0.0f);
+  for (auto* v : {&aliased_, &sobel_[0], &sobel_[1]}) v->assign(n, 0.0f);
+  for (auto* v : {&lumaLit_, &lumaUnlit_, &sobelRaw_}) v->clear();  // the reference path's, sized on first use
+  bands_ = bandCount(height);
+  bandRings_.assign(std::size_t(bands_) * rows::bandFloats(width), 0.0f);
   reset();
 }
 
@@ -447,7 +216,8 @@ std::size_t Kernel::bytesKeptBetweenFrames() const {
 }
 
 std::size_t Kernel::bytesScratch() const {
-  return taa_.bytesScratch() + (lumaLit_.size() + lumaUnlit_.size() + sobelRaw_.size() + aliased_.size()) * sizeof(float);
+  return taa_.bytesScratch() + (lumaLit_.size() + lumaUnlit_.size() + sobelRaw_.size() + aliased_.size() +
+                                bandRings_.size()) * sizeof(float);
 }
 
 void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThreads) {
@@ -455,165 +225,58 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
     invalidData("taa-improved: colour is " + std::to_string(in.color.width) + "x" + std::to_string(in.color.height) +
                 " but the filter was committed for " + std::to_string(width_) + "x" + std::to_string(height_));
   const int w = width_, h = height_;
-  const int threads = reference ? 1 : numThreads;
   // The baseline starts over when the clip space changes (its history is
   // kept in that space); so do the passes below, which read the last frames.
   if (taa_.framesSinceReset() > 0 && s.base.clipSpace != taa_.historySpace()) reset();
   const bool hasHistory = taa_.framesSinceReset() > 0;
-  const bool useAlbedo = s.sobelUnlit && in.albedo.ptr;
   const bool useDepth = in.depth.ptr != nullptr;
-  // This frame's sanitised depth, staged once in pass 1 into the plane the
-  // baseline kernel stages it into anyway (taa::Kernel::nextDepthPlane).
+  // This frame's sanitised depth: the reference path stages it into the
+  // plane the baseline kernel stages it into anyway (taa::Kernel::
+  // nextDepthPlane); the fast path into its bands' rings.
   float* depthPlane = useDepth ? taa_.nextDepthPlane() : nullptr;
   if (useDepth && !depthPlane)
     invalidData("taa-improved: image 'depth' given but the kernel was allocated without depth");
-  // Taps of 3x3 stencils are clamped on the border (and on the reference
-  // path) and direct inside (temporal::rowsWithBorder): the same taps either way.
-  const Plane dep{depthPlane, w, h};
-  auto depthAt = [&](auto clamp, int x, int y) { return dep.at<decltype(clamp)::value>(x, y); };
-  const Plane lit{lumaLit_.data(), w, h}, unlit{lumaUnlit_.data(), w, h}, raw{sobelRaw_.data(), w, h};
   const int next = 1 - current_;
-  const bool stabilise = s.sobelStabilise && hasHistory && sobelValid_;
 
-  // Pass 1: luminance planes (with the Sobel) and the depth plane.
-  parallelRows(w, h, threads, [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y) {
-      if (useDepth) stageDepthRow(in.depth, y, depthPlane + std::size_t(y) * w);
-      if (!s.sobel) continue;
-      lumaRow(in.color, y, lumaLit_.data() + std::size_t(y) * w);
-      if (useAlbedo) lumaRow(in.albedo, y, lumaUnlit_.data() + std::size_t(y) * w);
-    }
-  });
-  if (s.sobel) {
-    // Pass 2: mixed, smoothstepped Sobel (eqs. 4.9-4.10).
-    const bool sobelOfDepth = useDepth && s.sobelDepth;
-    auto sobelPixel = [&](int x, int y) {  // clamped taps: the border and the reference path
-      const float l = sobelMagnitude([&](int i, int j) { return lit.at(i, j); }, x, y);
-      float g = l;
-      if (useAlbedo) g = 0.3f * sobelMagnitude([&](int i, int j) { return unlit.at(i, j); }, x, y) + 0.7f * l;
-      if (sobelOfDepth) g += sobelMagnitude([&](int i, int j) { return dep.at(i, j); }, x, y) / dep.at(x, y);
-      g = clamp01(g);
-      sobelRaw_[std::size_t(y) * w + x] = std::sqrt(g * g * (3.0f - 2.0f * g));
-    };
-    const SobelInteriorRow interior =
-        useAlbedo ? (sobelOfDepth ? sobelInteriorRow<true, true>() : sobelInteriorRow<true, false>())
-                  : (sobelOfDepth ? sobelInteriorRow<false, true>() : sobelInteriorRow<false, false>());
-    parallelRows(w, h, threads, [&](int y0, int y1) {
-      for (int y = y0; y < y1; ++y) {
-        if (reference || y == 0 || y == h - 1 || w < 3) {
-          for (int x = 0; x < w; ++x) sobelPixel(x, y);
-          continue;
-        }
-        const std::size_t row = std::size_t(y) * w;
-        sobelPixel(0, y);
-        interior(lumaLit_.data() + row, lumaUnlit_.data() + row, sobelOfDepth ? depthPlane + row : nullptr, w,
-                 sobelRaw_.data() + row);
-        sobelPixel(w - 1, y);
-      }
-    });
-    // Pass 3: one-channel TAA with clamping, no sharpen (§4.3.3); the border
-    // (and the reference) one pixel at a time, the interior eight at a time.
-    const float* previous = sobel_[current_].data();
-    float* stabilised = sobel_[next].data();
-    const StabiliseParams sp{previous, w, h, stabilise, s.base.feedbackMin, s.base.feedbackMax};
-    parallelRows(w, h, threads, [&](int y0, int y1) {
-      auto pixel = [&](auto clamp, int x, int y) {
-        constexpr bool C = decltype(clamp)::value;
-        const float c = raw.at<C>(x, y);
-        float lo = c, hi = c;
-        for (int j = -1; j <= 1; ++j)
-          for (int i = -1; i <= 1; ++i) {
-            lo = temporal::minOf(lo, raw.at<C>(x + i, y + j));
-            hi = temporal::maxOf(hi, raw.at<C>(x + i, y + j));
-          }
-        float vx, vy;
-        motionAt(in.motion, x, y, vx, vy);
-        stabilised[std::size_t(y) * w + x] = stabilisedSobel(sp, c, lo, hi, vx, vy, float(x), float(y));
-      };
-      for (int y = y0; y < y1; ++y) {
-        if (reference || y == 0 || y == h - 1 || w < 3) {
-          for (int x = 0; x < w; ++x) pixel(std::true_type{}, x, y);
-          continue;
-        }
-        pixel(std::true_type{}, 0, y);
-        int x = stabiliseInterior(sp, raw.data, in.motion, stabilised, y);
-        for (; x < w - 1; ++x) pixel(std::false_type{}, x, y);
-        pixel(std::true_type{}, w - 1, y);
-      }
+  rows::Frame f;
+  f.width = w;
+  f.height = h;
+  f.color = &in.color;
+  f.albedo = s.sobelUnlit && in.albedo.ptr ? &in.albedo : nullptr;
+  f.depth = useDepth ? &in.depth : nullptr;
+  f.motion = &in.motion;
+  f.sobel = s.sobel;
+  f.sobelOfDepth = useDepth && s.sobelDepth;
+  f.stabilise = {sobel_[current_].data(), w, h, s.sobelStabilise && hasHistory && sobelValid_, s.base.feedbackMin,
+                 s.base.feedbackMax};
+  f.aliased = {in.id.ptr ? &in.id : nullptr,
+               taa_.previousDepth(),
+               &in.motion,
+               w,
+               h,
+               s.modelAverage && (in.id.ptr || useDepth),
+               useDepth && (s.depthVariance || s.temporalDepthVariance),
+               s.depthVariance,
+               s.temporalDepthVariance,
+               s.depthThreshold};
+  f.stabilisedOut = sobel_[next].data();
+  f.aliasedOut = aliased_.data();
+
+  // Passes 1-4: the aliasedValue plane (and this frame's stabilised Sobel).
+  if (reference) {
+    referencePasses(f, depthPlane, lumaLit_, lumaUnlit_, sobelRaw_);
+  } else {
+    auto band = bandBaseline;
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+    if (temporal::useAvx2()) band = bandAvx2;
+#endif
+#ifdef CRISP_HAS_AVX512_ROWS
+    if (temporal::useAvx512()) band = rows::bandAvx512;
+#endif
+    parallelBands(h, bands_, numThreads, [&](int b, int y0, int y1) {  // band b owns rings b
+      band(f, rows::bandRings(bandRings_.data() + std::size_t(b) * rows::bandFloats(w), w), y0, y1);
     });
   }
-
-  // Pass 4: aliasedValue (eqs. 4.1, 4.4-4.6, 4.12-4.14).
-  const float* pastDepth = taa_.previousDepth();
-  const Plane sob{sobel_[next].data(), w, h};
-  const bool modelOn = s.modelAverage && (in.id.ptr || useDepth);
-  const bool depthStats = useDepth && (s.depthVariance || s.temporalDepthVariance);
-  const AliasedParams ap{in.id.ptr ? &in.id : nullptr, depthPlane, pastDepth, s.sobel ? sob.data : nullptr,
-                        &in.motion, aliased_.data(), w, h, modelOn, depthStats, s.depthVariance,
-                        s.temporalDepthVariance, s.depthThreshold};
-  auto aliasedPixel = [&](auto clamp, int x, int y) {
-    constexpr bool C = decltype(clamp)::value;
-    float sobelCentre = 0.0f, sobelAvg = 0.0f;
-    float model = 0.0f;
-    if (modelOn) {
-      auto objectAt = [&](int i, int j) -> std::uint32_t {
-        const int cx = C ? std::clamp(i, 0, w - 1) : i, cy = C ? std::clamp(j, 0, h - 1) : j;
-        if (in.id.ptr) return in.id.uintAt(cx, cy);
-        return isBackgroundDepth(dep.at<false>(cx, cy)) ? 0u : 1u;  // object vs background (same test on sanitised)
-      };
-      const std::uint32_t centre = objectAt(x, y);
-      int differ = 0;
-      for (int j = -1; j <= 1; ++j)
-        for (int i = -1; i <= 1; ++i) differ += objectAt(x + i, y + j) != centre;
-      model = float(differ) / 9.0f;
-    }
-    if (s.sobel) {
-      sobelCentre = sob.at<C>(x, y);
-      float sum9 = 0.0f;
-      for (int j = -1; j <= 1; ++j)
-        for (int i = -1; i <= 1; ++i) sum9 += sob.at<C>(x + i, y + j);
-      const float sumCross =
-          sob.at<C>(x, y - 1) + sob.at<C>(x - 1, y) + sobelCentre + sob.at<C>(x + 1, y) + sob.at<C>(x, y + 1);
-      const float avg3x3 = sum9 / 9.0f, avgCross = sumCross / 5.0f;
-      const float t = clamp01(model + sobelCentre);
-      sobelAvg = avgCross * (1.0f - t) + avg3x3 * t;
-    }
-    float depthPV = 0.0f, depthTPV = 0.0f;
-    if (depthStats) {
-      const float dc = depthAt(clamp, x, y);
-      float lo = 1.0f, hi = 1.0f, sum = 0.0f;
-      for (int j = -1; j <= 1; ++j)
-        for (int i = -1; i <= 1; ++i) {
-          const float d = depthAt(clamp, x + i, y + j) / dc;  // relative to the centre
-          lo = std::min(lo, d);
-          hi = std::max(hi, d);
-          sum += d;
-        }
-      const float avg = sum / 9.0f;
-      const float m = std::min(std::fabs(lo - avg), std::fabs(hi - avg));
-      if (m >= s.depthThreshold) depthVariances(ap, x, y, avg, m, dc, depthPV, depthTPV);
-    }
-    const float a = sobelAvg + depthPV + depthTPV + model;
-    // Non-finite (cannot happen with sanitised inputs): full TAA, the baseline's box.
-    aliased_[std::size_t(y) * w + x] = std::isnan(a) ? 1.0f : clamp01(a);
-  };
-  const bool vectorRows = !reference && (!in.id.ptr || in.id.pixelStride == 4);
-  parallelRows(w, h, threads, [&](int y0, int y1) {
-    if (!vectorRows) {
-      temporal::rowsWithBorder(w, h, y0, y1, reference, aliasedPixel);
-      return;
-    }
-    for (int y = y0; y < y1; ++y) {
-      if (y == 0 || y == h - 1 || w < 3) {
-        for (int x = 0; x < w; ++x) aliasedPixel(std::true_type{}, x, y);
-        continue;
-      }
-      aliasedPixel(std::true_type{}, 0, y);
-      int x = aliasedInterior(ap, y);
-      for (; x < w - 1; ++x) aliasedPixel(std::false_type{}, x, y);
-      aliasedPixel(std::true_type{}, w - 1, y);
-    }
-  });
 
   // Pass 5: the baseline kernel, steered.
   taa::Settings base = s.base;

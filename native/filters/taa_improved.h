@@ -4,9 +4,10 @@
 // filter "taa-improved" (taa_improved.cpp) wraps this kernel.
 //
 // History kept between frames: the baseline's (taa.h) plus two float planes
-// of the temporally stabilised Sobel value (ping-pong). Scratch: the lit and
-// unlit luminance planes, the raw Sobel plane and the aliasedValue plane
-// (float each), plus the baseline's band rings.
+// of the temporally stabilised Sobel value (ping-pong). Scratch: the
+// aliasedValue plane, the fast path's rings of rows (taa_improved_rows.h),
+// the reference path's luminance and raw Sobel planes once it has run, plus
+// the baseline's band rings.
 #pragma once
 
 #include <cstddef>
@@ -61,7 +62,10 @@ class Kernel {
  private:
   int width_ = 0, height_ = 0;
   taa::Kernel taa_;
-  std::vector<float> lumaLit_, lumaUnlit_, sobelRaw_, aliased_;
+  std::vector<float> aliased_;
+  std::vector<float> lumaLit_, lumaUnlit_, sobelRaw_;  // the reference path's planes (empty until it runs)
+  int bands_ = 0;
+  std::vector<float> bandRings_;  // the fast path's: bands_ x rows::bandFloats(width)
   std::vector<float> sobel_[2];
   int current_ = 0;
   bool sobelValid_ = false;

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // Run-time choice between the baseline (SSE2) copy of a temporal kernel's row
-// loop, a copy compiled for AVX2 and (taa's rows) one for AVX-512, as
-// filters/repair.cpp chooses its row functions. The copies are the same
+// loop, a copy compiled for AVX2 and (taa's rows, taa-improved's bands) one
+// for AVX-512, as filters/repair.cpp chooses its row functions. The copies are the same
 // source, always inlined into each, on 4, 8 and 16 lanes (lanes.h); the build
 // has no FMA contraction (-ffp-contract=off) and no fast-math, so every copy
 // performs the same IEEE operations in the same order per lane and gives the
@@ -50,8 +50,8 @@ inline std::atomic<int>& fastPathIsaStorage() {
 inline void setFastPathIsa(Isa isa) { fastPathIsaStorage().store(int(isa)); }
 inline bool useAvx512() { return fastPathIsaStorage().load() == int(Isa::Auto) && cpuHasAvx512(); }
 inline bool useAvx2() { return fastPathIsaStorage().load() != int(Isa::Baseline) && cpuHasAvx2(); }
-// The copy a kernel with an AVX-512 copy runs (taa's rows); the others run
-// "avx2" where this says "avx512".
+// The copy a kernel with an AVX-512 copy runs (taa's rows, taa-improved's
+// bands); phlm runs "avx2" where this says "avx512".
 inline const char* fastPathIsaName() { return useAvx512() ? "avx512" : useAvx2() ? "avx2" : "sse2"; }
 
 }  // namespace crisp::temporal

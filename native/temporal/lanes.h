@@ -259,12 +259,16 @@ CRISP_LANES_INLINE T lanesOf(float v) {
     return r;
   }
 }
-// 0, 1, 2, ... in the lanes.
+// 0, 1, 2, ... in the lanes (0 for one pixel).
 template <class T>
 CRISP_LANES_INLINE T laneIndexOf() {
-  T r;
-  for (int l = 0; l < kLanesOf<T>; ++l) r[l] = float(l);
-  return r;
+  if constexpr (std::is_same_v<T, float>) {
+    return 0.0f;
+  } else {
+    T r;
+    for (int l = 0; l < kLanesOf<T>; ++l) r[l] = float(l);
+    return r;
+  }
 }
 
 // Same operand order as std::min / std::max (which of +0 / -0 is returned;

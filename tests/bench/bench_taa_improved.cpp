@@ -4,9 +4,10 @@
 // moves 0.7 px right, 0.3 px down) with colour, motion, depth, object ids and
 // an albedo layer (the colour itself), so every pass runs; .object is the
 // still camera with three moving shapes instead (bench_common.h chartFrames),
-// as taa.rgb_object_depth and phlm.object; .avx2 runs taa's rows in their
-// AVX2 copy where the CPU has AVX-512 (temporal/isa.h). Counters as in
-// bench_taa.cpp (kept_MB, scratch_MB); the floor is floor.memcpy_rgba.
+// as taa.rgb_object_depth and phlm.object; .avx2 runs taa's rows and the
+// aliasedValue bands in their AVX2 copies where the CPU has AVX-512
+// (temporal/isa.h). Counters as in bench_taa.cpp (kept_MB, scratch_MB); the
+// floor is floor.memcpy_rgba.
 #include <benchmark/benchmark.h>
 
 #include <string>

@@ -3,6 +3,7 @@
 // sequences of synth/moving.h (exact motion, depth, ids and references).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -214,25 +215,80 @@ TEST(TaaImproved, SwitchesChangeOutputAndPathsAgree) {
   }
 }
 
-// The aliasedValue passes' fast path (unclamped interior taps, a lane group of
-// 4 or 8 pixels per step, the staged depth plane) equals the reference path
-// bit for bit: the Sobel and aliasedValue planes and the output, every frame,
-// for each way the inputs can be given (ids, depth as the object mask, no
-// albedo, no depth) and each ingredient alone (together they saturate
-// aliasedValue at edges), on a width whose interior is not a multiple of four
-// or eight, with a NaN and a far depth.
-TEST(TaaImproved, AliasedValuePlanesFastEqualsReference) {
-  const int w = 45, h = 37;
+namespace {
+
+// Which optional images a run gives the kernel.
+struct GivenInputs {
+  const char* name;
+  bool id, albedo, depth;
+};
+
+// Runs the fast path (2 threads, the current copy of the rows) and the
+// reference side by side over `frames` frames of a small disk crossing the
+// picture (dimmed so that the Sobel term stays below 1; a NaN colour and an
+// infinite depth at frame 2), asserting the same stabilised Sobel plane,
+// aliasedValue plane and output, bit for bit; returns whether some
+// aliasedValue was above 0.
+bool fastEqualsReference(int w, int h, const GivenInputs& c, const taa_improved::Settings& settings, int frames,
+                         const std::string& what) {
   synth::Sequence seq = synth::ghostingSequence(w, h, 8.0f, 1.3f, 0.4f);
-  struct Inputs {
-    const char* name;
-    bool id, albedo, depth;
-  } inputs[] = {{"all", true, true, true}, {"depth mask", false, true, true}, {"no albedo", true, false, true},
-                {"no depth", true, true, false}};
+  taa_improved::Settings s = settings;
+  taa_improved::Kernel fast, ref;
+  fast.allocate(w, h, c.depth);
+  ref.allocate(w, h, c.depth);
+  bool steered = false;
+  for (int t = 0; t < frames; ++t) {
+    synth::FrameData f = synth::renderFrame(seq, w, h, t + 10, {});
+    for (float& v : f.color.data) v *= 0.05f;  // dim: the Sobel term stays below 1
+    if (t == 2) {
+      f.color.at(w / 2, h / 2)[0] = std::numeric_limits<float>::quiet_NaN();
+      if (c.depth) f.depth.at(std::min(7, w - 1), std::min(9, h - 1))[0] = std::numeric_limits<float>::infinity();
+    }
+    Image albedo = f.color;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) albedo.at(x, y)[1] = (x / 3) % 2 ? 0.04f : 0.01f;
+    Image outFast(w, h, 4), outRef(w, h, 4);
+    taa_improved::Inputs in;
+    in.color = f.color.view();
+    in.motion = f.motion.view();
+    if (c.depth) in.depth = f.depth.view();
+    if (c.id) in.id = f.id.view();
+    if (c.albedo) in.albedo = albedo.view();
+    s.base.jitterX = f.jitter.x;
+    s.base.jitterY = f.jitter.y;
+    in.output = outFast.view();
+    fast.run(in, s, false, 2);
+    in.output = outRef.view();
+    ref.run(in, s, true, 1);
+    const std::string where = what + ", " + c.name + ", frame " + std::to_string(t) + ", " + temporal::fastPathIsaName();
+    EXPECT_EQ(fast.sobel(), ref.sobel()) << where;
+    EXPECT_EQ(0, std::memcmp(fast.aliasedValue().data(), ref.aliasedValue().data(), sizeof(float) * w * h)) << where;
+    EXPECT_EQ(0, std::memcmp(outFast.data.data(), outRef.data.data(), outFast.data.size() * sizeof(float))) << where;
+    if (::testing::Test::HasFailure()) return steered;
+    for (float a : ref.aliasedValue()) steered = steered || a > 0.0f;
+  }
+  return steered;
+}
+
+}  // namespace
+
+// The aliasedValue passes (fused into row bands on the fast path,
+// taa_improved_rows.h: unclamped interior taps a lane group at a time)
+// give the reference's Sobel and aliasedValue planes and output bit for bit,
+// every frame, for each way the inputs can be given (ids, depth as the object
+// mask, no albedo, no depth) and each ingredient alone (together they
+// saturate aliasedValue at edges), on a width whose interior is not a
+// multiple of any lane count, with a NaN and an infinite depth, on every
+// copy of the fast rows.
+TEST(TaaImproved, AliasedValuePlanesFastEqualsReference) {
+  const GivenInputs inputs[] = {{"all", true, true, true},
+                                {"depth mask", false, true, true},
+                                {"no albedo", true, false, true},
+                                {"no depth", true, true, false}};
   const char* ingredients[] = {"all", "sobel", "modelAverage", "depthVariance", "temporalDepthVariance"};
   for (const temporal::Isa isa : test::kFastPathIsas) {  // every copy of the fast rows
     const test::FastPathIsa scope(isa);
-    for (const Inputs& c : inputs)
+    for (const GivenInputs& c : inputs)
       for (const char* only : ingredients) {
         taa_improved::Settings s;
         s.depthThreshold = 0.0005f;  // more pixels take the pseudo-variance lanes
@@ -242,48 +298,85 @@ TEST(TaaImproved, AliasedValuePlanesFastEqualsReference) {
           s.depthVariance = std::string(only) == "depthVariance";
           s.temporalDepthVariance = std::string(only) == "temporalDepthVariance";
         }
-        taa_improved::Kernel fast, ref;
-        fast.allocate(w, h, c.depth);
-        ref.allocate(w, h, c.depth);
-        bool steered = false;  // some aliasedValue > 0: the ingredient reached the plane
-        for (int t = 0; t < 6; ++t) {
-          synth::FrameData f = synth::renderFrame(seq, w, h, t + 10, {});
-          for (float& v : f.color.data) v *= 0.05f;  // dim: the Sobel term stays below 1
-          if (t == 2) {
-            f.color.at(w / 2, h / 2)[0] = std::numeric_limits<float>::quiet_NaN();
-            if (c.depth) f.depth.at(7, 9)[0] = std::numeric_limits<float>::infinity();
-          }
-          Image albedo = f.color;
-          for (int y = 0; y < h; ++y)
-            for (int x = 0; x < w; ++x) albedo.at(x, y)[1] = (x / 3) % 2 ? 0.04f : 0.01f;
-          Image outFast(w, h, 4), outRef(w, h, 4);
-          taa_improved::Inputs in;
-          in.color = f.color.view();
-          in.motion = f.motion.view();
-          if (c.depth) in.depth = f.depth.view();
-          if (c.id) in.id = f.id.view();
-          if (c.albedo) in.albedo = albedo.view();
-          s.base.jitterX = f.jitter.x;
-          s.base.jitterY = f.jitter.y;
-          in.output = outFast.view();
-          fast.run(in, s, false, 2);
-          in.output = outRef.view();
-          ref.run(in, s, true, 1);
-          const std::string where =
-              std::string(c.name) + ", " + only + ", frame " + std::to_string(t) + ", " + temporal::fastPathIsaName();
-          ASSERT_EQ(fast.sobel(), ref.sobel()) << where;
-          ASSERT_EQ(0, std::memcmp(fast.aliasedValue().data(), ref.aliasedValue().data(), sizeof(float) * w * h))
-              << where;
-          ASSERT_EQ(0, std::memcmp(outFast.data.data(), outRef.data.data(), outFast.data.size() * sizeof(float)))
-              << where;
-          for (float a : ref.aliasedValue()) steered = steered || a > 0.0f;
-        }
+        const bool steered = fastEqualsReference(45, 37, c, s, 6, only);
+        ASSERT_FALSE(HasFailure());
         const bool possible = c.depth || std::string(only) == "all" || std::string(only) == "sobel" ||
                               (std::string(only) == "modelAverage" && c.id);
         if (possible) {
           EXPECT_TRUE(steered) << c.name << ", " << only;
         }
       }
+  }
+}
+
+// The fast path splits the rows into bands (one per 96 rows) that recompute
+// the rows around their edges which their stages read (3 staged, 2 Sobel, 1
+// stabilised): pictures of several bands, a width that is not a multiple of
+// any lane count, and pictures one and two pixels wide (only the clamped
+// first and last columns) match the reference bit for bit.
+TEST(TaaImproved, BandEdgesAndNarrowPicturesFastEqualsReference) {
+  const GivenInputs inputs[] = {{"all", true, true, true}, {"depth mask", false, false, true}};
+  const std::pair<int, int> sizes[] = {{37, 300}, {21, 193}, {2, 200}, {1, 97}};
+  for (const temporal::Isa isa : test::kFastPathIsas) {
+    const test::FastPathIsa scope(isa);
+    for (const auto& [w, h] : sizes)
+      for (const GivenInputs& c : inputs) {
+        taa_improved::Settings s;
+        s.depthThreshold = 0.0005f;
+        fastEqualsReference(w, h, c, s, 4, std::to_string(w) + "x" + std::to_string(h));
+        ASSERT_FALSE(HasFailure());
+      }
+  }
+}
+
+// Eq. 4.4's m is compared with depthThreshold after a shortcut on the fast
+// path (taa_improved_rows.h depthRangeBelowThreshold: the 3x3's depth range
+// from two divisions rules the pixel out). A curved depth whose relative
+// range grows steadily across the picture puts pixels on both sides of the
+// threshold and just past it, moving, so that both pseudo-variances are
+// taken; the planes match the reference bit for bit and some pixels take
+// them (a shortcut that ruled out too much would leave those at 0).
+TEST(TaaImproved, DepthThresholdShortcutEqualsReference) {
+  const int w = 70, h = 24;
+  for (const temporal::Isa isa : test::kFastPathIsas) {
+    const test::FastPathIsa scope(isa);
+    for (const float threshold : {0.0005f, 0.002f, 0.004f}) {
+      taa_improved::Settings s;
+      s.sobel = false;
+      s.modelAverage = false;
+      s.depthThreshold = threshold;
+      taa_improved::Kernel fast, ref;
+      fast.allocate(w, h, true);
+      ref.allocate(w, h, true);
+      int varied = 0;
+      for (int t = 0; t < 3; ++t) {
+        Image color(w, h, 4), depth(w, h, 1), motion(w, h, 4), outFast(w, h, 4), outRef(w, h, 4);
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) {
+            for (int c = 0; c < 4; ++c) color.at(x, y)[c] = 0.25f;
+            depth.at(x, y)[0] = 2.0f + 1e-4f * float(x * x) + 2e-5f * float(x * y) + 1e-3f * float(t);
+            motion.at(x, y)[0] = 0.3f * float(t);
+            motion.at(x, y)[1] = -0.2f;
+          }
+        taa_improved::Inputs in;
+        in.color = color.view();
+        in.depth = depth.view();
+        in.motion = motion.view();
+        in.output = outFast.view();
+        fast.run(in, s, false, 2);
+        in.output = outRef.view();
+        ref.run(in, s, true, 1);
+        const std::string where = "threshold " + std::to_string(threshold) + ", frame " + std::to_string(t) + ", " +
+                                  temporal::fastPathIsaName();
+        ASSERT_EQ(0, std::memcmp(fast.aliasedValue().data(), ref.aliasedValue().data(), sizeof(float) * w * h))
+            << where;
+        ASSERT_EQ(0, std::memcmp(outFast.data.data(), outRef.data.data(), outFast.data.size() * sizeof(float)))
+            << where;
+        for (float a : ref.aliasedValue()) varied += a > 0.0f;
+      }
+      EXPECT_GT(varied, 0) << "threshold " << threshold;
+      EXPECT_LT(varied, 3 * w * h) << "threshold " << threshold;
+    }
   }
 }
 
