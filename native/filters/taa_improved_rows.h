@@ -77,13 +77,6 @@ enum RingPlane { kLit, kUnlit, kDepth, kRaw, kStabilised, kRingPlanes };
 struct BandRings {
   float* rows[kRingPlanes][kRing];
 };
-inline std::size_t bandFloats(int width) { return std::size_t(kRingPlanes) * kRing * std::size_t(width); }
-inline BandRings bandRings(float* base, int width) {
-  BandRings r;
-  for (int p = 0; p < kRingPlanes; ++p)
-    for (int k = 0; k < kRing; ++k, base += width) r.rows[p][k] = base;
-  return r;
-}
 
 // The 16-lane copy (taa_improved_rows_avx512.cpp); call only where
 // temporal::useAvx512().
@@ -96,6 +89,15 @@ namespace {
 // passed to or returned from a helper compiled for another instruction set
 // changes the calling convention.
 #define CRISP_STAGE_LAMBDA __attribute__((always_inline))
+
+inline std::size_t bandFloats(int width) { return std::size_t(kRingPlanes) * kRing * std::size_t(width); }
+// The rings of a band whose block of bandFloats(width) starts at base.
+inline BandRings bandRings(float* base, int width) {
+  BandRings r;
+  for (int p = 0; p < kRingPlanes; ++p)
+    for (int k = 0; k < kRing; ++k, base += width) r.rows[p][k] = base;
+  return r;
+}
 
 // NaN -> 0; two selects, so one pixel (T = float) and a lane group
 // (temporal/lanes.h) perform the same operations.
@@ -222,7 +224,7 @@ CRISP_ROWS_INLINE T stabilisedSobel(const StabiliseParams& p, T c, T lo, T hi, T
     }
   }
   if (!loaded) {  // clamped to the image
-    auto clampIndex = [](temporal::IntOf<T> v, int top) { return v < 0 ? 0 : (top < v ? top : v); };
+    auto clampIndex = [](temporal::IntOf<T> v, int top) CRISP_STAGE_LAMBDA { return v < 0 ? 0 : (top < v ? top : v); };
     const auto xa = clampIndex(x0, w - 1), xb = clampIndex(x0 + 1, w - 1);
     const auto ya = clampIndex(y0, h - 1), yb = clampIndex(y0 + 1, h - 1);
     p00 = temporal::gatherOf(p.previous, w, xa, ya), p10 = temporal::gatherOf(p.previous, w, xb, ya);
@@ -392,7 +394,7 @@ CRISP_ROWS_INLINE T aliasedAt(const AliasedParams& p, const float* const* sobel,
         } else {
           mk = m[k], avgk = avg[k], dck = dc[k];
         }
-        if (mk < p.depthThreshold) continue;
+        if (!(mk >= p.depthThreshold)) continue;  // as the reference: a NaN m (depth 0 or -inf) takes none
         float pv = 0.0f, tpv = 0.0f;
         depthVariances(p, x + k, y, avgk, mk, dck, pv, tpv);
         temporal::setLane(depthPV, k, pv);

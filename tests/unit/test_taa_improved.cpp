@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -309,7 +310,7 @@ TEST(TaaImproved, AliasedValuePlanesFastEqualsReference) {
   }
 }
 
-// The fast path splits the rows into bands (one per 96 rows) that recompute
+// The fast path splits the rows into bands (one per 64 rows) that recompute
 // the rows around their edges which their stages read (3 staged, 2 Sobel, 1
 // stabilised): pictures of several bands, a width that is not a multiple of
 // any lane count, and pictures one and two pixels wide (only the clamped
@@ -376,6 +377,87 @@ TEST(TaaImproved, DepthThresholdShortcutEqualsReference) {
       }
       EXPECT_GT(varied, 0) << "threshold " << threshold;
       EXPECT_LT(varied, 3 * w * h) << "threshold " << threshold;
+    }
+  }
+}
+
+// Per-pixel noise in every input (colour, albedo, depth, motion, ids), so
+// that each halo row a band restages feeds its neighbours' values (the
+// smooth synthetic frames above leave a stabilisation halo one row short
+// unseen), and depths at the edges of what the threshold shortcut and eq.
+// 4.4 meet: negative, signed zeros, denormals, +-Inf, NaN, huge, at
+// thresholds from 0 to 1. A depth of 0 (or -Inf) makes m NaN, which takes no
+// pseudo-variance on either path.
+TEST(TaaImproved, NoisyInputsAndOddDepthsFastEqualsReference) {
+  auto hash = [](std::uint32_t a) {  // a 32-bit integer mix
+    a ^= a >> 16;
+    a *= 0x7feb352dU;
+    a ^= a >> 15;
+    a *= 0x846ca68bU;
+    a ^= a >> 16;
+    return a;
+  };
+  auto unit = [&](std::uint32_t k) { return float(hash(k) & 0xffffff) / float(0x1000000); };
+  const float inf = std::numeric_limits<float>::infinity();
+  const float odd[] = {0.0f,  -0.0f, 1e-45f, -1e-45f, 1e-40f, -1.0f,  2.0001f, 1.9999f,
+                       -inf,  inf,   std::numeric_limits<float>::quiet_NaN(), 3e38f, -3e38f, 65503.99f};
+  struct Case {
+    int w, h;
+    bool oddDepths;
+    float threshold;
+  };
+  const Case cases[] = {{37, 300, false, 0.0005f}, {21, 193, false, 0.0005f}, {2, 200, false, 0.0005f},
+                        {53, 150, true, 0.0f},     {53, 150, true, 1e-7f},     {53, 150, true, 0.002f},
+                        {53, 150, true, 0.5f},     {53, 150, true, 1.0f}};
+  for (const temporal::Isa isa : test::kFastPathIsas) {
+    const test::FastPathIsa scope(isa);
+    for (const Case& c : cases) {
+      const int w = c.w, h = c.h;
+      taa_improved::Settings s;
+      s.depthThreshold = c.threshold;
+      taa_improved::Kernel fast, ref;
+      fast.allocate(w, h, true);
+      ref.allocate(w, h, true);
+      for (int t = 0; t < 4; ++t) {
+        Image color(w, h, 4), albedo(w, h, 4), depth(w, h, 1), motion(w, h, 2), id = Image::uintImage(w, h);
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) {
+            const std::uint32_t k = std::uint32_t(((t * 1000 + y) * 1000 + x) * 8);
+            for (int ch = 0; ch < 4; ++ch) {
+              color.at(x, y)[ch] = 0.05f * unit(k + ch);
+              albedo.at(x, y)[ch] = 0.05f * unit(k + 4 + ch + 77777);
+            }
+            const std::uint32_t pick = hash(k + 999);
+            if (!c.oddDepths)
+              depth.at(x, y)[0] = 5.0f + 0.3f * unit(k + 999);
+            else if (pick % 7 == 0)
+              depth.at(x, y)[0] = odd[(pick >> 8) % (sizeof odd / sizeof odd[0])];
+            else  // smooth, the shortcut's case, with some negative depths
+              depth.at(x, y)[0] = (pick % 5 == 0 ? -1.0f : 1.0f) * (2.0f + 1e-5f * float(x + y));
+            motion.at(x, y)[0] = 0.37f + 0.5f * unit(k + 31);
+            motion.at(x, y)[1] = -0.61f + 0.5f * unit(k + 53);
+            id.setUint(x, y, std::uint32_t((x / 3 + y / 4) % 3));
+          }
+        Image outFast(w, h, 4), outRef(w, h, 4);
+        taa_improved::Inputs in;
+        in.color = color.view();
+        in.albedo = albedo.view();
+        in.depth = depth.view();
+        in.motion = motion.view();
+        in.id = id.view();
+        in.output = outFast.view();
+        fast.run(in, s, false, 2);
+        in.output = outRef.view();
+        ref.run(in, s, true, 1);
+        const std::string where = std::to_string(w) + "x" + std::to_string(h) + ", threshold " +
+                                  std::to_string(c.threshold) + ", frame " + std::to_string(t) + ", " +
+                                  temporal::fastPathIsaName();
+        ASSERT_EQ(fast.sobel(), ref.sobel()) << where;
+        ASSERT_EQ(0, std::memcmp(fast.aliasedValue().data(), ref.aliasedValue().data(), sizeof(float) * w * h))
+            << where;
+        ASSERT_EQ(0, std::memcmp(outFast.data.data(), outRef.data.data(), outFast.data.size() * sizeof(float)))
+            << where;
+      }
     }
   }
 }
