@@ -6,9 +6,10 @@
 // read motion get it reconstructed for inputs with add-on sidecars and no
 // motion pass (addReconstructedMotion). A chunk (--frames, positions among the
 // inputs, 1-based) writes only its own frames; --preroll filters N earlier
-// inputs first to warm the history (frame_range.h). Decisions about the whole
-// sequence (motion rebuilt or not, output names) still look at every input, so
-// every chunk of one sequence makes the same ones.
+// inputs first to warm a temporal method's history (frame_range.h; a spatial
+// method reads none of them). Decisions about the whole sequence (motion
+// rebuilt or not, output names) still look at every input, so every chunk of
+// one sequence makes the same ones.
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
@@ -181,7 +182,9 @@ int runFilter(const ParsedArgs& args) {
                  joinPath(outDir, fileStem(args.positional[std::size_t(position - 1)])).c_str(), why.c_str());
     return false;
   };
-  ChunkRun run = planChunk(chunk, preroll, 1, resume, isComplete);
+  // Pre-roll warms a temporal history; a spatial method has none, so it reads no
+  // frame before the chunk (as the add-on's render renders none).
+  ChunkRun run = planChunk(chunk, temporal ? preroll : 0, 1, resume, isComplete);
   if (run.nothingToDo()) {
     if (!quiet)
       std::printf("filter: every output of frames %d-%d exists; nothing to do\n", chunk.first, chunk.last);

@@ -5,7 +5,7 @@ read; its filtered/ is the sequential taa-improved result of the add-on's filter
 
   * `crisp filter --frames A-B --preroll N` over the inputs: chunks whose pre-roll reaches back to
     the first frame equal one sequential run bit for bit, for taa, taa-improved, phlm and fxaa (a
-    spatial method needs no pre-roll at all); a shorter pre-roll is not bit-exact (the history is
+    spatial method needs no pre-roll at all, and reads none when given one); a shorter pre-roll is not bit-exact (the history is
     younger; docs/farm.md has the measured table) but closer to sequential than none;
   * `--resume` starts at the first missing output, leaves complete outputs untouched and, with its
     pre-roll taken before that frame, writes what an uninterrupted run writes; after a failed run it
@@ -129,6 +129,27 @@ def test_filter_chunks_equal_sequential(shot, lib, tmp_path, method):
     assert sorted(os.listdir(short)) == [".crisp"] + [frame(f) for f in range(5, 9)]
     assert max_diff(lib, seq, cold, range(5, 9)) > 0.0  # history matters
     assert mean_psnr(lib, seq, short, range(5, 9)) > mean_psnr(lib, seq, cold, range(5, 9))
+
+
+def test_a_spatial_method_reads_no_preroll_frame(shot, lib, tmp_path):
+    """--preroll warms a temporal history; a spatial chunk given one reads none of those inputs (as
+    the add-on's render renders none): a truncated pre-roll input stops taa, naming it, not fxaa."""
+    out, _ = shot
+    folder = tmp_path / "input"
+    shutil.copytree(out / "input", folder)
+    inputs = [str(folder / frame(f)) for f in range(SHOT[0], SHOT[1] + 1)]
+    broken = folder / frame(2)
+    with open(broken, "r+b") as f:
+        f.truncate(os.path.getsize(broken) // 2)
+    seq, spatial, temporal = tmp_path / "seq", tmp_path / "spatial", tmp_path / "temporal"
+    crisp("filter", "--method", "fxaa", "--frames", "4-6", "--quiet", "-o", seq, *inputs)
+    p = crisp("filter", "--method", "fxaa", "--frames", "4-6", "--preroll", "3", "-o", spatial, *inputs)
+    assert "frame_0002" not in p.stderr + p.stdout and "pre-roll" not in p.stderr + p.stdout
+    assert sorted(os.listdir(spatial)) == [".crisp"] + [frame(f) for f in range(4, 7)]
+    assert max_diff(lib, seq, spatial, range(4, 7)) == 0.0
+    p = crisp("filter", "--method", "taa", "--frames", "4-6", "--preroll", "3", "-o", temporal, *inputs, ok=False)
+    assert p.returncode != 0 and str(broken) in p.stderr, p.stderr
+    assert not [n for n in os.listdir(temporal) if n.endswith(".exr")]
 
 
 def test_filter_resume_at_first_missing_output(shot, lib, tmp_path):
