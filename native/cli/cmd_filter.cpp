@@ -63,9 +63,10 @@ void warnNonFiniteColour(const Frame& frame) {
 }
 
 // An input without a motion pass gets motion reconstructed from its depth and
-// the sidecars of the previous input (and of the next one, for zw) in the
-// order given; index 0 gets zero motion (the caller passes 0 at a cut or gap
-// too).
+// the sidecar of the previous input in the order given; index 0 gets zero
+// motion (the caller passes 0 at a cut or gap too). Only xy, the motion to the
+// previous frame, which is all the filters read: zw stays 0, as in the
+// add-on's frames, and no output depends on the input after it.
 void addReconstructedMotion(Frame& frame, const std::vector<std::string>& inputs, std::size_t index,
                             int numThreads) {
   if (frame.has("motion")) return;
@@ -73,8 +74,7 @@ void addReconstructedMotion(Frame& frame, const std::vector<std::string>& inputs
     frame.passes["motion"] = Image(frame.width, frame.height, 4, 0.0f);
     return;
   }
-  const std::string next = index + 1 < inputs.size() ? sidecarPathFor(inputs[index + 1]) : std::string();
-  reconstructFrameMotion(frame, sidecarPathFor(inputs[index - 1]), next, numThreads);
+  reconstructFrameMotion(frame, sidecarPathFor(inputs[index - 1]), std::string(), numThreads);
 }
 
 // A PNG beside an output written without --png shows an earlier run's result.
