@@ -33,6 +33,14 @@ static std::string roleList(const std::vector<ImageRole>& roles) {
   return s;
 }
 
+// What setImage accepts for a role, in the words of crisp.h's formats.
+static std::string acceptedFormats(const ImageRole& r) {
+  if (r.isUint) return "uint, or float read as its bits";
+  if (r.minChannels == kRsaaSubsampleWords && r.maxChannels == kRsaaSubsampleWords)
+    return std::string(formatName(Format::RsaaSubsamples)) + " (CRISP_FORMAT_RSAA_SUBSAMPLES)";
+  return std::to_string(r.minChannels) + ".." + std::to_string(r.maxChannels) + " float channels";
+}
+
 void Filter::setImage(const std::string& name, const ImageView& view) {
   const ImageRole* role = findRole(roles_, name);
   if (!role) invalidArgument(std::string("filter '") + type() + "' has no image '" + name + "' (known: " + roleList(roles_) + ")");
@@ -45,8 +53,7 @@ void Filter::setImage(const std::string& name, const ImageView& view) {
                                : (view.format != Format::UInt && c >= role->minChannels && c <= role->maxChannels);
   if (!formatOk)
     invalidArgument("image '" + name + "': format " + formatName(view.format) + " not accepted (needs " +
-                    (role->isUint ? std::string("uint") : std::to_string(role->minChannels) + ".." +
-                                                            std::to_string(role->maxChannels) + " float channels") + ")");
+                    acceptedFormats(*role) + ")");
   if (view.width <= 0 || view.height <= 0 || view.width > kMaxDimension || view.height > kMaxDimension)
     invalidArgument("image '" + name + "': size " + std::to_string(view.width) + "x" + std::to_string(view.height) +
                     " is out of range [1, " + std::to_string(kMaxDimension) + "]");

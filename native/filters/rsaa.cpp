@@ -1144,10 +1144,11 @@ class RsaaFilter final : public Filter {
     in.color = image("color");  // the kernel reads colour in place itself
     in.depth = inputApartFromOutput("depth");
     in.normal = inputApartFromOutput("normal");
+    // The texture pass reads the sub-samples again after output rows are written.
     if (hasImage("subsamples"))
-      in.packed = image("subsamples");
+      in.packed = inputApartFromOutput("subsamples");
     else
-      for (int k = 0; k < rsaa::kSamples; ++k) in.sub[k] = image(kSubRoles[k]);
+      for (int k = 0; k < rsaa::kSamples; ++k) in.sub[k] = inputApartFromOutput(kSubRoles[k]);
     kernel_.run(in, image("output"), reference_, numThreads());
   }
 

@@ -116,61 +116,106 @@ struct Record {
 };
 static_assert(sizeof(Record) == 80, "80-byte record");
 
-// rsaa through the C API from packed records gives the image it gives from
-// the 8 float4 images (a depth step: plane at depth 10 left of x = 7.3, 14
-// right of it, normals (0, 0, 1) = snorm 32767); a float4 image is refused
-// as "subsamples", an unknown format everywhere.
-TEST_F(RsaaApi, PackedRecordsGiveTheFloat4Result) {
-  const int W = 16, H = 9;
-  const float xs[8] = {-0.375f, 0.125f, 0.375f, -0.125f, -0.25f, 0.25f, 0.25f, -0.25f};
-  std::vector<float> color(4 * W * H), depth(W * H), normal(3 * W * H), sub[8];
-  std::vector<Record> records(W * H);
-  const auto depthAt = [](float x) { return x < 7.3f ? 10.0f : 14.0f; };
-  for (auto& s : sub) s.assign(4 * W * H, 0.0f);
-  for (int i = 0; i < W * H; ++i) {
-    const float x = float(i % W) + 0.5f;
-    for (int c = 0; c < 3; ++c) color[4 * i + c] = x < 7.3f ? 0.9f : 0.1f;
-    color[4 * i + 3] = 1.0f;
-    depth[i] = depthAt(x);
-    normal[3 * i + 2] = 1.0f;
+// A depth step for rsaa: plane at depth 10 left of x = 7.3, 14 right of it,
+// normals (0, 0, 1) = snorm 32767, as 8 float4 images and as packed records;
+// colour 0.9 / 0.1 across the step, plus a fine texture when `textured` (for
+// the texture pass, FXAA by default, to work on).
+struct DepthStep {
+  static constexpr int W = 16, H = 9;
+  std::vector<float> color, depth, normal, sub[8];
+  std::vector<Record> records;
+  explicit DepthStep(bool textured) : color(4 * W * H), depth(W * H), normal(3 * W * H), records(W * H) {
+    const float xs[8] = {-0.375f, 0.125f, 0.375f, -0.125f, -0.25f, 0.25f, 0.25f, -0.25f};
+    const auto depthAt = [](float x) { return x < 7.3f ? 10.0f : 14.0f; };
+    for (auto& s : sub) s.assign(4 * W * H, 0.0f);
+    for (int i = 0; i < W * H; ++i) {
+      const float x = float(i % W) + 0.5f;
+      const float texture = textured ? 0.3f * float((i * 7 + i / W * 3) % 5 == 0) : 0.0f;
+      for (int c = 0; c < 3; ++c) color[4 * i + c] = (x < 7.3f ? 0.9f : 0.1f) + texture;
+      color[4 * i + 3] = 1.0f;
+      depth[i] = depthAt(x);
+      normal[3 * i + 2] = 1.0f;
+      for (int k = 0; k < 8; ++k) {
+        sub[k][4 * i + 2] = 1.0f;
+        sub[k][4 * i + 3] = records[i].depth[k] = depthAt(x + xs[k]);
+        records[i].nx[k] = records[i].ny[k] = 0;
+        records[i].nz[k] = 32767;
+      }
+    }
+  }
+};
+
+// One rsaa frame through the C API: the sub-samples packed or as sub0..sub7;
+// the output in `out`, or in the buffer of input `aliased` ("color", "sub0",
+// ..., "subsamples"), whose copy it then returns.
+std::vector<float> runRsaa(CrispContext context, DepthStep scene, bool packed, const std::string& aliased = "") {
+  const int W = DepthStep::W, H = DepthStep::H;
+  std::vector<float> out(4 * W * H, 0.0f);
+  float* output = out.data();
+  CrispFilter f = crispNewFilter(context, "rsaa");
+  crispSetFilterImage(f, "color", scene.color.data(), CRISP_FORMAT_FLOAT4, W, H, 0, 0);
+  if (aliased == "color") output = scene.color.data();
+  crispSetFilterImage(f, "depth", scene.depth.data(), CRISP_FORMAT_FLOAT, W, H, 0, 0);
+  crispSetFilterImage(f, "normal", scene.normal.data(), CRISP_FORMAT_FLOAT3, W, H, 0, 0);
+  if (packed) {
+    crispSetFilterImage(f, "subsamples", scene.records.data(), CRISP_FORMAT_RSAA_SUBSAMPLES, W, H, 0, 0);
+    if (aliased == "subsamples") output = reinterpret_cast<float*>(scene.records.data());
+  } else {
     for (int k = 0; k < 8; ++k) {
-      sub[k][4 * i + 2] = 1.0f;
-      sub[k][4 * i + 3] = records[i].depth[k] = depthAt(x + xs[k]);
-      records[i].nx[k] = records[i].ny[k] = 0;
-      records[i].nz[k] = 32767;
+      const std::string role = "sub" + std::to_string(k);
+      crispSetFilterImage(f, role.c_str(), scene.sub[k].data(), CRISP_FORMAT_FLOAT4, W, H, 0, 0);
+      if (aliased == role) output = scene.sub[k].data();
     }
   }
-  std::vector<float> out[2];
-  for (int packed = 0; packed < 2; ++packed) {
-    out[packed].assign(4 * W * H, 0.0f);
-    CrispFilter f = crispNewFilter(context, "rsaa");
-    crispSetFilterImage(f, "color", color.data(), CRISP_FORMAT_FLOAT4, W, H, 0, 0);
-    crispSetFilterImage(f, "depth", depth.data(), CRISP_FORMAT_FLOAT, W, H, 0, 0);
-    crispSetFilterImage(f, "normal", normal.data(), CRISP_FORMAT_FLOAT3, W, H, 0, 0);
-    crispSetFilterImage(f, "output", out[packed].data(), CRISP_FORMAT_FLOAT4, W, H, 0, 0);
-    CrispError code;
-    if (packed) {
-      crispSetFilterImage(f, "subsamples", sub[0].data(), CRISP_FORMAT_FLOAT4, W, H, 0, 0);
-      EXPECT_EQ(lastError(&code).find("subsamples") != std::string::npos, true);
-      crispSetFilterImage(f, "subsamples", records.data(), CrispFormat(7), W, H, 0, 0);
-      EXPECT_NE(lastError(&code).find("unknown format"), std::string::npos);
-      crispSetFilterImage(f, "subsamples", records.data(), CRISP_FORMAT_RSAA_SUBSAMPLES, W, H, 0, 0);
-    } else {
-      for (int k = 0; k < 8; ++k)
-        crispSetFilterImage(f, ("sub" + std::to_string(k)).c_str(), sub[k].data(), CRISP_FORMAT_FLOAT4, W, H, 0, 0);
-    }
-    crispSetFilterFloat(f, "proj00", 2.0f);
-    crispSetFilterFloat(f, "proj11", 2.0f);
-    crispCommitFilter(f);
-    crispExecuteFilter(f);
-    const std::string msg = lastError(&code);
-    EXPECT_EQ(code, CRISP_ERROR_NONE) << msg;
-    crispReleaseFilter(f);
-  }
+  crispSetFilterImage(f, "output", output, CRISP_FORMAT_FLOAT4, W, H, 0, 0);
+  crispSetFilterFloat(f, "proj00", 2.0f);
+  crispSetFilterFloat(f, "proj11", 2.0f);
+  crispCommitFilter(f);
+  crispExecuteFilter(f);
+  CrispError code;
+  const std::string msg = lastError(&code);
+  EXPECT_EQ(code, CRISP_ERROR_NONE) << msg;
+  crispReleaseFilter(f);
+  if (output != out.data()) out.assign(output, output + out.size());
+  return out;
+}
+
+// rsaa through the C API from packed records gives the image it gives from
+// the 8 float4 images; a float4 image is refused as "subsamples", naming the
+// format it needs, and an unknown format is refused everywhere.
+TEST_F(RsaaApi, PackedRecordsGiveTheFloat4Result) {
+  const DepthStep scene(false);
+  const std::vector<float> out[2] = {runRsaa(context, scene, false), runRsaa(context, scene, true)};
   EXPECT_EQ(out[0], out[1]);
   int changed = 0;  // the step is resampled: some pixels are no longer 0.9 or 0.1
-  for (int i = 0; i < W * H; ++i) changed += out[1][4 * i] != color[4 * i];
-  EXPECT_GE(changed, H);
+  for (int i = 0; i < DepthStep::W * DepthStep::H; ++i) changed += out[1][4 * i] != scene.color[4 * i];
+  EXPECT_GE(changed, DepthStep::H);
+
+  DepthStep bad(false);
+  CrispFilter f = crispNewFilter(context, "rsaa");
+  CrispError code;
+  crispSetFilterImage(f, "subsamples", bad.sub[0].data(), CRISP_FORMAT_FLOAT4, DepthStep::W, DepthStep::H, 0, 0);
+  std::string msg = lastError(&code);
+  EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT) << msg;
+  EXPECT_NE(msg.find("'subsamples'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("rsaa_subsamples"), std::string::npos) << msg;
+  crispSetFilterImage(f, "subsamples", bad.records.data(), CrispFormat(7), DepthStep::W, DepthStep::H, 0, 0);
+  EXPECT_NE(lastError(&code).find("unknown format"), std::string::npos);
+  crispReleaseFilter(f);
+}
+
+// crisp.h: the output may share an input's buffer with the result of separate
+// buffers; rsaa's texture pass (FXAA) reads the sub-samples again after rows
+// of the output are written, so an output in a sub-sample's buffer needs them
+// kept apart, as colour, depth and normal are.
+TEST_F(RsaaApi, OutputInAnInputsBufferEqualsSeparateBuffers) {
+  const DepthStep scene(true);
+  for (const bool packed : {false, true}) {
+    const std::vector<float> separate = runRsaa(context, scene, packed);
+    for (const char* role : packed ? std::vector<const char*>{"color", "subsamples"}
+                                   : std::vector<const char*>{"color", "sub0", "sub3", "sub7"})
+      EXPECT_EQ(separate, runRsaa(context, scene, packed, role)) << "output in the '" << role << "' buffer";
+  }
 }
 
 TEST_F(RsaaApi, OnlyRsaaTakesTheCamera) {

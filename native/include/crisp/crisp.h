@@ -52,7 +52,8 @@ typedef enum CrispFormat {
   CRISP_FORMAT_FLOAT2 = 2,
   CRISP_FORMAT_FLOAT3 = 3,
   CRISP_FORMAT_FLOAT4 = 4,
-  CRISP_FORMAT_UINT = 5,    // 1 x uint32 (object ID hash)
+  CRISP_FORMAT_UINT = 5,    // 1 x uint32 (object ID hash); an ID image may also be
+                            // CRISP_FORMAT_FLOAT, read as its bits (Cryptomatte's hash)
   // RSAA's 8 geometric sub-samples of one pixel in one 80-byte record: float32
   // planar depth[8], then int16 world normal x[8], y[8], z[8] (snorm:
   // component x 32767, rounded). The rsaa filter's image "subsamples";
@@ -111,7 +112,8 @@ CRISP_API const char* crispGetFilterString(CrispFilter filter, const char* name)
 CRISP_API const char* crispGetFilterDoc(CrispFilter filter);
 // The same as JSON, for programs (the Blender add-on builds its settings from
 // it): {"type": ..., "images": [{"name", "required", "minChannels",
-// "maxChannels", "uint", "meaning"}...], "params": [{"name", "type" (int,
+// "maxChannels", "uint" (an ID image: UINT, or FLOAT read as its bits),
+// "meaning"}...], "params": [{"name", "type" (int,
 // float, bool, string), "default", "min", "max" | "choices", "meaning",
 // "source"}...]}. Valid until the filter is changed or released.
 CRISP_API const char* crispGetFilterInfo(CrispFilter filter);
