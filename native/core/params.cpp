@@ -35,10 +35,21 @@ static std::vector<std::string> splitChoices(const char* choices) {
   return out;
 }
 
+// An integer in full (an int parameter's 2147483647, not 2.14748e+09), other
+// values as a stream prints them.
 static std::string formatNumber(double v) {
+  if (std::isfinite(v) && v == std::floor(v) && std::fabs(v) < 1e15) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.0f", v);
+    return buf;
+  }
   std::ostringstream s;
   s << v;
   return s.str();
+}
+
+void ParamSet::fail(const std::string& message) const {
+  invalidArgument(owner_.empty() ? message : owner_ + ": " + message);
 }
 
 ParamSet::ParamSet(std::vector<ParamSpec> specs) : specs_(std::move(specs)) {
@@ -54,25 +65,25 @@ std::size_t ParamSet::indexOf(const std::string& name) const {
     if (name == specs_[i].name) return i;
   std::string known;
   for (const ParamSpec& s : specs_) known += std::string(known.empty() ? "" : ", ") + s.name;
-  invalidArgument("unknown parameter '" + name + "' (known: " + (known.empty() ? "none" : known) + ")");
+  fail("unknown parameter '" + name + "'" + (known.empty() ? std::string(" (it has none)") : " (known: " + known + ")"));
 }
 
 const ParamSpec& ParamSet::spec(const std::string& name) const { return specs_[indexOf(name)]; }
 
-static void checkType(const ParamSpec& s, ParamType want) {
+void ParamSet::checkType(const ParamSpec& s, ParamType want) const {
   if (s.type != want)
-    invalidArgument(std::string("parameter '") + s.name + "' is " + paramTypeName(s.type) + ", not " +
+    fail(std::string("parameter '") + s.name + "' is " + paramTypeName(s.type) + ", not " +
                     paramTypeName(want));
 }
 
-static void checkRange(const ParamSpec& s, double v) {
+void ParamSet::checkRange(const ParamSpec& s, double v) const {
   // A float parameter holds a float: its bounds as floats too, so the value
   // a caller reads from the specs (0.01 becomes 0.0099999998f) is accepted.
   const bool single = s.type == ParamType::Float;
   const double lo = single ? double(float(s.minValue)) : s.minValue;
   const double hi = single ? double(float(s.maxValue)) : s.maxValue;
   if (!std::isfinite(v) || v < lo || v > hi)
-    invalidArgument(std::string("parameter '") + s.name + "' = " + formatNumber(v) + " is out of range [" +
+    fail(std::string("parameter '") + s.name + "' = " + formatNumber(v) + " is out of range [" +
                     formatNumber(s.minValue) + ", " + formatNumber(s.maxValue) + "]");
 }
 
@@ -106,7 +117,7 @@ void ParamSet::setString(const std::string& name, const std::string& value) {
       strings_[i] = value;
       return;
     }
-  invalidArgument("parameter '" + name + "' = '" + value + "' is not one of: " + specs_[i].choices);
+  fail("parameter '" + name + "' = '" + value + "' is not one of: " + specs_[i].choices);
 }
 
 void ParamSet::setFromText(const std::string& name, const std::string& text) {
@@ -116,7 +127,7 @@ void ParamSet::setFromText(const std::string& name, const std::string& text) {
     char* e = nullptr;
     double v = integer ? double(std::strtol(b, &e, 10)) : std::strtod(b, &e);
     if (text.empty() || *e != '\0')
-      invalidArgument("parameter '" + name + "' expects " + paramTypeName(s.type) + ", got '" + text + "'");
+      fail("parameter '" + name + "' expects " + paramTypeName(s.type) + ", got '" + text + "'");
     return v;
   };
   switch (s.type) {
@@ -130,7 +141,7 @@ void ParamSet::setFromText(const std::string& name, const std::string& text) {
     case ParamType::Bool:
       if (text == "1" || text == "true" || text == "on" || text == "yes") setBool(name, true);
       else if (text == "0" || text == "false" || text == "off" || text == "no") setBool(name, false);
-      else invalidArgument("parameter '" + name + "' expects a bool (true/false), got '" + text + "'");
+      else fail("parameter '" + name + "' expects a bool (true/false), got '" + text + "'");
       break;
     case ParamType::String: setString(name, text); break;
   }

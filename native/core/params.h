@@ -31,6 +31,8 @@ class ParamSet {
   explicit ParamSet(std::vector<ParamSpec> specs);
 
   const std::vector<ParamSpec>& specs() const { return specs_; }
+  // Whose parameters these are ("filter 'taa'"): the start of every error message.
+  void setOwner(std::string owner) { owner_ = std::move(owner); }
   const ParamSpec& spec(const std::string& name) const;  // throws naming the unknown parameter
 
   void setInt(const std::string& name, int value);
@@ -52,6 +54,10 @@ class ParamSet {
 
  private:
   std::size_t indexOf(const std::string& name) const;
+  void checkType(const ParamSpec& s, ParamType want) const;
+  void checkRange(const ParamSpec& s, double v) const;
+  [[noreturn]] void fail(const std::string& message) const;
+  std::string owner_;
   std::vector<ParamSpec> specs_;
   std::vector<double> numbers_;
   std::vector<std::string> strings_;

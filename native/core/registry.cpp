@@ -51,7 +51,11 @@ const char* filterTypesJoined() {
 
 std::unique_ptr<Filter> createFilter(Context& context, const std::string& type) {
   for (const Entry& e : kFilters)
-    if (type == e.name) return e.make(context);
+    if (type == e.name) {
+      std::unique_ptr<Filter> f = e.make(context);
+      f->params().setOwner("filter '" + type + "'");
+      return f;
+    }
   invalidArgument("unknown filter type '" + type + "' (known: " + filterTypesJoined() + ")");
 }
 

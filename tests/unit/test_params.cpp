@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <functional>
+#include <memory>
 #include <sstream>
 
 #include "core/context.h"
@@ -55,6 +56,19 @@ TEST(Params, ErrorsNameTheParameter) {
   EXPECT_NE(errorOf([&] { p.setFromText("mask", "gauss7"); }).find("not one of"), std::string::npos);
   EXPECT_NE(errorOf([&] { p.setFromText("on", "maybe"); }).find("expects a bool"), std::string::npos);
   EXPECT_EQ(p.getFloat("k"), -1.0f);  // failed sets leave the value alone
+}
+
+// A filter's parameter errors start with the filter's name (the C API's caller
+// may hold several), and an int out of range is printed in full.
+TEST(Params, FilterErrorsNameTheFilterAndWholeNumbers) {
+  Context context;
+  std::unique_ptr<Filter> none = createFilter(context, "none");
+  EXPECT_EQ(errorOf([&] { none->params().setFloat("bogus", 1); }), "filter 'none': unknown parameter 'bogus' (it has none)");
+  std::unique_ptr<Filter> taa = createFilter(context, "taa");
+  EXPECT_EQ(errorOf([&] { taa->params().setInt("maxSamples", 2147483647); }),
+            "filter 'taa': parameter 'maxSamples' = 2147483647 is out of range [1, 65536]");
+  EXPECT_EQ(errorOf([&] { makeSet().setFloat("k", 2.5e9f); }), "parameter 'k' = 2500000000 is out of range [-4, 4]");
+  EXPECT_EQ(errorOf([&] { makeSet().setFloat("k", 4.25f); }), "parameter 'k' = 4.25 is out of range [-4, 4]");
 }
 
 TEST(Params, TableListsEveryParameter) {
