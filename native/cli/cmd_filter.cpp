@@ -35,15 +35,17 @@ namespace fs = std::filesystem;
 
 namespace {
 
+bool readsMotion(const Filter& filter) {
+  const auto& roles = filter.roles();
+  return std::any_of(roles.begin(), roles.end(), [](const ImageRole& r) { return std::strcmp(r.name, "motion") == 0; });
+}
+
 // Whether motion should be rebuilt for this run: the method reads "motion",
 // every input has an add-on sidecar (frame_NNNN.json) and something moves over
 // the inputs. A still sequence gets no motion pass at all, as the pass plan
 // decides, so temporal filters take their static path.
 bool rebuildsMotion(const Filter& filter, const std::vector<std::string>& inputs) {
-  const auto& roles = filter.roles();
-  const bool readsMotion = std::any_of(roles.begin(), roles.end(),
-                                       [](const ImageRole& r) { return std::strcmp(r.name, "motion") == 0; });
-  if (!readsMotion) return false;
+  if (!readsMotion(filter)) return false;
   std::vector<std::string> sidecars;
   std::error_code ec;
   for (const std::string& in : inputs) {
@@ -51,6 +53,44 @@ bool rebuildsMotion(const Filter& filter, const std::vector<std::string>& inputs
     if (!fs::is_regular_file(sidecars.back(), ec)) return false;
   }
   return !sequenceIsStill(sidecars);
+}
+
+// What the inputs' sidecars decide over --set, and what a sequence where
+// only some inputs have one loses, said before the run. rsaa's camera comes
+// from every frame's sidecar, so setting it is refused; a jitter set applies
+// to the inputs without a sidecar only.
+void checkSidecarSettings(const Filter& filter, const ParsedArgs& args) {
+  const std::vector<std::string>& inputs = args.positional;
+  std::size_t with = 0;
+  std::string firstWithout;
+  std::error_code ec;
+  for (const std::string& in : inputs)
+    if (fs::is_regular_file(sidecarPathFor(in), ec))
+      ++with;
+    else if (firstWithout.empty())
+      firstWithout = in;
+  const bool takesJitter = keepsHistory(filter);
+  for (const std::string& kv : args.all("set")) {
+    const std::string key = kv.substr(0, kv.find('='));
+    if (readsSubsamples(filter) && isRsaaCameraParam(key))
+      throw UsageError("--set " + key + ": rsaa takes its camera from each input's sidecar (the camera the frame was "
+                       "rendered with), which replaces any value set here");
+    if (takesJitter && (key == "jitterX" || key == "jitterY") && with > 0)
+      std::fprintf(stderr,
+                   "filter: warning: --set %s applies only to inputs without a sidecar; %zu of %zu inputs have one, "
+                   "and take the jitter it gives\n",
+                   key.c_str(), with, inputs.size());
+  }
+  const bool motion = readsMotion(filter);
+  if (with == 0 || with == inputs.size() || !(takesJitter || motion)) return;
+  std::string what;
+  if (takesJitter) what = "they are filtered as unjittered (or with the jitter --set gives)";
+  if (motion)
+    what += std::string(what.empty() ? "" : ", and ") +
+            "motion is rebuilt from the sidecars for no input, so inputs without a motion pass are filtered as if "
+            "nothing moved";
+  std::fprintf(stderr, "filter: warning: %zu of %zu inputs come without a sidecar (the first: '%s'): %s\n",
+               inputs.size() - with, inputs.size(), sidecarPathFor(firstWithout).c_str(), what.c_str());
 }
 
 // Non-finite colour is read as the library reads it (NaN -> 0, +-Inf ->
@@ -121,6 +161,8 @@ int runFilter(const ParsedArgs& args) {
     if (eq == std::string::npos || eq == 0) throw UsageError("--set expects KEY=VALUE, got '" + kv + "'");
     filter->params().setFromText(kv.substr(0, eq), kv.substr(eq + 1));
   }
+
+  checkSidecarSettings(*filter, args);
 
   // The chunk to write (default: every input) and its pre-roll, checked before anything is written.
   const int count = int(args.positional.size());

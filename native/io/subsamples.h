@@ -157,6 +157,15 @@ inline std::vector<std::pair<std::string, double>> rsaaCameraParams(const Sideca
   return out;
 }
 
+// Whether name is one of the parameters rsaaCameraParams gives (the sidecar
+// decides them: a caller's value is replaced frame by frame).
+inline bool isRsaaCameraParam(const std::string& name) {
+  if (name == "orthographic" || name == "proj00" || name == "proj11" || name == "proj02" || name == "proj12")
+    return true;
+  return name.size() == 6 && name.compare(0, 4, "view") == 0 && name[4] >= '0' && name[4] <= '2' && name[5] >= '0' &&
+         name[5] <= '2';
+}
+
 // Sets the rsaa filter's camera parameters from the frame's sidecar (its
 // path with ".json"); marks the filter dirty only when a value changes, so a
 // sequence from one camera commits once.

@@ -523,6 +523,31 @@ def test_a_frame_without_sidecar_is_not_given_the_previous_frames_jitter(shot, l
     assert np.array_equal(third("set"), third("quarter"))
 
 
+def test_what_the_sidecars_decide_is_said(shot, tmp_path):
+    """A sequence where some inputs lack a sidecar loses their jitter and every frame's rebuilt
+    motion: said before the run, naming the first missing sidecar; a jitter set with --set applies
+    only to inputs without a sidecar: said; rsaa's camera, which every sidecar replaces, is refused."""
+    _, inputs = shot
+    d = tmp_path / "in"
+    d.mkdir()
+    for f in range(1, 5):
+        shutil.copy(inputs[f - 1], d / frame(f))
+        if f != 3:
+            shutil.copy(inputs[f - 1][:-len(".exr")] + ".json", d / frame(f, ".json"))
+    files = [d / frame(f) for f in range(1, 5)]
+    p = crisp("filter", "--method", "taa", "--quiet", "-o", tmp_path / "a", *files)
+    assert "1 of 4 inputs come without a sidecar (the first: '%s')" % (d / frame(3, ".json")) in p.stderr, p.stderr
+    assert "motion is rebuilt from the sidecars for no input" in p.stderr, p.stderr
+    p = crisp("filter", "--method", "fxaa", "--quiet", "-o", tmp_path / "b", *files)
+    assert p.stderr == "", p.stderr  # fxaa reads neither jitter nor motion
+    p = crisp("filter", "--method", "taa", "--set", "jitterX=0.25", "--quiet", "-o", tmp_path / "c", *inputs[:3])
+    assert "--set jitterX applies only to inputs without a sidecar; 3 of 3 inputs have one" in p.stderr, p.stderr
+    assert "without a sidecar (the first" not in p.stderr, p.stderr
+    p = crisp("filter", "--method", "rsaa", "--set", "view01=0.5", "-o", tmp_path / "d", *inputs[:1], ok=False)
+    assert p.returncode == 2 and "--set view01: rsaa takes its camera from each input's sidecar" in p.stderr, p.stderr
+    assert not os.path.exists(tmp_path / "d")
+
+
 def test_a_sidecar_jitter_out_of_range_names_the_sidecar(shot, tmp_path):
     """A sidecar holding a jitter the filters refuse fails the run with a message that names the
     sidecar and the frame, not only the parameter."""
