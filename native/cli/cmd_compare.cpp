@@ -78,13 +78,7 @@ int runCompare(const ParsedArgs& args) {
                      std::to_string(tests.size()) + "; they are paired in order");
   const int threads = parseIntOption(args, "threads", 0, 0, 1024);
   Image mask;
-  if (args.has("mask")) {
-    Frame m = readFrame(args.get("mask"));
-    const Image& c = m.pass("color");
-    mask = Image(c.width, c.height, 1);
-    for (int y = 0; y < c.height; ++y)
-      for (int x = 0; x < c.width; ++x) *mask.at(x, y) = c.at(x, y)[0];
-  }
+  if (args.has("mask")) mask = readMask(args.get("mask"));
   const std::string mapsDir = args.getOr("maps", "");
   const std::vector<std::string> stems = mapStems(tests);
   refuseClobbering(args, mapsDir, stems);
@@ -97,6 +91,11 @@ int runCompare(const ParsedArgs& args) {
   for (std::size_t i = 0; i < refs.size(); ++i) {
     Frame ref = readFrame(refs[i]);
     Frame tst = readFrame(tests[i]);
+    for (const Frame* f : {&ref, &tst})
+      if (f->nonFiniteColour > 0)
+        invalidData("'" + f->path + "' has " + std::to_string(f->nonFiniteColour) +
+                    " non-finite colour values (NaN or Inf): it has no error to measure, only the values they are "
+                    "read as (0, +-65504)");
     Image errMap, ssimMap, flipMap;
     MetricMaps maps;
     if (!mapsDir.empty()) maps = {&errMap, &ssimMap, &flipMap};

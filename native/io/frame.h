@@ -49,6 +49,12 @@ void checkReadable(const std::string& path);
 // by name, that has a Combined pass, else the plain R,G,B[,A] channels.
 Frame readFrame(const std::string& path, const std::string& viewLayer);
 
+// A mask image: its first channel, at the display window's size (0 outside
+// the data window). A one-channel file's channel whatever its name ("R",
+// "mask", "Depth.Z"); otherwise the first channel of readFrame's colour.
+// Throws as readFrame, naming the file.
+Image readMask(const std::string& path);
+
 // Writes RGB(A) float to .exr (float RGBA, alpha 1 if absent) or .png (8-bit
 // sRGB-encoded RGBA) by extension, through a temporary file in the same folder
 // renamed into place: an existing file is replaced whole or not at all.

@@ -21,6 +21,7 @@
 #include <system_error>
 #include <vector>
 
+#include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imageio.h>
 
 #include "core/color.h"
@@ -429,6 +430,31 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
 
   in->close();
   return frame;
+}
+
+Image readMask(const std::string& path) {
+  OiioErrorDrain drain;
+  checkReadable(path);
+  OIIO::ImageBuf buf(path);
+  if (!buf.init_spec(path, 0, 0)) ioError("cannot read '" + path + "' as an image: " + buf.geterror());
+  const OIIO::ImageSpec& spec = buf.spec();
+  if (spec.nchannels != 1) {
+    const Frame frame = readFrame(path);
+    const Image& c = frame.pass("color");
+    Image mask(c.width, c.height, 1);
+    for (int y = 0; y < c.height; ++y)
+      for (int x = 0; x < c.width; ++x) *mask.at(x, y) = c.at(x, y)[0];
+    return mask;
+  }
+  const OIIO::ROI full = buf.roi_full();
+  if (full.width() <= 0 || full.height() <= 0 || full.width() > kMaxDimension || full.height() > kMaxDimension ||
+      (long long)full.width() * full.height() > kMaxPixels)
+    invalidData("mask '" + path + "' has an unsupported size: " + std::to_string(full.width()) + "x" +
+                std::to_string(full.height()));
+  Image mask(full.width(), full.height(), 1);
+  if (!buf.get_pixels(full, OIIO::TypeDesc::FLOAT, mask.data.data()))
+    ioError("cannot read '" + path + "' (truncated or corrupt file?): " + buf.geterror());
+  return mask;
 }
 
 }  // namespace crisp

@@ -382,6 +382,29 @@ def test_non_finite_colour_is_reported_per_file(chart, tmp_path):
     assert len(warnings) == 1 and "nan.exr" in warnings[0], p.stderr
     assert " %d non-finite colour values" % (97 * 61 * 3) in warnings[0], warnings[0]
     assert (tmp_path / "out" / "nan.exr").exists()  # still filtered, as the library reads it
+    # compare has no figure to give for it: refused, naming the file, writing no --json.
+    p = run("compare", "-r", chart / "chart_reference.exr", "-t", bad, "--json", tmp_path / "m.json", ok=False)
+    assert p.returncode == 1 and "'%s' has %d non-finite colour values" % (bad, 97 * 61 * 3) in p.stderr, p.stderr
+    assert not (tmp_path / "m.json").exists()
+    p = run("compare", "-r", bad, "-t", chart / "chart_1spp.exr", ok=False)
+    assert p.returncode == 1 and "nan.exr" in p.stderr, p.stderr
+
+
+def test_a_one_channel_mask_is_read_whatever_its_name(chart, tmp_path):
+    """compare --mask takes the mask's first channel: a one-channel file's whatever its name, the
+    same pixels as the RGB edge mask's R."""
+    args = ["--reference", chart / "chart_reference.exr", "--test", chart / "chart_1spp.exr"]
+    run("compare", *args, "--mask", chart / "chart_edges.exr", "--json", tmp_path / "rgb.json")
+    rgb = json.loads((tmp_path / "rgb.json").read_text())["frames"][0]
+    for name in ("R", "mask", "Depth.Z"):
+        one = tmp_path / ("edges_%s.exr" % name)
+        subprocess.run(["oiiotool", str(chart / "chart_edges.exr"), "--ch", "%s=R" % name, "-o", str(one)],
+                       check=True, capture_output=True)
+        js = tmp_path / ("%s.json" % name)
+        run("compare", *args, "--mask", one, "--json", js)
+        frame = json.loads(js.read_text())["frames"][0]
+        assert (frame["pixels"], frame["psnr"]) == (rgb["pixels"], rgb["psnr"]), name
+    assert rgb["pixels"] < 97 * 61
 
 
 @pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="needs root to run crisp as nobody")
