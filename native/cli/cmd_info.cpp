@@ -14,11 +14,21 @@ namespace crisp::cli {
 int runInfo(const ParsedArgs& args) {
   if (args.positional.empty()) throw UsageError("'info' needs at least one FILE");
   Context context;
+  int failed = 0;
   for (const std::string& path : args.positional) {
-    Frame frame = readFrame(path);
+    // A file that cannot be read is reported, and the others still are.
+    Frame frame;
+    try {
+      frame = readFrame(path);
+    } catch (const Exception& e) {
+      std::printf("%s\n  error: %s\n", path.c_str(), e.what());
+      ++failed;
+      continue;
+    }
     std::printf("%s\n  size: %dx%d\n  channels:", path.c_str(), frame.width, frame.height);
     for (const std::string& c : frame.channelNames) std::printf(" %s", c.c_str());
     std::printf("\n  passes: %s\n", frame.passList().c_str());
+    for (const auto& [role, why] : frame.unusable) std::printf("  unusable: %s (%s)\n", role.c_str(), why.c_str());
     if (!frame.objectIds.empty()) {
       std::printf("  objects (cryptomatte):");
       for (const auto& [name, hash] : frame.objectIds) std::printf(" %s=%08x", name.c_str(), unsigned(hash));
@@ -31,6 +41,10 @@ int runInfo(const ParsedArgs& args) {
       const bool subsamples = readsSubsamples(*filter);
       for (const ImageRole& r : filter->roles()) {
         if (std::string(r.name) == "output" || frame.has(r.name)) continue;
+        if (frame.unusable.count(r.name)) {  // crisp filter refuses it (cli/files.cpp bindFrame)
+          missing += std::string(" ") + r.name + " (unusable)";
+          continue;
+        }
         // rsaa's sub-samples come from the files its sidecar names, checked below.
         if (subsamples && (std::strcmp(r.name, kPackedSubsamplePass) == 0 || std::strncmp(r.name, "sub", 3) == 0))
           continue;
@@ -47,6 +61,9 @@ int runInfo(const ParsedArgs& args) {
                   optional.empty() ? "" : "; optional, absent:", optional.c_str());
     }
   }
+  if (failed > 0)
+    throw Exception(CRISP_ERROR_INVALID_DATA, std::to_string(failed) + " of " +
+                                                  std::to_string(args.positional.size()) + " files could not be read");
   return 0;
 }
 

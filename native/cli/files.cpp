@@ -178,6 +178,7 @@ void bindFrame(Filter& filter, Frame& frame, ShotPosition& shot) {
   for (const ImageRole& role : filter.roles()) {
     std::string name = role.name;
     if (name == "output") continue;
+    if (!frame.has(name) && frame.unusable.count(name)) frame.pass(name);  // throws, saying why
     if (frame.has(name)) {
       filter.setImage(name, frame.pass(name).view());
     } else if (role.required) {

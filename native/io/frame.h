@@ -28,9 +28,13 @@ struct Frame {
   // Colour values (RGBA) that were NaN or +-Inf in the file; the colour pass
   // holds them sanitised (NaN -> 0, +-Inf -> +-65504, conventions.h).
   long nonFiniteColour = 0;
+  // Passes the file holds in a form that cannot be used, and why (an ID pass
+  // stored as half float): an error only for a method that reads them.
+  std::map<std::string, std::string> unusable;
 
   bool has(const std::string& role) const { return passes.count(role) != 0; }
-  // Throws CRISP_ERROR_INVALID_DATA naming the file and the pass if absent.
+  // Throws CRISP_ERROR_INVALID_DATA naming the file and the pass if absent
+  // (saying why, when the file holds it unusable).
   const Image& pass(const std::string& role) const;
   std::string passList() const;  // "color,depth,..."
 };

@@ -240,6 +240,7 @@ std::string findManifest(const OIIO::ImageSpec& spec, const std::string& layer) 
 
 const Image& Frame::pass(const std::string& role) const {
   auto it = passes.find(role);
+  if (it == passes.end() && unusable.count(role)) invalidData(unusable.at(role));
   if (it == passes.end())
     invalidData("'" + path + "' has no " + role + " pass (passes found: " + (passes.empty() ? "none" : passList()) + ")");
   return it->second;
@@ -401,9 +402,13 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
                                          });
       } else if (role == "id") {
         // The hash bits must survive: a half-float channel cannot hold them.
-        if (spec.channelformat(idx[0]).basetype != OIIO::TypeDesc::FLOAT)
-          invalidData("pass '" + passLabel + "' in '" + path + "' is stored as " +
-                      std::string(spec.channelformat(idx[0]).c_str()) + ", not 32-bit float: object IDs would be lost");
+        // Only a method that reads IDs fails on it (Frame::unusable).
+        if (spec.channelformat(idx[0]).basetype != OIIO::TypeDesc::FLOAT) {
+          frame.unusable[role] = "pass '" + passLabel + "' in '" + path + "' is stored as " +
+                                 std::string(spec.channelformat(idx[0]).c_str()) +
+                                 ", not 32-bit float: object IDs would be lost";
+          continue;
+        }
         frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image::uintImage(win.width, win.height),
                                          [](const float* s, Image& im, int x, int y) {
                                            std::uint32_t bits;

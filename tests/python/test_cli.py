@@ -355,6 +355,31 @@ def test_compare_refuses_maps_and_json_that_would_replace_files(chart, tmp_path)
     assert victim.read_bytes() == before and (a / "frame.exr").read_bytes() == test.read_bytes()
 
 
+def test_a_half_float_id_pass_fails_only_methods_that_read_ids(chart, tmp_path):
+    """An ID pass stored as half float cannot hold the hashes: crisp filter refuses it for a method
+    that reads IDs, naming the pass and the file, and filters the frame for one that does not;
+    crisp info says so and goes on to the next file after one it cannot read."""
+    L = "ViewLayer"
+    half = tmp_path / "half_ids.exr"
+    crypto = ["%s.CryptoObject00.%s" % (L, c) for c in "rgba"]
+    subprocess.run(["oiiotool", str(chart / "chart_1spp.exr"), "--ch", "R,G,B,A,R,G,B,A", "--chnames",
+                    ",".join(["%s.Combined.%s" % (L, c) for c in "RGBA"] + crypto), "-d", "float",
+                    *[a for c in crypto for a in ("-d", c + "=half")], "-o", str(half)],
+                   check=True, capture_output=True)
+    p = run("filter", "--method", "taa-improved", half, "-o", tmp_path / "ids", ok=False)
+    assert p.returncode == 1 and "pass '%s.CryptoObject00'" % L in p.stderr and "half_ids.exr" in p.stderr, p.stderr
+    assert "object IDs would be lost" in p.stderr, p.stderr
+    assert not list((tmp_path / "ids").glob("*.exr"))
+    run("filter", "--method", "fxaa", half, "-o", tmp_path / "no_ids")
+    assert (tmp_path / "no_ids" / "half_ids.exr").is_file()
+    p = run("info", tmp_path / "missing.exr", half, ok=False)
+    assert p.returncode == 1 and "missing.exr\n  error: cannot read" in p.stdout, p.stdout
+    assert "unusable: id (pass '%s.CryptoObject00'" % L in p.stdout, p.stdout
+    lines = {l.split()[0]: l for l in p.stdout.splitlines() if l.startswith("    ")}
+    assert "missing: id (unusable)" in lines["taa-improved"] and "ready" in lines["fxaa"], p.stdout
+    assert "1 of 2 files could not be read" in p.stderr, p.stderr
+
+
 def test_info_checks_rsaa_as_filter_does(chart, tmp_path):
     """rsaa needs its sidecar's sub-sample renders; `info` says so for a frame without one, as
     `filter -m rsaa` refuses it."""
