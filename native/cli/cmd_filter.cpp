@@ -155,12 +155,7 @@ int runFilter(const ParsedArgs& args) {
 
   Context context;
   context.setInt("numThreads", parseIntOption(args, "threads", 0, 0, 1024));
-  std::unique_ptr<Filter> filter = createFilter(context, args.get("method"));
-  for (const std::string& kv : args.all("set")) {
-    auto eq = kv.find('=');
-    if (eq == std::string::npos || eq == 0) throw UsageError("--set expects KEY=VALUE, got '" + kv + "'");
-    filter->params().setFromText(kv.substr(0, eq), kv.substr(eq + 1));
-  }
+  std::unique_ptr<Filter> filter = configuredFilter(context, args.get("method"), args);
 
   checkSidecarSettings(*filter, args);
 

@@ -20,6 +20,12 @@ namespace fs = std::filesystem;
 
 int runRender(const ParsedArgs& args) {
   if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
+  {
+    // The method and its --set values, checked here as crisp filter checks them: a mistake is
+    // said before Blender starts (and --plan, which filters nothing, says it too).
+    Context context;
+    configuredFilter(context, args.getOr("method", "fxaa"), args);
+  }
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch.py");
   cmd.push_back("-o");
   cmd.push_back(args.get("output"));

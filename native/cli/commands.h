@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,10 @@ struct ShotPosition {
   bool jitterSaved = false;
   float jitterX = 0.0f, jitterY = 0.0f;
 };
+// The method's filter with the --set KEY=VALUE settings of args applied
+// (throws naming a bad one): what crisp filter runs, and what crisp render
+// checks before it starts Blender.
+std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args);
 // Binds the frame's passes and its jitter (from its sidecar, or the jitter
 // saved in shot when it has none). shot: the position historyBreak just
 // updated for this frame, whose sidecar is then not parsed again.

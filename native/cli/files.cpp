@@ -172,6 +172,16 @@ std::string historyBreak(const Filter& filter, const std::string& framePath, Sho
   return reason;
 }
 
+std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args) {
+  std::unique_ptr<Filter> filter = createFilter(context, method);
+  for (const std::string& kv : args.all("set")) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos || eq == 0) throw UsageError("--set expects KEY=VALUE, got '" + kv + "'");
+    filter->params().setFromText(kv.substr(0, eq), kv.substr(eq + 1));
+  }
+  return filter;
+}
+
 void bindFrame(Filter& filter, Frame& frame, ShotPosition& shot) {
   if (readsSubsamples(filter)) attachRsaaInputs(filter, frame);
   bindJitter(filter, frame, shot);

@@ -380,6 +380,20 @@ def test_a_half_float_id_pass_fails_only_methods_that_read_ids(chart, tmp_path):
     assert "1 of 2 files could not be read" in p.stderr, p.stderr
 
 
+def test_render_checks_the_method_and_its_settings_before_blender(tmp_path):
+    """crisp render (and --plan, which renders nothing) refuses a bad --set as crisp filter does,
+    before Blender starts: nothing is written."""
+    for method, kv, message in (("taa", "bogus=1", "filter 'taa': unknown parameter 'bogus'"),
+                                ("taa", "feedbackMin=nan", "'feedbackMin' = nan is out of range"),
+                                (None, "kappa=1", "filter 'fxaa': unknown parameter 'kappa'")):
+        for plan in ((), ("--plan",)):
+            out = tmp_path / "out"
+            p = run("render", "--scene", "still_life", "-o", out, *plan, *(("-m", method) if method else ()),
+                    "--set", kv, "--blender", tmp_path / "no_blender_here", ok=False)
+            assert p.returncode == 1 and message in p.stderr, p.stderr
+            assert not out.exists()
+
+
 def test_info_checks_rsaa_as_filter_does(chart, tmp_path):
     """rsaa needs its sidecar's sub-sample renders; `info` says so for a frame without one, as
     `filter -m rsaa` refuses it."""
