@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "core/params.h"
 
+#include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -125,9 +127,14 @@ void ParamSet::setFromText(const std::string& name, const std::string& text) {
   auto parseNumber = [&](bool integer) {
     const char* b = text.c_str();
     char* e = nullptr;
+    errno = 0;
     double v = integer ? double(std::strtol(b, &e, 10)) : std::strtod(b, &e);
-    if (text.empty() || *e != '\0')
+    // strtol / strtod skip leading blanks; a trailing one is refused, so a leading one is too.
+    if (text.empty() || std::isspace((unsigned char)text[0]) || *e != '\0')
       fail("parameter '" + name + "' expects " + paramTypeName(s.type) + ", got '" + text + "'");
+    if (errno == ERANGE && (integer || std::fabs(v) > 1.0))  // too large to hold: say what was typed
+      fail("parameter '" + name + "' = " + text + " is out of range [" + formatNumber(s.minValue) + ", " +
+           formatNumber(s.maxValue) + "]");
     return v;
   };
   switch (s.type) {

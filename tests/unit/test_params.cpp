@@ -69,6 +69,13 @@ TEST(Params, FilterErrorsNameTheFilterAndWholeNumbers) {
             "filter 'taa': parameter 'maxSamples' = 2147483647 is out of range [1, 65536]");
   EXPECT_EQ(errorOf([&] { makeSet().setFloat("k", 2.5e9f); }), "parameter 'k' = 2500000000 is out of range [-4, 4]");
   EXPECT_EQ(errorOf([&] { makeSet().setFloat("k", 4.25f); }), "parameter 'k' = 4.25 is out of range [-4, 4]");
+  // Text: a number too large to hold is named as typed; blanks on either side are refused alike.
+  EXPECT_EQ(errorOf([&] { makeSet().setFromText("n", "99999999999999999999"); }),
+            "parameter 'n' = 99999999999999999999 is out of range [3, 9]");
+  EXPECT_EQ(errorOf([&] { makeSet().setFromText("k", "1e999"); }), "parameter 'k' = 1e999 is out of range [-4, 4]");
+  EXPECT_EQ(errorOf([&] { makeSet().setFromText("n", " 5"); }), "parameter 'n' expects int, got ' 5'");
+  EXPECT_EQ(errorOf([&] { makeSet().setFromText("n", "5 "); }), "parameter 'n' expects int, got '5 '");
+  EXPECT_EQ(errorOf([&] { makeSet().setFromText("k", "1e-999"); }), "");  // underflows to 0: in range
 }
 
 TEST(Params, TableListsEveryParameter) {
