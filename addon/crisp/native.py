@@ -455,8 +455,8 @@ class FrameFilter:
                 if role == "motion":
                     self._bind_motion(frame, sidecar, present)
                     continue
-                if role not in present:
-                    raise CrispError("%s has no '%s' pass (has: %s)" % (input_path, role, ", ".join(sorted(present))))
+                # A pass the frame lacks raises here, with the library's reason: absent (naming the
+                # passes found) or held unusable (an ID pass stored as half float).
                 ptr, fmt = frame.pass_pointer(role)
                 self.filter.set_image(role, ptr, fmt, w, h)
             self.filter.set_image("output", ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)

@@ -56,9 +56,9 @@ bool rebuildsMotion(const Filter& filter, const std::vector<std::string>& inputs
 }
 
 // What the inputs' sidecars decide over --set, and what a sequence where
-// only some inputs have one loses, said before the run. rsaa's camera comes
-// from every frame's sidecar, so setting it is refused; a jitter set applies
-// to the inputs without a sidecar only.
+// only some inputs have one loses, said before the run: a jitter set applies
+// to the inputs without a sidecar only (rsaa's camera, which every sidecar
+// gives, is refused by configuredFilter).
 void checkSidecarSettings(const Filter& filter, const ParsedArgs& args) {
   const std::vector<std::string>& inputs = args.positional;
   std::size_t with = 0;
@@ -70,17 +70,13 @@ void checkSidecarSettings(const Filter& filter, const ParsedArgs& args) {
     else if (firstWithout.empty())
       firstWithout = in;
   const bool takesJitter = keepsHistory(filter);
-  for (const std::string& kv : args.all("set")) {
-    const std::string key = kv.substr(0, kv.find('='));
-    if (readsSubsamples(filter) && isRsaaCameraParam(key))
-      throw UsageError("--set " + key + ": rsaa takes its camera from each input's sidecar (the camera the frame was "
-                       "rendered with), which replaces any value set here");
-    if (takesJitter && (key == "jitterX" || key == "jitterY") && with > 0)
+  std::set<std::string> warned;  // a key set twice is said once
+  for (const auto& [key, value] : settingsOf(args))
+    if (takesJitter && (key == "jitterX" || key == "jitterY") && with > 0 && warned.insert(key).second)
       std::fprintf(stderr,
                    "filter: warning: --set %s applies only to inputs without a sidecar; %zu of %zu inputs have one, "
                    "and take the jitter it gives\n",
                    key.c_str(), with, inputs.size());
-  }
   const bool motion = readsMotion(filter);
   if (with == 0 || with == inputs.size() || !(takesJitter || motion)) return;
   std::string what;
@@ -192,10 +188,7 @@ int runFilter(const ParsedArgs& args) {
                              {"params", nlohmann::json::object()},
                              {"motion_from_sidecars", rebuildMotion},
                              {"build", buildStamp()}};
-  for (const std::string& kv : args.all("set")) {
-    const std::size_t eq = kv.find('=');
-    settings["params"][kv.substr(0, eq)] = kv.substr(eq + 1);
-  }
+  for (const auto& [key, value] : settingsOf(args)) settings["params"][key] = value;
   const bool temporal = keepsHistory(*filter);
   const int historyFirst = std::max(1, chunk.first - preroll);  // where the chunk's history starts
   OutputStamps stamps(outDir, args.positional, settings, temporal, historyFirst, png, readsSubsamples(*filter));

@@ -6,6 +6,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli/options.h"
@@ -40,6 +41,9 @@ struct ShotPosition {
   bool jitterSaved = false;
   float jitterX = 0.0f, jitterY = 0.0f;
 };
+// The --set KEY=VALUE settings of args, blanks around KEY and VALUE trimmed
+// (as batch.py strips them); a UsageError for one without KEY or '='.
+std::vector<std::pair<std::string, std::string>> settingsOf(const ParsedArgs& args);
 // The method's filter with the --set KEY=VALUE settings of args applied
 // (throws naming a bad one): what crisp filter runs, and what crisp render
 // checks before it starts Blender.

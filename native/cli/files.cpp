@@ -172,12 +172,28 @@ std::string historyBreak(const Filter& filter, const std::string& framePath, Sho
   return reason;
 }
 
-std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args) {
-  std::unique_ptr<Filter> filter = createFilter(context, method);
+std::vector<std::pair<std::string, std::string>> settingsOf(const ParsedArgs& args) {
+  const auto trimmed = [](const std::string& t) {
+    const auto b = t.find_first_not_of(" \t"), e = t.find_last_not_of(" \t");
+    return b == std::string::npos ? std::string() : t.substr(b, e - b + 1);
+  };
+  std::vector<std::pair<std::string, std::string>> out;
   for (const std::string& kv : args.all("set")) {
     const auto eq = kv.find('=');
-    if (eq == std::string::npos || eq == 0) throw UsageError("--set expects KEY=VALUE, got '" + kv + "'");
-    filter->params().setFromText(kv.substr(0, eq), kv.substr(eq + 1));
+    const std::string key = trimmed(kv.substr(0, eq));
+    if (eq == std::string::npos || key.empty()) throw UsageError("--set expects KEY=VALUE, got '" + kv + "'");
+    out.emplace_back(key, trimmed(kv.substr(eq + 1)));
+  }
+  return out;
+}
+
+std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args) {
+  std::unique_ptr<Filter> filter = createFilter(context, method);
+  for (const auto& [key, value] : settingsOf(args)) {
+    if (readsSubsamples(*filter) && isRsaaCameraParam(key))
+      throw UsageError("--set " + key + ": rsaa takes its camera from each frame's sidecar (the camera the frame "
+                       "was rendered with), which replaces any value set here");
+    filter->params().setFromText(key, value);
   }
   return filter;
 }

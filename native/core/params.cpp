@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <sstream>
 
 #include "core/error.h"
@@ -132,7 +133,9 @@ void ParamSet::setFromText(const std::string& name, const std::string& text) {
     // strtol / strtod skip leading blanks; a trailing one is refused, so a leading one is too.
     if (text.empty() || std::isspace((unsigned char)text[0]) || *e != '\0')
       fail("parameter '" + name + "' expects " + paramTypeName(s.type) + ", got '" + text + "'");
-    if (errno == ERANGE && (integer || std::fabs(v) > 1.0))  // too large to hold: say what was typed
+    // Too large to hold (for a float parameter: as a float): say what was typed.
+    if ((errno == ERANGE && (integer || std::fabs(v) > 1.0)) ||
+        (!integer && std::isfinite(v) && std::fabs(v) > double(std::numeric_limits<float>::max())))
       fail("parameter '" + name + "' = " + text + " is out of range [" + formatNumber(s.minValue) + ", " +
            formatNumber(s.maxValue) + "]");
     return v;
@@ -145,11 +148,14 @@ void ParamSet::setFromText(const std::string& name, const std::string& text) {
       break;
     }
     case ParamType::Float: setFloat(name, float(parseNumber(false))); break;
-    case ParamType::Bool:
-      if (text == "1" || text == "true" || text == "on" || text == "yes") setBool(name, true);
-      else if (text == "0" || text == "false" || text == "off" || text == "no") setBool(name, false);
+    case ParamType::Bool: {
+      std::string word = text;  // any case, as the add-on reads a bool
+      for (char& c : word) c = char(std::tolower((unsigned char)c));
+      if (word == "1" || word == "true" || word == "on" || word == "yes") setBool(name, true);
+      else if (word == "0" || word == "false" || word == "off" || word == "no") setBool(name, false);
       else fail("parameter '" + name + "' expects a bool (true/false), got '" + text + "'");
       break;
+    }
     case ParamType::String: setString(name, text); break;
   }
 }

@@ -166,15 +166,16 @@ inline bool isRsaaCameraParam(const std::string& name) {
          name[5] <= '2';
 }
 
-// Sets the rsaa filter's camera parameters from the frame's sidecar (its
-// path with ".json"); marks the filter dirty only when a value changes, so a
-// sequence from one camera commits once.
+// Whether the filter reads geometric sub-samples (rsaa).
 inline bool readsSubsamples(const Filter& filter) {
   for (const ImageRole& role : filter.roles())
     if (subsamplePass(0) == role.name) return true;
   return false;
 }
 
+// Sets the rsaa filter's camera parameters from the frame's sidecar (its
+// path with ".json"); marks the filter dirty only when a value changes, so a
+// sequence from one camera commits once.
 inline void applyRsaaCamera(Filter& filter, const Frame& frame) {
   if (!readsSubsamples(filter))
     invalidArgument(std::string("filter '") + filter.type() + "' reads no geometric sub-samples (only rsaa does)");

@@ -73,6 +73,13 @@ bool anyObjectMoves(const Sidecar& a, const Sidecar& b) {
   return false;
 }
 
+// Whether pixels must be matched to objects by their IDs: more than one
+// object, and one of them moves (reconstructMotion's "without IDs" rule).
+bool needsIds(const Sidecar& current, const Sidecar& previous, const Sidecar* next) {
+  return current.objects.size() != 1 &&
+         (anyObjectMoves(current, previous) || (next && anyObjectMoves(current, *next)));
+}
+
 void checkSameSize(const Sidecar& current, const Sidecar& other, const char* which) {
   if (other.width != current.width || other.height != current.height)
     invalidData(std::string(which) + " sidecar '" + other.path + "' is for " + std::to_string(other.width) + "x" +
@@ -108,7 +115,7 @@ FrameMotion reconstructMotion(const Image& depth, const Image* ids, const Sideca
   if (!ids) {
     if (current.objects.size() == 1) {
       loneObject = current.objects.begin()->first;
-    } else if (anyObjectMoves(current, previous) || (next && anyObjectMoves(current, *next))) {
+    } else if (needsIds(current, previous, next)) {
       invalidData("'" + frameLabel + "' has no id pass (Cryptomatte object) but objects move between '" +
                   previous.path + "', '" + current.path + "'" + (next ? ", '" + next->path + "'" : std::string()) +
                   ": pixels cannot be matched to their objects; render the CryptoObject pass");
@@ -233,6 +240,10 @@ void reconstructFrameMotion(Frame& frame, const std::string& previousSidecarPath
   Sidecar next;
   if (!nextSidecarPath.empty()) next = readSidecar(nextSidecarPath);
   const Image* ids = frame.has("id") ? &frame.pass("id") : nullptr;
+  // An ID pass the file holds unusable (half float, Frame::unusable) is named as
+  // such where the IDs are needed, not as a missing pass.
+  if (!ids && frame.unusable.count("id") && needsIds(current, previous, nextSidecarPath.empty() ? nullptr : &next))
+    frame.pass("id");  // throws, saying why
   FrameMotion fm = reconstructMotion(depth, ids, current, previous, nextSidecarPath.empty() ? nullptr : &next,
                                      frame.path, numThreads);
   frame.passes["motion"] = std::move(fm.motion);

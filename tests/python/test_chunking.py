@@ -540,11 +540,13 @@ def test_what_the_sidecars_decide_is_said(shot, tmp_path):
     assert "motion is rebuilt from the sidecars for no input" in p.stderr, p.stderr
     p = crisp("filter", "--method", "fxaa", "--quiet", "-o", tmp_path / "b", *files)
     assert p.stderr == "", p.stderr  # fxaa reads neither jitter nor motion
-    p = crisp("filter", "--method", "taa", "--set", "jitterX=0.25", "--quiet", "-o", tmp_path / "c", *inputs[:3])
-    assert "--set jitterX applies only to inputs without a sidecar; 3 of 3 inputs have one" in p.stderr, p.stderr
+    p = crisp("filter", "--method", "taa", "--set", "jitterX=0.25", "--set", " jitterX = 0.5", "--quiet",
+              "-o", tmp_path / "c", *inputs[:3])
+    assert p.stderr.count("--set jitterX applies only to inputs without a sidecar; 3 of 3 inputs have one") == 1, \
+        p.stderr
     assert "without a sidecar (the first" not in p.stderr, p.stderr
     p = crisp("filter", "--method", "rsaa", "--set", "view01=0.5", "-o", tmp_path / "d", *inputs[:1], ok=False)
-    assert p.returncode == 2 and "--set view01: rsaa takes its camera from each input's sidecar" in p.stderr, p.stderr
+    assert p.returncode == 2 and "--set view01: rsaa takes its camera from each frame's sidecar" in p.stderr, p.stderr
     assert not os.path.exists(tmp_path / "d")
 
 

@@ -392,6 +392,15 @@ def test_render_checks_the_method_and_its_settings_before_blender(tmp_path):
                     "--set", kv, "--blender", tmp_path / "no_blender_here", ok=False)
             assert p.returncode == 1 and message in p.stderr, p.stderr
             assert not out.exists()
+    # What batch.py and the add-on accept passes: blanks around KEY and VALUE, a bool in any case.
+    # (It then gets as far as starting Blender, which is not there.)
+    p = run("render", "--scene", "still_life", "-o", tmp_path / "out", "--plan", "-m", "fxaa", "--set", "reference=True",
+            "--set", " subpix = 0.5 ", "--blender", tmp_path / "no_blender_here", ok=False)
+    assert "cannot run Blender" in p.stderr and "parameter" not in p.stderr, p.stderr
+    # rsaa's camera comes from the frame's sidecar: refused as crisp filter refuses it.
+    p = run("render", "--scene", "still_life", "-o", tmp_path / "out", "-m", "rsaa", "--set", "proj00=2",
+            "--blender", tmp_path / "no_blender_here", ok=False)
+    assert p.returncode == 2 and "--set proj00: rsaa takes its camera from each frame's sidecar" in p.stderr, p.stderr
 
 
 def test_info_checks_rsaa_as_filter_does(chart, tmp_path):

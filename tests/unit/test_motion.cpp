@@ -359,7 +359,7 @@ TEST(Motion, BadInputsAreRefusedWithTheirNames) {
 TEST(Motion, ReconstructFrameMotionReadsTheSidecarsFromDisk) {
   const fs::path dir = fs::temp_directory_path() / ("crisp_motion_" + std::to_string(::getpid()));
   fs::create_directories(dir);
-  auto writeSidecar = [&](const std::string& name, double cameraX) {
+  auto writeSidecar = [&](const std::string& name, double cameraX, const std::string& objects = "{}") {
     const Sidecar s = sidecar(translation(cameraX, 0, 0), 1.8);
     std::ofstream out(dir / name);
     auto mat = [&](const Mat4& m) {
@@ -373,7 +373,7 @@ TEST(Motion, ReconstructFrameMotionReadsTheSidecarsFromDisk) {
     };
     out << "{\"frame\": 1, \"jitter\": {\"x\": 0.0, \"y\": 0.0}, \"render_settings\": {\"resolution\": [" << W << ", "
         << H << "]}, \"camera\": {\"view\": " << mat(s.view) << ", \"projection\": " << mat(s.projection)
-        << ", \"projection_unjittered\": " << mat(s.projectionUnjittered) << "}, \"objects\": {}}";
+        << ", \"projection_unjittered\": " << mat(s.projectionUnjittered) << "}, \"objects\": " << objects << "}";
   };
   writeSidecar("frame_0001.json", -0.25);
   writeSidecar("frame_0002.json", 0.0);
@@ -395,6 +395,33 @@ TEST(Motion, ReconstructFrameMotionReadsTheSidecarsFromDisk) {
   } catch (const Exception& e) {
     EXPECT_EQ(e.code(), CRISP_ERROR_IO);
     EXPECT_NE(std::string(e.what()).find("frame_0000.json"), std::string::npos) << e.what();
+  }
+
+  // Two objects, one of them moving: pixels must be matched to objects by their IDs. An ID pass
+  // the file holds unusable (half float) is named with its reason, not as a missing pass.
+  auto objects = [](double x) {
+    return "{\"0000000a\": {\"name\": \"Still\", \"matrix_world\": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}, "
+           "\"0000000b\": {\"name\": \"Moving\", \"matrix_world\": [[1,0,0," + std::to_string(x) +
+           "],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}}";
+  };
+  writeSidecar("frame_0001.json", -0.25, objects(0.0));
+  writeSidecar("frame_0002.json", 0.0, objects(0.5));
+  Frame withIds = frame;
+  withIds.passes.erase("motion");
+  withIds.unusable["id"] = "pass 'ViewLayer.CryptoObject00' in 'frame_0002.exr' is stored as half, not 32-bit float";
+  try {
+    reconstructFrameMotion(withIds, (dir / "frame_0001.json").string(), "", 1);
+    ADD_FAILURE() << "expected an invalid-data error";
+  } catch (const Exception& e) {
+    EXPECT_EQ(e.code(), CRISP_ERROR_INVALID_DATA);
+    EXPECT_EQ(std::string(e.what()), withIds.unusable["id"]);
+  }
+  withIds.unusable.clear();  // no ID pass at all: said as missing
+  try {
+    reconstructFrameMotion(withIds, (dir / "frame_0001.json").string(), "", 1);
+    ADD_FAILURE() << "expected an invalid-data error";
+  } catch (const Exception& e) {
+    EXPECT_NE(std::string(e.what()).find("has no id pass"), std::string::npos) << e.what();
   }
   fs::remove_all(dir);
 }

@@ -76,6 +76,13 @@ TEST(Params, FilterErrorsNameTheFilterAndWholeNumbers) {
   EXPECT_EQ(errorOf([&] { makeSet().setFromText("n", " 5"); }), "parameter 'n' expects int, got ' 5'");
   EXPECT_EQ(errorOf([&] { makeSet().setFromText("n", "5 "); }), "parameter 'n' expects int, got '5 '");
   EXPECT_EQ(errorOf([&] { makeSet().setFromText("k", "1e-999"); }), "");  // underflows to 0: in range
+  EXPECT_EQ(errorOf([&] { makeSet().setFromText("k", "1e39"); }), "parameter 'k' = 1e39 is out of range [-4, 4]");
+  ParamSet p = makeSet();  // a bool in any case
+  p.setFromText("on", "False");
+  EXPECT_FALSE(p.getBool("on"));
+  p.setFromText("on", "YES");
+  EXPECT_TRUE(p.getBool("on"));
+  EXPECT_EQ(errorOf([&] { p.setFromText("on", "Maybe"); }), "parameter 'on' expects a bool (true/false), got 'Maybe'");
 }
 
 TEST(Params, TableListsEveryParameter) {
