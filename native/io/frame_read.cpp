@@ -451,6 +451,9 @@ Image readMask(const std::string& path) {
       for (int x = 0; x < c.width; ++x) *mask.at(x, y) = c.at(x, y)[0];
     return mask;
   }
+  if (spec.deep) invalidData("mask '" + path + "' is a deep image; only flat images are supported");
+  if (spec.depth != 1 || spec.full_depth > 1)
+    invalidData("mask '" + path + "' is a volume image; only 2D images are supported");
   const OIIO::ROI full = buf.roi_full();
   if (full.width() <= 0 || full.height() <= 0 || full.width() > kMaxDimension || full.height() > kMaxDimension ||
       (long long)full.width() * full.height() > kMaxPixels)

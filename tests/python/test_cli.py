@@ -453,6 +453,11 @@ def test_a_one_channel_mask_is_read_whatever_its_name(chart, tmp_path):
         frame = json.loads(js.read_text())["frames"][0]
         assert (frame["pixels"], frame["psnr"]) == (rgb["pixels"], rgb["psnr"]), name
     assert rgb["pixels"] < 97 * 61
+    deep = tmp_path / "deep_mask.exr"  # a deep one-channel file is refused as readFrame refuses one
+    subprocess.run(["oiiotool", "--pattern", "constant:color=1", "97x61", "1", "--chnames", "Z", "--deepen",
+                    "-o", str(deep)], check=True, capture_output=True)
+    p = run("compare", *args, "--mask", deep, ok=False)
+    assert p.returncode == 1 and "mask '%s' is a deep image" % deep in p.stderr, p.stderr
 
 
 @pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="needs root to run crisp as nobody")
