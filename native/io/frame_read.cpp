@@ -236,6 +236,24 @@ std::string findManifest(const OIIO::ImageSpec& spec, const std::string& layer) 
   return std::string();
 }
 
+// What every read needs of a file: a flat 2D image of a size it can hold.
+// `what` names the file in the messages ("'a.exr'", "mask 'm.exr'").
+void checkFlatImage(const OIIO::ImageSpec& spec, const std::string& what) {
+  if (spec.deep) invalidData(what + " is a deep image; only flat images are supported");
+  if (spec.depth != 1 || spec.full_depth > 1) invalidData(what + " is a volume image; only 2D images are supported");
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
+    invalidData(what + " has an empty image (" + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
+                ", " + std::to_string(spec.nchannels) + " channels)");
+  const long long fullW = spec.full_width > 0 ? spec.full_width : spec.width;
+  const long long fullH = spec.full_height > 0 ? spec.full_height : spec.height;
+  for (long long d : {(long long)spec.width, (long long)spec.height, fullW, fullH})
+    if (d > kMaxDimension || (long long)spec.width * spec.height > kMaxPixels || fullW * fullH > kMaxPixels)
+      invalidData(what + " has an unsupported size: data window " + std::to_string(spec.width) + "x" +
+                  std::to_string(spec.height) + ", display window " + std::to_string(fullW) + "x" +
+                  std::to_string(fullH) + " (at most " + std::to_string(kMaxDimension) + " per side and " +
+                  std::to_string(kMaxPixels) + " pixels)");
+}
+
 }  // namespace
 
 const Image& Frame::pass(const std::string& role) const {
@@ -286,19 +304,9 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   if (!in) ioError("cannot read '" + path + "' as an image: " + oiioErrors(nullptr));
 
   const OIIO::ImageSpec spec = in->spec();
-  if (spec.deep) invalidData("'" + path + "' is a deep image; only flat images are supported");
-  if (spec.depth != 1 || spec.full_depth > 1) invalidData("'" + path + "' is a volume image; only 2D images are supported");
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
-    invalidData("'" + path + "' has an empty image (" + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
-                ", " + std::to_string(spec.nchannels) + " channels)");
+  checkFlatImage(spec, "'" + path + "'");
   const long long fullW = spec.full_width > 0 ? spec.full_width : spec.width;
   const long long fullH = spec.full_height > 0 ? spec.full_height : spec.height;
-  for (long long d : {(long long)spec.width, (long long)spec.height, fullW, fullH})
-    if (d > kMaxDimension || (long long)spec.width * spec.height > kMaxPixels || fullW * fullH > kMaxPixels)
-      invalidData("'" + path + "' has an unsupported size: data window " + std::to_string(spec.width) + "x" +
-                  std::to_string(spec.height) + ", display window " + std::to_string(fullW) + "x" +
-                  std::to_string(fullH) + " (at most " + std::to_string(kMaxDimension) + " per side and " +
-                  std::to_string(kMaxPixels) + " pixels)");
 
   Windows win;
   win.width = int(fullW);
@@ -451,14 +459,8 @@ Image readMask(const std::string& path) {
       for (int x = 0; x < c.width; ++x) *mask.at(x, y) = c.at(x, y)[0];
     return mask;
   }
-  if (spec.deep) invalidData("mask '" + path + "' is a deep image; only flat images are supported");
-  if (spec.depth != 1 || spec.full_depth > 1)
-    invalidData("mask '" + path + "' is a volume image; only 2D images are supported");
+  checkFlatImage(spec, "mask '" + path + "'");
   const OIIO::ROI full = buf.roi_full();
-  if (full.width() <= 0 || full.height() <= 0 || full.width() > kMaxDimension || full.height() > kMaxDimension ||
-      (long long)full.width() * full.height() > kMaxPixels)
-    invalidData("mask '" + path + "' has an unsupported size: " + std::to_string(full.width()) + "x" +
-                std::to_string(full.height()));
   Image mask(full.width(), full.height(), 1);
   if (!buf.get_pixels(full, OIIO::TypeDesc::FLOAT, mask.data.data()))
     ioError("cannot read '" + path + "' (truncated or corrupt file?): " + buf.geterror());
