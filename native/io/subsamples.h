@@ -15,6 +15,7 @@
 // build-file change (native/CMakeLists.txt is shared).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -140,6 +141,14 @@ inline void attachSubsamples(Frame& frame, const std::string& sidecarPath) {
   frame.passes[kPackedSubsamplePass] = std::move(records);
 }
 
+// The names of the rsaa filter's camera parameters, in rsaaCameraParams' order.
+inline const std::vector<std::string>& rsaaCameraParamNames() {
+  static const std::vector<std::string> names = {"orthographic", "proj00", "proj11", "proj02", "proj12",
+                                                 "view00",       "view01", "view02", "view10", "view11",
+                                                 "view12",       "view20", "view21", "view22"};
+  return names;
+}
+
 // The rsaa filter's camera parameters from a sidecar: projection terms
 // (jitter included, as the frame was rendered) and the rotation rows of the
 // world->view matrix. Orthographic when projection[3][3] == 1.
@@ -148,22 +157,19 @@ inline std::vector<std::pair<std::string, double>> rsaaCameraParams(const Sideca
   const bool ortho = P[3][3] == 1.0;
   if (P[0][0] == 0.0 || P[1][1] == 0.0)
     invalidData("sidecar '" + s.path + "': camera.projection has a zero focal term ([0][0] or [1][1])");
-  std::vector<std::pair<std::string, double>> out = {
-      {"orthographic", ortho ? 1.0 : 0.0}, {"proj00", P[0][0]}, {"proj11", P[1][1]},
-      {"proj02", ortho ? 0.0 : P[0][2]},   {"proj12", ortho ? 0.0 : P[1][2]},
-  };
+  std::vector<double> values = {ortho ? 1.0 : 0.0, P[0][0], P[1][1], ortho ? 0.0 : P[0][2], ortho ? 0.0 : P[1][2]};
   for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) out.push_back({"view" + std::to_string(r) + std::to_string(c), s.view.m[r][c]});
+    for (int c = 0; c < 3; ++c) values.push_back(s.view.m[r][c]);
+  std::vector<std::pair<std::string, double>> out;
+  for (std::size_t i = 0; i < values.size(); ++i) out.emplace_back(rsaaCameraParamNames()[i], values[i]);
   return out;
 }
 
 // Whether name is one of the parameters rsaaCameraParams gives (the sidecar
 // decides them: a caller's value is replaced frame by frame).
 inline bool isRsaaCameraParam(const std::string& name) {
-  if (name == "orthographic" || name == "proj00" || name == "proj11" || name == "proj02" || name == "proj12")
-    return true;
-  return name.size() == 6 && name.compare(0, 4, "view") == 0 && name[4] >= '0' && name[4] <= '2' && name[5] >= '0' &&
-         name[5] <= '2';
+  const auto& names = rsaaCameraParamNames();
+  return std::find(names.begin(), names.end(), name) != names.end();
 }
 
 // Whether the filter reads geometric sub-samples (rsaa).
