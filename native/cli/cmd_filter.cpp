@@ -40,35 +40,41 @@ bool readsMotion(const Filter& filter) {
   return std::any_of(roles.begin(), roles.end(), [](const ImageRole& r) { return std::strcmp(r.name, "motion") == 0; });
 }
 
+// Which inputs have an add-on sidecar (frame_NNNN.json beside them), looked
+// at once per run.
+struct Sidecars {
+  std::vector<std::string> paths;  // every input's sidecar path
+  std::size_t with = 0;            // how many of them exist
+  std::string firstWithout;        // the first that does not, or ""
+
+  explicit Sidecars(const std::vector<std::string>& inputs) {
+    std::error_code ec;
+    for (const std::string& in : inputs) {
+      paths.push_back(sidecarPathFor(in));
+      if (fs::is_regular_file(paths.back(), ec))
+        ++with;
+      else if (firstWithout.empty())
+        firstWithout = paths.back();
+    }
+  }
+  bool all() const { return with == paths.size(); }
+};
+
 // Whether motion should be rebuilt for this run: the method reads "motion",
 // every input has an add-on sidecar (frame_NNNN.json) and something moves over
 // the inputs. A still sequence gets no motion pass at all, as the pass plan
 // decides, so temporal filters take their static path.
-bool rebuildsMotion(const Filter& filter, const std::vector<std::string>& inputs) {
-  if (!readsMotion(filter)) return false;
-  std::vector<std::string> sidecars;
-  std::error_code ec;
-  for (const std::string& in : inputs) {
-    sidecars.push_back(sidecarPathFor(in));
-    if (!fs::is_regular_file(sidecars.back(), ec)) return false;
-  }
-  return !sequenceIsStill(sidecars);
+bool rebuildsMotion(const Filter& filter, const Sidecars& sidecars) {
+  return readsMotion(filter) && sidecars.all() && !sequenceIsStill(sidecars.paths);
 }
 
 // What the inputs' sidecars decide over --set, and what a sequence where
 // only some inputs have one loses, said before the run: a jitter set applies
 // to the inputs without a sidecar only (rsaa's camera, which every sidecar
 // gives, is refused by configuredFilter).
-void checkSidecarSettings(const Filter& filter, const ParsedArgs& args) {
+void checkSidecarSettings(const Filter& filter, const ParsedArgs& args, const Sidecars& sidecars) {
   const std::vector<std::string>& inputs = args.positional;
-  std::size_t with = 0;
-  std::string firstWithout;
-  std::error_code ec;
-  for (const std::string& in : inputs)
-    if (fs::is_regular_file(sidecarPathFor(in), ec))
-      ++with;
-    else if (firstWithout.empty())
-      firstWithout = in;
+  const std::size_t with = sidecars.with;
   const bool takesJitter = keepsHistory(filter);
   std::set<std::string> warned;  // a key set twice is said once
   for (const auto& [key, value] : settingsOf(args))
@@ -78,7 +84,7 @@ void checkSidecarSettings(const Filter& filter, const ParsedArgs& args) {
                    "and take the jitter it gives\n",
                    key.c_str(), with, inputs.size());
   const bool motion = readsMotion(filter);
-  if (with == 0 || with == inputs.size() || !(takesJitter || motion)) return;
+  if (with == 0 || sidecars.all() || !(takesJitter || motion)) return;
   std::string what;
   if (takesJitter) what = "they are filtered as unjittered (or with the jitter --set gives)";
   if (motion)
@@ -86,7 +92,7 @@ void checkSidecarSettings(const Filter& filter, const ParsedArgs& args) {
             "motion is rebuilt from the sidecars for no input, so inputs without a motion pass are filtered as if "
             "nothing moved";
   std::fprintf(stderr, "filter: warning: %zu of %zu inputs come without a sidecar (the first: '%s'): %s\n",
-               inputs.size() - with, inputs.size(), sidecarPathFor(firstWithout).c_str(), what.c_str());
+               inputs.size() - with, inputs.size(), sidecars.firstWithout.c_str(), what.c_str());
 }
 
 // Non-finite colour is read as the library reads it (NaN -> 0, +-Inf ->
@@ -153,7 +159,8 @@ int runFilter(const ParsedArgs& args) {
   context.setInt("numThreads", parseIntOption(args, "threads", 0, 0, 1024));
   std::unique_ptr<Filter> filter = configuredFilter(context, args.get("method"), args);
 
-  checkSidecarSettings(*filter, args);
+  const Sidecars sidecars(args.positional);
+  checkSidecarSettings(*filter, args, sidecars);
 
   // The chunk to write (default: every input) and its pre-roll, checked before anything is written.
   const int count = int(args.positional.size());
@@ -183,7 +190,7 @@ int runFilter(const ParsedArgs& args) {
   makeDirectories(outDir);
 
   // What each output was made from, which a resume compares (output_stamps.h).
-  const bool rebuildMotion = rebuildsMotion(*filter, args.positional);
+  const bool rebuildMotion = rebuildsMotion(*filter, sidecars);
   nlohmann::json settings = {{"method", args.get("method")},
                              {"params", nlohmann::json::object()},
                              {"motion_from_sidecars", rebuildMotion},
