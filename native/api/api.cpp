@@ -213,8 +213,9 @@ void crispUnsetFilterImage(CrispFilter filter, const char* name) {
   void crispSetFilter##Suffix(CrispFilter filter, const char* name, CType v) { \
     guardedVoid([&] {                                                          \
       need(filter, "filter");                                                  \
-      filter->filter->params().Method(nameOf(name, "parameter"), Cast(v));     \
-      filter->filter->markDirty();                                             \
+      const std::string key = nameOf(name, "parameter");                       \
+      filter->filter->params().Method(key, Cast(v));                           \
+      filter->filter->markDirty("parameter '" + key + "' was set");            \
     });                                                                        \
   }
 CRISP_SETTER(Int, int, setInt, int)
@@ -226,8 +227,9 @@ void crispSetFilterString(CrispFilter filter, const char* name, const char* valu
   guardedVoid([&] {
     need(filter, "filter");
     if (!value) crisp::invalidArgument("parameter value is NULL");
-    filter->filter->params().setString(nameOf(name, "parameter"), value);
-    filter->filter->markDirty();
+    const std::string key = nameOf(name, "parameter");
+    filter->filter->params().setString(key, value);
+    filter->filter->markDirty("parameter '" + key + "' was set");
   });
 }
 

@@ -149,7 +149,7 @@ void bindJitter(Filter& filter, const Frame& frame, ShotPosition& shot) {
     throw Exception(e.code(), "sidecar '" + side + "' gives jitter (" + jsonNumber(s->jitterX) + ", " +
                                   jsonNumber(s->jitterY) + ") px (y up): " + e.what());
   }
-  filter.markDirty();
+  filter.markDirty("jitterX and jitterY were set for " + (s ? "sidecar '" + side + "'" : std::string("the shot")));
 }
 
 }  // namespace

@@ -69,13 +69,13 @@ void Filter::setImage(const std::string& name, const ImageView& view) {
   // Re-pointing a buffer of the same shape does not need a new commit.
   if (it == images_.end() || it->second.width != view.width || it->second.height != view.height ||
       it->second.format != view.format)
-    committed_ = false;
+    markDirty("image '" + name + "' was set to a new size or format");
   images_[name] = view;
 }
 
 void Filter::unsetImage(const std::string& name) {
   if (!findRole(roles_, name)) invalidArgument(std::string("filter '") + type() + "' has no image '" + name + "' (known: " + roleList(roles_) + ")");
-  if (images_.erase(name)) committed_ = false;
+  if (images_.erase(name)) markDirty("image '" + name + "' was unset");
 }
 
 bool Filter::hasImage(const std::string& name) const { return images_.count(name) != 0; }
@@ -87,22 +87,38 @@ const ImageView& Filter::image(const std::string& name) const {
 }
 
 void Filter::commit() {
+  commitFailed_ = true;  // until it returns
   for (const ImageRole& r : roles_)
     if (r.required && !hasImage(r.name))
       invalidData(std::string("filter '") + type() + "': required image '" + r.name + "' (" + r.meaning + ") is not set");
   const ImageView& color = image("color");
   for (const auto& [name, view] : images_)
-    if (view.width != color.width || view.height != color.height)
+    if (readsImage(name) && view.width != color.width || view.height != color.height)
       invalidData("image '" + name + "' is " + std::to_string(view.width) + "x" + std::to_string(view.height) +
                   " but 'color' is " + std::to_string(color.width) + "x" + std::to_string(color.height));
   width_ = color.width;
   height_ = color.height;
   onCommit();
   committed_ = true;
+  everCommitted_ = true;
+  commitFailed_ = false;
+  firstChange_.clear();
+}
+
+void Filter::markDirty(const std::string& what) {
+  if (committed_ || firstChange_.empty()) firstChange_ = what;
+  committed_ = false;
 }
 
 void Filter::execute() {
-  if (!committed_) fail(CRISP_ERROR_INVALID_OPERATION, std::string("filter '") + type() + "': execute called before commit (or after a change that needs a new commit)");
+  if (!committed_) {
+    const std::string who = std::string("filter '") + type() + "': ";
+    if (commitFailed_)
+      fail(CRISP_ERROR_INVALID_OPERATION, who + "execute called after a commit that failed (see its error; fix it and commit again)");
+    if (!everCommitted_) fail(CRISP_ERROR_INVALID_OPERATION, who + "execute called before commit");
+    fail(CRISP_ERROR_INVALID_OPERATION,
+         who + "execute called without a new commit after a change (" + firstChange_ + "; call commit again)");
+  }
   onExecute();
 }
 

@@ -37,10 +37,11 @@ class Filter {
   bool hasImage(const std::string& role) const;
   const ImageView& image(const std::string& role) const;
 
-  // Parameter setters mark the filter as needing a commit.
+  // Parameter setters mark the filter as needing a commit; `what` names the
+  // change ("parameter 'x' was set") for execute's error until that commit.
   ParamSet& params() { return params_; }
   const ParamSet& params() const { return params_; }
-  void markDirty() { committed_ = false; }
+  void markDirty(const std::string& what);
   bool committed() const { return committed_; }
 
   void commit();
@@ -61,6 +62,9 @@ class Filter {
  protected:
   virtual void onCommit() = 0;   // params_ and images are valid; allocate here
   virtual void onExecute() = 0;  // run one frame
+  // False for an image that is set but superseded by another (rsaa's sub0..sub7
+  // when 'subsamples' is set): commit neither checks nor reads it.
+  virtual bool readsImage(const std::string& role) const { return true; }
 
   // Copies "color" into a packed RGBA float image, sanitising non-finite
   // values (conventions.h); alpha is 1 where the input has 3 channels.
@@ -79,6 +83,9 @@ class Filter {
   std::map<std::string, ImageView> images_;
   std::map<std::string, std::vector<float>> apartCopies_;  // inputApartFromOutput's copies
   bool committed_ = false;
+  bool everCommitted_ = false;
+  bool commitFailed_ = false;  // the last commit threw
+  std::string firstChange_;  // markDirty's `what` since the last commit
   int width_ = 0;
   int height_ = 0;
 };

@@ -1112,6 +1112,14 @@ class RsaaFilter final : public Filter {
   const char* type() const override { return "rsaa"; }
 
  protected:
+  // 'subsamples' supersedes sub0..sub7: a stale set of them, of another size,
+  // does not stop the commit.
+  bool readsImage(const std::string& role) const override {
+    if (!hasImage("subsamples")) return true;
+    for (const char* sub : kSubRoles)
+      if (role == sub) return false;
+    return true;
+  }
   void onCommit() override {
     const ParamSet& p = params();
     rsaa::Settings s;

@@ -198,7 +198,7 @@ inline void applyRsaaCamera(Filter& filter, const Frame& frame) {
       changed = true;
     }
   }
-  if (changed) filter.markDirty();
+  if (changed) filter.markDirty("the camera parameters were set from sidecar '" + sidecarPathFor(frame.path) + "'");
 }
 
 // Everything rsaa needs beyond the frame's own passes: the sub-samples (if

@@ -101,6 +101,41 @@ TEST(CApi, ErrorsNameWhatIsWrong) {
   EXPECT_THROW(f.set("kappa", std::numeric_limits<float>::quiet_NaN()), crisp::Error);
 }
 
+// Execute without a valid commit says why: never committed, the last commit
+// failed, or the first change since the last commit.
+TEST(CApi, ExecuteWithoutACommitNamesWhy) {
+  auto ctx = crisp::ContextRef::create();
+  auto f = ctx.newFilter("fxaa");
+  std::vector<float> a(4 * 4 * 4, 0.5f), b(4 * 4 * 4), small(2 * 4 * 4);
+  f.setImage("color", a.data(), CRISP_FORMAT_FLOAT4, 4, 4);
+  f.setImage("output", b.data(), CRISP_FORMAT_FLOAT4, 4, 4);
+  f.commit();
+  f.execute();
+  CrispError code;
+  crispSetFilterFloat(f.handle(), "edgeThreshold", 0.2f);
+  crispSetFilterString(f.handle(), "preset", "12");  // unknown to fxaa: refused, changes nothing
+  lastError();
+  crispExecuteFilter(f.handle());
+  std::string msg = lastError(&code);
+  EXPECT_EQ(code, CRISP_ERROR_INVALID_OPERATION) << msg;
+  EXPECT_NE(msg.find("parameter 'edgeThreshold' was set"), std::string::npos) << msg;
+  f.commit();
+  f.execute();
+  f.setImage("output", small.data(), CRISP_FORMAT_FLOAT4, 2, 4);
+  crispCommitFilter(f.handle());  // fails: 2x4 against 4x4
+  EXPECT_NE(lastError().find("'output' is 2x4"), std::string::npos);
+  crispExecuteFilter(f.handle());
+  msg = lastError(&code);
+  EXPECT_EQ(code, CRISP_ERROR_INVALID_OPERATION) << msg;
+  EXPECT_NE(msg.find("after a commit that failed"), std::string::npos) << msg;
+  f.setImage("output", b.data(), CRISP_FORMAT_FLOAT4, 4, 4);
+  f.commit();
+  f.execute();
+  crispUnsetFilterImage(f.handle(), "output");
+  crispExecuteFilter(f.handle());
+  EXPECT_NE(lastError().find("image 'output' was unset"), std::string::npos);
+}
+
 TEST(CApi, FirstErrorIsKeptAndErrorsArePerThread) {
   auto ctx = crisp::ContextRef::create();
   crispNewFilter(ctx.handle(), "first");

@@ -147,8 +147,10 @@ struct DepthStep {
 
 // One rsaa frame through the C API: the sub-samples packed or as sub0..sub7;
 // the output in `out`, or in the buffer of input `aliased` ("color", "sub0",
-// ..., "subsamples"), whose copy it then returns.
-std::vector<float> runRsaa(CrispContext context, DepthStep scene, bool packed, const std::string& aliased = "") {
+// ..., "subsamples"), whose copy it then returns. With `staleSubs`, packed
+// records come with a stale sub0..sub7 of another size, which they supersede.
+std::vector<float> runRsaa(CrispContext context, DepthStep scene, bool packed, const std::string& aliased = "",
+                           bool staleSubs = false) {
   const int W = DepthStep::W, H = DepthStep::H;
   std::vector<float> out(4 * W * H, 0.0f);
   float* output = out.data();
@@ -157,6 +159,9 @@ std::vector<float> runRsaa(CrispContext context, DepthStep scene, bool packed, c
   if (aliased == "color") output = scene.color.data();
   crispSetFilterImage(f, "depth", scene.depth.data(), CRISP_FORMAT_FLOAT, W, H, 0, 0);
   crispSetFilterImage(f, "normal", scene.normal.data(), CRISP_FORMAT_FLOAT3, W, H, 0, 0);
+  std::vector<float> stale(4 * (W / 2) * H, 0.0f);
+  for (int k = 0; staleSubs && k < 8; ++k)
+    crispSetFilterImage(f, ("sub" + std::to_string(k)).c_str(), stale.data(), CRISP_FORMAT_FLOAT4, W / 2, H, 0, 0);
   if (packed) {
     crispSetFilterImage(f, "subsamples", scene.records.data(), CRISP_FORMAT_RSAA_SUBSAMPLES, W, H, 0, 0);
     if (aliased == "subsamples") output = reinterpret_cast<float*>(scene.records.data());
@@ -187,6 +192,7 @@ TEST_F(RsaaApi, PackedRecordsGiveTheFloat4Result) {
   const DepthStep scene(false);
   const std::vector<float> out[2] = {runRsaa(context, scene, false), runRsaa(context, scene, true)};
   EXPECT_EQ(out[0], out[1]);
+  EXPECT_EQ(out[1], runRsaa(context, scene, true, "", true)) << "with a stale sub0..sub7 of another size";
   int changed = 0;  // the step is resampled: some pixels are no longer 0.9 or 0.1
   for (int i = 0; i < DepthStep::W * DepthStep::H; ++i) changed += out[1][4 * i] != scene.color[4 * i];
   EXPECT_GE(changed, DepthStep::H);

@@ -164,7 +164,7 @@ void temporalLoop(benchmark::State& state, Filter& filter, Image& output, const 
     setInputs(f);
     filter.params().setFloat("jitterX", f.jitter.x);
     filter.params().setFloat("jitterY", f.jitter.y);
-    filter.markDirty();
+    filter.markDirty("the jitter was set");
     filter.commit();
     filter.execute();
     odd = !odd;

@@ -83,7 +83,7 @@ struct TemporalDriver {
     filter->setImage("output", output.view());
     filter->params().setFloat("jitterX", f.jitter.x);
     filter->params().setFloat("jitterY", f.jitter.y);
-    filter->markDirty();
+    filter->markDirty("the jitter was set");
     filter->commit();
     filter->execute();
     return output;

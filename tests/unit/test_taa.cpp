@@ -449,7 +449,7 @@ TEST(Taa, StridedTwoChannelMotionIsReadAsTwoChannels) {
         filter.params().setString("unjitter", "none");  // no shift: the run is the whole row
         filter.params().setFloat("jitterX", f.jitter.x);
         filter.params().setFloat("jitterY", f.jitter.y);
-        filter.markDirty();
+        filter.markDirty("the jitter was set");
         filter.commit();
         filter.execute();
       };

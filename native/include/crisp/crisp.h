@@ -118,7 +118,10 @@ CRISP_API const char* crispGetFilterDoc(CrispFilter filter);
 // "source"}...]}. Valid until the filter is changed or released.
 CRISP_API const char* crispGetFilterInfo(CrispFilter filter);
 
-// Validates images and parameters and allocates what execute needs.
+// Validates images and parameters and allocates what execute needs. Needed
+// again after a parameter is set or an image changes size or format, is unset
+// or is first set; re-pointing an image of the same size and format is not a
+// change. Until then execute fails (INVALID_OPERATION) naming the first change.
 CRISP_API void crispCommitFilter(CrispFilter filter);
 // Runs one frame. Allocates nothing, except on the first in-place run of a
 // size (a copy of the inputs the output overwrites, kept for the next frames).
