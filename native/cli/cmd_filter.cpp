@@ -187,7 +187,7 @@ int runFilter(const ParsedArgs& args) {
       if (inputs.count(fs::weakly_canonical(joinPath(outDir, fileStem(in) + ext), ec)))
         throw UsageError("output for '" + in + "' would overwrite an input file; choose another -o folder");
   }
-  makeDirectories(outDir);
+  const RunFolder folder(outDir);
 
   // What each output was made from, which a resume compares (output_stamps.h).
   const bool rebuildMotion = rebuildsMotion(*filter, sidecars);

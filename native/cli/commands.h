@@ -68,6 +68,19 @@ std::string sizeAndTime(const std::string& path);
 // File helpers: text written through a temporary file renamed into place.
 void writeTextFile(const std::string& path, const std::string& text);
 void makeDirectories(const std::string& path);
+// makeDirectories for one run: the folders it had to create are removed again
+// at the end of the run (deepest first) if they are still empty, so that a
+// run that fails before its first output leaves no empty output folder behind.
+class RunFolder {
+ public:
+  explicit RunFolder(const std::string& path);
+  ~RunFolder();
+  RunFolder(const RunFolder&) = delete;
+  RunFolder& operator=(const RunFolder&) = delete;
+
+ private:
+  std::vector<std::string> made_;  // deepest first
+};
 std::string fileStem(const std::string& path);
 std::string joinPath(const std::string& dir, const std::string& name);
 // FNV-1a (64 bits) over a file's bytes, continuing from hash (start from

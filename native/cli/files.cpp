@@ -86,6 +86,26 @@ void makeDirectories(const std::string& path) {
   if (access(path.c_str(), W_OK) != 0) ioError("output folder '" + path + "' is not writable");
 }
 
+RunFolder::RunFolder(const std::string& path) {
+  std::error_code ec;
+  for (fs::path p = fs::absolute(path, ec); !ec && !p.empty() && !fs::exists(p, ec); p = p.parent_path()) {
+    made_.push_back(p.string());
+    if (p == p.parent_path()) break;
+  }
+  try {
+    makeDirectories(path);
+  } catch (...) {
+    this->~RunFolder();
+    throw;
+  }
+}
+
+RunFolder::~RunFolder() {
+  std::error_code ec;
+  for (const std::string& dir : made_)
+    if (!fs::remove(dir, ec)) break;  // not empty (or gone): neither it nor its parents are ours to remove
+}
+
 std::string executableDir() {
   std::error_code ec;
   fs::path self = fs::read_symlink("/proc/self/exe", ec);

@@ -133,10 +133,15 @@ def test_bad_files_name_the_file_and_write_nothing(chart, tmp_path):
         assert p.returncode == 1, (name, p.stderr)
         assert name in p.stderr, (name, p.stderr)
         assert not (out / (f.stem + ".exr")).exists(), name
+        assert not out.exists(), name  # the folder the run made is not left behind empty
     p = run("filter", "--method", "fxaa", tmp_path / "missing.exr", "-o", out, ok=False)
     assert p.returncode == 1 and "missing.exr" in p.stderr
-    leftovers = [x.name for x in out.iterdir()] if out.exists() else []
-    assert leftovers == [], leftovers  # no temporary files either
+    assert not out.exists()
+    # A folder that was there before stays, also when the run left it empty.
+    out.mkdir()
+    p = run("filter", "--method", "fxaa", tmp_path / "truncated.exr", "-o", out / "a" / "b", ok=False)
+    assert p.returncode == 1
+    assert [x.name for x in out.iterdir()] == []  # no temporary files, no a/b
 
 
 def test_mismatched_sizes_are_named(chart, tmp_path):
