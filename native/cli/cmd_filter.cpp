@@ -27,6 +27,7 @@
 #include "core/filter.h"
 #include "io/sidecar.h"
 #include "io/subsamples.h"
+#include "io/temporary_file.h"
 #include "motion/reconstruct.h"
 
 namespace crisp::cli {
@@ -231,6 +232,13 @@ int runFilter(const ParsedArgs& args) {
   // the chunk, so what it writes is what an uninterrupted run writes (and what the stamps say).
   if (temporal) run.start = std::min(run.start, historyFirst);
 
+  // Temporary files of an earlier run on this host that was killed mid-write.
+  for (const std::string& dir : {outDir, stamps.folder()}) {
+    const std::vector<std::string> stale = removeStaleTemporaryFiles(dir);
+    if (!stale.empty() && !quiet)
+      std::fprintf(stderr, "filter: removed %zu temporary file(s) an interrupted run left in '%s' (first: '%s')\n",
+                   stale.size(), dir.c_str(), stale[0].c_str());
+  }
   StalePngs stalePngs;
   stamps.checkFolder();  // a file in the stamps' way fails the run before the first output, not after it
   Image output;

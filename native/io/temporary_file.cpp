@@ -4,11 +4,16 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cctype>
+#include <chrono>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include "core/error.h"
 
@@ -41,6 +46,38 @@ int registerPath(const std::string& path) {
   return -1;
 }
 
+// This host's name as temporary names hold it: at most 32 bytes of [A-Za-z0-9_.].
+const std::string& hostTag() {
+  static const std::string tag = [] {
+    char host[256] = {};
+    if (::gethostname(host, sizeof host - 1) != 0 || !host[0]) return std::string("host");
+    std::string t;
+    for (const char* c = host; *c && t.size() < 32; ++c)
+      t += (std::isalnum(static_cast<unsigned char>(*c)) || *c == '_' || *c == '.') ? *c : '_';
+    return t;
+  }();
+  return tag;
+}
+
+bool allDigits(const std::string& s) {
+  return !s.empty() && s.size() < 12 &&
+         std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
+}
+
+// The process id in a temporary name ".<name>.tmp-<host>-<pid>-<n><ext>" made
+// on this host, or 0.
+long pidOfOwnTemporary(const std::string& name) {
+  const std::string marker = ".tmp-" + hostTag() + "-";
+  const std::size_t at = name.rfind(marker);
+  if (name.empty() || name[0] != '.' || at == std::string::npos || at == 0) return 0;
+  const std::string rest = name.substr(at + marker.size());  // "<pid>-<n><ext>"
+  const std::size_t dash = rest.find('-'), dot = rest.find('.', dash == std::string::npos ? 0 : dash);
+  if (dash == std::string::npos || dot == std::string::npos) return 0;
+  const std::string pid = rest.substr(0, dash), n = rest.substr(dash + 1, dot - dash - 1);
+  if (!allDigits(pid) || !allDigits(n)) return 0;
+  return std::stol(pid);
+}
+
 // Only async-signal-safe calls: unlink, signal, raise.
 extern "C" void removeAndReraise(int sig) {
   for (Slot& s : slots)
@@ -54,8 +91,9 @@ extern "C" void removeAndReraise(int sig) {
 TemporaryFile::TemporaryFile(const std::string& target) : target_(target) {
   static std::atomic<unsigned> counter{0};
   const std::filesystem::path p(target);
-  const std::string name = "." + p.stem().string().substr(0, 64) + ".tmp-" + std::to_string(long(::getpid())) + "-" +
-                           std::to_string(counter.fetch_add(1)) + p.extension().string();
+  const std::string name = "." + p.stem().string().substr(0, 64) + ".tmp-" + hostTag() + "-" +
+                           std::to_string(long(::getpid())) + "-" + std::to_string(counter.fetch_add(1)) +
+                           p.extension().string();
   path_ = (p.parent_path() / name).string();
   slot_ = registerPath(path_);
 }
@@ -81,6 +119,25 @@ void removeTemporaryFilesOnSignals() {
     if (::sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;
     ::sigaction(sig, &action, nullptr);
   }
+}
+
+std::vector<std::string> removeStaleTemporaryFiles(const std::string& folder) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> removed;
+  std::error_code ec;
+  const auto now = fs::file_time_type::clock::now();
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    const long pid = pidOfOwnTemporary(name);
+    if (pid <= 0 || pid == long(::getpid())) continue;
+    if (::kill(pid_t(pid), 0) == 0 || errno != ESRCH) continue;  // still running (or not ours to ask)
+    std::error_code e;
+    if (!it->is_regular_file(e) || e) continue;
+    const auto modified = fs::last_write_time(it->path(), e);
+    if (e || now - modified < std::chrono::minutes(1)) continue;
+    if (fs::remove(it->path(), e)) removed.push_back(name);
+  }
+  return removed;
 }
 
 }  // namespace crisp

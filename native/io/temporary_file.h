@@ -7,15 +7,17 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 namespace crisp {
 
 class TemporaryFile {
  public:
-  // ".<name>.tmp-<pid>-<n><ext>" beside target: same filesystem, hidden,
-  // unique per process and call, the real extension last (OIIO picks the
-  // format from it); the name part cut to 64 bytes so a target name near
-  // NAME_MAX (255) still gets a valid sibling.
+  // ".<name>.tmp-<host>-<pid>-<n><ext>" beside target: same filesystem,
+  // hidden, unique per host, process and call (a farm may share the folder),
+  // the real extension last (OIIO picks the format from it); the name part
+  // cut to 64 bytes and the host to 32 so a target name near NAME_MAX (255)
+  // still gets a valid sibling.
   explicit TemporaryFile(const std::string& target);
   ~TemporaryFile();
   TemporaryFile(const TemporaryFile&) = delete;
@@ -36,5 +38,12 @@ class TemporaryFile {
 // files being written, then end the process by the same signal. For programs
 // (the crisp command); a library must not take a host's signals.
 void removeTemporaryFilesOnSignals();
+
+// Removes from `folder` the temporary files (above) that a process of this
+// host left behind when it was killed without a chance to clean up (kill -9,
+// a crash, a power cut): those named with this host, whose process no longer
+// runs, untouched for a minute (a process of another machine that shares the
+// host name is then still safe). Returns their names; nothing else is touched.
+std::vector<std::string> removeStaleTemporaryFiles(const std::string& folder);
 
 }  // namespace crisp

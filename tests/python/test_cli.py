@@ -144,6 +144,36 @@ def test_bad_files_name_the_file_and_write_nothing(chart, tmp_path):
     assert [x.name for x in out.iterdir()] == []  # no temporary files, no a/b
 
 
+def test_temporary_files_of_a_killed_run_are_removed(chart, tmp_path):
+    """kill -9 mid-write leaves '.<name>.tmp-<host>-<pid>-<n><ext>'; the next run on
+    this host removes those whose process is gone and that are a minute old, no other."""
+    import re
+    import socket
+    import sys
+    host = re.sub(r"[^A-Za-z0-9_.]", "_", socket.gethostname())[:32]
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    dead = int(gone.stdout)
+    out = tmp_path / "out"
+    (out / ".crisp").mkdir(parents=True)
+    old = 1_000_000_000  # 2001: long untouched
+    stale = [out / f".chart_1spp.tmp-{host}-{dead}-0.exr", out / ".crisp" / f".chart_1spp.tmp-{host}-{dead}-3.json"]
+    kept = [out / f".chart_1spp.tmp-{host}-{os.getpid()}-0.exr",   # its process still runs
+            out / f".chart_1spp.tmp-otherhost-{dead}-0.exr",       # another machine's
+            out / f".chart_1spp.tmp-{host}-{dead}-1.png",          # written just now
+            out / f"chart_1spp.tmp-{host}-{dead}-0.exr",           # not hidden: not ours
+            out / f".notes.tmp-{host}-{dead}-x.txt"]               # not our pattern
+    for f in stale + kept:
+        f.write_bytes(b"half an image")
+        if f != kept[2]:
+            os.utime(f, (old, old))
+    p = run("filter", "--method", "fxaa", chart / "chart_1spp.exr", "-o", out)
+    assert "removed 1 temporary file(s)" in p.stderr and stale[0].name in p.stderr, p.stderr
+    assert [f.name for f in stale if f.exists()] == []
+    assert [f.name for f in kept if not f.exists()] == []
+    assert (out / "chart_1spp.exr").is_file()
+
+
 def test_mismatched_sizes_are_named(chart, tmp_path):
     small = tmp_path / "small"
     run("synth", "-o", small, "--size", "31x17")
