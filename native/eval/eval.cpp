@@ -134,6 +134,7 @@ void addMotion(Frame& frame, const fs::path& inputDir, int f, int firstFrame, bo
 struct WarpGeometry {
   std::map<int, Image> motions, masks;  // by frame (from the second frame on)
   std::string description;              // for the report; empty: none found (W = identity)
+  std::string idsUnusable;              // why the mask goes without IDs the frames hold (Frame::unusable)
 };
 
 // Motion (the renderer's, else reconstructed from depth and the sidecars) and the disocclusion mask
@@ -152,6 +153,9 @@ void loadWarpGeometry(const fs::path& dir, const std::vector<int>& frames, int t
       const Image* idsPrev = prev->has("id") ? &prev->pass("id") : nullptr;
       const Image* depth = fr->has("depth") ? &fr->pass("depth") : nullptr;
       const Image* depthPrev = prev->has("depth") ? &prev->pass("depth") : nullptr;
+      for (const Frame* held : {fr.get(), prev.get()})
+        if (!(ids && idsPrev) && held->unusable.count("id") && g.idsUnusable.empty())
+          g.idsUnusable = held->unusable.at("id");
       if ((ids && idsPrev) || (depth && depthPrev))
         g.masks[f] = disocclusionMask(&g.motions[f], ids, idsPrev, depth, depthPrev, 0.1f, threads);
     }
@@ -182,7 +186,8 @@ WarpGeometry warpGeometry(const fs::path& renders, const json& scene, const std:
     for (const std::string pass : {"depth", "motion", "id"})
       if (std::find(passes.begin(), passes.end(), pass) != passes.end() && !probe->has(pass) &&
           !(pass == "motion" && probe->has("depth")))  // motion is reconstructed from depth
-        missing += (missing.empty() ? "" : ", ") + pass;
+        missing += (missing.empty() ? "" : ", ") + pass +
+                   (probe->unusable.count(pass) ? " (held unusable: " + probe->unusable.at(pass) + ")" : "");
     if (missing.empty())
       candidates.push_back({warp, "motion vectors at the pixel centres (unjittered 1-sample frames)", std::move(probe)});
     else
@@ -203,6 +208,10 @@ WarpGeometry warpGeometry(const fs::path& renders, const json& scene, const std:
     }
     if (g.motions.empty()) continue;
     g.description = c.description;
+    if (!g.idsUnusable.empty()) {  // said, not silent: the mask then tests depth alone
+      g.description += std::string("; the disocclusion test without object IDs (") + g.idsUnusable + ")";
+      note("object IDs not used: " + g.idsUnusable);
+    }
     return g;
   }
   return {};

@@ -188,6 +188,28 @@ def test_old_renders_fall_back_to_the_jittered_motion_and_say_so(run):
         assert abs(got - want) <= 1e-3 * want, (got, want)
 
 
+def test_warp_ids_stored_as_half_float_are_named(run):
+    """Object IDs in half floats lose their hashes: renders/warp is then passed over as lacking
+    them, and stderr says why (not as if the pass were missing)."""
+    out, _ = run
+    with copy_of(out) as copy:
+        for f in (1, 2, 3):
+            name = os.path.join(copy, "renders", "warp", "frame_%04d.exr" % f)
+            info = subprocess.run(["oiiotool", "--info", "-v", name], capture_output=True, text=True, check=True)
+            names = info.stdout.split("channel list:")[1].splitlines()[0].split(",")
+            crypto = [c.strip().split(" ")[0] for c in names if "CryptoObject" in c]
+            assert crypto, names
+            half = name + ".half.exr"
+            subprocess.run(["oiiotool", name, "-d", "float", *[a for c in crypto for a in ("-d", c + "=half")],
+                            "-o", half], check=True, capture_output=True)
+            os.replace(half, name)
+        stderr = crisp_eval(copy)
+        assert "warp lacks id (held unusable: pass" in stderr, stderr[-2000:]
+        assert "object IDs would be lost" in stderr, stderr[-2000:]
+        _, scene = reported(copy, "none", 3)
+        assert "jittered 1-sample frames" in scene["temporal_error_warp"]
+
+
 def test_resume_renders_again_what_lacks_the_passes_now_needed(run):
     out, _ = run
     with copy_of(out) as copy:
