@@ -380,7 +380,11 @@ class FrameFilter:
         for k, v in (params or {}).items():
             self.filter.set_param(k, v)
         # Temporal filters take each frame's sub-pixel jitter from its sidecar, as `crisp filter` does.
-        self._takes_jitter = any(p["name"] == "jitterX" for p in self.filter.info()["params"])
+        info = self.filter.info()
+        self._takes_jitter = any(p["name"] == "jitterX" for p in info["params"])
+        # The passes bound to the filter: those it has an image for. Others in the plan serve the
+        # frame itself (object IDs that motion reconstruction reads, for a filter that reads none).
+        self._roles = {i["name"] for i in info["images"]}
         self._out = None
         self._zero_motion = None
         self._shape = None
@@ -452,6 +456,8 @@ class FrameFilter:
             if self._takes_jitter:
                 self._continue_or_restart(side)
             for role in self.passes:
+                if role not in self._roles:
+                    continue
                 if role == "motion":
                     self._bind_motion(frame, sidecar, present)
                     continue

@@ -153,6 +153,19 @@ class BatchTest(unittest.TestCase):
         self.assertEqual(run["plan"]["motion_source"], "reconstruct")
         self.assertNotIn("filter_s", run["frames"][0])
 
+    def test_ids_for_motion_alone_are_not_bound_to_filters_without_them(self):
+        """ghosting: one of two objects moves, so the plan renders object IDs for motion reconstruction;
+        taa and phlm read none, and filter the frames (they failed binding 'id' before)."""
+        for method in ("taa", "phlm"):
+            out = os.path.join(self.tmp.name, "ids_" + method)
+            rc, log = harness.blender_batch(["--scene-script", "ghosting", "--frames", "1-2", "--method", method,
+                                             "--resolution", "64x36", "-o", out])
+            self.assertEqual(rc, 0, log[-3000:])
+            names, _ = exr_util.channels(os.path.join(out, "input", "frame_0002.exr"))
+            self.assertIn("CryptoObject00", {n.split(".")[1] for n in names})
+            for f in (1, 2):
+                self.assertTrue(os.path.isfile(os.path.join(out, "filtered", "frame_%04d.exr" % f)), (method, f))
+
     def test_bad_inputs_clear_errors_user_file_untouched(self):
         blend = os.path.join(self.tmp.name, "user.blend")
         harness.build_scene("still_life")
