@@ -267,6 +267,14 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                                                                                      else (".exr",))]
         if not (render.input_complete(input_dir, f) and all(os.path.isfile(p) for p in outs)):
             return False
+        # Outputs are written after their input: one older than the input's sidecar is an earlier
+        # run's, left when a later run stopped between writing the input and its outputs.
+        rendered = os.path.getmtime(os.path.join(input_dir, render.frame_name(f, ".json")))
+        older = [os.path.basename(p) for p in outs if os.path.getmtime(p) < rendered]
+        if older:
+            log("frame %d: %s older than its input (a run stopped before writing it): making it again"
+                % (f, ", ".join(older)))
+            return False
         same, why = same_making(render.read_sidecar(input_dir, f).get("made_with"), stamp)
         if not same:
             log("frame %d was made with other settings (%s): making it again" % (f, why))

@@ -386,6 +386,16 @@ def test_render_reuses_only_what_the_same_settings_made(shot, lib, tmp_path):
     render(out, SHOT, "taa-improved", "--resume")  # nothing to do
     assert [e["frame"] for e in json.loads((out / "run.json").read_text())["frames"]] == list(range(1, 9))
     assert os.stat(out / "filtered" / frame(3)).st_mtime_ns == mtime
+    # A run stopped after writing frame 6's input, before its outputs (those found are an earlier
+    # run's, older than the input): the resume makes 6 on.
+    st = os.stat(out / "input" / frame(6, ".json"))
+    os.utime(out / "input" / frame(6, ".json"), ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    kept, stale = (os.stat(out / "filtered" / frame(f)).st_mtime_ns for f in (5, 6))
+    p = crisp("render", "--scene", "spinning_cube", "--resolution", SIZE, "--frames", "%d-%d" % SHOT,
+              "--method", "taa-improved", "-o", out, "--resume")
+    assert "frame 6: frame_0006.exr, frame_0006.png older than its input" in p.stderr + p.stdout, p.stderr[-2000:]
+    assert os.stat(out / "filtered" / frame(6)).st_mtime_ns != stale
+    assert os.stat(out / "filtered" / frame(5)).st_mtime_ns == kept
     render(out, SHOT, "taa-improved", "--resume", "--set", "feedbackMin=0.5")
     assert os.stat(out / "filtered" / frame(3)).st_mtime_ns != mtime
     variant = tmp_path / "variant"
