@@ -231,21 +231,30 @@ def render_sets(plans, facts):
 RENDERABLE_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "GPENCIL", "VOLUME", "POINTCLOUD", "CURVES"}
 
 
+def _render_collections_objects(layer):
+    """Names of the objects in the layer's collections that render: the collection not excluded from
+    the layer nor hidden from render (nor any collection above it). Viewport visibility (the eye, the
+    monitor icon) does not matter to a render."""
+    names = set()
+
+    def walk(lc):
+        if lc.exclude or getattr(lc.collection, "hide_render", False):
+            return
+        names.update(o.name for o in lc.collection.objects)
+        for child in lc.children:
+            walk(child)
+
+    walk(layer.layer_collection)
+    return names
+
+
 def visible_objects(scene, view_layer=None):
-    """Objects that reach the render: renderable types, not hidden from render, visible in the layer."""
+    """Objects that reach the render: renderable types, not hidden from render, in a collection that
+    renders in the layer. Hidden in the viewport only, an object still renders, so it counts."""
     layer = view_layer or scene.view_layers[0]
-    out = []
-    for ob in scene.objects:
-        if ob.type not in RENDERABLE_TYPES or ob.hide_render:
-            continue
-        try:
-            if not ob.visible_get(view_layer=layer):
-                continue
-        except TypeError:  # older signature
-            if not ob.visible_get():
-                continue
-        out.append(ob)
-    return out
+    rendered = _render_collections_objects(layer)
+    return [ob for ob in scene.objects
+            if ob.type in RENDERABLE_TYPES and not ob.hide_render and ob.name in rendered]
 
 
 def _deforms(ob):
@@ -271,6 +280,34 @@ def _same(a, b, eps=1e-6):
     return all(abs(a[i][j] - b[i][j]) <= eps for i in range(4) for j in range(4))
 
 
+def show_in_viewport(scene, layer):
+    """Unhides in the viewport (object eye and monitor icons, collection eye and monitor icons) what
+    renders in the layer; returns the calls that hide each again."""
+    undo = []
+
+    def walk(lc):
+        if lc.exclude or getattr(lc.collection, "hide_render", False):
+            return
+        if lc.hide_viewport:
+            lc.hide_viewport = False
+            undo.append(lambda lc=lc: setattr(lc, "hide_viewport", True))
+        if lc.collection.hide_viewport:
+            lc.collection.hide_viewport = False
+            undo.append(lambda c=lc.collection: setattr(c, "hide_viewport", True))
+        for child in lc.children:
+            walk(child)
+
+    walk(layer.layer_collection)
+    for ob in visible_objects(scene, layer):
+        if ob.hide_viewport:
+            ob.hide_viewport = False
+            undo.append(lambda ob=ob: setattr(ob, "hide_viewport", True))
+        if ob.hide_get(view_layer=layer):
+            ob.hide_set(False, view_layer=layer)
+            undo.append(lambda ob=ob: ob.hide_set(True, view_layer=layer))
+    return undo
+
+
 def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_pass=False):
     """Steps through the frame range and compares world matrices with the first frame's (each camera's
     with its own: a switch of cameras at a timeline marker is a cut, listed in camera_cuts, where
@@ -280,6 +317,9 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
     and parenting count too."""
     layer = view_layer or scene.view_layers[0]
     saved = (scene.frame_current, scene.frame_subframe, scene.camera)
+    # What is hidden in the viewport alone still renders, but the viewport's depsgraph does not
+    # evaluate it (its matrix_world would not follow the frames): shown while stepping, then hidden again.
+    shown = show_in_viewport(scene, layer)
     first_cam = {}  # camera object name -> its matrix at the first frame it is the scene's camera
     first, moving, names, cuts = {}, set(), [], []
     camera_moves = False
@@ -308,6 +348,8 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                     moving.add(o.name)
         deforming = [o.name for o in visible_objects(scene, layer) if _deforms(o)]
     finally:
+        for restore in reversed(shown):
+            restore()
         scene.frame_set(saved[0], subframe=saved[1])
         scene.camera = saved[2]
     return SceneFacts(frame_start=frame_start, frame_end=frame_end, camera_moves=camera_moves,

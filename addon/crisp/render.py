@@ -87,6 +87,7 @@ class Snapshot:
         self.scene = scene
         self._saved = []
         self._seen = set()
+        self._undo = []  # calls that put back what is not a property (an object's eye: hide_set)
 
     def remember(self, owner, attr):
         """Records a value that setting another property may change as a side effect."""
@@ -100,6 +101,10 @@ class Snapshot:
         if getattr(owner, attr) != value:
             setattr(owner, attr, value)
 
+    def undo_later(self, calls):
+        """Calls made on restore, last first, before the properties are put back."""
+        self._undo += calls
+
     def __enter__(self):
         self._frame = (self.scene.frame_current, self.scene.frame_subframe)
         return self
@@ -107,7 +112,13 @@ class Snapshot:
     def restore(self):
         """Puts every value back. Two passes: some values are only valid once another one is back
         (an 8-bit colour depth is refused while the file format is still EXR)."""
-        errors = {}
+        errors, undo_errors = {}, {}
+        for call in reversed(self._undo):
+            try:
+                call()
+            except Exception as e:  # keep restoring the rest
+                undo_errors["viewport visibility"] = str(e)
+        self._undo.clear()
         for _ in range(2):
             errors.clear()
             for owner, attr, value in reversed(self._saved):
@@ -118,6 +129,7 @@ class Snapshot:
                     errors[attr] = str(e)
         errors.update({attr: "still %r, not %r" % (getattr(o, attr), v) for o, attr, v in self._saved
                        if attr not in errors and getattr(o, attr) != v})
+        errors.update(undo_errors)
         self._saved.clear()
         self._seen.clear()
         self.scene.frame_set(self._frame[0], subframe=self._frame[1])
@@ -351,6 +363,8 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
         cam_data, base_shift = frame_camera()
         snap.set(scene.render, "filepath", scene.render.filepath)
         _prepare(snap, scene, view_layer, engine, samples, set(the_plan.render_flags()))
+        # The sidecars' object matrices: what renders but is hidden in the viewport is not evaluated there.
+        snap.undo_later(plan_mod.show_in_viewport(scene, view_layer))
         filter_size = scene.render.filter_size
         for f in frames:
             if should_cancel and should_cancel():

@@ -14,7 +14,7 @@ import harness  # noqa: E402
 
 import bpy  # noqa: E402
 import crisp  # noqa: E402
-from crisp import native, output_folder, pipeline, plan, render  # noqa: E402
+from crisp import hashing, native, output_folder, pipeline, plan, render  # noqa: E402
 
 # What each scene is, by construction (see each scene's docstring): which kind of motion, how many
 # objects are visible. The expected plans below follow from these facts and METHODS.md.
@@ -151,6 +151,47 @@ class AddonTest(unittest.TestCase):
         scene.frame_set(scene.frame_end)
         self.assertGreater((lamp.matrix_world.translation - a).length, 1.0, "the light really moves")
         p, _ = pipeline.scene_plan(scene, "taa", list(range(1, scene.frame_end + 1)))
+        self.assertNotIn("motion", p.passes)
+
+    def test_render_visibility_decides_what_counts(self):
+        """An object hidden in the viewport only (the eye, the monitor icon) still renders: it counts,
+        and its motion with it. One hidden from render, or in a collection excluded from the layer or
+        hidden from render, does not."""
+        scene = harness.build_scene("ghosting")  # Sphere moves across a still Wall
+        frames = list(range(1, 4))
+        sphere = scene.objects["Sphere"]
+        sphere.hide_set(True)
+        sphere.hide_viewport = True
+        p, facts = pipeline.scene_plan(scene, "taa", frames)
+        self.assertIn("Sphere", facts.visible_objects)
+        self.assertEqual(facts.moving_objects, ["Sphere"])
+        self.assertIn("motion", p.passes)
+        self.assertTrue(sphere.hide_get() and sphere.hide_viewport, "planning hides it again")
+        sphere.hide_viewport = False  # the eye alone
+        self.assertEqual(pipeline.scene_plan(scene, "taa", frames)[1].moving_objects, ["Sphere"])
+        self.assertTrue(sphere.hide_get())
+        # The sidecars' matrices follow it too (render_frames), and it is hidden again afterwards.
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        sphere.hide_viewport = True  # not evaluated in the viewport at all
+        with tempfile.TemporaryDirectory() as d:
+            render.render_frames(scene, p, [1, 3], d)
+            key = hashing.cryptomatte_hex("Sphere")
+            moved = [json.load(open(os.path.join(d, "frame_%04d.json" % f)))["objects"][key]["matrix_world"]
+                     for f in (1, 3)]
+        self.assertNotEqual(moved[0], moved[1])
+        self.assertTrue(sphere.hide_get() and sphere.hide_viewport)
+        hidden = bpy.data.collections.new("Hidden")
+        scene.collection.children.link(hidden)
+        hidden.objects.link(sphere)
+        for c in list(sphere.users_collection):
+            if c is not hidden:
+                c.objects.unlink(sphere)
+        hidden.hide_render = True
+        self.assertNotIn("Sphere", pipeline.scene_plan(scene, "taa", frames)[1].visible_objects)
+        hidden.hide_render = False
+        scene.view_layers[0].layer_collection.children["Hidden"].exclude = True
+        p, facts = pipeline.scene_plan(scene, "taa", frames)
+        self.assertNotIn("Sphere", facts.visible_objects)
         self.assertNotIn("motion", p.passes)
 
     def test_state_restored_after_render_and_after_error(self):
