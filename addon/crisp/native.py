@@ -248,9 +248,10 @@ class Filter:
             kind = {bool: "bool", int: "int", float: "float"}.get(type(value), "string")
             if isinstance(value, str):
                 kind = _infer_kind(value)
+        if isinstance(value, str) and kind in ("bool", "int", "float"):
+            value = _parsed_text(name, kind, value)
         if kind == "bool":
-            v = value if isinstance(value, bool) else str(value).lower() in ("1", "true", "yes", "on")
-            call("crispSetFilterBool", self.handle, _b(name), int(v))
+            call("crispSetFilterBool", self.handle, _b(name), int(bool(value)))
         elif kind == "int":
             call("crispSetFilterInt", self.handle, _b(name), int(value))
         elif kind == "float":
@@ -274,6 +275,25 @@ class Filter:
         if self.handle:
             call("crispReleaseFilter", self.handle)
             self.handle = None
+
+
+def _parsed_text(name, kind, text):
+    """A --set K=V text as the parameter's type; text that is not one is refused, naming the parameter
+    (a bool takes true/false, yes/no, on/off or 1/0 in any case, as `crisp filter --set` does)."""
+    t = text.strip()
+    try:
+        if kind == "bool":
+            low = t.lower()
+            if low in ("1", "true", "yes", "on"):
+                return True
+            if low in ("0", "false", "no", "off"):
+                return False
+            raise ValueError(t)
+        return int(t) if kind == "int" else float(t)
+    except ValueError:
+        detail = "parameter '%s' takes %s, not '%s'" % (
+            name, {"bool": "true or false", "int": "a whole number", "float": "a number"}[kind], text)
+        raise CrispError("invalid argument: " + detail, detail) from None
 
 
 def _infer_kind(text):

@@ -37,6 +37,11 @@ class RenderError(RuntimeError):
     """A render could not be set up or produced no file; the message says what to change."""
 
 
+class RenderFailed(RenderError):
+    """Blender failed to render or save a frame that was set up right (a full disk, a folder made
+    read-only meanwhile): not the input's fault."""
+
+
 # ---- engines and capabilities --------------------------------------------------------------------
 
 def eevee_engine(scene):
@@ -300,7 +305,11 @@ def _render_to(scene, path):
     tmp = os.path.join(folder, "." + name + ".tmp")
     scene.render.filepath = tmp
     t0 = time.perf_counter()
-    bpy.ops.render.render(write_still=True, scene=scene.name)
+    try:
+        bpy.ops.render.render(write_still=True, scene=scene.name)
+    except RuntimeError as e:  # Blender's own failure to render or write (a read-only folder, a full disk)
+        raise RenderFailed("Blender could not render frame %d to %s: %s"
+                          % (scene.frame_current, tmp, str(e).strip().splitlines()[-1] if str(e).strip() else e))
     dt = time.perf_counter() - t0
     if not os.path.isfile(tmp):
         raise RenderError("Blender wrote no file for frame %d (expected %s)" % (scene.frame_current, tmp))

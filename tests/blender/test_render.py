@@ -187,6 +187,9 @@ class BatchTest(unittest.TestCase):
             (["--frames", "1-2", "--library", "/nonexistent/libcrisp.so", "-o", out], blend, 3,
              "/nonexistent/libcrisp.so: no such file"),
             (["--frames", "1-2", "--resolution", "big", "-o", out], blend, 2, "bad --resolution"),
+            (["--frames", "1-2", "--set", "subpix=abc", "-o", out], blend, 2,
+             "--set subpix=abc: parameter 'subpix' takes a number, not 'abc'"),
+            (["--frames", "1-2", "--set", "reference=maybe", "-o", out], blend, 2, "takes true or false"),
         ]
         for args, opened, code, message in cases:
             with self.subTest(args=args):
@@ -195,6 +198,13 @@ class BatchTest(unittest.TestCase):
                 self.assertIn("crisp: error: ", log)
                 self.assertIn(message, log)
                 self.assertFalse(os.path.exists(out) and files(out), "output written on bad input")
+        # Blender failing to save a frame (a directory where its temporary file goes): exit 4, said.
+        stuck = os.path.join(self.tmp.name, "stuck")
+        os.makedirs(os.path.join(stuck, "input", ".frame_0001.exr.tmp"))
+        rc, log = harness.blender_batch(["--frames", "1-2", "-o", stuck], blend=blend)
+        self.assertEqual(rc, 4, log[-2000:])
+        self.assertIn("crisp: error: Blender could not render frame 1", log)
+        self.assertNotIn("Traceback", log)
         self.assertEqual(hashlib.sha256(open(blend, "rb").read()).hexdigest(), digest)
         self.assertEqual(os.stat(blend).st_mtime_ns, mtime)
         self.assertFalse(os.path.exists(blend + "1"), "no .blend1 backup: the file was never saved")
