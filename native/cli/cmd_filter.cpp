@@ -220,6 +220,13 @@ int runFilter(const ParsedArgs& args) {
                  joinPath(outDir, fileStem(args.positional[std::size_t(position - 1)])).c_str(), why.c_str());
     return false;
   };
+  // Temporary files of an earlier run on this host that was killed mid-write.
+  for (const std::string& dir : {outDir, stamps.folder()}) {
+    const std::vector<std::string> stale = removeStaleTemporaryFiles(dir);
+    if (!stale.empty() && !quiet)
+      std::fprintf(stderr, "filter: removed %zu temporary file(s) an interrupted run left in '%s' (first: '%s')\n",
+                   stale.size(), dir.c_str(), stale[0].c_str());
+  }
   // Pre-roll warms a temporal history; a spatial method has none, so it reads no
   // frame before the chunk (as the add-on's render renders none).
   ChunkRun run = planChunk(chunk, temporal ? preroll : 0, 1, resume, isComplete);
@@ -232,13 +239,6 @@ int runFilter(const ParsedArgs& args) {
   // the chunk, so what it writes is what an uninterrupted run writes (and what the stamps say).
   if (temporal) run.start = std::min(run.start, historyFirst);
 
-  // Temporary files of an earlier run on this host that was killed mid-write.
-  for (const std::string& dir : {outDir, stamps.folder()}) {
-    const std::vector<std::string> stale = removeStaleTemporaryFiles(dir);
-    if (!stale.empty() && !quiet)
-      std::fprintf(stderr, "filter: removed %zu temporary file(s) an interrupted run left in '%s' (first: '%s')\n",
-                   stale.size(), dir.c_str(), stale[0].c_str());
-  }
   StalePngs stalePngs;
   stamps.checkFolder();  // a file in the stamps' way fails the run before the first output, not after it
   Image output;
@@ -313,6 +313,7 @@ int runFilter(const ParsedArgs& args) {
     const std::string pngRecord = stamps.pngRecordOf(int(i) + 1);
     stamps.removeStamp(int(i) + 1);
     writeImage(base + ".exr", output);
+    stamps.makeFolder();  // for the PNG's record
     if (png) {
       writeImage(base + ".png", output);
       writeTextFile(pngRecord, pngStampOf(base + ".png"));

@@ -86,25 +86,37 @@ void makeDirectories(const std::string& path) {
   if (access(path.c_str(), W_OK) != 0) ioError("output folder '" + path + "' is not writable");
 }
 
-RunFolder::RunFolder(const std::string& path) {
+namespace {
+// Removes the folders in `dirs` (deepest first) while they are empty.
+void removeEmptyFolders(const std::vector<std::string>& dirs) {
   std::error_code ec;
-  for (fs::path p = fs::absolute(path, ec); !ec && !p.empty() && !fs::exists(p, ec); p = p.parent_path()) {
+  for (const std::string& dir : dirs)
+    if (!fs::remove(dir, ec)) break;  // not empty (or gone): neither it nor its parents are ours to remove
+}
+}  // namespace
+
+RunFolder::RunFolder(const std::string& path) {
+  // The folders of the path that are missing, found on its normal form ("a/../b", "b/", "b/." are b);
+  // a symlink, even a dangling one, exists. A folder that exists is never recorded.
+  std::error_code ec;
+  fs::path p = fs::absolute(path, ec).lexically_normal();
+  if (!ec && p.has_relative_path() && p.filename().empty()) p = p.parent_path();
+  for (; !ec && !p.empty(); p = p.parent_path()) {
+    const fs::file_status status = fs::symlink_status(p, ec);
+    if (status.type() != fs::file_type::not_found) break;  // there (or cannot tell): not ours
+    ec.clear();
     made_.push_back(p.string());
     if (p == p.parent_path()) break;
   }
   try {
     makeDirectories(path);
   } catch (...) {
-    this->~RunFolder();
+    removeEmptyFolders(made_);
     throw;
   }
 }
 
-RunFolder::~RunFolder() {
-  std::error_code ec;
-  for (const std::string& dir : made_)
-    if (!fs::remove(dir, ec)) break;  // not empty (or gone): neither it nor its parents are ours to remove
-}
+RunFolder::~RunFolder() { removeEmptyFolders(made_); }
 
 std::string executableDir() {
   std::error_code ec;

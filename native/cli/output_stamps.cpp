@@ -168,14 +168,16 @@ void OutputStamps::historyStartsOver(int position) {
 }
 
 void OutputStamps::removeStamp(int position) const {
-  makeDirectories(dir_);
   const std::string path = stampPathOf(position);
   std::error_code ec;
   fs::remove(path, ec);
   if (ec) ioError("cannot remove the old record '" + path + "': " + ec.message());
 }
 
+void OutputStamps::makeFolder() const { makeDirectories(dir_); }
+
 void OutputStamps::writeStamp(int position) const {
+  makeFolder();
   const nlohmann::json stamp = stampOf(position, digestText(history_), sizeAndTime(base(position) + ".exr"));
   writeTextFile(stampPathOf(position), stamp.dump() + "\n");
 }

@@ -67,6 +67,9 @@ class OutputStamps {
   void removeStamp(int position) const;
   // After `position`'s outputs are in place.
   void writeStamp(int position) const;
+  // Makes the stamps' folder: after the first output is written (writeStamp does it too), so that a
+  // run whose first output fails leaves no folder behind (RunFolder).
+  void makeFolder() const;
 
   const std::string& folder() const { return dir_; }
   std::string pngRecordOf(int position) const;

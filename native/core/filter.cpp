@@ -67,8 +67,9 @@ void Filter::setImage(const std::string& name, const ImageView& view) {
                     std::to_string(view.rowStride) + " bytes) are smaller than the pixels they hold");
   auto it = images_.find(name);
   // Re-pointing a buffer of the same shape does not need a new commit.
-  if (it == images_.end() || it->second.width != view.width || it->second.height != view.height ||
-      it->second.format != view.format)
+  if (it == images_.end())
+    markDirty("image '" + name + "' was set");
+  else if (it->second.width != view.width || it->second.height != view.height || it->second.format != view.format)
     markDirty("image '" + name + "' was set to a new size or format");
   images_[name] = view;
 }
@@ -93,7 +94,7 @@ void Filter::commit() {
       invalidData(std::string("filter '") + type() + "': required image '" + r.name + "' (" + r.meaning + ") is not set");
   const ImageView& color = image("color");
   for (const auto& [name, view] : images_)
-    if (readsImage(name) && view.width != color.width || view.height != color.height)
+    if (readsImage(name) && (view.width != color.width || view.height != color.height))
       invalidData("image '" + name + "' is " + std::to_string(view.width) + "x" + std::to_string(view.height) +
                   " but 'color' is " + std::to_string(color.width) + "x" + std::to_string(color.height));
   width_ = color.width;

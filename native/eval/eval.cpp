@@ -208,10 +208,8 @@ WarpGeometry warpGeometry(const fs::path& renders, const json& scene, const std:
     }
     if (g.motions.empty()) continue;
     g.description = c.description;
-    if (!g.idsUnusable.empty()) {  // said, not silent: the mask then tests depth alone
-      g.description += std::string("; the disocclusion test without object IDs (") + g.idsUnusable + ")";
-      note("object IDs not used: " + g.idsUnusable);
-    }
+    if (!g.idsUnusable.empty() && !g.masks.empty())  // said, not silent: the mask then tests depth alone
+      note("the disocclusion test goes without object IDs: " + g.idsUnusable);
     return g;
   }
   return {};
@@ -605,8 +603,10 @@ int run(const Options& o) {
     } else {
       motions = std::move(g.motions);
       masks = std::move(g.masks);
-      warp = g.description + " (renderer or reconstructed); valid = inside the previous frame and not disoccluded "
-             "(object ID / depth test)";
+      warp = g.description + " (renderer or reconstructed); valid = inside the previous frame and not disoccluded " +
+             (masks.empty() ? std::string("(no depth or IDs: every pixel inside)")
+              : g.idsUnusable.empty() ? std::string("(object ID / depth test)")
+                                      : "(depth test; object IDs not used: " + g.idsUnusable + ")");
     }
   }
   // A cut to another camera (a timeline marker): nothing on screen continues the frame before, and the

@@ -46,14 +46,14 @@ int registerPath(const std::string& path) {
   return -1;
 }
 
-// This host's name as temporary names hold it: at most 32 bytes of [A-Za-z0-9_.].
+// This host's name as temporary names hold it: at most 64 bytes of [A-Za-z0-9_.-] (others become _).
 const std::string& hostTag() {
   static const std::string tag = [] {
     char host[256] = {};
     if (::gethostname(host, sizeof host - 1) != 0 || !host[0]) return std::string("host");
     std::string t;
-    for (const char* c = host; *c && t.size() < 32; ++c)
-      t += (std::isalnum(static_cast<unsigned char>(*c)) || *c == '_' || *c == '.') ? *c : '_';
+    for (const char* c = host; *c && t.size() < 64; ++c)
+      t += (std::isalnum(static_cast<unsigned char>(*c)) || *c == '_' || *c == '.' || *c == '-') ? *c : '_';
     return t;
   }();
   return tag;
@@ -64,17 +64,19 @@ bool allDigits(const std::string& s) {
          std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
 }
 
-// The process id in a temporary name ".<name>.tmp-<host>-<pid>-<n><ext>" made
-// on this host, or 0.
+// The process id in a name this code makes on this host, ".<name>.tmp-<host>-<pid>-<n>[.<ext>]"
+// (<ext> without a dot), or 0 for any other name.
 long pidOfOwnTemporary(const std::string& name) {
   const std::string marker = ".tmp-" + hostTag() + "-";
   const std::size_t at = name.rfind(marker);
-  if (name.empty() || name[0] != '.' || at == std::string::npos || at == 0) return 0;
-  const std::string rest = name.substr(at + marker.size());  // "<pid>-<n><ext>"
-  const std::size_t dash = rest.find('-'), dot = rest.find('.', dash == std::string::npos ? 0 : dash);
-  if (dash == std::string::npos || dot == std::string::npos) return 0;
-  const std::string pid = rest.substr(0, dash), n = rest.substr(dash + 1, dot - dash - 1);
+  if (name.size() < 2 || name[0] != '.' || at == std::string::npos || at == 0) return 0;
+  const std::string rest = name.substr(at + marker.size());  // "<pid>-<n>[.<ext>]"
+  const std::size_t dash = rest.find('-');
+  if (dash == std::string::npos) return 0;
+  const std::size_t dot = rest.find('.', dash);
+  const std::string pid = rest.substr(0, dash), n = rest.substr(dash + 1, dot == std::string::npos ? dot : dot - dash - 1);
   if (!allDigits(pid) || !allDigits(n)) return 0;
+  if (dot != std::string::npos && (dot + 1 == rest.size() || rest.find('.', dot + 1) != std::string::npos)) return 0;
   return std::stol(pid);
 }
 

@@ -16,7 +16,7 @@ class TemporaryFile {
   // ".<name>.tmp-<host>-<pid>-<n><ext>" beside target: same filesystem,
   // hidden, unique per host, process and call (a farm may share the folder),
   // the real extension last (OIIO picks the format from it); the name part
-  // cut to 64 bytes and the host to 32 so a target name near NAME_MAX (255)
+  // cut to 64 bytes and the host to 64 so a target name near NAME_MAX (255)
   // still gets a valid sibling.
   explicit TemporaryFile(const std::string& target);
   ~TemporaryFile();

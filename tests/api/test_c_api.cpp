@@ -109,9 +109,11 @@ TEST(CApi, ExecuteWithoutACommitNamesWhy) {
   std::vector<float> a(4 * 4 * 4, 0.5f), b(4 * 4 * 4), small(2 * 4 * 4);
   f.setImage("color", a.data(), CRISP_FORMAT_FLOAT4, 4, 4);
   f.setImage("output", b.data(), CRISP_FORMAT_FLOAT4, 4, 4);
+  CrispError code;
+  crispExecuteFilter(f.handle());
+  EXPECT_NE(lastError(&code).find("execute called before commit"), std::string::npos);
   f.commit();
   f.execute();
-  CrispError code;
   crispSetFilterFloat(f.handle(), "edgeThreshold", 0.2f);
   crispSetFilterString(f.handle(), "preset", "12");  // unknown to fxaa: refused, changes nothing
   lastError();

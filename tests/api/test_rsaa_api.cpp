@@ -148,7 +148,8 @@ struct DepthStep {
 // One rsaa frame through the C API: the sub-samples packed or as sub0..sub7;
 // the output in `out`, or in the buffer of input `aliased` ("color", "sub0",
 // ..., "subsamples"), whose copy it then returns. With `staleSubs`, packed
-// records come with a stale sub0..sub7 of another size, which they supersede.
+// records come with a stale sub0..sub7 of another size (sub0-3 another width, sub4-7 another
+// height), which they supersede.
 std::vector<float> runRsaa(CrispContext context, DepthStep scene, bool packed, const std::string& aliased = "",
                            bool staleSubs = false) {
   const int W = DepthStep::W, H = DepthStep::H;
@@ -159,9 +160,10 @@ std::vector<float> runRsaa(CrispContext context, DepthStep scene, bool packed, c
   if (aliased == "color") output = scene.color.data();
   crispSetFilterImage(f, "depth", scene.depth.data(), CRISP_FORMAT_FLOAT, W, H, 0, 0);
   crispSetFilterImage(f, "normal", scene.normal.data(), CRISP_FORMAT_FLOAT3, W, H, 0, 0);
-  std::vector<float> stale(4 * (W / 2) * H, 0.0f);
+  std::vector<float> stale(4 * W * H, 0.0f);
   for (int k = 0; staleSubs && k < 8; ++k)
-    crispSetFilterImage(f, ("sub" + std::to_string(k)).c_str(), stale.data(), CRISP_FORMAT_FLOAT4, W / 2, H, 0, 0);
+    crispSetFilterImage(f, ("sub" + std::to_string(k)).c_str(), stale.data(), CRISP_FORMAT_FLOAT4, k < 4 ? W / 2 : W,
+                        k < 4 ? H : H - 1, 0, 0);
   if (packed) {
     crispSetFilterImage(f, "subsamples", scene.records.data(), CRISP_FORMAT_RSAA_SUBSAMPLES, W, H, 0, 0);
     if (aliased == "subsamples") output = reinterpret_cast<float*>(scene.records.data());

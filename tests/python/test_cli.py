@@ -142,6 +142,19 @@ def test_bad_files_name_the_file_and_write_nothing(chart, tmp_path):
     p = run("filter", "--method", "fxaa", tmp_path / "truncated.exr", "-o", out / "a" / "b", ok=False)
     assert p.returncode == 1
     assert [x.name for x in out.iterdir()] == []  # no temporary files, no a/b
+    # The folders made are found on the path's normal form: one that existed is never removed, and
+    # a failure to create the folder is an error, not a crash.
+    p = run("filter", "--method", "fxaa", tmp_path / "truncated.exr", "-o", tmp_path / "nothere" / ".." / "out",
+            ok=False)
+    assert p.returncode == 1 and out.is_dir()
+    p = run("filter", "--method", "fxaa", tmp_path / "truncated.exr", "-o", out / "new" / "." / "deeper" / "", ok=False)
+    assert p.returncode == 1 and not (out / "new").exists()
+    dangling = tmp_path / "dangling"
+    dangling.symlink_to(tmp_path / "nowhere")
+    p = run("filter", "--method", "fxaa", chart / "chart_1spp.exr", "-o", dangling, ok=False)
+    assert p.returncode == 1 and "cannot create output folder" in p.stderr and dangling.is_symlink(), p.stderr
+    p = run("filter", "--method", "fxaa", chart / "chart_1spp.exr", "-o", tmp_path / "empty.exr" / "sub", ok=False)
+    assert p.returncode == 1 and "cannot create output folder" in p.stderr, p.stderr
 
 
 def test_temporary_files_of_a_killed_run_are_removed(chart, tmp_path):
@@ -150,25 +163,28 @@ def test_temporary_files_of_a_killed_run_are_removed(chart, tmp_path):
     import re
     import socket
     import sys
-    host = re.sub(r"[^A-Za-z0-9_.]", "_", socket.gethostname())[:32]
+    host = re.sub(r"[^A-Za-z0-9_.-]", "_", socket.gethostname())[:64]
     gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True, check=True)
     dead = int(gone.stdout)
     out = tmp_path / "out"
     (out / ".crisp").mkdir(parents=True)
     old = 1_000_000_000  # 2001: long untouched
-    stale = [out / f".chart_1spp.tmp-{host}-{dead}-0.exr", out / ".crisp" / f".chart_1spp.tmp-{host}-{dead}-3.json"]
+    stale = [out / f".chart_1spp.tmp-{host}-{dead}-0.exr", out / ".crisp" / f".chart_1spp.tmp-{host}-{dead}-3.json",
+             out / f".result.tmp-{host}-{dead}-7"]                 # a target without an extension
     kept = [out / f".chart_1spp.tmp-{host}-{os.getpid()}-0.exr",   # its process still runs
             out / f".chart_1spp.tmp-otherhost-{dead}-0.exr",       # another machine's
             out / f".chart_1spp.tmp-{host}-{dead}-1.png",          # written just now
             out / f"chart_1spp.tmp-{host}-{dead}-0.exr",           # not hidden: not ours
-            out / f".notes.tmp-{host}-{dead}-x.txt"]               # not our pattern
+            out / f".notes.tmp-{host}-{dead}-x.txt",               # not our pattern
+            out / f".chart_1spp.tmp-{host}-{dead}-0.exr.bak",      # a copy of one: not ours
+            out / f".chart_1spp.tmp-{host}-{dead}-0."]
     for f in stale + kept:
         f.write_bytes(b"half an image")
         if f != kept[2]:
             os.utime(f, (old, old))
     p = run("filter", "--method", "fxaa", chart / "chart_1spp.exr", "-o", out)
-    assert "removed 1 temporary file(s)" in p.stderr and stale[0].name in p.stderr, p.stderr
+    assert "removed 2 temporary file(s)" in p.stderr and "removed 1 temporary file(s)" in p.stderr, p.stderr
     assert [f.name for f in stale if f.exists()] == []
     assert [f.name for f in kept if not f.exists()] == []
     assert (out / "chart_1spp.exr").is_file()
