@@ -280,6 +280,31 @@ def _same(a, b, eps=1e-6):
     return all(abs(a[i][j] - b[i][j]) <= eps for i in range(4) for j in range(4))
 
 
+def rendered_instances(layer):
+    """The instanced objects that render (a collection instance, instancing by vertices or faces,
+    geometry nodes instances), as [(source object name, instancer name, matrix_world as lists)], from
+    the layer's depsgraph at the current frame. Cryptomatte names an instance by its source object, so
+    instances of one source share one object ID."""
+    rendered = _render_collections_objects(layer)
+    out = []
+    for inst in layer.depsgraph.object_instances:
+        if not inst.is_instance or inst.parent is None:
+            continue
+        source, parent = inst.object.original, inst.parent.original
+        if source.type not in RENDERABLE_TYPES or source.hide_render or parent.hide_render:
+            continue
+        if parent.name not in rendered:
+            continue
+        out.append((source.name, parent.name, [list(r) for r in inst.matrix_world]))
+    return out
+
+
+def _source_object(name):
+    """An instanced source object by name (it need not be in the scene)."""
+    import bpy  # only here: the rest of this module reads bpy objects passed in
+    return bpy.data.objects[name]
+
+
 def show_in_viewport(scene, layer):
     """Unhides in the viewport (object eye and monitor icons, collection eye and monitor icons) what
     renders in the layer; returns the calls that hide each again."""
@@ -298,7 +323,10 @@ def show_in_viewport(scene, layer):
             walk(child)
 
     walk(layer.layer_collection)
-    for ob in visible_objects(scene, layer):
+    rendered = _render_collections_objects(layer)
+    for ob in scene.objects:  # every type: an empty that instances a collection too
+        if ob.hide_render or ob.name not in rendered:
+            continue
         if ob.hide_viewport:
             ob.hide_viewport = False
             undo.append(lambda ob=ob: setattr(ob, "hide_viewport", True))
@@ -332,8 +360,10 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                 cuts.append(f)
             previous_cam = cam.name if cam else None
             obs = visible_objects(scene, layer)
+            instances = rendered_instances(layer)
             if f == frame_start:
                 names = [o.name for o in obs]
+                names += sorted({source for source, _, _ in instances} - set(names))
             if cam is not None:
                 cm = [list(r) for r in cam.matrix_world]
                 if cam.name not in first_cam:
@@ -346,7 +376,17 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                     first[o.name] = m
                 elif not _same(m, first[o.name]):
                     moving.add(o.name)
+            seen = {}  # an instance is told from the others of its source and instancer by its order
+            for source, parent, m in instances:
+                key = (source, parent, seen.setdefault((source, parent), 0))
+                seen[(source, parent)] += 1
+                if key not in first:
+                    first[key] = m
+                elif not _same(m, first[key]):
+                    moving.add(source)
         deforming = [o.name for o in visible_objects(scene, layer) if _deforms(o)]
+        deforming += sorted({source for source, _, _ in rendered_instances(layer)
+                             if _deforms(scene.objects.get(source) or _source_object(source))} - set(deforming))
     finally:
         for restore in reversed(shown):
             restore()

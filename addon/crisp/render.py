@@ -236,7 +236,18 @@ def camera_matrices(scene, depsgraph):
 
 
 def object_table(scene, view_layer):
+    """The sidecar's objects by Cryptomatte hash: each visible object, and each instanced source that
+    renders once (instances of one source share its ID, so their transforms cannot be told apart in
+    the ID pass: those are left out, and motion reconstruction treats their pixels as still)."""
     out = {}
+    instances = plan_mod.rendered_instances(view_layer or scene.view_layers[0])
+    counts = {}
+    for source, _, _ in instances:
+        counts[source] = counts.get(source, 0) + 1
+    for source, _, m in instances:
+        key = hashing.cryptomatte_hex(source)
+        if counts[source] == 1 and key not in out:
+            out[key] = {"name": source, "matrix_world": _matrix(m)}
     for ob in plan_mod.visible_objects(scene, view_layer):
         out[hashing.cryptomatte_hex(ob.name)] = {"name": ob.name, "matrix_world": _matrix(ob.matrix_world)}
     return out

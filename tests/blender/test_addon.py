@@ -194,6 +194,47 @@ class AddonTest(unittest.TestCase):
         self.assertNotIn("Sphere", facts.visible_objects)
         self.assertNotIn("motion", p.passes)
 
+    def test_instanced_geometry_counts(self):
+        """Geometry that renders through a collection instance (an empty instancing a collection excluded
+        from the layer, as linked assets arrive) counts as visible, its motion is seen, and the sidecars
+        carry each source instanced once with the instance's matrix; a source instanced twice shares one
+        Cryptomatte ID, so its instances are not listed."""
+        scene = harness.build_scene("ghosting")
+        asset = bpy.data.collections.new("Asset")
+        scene.collection.children.link(asset)
+        sphere = scene.objects["Sphere"]
+        sphere.animation_data_clear()
+        for c in list(sphere.users_collection):
+            c.objects.unlink(sphere)
+        asset.objects.link(sphere)
+        scene.view_layers[0].layer_collection.children["Asset"].exclude = True
+        inst = bpy.data.objects.new("AssetInstance", None)
+        inst.instance_type, inst.instance_collection = "COLLECTION", asset
+        scene.collection.objects.link(inst)
+        inst.location.x = -1.0
+        inst.keyframe_insert("location", frame=1)
+        inst.location.x = 1.0
+        inst.keyframe_insert("location", frame=3)
+        p, facts = pipeline.scene_plan(scene, "taa-improved", [1, 2, 3])
+        self.assertIn("Sphere", facts.visible_objects)
+        self.assertEqual(facts.moving_objects, ["Sphere"])
+        self.assertIn("motion", p.passes)
+        self.assertIn("id", p.passes)
+        self.assertIn("subsamples", pipeline.scene_plan(scene, "rsaa", [1, 2, 3])[0].passes)
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        key = hashing.cryptomatte_hex("Sphere")
+        with tempfile.TemporaryDirectory() as d:
+            render.render_frames(scene, p, [1, 3], d)
+            tables = [json.load(open(os.path.join(d, "frame_%04d.json" % f)))["objects"] for f in (1, 3)]
+        xs = [t[key]["matrix_world"][0][3] for t in tables]  # the sphere's own x plus the instancer's
+        self.assertAlmostEqual(xs[1] - xs[0], 2.0, places=5)
+        twin = bpy.data.objects.new("AssetInstance2", None)
+        twin.instance_type, twin.instance_collection = "COLLECTION", asset
+        scene.collection.objects.link(twin)
+        with tempfile.TemporaryDirectory() as d:
+            render.render_frames(scene, p, [1], d)
+            self.assertNotIn(key, json.load(open(os.path.join(d, "frame_0001.json")))["objects"])
+
     def test_state_restored_after_render_and_after_error(self):
         scene = harness.build_scene("spinning_cube")
         scene.render.resolution_x, scene.render.resolution_y = 32, 18
