@@ -64,6 +64,7 @@ SIGNATURES = {
     "crispReleaseFrame": (None, [_vp]),
     "crispGetFrameWidth": (_int, [_vp]),
     "crispGetFrameHeight": (_int, [_vp]),
+    "crispGetFrameNonFiniteColour": (ctypes.c_longlong, [_vp]),
     "crispGetFramePasses": (_cp, [_vp]),
     "crispGetFramePass": (_vp, [_vp, _cp, ctypes.POINTER(_int)]),
     "crispWriteImage": (None, [_vp, _cp, _vp, _int, _sz, _sz, _sz, _sz]),
@@ -371,6 +372,11 @@ def compare_images(context, reference_path, test_path):
         if (ref.width, ref.height) != (test.width, test.height):
             raise CrispError("compare: %s is %dx%d but %s is %dx%d" % (reference_path, ref.width, ref.height,
                                                                       test_path, test.width, test.height))
+        for path, frame in ((reference_path, ref), (test_path, test)):  # as `crisp compare` refuses them
+            bad = call("crispGetFrameNonFiniteColour", frame.handle)
+            if bad:
+                raise CrispError("compare: %s has %d non-finite colour values (NaN or Inf): it has no error to "
+                                 "measure" % (path, bad))
         rp, rf = ref.pass_pointer("color")
         tp, tf = test.pass_pointer("color")
         if rf != tf:

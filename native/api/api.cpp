@@ -332,6 +332,13 @@ int crispGetFrameHeight(CrispFrame frame) {
   });
 }
 
+long long crispGetFrameNonFiniteColour(CrispFrame frame) {
+  return guarded([&] {
+    need(frame, "frame");
+    return static_cast<long long>(frame->frame.nonFiniteColour);
+  });
+}
+
 const char* crispGetFramePasses(CrispFrame frame) {
   return guarded(
       [&]() -> const char* {

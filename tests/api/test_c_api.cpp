@@ -2,8 +2,11 @@
 // The public C API and its C++ wrapper, against the shared library only.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <map>
@@ -136,6 +139,30 @@ TEST(CApi, ExecuteWithoutACommitNamesWhy) {
   crispUnsetFilterImage(f.handle(), "output");
   crispExecuteFilter(f.handle());
   EXPECT_NE(lastError().find("image 'output' was unset"), std::string::npos);
+}
+
+// A frame says how many colour values its file held as NaN or Inf (its colour pass holds them
+// sanitised), so a caller can refuse to measure it, as crisp compare does.
+TEST(CApi, FrameCountsNonFiniteColour) {
+  auto ctx = crisp::ContextRef::create();
+  const std::string path = ::testing::TempDir() + "crisp_nonfinite_" + std::to_string(::getpid()) + ".exr";
+  std::vector<float> rgba(4 * 3 * 2, 0.5f);
+  rgba[1] = std::numeric_limits<float>::quiet_NaN();
+  rgba[6] = std::numeric_limits<float>::infinity();
+  rgba[8] = -std::numeric_limits<float>::infinity();
+  crispWriteImage(ctx.handle(), path.c_str(), rgba.data(), CRISP_FORMAT_FLOAT4, 3, 2, 0, 0);
+  ASSERT_EQ(lastError(), "");
+  CrispFrame frame = crispLoadFrame(ctx.handle(), path.c_str());
+  ASSERT_NE(frame, nullptr) << lastError();
+  EXPECT_EQ(crispGetFrameNonFiniteColour(frame), 3);
+  CrispFormat format;
+  const float* color = static_cast<const float*>(crispGetFramePass(frame, "color", &format));
+  ASSERT_NE(color, nullptr);
+  EXPECT_EQ(color[1], 0.0f);  // sanitised
+  crispReleaseFrame(frame);
+  EXPECT_EQ(crispGetFrameNonFiniteColour(nullptr), 0);
+  EXPECT_NE(lastError().find("NULL"), std::string::npos);
+  std::remove(path.c_str());
 }
 
 TEST(CApi, FirstErrorIsKeptAndErrorsArePerThread) {

@@ -5,6 +5,7 @@ scene back as it was)."""
 
 import math
 import os
+import subprocess
 import sys
 import tempfile
 import unittest
@@ -50,6 +51,15 @@ class OperatorTest(unittest.TestCase):
         self.assertTrue(math.isfinite(s.last_psnr) and 15.0 < s.last_psnr < 60.0, s.last_compare)
         self.assertTrue(0.5 < s.last_ssim <= 1.0, s.last_compare)
         self.assertIn("2 frames", s.last_compare)
+        # A reference holding NaN has no error to measure: refused, as `crisp compare` refuses it.
+        ref1 = os.path.join(self.tmp.name, "reference", "frame_0001.exr")
+        subprocess.run(["oiiotool", ref1, "--subc", "1", "--powc", "0.5", "-d", "float", "-o", ref1 + ".nan.exr"],
+                       check=True, capture_output=True)
+        os.replace(ref1 + ".nan.exr", ref1)
+        with self.assertRaises(RuntimeError) as ctx:
+            bpy.ops.crisp.compare()
+        self.assertIn("non-finite colour values", str(ctx.exception))
+        self.assertIn("frame_0001.exr", str(ctx.exception))
         self.assertEqual(scene.render.engine, "CYCLES", "the user's engine was not restored")
         self.assertIn("Crisp Result: " + scene.name, [g.name for g in bpy.data.node_groups])
         # Still-frame preview: the current frame's filtered PNG becomes an image Blender can show.

@@ -150,6 +150,10 @@ CRISP_API int crispGetFrameWidth(CrispFrame frame);
 CRISP_API int crispGetFrameHeight(CrispFrame frame);
 // Comma-separated list of roles present: "color,depth,normal,...".
 CRISP_API const char* crispGetFramePasses(CrispFrame frame);
+// How many colour values (channels) the file held as NaN or +-Inf; the
+// "color" pass holds them sanitised (0 for NaN, clamped for Inf). An image
+// with any has no error to measure: crisp compare refuses it.
+CRISP_API long long crispGetFrameNonFiniteColour(CrispFrame frame);
 // Pointer to the pass's packed pixels (owned by the frame), or NULL with an
 // error if absent. *outFormat receives its format.
 CRISP_API void* crispGetFramePass(CrispFrame frame, const char* role, CrispFormat* outFormat);
