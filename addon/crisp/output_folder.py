@@ -103,6 +103,10 @@ def out_dir(scene, writing):
     if not s.output_dir and not bpy.data.filepath:
         raise UnsavedFile("save the .blend file first (Crisp's frames go to //crisp/<scene>/ beside it), "
                           "or set the Output folder in the Crisp panel")
+    if s.output_dir.startswith("//") and not bpy.data.filepath:
+        # Blender would resolve // against the process's working folder: somewhere the user never chose.
+        raise UnsavedFile("the Output folder '%s' is relative to the .blend file, which is not saved yet: "
+                          "save it first, or give an absolute folder" % s.output_dir)
     if writing and (not s.output_dir or (s.output_dir == s.output_pinned and sharing(scene) and
                                          not _owns(scene, s.output_dir))):
         s.output_dir = s.output_pinned = default_out_dir(scene)

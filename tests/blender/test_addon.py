@@ -315,6 +315,10 @@ class AddonTest(unittest.TestCase):
         with self.assertRaisesRegex(output_folder.UnsavedFile, "save the .blend"):
             output_folder.out_dir(scene, writing=True)
         self.assertEqual(scene.crisp.output_dir, "")
+        scene.crisp.output_dir = "//renders/"  # relative to a file that is not saved: the same
+        with self.assertRaisesRegex(output_folder.UnsavedFile, "not saved yet"):
+            output_folder.out_dir(scene, writing=True)
+        scene.crisp.property_unset("output_dir")
         with tempfile.TemporaryDirectory() as d:
             bpy.ops.wm.save_as_mainfile(filepath=os.path.join(d, "f.blend"))
             self.assertEqual(output_folder.default_out_dir(scene), "//crisp/Shot/")
