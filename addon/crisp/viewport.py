@@ -392,7 +392,16 @@ def _header_toggle(self, context):
     self.layout.prop(s, "enabled", text="", icon="ANTIALIASED")
 
 
+@bpy.app.handlers.persistent
+def _before_file_load(*_args):
+    """File > Open (or New, or Revert): the preview ends with the file it filters, its settings put back
+    in that file's scene (not in a same-named scene of the next file), its handlers gone; the next
+    file starts with the toggle off."""
+    _remove()
+
+
 def register():
+    bpy.app.handlers.load_pre.append(_before_file_load)
     bpy.utils.register_class(CrispViewportSettings)
     bpy.types.WindowManager.crisp_viewport = bpy.props.PointerProperty(type=CrispViewportSettings)
     bpy.utils.register_class(CRISP_PT_viewport)
@@ -401,6 +410,8 @@ def register():
 
 def unregister():
     _remove()
+    if _before_file_load in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.remove(_before_file_load)
     bpy.types.VIEW3D_HT_header.remove(_header_toggle)
     bpy.utils.unregister_class(CRISP_PT_viewport)
     del bpy.types.WindowManager.crisp_viewport

@@ -1,0 +1,54 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+# xvfb-screen: 640x400x24
+"""The viewport preview across File > Open: it ends with the file it filtered. Its draw and scene
+handlers go, the one-sample settings it forced go back into that file's scene, and the opened file,
+whose scene has the same name, keeps its own settings, also after the preview is switched on and off
+there. (It used to keep drawing with the toggle shown off, and wrote the first file's settings into
+the second.)"""
+
+import os
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import gui_harness  # noqa: E402
+
+import bpy  # noqa: E402
+
+import crisp  # noqa: E402
+from crisp import viewport  # noqa: E402
+
+bpy.context.preferences.view.show_splash = False
+
+
+class PreviewAcrossFileOpen(unittest.TestCase):
+    def test_open_ends_the_preview_and_keeps_each_files_settings(self):
+        crisp.register()
+        self.addCleanup(crisp.unregister)
+        tmp = tempfile.TemporaryDirectory()
+        self.addCleanup(tmp.cleanup)
+        other = os.path.join(tmp.name, "other.blend")
+        scene = bpy.context.scene
+        scene.eevee.taa_samples, scene.display.viewport_aa = 16, "8"
+        bpy.ops.wm.save_as_mainfile(filepath=other, copy=True)  # another file, its scene also "Scene"
+        scene.eevee.taa_samples, scene.display.viewport_aa = 32, "FXAA"
+        settings = bpy.context.window_manager.crisp_viewport
+        settings.enabled = True
+        self.assertTrue(viewport.is_active())
+        self.assertEqual((scene.eevee.taa_samples, scene.display.viewport_aa), (1, "OFF"))  # forced while on
+
+        bpy.ops.wm.open_mainfile(filepath=other)
+        self.assertFalse(viewport.is_active(), "the preview still draws after File > Open")
+        self.assertNotIn(viewport._on_scene_change, bpy.app.handlers.depsgraph_update_post)
+        self.assertFalse(bpy.context.window_manager.crisp_viewport.enabled)
+        opened = bpy.context.scene
+        self.assertEqual((opened.eevee.taa_samples, opened.display.viewport_aa), (16, "8"))
+        settings = bpy.context.window_manager.crisp_viewport
+        settings.enabled = True
+        settings.enabled = False
+        self.assertEqual((opened.eevee.taa_samples, opened.display.viewport_aa), (16, "8"))
+
+
+if __name__ == "__main__":
+    gui_harness.run(PreviewAcrossFileOpen, delay=0.5)
