@@ -145,22 +145,6 @@ def main(argv):
         k, v = kv.split("=", 1)
         params[k.strip()] = v.strip()
 
-    if params and not args.no_filter and not args.plan_only:
-        # Each --set value against the method's parameters, before anything renders (exit 2, not 3).
-        try:
-            with native.Context(threads=1) as ctx:
-                probe = native.Filter(ctx, args.method)
-                try:
-                    for k, v in params.items():
-                        try:
-                            probe.set_param(k, v)
-                        except native.CrispError as e:
-                            fail(2, "--set %s=%s: %s" % (k, v, e.detail))
-                finally:
-                    probe.close()
-        except native.CrispError:
-            pass  # no library, or a method it does not know: said below, where the run needs them
-
     key = scene_key(scene_script_path(args.scene_script) if args.scene_script else None)
     if args.scene_script:
         path = scene_script_path(args.scene_script)

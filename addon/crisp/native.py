@@ -189,15 +189,25 @@ def filter_info(method):
 def check_params(method, params):
     """None when the library accepts `params` ({name: value}) for `method`, else its message saying why
     not: the library's own checks (ranges, choices, rules between parameters such as an odd patchSize),
-    run by setting them on a filter and committing it on a 1x1 image (about 0.1 ms)."""
-    pixel, out = (ctypes.c_float * 4)(), (ctypes.c_float * 4)()
+    run by setting them on a filter and committing it on 1x1 images of zeros bound to every image it
+    requires (and rsaa's sub-samples record), about 0.1 ms."""
     with Context(threads=1) as ctx:
         f = Filter(ctx, method)
         try:
             for k, v in params.items():
                 f.set_param(k, v)
-            f.set_image("color", ctypes.addressof(pixel), FORMAT_FLOAT4, 1, 1)
-            f.set_image("output", ctypes.addressof(out), FORMAT_FLOAT4, 1, 1)
+            buffers = []
+            for role in f.info()["images"]:
+                if not (role["required"] or role["name"] == "subsamples"):
+                    continue
+                if role["name"] == "subsamples":
+                    fmt, words = FORMAT_RSAA_SUBSAMPLES, role["maxChannels"]
+                elif role["uint"]:
+                    fmt, words = FORMAT_UINT, 1
+                else:
+                    fmt = words = role["maxChannels"]  # FORMAT_FLOATn is n
+                buffers.append((ctypes.c_float * max(words, 4))())
+                f.set_image(role["name"], ctypes.addressof(buffers[-1]), fmt, 1, 1)
             f.commit()
         except CrispError as e:
             return e.detail

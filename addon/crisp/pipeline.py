@@ -192,6 +192,12 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     if scene.camera is None:
         raise InputError("scene '%s' has no camera: add one and set it as the scene camera" % scene.name)
     check_method(method, need_library=filter_frames and not plan_only)
+    if filter_frames and not plan_only and params:
+        # Every rule the library checks, also those between parameters (an odd patchSize, feedbackMin
+        # <= feedbackMax) that a commit finds, before a frame is rendered rather than after the first.
+        bad = native.check_params(method, params)
+        if bad:
+            raise InputError("%s: %s" % (method, bad))
     check_output_dir(out_dir)
     user_engine = scene.render.engine
     if user_engine not in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):

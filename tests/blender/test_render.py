@@ -188,8 +188,12 @@ class BatchTest(unittest.TestCase):
              "/nonexistent/libcrisp.so: no such file"),
             (["--frames", "1-2", "--resolution", "big", "-o", out], blend, 2, "bad --resolution"),
             (["--frames", "1-2", "--set", "subpix=abc", "-o", out], blend, 2,
-             "--set subpix=abc: parameter 'subpix' takes a number, not 'abc'"),
+             "parameter 'subpix' takes a number, not 'abc'"),
             (["--frames", "1-2", "--set", "reference=maybe", "-o", out], blend, 2, "takes true or false"),
+            # A rule the library checks at commit: found before frame 1 is rendered, not after.
+            (["--frames", "1-2", "--method", "repair", "--set", "patchSize=4", "-o", out], blend, 2, "must be odd"),
+            (["--frames", "1-2", "--method", "taa", "--set", "feedbackMin=0.9", "--set", "feedbackMax=0.8",
+              "-o", out], blend, 2, "must not exceed 'feedbackMax'"),
         ]
         for args, opened, code, message in cases:
             with self.subTest(args=args):
