@@ -149,7 +149,7 @@ def test_a_spatial_method_reads_no_preroll_frame(shot, lib, tmp_path):
     assert max_diff(lib, seq, spatial, range(4, 7)) == 0.0
     p = crisp("filter", "--method", "taa", "--frames", "4-6", "--preroll", "3", "-o", temporal, *inputs, ok=False)
     assert p.returncode != 0 and str(broken) in p.stderr, p.stderr
-    assert not [n for n in os.listdir(temporal) if n.endswith(".exr")]
+    assert not temporal.exists()  # no output: the folder the run made is removed again
 
 
 def test_filter_resume_at_first_missing_output(shot, lib, tmp_path):
