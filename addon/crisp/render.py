@@ -307,32 +307,6 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
             snap.set(view_layer.eevee, prop.identifier, False)
     if "use_pass_cryptomatte_object" in flags:
         snap.set(view_layer, "pass_cryptomatte_depth", 2)  # one EXR layer: rank 0 is all a 1-sample pixel has
-    _remove_user_passes(snap, scene, view_layer)
-
-
-def _remove_user_passes(snap, scene, view_layer):
-    """The layer's shader AOVs and light groups are passes too, which no filter reads: taken off for the
-    render (they have no switch, only remove), put back as they were, in order, on restore."""
-    for collection, fields, remove in (("aovs", ("name", "type"), "view_layer_remove_aov"),
-                                       ("lightgroups", ("name",), "view_layer_remove_lightgroup")):
-        items = getattr(view_layer, collection, None)
-        if not items or not hasattr(bpy.ops.scene, remove):
-            continue
-        kept = [{f: getattr(item, f) for f in fields} for item in items]
-        active_attr = "active_aov_index" if collection == "aovs" else "active_lightgroup_index"
-        active = getattr(view_layer, active_attr, 0)
-        with bpy.context.temp_override(scene=scene, view_layer=view_layer):
-            while len(items):
-                setattr(view_layer, active_attr, 0)
-                getattr(bpy.ops.scene, remove)()
-
-        def put_back(items=items, kept=kept, active_attr=active_attr, active=active):
-            for values in kept:
-                item = items.add()
-                for f, v in values.items():
-                    setattr(item, f, v)
-            setattr(view_layer, active_attr, active)
-        snap.undo_later([put_back])
 
 
 def _render_to(scene, path):
