@@ -58,6 +58,7 @@ class _State:
     decoded = None       # gpu_filters.Target: the linear input
     stack_guard = None   # a 4x4 offscreen bound around the work to restore the region's framebuffer
     saved_settings = None  # (scene name, [(group, name, value before)]) of ONE_SAMPLE
+    forced_while_saving = None  # saved_settings put back for a save, forced again after it
     views = {}           # region -> (view key, taa's index into the Halton sequence); {}: every view restarts
     last_region = None   # the region drawn last (accumulated_frames)
     rejected = None      # the library's message when it rejects the scene's settings (not filtered), else None
@@ -396,12 +397,37 @@ def _header_toggle(self, context):
 def _before_file_load(*_args):
     """File > Open (or New, or Revert): the preview ends with the file it filters, its settings put back
     in that file's scene (not in a same-named scene of the next file), its handlers gone; the next
-    file starts with the toggle off."""
+    file starts with the toggle off (also with Load UI off, which keeps this window manager)."""
     _remove()
+    s = getattr(bpy.context.window_manager, "crisp_viewport", None)
+    if s is not None and s.enabled:
+        s.enabled = False  # its update callback finds nothing left to remove
+
+
+@bpy.app.handlers.persistent
+def _before_save(*_args):
+    """The file is saved with the user's sample settings, not the one sample forced while the preview is on."""
+    if _State.saved_settings is not None:
+        _State.forced_while_saving = _State.saved_settings
+        _restore_settings()
+
+
+@bpy.app.handlers.persistent
+def _after_save(*_args):
+    if _State.forced_while_saving is not None and is_active():
+        scene = bpy.data.scenes.get(_State.forced_while_saving[0])
+        _State.forced_while_saving = None
+        if scene is not None:
+            _force_one_sample(scene)
+
+
+_FILE_HANDLERS = ((bpy.app.handlers.load_pre, _before_file_load), (bpy.app.handlers.save_pre, _before_save),
+                  (bpy.app.handlers.save_post, _after_save))
 
 
 def register():
-    bpy.app.handlers.load_pre.append(_before_file_load)
+    for handlers, handler in _FILE_HANDLERS:
+        handlers.append(handler)
     bpy.utils.register_class(CrispViewportSettings)
     bpy.types.WindowManager.crisp_viewport = bpy.props.PointerProperty(type=CrispViewportSettings)
     bpy.utils.register_class(CRISP_PT_viewport)
@@ -410,8 +436,9 @@ def register():
 
 def unregister():
     _remove()
-    if _before_file_load in bpy.app.handlers.load_pre:
-        bpy.app.handlers.load_pre.remove(_before_file_load)
+    for handlers, handler in _FILE_HANDLERS:
+        if handler in handlers:
+            handlers.remove(handler)
     bpy.types.VIEW3D_HT_header.remove(_header_toggle)
     bpy.utils.unregister_class(CRISP_PT_viewport)
     del bpy.types.WindowManager.crisp_viewport

@@ -3,8 +3,9 @@
 """The viewport preview across File > Open: it ends with the file it filtered. Its draw and scene
 handlers go, the one-sample settings it forced go back into that file's scene, and the opened file,
 whose scene has the same name, keeps its own settings, also after the preview is switched on and off
-there. (It used to keep drawing with the toggle shown off, and wrote the first file's settings into
-the second.)"""
+there; with Load UI off the toggle goes off too. A file saved while the preview is on holds the
+user's settings, not the forced ones. (It used to keep drawing with the toggle shown off, and wrote the
+first file's settings into the second.)"""
 
 import os
 import sys
@@ -37,6 +38,18 @@ class PreviewAcrossFileOpen(unittest.TestCase):
         settings.enabled = True
         self.assertTrue(viewport.is_active())
         self.assertEqual((scene.eevee.taa_samples, scene.display.viewport_aa), (1, "OFF"))  # forced while on
+
+        # Saved while on: the file holds the user's settings, and the preview goes on forcing one sample.
+        saved = os.path.join(tmp.name, "saved.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=saved, copy=True)
+        self.assertEqual((scene.eevee.taa_samples, scene.display.viewport_aa), (1, "OFF"))
+        self.assertTrue(viewport.is_active())
+
+        bpy.ops.wm.open_mainfile(filepath=saved, load_ui=False)  # keeps this window manager
+        self.assertFalse(viewport.is_active())
+        self.assertFalse(bpy.context.window_manager.crisp_viewport.enabled, "toggle on, nothing filtering")
+        self.assertEqual((bpy.context.scene.eevee.taa_samples, bpy.context.scene.display.viewport_aa), (32, "FXAA"))
+        bpy.context.window_manager.crisp_viewport.enabled = True
 
         bpy.ops.wm.open_mainfile(filepath=other)
         self.assertFalse(viewport.is_active(), "the preview still draws after File > Open")
