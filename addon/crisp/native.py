@@ -407,8 +407,9 @@ class FrameFilter:
     def __init__(self, method, params=None, threads=0, passes=("color",)):
         self.context = Context(threads)
         if method == "rsaa" and "subsamples" not in passes:
-            # The plan rendered no geometry (no visible object, no geometric edge): colour as is.
-            method = "none"
+            # The plan rendered no geometry (no visible object, no geometric edge): colour as is, and
+            # rsaa's parameters (checked against rsaa, pipeline.run) have nothing to set.
+            method, params = "none", None
         self.filter = Filter(self.context, method)
         self.passes = [p for p in passes if p != "subsamples"]
         # RSAA's geometric sub-samples: separate files listed in each frame's sidecar.

@@ -103,6 +103,10 @@ def out_dir(scene, writing):
     if not s.output_dir and not bpy.data.filepath:
         raise UnsavedFile("save the .blend file first (Crisp's frames go to //crisp/<scene>/ beside it), "
                           "or set the Output folder in the Crisp panel")
+    if s.output_dir and not s.output_dir.startswith("//") and not os.path.isabs(os.path.expanduser(s.output_dir)):
+        # Blender would resolve it against the process's working folder.
+        raise UnsavedFile("the Output folder '%s' is relative: give an absolute folder, or one relative to the "
+                          ".blend file (starting with //)" % s.output_dir)
     if s.output_dir.startswith("//") and not bpy.data.filepath:
         # Blender would resolve // against the process's working folder: somewhere the user never chose.
         raise UnsavedFile("the Output folder '%s' is relative to the .blend file, which is not saved yet: "
@@ -110,4 +114,4 @@ def out_dir(scene, writing):
     if writing and (not s.output_dir or (s.output_dir == s.output_pinned and sharing(scene) and
                                          not _owns(scene, s.output_dir))):
         s.output_dir = s.output_pinned = default_out_dir(scene)
-    return os.path.abspath(bpy.path.abspath(s.output_dir or default_out_dir(scene)))
+    return os.path.abspath(os.path.expanduser(bpy.path.abspath(s.output_dir or default_out_dir(scene))))

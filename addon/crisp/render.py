@@ -238,7 +238,8 @@ def camera_matrices(scene, depsgraph):
 def object_table(scene, view_layer):
     """The sidecar's objects by Cryptomatte hash: each visible object, and each instanced source that
     renders once (instances of one source share its ID, so their transforms cannot be told apart in
-    the ID pass: those are left out, and motion reconstruction treats their pixels as still)."""
+    the ID pass: those are left out, and motion reconstruction treats their pixels as still). A source
+    that is also a visible object shares that object's ID: the object's matrix is listed, for both."""
     out = {}
     instances = plan_mod.rendered_instances(view_layer or scene.view_layers[0])
     counts = {}

@@ -235,6 +235,13 @@ class AddonTest(unittest.TestCase):
             render.render_frames(scene, p, [1], d)
             self.assertNotIn(key, json.load(open(os.path.join(d, "frame_0001.json")))["objects"])
 
+    @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
+    def test_rsaa_without_geometry_takes_its_parameters(self):
+        """rsaa on a plan with no sub-samples (nothing visible) filters as 'none'; the rsaa parameters
+        the user set are not set on that filter (they failed as unknown to 'none')."""
+        f = native.FrameFilter("rsaa", {"threshold": "0.3"}, passes=("color",))
+        f.close()
+
     def test_state_restored_after_render_and_after_error(self):
         scene = harness.build_scene("spinning_cube")
         scene.render.resolution_x, scene.render.resolution_y = 32, 18
@@ -318,6 +325,11 @@ class AddonTest(unittest.TestCase):
         scene.crisp.output_dir = "//renders/"  # relative to a file that is not saved: the same
         with self.assertRaisesRegex(output_folder.UnsavedFile, "not saved yet"):
             output_folder.out_dir(scene, writing=True)
+        scene.crisp.output_dir = "renders/"  # relative to the working folder: never meant
+        with self.assertRaisesRegex(output_folder.UnsavedFile, "is relative"):
+            output_folder.out_dir(scene, writing=True)
+        scene.crisp.output_dir = "~/crisp_renders"
+        self.assertEqual(output_folder.out_dir(scene, writing=False), os.path.expanduser("~/crisp_renders"))
         scene.crisp.property_unset("output_dir")
         with tempfile.TemporaryDirectory() as d:
             bpy.ops.wm.save_as_mainfile(filepath=os.path.join(d, "f.blend"))
