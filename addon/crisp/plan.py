@@ -333,7 +333,37 @@ def show_in_viewport(scene, layer):
         if ob.hide_get(view_layer=layer):
             ob.hide_set(False, view_layer=layer)
             undo.append(lambda ob=ob: ob.hide_set(True, view_layer=layer))
+        _show_instanced(ob, undo, set())
     return undo
+
+
+def _show_instanced(instancer, undo, seen):
+    """The monitor icons inside a collection an object instances (an asset hidden in the viewport for
+    speed still renders through its instancer): collections and objects that render, nested instances
+    too; `seen` guards against a collection met twice."""
+    collection = instancer.instance_collection if instancer.instance_type == "COLLECTION" else None
+    if collection is None:
+        return
+
+    def walk(c):
+        if c.name in seen or c.hide_render:
+            return
+        seen.add(c.name)
+        if c.hide_viewport:
+            c.hide_viewport = False
+            undo.append(lambda c=c: setattr(c, "hide_viewport", True))
+        for ob in c.objects:
+            if ob.hide_render:
+                continue
+            if ob.hide_viewport:
+                ob.hide_viewport = False
+                undo.append(lambda ob=ob: setattr(ob, "hide_viewport", True))
+            if ob.instance_type == "COLLECTION" and ob.instance_collection is not None:
+                walk(ob.instance_collection)
+        for child in c.children:
+            walk(child)
+
+    walk(collection)
 
 
 def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_pass=False):

@@ -215,7 +215,9 @@ class AddonTest(unittest.TestCase):
         inst.keyframe_insert("location", frame=1)
         inst.location.x = 1.0
         inst.keyframe_insert("location", frame=3)
+        sphere.hide_viewport = True  # a heavy asset hidden in the viewport for speed still renders
         p, facts = pipeline.scene_plan(scene, "taa-improved", [1, 2, 3])
+        self.assertTrue(sphere.hide_viewport)
         self.assertIn("Sphere", facts.visible_objects)
         self.assertEqual(facts.moving_objects, ["Sphere"])
         self.assertIn("motion", p.passes)
