@@ -129,10 +129,13 @@ class CRISP_OT_load_result(bpy.types.Operator):
     def execute(self, context):
         scene = context.scene
         try:
-            compositor.load_result(scene, os.path.join(output_folder.out_dir(scene, writing=False), "filtered"),
-                                   scene.frame_start, scene.frame_end)
+            out = output_folder.out_dir(scene, writing=False)
+            compositor.load_result(scene, os.path.join(out, "filtered"), scene.frame_start, scene.frame_end)
         except (OSError, output_folder.UnsavedFile) as e:
             return _fail(self, e)
+        warnings = pipeline.sequence_warnings(out, list(range(scene.frame_start, scene.frame_end + 1)))
+        if warnings:  # loaded all the same: the user sees what they have, and why it may not be one run
+            self.report({"WARNING"}, "Crisp: " + "; ".join(warnings))
         return {"FINISHED"}
 
 

@@ -351,6 +351,42 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     return result
 
 
+def sequence_warnings(out_dir, frames):
+    """Why out_dir/filtered/ does not hold one run's sequence of `frames`, as texts ([] when it does):
+    frames missing, made otherwise than the first (another method or settings: each input sidecar's
+    made_with), or older than their input (a run stopped between writing a frame's input and its
+    output left an earlier run's frame there)."""
+    input_dir, filtered_dir = os.path.join(out_dir, "input"), os.path.join(out_dir, "filtered")
+    missing, other, older = [], [], []
+    first = None
+    for f in frames:
+        out = os.path.join(filtered_dir, render.frame_name(f))
+        if not os.path.isfile(out):
+            missing.append(f)
+            continue
+        sidecar = os.path.join(input_dir, render.frame_name(f, ".json"))
+        making = render.read_sidecar(input_dir, f).get("made_with")
+        if first is None:
+            first = (f, making)
+        elif making != first[1]:
+            other.append(f)
+        if os.path.isfile(sidecar) and os.path.getmtime(out) < os.path.getmtime(sidecar):
+            older.append(f)
+
+    def listed(fs, verb):  # "frame 3 is", "frames 3, 4 are"
+        names = ", ".join(map(str, fs[:6])) + (" and %d more" % (len(fs) - 6) if len(fs) > 6 else "")
+        return ("frame %s %s" if len(fs) == 1 else "frames %s %s") % (names, verb[len(fs) > 1])
+    out = []
+    if missing:
+        out.append("%s no filtered image" % listed(missing, ("has", "have")))
+    if other:
+        out.append("%s made with other settings than frame %d" % (listed(other, ("was", "were")), first[0]))
+    if older:
+        out.append("%s older than its input (a run stopped before writing it: render again, or resume)"
+                   % listed(older, ("is", "are")))
+    return out
+
+
 def compare_dirs(test_dir, reference_dir, frames, threads=0):
     """Metrics of test_dir/frame_NNNN.exr against reference_dir/frame_NNNN.exr, per frame and mean."""
     rows = []

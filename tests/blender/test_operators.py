@@ -15,6 +15,7 @@ import harness  # noqa: E402
 
 import bpy  # noqa: E402
 import crisp  # noqa: E402
+from crisp import pipeline  # noqa: E402
 
 LIB_OK, LIB_WHY = harness.library_usable()
 
@@ -51,6 +52,17 @@ class OperatorTest(unittest.TestCase):
         self.assertTrue(math.isfinite(s.last_psnr) and 15.0 < s.last_psnr < 60.0, s.last_compare)
         self.assertTrue(0.5 < s.last_ssim <= 1.0, s.last_compare)
         self.assertIn("2 frames", s.last_compare)
+        # One run's sequence, until a frame's input is newer than its output (a stopped run) or missing.
+        frames = [1, 2]
+        self.assertEqual(pipeline.sequence_warnings(self.tmp.name, frames), [])
+        side = os.path.join(self.tmp.name, "input", "frame_0002.json")
+        st = os.stat(side)
+        os.utime(side, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+        self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})  # loads, and warns
+        warned = pipeline.sequence_warnings(self.tmp.name, frames + [3])
+        self.assertTrue(any("frame 2 is older than its input" in w for w in warned), warned)
+        self.assertTrue(any("frame 3 has no filtered image" in w for w in warned), warned)
+        os.utime(side, ns=(st.st_atime_ns, st.st_mtime_ns))
         # A reference holding NaN has no error to measure: refused, as `crisp compare` refuses it.
         ref1 = os.path.join(self.tmp.name, "reference", "frame_0001.exr")
         subprocess.run(["oiiotool", ref1, "--subc", "1", "--powc", "0.5", "-d", "float", "-o", ref1 + ".nan.exr"],
