@@ -156,6 +156,16 @@ def same_making(recorded, wanted):
     return not differences, "; ".join(differences)
 
 
+def older_than_input(input_dir, f, outputs):
+    """The outputs of frame f older than its input's sidecar. Outputs are written after their input, so
+    such an output is an earlier run's, left when a later run stopped between writing the input and it."""
+    sidecar = os.path.join(input_dir, render.frame_name(f, ".json"))
+    if not os.path.isfile(sidecar):
+        return []
+    rendered = os.path.getmtime(sidecar)
+    return [p for p in outputs if os.path.getmtime(p) < rendered]
+
+
 def chunk_run(frames, shot_first, preroll, is_complete=None):
     """(pre-roll frames, frames to write) of a chunk: with is_complete (resume) the frames to write start
     at the first frame that is not complete, and the pre-roll is the `preroll` frames before that one,
@@ -273,13 +283,10 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                                                                                      else (".exr",))]
         if not (render.input_complete(input_dir, f) and all(os.path.isfile(p) for p in outs)):
             return False
-        # Outputs are written after their input: one older than the input's sidecar is an earlier
-        # run's, left when a later run stopped between writing the input and its outputs.
-        rendered = os.path.getmtime(os.path.join(input_dir, render.frame_name(f, ".json")))
-        older = [os.path.basename(p) for p in outs if os.path.getmtime(p) < rendered]
+        older = older_than_input(input_dir, f, outs)
         if older:
             log("frame %d: %s older than its input (a run stopped before writing it): making it again"
-                % (f, ", ".join(older)))
+                % (f, ", ".join(map(os.path.basename, older))))
             return False
         same, why = same_making(render.read_sidecar(input_dir, f).get("made_with"), stamp)
         if not same:
@@ -364,13 +371,12 @@ def sequence_warnings(out_dir, frames):
         if not os.path.isfile(out):
             missing.append(f)
             continue
-        sidecar = os.path.join(input_dir, render.frame_name(f, ".json"))
         making = render.read_sidecar(input_dir, f).get("made_with")
         if first is None:
             first = (f, making)
         elif making != first[1]:
             other.append(f)
-        if os.path.isfile(sidecar) and os.path.getmtime(out) < os.path.getmtime(sidecar):
+        if older_than_input(input_dir, f, [out]):
             older.append(f)
 
     def listed(fs, verb):  # "frame 3 is", "frames 3, 4 are"

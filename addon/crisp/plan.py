@@ -231,21 +231,22 @@ def render_sets(plans, facts):
 RENDERABLE_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "GPENCIL", "VOLUME", "POINTCLOUD", "CURVES"}
 
 
-def _render_collections_objects(layer):
-    """Names of the objects in the layer's collections that render: the collection not excluded from
-    the layer nor hidden from render (nor any collection above it). Viewport visibility (the eye, the
-    monitor icon) does not matter to a render."""
-    names = set()
-
+def _rendering_layer_collections(layer):
+    """The layer's collections that render: not excluded from the layer nor hidden from render (nor any
+    collection above them). Viewport visibility (the eye, the monitor icon) does not matter to a render."""
     def walk(lc):
         if lc.exclude or getattr(lc.collection, "hide_render", False):
             return
-        names.update(o.name for o in lc.collection.objects)
+        yield lc
         for child in lc.children:
-            walk(child)
+            yield from walk(child)
 
-    walk(layer.layer_collection)
-    return names
+    return list(walk(layer.layer_collection))
+
+
+def _render_collections_objects(layer):
+    """Names of the objects in the layer's collections that render."""
+    return {o.name for lc in _rendering_layer_collections(layer) for o in lc.collection.objects}
 
 
 def visible_objects(scene, view_layer=None):
@@ -282,7 +283,7 @@ def _same(a, b, eps=1e-6):
 
 def rendered_instances(layer):
     """The instanced objects that render (a collection instance, instancing by vertices or faces,
-    geometry nodes instances), as [(source object name, instancer name, matrix_world as lists)], from
+    geometry nodes instances), as [(source object, instancer name, matrix_world as lists)], from
     the layer's depsgraph at the current frame. Cryptomatte names an instance by its source object, so
     instances of one source share one object ID."""
     rendered = _render_collections_objects(layer)
@@ -295,34 +296,21 @@ def rendered_instances(layer):
             continue
         if parent.name not in rendered:
             continue
-        out.append((source.name, parent.name, [list(r) for r in inst.matrix_world]))
+        out.append((source, parent.name, [list(r) for r in inst.matrix_world]))
     return out
-
-
-def _source_object(name):
-    """An instanced source object by name (it need not be in the scene)."""
-    import bpy  # only here: the rest of this module reads bpy objects passed in
-    return bpy.data.objects[name]
 
 
 def show_in_viewport(scene, layer):
     """Unhides in the viewport (object eye and monitor icons, collection eye and monitor icons) what
     renders in the layer; returns the calls that hide each again."""
     undo = []
-
-    def walk(lc):
-        if lc.exclude or getattr(lc.collection, "hide_render", False):
-            return
+    for lc in _rendering_layer_collections(layer):
         if lc.hide_viewport:
             lc.hide_viewport = False
             undo.append(lambda lc=lc: setattr(lc, "hide_viewport", True))
         if lc.collection.hide_viewport:
             lc.collection.hide_viewport = False
             undo.append(lambda c=lc.collection: setattr(c, "hide_viewport", True))
-        for child in lc.children:
-            walk(child)
-
-    walk(layer.layer_collection)
     rendered = _render_collections_objects(layer)
     for ob in scene.objects:  # every type: an empty that instances a collection too
         if ob.hide_render or ob.name not in rendered:
@@ -380,6 +368,7 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
     shown = show_in_viewport(scene, layer)
     first_cam = {}  # camera object name -> its matrix at the first frame it is the scene's camera
     first, moving, names, cuts = {}, set(), [], []
+    instances = []  # the last frame's (rendered_instances)
     camera_moves = False
     previous_cam = None
     try:
@@ -393,7 +382,7 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
             instances = rendered_instances(layer)
             if f == frame_start:
                 names = [o.name for o in obs]
-                names += sorted({source for source, _, _ in instances} - set(names))
+                names += sorted({source.name for source, _, _ in instances} - set(names))
             if cam is not None:
                 cm = [list(r) for r in cam.matrix_world]
                 if cam.name not in first_cam:
@@ -408,15 +397,14 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                     moving.add(o.name)
             seen = {}  # an instance is told from the others of its source and instancer by its order
             for source, parent, m in instances:
-                key = (source, parent, seen.setdefault((source, parent), 0))
-                seen[(source, parent)] += 1
+                key = (source.name, parent, seen.setdefault((source.name, parent), 0))
+                seen[(source.name, parent)] += 1
                 if key not in first:
                     first[key] = m
                 elif not _same(m, first[key]):
-                    moving.add(source)
+                    moving.add(source.name)
         deforming = [o.name for o in visible_objects(scene, layer) if _deforms(o)]
-        deforming += sorted({source for source, _, _ in rendered_instances(layer)
-                             if _deforms(scene.objects.get(source) or _source_object(source))} - set(deforming))
+        deforming += sorted({source.name for source, _, _ in instances if _deforms(source)} - set(deforming))
     finally:
         for restore in reversed(shown):
             restore()

@@ -244,11 +244,11 @@ def object_table(scene, view_layer):
     instances = plan_mod.rendered_instances(view_layer or scene.view_layers[0])
     counts = {}
     for source, _, _ in instances:
-        counts[source] = counts.get(source, 0) + 1
+        counts[source.name] = counts.get(source.name, 0) + 1
     for source, _, m in instances:
-        key = hashing.cryptomatte_hex(source)
-        if counts[source] == 1 and key not in out:
-            out[key] = {"name": source, "matrix_world": _matrix(m)}
+        key = hashing.cryptomatte_hex(source.name)
+        if counts[source.name] == 1 and key not in out:
+            out[key] = {"name": source.name, "matrix_world": _matrix(m)}
     for ob in plan_mod.visible_objects(scene, view_layer):
         out[hashing.cryptomatte_hex(ob.name)] = {"name": ob.name, "matrix_world": _matrix(ob.matrix_world)}
     return out

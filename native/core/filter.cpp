@@ -107,7 +107,7 @@ void Filter::commit() {
 }
 
 void Filter::markDirty(const std::string& what) {
-  if (committed_ || firstChange_.empty()) firstChange_ = what;
+  if (firstChange_.empty()) firstChange_ = what;  // commit clears it: the first change since then
   committed_ = false;
 }
 
