@@ -8,6 +8,9 @@ OUTDIR/run.json. Layout:
     OUTDIR/reference/frame_NNNN.exr          (when reference_samples > 0)
     OUTDIR/run.json                          (run_AAAA-BBBB.json for a chunk of a shot)
 
+run.json is rewritten as each frame is made; its "status" says how the run ended: "complete",
+"cancelled at frame N", "failed: <why>", or "running" (also a run that was killed).
+
 A farm chunk (issue 8, docs/farm.md) writes frames A..B of a shot and first renders and filters the
 `preroll` frames before A (never before the shot's first frame) to warm the temporal history. Those
 pre-roll inputs go to a private temporary folder that is deleted afterwards (an input already in
@@ -235,7 +238,7 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         result["library"] = text
     run_json = os.path.join(out_dir, "run.json" if shot is None else "run_%04d-%04d.json" % (frames[0], frames[-1]))
     if plan_only:
-        _write_json(run_json, result)
+        _write_json(run_json, dict(result, status="planned"))
         return result
 
     stamp = made_with(scene, method, params, samples, reference_samples,
@@ -271,6 +274,7 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                 entry["history_restarted"] = frame_filter.restart_reason
                 log("frame %d: temporal history restarts (%s)" % (f, frame_filter.restart_reason))
         result["frames"].append(entry)
+        record("running")  # a run killed later still says how far it got
         log("frame %d: render %.3f s%s" % (f, info["render_s"], ", load %.3f s, filter %.3f s, write %.3f s" % (
             entry["load_s"], entry["filter_s"], entry["write_s"]) if "filter_s" in entry else ""))
 
@@ -309,53 +313,74 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         frame_filter.run(info["exr"], [])
         log("frame %d: pre-roll (filtered, not written)" % f)
 
+    def record(status):
+        """Writes run.json as it stands: this run's frames and, after a resume, the complete frames it
+        kept (their entries from the record before, when it has them), and how the run ended."""
+        written = dict(result, status=status)
+        if resume:
+            kept = [f for f in frames if f not in todo]  # complete with these settings (is_complete)
+
+            def merged(before, now):
+                before = {e.get("frame"): e for e in before if isinstance(e, dict)}
+                return [before.get(f, {"frame": f}) for f in kept] + now
+
+            previous = previous_record or {}
+            written["frames"] = merged(previous.get("frames", []), result["frames"])
+            if reference_samples:
+                before = previous.get("reference")
+                before = before.get("frames", []) if isinstance(before, dict) and \
+                    before.get("samples") == reference_samples else []
+                now = dict(result.get("reference", {"samples": reference_samples, "frames": []}))
+                now["frames"] = merged(before, now["frames"])
+                written["reference"] = now
+        _write_json(run_json, written)
+        return written
+
+    # From here on run.json describes this run, also one that fails or is stopped ("status").
+    record("running")
     t0 = time.perf_counter()
     preroll_dir = None
     try:
-        # Contiguous and in order, so the history sees them as a sequential run would.
-        for from_input, group in itertools.groupby(preroll_frames, key=lambda f: f in reused):
-            group = list(group)
-            if from_input:
-                for f in group:
-                    on_preroll(f, {"exr": os.path.join(input_dir, render.frame_name(f))})
-                continue
-            preroll_dir = preroll_dir or tempfile.mkdtemp(prefix="crisp-preroll-")
-            render.render_frames(scene, the_plan, group, preroll_dir, samples=samples,
-                                 jitter_distribution=jitter_distribution, view_layer=view_layer,
-                                 on_frame=on_preroll, should_cancel=should_cancel,
-                                 engine=engine if engine == "CYCLES" else None, made_with=stamp)
-        if todo:
-            render.render_frames(scene, the_plan, todo, input_dir, samples=samples,
-                                 jitter_distribution=jitter_distribution, view_layer=view_layer,
-                                 on_frame=on_frame, should_cancel=should_cancel,
-                                 engine=engine if engine == "CYCLES" else None, made_with=stamp)
-    finally:
-        if frame_filter is not None:
-            frame_filter.close()
-        if preroll_dir:
-            shutil.rmtree(preroll_dir, ignore_errors=True)
-    result["total_s"] = round(time.perf_counter() - t0, 3)
-    if reference_samples and todo:
-        ref = render.render_reference(scene, todo, reference_dir, reference_samples,
-                                      view_layer=view_layer, should_cancel=should_cancel)
-        result["reference"] = {"samples": reference_samples,
-                               "frames": [{"frame": r["frame"], "render_s": round(r["render_s"], 4)} for r in ref]}
-    if previous_record:
-        # A resume keeps the record of the frames made before it (with these settings: is_complete).
-        def merged(before, now):
-            made_now = {e["frame"] for e in now}
-            kept = [e for e in before if isinstance(e, dict) and e.get("frame") in frames
-                    and e.get("frame") not in made_now]
-            return sorted(kept + now, key=lambda e: e["frame"])
-
-        result["frames"] = merged(previous_record.get("frames", []), result["frames"])
-        before = previous_record.get("reference")
-        if isinstance(before, dict) and before.get("samples") == reference_samples:
-            now = result.get("reference", {"samples": reference_samples, "frames": []})
-            now["frames"] = merged(before.get("frames", []), now["frames"])
-            result["reference"] = now
-    _write_json(run_json, result)
-    return result
+        try:
+            # Contiguous and in order, so the history sees them as a sequential run would.
+            for from_input, group in itertools.groupby(preroll_frames, key=lambda f: f in reused):
+                group = list(group)
+                if from_input:
+                    for f in group:
+                        on_preroll(f, {"exr": os.path.join(input_dir, render.frame_name(f))})
+                    continue
+                preroll_dir = preroll_dir or tempfile.mkdtemp(prefix="crisp-preroll-")
+                render.render_frames(scene, the_plan, group, preroll_dir, samples=samples,
+                                     jitter_distribution=jitter_distribution, view_layer=view_layer,
+                                     on_frame=on_preroll, should_cancel=should_cancel,
+                                     engine=engine if engine == "CYCLES" else None, made_with=stamp)
+            if todo:
+                render.render_frames(scene, the_plan, todo, input_dir, samples=samples,
+                                     jitter_distribution=jitter_distribution, view_layer=view_layer,
+                                     on_frame=on_frame, should_cancel=should_cancel,
+                                     engine=engine if engine == "CYCLES" else None, made_with=stamp)
+        finally:
+            if frame_filter is not None:
+                frame_filter.close()
+            if preroll_dir:
+                shutil.rmtree(preroll_dir, ignore_errors=True)
+        result["total_s"] = round(time.perf_counter() - t0, 3)
+        if reference_samples and todo:
+            ref = render.render_reference(scene, todo, reference_dir, reference_samples,
+                                          view_layer=view_layer, should_cancel=should_cancel)
+            result["reference"] = {"samples": reference_samples,
+                                   "frames": [{"frame": r["frame"], "render_s": round(r["render_s"], 4)}
+                                              for r in ref]}
+    except BaseException as e:  # also KeyboardInterrupt: the record says the run did not finish
+        try:
+            record("failed: %s" % (str(e) or type(e).__name__))
+        except OSError:
+            pass  # the folder itself failing: the error that stopped the run is the one to report
+        raise
+    made = {e["frame"] for e in result["frames"]}
+    made_refs = {e["frame"] for e in result.get("reference", {}).get("frames", [])} if reference_samples else made
+    stopped = [f for f in todo if f not in made or f not in made_refs]
+    return record("cancelled at frame %d" % stopped[0] if stopped else "complete")
 
 
 def sequence_warnings(out_dir, frames):

@@ -293,6 +293,48 @@ class AddonTest(unittest.TestCase):
             self.assertFalse(os.path.exists(out), "nothing written on bad input")
         self.assertEqual(touched_state(scene), before_state)
 
+    def test_run_json_says_how_the_run_ended(self):
+        """run.json is this run's record also when the run is stopped or fails part-way; a resume
+        keeps the frames made before it."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+
+        def record(d):
+            with open(os.path.join(d, "run.json")) as f:
+                run = json.load(f)
+            return run["status"], [e["frame"] for e in run["frames"]]
+
+        def interrupt_after(n):
+            calls = []
+
+            def should_cancel():
+                calls.append(1)
+                if len(calls) > n:
+                    raise KeyboardInterrupt
+                return False
+            return should_cancel
+
+        with tempfile.TemporaryDirectory() as d:
+            pipeline.run(scene, "fxaa", range(1, 4), d, filter_frames=False, log=lambda *a: None)
+            self.assertEqual(record(d), ("complete", [1, 2, 3]))
+            # Interrupted after frame 1: the record is this run's, not the complete one before it.
+            with self.assertRaises(KeyboardInterrupt):
+                pipeline.run(scene, "none", range(1, 4), d, filter_frames=False, log=lambda *a: None, samples=2,
+                             should_cancel=interrupt_after(1))
+            run = json.load(open(os.path.join(d, "run.json")))
+            self.assertEqual((run["method"], run["status"], [e["frame"] for e in run["frames"]]),
+                             ("none", "failed: KeyboardInterrupt", [1]))
+            # Cancelled (the Esc key) after frame 2 of a resume: frame 1 kept (with its entry), 2 made,
+            # 3 (the first run's, at 1 sample) not.
+            calls = []
+            pipeline.run(scene, "none", range(1, 4), d, filter_frames=False, log=lambda *a: None, samples=2,
+                         resume=True, should_cancel=lambda: calls.append(1) or len(calls) > 1)
+            self.assertEqual(record(d), ("cancelled at frame 3", [1, 2]))
+            self.assertIn("render_s", json.load(open(os.path.join(d, "run.json")))["frames"][0])
+            pipeline.run(scene, "none", range(1, 4), d, filter_frames=False, log=lambda *a: None, samples=2,
+                         resume=True)
+            self.assertEqual(record(d), ("complete", [1, 2, 3]))
+
     def test_frame_step_is_named_not_silently_ignored(self):
         scene = harness.build_scene("still_life")
         scene.frame_step = 2
