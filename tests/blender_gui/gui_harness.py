@@ -17,11 +17,17 @@ for p in (ADDON_DIR, os.path.join(SOURCE_DIR, "tests", "blender")):
         sys.path.insert(0, p)
 
 
-def run(*cases, delay=0.5):
-    """Runs the cases from a timer once Blender's window is up; exits 1 on failure or error."""
+def run(*cases, delay=0.5, ready=None, wait_s=60.0):
+    """Runs the cases from a timer once Blender's window is up, and once ready() (if given) is true or
+    wait_s has passed (a loaded machine handles the screen late); exits 1 on failure or error."""
+    import time
+
     import bpy
+    deadline = time.monotonic() + wait_s
 
     def start():
+        if ready is not None and not ready() and time.monotonic() < deadline:
+            return 0.1  # the timer fires again after the window manager's next pass
         code = 1
         try:
             import harness  # tests/blender/harness.py: unittest with timings, exits with sys.exit

@@ -81,4 +81,4 @@ class TwoViews(unittest.TestCase):
 
 if __name__ == "__main__":
     bpy.app.timers.register(split_view, first_interval=0.2)
-    gui_harness.run(TwoViews, delay=1.0)
+    gui_harness.run(TwoViews, delay=1.0, ready=lambda: len(views()) == 2 and all(a.width > 100 for a in views()))
