@@ -96,17 +96,20 @@ void removeEmptyFolders(const std::vector<std::string>& dirs) {
 }  // namespace
 
 RunFolder::RunFolder(const std::string& path) {
-  // The folders of the path that are missing, found on its normal form ("a/../b", "b/", "b/." are b);
-  // a symlink, even a dangling one, exists. A folder that exists is never recorded.
+  // The path's folders are made one component at a time, as the system resolves it ("new/../x"
+  // makes new, then x; ".." follows a symlink), and each one made is recorded, deepest first.
+  // What exists, a symlink too (even a dangling one), is never recorded.
   std::error_code ec;
-  fs::path p = fs::absolute(path, ec).lexically_normal();
-  if (!ec && p.has_relative_path() && p.filename().empty()) p = p.parent_path();
-  for (; !ec && !p.empty(); p = p.parent_path()) {
-    const fs::file_status status = fs::symlink_status(p, ec);
-    if (status.type() != fs::file_type::not_found) break;  // there (or cannot tell): not ours
-    ec.clear();
-    made_.push_back(p.string());
-    if (p == p.parent_path()) break;
+  fs::path prefix;
+  for (const fs::path& part : fs::absolute(path, ec)) {
+    if (ec || part.empty()) continue;  // the empty name after a trailing '/'
+    prefix /= part;
+    if (part == "." || part == ".." || fs::symlink_status(prefix, ec).type() != fs::file_type::not_found) {
+      ec.clear();
+      continue;
+    }
+    if (!fs::create_directory(prefix, ec)) break;  // makeDirectories below names the failure
+    made_.insert(made_.begin(), prefix.string());
   }
   try {
     makeDirectories(path);
