@@ -4,9 +4,9 @@
 When on, a POST_PIXEL draw handler renders the view into an offscreen buffer each redraw
 (GPUOffScreen.draw_view3d, colour-managed: what the viewport shows), decodes it to linear with the sRGB
 curve, runs the chosen filter's GLSL twin (gpu_filters.py), and draws the result sRGB-encoded over the
-region. For taa the projection is jittered by Halton(2,3) (uniform inside the pixel) each redraw, the
-history is kept between redraws and reset when the view matrix, projection, size, method or the filter's
-settings (scene.crisp) change; while the history holds fewer than ACCUMULATE_FRAMES frames the preview
+region. For taa the projection is jittered each redraw as the renders are (render.jitter_offset: the
+panel's Jitter distribution over EEVEE's filter size), the history is kept between redraws and reset when
+the view matrix, projection, size, method, jitter or the filter's settings (scene.crisp) change; while the history holds fewer than ACCUMULATE_FRAMES frames the preview
 asks for another redraw. Settings the library rejects (native.check_params: an even REPAIR patchSize,
 feedbackMin > feedbackMax) are not run: the view is left unfiltered and the panel shows the library's
 message until they are valid again.
@@ -78,22 +78,6 @@ def gpu_unavailable_reason():
     except Exception as e:  # pragma: no cover - depends on the build
         return "the GPU module is not available: %s" % e
     return None
-
-
-def radical_inverse(index, base):
-    result, fraction = 0.0, 1.0 / base
-    while index > 0:
-        result += (index % base) * fraction
-        index //= base
-        fraction /= base
-    return result
-
-
-def halton_jitter(frame, period=ACCUMULATE_FRAMES):
-    """Pixel offset (x right, y up) of redraw `frame`: Halton(2,3) point (frame mod period) + 1, minus 0.5
-    (the uniform distribution of temporal/jitter.h jitterForFrame)."""
-    i = frame % period + 1
-    return radical_inverse(i, 2) - 0.5, radical_inverse(i, 3) - 0.5
 
 
 def jittered_projection(projection, sx, sy, width, height):
@@ -184,7 +168,7 @@ def _filter_view(context, region, space, rv3d, width, height):
     texture, filter, method), the texture None when the library rejects the scene's settings."""
     import gpu
 
-    from . import gpu_filters
+    from . import gpu_filters, render
 
     method = _settings(context).method
     # Each 3D view (region) has its own filter and history: views of a split layout draw in turn, and
@@ -213,15 +197,19 @@ def _filter_view(context, region, space, rv3d, width, height):
     view = rv3d.view_matrix.copy()
     projection = rv3d.window_matrix.copy()
     # Settings edits (scene.crisp) fire no depsgraph update (_on_scene_change): they are part of the key.
+    scene = context.scene
+    jitter = (scene.crisp.jitter_distribution, scene.render.filter_size)  # the renders' (render.render_frames)
     key = (tuple(tuple(r) for r in view), tuple(tuple(r) for r in projection), width, height, method,
-           tuple(sorted(params.items())))
+           tuple(sorted(params.items())), jitter)
     seen, frame = _State.views.get(region_key, (None, 0))
     if key != seen:
         frame = 0
         filt.reset()
     _State.views[region_key] = (key, frame + 1)
     if method == "taa":
-        sx, sy = halton_jitter(frame)
+        # The renders' jitter (the panel's Jitter, EEVEE's filter size), so the preview settles on the
+        # same pixel filter as the filtered renders.
+        sx, sy, _ = render.jitter_offset(frame, *jitter, period=ACCUMULATE_FRAMES)
         # taa's jitterY is along the texture's rows (common.glsl "Row order"); offscreen row 0 is the
         # bottom, so it is y up, like sy.
         filt.set_params({"jitterX": sx, "jitterY": sy})

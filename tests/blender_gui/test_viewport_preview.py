@@ -22,7 +22,7 @@ from mathutils import Vector  # noqa: E402
 
 import harness  # noqa: E402  (tests/blender: build_scene)
 import crisp  # noqa: E402
-from crisp import viewport  # noqa: E402
+from crisp import gpu_filters, render, viewport  # noqa: E402
 
 EDGE_RANGE = 0.1      # 3x3 luma range (display values) that makes a pixel an edge pixel
 FLAT_RANGE = 0.02     # 7x7 luma range below which a pixel is far from any edge
@@ -231,6 +231,41 @@ class ViewportPreview(unittest.TestCase):
         params.feedbackMax = 0.9
         redraw(1)
         self.assertEqual(viewport.accumulated_frames(), 1, "a settings edit must reset the history")
+        self.switch_off()
+
+    def test_taa_jitters_as_the_renders(self):
+        """The preview jitters the view as the renders do (render.jitter_offset: the panel's Jitter over
+        EEVEE's filter size), and a change of the Jitter restarts the history."""
+        scene = bpy.context.scene
+        seen = []
+        original = gpu_filters.GpuFilter.set_params
+
+        def logged(filt, params):
+            if "jitterX" in params:
+                seen.append((params["jitterX"], params["jitterY"]))
+            return original(filt, params)
+
+        gpu_filters.GpuFilter.set_params = logged
+        self.addCleanup(setattr, gpu_filters.GpuFilter, "set_params", original)
+        self.addCleanup(setattr, scene.crisp, "jitter_distribution", scene.crisp.jitter_distribution)
+        self.addCleanup(setattr, self.settings, "enabled", False)
+        for distribution, reach in (("blackman-harris", scene.render.filter_size), ("uniform", 0.5)):
+            scene.crisp.jitter_distribution = distribution
+            seen.clear()
+            if not self.settings.enabled:
+                self.switch_on("taa")
+            redraw(6)
+            self.assertGreaterEqual(len(seen), 6)
+            self.assertEqual(viewport.accumulated_frames(), len(seen), "one history since the Jitter changed")
+            expected = [render.jitter_offset(k, distribution, scene.render.filter_size,
+                                             period=viewport.ACCUMULATE_FRAMES)[:2] for k in range(len(seen))]
+            for got, want in zip(seen, expected):
+                self.assertAlmostEqual(got[0], want[0], places=6)
+                self.assertAlmostEqual(got[1], want[1], places=6)
+            largest = max(max(abs(x), abs(y)) for x, y in seen)
+            self.assertLessEqual(largest, reach, distribution)
+            if distribution == "blackman-harris":
+                self.assertGreater(largest, 0.5, "EEVEE's jitter reaches past the pixel")
         self.switch_off()
 
     def test_settings_the_library_rejects_are_not_run(self):
