@@ -53,7 +53,7 @@ vec4 sanitizeColor4(vec4 c) {
 float luminance709(float r, float g, float b) { return 0.2126 * r + 0.7152 * g + 0.0722 * b; }
 
 // core/color.h srgbEncode / srgbDecode (IEC 61966-2-1). pow() here is the
-// driver's exp2(log2()) (C++: std::pow, or REPAIR's table within 3e-6).
+// driver's exp2(log2()) (C++: std::pow, or REPAIR's polynomial within 3.1e-7).
 float srgbEncode(float linear) {
   float v = isnan(linear) ? 0.0 : clamp(linear, 0.0, 1.0);
   if (v >= 1.0) return 1.0;

@@ -23,8 +23,8 @@
 // common.glsl "Row order".
 //
 // Known differences from the C++ kernel (besides common.glsl's):
-//  * step 1: sRGB encoding with pow() (C++: a 16257-entry table, within 3e-6
-//    of the exact curve);
+//  * step 1: sRGB encoding with pow() (C++: repair.cpp srgbEncodeT, a
+//    log2/exp2 polynomial within 3.1e-7 of the exact curve);
 //  * step 3: sums in float over a 4x4 tree (C++: double, row by row), and
 //    T = mu + kappa sigma in float (C++: double, then rounded to float). A
 //    pixel whose gradient lies within a few ulp of T can be an edge on one

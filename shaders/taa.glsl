@@ -17,7 +17,8 @@
 //                       -> out vec4 historyOut (location 0),
 //                       out vec4 fragColor (location 1, the output unless sharpening),
 //                       out vec4 markOut (location 2, the mark of historyOut)
-//     = taa.cpp referencePixel + resolvePixel without depth and aliasedValue;
+//     = taa.cpp referencePixel + taa_rows.h resolveLanes without depth and
+//       aliasedValue;
 //  2. TAA_SHARPEN_PASS  historyImage (the history just written), colorImage
 //                       (alpha) -> out vec4 fragColor = taa.cpp sharpenPixel<true>.
 // History and mark ping-pong between two texture pairs kept by gpu_filters.py
@@ -38,8 +39,8 @@
 //
 // Not in this version, on purpose: depth (closest-depth velocity and the
 // disocclusion test) and the aliasedValue plane of taa-improved. The viewport
-// offers neither a depth pass nor motion vectors (BLENDER.md: EEVEE's buffers
-// are not accessible), so the preview runs the static path (motion 0, history
+// offers neither a depth pass nor motion vectors (../shared/BLENDER.md: EEVEE's
+// buffers are not accessible), so the preview runs the static path (motion 0, history
 // reset whenever the view changes); motion is still accepted for tests.
 //
 // Known differences from the C++ kernel (besides common.glsl's):
@@ -73,7 +74,7 @@ float blackmanHarrisWeight(float x, float y, float filterSize) {
   return blackmanHarrisWindow(tx) * blackmanHarrisWindow(ty) / (0.35875 * 0.35875);
 }
 
-// ---- taa.cpp stagePixel / lumaOf / toRgb -----------------------------------
+// ---- taa_rows.h stagePixel / lumaOf / toRgb --------------------------------
 vec4 stagePixel(vec4 p, int space) {
   vec3 rgb = vec3(sanitizeColor(p.r), sanitizeColor(p.g), sanitizeColor(p.b));
   vec3 c = space == 0 ? rgbToYCoCg(rgb) : rgb;
@@ -175,10 +176,10 @@ vec4 fetchCatmullRom4(float x, float y) {
 // temporal/velocity.h finiteMotion.
 bool finiteMotion(float mx, float my) { return finiteValue(mx) && finiteValue(my); }
 
-// taa.cpp shiftedSource: the input index tap q of the shifted image reads.
+// temporal/jitter.h shiftedSource: the input index tap q of the shifted image reads.
 int shiftedSource(int q, int size, int shift) { return clampIndex(clampIndex(q, size) - shift, size); }
 
-// taa.cpp setUnjitter: the shift (std::lround: halves away from zero, clamped
+// temporal/jitter.cpp unjitterFor: the shift (std::lround: halves away from zero, clamped
 // to +-2) and the normalised 3x3 weights of this frame's jitter.
 int unjitterShift(float j) {
   if (unjitter == 0) return 0;
@@ -243,7 +244,7 @@ MinMax4 footprintBox(MinMax4 box3x3, int x, int y, int sx, int sy, int space) {
   return MinMax4(vmin(box3x3.lo, e.min2), vmax(box3x3.hi, e.max2));
 }
 
-// taa.cpp stillFootprint: nothing in the (shifted) 5x5 moves.
+// temporal/velocity.h stillFootprint: nothing in the (shifted) 5x5 moves.
 bool stillFootprint(int x, int y, int sx, int sy) {
   if (hasMotion == 0) return true;
   ivec2 size = textureSize(motionImage, 0);
@@ -255,7 +256,7 @@ bool stillFootprint(int x, int y, int sx, int sy) {
   return true;
 }
 
-// taa.cpp referencePixel + resolvePixel (no depth, no aliasedValue).
+// taa.cpp referencePixel + taa_rows.h resolveLanes (no depth, no aliasedValue).
 void taaResolvePass() {
   ivec2 p = fragmentPixel();
   int x = p.x, y = p.y;
@@ -274,7 +275,7 @@ void taaResolvePass() {
     for (int i = 0; i < 9; ++i)
       if (i != 4) current = current + taps[i] * uw[i];
   }
-  float alpha = sanitizeColor(texelFetch(colorImage, p, 0).a);  // taa.cpp alphaOf: the input's, passed through
+  float alpha = sanitizeColor(texelFetch(colorImage, p, 0).a);  // taa_rows.h alphaOf: the input's, passed through
 
   // Step 3: velocity of the centre's tap (no depth to follow).
   float vx = 0.0, vy = 0.0;
@@ -332,7 +333,7 @@ void taaResolvePass() {
       mark = 1.0;  // kept until a reset
       vec4 lo = 0.5 * (box3x3.lo + cross.lo);
       vec4 hi = 0.5 * (box3x3.hi + cross.hi);
-      if (varianceClip > 0.0) {  // taa.cpp momentsOf: mean +- gamma sigma, clamped into the box
+      if (varianceClip > 0.0) {  // taa_rows.h momentsOf: mean +- gamma sigma, clamped into the box
         vec4 sum = taps[0], squares = taps[0] * taps[0];
         for (int i = 1; i < 9; ++i) {
           sum = sum + taps[i];

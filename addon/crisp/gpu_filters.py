@@ -46,6 +46,16 @@ DEFAULTS = {
             "resampleDamping": 0.3,
             "staticClip": True, "unjitter": "blackman-harris"},
 }
+# The library's parameters the GPU versions leave out, and why. With DEFAULTS they make up the library's
+# whole table (test_gpu_parity.py: test_parameter_tables_match_the_library), so a parameter the library
+# gains is never dropped unnoticed.
+_ONE_PATH = "picks the library's scalar reference path; a shader has one path"
+NOT_ON_GPU = {
+    "fxaa": {"reference": _ONE_PATH},
+    "repair": {"reference": _ONE_PATH},
+    "taa": {"reference": _ONE_PATH,
+            "depthTolerance": "the viewport has no depth pass, so taa.glsl has no disocclusion test"},
+}
 
 # Resources of each GLSL file (declared for every pass of the file) and each pass's macro, entry and
 # outputs. Push constants: (type, name); bool parameters are INT 0/1.

@@ -6,6 +6,7 @@ and FLIP_FRACTION (why each is what it is: beside it). Each filter is also run o
 bottom-up, as the viewport holds them (rows_up, common.glsl "Row order"), and must give the library's
 result all the same. Runs in Blender with a window under Xvfb."""
 
+import contextlib
 import ctypes
 import math
 import os
@@ -42,10 +43,12 @@ RADIUS = 4  # the farthest input an output mixes: REPAIR's rotated 5x5 mask, 2 s
 # A decision flipped by one ulp at a threshold (FXAA's contrast/search ends, REPAIR's edge threshold T,
 # the angle fold) on another driver's sqrt/atan: such values ("flipped": beyond the tolerance) may be at
 # most this fraction, and each must stay within its channel's input range over the RADIUS window (both
-# outcomes of the decision mix inputs from there; farther is a bug, not a flip). Measured: none in the
-# cases below; taa on the chart from Halton frame 5 on flips 22 pixels along the HDR stripe's edge (0.09%
-# of the values, by up to 0.005 of the local range): static pixels whose history lies on the edge of
-# the clip box (gone with staticClip off), where the last bit decides between averaging and clipping.
+# outcomes of the decision mix inputs from there; farther is a bug, not a flip). Every frame's output is
+# checked, each against this fraction. Measured (llvmpipe, the worst frame of each case): taa's still
+# pixels whose history lies on the edge of the clip box, where the last bit decides between averaging
+# and not (gone with staticClip off): "hold 3, change at 9" 0.085% of the values, by up to 0.0023 of the
+# local range, "darker at 9" 0.039%, "staticClip=True, change at 6" 0.031%; REPAIR beside the noise's
+# sanitised Inf at 127x93, 0.025% (0.021 of the range); none in the other cases.
 FLIP_FRACTION = 0.001
 
 
@@ -93,15 +96,16 @@ def noise_image(seed=7):
     return out
 
 
-def library_filter(method, frames, params):
+def library_filter(method, frames, params, every=False):
     """Runs the library on each frame in turn (one filter object: taa history carries over); frames is a
-    list of (rgba list, per-frame params). Returns the last output as a flat list."""
+    list of (rgba list, per-frame params). Returns the last output as a flat list (every: each frame's)."""
     with native.Context() as ctx:
         f = native.Filter(ctx, method)
         try:
             for k, v in params.items():
                 f.set_param(k, v)
             out = (ctypes.c_float * (W * H * 4))()
+            outputs = []
             for rgba, extra in frames:
                 extra = dict(extra)
                 motion = extra.pop("motion", None)
@@ -115,7 +119,8 @@ def library_filter(method, frames, params):
                 f.set_image("output", ctypes.addressof(out), native.FORMAT_FLOAT4, W, H)
                 f.commit()
                 f.execute()
-            return list(out)
+                outputs.append(list(out))
+            return outputs if every else outputs[-1]
         finally:
             f.close()
 
@@ -143,16 +148,18 @@ def bottom_up(frames):
 
 
 def gpu_filter(method, frames, params, rows_up=False):
-    """The GPU's last output, row 0 at the top; rows_up: run on the frames uploaded bottom-up."""
+    """The GPU's output of each frame, row 0 at the top; rows_up: run on the frames uploaded bottom-up."""
     g = gpu_filters.GpuFilter(method, params, rows_up=rows_up)
+    outputs = []
     for rgba, extra in bottom_up(frames) if rows_up else frames:
         extra = dict(extra)
         motion = extra.pop("motion", None)
         g.set_params(extra)
         tex = gpu_filters.texture_from_rgba(W, H, rgba)
         g.run(tex, W, H, motion=None if motion is None else gpu_filters.texture_from_rgba(W, H, motion))
-    out = g.output.read()
-    return mirrored(out) if rows_up else out
+        out = g.output.read()
+        outputs.append(mirrored(out) if rows_up else out)
+    return outputs
 
 
 def input_extremes(frames):
@@ -225,6 +232,46 @@ def moving_frames(n, vx, vy, **params):
     return [(chart_image(-vx * k, -vy * k), dict(params, motion=motion)) for k in range(n)]
 
 
+# Jitter up to +-2.3 px: the unjittered 3x3 shifts by 1 and 2 px (temporal/jitter.cpp unjitterFor).
+WIDE_JITTERS = ((1.3, -0.8), (-1.6, 0.4), (0.2, 1.9), (-0.6, -1.4), (2.3, 0.1), (0.4, 0.4))
+
+
+def swirl_frames(n):
+    """n frames of the chart at WIDE_JITTERS with a motion field that varies from pixel to pixel (a turn
+    about the centre, up to about 1 px per frame at the corners): each pixel reprojects from elsewhere,
+    and the motion is read at the shifted pixel."""
+    cx, cy = W * 0.5, H * 0.5
+    motion = []
+    for y in range(H):
+        for x in range(W):
+            motion += [0.012 * (y + 0.5 - cy), -0.012 * (x + 0.5 - cx), 0.0, 0.0]
+    return [(chart_image(jx, jy), {"jitterX": jx, "jitterY": jy, "motion": motion})
+            for jx, jy in WIDE_JITTERS[:n]]
+
+
+def with_alpha(frames):
+    """The frames with an alpha that varies across the image (taa passes the input's alpha through)."""
+    out = []
+    for rgba, params in frames:
+        rgba = list(rgba)
+        for i in range(W * H):
+            rgba[4 * i + 3] = 0.25 + 0.7 * ((i % W) * 7 + (i // W) * 3) % 11 / 10.0
+        out.append((rgba, params))
+    return out
+
+
+@contextlib.contextmanager
+def image_size(width, height):
+    """The images of the cases inside at another size (W and H are read by every helper above)."""
+    global W, H
+    saved = W, H
+    W, H = width, height
+    try:
+        yield
+    finally:
+        W, H = saved
+
+
 RESULTS = []
 
 
@@ -235,14 +282,21 @@ class GpuParity(unittest.TestCase):
         native.load()
 
     def check(self, label, method, frames, params, rows_up=False):
-        ref = library_filter(method, frames, params)
-        got = gpu_filter(method, frames, params, rows_up)
-        self.assertEqual(len(ref), len(got))
-        inp = frames[-1][0]
+        """Every frame's output (a first frame's reset path too), each within the tolerances; the figures
+        printed are the worst over the frames."""
+        refs = library_filter(method, frames, params, every=True)
+        gots = gpu_filter(method, frames, params, rows_up)
+        self.assertEqual(len(refs), len(gots))
+        tol_max, tol_mean = TOLERANCES[method]
+        worst = [0.0] * 5
+        for k, (ref, got) in enumerate(zip(refs, gots)):
+            self.assertEqual(len(ref), len(got))
+            figures = differences(ref, got, frames[:k + 1], tol_max)
+            worst = [max(a, b) for a, b in zip(worst, figures)]
+        mx, rel_max, rel_mean, flipped, worst_flip = worst
+        ref, inp = refs[-1], frames[-1][0]
         changed = sum(1 for i in range(0, len(ref), 4) if abs(ref[i] - inp[i]) > 1e-6
                       and not math.isnan(inp[i]))
-        tol_max, tol_mean = TOLERANCES[method]
-        mx, rel_max, rel_mean, flipped, worst_flip = differences(ref, got, frames, tol_max)
         label += " (rows up)" if rows_up else ""
         line = ("parity %-38s max %.3g (relative %.3g, mean %.3g) flipped %.4f%% (worst %.3g of the local range); "
                 "library changed %d of %d pixels" % (label, mx, rel_max, rel_mean, 100 * flipped, worst_flip,
@@ -308,10 +362,8 @@ class GpuParity(unittest.TestCase):
                    {"historyFilter": "bilinear", "clipSpace": "rgb", "varianceClip": 0.0})
 
     def test_taa_moving_unjitter_wide_jitter(self):
-        # Jitter up to +-2.3 px shifts the unjittered 3x3 by 1 and 2 px (taa.cpp setUnjitter).
-        jitters = ((1.3, -0.8), (-1.6, 0.4), (0.2, 1.9), (-0.6, -1.4), (2.3, 0.1))
         frames = [(img, dict(params, jitterX=jx, jitterY=jy))
-                  for (img, params), (jx, jy) in zip(moving_frames(5, 0.6, 0.35), jitters)]
+                  for (img, params), (jx, jy) in zip(moving_frames(5, 0.6, 0.35), WIDE_JITTERS)]
         self.check("taa 5 frames moving unjitter", "taa", frames, {})
 
     def test_taa_clip_space_change_resets_history(self):
@@ -354,6 +406,65 @@ class GpuParity(unittest.TestCase):
             self.assertEqual(g.params, before)
             with self.assertRaises(gpu_filters.GpuParamsError):
                 gpu_filters.GpuFilter(method, bad)
+
+    def test_taa_unjitter_modes(self):
+        # Wide jitter, so that 'nearest' shifts the 3x3 and 'none' takes the jittered centre as it is.
+        # In YCoCg, 'none' outputs a first frame's input as it is, not its round trip through YCoCg.
+        frames = [(chart_image(jx, jy), {"jitterX": jx, "jitterY": jy}) for jx, jy in WIDE_JITTERS]
+        for mode in ("none", "nearest"):
+            for space in ("rgb", "ycocg"):
+                self.check("taa 6 frames unjitter=%s %s" % (mode, space), "taa", frames,
+                           {"unjitter": mode, "clipSpace": space})
+
+    def test_taa_static_switches(self):
+        for params in ({"staticAccumulation": False}, {"maxSamples": 3},
+                       {"jitterWeighting": "blackman-harris", "filterSize": 0.8}):
+            self.check("taa 8 frames %s" % params, "taa", taa_frames(8), params)
+        # A change the still pixels' history must be clipped to (staticClip on) or averaged into (off).
+        for clip in (True, False):
+            self.check("taa 12 frames staticClip=%s, change at 6" % clip, "taa", changing_frames(12, 6),
+                       {"staticClip": clip, "holdPeriod": 0})
+
+    def test_taa_hold_release_darkening(self):
+        # As test_taa_hold_release with the right half 0.15 darker from frame 9: the release's other side.
+        frames = [(img if k < 9 else [v - 0.15 if i % 4 < 3 and (i // 4) % W >= W // 2 else v
+                                      for i, v in enumerate(img)], params)
+                  for k, (img, params) in enumerate(changing_frames(20, 99))]
+        self.check("taa 20 frames hold 3, darker at 9", "taa", frames, {"holdPeriod": 3})
+
+    def test_taa_alpha_and_non_finite_input(self):
+        self.check("taa 6 frames varying alpha", "taa", with_alpha(taa_frames(6)), {})
+        noisy = [(noise_image(seed=k), params) for k, (_, params) in enumerate(taa_frames(4))]
+        self.check("taa 4 frames noise NaN/Inf", "taa", noisy, {})
+
+    def test_taa_motion_varying_per_pixel(self):
+        self.check("taa 5 frames swirl c-rom", "taa", swirl_frames(5), {})
+        self.check("taa 6 frames swirl maxSamples=2", "taa", swirl_frames(6), {"maxSamples": 2})
+        self.check("taa 5 frames swirl bilinear", "taa", swirl_frames(5), {"historyFilter": "bilinear"})
+
+    def test_odd_image_size(self):
+        # A width that is not a multiple of 4 (repair's 4x4 reduction) and odd dimensions.
+        with image_size(127, 93):
+            self.check("fxaa chart 127x93", "fxaa", [(chart_image(), {})], {})
+            self.check("repair chart 127x93", "repair", [(chart_image(), {})], {})
+            self.check("repair noise 127x93", "repair", [(noise_image(), {})], {"angleEstimator": "thesis"})
+            self.check("taa 6 frames 127x93", "taa", taa_frames(6), {})
+            self.check("taa 5 frames moving 127x93", "taa", moving_frames(5, 0.6, 0.35), {}, rows_up=True)
+
+    def test_parameter_tables_match_the_library(self):
+        # gpu_filters' hand copy of the library's tables (crispGetFilterInfo): the same names (those left
+        # out are listed with a reason), defaults and choices.
+        for method in gpu_filters.METHODS:
+            library = {p["name"]: p for p in native.filter_info(method)["params"]}
+            ours, left_out = gpu_filters.DEFAULTS[method], gpu_filters.NOT_ON_GPU[method]
+            self.assertEqual(set(ours) & set(left_out), set(), method)
+            self.assertEqual(set(ours) | set(left_out), set(library), method + ": a parameter the GPU version "
+                             "neither has nor lists in NOT_ON_GPU")
+            for name, value in ours.items():
+                self.assertAlmostEqual(value, library[name]["default"], places=6, msg=(method, name)) \
+                    if isinstance(value, float) else self.assertEqual(value, library[name]["default"], (method, name))
+                if "choices" in library[name]:
+                    self.assertEqual(set(gpu_filters.CHOICES[name]), set(library[name]["choices"]), (method, name))
 
     def test_taa_half_still_footprint(self):
         # The top half still, the bottom half moving: static pixels near the boundary must not use the
