@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -595,21 +596,42 @@ TEST_F(IoTest, FailedWritesLeaveNoTraceAndTheOldFileIntact) {
 // command): the temporary file is removed, the old file keeps its bytes, and the process still
 // ends by the signal.
 TEST_F(IoTest, InterruptRemovesTheFileBeingWritten) {
+  // A fresh process (not a fork of this one, whose OIIO threads a fork would leave locked): the
+  // threadsafe death test runs this test again from the start, and that process's SetUp made a
+  // folder named by its own pid. It works in this process's folder instead (the environment is
+  // inherited), so that the checks below see what it did.
+  static const char* const kShared = "CRISP_IO_TEST_INTERRUPT_DIR";
+  if (const char* parent = std::getenv(kShared)) {
+    fs::remove_all(dir);
+    dir = parent;
+  } else {
+    ::setenv(kShared, dir.c_str(), 1);
+  }
   Image old(7, 5, 4, 0.125f), im(7, 5, 4, 0.5f);
   writeImage(file("sig.exr"), old);
   const std::vector<char> before = readBytes(file("sig.exr"));
-  // A fresh process (not a fork of this one, whose OIIO threads a fork would leave locked).
+  static std::string seen;  // the hook's record, in the dying process's folder
+  seen = file("hook_ran");
   GTEST_FLAG_SET(death_test_style, "threadsafe");
   EXPECT_EXIT(
       {
         removeTemporaryFilesOnSignals();
         setWriteImageFaultForTesting([](const std::string& tmp) {
-          if (fs::exists(tmp)) ::raise(SIGINT);  // the temporary file is complete, not yet renamed
+          if (!fs::exists(tmp)) return;
+          std::ofstream(seen) << tmp;  // the temporary file is complete, not yet renamed
+          ::raise(SIGINT);
         });
         writeImage(file("sig.exr"), im);
         std::exit(0);  // not reached unless the signal went astray
       },
       ::testing::KilledBySignal(SIGINT), "");
+  ::unsetenv(kShared);
+  // The interrupted write happened here, its temporary file existed, and is gone; the old file is whole.
+  ASSERT_TRUE(fs::exists(file("hook_ran")));
+  std::ifstream record(file("hook_ran"));
+  const std::string tmp((std::istreambuf_iterator<char>(record)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(fs::path(tmp).parent_path(), dir);
+  EXPECT_FALSE(fs::exists(tmp)) << tmp;
   EXPECT_EQ(readBytes(file("sig.exr")), before);
   EXPECT_TRUE(temporaries().empty());
 }
