@@ -81,7 +81,8 @@ _load_error = None      # why loading failed (string), or None
 
 
 def repo_library_path():
-    here = os.path.dirname(os.path.abspath(__file__))
+    # realpath: the add-on linked into Blender's add-ons folder still finds its checkout's build.
+    here = os.path.dirname(os.path.realpath(__file__))
     return os.path.normpath(os.path.join(here, "..", "..", "build", "lib", "libcrisp.so"))
 
 
@@ -151,7 +152,8 @@ def load():
         except OSError as e:
             tried.append("%s %s: %s" % (origin, path, e))
             break
-    _load_error = "libcrisp not loaded; " + "; ".join(tried)
+    _load_error = ("libcrisp not loaded; " + "; ".join(tried) + ". Set its path in the add-on's preferences "
+                   "(Edit > Preferences > Add-ons > Crisp) or in $CRISP_LIBRARY")
     raise CrispError(_load_error)
 
 

@@ -1,0 +1,46 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The add-on installed as the README says, in a fresh Blender process whose user scripts folder is
+a temporary one: linked into its add-ons folder it finds this checkout's build by itself; copied there
+without a library it says where to give one."""
+
+import os
+import shutil
+import subprocess
+
+import pytest
+
+from crisp_test_util import LIBRARY, SOURCE
+
+pytestmark = [pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")]
+
+PROBE = ("import addon_utils; addon_utils.enable('crisp', default_set=False); "
+         "from crisp import native; ok, text = native.status(); print('STATUS', ok, text)")
+
+
+def status(scripts):
+    env = dict(os.environ, BLENDER_USER_SCRIPTS=str(scripts))
+    env.pop("CRISP_LIBRARY", None)
+    p = subprocess.run(["blender", "-b", "--factory-startup", "--python-expr", PROBE], env=env,
+                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300)
+    lines = [line for line in p.stdout.splitlines() if line.startswith("STATUS ")]
+    assert lines, p.stdout[-2000:]
+    return lines[-1]
+
+
+def test_linked_addon_finds_the_checkouts_build(tmp_path):
+    repo_build = os.path.join(SOURCE, "build", "lib", "libcrisp.so")
+    if not os.path.isfile(repo_build):
+        pytest.skip("no build in %s/build (the add-on's own fallback)" % SOURCE)
+    (tmp_path / "addons").mkdir()
+    (tmp_path / "addons" / "crisp").symlink_to(os.path.join(SOURCE, "addon", "crisp"))
+    line = status(tmp_path)
+    assert line.startswith("STATUS True") and os.path.normpath(repo_build) in line, line
+
+
+def test_copied_addon_without_a_library_says_where_to_give_it(tmp_path):
+    assert os.path.isfile(LIBRARY)
+    shutil.copytree(os.path.join(SOURCE, "addon", "crisp"), tmp_path / "addons" / "crisp",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    line = status(tmp_path)
+    assert line.startswith("STATUS False"), line
+    assert "preferences" in line and "$CRISP_LIBRARY" in line, line
