@@ -106,7 +106,7 @@ int runEval(const ParsedArgs& args) {
     } catch (const std::invalid_argument& e) {
       throw UsageError(std::string("--methods: ") + e.what());
     }
-    if (std::find(filterTypes().begin(), filterTypes().end(), spec.method) == filterTypes().end())
+    if (!isFilterType(spec.method))
       throw UsageError("--methods: unknown method '" + spec.method + "' (known: " + filterTypesJoined() +
                        ", blender-smaa)");
     // Bad parameters are refused now, before anything is rendered.

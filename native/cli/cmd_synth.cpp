@@ -30,7 +30,8 @@ int runSynth(const ParsedArgs& args) {
     writeImage(joinPath(dir, std::string("chart_reference") + ext), ref);
   }
   writeImage(joinPath(dir, "chart_edges.exr"), maskRgb);
-  std::printf("wrote %s/chart_1spp.exr, chart_reference.exr (16x16 box), chart_edges.exr (%dx%d)\n", dir.c_str(), w, h);
+  std::printf("wrote %s/chart_1spp.exr/.png, chart_reference.exr/.png (16x16 supersampled, box), chart_edges.exr (%dx%d)\n",
+              dir.c_str(), w, h);
   return 0;
 }
 

@@ -223,6 +223,8 @@ std::vector<std::pair<std::string, std::string>> settingsOf(const ParsedArgs& ar
 }
 
 std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args) {
+  if (!isFilterType(method))  // a mistyped option: a usage error, as in crisp eval
+    throw UsageError("--method: unknown method '" + method + "' (known: " + filterTypesJoined() + ")");
   std::unique_ptr<Filter> filter = createFilter(context, method);
   for (const auto& [key, value] : settingsOf(args)) {
     if (readsSubsamples(*filter) && isRsaaCameraParam(key))

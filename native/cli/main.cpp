@@ -21,8 +21,14 @@ static int runHelp(const ParsedArgs& args) {
   const std::string& topic = args.positional.front();
   std::string text = helpText(topic);
   if (text.empty()) {
+    if (!isFilterType(topic)) {
+      std::string commandNames;
+      for (const CommandSpec& c : commands()) commandNames += (commandNames.empty() ? "" : ",") + std::string(c.name);
+      throw UsageError("help: '" + topic + "' is neither a command (" + commandNames + ") nor a method (" +
+                       filterTypesJoined() + ")");
+    }
     Context context;
-    text = createFilter(context, topic)->doc();  // throws naming the unknown topic
+    text = createFilter(context, topic)->doc();
   }
   std::fputs(text.c_str(), stdout);
   return 0;

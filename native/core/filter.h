@@ -94,5 +94,6 @@ class Filter {
 std::unique_ptr<Filter> createFilter(Context& context, const std::string& type);
 const std::vector<std::string>& filterTypes();
 const char* filterTypesJoined();
+bool isFilterType(const std::string& name);
 
 }  // namespace crisp

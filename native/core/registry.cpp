@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // The filters known by name. Each filter's file provides its factory.
+#include <algorithm>
 #include <functional>
 
 #include "core/error.h"
@@ -47,6 +48,10 @@ const char* filterTypesJoined() {
     return s;
   }();
   return joined.c_str();
+}
+
+bool isFilterType(const std::string& name) {
+  return std::find(filterTypes().begin(), filterTypes().end(), name) != filterTypes().end();
 }
 
 std::unique_ptr<Filter> createFilter(Context& context, const std::string& type) {

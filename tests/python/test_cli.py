@@ -76,7 +76,8 @@ def test_help_prints_parameter_tables():
 
 
 @pytest.mark.parametrize("args, code, words", [
-    (["filter", "--method", "nope", "IN", "-o", "OUT"], 1, ["unknown filter type 'nope'"]),
+    (["filter", "--method", "nope", "IN", "-o", "OUT"], 2, ["--method: unknown method 'nope'", "rsaa"]),
+    (["help", "nosuch"], 2, ["'nosuch' is neither a command", "filter", "phlm"]),
     (["filter", "--method", "repair", "--set", "kapa=1", "IN", "-o", "OUT"], 1, ["unknown parameter 'kapa'"]),
     (["filter", "--method", "repair", "--set", "kappa=9", "IN", "-o", "OUT"], 1, ["'kappa' = 9", "out of range"]),
     (["filter", "--method", "repair", "--set", "kappa", "IN", "-o", "OUT"], 2, ["KEY=VALUE"]),
