@@ -600,16 +600,18 @@ TEST_F(IoTest, InterruptRemovesTheFileBeingWritten) {
   // threadsafe death test runs this test again from the start, and that process's SetUp made a
   // folder named by its own pid. It works in this process's folder instead (the environment is
   // inherited), so that the checks below see what it did.
+  // Only this process writes the old file (an EXR holds the second it was written: capDate).
   static const char* const kShared = "CRISP_IO_TEST_INTERRUPT_DIR";
+  Image old(7, 5, 4, 0.125f), im(7, 5, 4, 0.5f);
+  std::vector<char> before;
   if (const char* parent = std::getenv(kShared)) {
     fs::remove_all(dir);
     dir = parent;
   } else {
     ::setenv(kShared, dir.c_str(), 1);
+    writeImage(file("sig.exr"), old);
+    before = readBytes(file("sig.exr"));
   }
-  Image old(7, 5, 4, 0.125f), im(7, 5, 4, 0.5f);
-  writeImage(file("sig.exr"), old);
-  const std::vector<char> before = readBytes(file("sig.exr"));
   static std::string seen;  // the hook's record, in the dying process's folder
   seen = file("hook_ran");
   GTEST_FLAG_SET(death_test_style, "threadsafe");
