@@ -181,7 +181,8 @@ int runEval(const ParsedArgs& args) {
                          " here";
       }
       throw UsageError("'" + outDir.string() + "' holds renders made with other settings (" + differences +
-                       "); use another -o folder or delete it");
+                           "); use another -o folder or delete it",
+                       false);
     }
   }
   writeTextFile(settings.string(), want.dump() + "\n");

@@ -57,7 +57,7 @@ int main(int argc, char** argv) {
     if (a.command == "bench") return runBench(a, argv[0]);
     throw UsageError("unknown command '" + a.command + "'");
   } catch (const UsageError& e) {
-    std::fprintf(stderr, "crisp: %s\nRun 'crisp help' for usage.\n", e.what());
+    std::fprintf(stderr, "crisp: %s\n%s", e.what(), e.pointsToHelp ? "Run 'crisp help' for usage.\n" : "");
     return 2;
   } catch (const Exception& e) {
     std::fprintf(stderr, "crisp: error: %s\n", e.what());

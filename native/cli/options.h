@@ -43,7 +43,10 @@ struct ParsedArgs {
 
 // Throws UsageError with a message naming the offending argument.
 struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
+  // pointsToHelp: the message ends with "Run 'crisp help'", unless it already says what to do instead.
+  explicit UsageError(const std::string& what, bool pointsToHelp = true)
+      : std::runtime_error(what), pointsToHelp(pointsToHelp) {}
+  bool pointsToHelp;
 };
 ParsedArgs parseArgs(const std::vector<std::string>& args);
 std::string helpText(const std::string& command = "");

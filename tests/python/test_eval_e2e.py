@@ -180,6 +180,7 @@ def test_settings_of_another_run_are_refused(run):
             p = subprocess.run([CRISP, "eval"] + args + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                env=dict(os.environ, **env), timeout=60)
             assert p.returncode == 2 and b"holds renders made with other settings" in p.stderr, p.stderr.decode()[-500:]
+            assert b"crisp help" not in p.stderr, "the message says what to do; no pointer to the help"
             assert message in p.stderr, p.stderr.decode()[-500:]
             assert b"rendering in Blender" not in p.stderr, "refused before Blender starts"
     finally:
