@@ -139,6 +139,34 @@ TEST(CApi, ExecuteWithoutACommitNamesWhy) {
   crispUnsetFilterImage(f.handle(), "output");
   crispExecuteFilter(f.handle());
   EXPECT_NE(lastError().find("image 'output' was unset"), std::string::npos);
+  // The same size in another format is a change too (the kernel reads the pixels otherwise).
+  f.setImage("output", b.data(), CRISP_FORMAT_FLOAT4, 4, 4);
+  f.commit();
+  f.execute();
+  f.setImage("color", a.data(), CRISP_FORMAT_FLOAT3, 4, 4);
+  crispExecuteFilter(f.handle());
+  msg = lastError(&code);
+  EXPECT_EQ(code, CRISP_ERROR_INVALID_OPERATION) << msg;
+  EXPECT_NE(msg.find("image 'color' was set to a new size or format"), std::string::npos) << msg;
+}
+
+// crisp.h: each side of an image is in [1, 65536]; setting a view allocates nothing, so the
+// largest side is taken and one more is refused, naming the image.
+TEST(CApi, ImageSideLimitIsInclusive) {
+  auto ctx = crisp::ContextRef::create();
+  auto f = ctx.newFilter("fxaa");
+  std::vector<float> row(4 * 65537, 0.5f);
+  CrispError code;
+  for (std::size_t side : {std::size_t(65536), std::size_t(65537)}) {
+    crispSetFilterImage(f.handle(), "color", row.data(), CRISP_FORMAT_FLOAT4, side, 1, 0, 0);
+    std::string msg = lastError(&code);
+    if (side == 65536) {
+      EXPECT_EQ(code, CRISP_ERROR_NONE) << msg;
+    } else {
+      EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT) << msg;
+      EXPECT_NE(msg.find("image 'color': size 65537x1 is out of range [1, 65536]"), std::string::npos) << msg;
+    }
+  }
 }
 
 // A frame says how many colour values its file held as NaN or Inf (its colour pass holds them

@@ -424,6 +424,15 @@ TEST_F(IoTest, NonFiniteColourIsSanitised) {
   EXPECT_EQ(f.pass("color").at(0, 0)[0], 0.0f);
   EXPECT_EQ(f.pass("color").at(0, 0)[1], kMaxColor);
   EXPECT_EQ(f.pass("color").at(0, 0)[2], -kMaxColor);
+  const long rows = f.pass("color").height;  // the non-finite values sit in column 0 of every row
+  EXPECT_EQ(f.nonFiniteColour, 3 * rows);
+  // Alpha is colour too: a NaN alpha is counted and read as 0.
+  ch.push_back({"A", OIIO::TypeDesc::FLOAT, [nan](int x, int) { return x == 1 ? nan : 1.0f; }});
+  writeExr(file("nan_alpha.exr"), ch, layout);
+  Frame g = readFrame(file("nan_alpha.exr"));
+  EXPECT_EQ(g.nonFiniteColour, 4 * rows);
+  EXPECT_EQ(g.pass("color").at(1, 0)[3], 0.0f);
+  EXPECT_EQ(g.pass("color").at(2, 0)[3], 1.0f);
 }
 
 TEST_F(IoTest, EightBitPngIsSrgbDecoded) {
@@ -748,6 +757,17 @@ TEST_F(IoTest, AbsurdAndZeroSizesAreRefused) {
       EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
     }
     EXPECT_FALSE(OIIO::has_error());
+  }
+  // A small data window in a display window within the per-side limit but over the pixel limit
+  // (60000 x 60000 = 3.6e9 > kMaxPixels): the frame would be allocated at the display size.
+  std::vector<char> bytes = good;
+  patch(bytes, display, 59999, 59999);
+  writeBytes(path, bytes);
+  try {
+    readFrame(path);
+    ADD_FAILURE() << "accepted a 60000x60000 display window";
+  } catch (const Exception& e) {
+    EXPECT_NE(std::string(e.what()).find("display window 60000x60000"), std::string::npos) << e.what();
   }
 }
 

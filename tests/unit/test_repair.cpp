@@ -154,12 +154,18 @@ TEST(RepairThreshold, EqualsDefinitionOnHandComputedValues) {
 }
 
 TEST(RepairThreshold, KernelMatchesDefinitionOverNonZeroGradient) {
-  const Image input = synth::renderCentre(synth::testChart(96, 64), 96, 64);
+  // Widths that are not multiples of the row statistics' vector width too, so its tail loop runs.
+  for (int width : {96, 97, 101})
   for (float kappa : {-1.0f, 0.0f, 1.0f}) {
+    SCOPED_TRACE("width " + std::to_string(width) + ", kappa " + std::to_string(kappa));
+    const Image input = synth::renderCentre(synth::testChart(width, 64), width, 64);
     Settings s;
     s.kappa = kappa;
     repair::Kernel k;
     runKernel(input, s, false, 0, &k);
+    bool lastColumn = false;  // the tail's pixels must take part
+    for (int y = 0; y < 64; ++y) lastColumn |= k.gradient().data[std::size_t(y) * width + (width - 1)] != 0;
+    EXPECT_TRUE(lastColumn);
     long double sum = 0, n = 0;
     for (float z : k.gradient().data)
       if (z != 0) sum += z, n += 1;
