@@ -408,6 +408,29 @@ def test_compare_refuses_maps_and_json_that_would_replace_files(chart, tmp_path)
     assert victim.read_bytes() == before and (a / "frame.exr").read_bytes() == test.read_bytes()
 
 
+def test_a_text_file_that_cannot_be_written_whole_keeps_the_old_one(chart, tmp_path):
+    """--json on a full disk (a file size limit, RLIMIT_FSIZE, with SIGXFSZ ignored so that the write
+    fails with EFBIG): an error naming the file, the old file's bytes kept, no temporary file left."""
+    import resource
+    import signal
+
+    js = tmp_path / "figures.json"
+    js.write_text("the previous run's figures\n")
+
+    def small_disk():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (64, 64))
+
+    p = subprocess.run([str(CRISP), "compare", "-q", "-r", str(chart / "chart_reference.exr"), "-t",
+                        str(chart / "chart_1spp.exr"), "--json", str(js)], capture_output=True, text=True,
+                       timeout=120, preexec_fn=small_disk)
+    assert p.returncode == 1 and "cannot write" in p.stderr and str(js) in p.stderr, p.stderr
+    assert js.read_text() == "the previous run's figures\n"
+    assert os.listdir(tmp_path) == ["figures.json"], os.listdir(tmp_path)
+    run("compare", "-q", "-r", chart / "chart_reference.exr", "-t", chart / "chart_1spp.exr", "--json", js)
+    assert len(js.read_bytes()) > 64, "the figures must not fit the limit, or this tests nothing"
+
+
 def test_a_half_float_id_pass_fails_only_methods_that_read_ids(chart, tmp_path):
     """An ID pass stored as half float cannot hold the hashes: crisp filter refuses it for a method
     that reads IDs, naming the pass and the file, and filters the frame for one that does not;
