@@ -143,10 +143,13 @@ double meanPsnrAfterWarmUp(const char* method, const std::vector<synth::FrameDat
 // whole pixels (1, -1) and by half pixels (0.5, 0.5) per frame, filtered
 // with resampleDamping 0 and 0.3. wholePixelSame: the whole-pixel pan gave
 // the same bits either way; off / on: the half-pixel pan's mean PSNR after
-// warmUp without / with the damping.
+// warmUp without / with the damping; verticalOff / verticalOn: the same for
+// the chart panned by (0, 0.5) per frame, whose fetch fraction is sub-pixel
+// in y only (the damping takes the larger of the two axes' fractions).
 struct DampingFigures {
   bool wholePixelSame = true;
   double off = 0, on = 0;
+  double verticalOff = 0, verticalOn = 0;
 };
 inline DampingFigures resampleDampingFigures(const char* method, int w, int h, int frames, int warmUp) {
   auto run = [&](const std::vector<synth::FrameData>& input, float damping, std::vector<Image>* outputs) {
@@ -162,6 +165,9 @@ inline DampingFigures resampleDampingFigures(const char* method, int w, int h, i
   for (int t = 0; t < frames; ++t) r.wholePixelSame &= plain[std::size_t(t)].data == damped[std::size_t(t)].data;
   r.off = run(half, 0.0f, nullptr);
   r.on = run(half, 0.3f, nullptr);
+  const std::vector<synth::FrameData> vertical = pannedChart(w, h, frames, 0.0f, 0.5f);
+  r.verticalOff = run(vertical, 0.0f, nullptr);
+  r.verticalOn = run(vertical, 0.3f, nullptr);
   return r;
 }
 

@@ -242,6 +242,36 @@ TEST(Fxaa, FlatImagesAreUnchangedExactly) {
     }
 }
 
+// The sub-pixel path by hand (FXAA 3.11 step 2): a grey pixel of linear 0.5625
+// (luma m ~ 0.6) on black (luma 0), its 4 diagonal neighbours 0.25 (luma d ~
+// 0.447). The 3x3 low-pass (weights 1 2 1 / 2 0 2 / 1 2 1) is 4d / 12 = d / 3,
+// the range (centre and cross) m, so subpixContrast = |d / 3 - m| / m ~ 0.7516,
+// eased = (3 - 2 c) c^2 ~ 0.8455 and the blend eased^2 subpix ~ 0.7149 * 0.75
+// ~ 0.5362 (eased subpix would give 0.634). The pattern is symmetric: the
+// edge counts as horizontal (a tie), the step as upward (a tie) and the search
+// ends at equal distances both ways, so the edge blend is 0.5 - 1/2 = 0 and the
+// offset is -0.5362: the colour is fetched 0.5362 px up, lerp(black, centre,
+// 1 - 0.5362), i.e. 0.5625 (1 - 0.5362) ~ 0.2609.
+TEST(Fxaa, SubPixelBlendOfALoneBrightPixelIsComputedByHand) {
+  const int w = 9, h = 9, cx = 4, cy = 4;
+  const float centre = 0.5625f, diagonal = 0.25f;
+  Image in(w, h, 4, 0.0f);
+  for (int c = 0; c < 3; ++c) {
+    in.at(cx, cy)[c] = centre;
+    for (int dy : {-1, 1})
+      for (int dx : {-1, 1}) in.at(cx + dx, cy + dy)[c] = diagonal;
+  }
+  const float m = fxaa::perceptualLuma(centre, centre, centre), d = fxaa::perceptualLuma(diagonal, diagonal, diagonal);
+  const double contrast = std::fabs(d / 3.0 - m) / m;
+  const double eased = (3.0 - 2.0 * contrast) * contrast * contrast;
+  const double blend = eased * eased * fxaa::Settings{}.subpix;
+  EXPECT_NEAR(blend, 0.5362, 1e-3);
+  for (bool reference : {true, false}) {
+    const Image out = runPacked(in, fxaa::Settings{}, reference);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(out.at(cx, cy)[c], centre * (1.0 - blend), 1e-5) << "reference " << reference;
+  }
+}
+
 TEST(Fxaa, NonFiniteInputGivesFiniteOutput) {
   for (bool reference : {true, false}) {
     const Image in = noiseImage(37, 29, 99, true, true);

@@ -192,6 +192,10 @@ TEST(Phlm, ResampleDampingActsOnlyAtSubPixelMotion) {
   std::printf("chart panned by (0.5, 0.5) px per frame: phlm mean PSNR frames %d-%d %.2f dB without, %.2f dB with "
               "resampleDamping 0.3\n", warmUp, frames - 1, d.off, d.on);
   EXPECT_GT(d.on, d.off + 0.2);
+  // Panned in y only: the damping acts the same (the larger axis fraction).
+  std::printf("chart panned by (0, 0.5) px per frame: phlm mean PSNR %.2f dB without, %.2f dB with the damping\n",
+              d.verticalOff, d.verticalOn);
+  EXPECT_GT(d.verticalOn, d.verticalOff + 0.2);
 }
 
 // Model fetch (phlm.cpp "Model fetch"): on the test chart panned by whole
@@ -430,6 +434,47 @@ TEST(Phlm, OutputAlphaIsTheInputAlpha) {
         for (int x = 0; x < w; ++x)
           ASSERT_EQ(out.at(x, y)[3], sanitizeColor(f.color.at(x, y)[3]))
               << "(" << x << "," << y << ") frame " << t << (reference ? " reference" : " fast");
+    }
+  }
+}
+
+// The model reset by a box correction (Algorithm 1 line 18) starts from
+// P = scale P0, scale = boxResetCovariance / initialCovariance, not from P0:
+// a flat grey frame, then a flat brighter one, whose prediction leaves the
+// (single-valued) box at every pixel. With boxResetCovariance c = 0.01 (slope
+// variances 1 * 1e-5), the still frame forgets (P / lambda, c' = c / lambda)
+// and takes in one sample x = [1, z] of weight 1; the slopes' variances are
+// too small to matter, so the intercept variance is c' / (1 + c') ~ 0.00992
+// and the slopes' ps scale / lambda ~ 1.002e-5 (from P0 they would be ~ 1.1
+// and ~ 1). At the default (c = initialCovariance) the intercept stays ~ 1.
+TEST(Phlm, BoxCorrectionResetsToBoxResetCovariance) {
+  const int w = 16, h = 8;
+  for (const double boxCovariance : {0.01, 1000.0}) {
+    for (const bool reference : {false, true}) {
+      phlm::Kernel<float> k;
+      k.allocate(w, h, false, false);
+      phlm::Settings s;
+      s.holdPeriod = 0;
+      s.boxResetCovariance = boxCovariance;
+      Image out(w, h, 4);
+      for (int t = 0; t < 2; ++t) {
+        const Image in(w, h, 4, t == 0 ? 0.2f : 0.8f);
+        phlm::Inputs inputs;
+        inputs.color = in.view();
+        inputs.output = out.view();
+        k.run(inputs, s, reference, 1);
+      }
+      EXPECT_EQ(k.lastStats().boxResets, long(w * h));
+      double P[phlm::kDims][phlm::kDims];
+      phlm::covariance(k.record(w / 2, h / 2).data(), P);
+      const double scale = boxCovariance / s.initialCovariance, forgotten = boxCovariance / s.lambda;
+      if (boxCovariance < 1.0) {
+        EXPECT_NEAR(P[0][0], forgotten / (1.0 + forgotten), 1e-3 * forgotten) << "reference " << reference;
+        EXPECT_NEAR(P[1][1], s.slopeCovariance * scale / s.lambda, 1e-2 * s.slopeCovariance * scale)
+            << "reference " << reference;
+      } else {
+        EXPECT_GT(P[0][0], 0.5) << "reference " << reference;
+      }
     }
   }
 }

@@ -202,6 +202,79 @@ TEST(Taa, HugeZeroAndInvalidMotion) {
   }
 }
 
+// Reprojection just past the right / bottom edge (step 8's on-screen test:
+// q <= size - 0.5, the outer edge of the last pixel): motion 0.75 on the last
+// column and row lands at q = size - 0.25, off screen, so those pixels reset
+// to their own sample (here exactly 0 or 1), while motion 0.25 (q = size -
+// 0.75, on screen) fetches the grey history and mixes it in.
+TEST(Taa, MotionJustPastTheRightAndBottomEdgesResets) {
+  const int w = 16, h = 12;
+  synth::FrameData grey, checker;
+  grey.color = Image(w, h, 4, 0.5f);
+  checker.color = Image(w, h, 4, 1.0f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) checker.color.at(x, y)[c] = float((x + y) % 2);
+  for (float step : {0.75f, 0.25f}) {
+    const bool offScreen = step > 0.5f;
+    synth::FrameData f = checker;
+    f.motion = Image(w, h, 2, 0.0f);
+    for (int y = 0; y < h; ++y) f.motion.at(w - 1, y)[0] = step;  // last column: q.x = w - 1 + step
+    for (int x = 0; x < w; ++x) f.motion.at(x, h - 1)[1] = step;  // last row: q.y = h - 1 + step
+    grey.motion = Image(w, h, 2, 0.0f);
+    for (bool reference : {false, true}) {
+      Driver d;
+      d.filter->params().setString("unjitter", "none");
+      d.filter->params().setBool("reference", reference);
+      d.run(grey, true, false);
+      const Image& out = d.run(f, true, false);
+      // Away from the corner, where a pixel may follow its neighbour's motion.
+      for (int y = 1; y < h - 3; ++y) {
+        const float got = out.at(w - 1, y)[0], own = f.color.at(w - 1, y)[0];
+        if (offScreen) EXPECT_EQ(got, own) << "right edge, y " << y << " reference " << reference;
+        else EXPECT_GT(std::fabs(got - own), 0.05f) << "right edge, y " << y << " reference " << reference;
+      }
+      for (int x = 1; x < w - 3; ++x) {
+        const float got = out.at(x, h - 1)[0], own = f.color.at(x, h - 1)[0];
+        if (offScreen) EXPECT_EQ(got, own) << "bottom edge, x " << x << " reference " << reference;
+        else EXPECT_GT(std::fabs(got - own), 0.05f) << "bottom edge, x " << x << " reference " << reference;
+      }
+    }
+  }
+}
+
+// The feedback's sample-count floor (mixWeight = max(1 - k, w / W)): with
+// the history weight k fixed at 0.9 (feedbackMin = feedbackMax) and the
+// feedback path everywhere (staticAccumulation off), a pixel blends in its
+// n-th sample since the reset with weight 1/n until n = 1/(1 - k) = 10, i.e.
+// the history is the exact running mean of its samples; after that, 1 - k =
+// 0.1. The input is a checkerboard inverting every frame, whose 3x3 and cross
+// both span [0, 1], so the history is never clipped: a pixel seeing 1, 0, 1,
+// ... shows 1, 1/2, 2/3, 1/2, 3/5, ..., 1/2 after 10 frames, then 0.55.
+TEST(Taa, FeedbackAveragesTheFirstSamplesAfterAReset) {
+  const int w = 12, h = 10, px = 6, py = 4;  // (px + py) even: this pixel sees 1 on even frames
+  Driver d;
+  auto& p = d.filter->params();
+  p.setBool("staticAccumulation", false);
+  p.setFloat("feedbackMin", 0.9f);
+  p.setFloat("feedbackMax", 0.9f);
+  p.setFloat("varianceClip", 0.0f);
+  p.setString("unjitter", "none");
+  double sum = 0, history = 0;
+  for (int t = 0; t < 12; ++t) {
+    synth::FrameData f;
+    f.color = Image(w, h, 4, 1.0f);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        for (int c = 0; c < 3; ++c) f.color.at(x, y)[c] = float((x + y + t + 1) % 2);
+    const float v = f.color.at(px, py)[0];
+    sum += v;
+    const float got = d.run(f, false, false).at(px, py)[0];
+    history = t < 10 ? sum / (t + 1) : history + 0.1 * (v - history);
+    EXPECT_NEAR(got, history, 1e-5) << "frame " << t;
+  }
+}
+
 // Disocclusion: background revealed behind a moving bar is reset to the
 // current sample (unjitter: the mix of the current 3x3), never mixed with the
 // bar's colour.
@@ -619,6 +692,10 @@ TEST(Taa, ResampleDampingActsOnlyAtSubPixelMotion) {
   std::printf("chart panned by (0.5, 0.5) px per frame: taa mean PSNR frames %d-%d %.2f dB without, %.2f dB with "
               "resampleDamping 0.3\n", warmUp, frames - 1, d.off, d.on);
   EXPECT_GT(d.on, d.off + 0.2);
+  // Panned in y only: the damping acts the same (the larger axis fraction).
+  std::printf("chart panned by (0, 0.5) px per frame: taa mean PSNR %.2f dB without, %.2f dB with the damping\n",
+              d.verticalOff, d.verticalOn);
+  EXPECT_GT(d.verticalOn, d.verticalOff + 0.2);
 }
 
 // Sharpen (eq. 3.1) on the output: steeper edges than without.

@@ -94,6 +94,27 @@ TEST(TemporalError, MaskAndMapAgreeWithTheValue) {
   EXPECT_EQ(temporalError(out, outPrev, ref, refPrev, nullptr, &mask, 1).value, te.value);
 }
 
+// The disocclusion mask (motion only): a pixel whose previous position lies
+// past the outer edge of the last column / row (x > w - 0.5 or y > h - 0.5)
+// left the picture and is masked out (0); one landing on that edge or inside
+// is kept (1).
+TEST(TemporalError, DisocclusionMaskDropsMotionJustPastTheRightAndBottomEdges) {
+  const int w = 8, h = 6;
+  Image motion(w, h, 2, 0.0f);
+  motion.at(w - 1, 1)[0] = 0.75f;  // x = w - 0.25: off screen
+  motion.at(w - 1, 2)[0] = 0.5f;   // x = w - 0.5: the edge, on screen
+  motion.at(w - 1, 3)[0] = 0.25f;  // x = w - 0.75
+  motion.at(1, h - 1)[1] = 0.75f;  // y = h - 0.25: off screen
+  motion.at(2, h - 1)[1] = 0.5f;   // y = h - 0.5: the edge, on screen
+  motion.at(3, h - 1)[1] = 0.25f;  // y = h - 0.75
+  const Image mask = disocclusionMask(&motion, nullptr, nullptr, nullptr, nullptr, 0.05f, 1);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const bool off = (x == w - 1 && y == 1) || (x == 1 && y == h - 1);
+      EXPECT_EQ(mask.at(x, y)[0], off ? 0.0f : 1.0f) << "(" << x << "," << y << ")";
+    }
+}
+
 TEST(TemporalError, MismatchedSizesAreNamed) {
   const Image a(8, 8, 4), b(8, 7, 4), motion(8, 8, 1);
   try {
