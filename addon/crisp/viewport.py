@@ -34,6 +34,8 @@ by the sRGB curve (equal to linear light with the Standard view transform; with 
 output).
 """
 
+import functools
+
 import bpy
 from mathutils import Matrix
 
@@ -78,6 +80,14 @@ def gpu_unavailable_reason():
     except Exception as e:  # pragma: no cover - depends on the build
         return "the GPU module is not available: %s" % e
     return None
+
+
+@functools.lru_cache(maxsize=8)
+def _jitter_reach(distribution, filter_size):
+    """The largest |offset| of the preview's jitter period (render.jitter_offset), in pixels."""
+    from . import render
+    return max(max(abs(v) for v in render.jitter_offset(k, distribution, filter_size, period=ACCUMULATE_FRAMES)[:2])
+               for k in range(ACCUMULATE_FRAMES))
 
 
 def jittered_projection(projection, sx, sy, width, height):
@@ -182,38 +192,47 @@ def _filter_view(context, region, space, rv3d, width, height):
         filt = _State.filters[(region_key, method)] = gpu_filters.GpuFilter(method, rows_up=True)
     _State.last_region = region_key
     params = _filter_params(context, method)
+    rejected = None
     try:
         filt.set_params(params)
-        rejected = None
     except gpu_filters.GpuParamsError as e:
         rejected = str(e)
+    if rejected is None:
+        view = rv3d.view_matrix.copy()
+        projection = rv3d.window_matrix.copy()
+        # The renders' jitter (render.render_frames: the panel's Jitter over EEVEE's filter size, which
+        # uniform jitter ignores), so the preview settles on the same pixel filter as the filtered renders.
+        scene = context.scene
+        distribution = scene.crisp.jitter_distribution
+        filter_size = scene.render.filter_size if distribution == "blackman-harris" else None
+        # Settings edits (scene.crisp) fire no depsgraph update (_on_scene_change): they are part of the key.
+        key = (tuple(tuple(r) for r in view), tuple(tuple(r) for r in projection), width, height, method,
+               tuple(sorted(params.items())), distribution, filter_size)
+        seen, frame = _State.views.get(region_key, (None, 0))
+        if key != seen:
+            frame = 0
+            filt.reset()
+        _State.views[region_key] = (key, frame + 1)
+        if method == "taa":
+            # The widest offset of the period first, so a filter size whose jitter leaves taa's range is
+            # said once, not on some redraws of the period.
+            reach = _jitter_reach(distribution, filter_size or 0.0)
+            why = gpu_filters.library_check(method, dict(filt.params, jitterX=reach, jitterY=reach))
+            if why is not None:
+                rejected = "the Jitter at the scene's filter size (%g px) reaches %.2f px: %s" % (
+                    filter_size, reach, why)
+            else:
+                sx, sy, _ = render.jitter_offset(frame, distribution, filter_size or 0.0, period=ACCUMULATE_FRAMES)
+                # taa's jitterY is along the texture's rows (common.glsl "Row order"); offscreen row 0 is
+                # the bottom, so it is y up, like sy.
+                filt.set_params({"jitterX": sx, "jitterY": sy})
+                projection = jittered_projection(projection, sx, sy, width, height)
     if rejected != _State.rejected:
         _State.rejected = rejected
         if not bpy.app.timers.is_registered(_tag_redraw):  # the panel shows it
             bpy.app.timers.register(_tag_redraw, first_interval=0.0)
     if rejected is not None:
         return None, filt, method
-
-    view = rv3d.view_matrix.copy()
-    projection = rv3d.window_matrix.copy()
-    # Settings edits (scene.crisp) fire no depsgraph update (_on_scene_change): they are part of the key.
-    scene = context.scene
-    jitter = (scene.crisp.jitter_distribution, scene.render.filter_size)  # the renders' (render.render_frames)
-    key = (tuple(tuple(r) for r in view), tuple(tuple(r) for r in projection), width, height, method,
-           tuple(sorted(params.items())), jitter)
-    seen, frame = _State.views.get(region_key, (None, 0))
-    if key != seen:
-        frame = 0
-        filt.reset()
-    _State.views[region_key] = (key, frame + 1)
-    if method == "taa":
-        # The renders' jitter (the panel's Jitter, EEVEE's filter size), so the preview settles on the
-        # same pixel filter as the filtered renders.
-        sx, sy, _ = render.jitter_offset(frame, *jitter, period=ACCUMULATE_FRAMES)
-        # taa's jitterY is along the texture's rows (common.glsl "Row order"); offscreen row 0 is the
-        # bottom, so it is y up, like sy.
-        filt.set_params({"jitterX": sx, "jitterY": sy})
-        projection = jittered_projection(projection, sx, sy, width, height)
 
     if _State.offscreen_size != (width, height):
         if _State.offscreen is not None:

@@ -266,6 +266,19 @@ class ViewportPreview(unittest.TestCase):
             self.assertLessEqual(largest, reach, distribution)
             if distribution == "blackman-harris":
                 self.assertGreater(largest, 0.5, "EEVEE's jitter reaches past the pixel")
+        size = scene.render.filter_size
+        self.addCleanup(setattr, scene.render, "filter_size", size)
+        # A filter size whose Blackman-Harris jitter leaves taa's range (+-4 px) is said in the panel, the
+        # view is left unfiltered, and the preview stays on.
+        scene.crisp.jitter_distribution = "blackman-harris"
+        scene.render.filter_size = 10.0
+        redraw(3)
+        self.assertTrue(viewport.is_active(), self.settings.status)
+        self.assertIn("reaches", viewport._State.rejected or "")
+        self.assertIn("jitterX", viewport._State.rejected or "")
+        scene.render.filter_size = size
+        redraw(1)
+        self.assertIsNone(viewport._State.rejected)
         self.switch_off()
 
     def test_settings_the_library_rejects_are_not_run(self):
