@@ -39,8 +39,8 @@
 //
 // Not in this version, on purpose: depth (closest-depth velocity and the
 // disocclusion test) and the aliasedValue plane of taa-improved. The viewport
-// offers neither a depth pass nor motion vectors (../shared/BLENDER.md: EEVEE's
-// buffers are not accessible), so the preview runs the static path (motion 0, history
+// offers neither a depth pass nor motion vectors (BLENDER.md, README "Sources":
+// EEVEE's buffers are not accessible), so the preview runs the static path (motion 0, history
 // reset whenever the view changes); motion is still accepted for tests.
 //
 // Known differences from the C++ kernel (besides common.glsl's):

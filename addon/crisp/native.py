@@ -152,8 +152,13 @@ def load():
         except OSError as e:
             tried.append("%s %s: %s" % (origin, path, e))
             break
-    _load_error = ("libcrisp not loaded; " + "; ".join(tried) + ". Set its path in the add-on's preferences "
-                   "(Edit > Preferences > Add-ons > Crisp) or in $CRISP_LIBRARY")
+    # What to change: the last path tried (an explicit one that is wrong stops the search), else where to
+    # give one.
+    preferences = "the add-on's preferences (Edit > Preferences > Add-ons > Crisp)"
+    where = {"preference": "Correct the path in " + preferences,
+             "$CRISP_LIBRARY": "Correct $CRISP_LIBRARY, or set the path in %s, which comes first" % preferences}
+    _load_error = "libcrisp not loaded; %s. %s" % ("; ".join(tried), where.get(
+        origin, "Set its path in %s or in $CRISP_LIBRARY" % preferences))
     raise CrispError(_load_error)
 
 

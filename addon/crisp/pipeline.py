@@ -9,7 +9,9 @@ OUTDIR/run.json. Layout:
     OUTDIR/run.json                          (run_AAAA-BBBB.json for a chunk of a shot)
 
 run.json is rewritten as each frame is made; its "status" says how the run ended: "complete",
-"cancelled at frame N", "failed: <why>", or "running" (also a run that was killed).
+"cancelled at frame N" or "cancelled at reference frame N" (should_cancel, a caller's stop),
+"failed: <why>" (also "failed: KeyboardInterrupt", Ctrl-C), "running" (also a run that was killed),
+or "planned" (plan_only).
 
 A farm chunk (issue 8, docs/farm.md) writes frames A..B of a shot and first renders and filters the
 `preroll` frames before A (never before the shot's first frame) to warm the temporal history. Those
@@ -379,8 +381,10 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         raise
     made = {e["frame"] for e in result["frames"]}
     made_refs = {e["frame"] for e in result.get("reference", {}).get("frames", [])} if reference_samples else made
-    stopped = [f for f in todo if f not in made or f not in made_refs]
-    return record("cancelled at frame %d" % stopped[0] if stopped else "complete")
+    stopped = [f for f in todo if f not in made]
+    stopped_refs = [f for f in todo if f not in made_refs]
+    return record("cancelled at frame %d" % stopped[0] if stopped else
+                  "cancelled at reference frame %d" % stopped_refs[0] if stopped_refs else "complete")
 
 
 def sequence_warnings(out_dir, frames):

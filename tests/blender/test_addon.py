@@ -324,7 +324,7 @@ class AddonTest(unittest.TestCase):
             run = json.load(open(os.path.join(d, "run.json")))
             self.assertEqual((run["method"], run["status"], [e["frame"] for e in run["frames"]]),
                              ("none", "failed: KeyboardInterrupt", [1]))
-            # Cancelled (the Esc key) after frame 2 of a resume: frame 1 kept (with its entry), 2 made,
+            # Cancelled (should_cancel) after frame 2 of a resume: frame 1 kept (with its entry), 2 made,
             # 3 (the first run's, at 1 sample) not.
             calls = []
             pipeline.run(scene, "none", range(1, 4), d, filter_frames=False, log=lambda *a: None, samples=2,
@@ -334,6 +334,13 @@ class AddonTest(unittest.TestCase):
             pipeline.run(scene, "none", range(1, 4), d, filter_frames=False, log=lambda *a: None, samples=2,
                          resume=True)
             self.assertEqual(record(d), ("complete", [1, 2, 3]))
+        with tempfile.TemporaryDirectory() as d:
+            # Stopped among the references (should_cancel is asked before each frame, then before each
+            # reference frame): every frame made, the first reference not.
+            calls = []
+            pipeline.run(scene, "none", range(1, 3), d, filter_frames=False, log=lambda *a: None,
+                         reference_samples=2, should_cancel=lambda: calls.append(1) or len(calls) > 2)
+            self.assertEqual(record(d), ("cancelled at reference frame 1", [1, 2]))
 
     def test_frame_step_is_named_not_silently_ignored(self):
         scene = harness.build_scene("still_life")

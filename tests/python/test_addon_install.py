@@ -17,9 +17,11 @@ PROBE = ("import addon_utils; addon_utils.enable('crisp', default_set=False); "
          "from crisp import native; ok, text = native.status(); print('STATUS', ok, text)")
 
 
-def status(scripts):
+def status(scripts, library=None):
     env = dict(os.environ, BLENDER_USER_SCRIPTS=str(scripts))
     env.pop("CRISP_LIBRARY", None)
+    if library:
+        env["CRISP_LIBRARY"] = library
     p = subprocess.run(["blender", "-b", "--factory-startup", "--python-expr", PROBE], env=env,
                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300)
     lines = [line for line in p.stdout.splitlines() if line.startswith("STATUS ")]
@@ -44,3 +46,6 @@ def test_copied_addon_without_a_library_says_where_to_give_it(tmp_path):
     line = status(tmp_path)
     assert line.startswith("STATUS False"), line
     assert "preferences" in line and "$CRISP_LIBRARY" in line, line
+    # A wrong $CRISP_LIBRARY stops the search there, and the message says to correct it.
+    line = status(tmp_path, library=str(tmp_path / "nowhere" / "libcrisp.so"))
+    assert line.startswith("STATUS False") and "Correct $CRISP_LIBRARY" in line, line

@@ -621,6 +621,10 @@ TEST_F(IoTest, InterruptRemovesTheFileBeingWritten) {
     writeImage(file("sig.exr"), old);
     before = readBytes(file("sig.exr"));
   }
+  // Unset however this test ends, so that a later run in this process (--gtest_repeat) is a parent.
+  struct Unset {
+    ~Unset() { ::unsetenv(kShared); }
+  } unsetAtExit;
   static std::string seen;  // the hook's record, in the dying process's folder
   seen = file("hook_ran");
   GTEST_FLAG_SET(death_test_style, "threadsafe");
@@ -636,7 +640,6 @@ TEST_F(IoTest, InterruptRemovesTheFileBeingWritten) {
         std::exit(0);  // not reached unless the signal went astray
       },
       ::testing::KilledBySignal(SIGINT), "");
-  ::unsetenv(kShared);
   // The interrupted write happened here, its temporary file existed, and is gone; the old file is whole.
   ASSERT_TRUE(fs::exists(file("hook_ran")));
   std::ifstream record(file("hook_ran"));
