@@ -48,9 +48,9 @@ def parse_frames(text, scene=None):
         a, b = scene.frame_start, scene.frame_end
     else:
         try:
-            parts = text.split("-", 1) if not text.startswith("-") else [text]
-            a = int(parts[0])
-            b = int(parts[1]) if len(parts) > 1 else a
+            dash = text.find("-", 1)  # a leading '-' is a sign; the CLI splits the same way (frame_range.h)
+            a = int(text if dash < 0 else text[:dash])
+            b = a if dash < 0 else int(text[dash + 1:])
         except ValueError:
             raise InputError("bad frame range '%s' (expected A-B or A)" % text)
     if b < a:

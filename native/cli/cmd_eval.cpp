@@ -133,15 +133,8 @@ int runEval(const ParsedArgs& args) {
 
   // Checked here too: the folder's settings file is written before Blender starts, and a size Blender
   // then refused would lock the folder against the corrected command.
-  if (args.has("resolution")) {
-    int w = 0, h = 0, consumed = 0;
-    const std::string r = args.get("resolution");
-    std::string lower = r;
-    std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    if (std::sscanf(lower.c_str(), "%dx%d%n", &w, &h, &consumed) != 2 || consumed != int(r.size()) || w < 1 || h < 1 ||
-        w > 65536 || h > 65536)
-      throw UsageError("bad --resolution '" + r + "' (expected WxH, e.g. 480x270)");
-  }
+  checkResolutionOption(args);
+  checkBlenderFrameRangeOption(args, "frames");
   const char* filterSize = std::getenv("CRISP_EVAL_FILTER_SIZE");  // batch_eval.py reads it too
   if (filterSize && *filterSize) {
     char* end = nullptr;

@@ -26,6 +26,14 @@ int runRender(const ParsedArgs& args) {
     Context context;
     configuredFilter(context, args.getOr("method", "fxaa"), args);
   }
+  // So are the options batch.py would refuse once Blender has started (its limits).
+  checkBlenderFrameRangeOption(args, "frames");
+  checkBlenderFrameRangeOption(args, "shot");
+  checkResolutionOption(args);
+  parseIntOption(args, "preroll", 0, 0, 1000000);
+  parseIntOption(args, "samples", 1, 1, 65536);
+  parseIntOption(args, "reference-samples", 0, 0, 65536);
+  parseIntOption(args, "threads", 0, 0, 1024);
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch.py");
   cmd.push_back("-o");
   cmd.push_back(args.get("output"));

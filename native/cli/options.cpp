@@ -1,10 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "cli/options.h"
 
+#include <algorithm>
 #include <cctype>
+#include <cstdio>
 #include <cstdlib>
 #include <stdexcept>
 #include <sstream>
+
+#include "cli/frame_range.h"
 
 namespace crisp::cli {
 
@@ -178,6 +182,22 @@ int parseIntOption(const ParsedArgs& a, const std::string& name, int fallback, i
     throw UsageError("--" + name + " expects a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) +
                      "], got '" + v + "'");
   return int(x);
+}
+
+void checkResolutionOption(const ParsedArgs& a) {
+  if (!a.has("resolution")) return;
+  const std::string& r = a.get("resolution");
+  std::string lower = r;
+  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  int w = 0, h = 0, consumed = 0;
+  if (std::sscanf(lower.c_str(), "%dx%d%n", &w, &h, &consumed) != 2 || consumed != int(r.size()) || w < 1 || h < 1 ||
+      w > 65536 || h > 65536)
+    throw UsageError("bad --resolution '" + r + "' (expected WxH, e.g. 480x270)");
+}
+
+void checkBlenderFrameRangeOption(const ParsedArgs& a, const std::string& name) {
+  constexpr int kBlenderLowestFrame = -1048574;  // Blender's MINAFRAME
+  if (a.has(name)) parseFrameRange(name, a.get(name), kBlenderLowestFrame);
 }
 
 }  // namespace crisp::cli

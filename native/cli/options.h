@@ -53,4 +53,11 @@ std::string helpText(const std::string& command = "");
 
 int parseIntOption(const ParsedArgs& a, const std::string& name, int fallback, int lo, int hi);
 
+// The options crisp render and eval pass on to the Blender driver (batch.py,
+// batch_eval.py), checked as the driver checks them, so that a mistake is said
+// before Blender starts: --resolution WxH, and the frame ranges "A-B" or "A"
+// named (Blender frame numbers, which may be negative).
+void checkResolutionOption(const ParsedArgs& a);
+void checkBlenderFrameRangeOption(const ParsedArgs& a, const std::string& name);
+
 }  // namespace crisp::cli

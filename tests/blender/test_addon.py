@@ -274,6 +274,16 @@ class AddonTest(unittest.TestCase):
             self.assertEqual(sorted(f for f in os.listdir(os.path.join(d, "c")) if f.endswith(".exr")),
                              ["frame_0001.exr"])
 
+    def test_frame_ranges_parse_as_the_cli_checks_them(self):
+        """crisp render checks --frames before Blender starts (cli/frame_range.h); batch.py must read
+        the ranges that check lets through, negative frames among them, as the same frames."""
+        for text, frames in (("3", [3]), ("2-4", [2, 3, 4]), ("-2", [-2]), ("-3--1", [-3, -2, -1]),
+                             ("-1-1", [-1, 0, 1])):
+            self.assertEqual(list(pipeline.parse_frames(text)), frames, text)
+        for text in ("a-b", "1-", "4-2", "-1--3"):
+            with self.assertRaises(pipeline.InputError, msg=text):
+                pipeline.parse_frames(text)
+
     def test_no_camera_and_empty_range_touch_nothing(self):
         scene = harness.build_scene("still_life")
         before_state = touched_state(scene)

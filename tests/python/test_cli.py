@@ -91,9 +91,29 @@ def test_help_prints_parameter_tables():
      ["--jitter: unknown distribution 'halton'"]),
     # Before its settings file is written: a folder made by a refused size would refuse the right one.
     (["eval", "--scene", "still_life", "--resolution", "64x36x", "-o", "OUT"], 2, ["bad --resolution '64x36x'"]),
+    (["eval", "--scene", "still_life", "--frames", "5-3", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["--frames expects A-B or A", "got '5-3'"]),
+    # What batch.py would refuse, said before Blender starts (NOBLENDER: none is there to start).
+    (["render", "--scene", "still_life", "--frames", "5-3", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["--frames expects A-B or A", "got '5-3'"]),
+    (["render", "--scene", "still_life", "--frames", "1-x", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["--frames", "got '1-x'"]),
+    (["render", "--scene", "still_life", "--shot", "9-1", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["--shot expects A-B or A", "got '9-1'"]),
+    (["render", "--scene", "still_life", "--resolution", "0x36", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["bad --resolution '0x36'"]),
+    (["render", "--scene", "still_life", "--preroll", "-1", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["--preroll expects a whole number in [0, "]),
+    (["render", "--scene", "still_life", "--samples", "0", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["--samples expects a whole number in [1, "]),
+    (["render", "--scene", "still_life", "--reference-samples", "many", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["--reference-samples expects a whole number", "got 'many'"]),
+    (["render", "--scene", "still_life", "--threads", "-2", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["--threads expects a whole number"]),
 ])
 def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
-    args = [str(chart / "chart_1spp.exr") if a == "IN" else str(tmp_path / "out") if a == "OUT" else a for a in args]
+    place = {"IN": str(chart / "chart_1spp.exr"), "OUT": str(tmp_path / "out"), "NOBLENDER": str(tmp_path / "none")}
+    args = [place.get(a, a) for a in args]
     p = run(*args, ok=False)
     assert p.returncode == code, p.stderr
     for w in words:
