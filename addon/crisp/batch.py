@@ -40,7 +40,8 @@ OUTDIR/reference/frame_NNNN.exr when asked, and OUTDIR/run.json (see pipeline.py
 temporary name renamed into place. The opened .blend is never saved.
 
 Exit codes: 0 done; 2 bad input (no camera, empty frame range, unwritable output, unknown method,
-bad arguments); 3 library missing or failing; 4 render failed. Messages start with "crisp: error:".
+bad arguments); 3 library missing or failing; 4 render failed, or a file could not be written.
+Messages start with "crisp: error:".
 """
 
 import argparse
@@ -178,6 +179,9 @@ def main(argv):
         fail(2 if "camera" in str(e) or "frame" in str(e) else 4, str(e))
     except native.CrispError as e:
         fail(3, str(e))
+    except OSError as e:  # a file of ours that could not be written (run.json on a full disk, say)
+        where = e.filename2 or e.filename
+        fail(4, "cannot write %s: %s" % (where, e.strerror or e) if where else "cannot write: %s" % e)
     print("crisp: done: %s" % os.path.abspath(args.output), flush=True)
 
 

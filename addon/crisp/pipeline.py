@@ -92,9 +92,16 @@ def _write_json(path, data):
     if os.path.dirname(path):
         os.makedirs(os.path.dirname(path), exist_ok=True)
     tmp = path + ".tmp"
-    with open(tmp, "w") as f:
-        json.dump(data, f, indent=1)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w") as f:
+            json.dump(data, f, indent=1)
+        os.replace(tmp, path)
+    except BaseException:
+        try:  # a full disk or a folder in the way: leave no half-written temporary behind
+            os.remove(tmp)
+        except OSError:
+            pass
+        raise
 
 
 def _read_json(path):
