@@ -8,11 +8,13 @@ Layout under RENDERDIR (OUTDIR/renders):
 
     eevee_S/frame_NNNN.exr     S EEVEE samples, no jitter, colour only (S = 1 is also the input of the
                                methods that need nothing but colour, and of blender-smaa)
-    jittered/frame_NNNN.exr    1 sample, per-frame jitter, the union of the temporal methods' passes
-                               (+ .json sidecar)
-    unjittered/frame_NNNN.exr  1 sample, no jitter, the union of the other methods' passes, only
-                               when some of them need more than colour; with rsaa also the 8
-                               geometry renders frame_NNNN_subK.exr listed in the sidecar
+    jittered[-PASSES]/frame_NNNN.exr    1 sample, per-frame jitter, the passes of the temporal
+                               methods that read exactly those (plan.render_set_name: "jittered" for
+                               colour alone, "jittered-depth-motion", ...) (+ .json sidecar)
+    unjittered-PASSES/frame_NNNN.exr  1 sample, no jitter, for the other methods that read more than
+                               colour; with rsaa also the 8 geometry renders frame_NNNN_subK.exr
+                               listed in the sidecar
+    (one set per distinct plan, so a method's render time is that of the passes it reads)
     warp/frame_NNNN.exr        only where something moves: 1 sample, no jitter, the geometry of the
                                temporal error's warp W and disocclusion test at the pixel centres
                                (plan.TEMPORAL_ERROR: depth, motion, IDs; + .json sidecar); no
@@ -96,10 +98,8 @@ def group_plans(scene, methods, frames):
 
 
 def input_set(plan):
-    """Render set a method's input frames come from."""
-    if plan is None or not plan.jitter and plan.passes == ["color"]:
-        return "eevee_1"
-    return "jittered" if plan.jitter else "unjittered"
+    """Render set a method's input frames come from (plan.render_set_name)."""
+    return plan_mod.render_set_name(plan)
 
 
 def warm_up(scene, folder):

@@ -196,30 +196,33 @@ def make_plan(method, facts):
                 jitter=method in TEMPORAL_METHODS, motion_source=motion_source)
 
 
+def render_set_name(p):
+    """The 1-sample render set of `crisp eval` that plan p's input comes from: "eevee_1" (the curve's
+    1-sample frames) for colour alone without jitter, else "jittered" or "unjittered" followed by the
+    passes beyond colour, e.g. "jittered-depth-motion". One set per distinct plan, so that each method's
+    time per frame is the render of the passes it reads, not of another method's."""
+    if p is None or not p.jitter and p.passes == ["color"]:
+        return "eevee_1"
+    return "-".join(["jittered" if p.jitter else "unjittered"] + [q for q in p.passes if q != "color"])
+
+
 def render_sets(plans, facts):
     """The 1-sample render sets of `crisp eval` for the methods' plans on a scene described by `facts`:
-    {name: Plan}. "jittered": the union of the temporal methods' passes; "unjittered": the union of the
-    other methods' passes where some of them read more than colour (colour alone is the curve's 1-sample
-    set, eevee_1); "warp": where something moves, the temporal error's geometry (TEMPORAL_ERROR), which
-    no method reads."""
+    {name: Plan}, one for each distinct set of passes and jitter (render_set_name) but colour alone without
+    jitter (the curve's eevee_1); "warp": where something moves, the temporal error's geometry
+    (TEMPORAL_ERROR), which no method reads."""
     sets = {}
-    for jitter in (True, False):
-        members = [p for p in plans if p.jitter == jitter]
-        passes = []
-        for p in members:
-            passes += [q for q in p.passes if q not in passes]
-        if not members or (not jitter and passes == ["color"]):
+    for p in plans:
+        name = render_set_name(p)
+        if name == "eevee_1":
             continue
         # "subsamples" (rsaa): render.render_frames adds the geometry renders frame_NNNN_subK.exr and
         # lists them, with their render times, in each frame's sidecar (eval reports those times apart).
-        passes.sort(key=PASS_ORDER.index)
-        reasons = {}
-        for p in members:  # the first method that reads a pass gives its reason
-            reasons.update({k: v for k, v in p.reasons.items() if k in passes and k not in reasons})
-        sources = {p.motion_source for p in members} - {"none"}
-        sets["jittered" if jitter else "unjittered"] = Plan(
-            method="+".join(p.method for p in members), passes=passes, reasons=reasons, skipped={}, jitter=jitter,
-            motion_source=sources.pop() if sources else "none")
+        if name in sets:
+            sets[name].method += "+" + p.method
+            continue
+        sets[name] = Plan(method=p.method, passes=list(p.passes), reasons=dict(p.reasons), skipped={},
+                          jitter=p.jitter, motion_source=p.motion_source)
     warp = make_plan(TEMPORAL_ERROR, facts)
     if warp.passes != ["color"]:  # something moves
         sets["warp"] = warp

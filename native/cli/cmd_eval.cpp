@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
+#include "cli/frame_range.h"
 #include "core/error.h"
 #include "core/filter.h"
 #include "eval/eval.h"
@@ -135,6 +136,13 @@ int runEval(const ParsedArgs& args) {
   // then refused would lock the folder against the corrected command.
   checkResolutionOption(args);
   checkBlenderFrameRangeOption(args, "frames");
+  const int warmup = parseIntOption(args, "warmup", 0, 0, 1000000);
+  if (args.has("frames")) {
+    const FrameRange range = parseFrameRange("frames", args.get("frames"), kBlenderLowestFrame);
+    if (warmup > range.last - range.first)
+      throw UsageError("--warmup " + std::to_string(warmup) + " leaves none of the frames " + args.get("frames") +
+                       " to measure");
+  }
   const char* filterSize = std::getenv("CRISP_EVAL_FILTER_SIZE");  // batch_eval.py reads it too
   if (filterSize && *filterSize) {
     char* end = nullptr;
@@ -224,6 +232,7 @@ int runEval(const ParsedArgs& args) {
   o.quiet = quiet;
   o.command = commandLine();
   o.blenderSeconds = blenderSeconds;
+  o.warmup = warmup;
   int rc = eval::run(o);
   if (rc == 0) std::printf("report: %s\n", (outDir / "report.html").c_str());
   return rc;

@@ -19,6 +19,8 @@
 
 namespace crisp::cli {
 
+constexpr int kBlenderLowestFrame = -1048574;  // Blender's MINAFRAME: crisp render and eval pass frames to it
+
 struct FrameRange {
   int first = 0;
   int last = 0;  // inclusive

@@ -60,6 +60,7 @@ const std::vector<OptionSpec>& options() {
       {"eval", "frames", 0, "A-B", false, false, "frame range (default: the scene's)"},
       {"eval", "methods", 'm', "LIST", false, false, "comma-separated methods (default: every library method); none and blender-smaa are always measured; METHOD:KEY=VALUE[:KEY=VALUE...] measures a parameter setting beside the defaults (e.g. taa,taa:feedbackMin=0.8)"},
       {"eval", "resolution", 0, "WxH", false, false, "override the render size"},
+      {"eval", "warmup", 0, "N", false, false, "leave the first N frames out of the error means (a temporal method's warm-up; seed 000's static protocol: 15 of 16); they stay in the per-frame figures (default 0)"},
       {"eval", "reference-samples", 0, "N", false, false, "EEVEE samples of the reference (default 64; 256 for final figures)"},
       {"eval", "curve", 0, "LIST", false, false, "EEVEE sample counts of the curve (default 1,2,4,... up to 16, below the reference)"},
       {"eval", "jitter", 0, "DIST", false, false, "sub-pixel jitter of the temporal methods' input frames: blackman-harris (EEVEE's own pixel filter, default) or uniform (inside the pixel)"},
@@ -196,7 +197,6 @@ void checkResolutionOption(const ParsedArgs& a) {
 }
 
 void checkBlenderFrameRangeOption(const ParsedArgs& a, const std::string& name) {
-  constexpr int kBlenderLowestFrame = -1048574;  // Blender's MINAFRAME
   if (a.has(name)) parseFrameRange(name, a.get(name), kBlenderLowestFrame);
 }
 

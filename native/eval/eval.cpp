@@ -163,11 +163,20 @@ void loadWarpGeometry(const fs::path& dir, const std::vector<int>& frames, int t
   }
 }
 
-// renders/warp when its frames carry the passes its plan (scene.json "sets") lists, else the
-// jittered frames; the first that loads. Each one passed over is said on stderr (unless quiet).
+// renders/warp when its frames carry the passes its plan (scene.json "sets") lists, else a jittered
+// set with depth (the one with most passes first); the first that loads. Each one passed over is said
+// on stderr (unless quiet).
 WarpGeometry warpGeometry(const fs::path& renders, const json& scene, const std::vector<int>& frames,
                           const Options& o) {
-  const fs::path warp = renders / "warp", jittered = renders / "jittered";
+  const fs::path warp = renders / "warp";
+  std::vector<std::pair<std::size_t, std::string>> jitteredSets;  // (pass count, name) with depth
+  const json sets = scene.value("sets", json::object());
+  for (const auto& [name, set] : sets.items()) {
+    const json passes = set.value("passes", json::array());
+    if (set.value("jitter", false) && std::find(passes.begin(), passes.end(), "depth") != passes.end())
+      jitteredSets.push_back({passes.size(), name});
+  }
+  std::sort(jitteredSets.begin(), jitteredSets.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   auto note = [&](const std::string& text) {
     if (!o.quiet) std::fprintf(stderr, "crisp eval: the temporal error's warp: %s\n", text.c_str());
   };
@@ -194,9 +203,10 @@ WarpGeometry warpGeometry(const fs::path& renders, const json& scene, const std:
       note(warp.string() + " lacks " + missing + " (delete it and run eval again to render it); using the "
            "jittered frames' motion");
   }
-  candidates.push_back({jittered, "motion vectors of the jittered 1-sample frames (they describe the point at "
-                                  "p + jitter: approximate along moving edges)",
-                        nullptr});
+  for (const auto& [count, name] : jitteredSets)
+    candidates.push_back({renders / name, "motion vectors of the jittered 1-sample frames (they describe the point at "
+                                          "p + jitter: approximate along moving edges)",
+                          nullptr});
   for (Candidate& c : candidates) {
     if (!fs::exists(c.dir / frameName(frames.front()))) continue;
     WarpGeometry g;
@@ -396,14 +406,15 @@ float flipScale(float v) { return v; }
 // Mean per-pixel temporal error over a 0.05 full scale (sRGB units).
 float temporalScale(float v) { return v / 0.05f; }
 
-// The most aliased places: windows with the largest summed 1-sample error, greedily, not overlapping.
-std::vector<Crop> chooseCrops(const Image& errorSum, int count) {
-  const int w = errorSum.width, h = errorSum.height;
+// The most aliased places: windows with the largest 1-sample error (errorMean: per pixel, the mean over
+// frames of the squared error), greedily, not overlapping.
+std::vector<Crop> chooseCrops(const Image& errorMean, int count) {
+  const int w = errorMean.width, h = errorMean.height;
   const int size = std::max(8, std::min({64, (std::min(w, h) + 4) / 5, std::min(w, h)}));
   std::vector<double> integral(std::size_t(w + 1) * std::size_t(h + 1), 0.0);
   auto I = [&](int x, int y) -> double& { return integral[std::size_t(y) * std::size_t(w + 1) + std::size_t(x)]; };
   for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) I(x + 1, y + 1) = errorSum.at(x, y)[0] + I(x, y + 1) + I(x + 1, y) - I(x, y);
+    for (int x = 0; x < w; ++x) I(x + 1, y + 1) = errorMean.at(x, y)[0] + I(x, y + 1) + I(x + 1, y) - I(x, y);
   std::vector<Crop> chosen;
   for (int k = 0; k < count; ++k) {
     Crop best;
@@ -444,7 +455,49 @@ double valueAt(const std::map<int, double>& m, int f) {
   return it == m.end() ? kNaN : it->second;
 }
 
-json figuresJson(const Entry& e, const EdgeFigures& x) {
+// The pictures the last run into `out` listed in its results.json (its crops' frames, its methods'
+// maps and full images), so that a shorter run, or one with fewer methods, does not leave them beside
+// its own. Only those: anything else in the folder is left alone, and a listed path that leads out
+// of out/images is ignored.
+void removeLastRunsPictures(const fs::path& out) {
+  const json last = readJson(out / "results.json", false);
+  if (!last.is_object() || !last.contains("scenes") || !last["scenes"].is_array()) return;
+  const fs::path images = (out / "images").lexically_normal();
+  std::error_code ec;
+  auto remove = [&](const fs::path& relative) {
+    const fs::path p = (out / relative).lexically_normal();
+    const auto [end, _] = std::mismatch(images.begin(), images.end(), p.begin(), p.end());
+    if (end == images.end() && p.extension() == ".png") fs::remove(p, ec);
+  };
+  for (const json& scene : last["scenes"]) {
+    if (!scene.is_object()) continue;
+    for (const json& crop : scene.value("crops", json::array()))
+      if (crop.is_object() && crop.contains("files") && crop["files"].is_object())
+        for (const auto& [name, files] : crop["files"].items())
+          if (files.is_array())
+            for (const json& f : files)
+              if (f.is_string()) remove(f.get<std::string>());
+    std::vector<std::string> names = {"reference"};
+    for (const char* list : {"methods", "eevee_curve"})
+      for (const json& m : scene.value(list, json::array()))
+        if (m.is_object() && m.contains("name") && m["name"].is_string()) names.push_back(m["name"]);
+    for (const std::string& name : names) {
+      remove(fs::path("images") / "full" / (name + ".png"));
+      for (const char* map : {"_error", "_ssim", "_perceptual", "_temporal"})
+        remove(fs::path("images") / "maps" / (name + map + ".png"));
+    }
+    remove(fs::path("images") / "maps" / "geometric_edges.png");
+  }
+  // The crop folders left empty (c<k>/<name>/, c<k>/), deepest first.
+  std::vector<fs::path> folders;
+  for (auto it = fs::recursive_directory_iterator(images / "crops", ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec))
+    if (it->is_directory(ec)) folders.push_back(it->path());
+  for (auto f = folders.rbegin(); f != folders.rend(); ++f)
+    if (fs::is_empty(*f, ec)) fs::remove(*f, ec);
+}
+
+json figuresJson(const Entry& e, const EdgeFigures& x, int meanFrom) {
   json frames = json::array();
   for (const FrameFigures& f : e.frames) {
     const double geo = valueAt(x.geometryS, f.frame);
@@ -456,7 +509,8 @@ json figuresJson(const Entry& e, const EdgeFigures& x) {
                       {"file", f.file}});
   }
   std::vector<double> edge, geo;
-  for (const auto& kv : x.edgePsnr) edge.push_back(kv.second);
+  for (const auto& kv : x.edgePsnr)
+    if (kv.first >= meanFrom) edge.push_back(kv.second);
   for (const auto& kv : x.geometryS) geo.push_back(kv.second);
   json j = {{"name", e.name}, {"kind", e.kind}, {"samples", e.samples}, {"input", e.inputSet},
             {"temporal", e.temporal}, {"error", e.error.empty() ? json(nullptr) : json(e.error)},
@@ -509,6 +563,11 @@ int run(const Options& o) {
   const int first = scene["frames"][0], last = scene["frames"][1];
   std::vector<int> frames;
   for (int f = first; f <= last; ++f) frames.push_back(f);
+  if (o.warmup >= int(frames.size()))
+    throw Exception(CRISP_ERROR_INVALID_ARGUMENT,
+                    "--warmup " + std::to_string(o.warmup) + " leaves none of the " + std::to_string(frames.size()) +
+                        " frames (" + std::to_string(first) + "-" + std::to_string(last) + ") to measure");
+  const int meanFrom = first + o.warmup;  // the error means start here (Options::warmup)
   const int width = scene["resolution"][0], height = scene["resolution"][1];
   const int refSamples = scene["reference_samples"];
   const std::vector<int> curveSamples = scene["curve"].get<std::vector<int>>();
@@ -653,8 +712,10 @@ int run(const Options& o) {
   std::map<std::string, EdgeFigures> edgeFigures;
 
   const int mapFrame = frames[frames.size() / 2];
-  Image errorSum(width, height, 1);
+  Image errorSum(width, height, 1);  // the 1-sample frames' squared error, summed over errorFrames frames
+  int errorFrames = 0;
   const fs::path images = out / "images";
+  removeLastRunsPictures(out);
   cli::makeDirectories((images / "full").string());
   cli::makeDirectories((images / "maps").string());
   if (edgeMasks.count(mapFrame)) {
@@ -718,8 +779,10 @@ int run(const Options& o) {
         }
         if (e.kind == "method" && geometrySets.count(e.inputSet) && e.method == "rsaa")
           edgeFigures[e.name].geometryS[f] = geometryRenderSeconds(renders / e.inputSet / frameName(f));
-        if (e.name == "none")
+        if (e.name == "none") {
           for (std::size_t i = 0; i < errorSum.data.size(); ++i) errorSum.data[i] += err.data[i];
+          ++errorFrames;
+        }
         if (wantMaps) {
           writeImage((images / "full" / (e.name + ".png")).string(), test);
           writeMap(images / "maps" / (e.name + "_error.png"), err, errorScale);
@@ -751,8 +814,9 @@ int run(const Options& o) {
       }
       std::vector<double> p, s, fl, te, rs, fs_, ts;
       for (const FrameFigures& ff : e.frames) {
-        p.push_back(ff.psnr), s.push_back(ff.ssim), fl.push_back(ff.flip), te.push_back(ff.temporalError);
-        rs.push_back(ff.renderS), fs_.push_back(ff.filterS);
+        if (ff.frame >= meanFrom)  // the warm-up's errors are listed, not averaged
+          p.push_back(ff.psnr), s.push_back(ff.ssim), fl.push_back(ff.flip), te.push_back(ff.temporalError);
+        rs.push_back(ff.renderS), fs_.push_back(ff.filterS);  // a frame's cost is the same in the warm-up
       }
       e.psnr = mean(p), e.ssim = mean(s), e.flip = mean(fl), e.temporalError = mean(te);
       // Times: the median over frames, so a burst of load from other processes on a shared machine
@@ -793,6 +857,8 @@ int run(const Options& o) {
   }
 
   // 4. Crops at the most aliased places, every frame, for the page and its flip-book.
+  if (errorFrames > 0)  // a mean per frame, so the crops' score does not grow with the run's length
+    for (float& v : errorSum.data) v /= float(errorFrames);
   std::vector<Crop> crops = chooseCrops(errorSum, 3);
   json cropsJson = json::array();
   std::vector<std::string> cropEntries = {"reference"};
@@ -819,19 +885,21 @@ int run(const Options& o) {
 
   // 5. Results.
   json methodsJson = json::array(), curveJson = json::array();
-  for (const Entry& e : methods) methodsJson.push_back(figuresJson(e, edgeFigures[e.name]));
-  for (const Entry& e : curve) curveJson.push_back(figuresJson(e, edgeFigures[e.name]));
+  for (const Entry& e : methods) methodsJson.push_back(figuresJson(e, edgeFigures[e.name], meanFrom));
+  for (const Entry& e : curve) curveJson.push_back(figuresJson(e, edgeFigures[e.name], meanFrom));
   json refFiles = json::array();
   for (int f : frames) refFiles.push_back(fs::relative(refDir / frameName(f), out).string());
   std::map<int, double> refTimes = renderTimes(refDir);
-  std::vector<double> rt;
-  for (auto& kv : refTimes) rt.push_back(kv.second);
+  std::vector<double> rt;  // this run's frames (the folder may hold others), a median as every time here
+  for (int f : frames)
+    if (refTimes.count(f)) rt.push_back(refTimes[f]);
   json sceneJson = {
       {"name", scene.value("scene_label", scene.value("scene", std::string("scene")))},
       {"blender_scene", scene.value("scene", std::string())},
       {"resolution", {width, height}},
       {"frames", {first, last}},
-      {"reference", {{"samples", refSamples}, {"time_s", mean(rt)}, {"files", refFiles}}},
+      {"means_over_frames", {meanFrom, last}},  // the error means; times are medians over every frame
+      {"reference", {{"samples", refSamples}, {"time_s", median(rt)}, {"files", refFiles}}},
       {"methods", methodsJson},
       {"eevee_curve", curveJson},
       {"temporal_error_warp", warp},
@@ -856,29 +924,33 @@ int run(const Options& o) {
       {"threads", o.threads},
       {"run_seconds", {{"blender", o.blenderSeconds}, {"methods_and_measures", evalSeconds}}},
       {"metrics_note", "PSNR, SSIM, perceptual error (FLIP-style) and temporal error on display-encoded values "
-                       "(linear RGB clamped to [0,1], sRGB-encoded), means over frames; time per frame = 1-sample render + filter "
+                       "(linear RGB clamped to [0,1], sRGB-encoded), means over the frames means_over_frames gives (PSNR: the "
+                       "mean of the per-frame dB); time per frame = 1-sample render + filter "
                        "(+ rsaa's geometry renders, also given apart as geometry_render_s), each the median over frames"},
       {"scenes", json::array({sceneJson})},
   };
   writeJson(out / "results.json", results);
 
   std::ostringstream csv;
-  csv << "scene,kind,name,frame,psnr,ssim,perceptual_error,temporal_error,render_s,filter_s,time_s,"
-         "equivalent_eevee_samples,error\n";
-  auto row = [&](const Entry& e, const std::string& frame, double p, double s, double fl, double te, double r,
-                 double fi, double t, double eq) {
+  // The same figures as results.json (figuresJson): its "mean" and per-frame entries, one row each.
+  csv << "scene,kind,name,frame,psnr,ssim,perceptual_error,temporal_error,render_s,filter_s,geometry_render_s,"
+         "time_s,equivalent_eevee_samples,error\n";
+  auto row = [&](const Entry& e, const std::string& frame, const json& f, const std::string& equivalent) {
     std::string err = e.error;
     std::replace(err.begin(), err.end(), '"', '\'');
-    csv << sceneJson["name"].get<std::string>() << "," << e.kind << "," << e.name << "," << frame << ","
-        << csvNumber(p) << "," << csvNumber(s) << "," << csvNumber(fl) << "," << csvNumber(te) << "," << csvNumber(r)
-        << "," << csvNumber(fi) << "," << csvNumber(t) << "," << csvNumber(eq) << ",\"" << err << "\"\n";
+    auto number = [&](const char* key) { return csvNumber(f.value(key, json()).is_number() ? f[key].get<double>() : kNaN); };
+    csv << sceneJson["name"].get<std::string>() << "," << e.kind << "," << e.name << "," << frame;
+    for (const char* key : {"psnr", "ssim", "perceptual_error", "temporal_error", "render_s", "filter_s",
+                            "geometry_render_s", "time_s"})
+      csv << "," << number(key);
+    csv << "," << equivalent << ",\"" << err << "\"\n";
   };
-  for (const auto* list : {&methods, &curve})
-    for (const Entry& e : *list) {
-      row(e, "mean", e.psnr, e.ssim, e.flip, e.temporalError, e.renderS, e.filterS, e.timeS, e.equivalentSamples);
-      for (const FrameFigures& f : e.frames)
-        row(e, std::to_string(f.frame), f.psnr, f.ssim, f.flip, f.temporalError, f.renderS, f.filterS,
-            f.renderS + (std::isfinite(f.filterS) ? f.filterS : 0.0), kNaN);
+  for (const auto& [list, results] : {std::pair{&methods, &methodsJson}, std::pair{&curve, &curveJson}})
+    for (std::size_t k = 0; k < list->size(); ++k) {
+      const Entry& e = (*list)[k];
+      const json& j = (*results)[k];
+      row(e, "mean", j["mean"], std::isfinite(e.equivalentSamples) ? csvNumber(e.equivalentSamples) : e.equivalentNote);
+      for (const json& f : j["frames"]) row(e, std::to_string(f["frame"].get<int>()), f, "");
     }
   cli::writeTextFile((out / "results.csv").string(), csv.str());
   writeReport(o.outDir, results);

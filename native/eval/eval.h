@@ -23,6 +23,7 @@ struct Options {
   bool quiet = false;
   std::string command;               // the exact command line, for the page
   double blenderSeconds = 0;         // wall time of the Blender stage in this run
+  int warmup = 0;                    // the first frames: measured and listed, left out of the error means
 };
 
 struct FrameFigures {
@@ -62,7 +63,7 @@ struct Entry {
 
 struct Crop {
   int x = 0, y = 0, size = 0;
-  double score = 0;  // mean squared error of the 1-sample frames there
+  double score = 0;  // mean squared error of the 1-sample frames there, per pixel and frame
 };
 
 // Runs, measures and writes everything; returns the process exit code (0 even

@@ -49,6 +49,7 @@ const EEVEE = "#ff7f0e";
 const esc = s => String(s).replace(/[&<>"']/g, c => ({"&":"&amp;","<":"&lt;",">":"&gt;",'"':"&quot;","'":"&#39;"}[c]));
 const fin = v => typeof v === "number" && isFinite(v);
 const fmt = (v, d) => fin(v) ? v.toFixed(d) : "–";
+const short = v => fin(v) ? String(+v.toPrecision(6)) : esc(String(v));  // Blender's float32 settings: 0.2, not 0.20000000298
 const ms = v => fin(v) ? (v * 1000 < 10 ? (v * 1000).toFixed(2) : (v * 1000).toFixed(1)) : "–";
 const eq = m => fin(m.equivalent_eevee_samples) ? m.equivalent_eevee_samples.toFixed(2) : (m.equivalent_note || "–");
 function h(html) { const d = document.createElement("div"); d.innerHTML = html; app.appendChild(d); return d; }
@@ -137,7 +138,7 @@ function tradeoff(key, label, up) {
   series.push({name: "Pareto front", colour: "#000", line: true, dash: "5 4", width: 1, marker: false, legend: "Pareto front", points: front});
   for (const m of ok) series.push({name: m.name, colour: colour[m.name], legend: m.name,
     points: [{x: m.mean.time_s, y: m.mean[key], label: m.name, ring: on.has(m.name)}]});
-  return chart(label + " against time per frame", "time per frame (1-sample render + filter), log scale", label + (up ? " (higher is better)" : " (lower is better)"), series, {logx: true});
+  return chart(label + " against time per frame", "time per frame (render + filter), log scale", label + (up ? " (higher is better)" : " (lower is better)"), series, {logx: true});
 }
 function perFrame(key, label) {
   const series = ok.map(m => ({name: m.name, colour: colour[m.name], line: true, r: 3, legend: m.name,
@@ -145,12 +146,26 @@ function perFrame(key, label) {
   return chart(label + " per frame", "frame", label, series, {logx: false, xfmt: v => Number.isInteger(v) ? String(v) : ""});
 }
 
+// EEVEE's own cost: a least-squares line through the curve's (samples, time per frame).
+function perSample() {
+  const pts = S.eevee_curve.filter(c => fin(c.time_s)).map(c => [c.samples, c.time_s]);
+  if (pts.length < 2) return "";
+  const n = pts.length, mx = pts.reduce((a, p) => a + p[0], 0) / n, my = pts.reduce((a, p) => a + p[1], 0) / n;
+  const sxx = pts.reduce((a, p) => a + (p[0] - mx) ** 2, 0);
+  if (!(sxx > 0)) return "";
+  const slope = pts.reduce((a, p) => a + (p[0] - mx) * (p[1] - my), 0) / sxx;
+  return ` EEVEE here: about ${ms(my - slope * (mx - 1))} ms for a 1-sample frame and ${ms(slope)} ms per further sample (a line through the curve's times).`;
+}
+const meansOver = S.means_over_frames || S.frames;
+const warmup = meansOver[0] - S.frames[0];
+const temporalListed = S.methods.some(m => m.temporal);
+
 // ---- the page ----
 const failed = S.methods.filter(m => m.error);
 h(`<h1>Crisp: anti-aliasing error against run time</h1>
 <p class="sub">Scene <b>${esc(S.name)}</b>, ${S.resolution[0]}&times;${S.resolution[1]}, frames ${S.frames[0]}–${S.frames[1]},
 reference = EEVEE ${S.reference.samples} samples (${fmt(S.reference.time_s, 2)} s per frame).
-Every method filters the 1-sample render; time per frame = that render + the filter.</p>` +
+Every method filters the 1-sample render; time per frame = that render + the filter.${perSample()}</p>` +
   (failed.length ? `<p class="err">Failed (details in the table): ${failed.map(m => esc(m.name) + " (" + esc(m.error.length > 90 ? m.error.slice(0, 90) + "…" : m.error) + ")").join("; ")}</p>` : ""));
 
 let rows = "";
@@ -166,9 +181,10 @@ for (const c of S.eevee_curve)
   crow += `<tr><td class="l">EEVEE ${c.samples} spp</td><td>${fmt(c.psnr, 2)}</td><td>${fmt(c.ssim, 4)}</td><td>${fmt(c.perceptual_error, 4)}</td><td>${fmt(c.temporal_error, 5)}</td><td>${ms(c.time_s)}</td><td></td><td>${ms(c.time_s)}</td><td>${c.samples}</td><td>${c.pareto ? "&#9679;" : ""}</td><td class="l">${esc(c.input)}</td></tr>`;
 const THEAD = `<tr><th class="l">method</th><th>PSNR dB</th><th>SSIM</th><th>perceptual error</th><th>temporal error</th><th>render ms</th><th>filter ms</th><th>time/frame ms</th><th>equivalent EEVEE samples</th><th>Pareto</th><th class="l">input / status</th></tr>`;
 h(`<h2>Headline</h2><table id="headline">${THEAD}${rows}${crow}</table>
-<p class="sub">Error figures: means over the frames; times: medians over the frames (per-frame values below and in results.json). Higher PSNR/SSIM is better; lower perceptual error (FLIP-style, 0–1) and temporal error are better.
+<p class="sub">Error figures: means over frames ${meansOver[0]}–${meansOver[1]} (PSNR: the mean of the per-frame dB)${warmup > 0 ? `; ${warmup > 1 ? `the first ${warmup} frames` : "the first frame"}, the temporal methods' warm-up, ${warmup > 1 ? "are" : "is"} left out of them (--warmup) and shown per frame below` : temporalListed && S.frames[1] > S.frames[0] ? "; they include the temporal methods' first frames, where their history starts from one sample (--warmup leaves such frames out)" : ""}.
+Times: medians over every frame (per-frame values below and in results.json). Higher PSNR/SSIM is better; lower perceptual error (FLIP-style, 0–1) and temporal error are better.
 "Equivalent EEVEE samples": the sample count at which EEVEE's own curve reaches the method's PSNR (log<sub>2</sub> samples interpolated linearly against PSNR).
-Pareto: no other point (method or EEVEE sample count) is both faster and higher in PSNR.</p>`);
+Pareto: no other point (method or EEVEE sample count) is as fast or faster and as high or higher in PSNR, and better in one of the two.</p>`);
 if (S.geometric_edges && S.geometric_edges.frames_with_edges > 0) {
   let erow = "";
   for (const m of S.methods.concat(S.eevee_curve)) {
@@ -181,7 +197,7 @@ if (S.geometric_edges && S.geometric_edges.frames_with_edges > 0) {
 
 h(`<h2>Error against run time</h2><div class="charts"><div class="chart">${tradeoff("psnr", "PSNR (dB)", true)}</div>
 <div class="chart">${tradeoff("perceptual_error", "perceptual error", false)}</div></div>
-<p class="sub">Orange line: EEVEE at 1, 2, 4, … samples. Dots: methods. Rings and the dashed line: the Pareto front of each chart (nothing else is both faster and better).</p>`);
+<p class="sub">Orange line: EEVEE at 1, 2, 4, … samples (its time: that many samples' render). Dots: methods (their time: the 1-sample render + the filter, + rsaa's geometry renders). Rings and the dashed line: the Pareto front of each chart (nothing else is as fast and as good, and better in one).</p>`);
 
 h(`<h2>Per frame</h2><div class="charts"><div class="chart">${perFrame("psnr", "PSNR (dB)")}</div>
 <div class="chart">${perFrame("temporal_error", "temporal error")}</div></div>
@@ -196,7 +212,7 @@ const zoom0 = S.crops.length ? Math.max(2, Math.min(12, Math.round(220 / S.crops
 let cropHtml = `<div class="controls"><button id="play">pause</button> frame <input type="range" id="slider" min="0" max="${frames.length - 1}" value="0"> <span id="frameLabel"></span>
 &nbsp; zoom <select id="zoom">${[2, 3, 4, 6, 8, 12, 16].map(z => `<option${z === zoom0 ? " selected" : ""}>${z}</option>`).join("")}</select>&times; (nearest neighbour)</div>`;
 S.crops.forEach((c, k) => {
-  cropHtml += `<h3>Place ${k + 1}: x ${c.x}, y ${c.y}, ${c.size}&times;${c.size} px (1-sample mean squared error ${c.score.toExponential(2)})</h3><div class="crop">`;
+  cropHtml += `<h3>Place ${k + 1}: x ${c.x}, y ${c.y}, ${c.size}&times;${c.size} px (1-sample mean squared error per frame ${c.score.toExponential(2)})</h3><div class="crop">`;
   for (const n of order) {
     const files = c.files[n];
     if (!files || !files.length) continue;
@@ -236,7 +252,7 @@ for (const m of S.methods) {
 }
 h(`<h2>Frame ${S.map_frame}: images, error and SSIM maps</h2><div class="grid">${grid}</div>
 <h3>Maps (dark = good; colour scale black&rarr;purple&rarr;red&rarr;yellow&rarr;white)</h3>
-<table><tr><th class="l">method</th><th>|error| (0 – 0.25 in sRGB units)</th><th>1 − SSIM (0 – 1)</th><th>perceptual error (0 – 1)</th>${S.frames[1] > S.frames[0] ? "<th>temporal error, mean over all frames (0 – 0.05 in sRGB units)</th>" : ""}</tr>${maps}</table>`);
+<table><tr><th class="l">method</th><th>error, RMS over RGB (0 – 0.25 in sRGB units)</th><th>1 − SSIM (0 – 1)</th><th>perceptual error (0 – 1)</th>${S.frames[1] > S.frames[0] ? "<th>temporal error, mean over all frames (0 – 0.05 in sRGB units)</th>" : ""}</tr>${maps}</table>`);
 
 // Every figure.
 let all = `<tr><th class="l">kind</th><th class="l">name</th><th>frame</th><th>PSNR</th><th>SSIM</th><th>perceptual</th><th>temporal</th><th>render ms</th><th>filter ms</th><th>time ms</th><th class="l">file</th></tr>`;
@@ -253,7 +269,7 @@ h(`<h2>How this was made</h2><table>
 <tr><th class="l">machine</th><td class="l">${esc(R.machine.cpu)}, ${R.machine.cores} cores, ${esc(R.machine.os)}; library threads ${R.threads || "all"}</td></tr>
 <tr><th class="l">run time</th><td class="l">Blender renders ${fmt(R.run_seconds.blender, 1)} s (this run; resumed frames not re-rendered), methods + measurements ${fmt(R.run_seconds.methods_and_measures, 1)} s</td></tr>
 <tr><th class="l">metrics</th><td class="l">${esc(R.metrics_note)}</td></tr>
-<tr><th class="l">blender-smaa</th><td class="l">Blender's compositor Anti-Aliasing node (SMAA 1×) on the 1-sample frames: node threshold ${smaa.threshold} (= SMAA threshold ${smaa.smaa_threshold}), contrast limit ${smaa.contrast_limit}, corner rounding ${smaa.corner_rounding}; its time includes loading and writing the image. ${esc(smaa.note || "")}</td></tr>
+<tr><th class="l">blender-smaa</th><td class="l">Blender's compositor Anti-Aliasing node (SMAA 1×) on the 1-sample frames: node threshold ${short(smaa.threshold)} (= SMAA threshold ${short(smaa.smaa_threshold)}), contrast limit ${short(smaa.contrast_limit)}, corner rounding ${short(smaa.corner_rounding)}; its time includes loading and writing the image. ${esc(smaa.note || "")}</td></tr>
 <tr><th class="l">temporal inputs</th><td class="l">jitter ${esc(S.jitter_distribution)} (Halton 2,3); sidecar y up, passed to the library as jitterY = −y</td></tr>
 </table><details><summary>Pass plans</summary><pre>${esc(JSON.stringify(S.plans, null, 1))}</pre></details>`);
 

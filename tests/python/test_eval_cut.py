@@ -68,7 +68,8 @@ def test_no_temporal_error_across_the_cut(evaluated):
 
 def test_taa_starts_over_at_the_cut(evaluated):
     tmp, out = evaluated
-    inputs = [os.path.join(out, "renders", "jittered", "frame_%04d.exr" % f) for f in (3, 4)]
+    taa_set = json.load(open(os.path.join(out, "renders", "scene.json")))["inputs"]["taa"]
+    inputs = [os.path.join(out, "renders", taa_set, "frame_%04d.exr" % f) for f in (3, 4)]
     alone = os.path.join(tmp, "alone")
     p = subprocess.run([CRISP, "filter", "-m", "taa", "--quiet", "-o", alone] + inputs,
                        stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=120)

@@ -20,11 +20,11 @@ import tempfile
 import numpy as np
 import pytest
 
-from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, needs_cli_and_blender, psnr, run_eval
+from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, display, needs_cli_and_blender, psnr, run_eval
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 ARGS = ["--scene", "still_life", "--resolution", "96x54", "--frames", "1-3", "--reference-samples", "8",
-        "--curve", "1,2,4"]
+        "--curve", "1,2,4", "--warmup", "1"]
 
 pytestmark = needs_cli_and_blender()
 
@@ -69,6 +69,52 @@ def test_results_shape_and_every_entry(run):
     assert csv[0].startswith("scene,kind,name,frame,psnr") and len(csv) == 1 + 4 * (len(names) + len(curve))
 
 
+def test_means_leave_out_the_warmup_and_the_csv_agrees(run):
+    """--warmup 1: the error means are over frames 2-3, the times medians over all three; results.csv
+    holds the same figures as results.json, rsaa's geometry renders included in its time per frame;
+    the reference's time is the median over the run's frames."""
+    out, _, _ = run
+    scene = json.load(open(os.path.join(out, "results.json")))["scenes"][0]
+    assert scene["means_over_frames"] == [2, 3]
+    header, *rows = [line.split(",") for line in open(os.path.join(out, "results.csv")).read().splitlines()]
+    csv = {(r[header.index("name")], r[header.index("frame")]): r for r in rows}
+    for m in scene["methods"] + scene["eevee_curve"]:
+        if m["error"]:
+            continue
+        f = m["frames"]
+        assert m["mean"]["psnr"] == pytest.approx(np.mean([f[1]["psnr"], f[2]["psnr"]]), rel=1e-12), m["name"]
+        assert m["mean"]["psnr"] != pytest.approx(np.mean([x["psnr"] for x in f]), rel=1e-9) or \
+            f[0]["psnr"] == pytest.approx(f[1]["psnr"]), m["name"]  # frame 1 left out
+        assert m["mean"]["render_s"] == pytest.approx(np.median([x["render_s"] for x in f]), rel=1e-12)
+        for key in ("psnr", "time_s", "geometry_render_s"):
+            for frame, figures in [("mean", m["mean"])] + [(str(x["frame"]), x) for x in f]:
+                cell, value = csv[(m["name"], frame)][header.index(key)], figures.get(key)
+                if value is None:
+                    assert cell == "", (m["name"], frame, key, cell)
+                else:
+                    assert float(cell) == pytest.approx(value, rel=1e-5), (m["name"], frame, key, cell, value)
+    rsaa = next(m for m in scene["methods"] if m["name"] == "rsaa")
+    assert all(x["geometry_render_s"] > 0 and x["time_s"] > x["render_s"] + x["geometry_render_s"] * 0.999
+               for x in rsaa["frames"])
+    times = json.load(open(os.path.join(out, "renders", "reference_8", "times.json")))
+    assert scene["reference"]["time_s"] == pytest.approx(np.median([times["%04d" % f] for f in (1, 2, 3)]))
+
+
+def test_each_method_reads_a_render_set_of_its_own_passes(run):
+    """A method's time per frame is the 1-sample render of the passes it reads: taa (colour alone on
+    this still scene) is not charged for the IDs and albedo taa-improved reads."""
+    out, _, _ = run
+    renders = json.load(open(os.path.join(out, "renders", "scene.json")))
+    results = {m["name"]: m for m in json.load(open(os.path.join(out, "results.json")))["scenes"][0]["methods"]}
+    assert renders["inputs"]["taa"] == renders["inputs"]["phlm"] == "jittered"
+    assert renders["sets"]["jittered"]["passes"] == ["color"]
+    improved = renders["inputs"]["taa-improved"]
+    assert improved != "jittered" and renders["sets"][improved]["passes"][0] == "color"
+    assert len(renders["sets"][improved]["passes"]) > 1
+    for name in ("taa", "taa-improved", "phlm", "rsaa", "fxaa"):
+        assert results[name]["input"] == renders["inputs"][name], name
+
+
 @pytest.mark.skipif(not os.path.isfile(LIBRARY), reason="libcrisp not built")
 def test_psnr_recomputed_from_the_files(run):
     out, _, _ = run
@@ -84,6 +130,23 @@ def test_psnr_recomputed_from_the_files(run):
             assert abs(mine - f["psnr"]) < 1e-3, (entry["name"], f["frame"], mine, f["psnr"])
             checked += 1
     assert checked >= 3 * 6
+
+
+@pytest.mark.skipif(not os.path.isfile(LIBRARY), reason="libcrisp not built")
+def test_crop_scores_recomputed_from_the_files(run):
+    """Each crop's score is the 1-sample frames' squared error there, per pixel and per frame (it
+    was once summed over frames, so it grew with the run's length)."""
+    out, _, _ = run
+    lib = Lib()
+    scene = json.load(open(os.path.join(out, "results.json")))["scenes"][0]
+    none = scene["methods"][0]
+    pairs = [(display(lib.color(os.path.join(out, r))), display(lib.color(os.path.join(out, f["file"]))))
+             for r, f in zip(scene["reference"]["files"], none["frames"])]
+    assert scene["crops"] and len(pairs) == 3
+    for c in scene["crops"]:
+        window = (slice(c["y"], c["y"] + c["size"]), slice(c["x"], c["x"] + c["size"]))
+        mine = np.mean([np.mean((ref[window] - test[window]) ** 2) for ref, test in pairs])
+        assert abs(mine - c["score"]) <= 1e-4 * mine, (c, mine)
 
 
 def test_resume_redoes_nothing(run):

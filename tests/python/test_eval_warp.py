@@ -9,9 +9,9 @@
     the same recomputation from the jittered set's geometry must not.
   * A renders/warp whose frames lack that geometry falls back to the jittered set's motion and says so
     on stderr and in results.json.
-  * A resume with more methods renders again the input frames that lack the passes they now need
-    (the jittered set gains taa-improved's IDs and albedo), and keeps the frames that have them; a
-    method's frames made from the frames rendered again are made again, the others kept.
+  * A resume with more methods renders a set of their own for those that read other passes
+    (taa-improved's IDs and albedo), and keeps taa's set and frames: each method's render time is that
+    of the passes it reads; a set whose frames lack the passes it lists is rendered again.
   * --jitter uniform on a resumed folder renders the jittered set again inside the pixel and keeps
     the other sets.
 Needs Blender and the built CLI and library (CRISP_BUILD_DIR)."""
@@ -37,6 +37,9 @@ pytestmark = [
     pytest.mark.skipif(not os.path.isfile(LIBRARY), reason="libcrisp not built"),
     pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed"),
 ]
+
+
+TAA_SET = "jittered-depth-motion-id"  # taa's input set on this moving scene (plan.render_set_name)
 
 
 def crisp_eval(out, args=ARGS):
@@ -142,10 +145,11 @@ def test_unjittered_geometry_is_rendered_for_the_warp(run):
     assert scene["sets"]["warp"]["passes"] == ["color", "depth", "motion", "id"]
     assert scene["sets"]["warp"]["method"] == "temporal-error"
     assert "unjittered" not in scene["sets"], "no method here reads unjittered frames beyond colour"
-    assert scene["inputs"] == {"none": "eevee_1", "taa": "jittered"}  # no method reads renders/warp
+    assert scene["inputs"] == {"none": "eevee_1", "taa": TAA_SET}  # no method reads renders/warp
+    assert scene["sets"][TAA_SET]["passes"] == ["color", "depth", "motion", "id"]
     side = json.load(open(os.path.join(out, "renders", "warp", "frame_0002.json")))
     assert not side["jitter"]["enabled"] and side["jitter"]["x"] == 0 and side["jitter"]["y"] == 0
-    jittered = json.load(open(os.path.join(out, "renders", "jittered", "frame_0002.json")))
+    jittered = json.load(open(os.path.join(out, "renders", TAA_SET, "frame_0002.json")))
     assert jittered["jitter"]["enabled"] and (jittered["jitter"]["x"], jittered["jitter"]["y"]) != (0, 0)
     _, results = reported(out, "none", 3)
     assert "pixel centres" in results["temporal_error_warp"]
@@ -156,7 +160,7 @@ def test_temporal_error_recomputed_from_the_pixel_centres(run):
     lib = Lib()
     ref = [lib.color(os.path.join(out, "renders", "reference_4", "frame_%04d.exr" % f)) for f in (2, 3)]
     geometry = {s: [Geometry(lib, os.path.join(out, "renders", s), f) for f in (2, 3)]
-                for s in ("warp", "jittered")}
+                for s in ("warp", TAA_SET)}
     for name in ("none", "taa"):
         test = [lib.color(os.path.join(out, "methods", name, "frame_%04d.exr" % f)) for f in (2, 3)]
         want, _ = reported(out, name, 3)
@@ -165,7 +169,7 @@ def test_temporal_error_recomputed_from_the_pixel_centres(run):
         assert 0.5 < valid < 1 and want > 0, (name, valid, want)  # the sphere disoccludes some wall
         assert abs(got - want) <= 1e-3 * want, (name, got, want)
         # The jittered frames' geometry describes other points: another figure.
-        other, _ = temporal_error(test[1], test[0], ref[1], ref[0], geometry["jittered"][1], geometry["jittered"][0])
+        other, _ = temporal_error(test[1], test[0], ref[1], ref[0], geometry[TAA_SET][1], geometry[TAA_SET][0])
         assert abs(other - want) > 1e-2 * want, (name, other, want)
 
 
@@ -183,7 +187,7 @@ def test_old_renders_fall_back_to_the_jittered_motion_and_say_so(run):
         lib = Lib()
         ref = [lib.color(os.path.join(copy, "renders", "reference_4", "frame_%04d.exr" % f)) for f in (2, 3)]
         test = [lib.color(os.path.join(copy, "methods", "none", "frame_%04d.exr" % f)) for f in (2, 3)]
-        g = [Geometry(lib, os.path.join(copy, "renders", "jittered"), f) for f in (2, 3)]
+        g = [Geometry(lib, os.path.join(copy, "renders", TAA_SET), f) for f in (2, 3)]
         got, _ = temporal_error(test[1], test[0], ref[1], ref[0], g[1], g[0])
         assert abs(got - want) <= 1e-3 * want, (got, want)
 
@@ -210,25 +214,33 @@ def test_warp_ids_stored_as_half_float_are_named(run):
         assert "jittered 1-sample frames" in scene["temporal_error_warp"]
 
 
-def test_resume_renders_again_what_lacks_the_passes_now_needed(run):
+def test_resume_renders_a_set_for_other_passes_and_keeps_the_rest(run):
     out, _ = run
     with copy_of(out) as copy:
         renders = os.path.join(copy, "renders")
-        before = {s: mtime(renders, s, "frame_0002.exr") for s in ("jittered", "warp")}
+        before = {s: mtime(renders, s, "frame_0002.exr") for s in (TAA_SET, "warp")}
         made = {m: mtime(copy, "methods", m, "frame_0002.exr") for m in ("none", "taa")}
-        stderr = crisp_eval(copy, ARGS[:-1] + ["none,taa,taa-improved"])
-        side = json.load(open(os.path.join(renders, "jittered", "frame_0002.json")))
+        crisp_eval(copy, ARGS[:-1] + ["none,taa,taa-improved"])
+        scene = json.load(open(os.path.join(renders, "scene.json")))
+        improved = scene["inputs"]["taa-improved"]
+        assert improved == "jittered-depth-motion-id-albedo" and scene["inputs"]["taa"] == TAA_SET
+        side = json.load(open(os.path.join(renders, improved, "frame_0002.json")))
         assert side["passes"] == ["color", "depth", "motion", "id", "albedo"], side["passes"]
-        assert mtime(renders, "jittered", "frame_0002.exr") != before["jittered"]
-        assert mtime(renders, "warp", "frame_0002.exr") == before["warp"]
-        # taa's frames were made from the jittered frames rendered again: made again; none's input
-        # set did not change: kept.
+        # taa's set and frames, and the warp, are kept: taa-improved's passes are not charged to taa.
+        for s, t in before.items():
+            assert mtime(renders, s, "frame_0002.exr") == t, s
+        for m, t in made.items():
+            assert mtime(copy, "methods", m, "frame_0002.exr") == t, m
+        results = json.load(open(os.path.join(copy, "results.json")))["scenes"][0]
+        entry = {m["name"]: m for m in results["methods"]}
+        assert not entry["taa-improved"]["error"], entry["taa-improved"]["error"]
+        assert entry["taa-improved"]["input"] == improved and entry["taa"]["input"] == TAA_SET
+        # A set whose frames lack the passes it lists (an older run's, say) is rendered again.
+        name = os.path.join(renders, TAA_SET, "frame_0002.exr")
+        shutil.copy(os.path.join(renders, "eevee_1", "frame_0002.exr"), name)
+        crisp_eval(copy, ARGS[:-1] + ["none,taa,taa-improved"])
+        assert mtime(renders, TAA_SET, "frame_0002.exr") != before[TAA_SET]
         assert mtime(copy, "methods", "taa", "frame_0002.exr") != made["taa"]
-        assert mtime(copy, "methods", "none", "frame_0002.exr") == made["none"]
-        assert "methods/taa: frames whose input frame changed" in stderr
-        scene = json.load(open(os.path.join(copy, "results.json")))["scenes"][0]
-        entry = next(m for m in scene["methods"] if m["name"] == "taa-improved")
-        assert not entry["error"], entry["error"]
 
 
 def test_jitter_uniform_renders_the_jittered_set_again(run):
@@ -241,7 +253,7 @@ def test_jitter_uniform_renders_the_jittered_set_again(run):
         made = {m: mtime(copy, "methods", m, "frame_0002.exr") for m in ("none", "taa")}
         stderr = crisp_eval(copy, ARGS + ["--jitter", "uniform"])
         for f in (1, 2, 3):
-            jitter = json.load(open(os.path.join(renders, "jittered", "frame_%04d.json" % f)))["jitter"]
+            jitter = json.load(open(os.path.join(renders, TAA_SET, "frame_%04d.json" % f)))["jitter"]
             assert jitter["distribution"] == "uniform"
             assert -0.5 <= jitter["x"] <= 0.5 and -0.5 <= jitter["y"] <= 0.5
         for s, t in kept.items():

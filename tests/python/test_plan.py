@@ -94,22 +94,31 @@ def test_temporal_error_reads_unjittered_geometry_only_where_something_moves():
     assert plan.TEMPORAL_ERROR not in plan.METHOD_PASSES  # not a method anyone can pick
 
 
-def test_eval_render_sets_group_the_plans_and_add_the_warp_where_something_moves():
+def test_eval_render_sets_one_per_plan_and_the_warp_where_something_moves():
     def sets(methods, f):
         return plan.render_sets([plan.make_plan(m, f) for m in methods], f)
     # A still scene: colour-only methods need no render of their own (eevee_1 is theirs), no warp.
     assert sets(["none", "fxaa"], facts()) == {}
-    s = sets(["none", "taa"], facts())
+    s = sets(["none", "taa", "phlm"], facts())
     assert list(s) == ["jittered"] and s["jittered"].passes == ["color"] and s["jittered"].jitter
-    # Moving: the temporal methods' union, rsaa's geometry unjittered, and the warp's own set.
+    assert s["jittered"].method == "taa+phlm"  # the same plan: one set
+    # Moving: a set for each distinct plan, so no method is charged for passes another reads;
+    # rsaa's geometry unjittered; and the warp's own set.
     s = sets(["none", "taa", "taa-improved", "rsaa"], facts(moving_objects=["B"]))
-    assert set(s) == {"jittered", "unjittered", "warp"}
-    assert s["jittered"].passes == ["color", "depth", "motion", "id", "albedo"]
-    assert s["jittered"].method == "taa+taa-improved" and s["jittered"].motion_source == "reconstruct"
-    assert "reprojects the history" in s["jittered"].reasons["motion"]  # the first reader's reason
-    assert s["unjittered"].passes == ["color", "depth", "normal", "subsamples"] and not s["unjittered"].jitter
-    assert s["unjittered"].method == "none+rsaa" and "SADP" in s["unjittered"].reasons["depth"]
+    assert set(s) == {"jittered-depth-motion-id", "jittered-depth-motion-id-albedo",
+                      "unjittered-depth-normal-subsamples", "warp"}
+    taa, improved = s["jittered-depth-motion-id"], s["jittered-depth-motion-id-albedo"]
+    assert taa.passes == ["color", "depth", "motion", "id"] and taa.method == "taa" and taa.jitter
+    assert improved.passes == ["color", "depth", "motion", "id", "albedo"] and improved.method == "taa-improved"
+    assert improved.motion_source == "reconstruct" and "reprojects the history" in improved.reasons["motion"]
+    rsaa = s["unjittered-depth-normal-subsamples"]
+    assert rsaa.method == "rsaa" and not rsaa.jitter and "SADP" in rsaa.reasons["depth"]
     assert s["warp"].method == plan.TEMPORAL_ERROR and s["warp"].passes == ["color", "depth", "motion", "id"]
+    # Each method's input set is the one named after its plan.
+    for m in ("taa", "taa-improved", "rsaa"):
+        p = plan.make_plan(m, facts(moving_objects=["B"]))
+        assert s[plan.render_set_name(p)].passes == p.passes
+    assert plan.render_set_name(plan.make_plan("fxaa", facts())) == "eevee_1"
     # Only colour-reading methods on a moving scene: the warp alone.
     assert list(sets(["none", "repair"], facts(camera_moves=True))) == ["warp"]
     for p in s.values():
