@@ -261,22 +261,53 @@ def visible_objects(scene, view_layer=None):
             if ob.type in RENDERABLE_TYPES and not ob.hide_render and ob.name in rendered]
 
 
+# Geometry Nodes that make a tree's output change with time without a keyframe: the scene's time, and
+# a simulation zone (Blender 3.6+).
+TIME_NODES = {"GeometryNodeInputSceneTime", "GeometryNodeSimulationInput", "GeometryNodeSimulationOutput"}
+
+
+def _animated(id_data):
+    """True if a datablock has keyframes or drivers (a driver can read the frame, #frame)."""
+    ad = getattr(id_data, "animation_data", None)
+    return bool(ad and (ad.action or len(ad.drivers)))
+
+
+def _node_tree_varies(tree, seen):
+    """True if a node tree (or a group inside it) reads the time or is animated."""
+    if tree is None or tree.name in seen:
+        return False
+    seen.add(tree.name)
+    if _animated(tree):
+        return True
+    for node in tree.nodes:
+        if node.bl_idname in TIME_NODES or _node_tree_varies(getattr(node, "node_tree", None), seen):
+            return True
+    return False
+
+
 def _deforms(ob):
-    """True if the object's geometry can change over time (not covered by rigid reconstruction)."""
+    """True if the object's geometry can change over time (not covered by rigid reconstruction):
+    animated mesh data or shape keys, a deforming or simulating modifier, a modifier whose settings are
+    keyframed or driven, or Geometry Nodes that read the time or are animated."""
     data = getattr(ob, "data", None)
-    if data is not None and getattr(data, "animation_data", None) and data.animation_data.action:
+    if data is not None and _animated(data):
         return True
     keys = getattr(data, "shape_keys", None)
     if keys is not None and keys.animation_data:
         return True
+    ad = ob.animation_data
+    animated_paths = [fc.data_path for fc in ad.action.fcurves] if ad and ad.action else []
+    animated_paths += [d.data_path for d in ad.drivers] if ad else []
     for m in getattr(ob, "modifiers", []):
         if m.type in {"ARMATURE", "CLOTH", "SOFT_BODY", "OCEAN", "WAVE", "DYNAMIC_PAINT", "FLUID",
                       "MESH_CACHE", "MESH_SEQUENCE_CACHE", "EXPLODE", "PARTICLE_SYSTEM"}:
             return True
-        if getattr(m, "show_render", True) and ob.animation_data and ob.animation_data.action:
-            for fc in ob.animation_data.action.fcurves:
-                if fc.data_path.startswith('modifiers["%s"]' % m.name):
-                    return True
+        if not getattr(m, "show_render", True):
+            continue
+        if any(path.startswith('modifiers["%s"]' % m.name) for path in animated_paths):
+            return True
+        if m.type == "NODES" and _node_tree_varies(getattr(m, "node_group", None), set()):
+            return True
     return False
 
 

@@ -237,6 +237,56 @@ class AddonTest(unittest.TestCase):
             render.render_frames(scene, p, [1], d)
             self.assertNotIn(key, json.load(open(os.path.join(d, "frame_0001.json")))["objects"])
 
+    def test_geometry_that_varies_without_keyframes_deforms(self):
+        """Geometry Nodes reading the scene's time (inside a nested group), and a modifier setting driven
+        by the frame, change the geometry with no keyframe: the object deforms, so taa gets motion and
+        IDs. Geometry Nodes that do not vary leave the scene still."""
+        def plan_of(scene):
+            return pipeline.scene_plan(scene, "taa", [1, 2, 3])
+
+        scene = harness.build_scene("still_life")
+        ball = scene.objects["Ball"]
+        inner = bpy.data.node_groups.new("Inner", "GeometryNodeTree")
+        inner.inputs.new("NodeSocketGeometry", "Geometry")
+        inner.outputs.new("NodeSocketGeometry", "Geometry")
+        gin, gout = inner.nodes.new("NodeGroupInput"), inner.nodes.new("NodeGroupOutput")
+        setpos = inner.nodes.new("GeometryNodeSetPosition")
+        inner.links.new(gin.outputs[0], setpos.inputs["Geometry"])
+        inner.links.new(setpos.outputs[0], gout.inputs[0])
+        outer = bpy.data.node_groups.new("Outer", "GeometryNodeTree")
+        outer.inputs.new("NodeSocketGeometry", "Geometry")
+        outer.outputs.new("NodeSocketGeometry", "Geometry")
+        oin, oout = outer.nodes.new("NodeGroupInput"), outer.nodes.new("NodeGroupOutput")
+        group = outer.nodes.new("GeometryNodeGroup")
+        group.node_tree = inner
+        outer.links.new(oin.outputs[0], group.inputs[0])
+        outer.links.new(group.outputs[0], oout.inputs[0])
+        mod = ball.modifiers.new("Wobble", "NODES")
+        mod.node_group = outer
+        p, facts = plan_of(scene)
+        self.assertEqual(facts.deforming_objects, [], "geometry nodes that do not vary: still")
+        self.assertNotIn("motion", p.passes)
+        offset = inner.nodes.new("ShaderNodeCombineXYZ")
+        time = inner.nodes.new("GeometryNodeInputSceneTime")
+        inner.links.new(time.outputs["Seconds"], offset.inputs["Z"])
+        inner.links.new(offset.outputs[0], setpos.inputs["Offset"])
+        scene.frame_set(1)
+        z1 = ball.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices[0].co.z
+        scene.frame_set(3)
+        z3 = ball.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices[0].co.z
+        self.assertGreater(abs(z3 - z1), 1e-3, "the set-up moves the geometry")
+        p, facts = plan_of(scene)
+        self.assertEqual(facts.deforming_objects, [ball.name])
+        self.assertIn("motion", p.passes)
+        self.assertIn("id", p.passes)
+        # A modifier setting driven by the frame, no keyframe anywhere.
+        ball.modifiers.remove(mod)
+        self.assertEqual(plan_of(scene)[1].deforming_objects, [])
+        bend = ball.modifiers.new("Bend", "SIMPLE_DEFORM")
+        bend.driver_add("angle").driver.expression = "frame * 0.1"
+        self.assertFalse(ball.animation_data.action)
+        self.assertEqual(plan_of(scene)[1].deforming_objects, [ball.name])
+
     @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
     def test_rsaa_without_geometry_takes_its_parameters(self):
         """rsaa on a plan with no sub-samples (nothing visible) filters as 'none'; the rsaa parameters
