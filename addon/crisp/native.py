@@ -426,6 +426,10 @@ class FrameFilter:
         # Temporal filters take each frame's sub-pixel jitter from its sidecar, as `crisp filter` does.
         info = self.filter.info()
         self._takes_jitter = any(p["name"] == "jitterX" for p in info["params"])
+        # A frame without a sidecar is filtered with the jitter set before the first frame (params, else
+        # the default: none), as `crisp filter` does (cli/files.cpp bindJitter), not the last frame's.
+        defaults = {p["name"]: p.get("default") for p in info["params"]}
+        self._base_jitter = tuple(float((params or {}).get(k, defaults.get(k) or 0.0)) for k in ("jitterX", "jitterY"))
         # The passes bound to the filter: those it has an image for. Others in the plan serve the
         # frame itself (object IDs that motion reconstruction reads, for a filter that reads none).
         self._roles = {i["name"] for i in info["images"]}
@@ -442,7 +446,8 @@ class FrameFilter:
         another camera (a cut at a timeline marker) restarts it, with zero motion for the frame. Frames
         without a sidecar (side None) say nothing and carry over."""
         self.restart_reason = None
-        if side is None:
+        if side is None:  # its position unknown: the next frame is not compared with an older one (as the CLI)
+            self._last_shot = None
             return
         shot = (side.get("frame"), (side.get("camera") or {}).get("name"))
         last, self._last_shot = self._last_shot, shot
@@ -474,6 +479,8 @@ class FrameFilter:
     def _bind_jitter(self, side):
         """jitterX / jitterY of this frame from its sidecar (y up there, down in the library)."""
         if side is None:
+            self.filter.set_param("jitterX", self._base_jitter[0])
+            self.filter.set_param("jitterY", self._base_jitter[1])
             return
         jitter = side.get("jitter") or {}
         self.filter.set_param("jitterX", float(jitter.get("x", 0.0)))

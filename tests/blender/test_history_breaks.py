@@ -7,7 +7,8 @@ and a gap in the frame numbers. still_life at 64x36 with a second camera bound t
     for bit, `crisp filter` over frames 4-6 alone, and so do `crisp filter`'s over frames 1-6;
   * `crisp filter` over frames 4 and 6 (5 missing) says the history starts over at 6 and gives the
     frame 6 of a run over frame 6 alone;
-  * a frame without a sidecar between frames 4 and 6 is no gap: the history carries over to 6."""
+  * a frame without a sidecar between frames 4 and 6 is no gap: the history carries over to 6;
+  * the add-on's own FrameFilter (native.py) restarts and carries over where `crisp filter` does."""
 
 import json
 import os
@@ -53,6 +54,21 @@ class HistoryBreakTest(unittest.TestCase):
     @classmethod
     def tearDownClass(cls):
         cls.tmp.cleanup()
+
+    def frame_filter(self, name, inputs):
+        """The add-on's own FrameFilter (as pipeline.run uses it) over `inputs` in order: the output
+        folder and the restart reason of each frame."""
+        out = os.path.join(self.tmp.name, name)
+        os.makedirs(out)
+        ff = native.FrameFilter("taa", threads=1, passes=tuple(self.result["plan"]["passes"]))
+        reasons = []
+        try:
+            for path in inputs:
+                ff.run(path, [os.path.join(out, os.path.basename(path))])
+                reasons.append(ff.restart_reason)
+        finally:
+            ff.close()
+        return out, reasons
 
     def crisp_filter(self, name, inputs, quiet=True):
         out = os.path.join(self.tmp.name, name)
@@ -102,6 +118,12 @@ class HistoryBreakTest(unittest.TestCase):
         # With frame 5 between them the history carries over: the check above can fail.
         self.assertNotEqual(pixels(os.path.join(alone, "frame_0006.exr")),
                             pixels(os.path.join(self.out, "filtered", "frame_0006.exr")))
+        # The add-on's FrameFilter restarts there too, and backwards, as the CLI does.
+        ours, reasons = self.frame_filter("gap_addon", [self.inputs[3], self.inputs[5]])
+        self.assertEqual(reasons, [None, "frame 6 after frame 4"])
+        self.assertEqual(pixels(os.path.join(ours, "frame_0006.exr")), pixels(os.path.join(alone, "frame_0006.exr")))
+        _, reasons = self.frame_filter("backwards_addon", [self.inputs[5], self.inputs[4]])
+        self.assertEqual(reasons, [None, "frame 5 after frame 6"])
 
     def test_frame_without_sidecar_is_no_gap(self):
         """A frame without a sidecar (its position unknown) between frames 4 and 6 is no gap: the
@@ -119,6 +141,10 @@ class HistoryBreakTest(unittest.TestCase):
         self.assertNotIn("starts over", err)
         alone, _ = self.crisp_filter("no_sidecar_6", inputs[2:])
         self.assertNotEqual(pixels(os.path.join(whole, "frame_0006.exr")), pixels(os.path.join(alone, "frame_0006.exr")))
+        # The add-on's FrameFilter agrees: no restart at 6, and the same frame 6 as the CLI's.
+        ours, reasons = self.frame_filter("no_sidecar_addon", inputs)
+        self.assertEqual(reasons, [None, None, None])
+        self.assertEqual(pixels(os.path.join(ours, "frame_0006.exr")), pixels(os.path.join(whole, "frame_0006.exr")))
 
 if __name__ == "__main__":
     harness.run(HistoryBreakTest)
