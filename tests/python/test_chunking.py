@@ -419,6 +419,34 @@ def test_render_reuses_only_what_the_same_settings_made(shot, lib, tmp_path):
     assert chunk["preroll_frames"] == [1, 4] and chunk["preroll_reused"] == []
 
 
+def test_render_chunk_without_shot_and_resume_of_lost_files(tmp_path):
+    """--preroll without --shot takes the scene's range as the shot (the chunk's record is
+    run_AAAA-BBBB.json, so chunks never overwrite each other's); a spatial method renders no pre-roll;
+    a resume makes again a frame whose input EXR or reference was lost, though its other files stay."""
+    out = tmp_path / "chunk"
+    render(out, (5, 6), "taa", "--preroll", "2")
+    assert not os.path.exists(out / "run.json")
+    chunk = json.loads((out / "run_0005-0006.json").read_text())["chunk"]
+    assert chunk["preroll_frames"] == [3, 4], chunk
+    spatial = tmp_path / "spatial"
+    render(spatial, (5, 6), "fxaa", "--preroll", "2")
+    assert json.loads((spatial / "run_0005-0006.json").read_text())["chunk"]["preroll_frames"] is None
+    whole = tmp_path / "whole"
+    render(whole, (1, 2), "fxaa", "--reference-samples", "2")
+    os.remove(whole / "input" / frame(1))  # its sidecar stays
+    kept = os.stat(whole / "filtered" / frame(1)).st_mtime_ns
+    render(whole, (1, 2), "fxaa", "--reference-samples", "2", "--resume")
+    assert (whole / "input" / frame(1)).is_file()
+    assert os.stat(whole / "filtered" / frame(1)).st_mtime_ns != kept, "frame 1 made again from its new input"
+    os.remove(whole / "reference" / frame(2))  # the last frame's reference alone
+    kept = os.stat(whole / "filtered" / frame(1)).st_mtime_ns
+    render(whole, (1, 2), "fxaa", "--reference-samples", "2", "--resume")
+    assert (whole / "reference" / frame(2)).is_file()
+    assert os.stat(whole / "filtered" / frame(1)).st_mtime_ns == kept, "frame 1 was complete"
+    record = json.loads((whole / "run.json").read_text())
+    assert record["status"] == "complete", record["status"]
+
+
 # ---- the pre-roll table (not a test) ---------------------------------------------------------------
 
 MEASURE_SCENES = (("camera_dolly", 24, 21), ("spinning_cube", 24, 21), ("still_life", 48, 41))

@@ -125,6 +125,21 @@ def test_eval_render_sets_one_per_plan_and_the_warp_where_something_moves():
         assert set(p.reasons) == set(p.passes) and p.passes == sorted(p.passes, key=plan.PASS_ORDER.index)
 
 
+def test_a_deforming_object_alone_makes_the_scene_move():
+    """Geometry that deforms (an armature, shape keys, time-reading Geometry Nodes) moves the scene
+    though no object's transform does: the temporal methods get motion, and the IDs that motion
+    reconstruction reads when several objects render."""
+    for method in ("taa", "taa-improved", "phlm"):
+        p = plan.make_plan(method, facts(deforming_objects=["B"]))
+        assert "motion" in p.passes and "depth" in p.passes and "id" in p.passes, (method, p.passes)
+        assert "B" in p.reasons["motion"], p.reasons["motion"]
+        still = plan.make_plan(method, facts())
+        assert "motion" not in still.passes, (method, still.passes)
+    # One object that deforms: no other object to tell it from, so no ID pass for reconstruction.
+    alone = plan.make_plan("taa", facts(deforming_objects=["A"], visible_objects=["A"]))
+    assert "motion" in alone.passes and "id" not in alone.passes, alone.passes
+
+
 def test_every_planned_pass_has_a_reason_and_json_round_trip():
     for method in list(plan.METHOD_PASSES) + [plan.TEMPORAL_ERROR]:
         for f in (facts(), facts(camera_moves=True), facts(moving_objects=["A"], deforming_objects=["B"])):
