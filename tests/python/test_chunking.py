@@ -417,6 +417,17 @@ def test_render_reuses_only_what_the_same_settings_made(shot, lib, tmp_path):
     assert p.returncode == 0, p.stderr[-3000:]
     chunk = json.loads((out / "run_0005-0008.json").read_text())["chunk"]
     assert chunk["preroll_frames"] == [1, 4] and chunk["preroll_reused"] == []
+    # Nor from an edit of the scenes' shared test_scenes/common.py (the scene's own script as before).
+    shutil.copy(os.path.join(SOURCE, "test_scenes", "spinning_cube.py"), tree / "test_scenes" / "spinning_cube.py")
+    with open(tree / "test_scenes" / "common.py", "a") as f:
+        f.write("\n# edited\n")
+    # (Frames 3-4 in input/ are the first run's: pre-roll never writes there.)
+    p = subprocess.run([CRISP, "render", "--scene", "spinning_cube", "--resolution", SIZE, "--frames", "5-6",
+                        "--shot", "1-8", "--preroll", "2", "--method", "taa-improved", "--quiet", "-o", str(out)],
+                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, timeout=300)
+    assert p.returncode == 0, p.stderr[-3000:]
+    chunk = json.loads((out / "run_0005-0006.json").read_text())["chunk"]
+    assert chunk["preroll_frames"] == [3, 4] and chunk["preroll_reused"] == [], chunk
 
 
 def test_render_chunk_without_shot_and_resume_of_lost_files(tmp_path):
@@ -427,7 +438,15 @@ def test_render_chunk_without_shot_and_resume_of_lost_files(tmp_path):
     render(out, (5, 6), "taa", "--preroll", "2")
     assert not os.path.exists(out / "run.json")
     chunk = json.loads((out / "run_0005-0006.json").read_text())["chunk"]
-    assert chunk["preroll_frames"] == [3, 4], chunk
+    assert chunk["preroll_frames"] == [3, 4] and chunk["preroll_reused"] == [], chunk
+    # Input frames at another size are not read as pre-roll (those of the same size are).
+    render(out, (3, 4), "taa")
+    render(out, (5, 6), "taa", "--preroll", "2")
+    assert json.loads((out / "run_0005-0006.json").read_text())["chunk"]["preroll_reused"] == [3, 4]
+    crisp("render", "--scene", "spinning_cube", "--resolution", "48x27", "--frames", "5-6", "--preroll", "2",
+          "--method", "taa", "--quiet", "-o", out)
+    chunk = json.loads((out / "run_0005-0006.json").read_text())["chunk"]
+    assert chunk["preroll_frames"] == [3, 4] and chunk["preroll_reused"] == [], chunk
     spatial = tmp_path / "spatial"
     render(spatial, (5, 6), "fxaa", "--preroll", "2")
     assert json.loads((spatial / "run_0005-0006.json").read_text())["chunk"]["preroll_frames"] is None
