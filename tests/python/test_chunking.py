@@ -466,6 +466,42 @@ def test_render_chunk_without_shot_and_resume_of_lost_files(tmp_path):
     assert record["status"] == "complete", record["status"]
 
 
+MAKE_EARLY_MOTION = """
+import sys
+sys.path[:0] = [%r]
+import bpy, math
+import spinning_cube
+scene = spinning_cube.build()
+cube = scene.objects["Cube"]
+cube.animation_data_clear()
+for f, angle in ((1, 0.0), (4, 30.0)):  # turns over frames 1-4, still from 4 on (constant extrapolation)
+    cube.rotation_euler = (0.0, 0.0, math.radians(angle))
+    cube.keyframe_insert("rotation_euler", frame=f)
+bpy.ops.wm.save_as_mainfile(filepath=%r)
+"""
+
+
+def test_a_chunk_is_planned_over_its_shot(tmp_path):
+    """A chunk reads the passes its shot needs, not only its own frames: frames 5-8 of a shot whose
+    cube turns over frames 1-4 get motion, as the sequential run's frames do, so every chunk of a
+    shot renders the same passes."""
+    blend = tmp_path / "early_motion.blend"
+    p = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr",
+                        MAKE_EARLY_MOTION % (os.path.join(SOURCE, "test_scenes"), str(blend))],
+                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=300)
+    assert p.returncode == 0 and blend.is_file(), p.stdout.decode()[-2000:]
+
+    def plan(out, *extra):
+        crisp("render", "--scene", blend, "--resolution", SIZE, "--frames", "5-8", "--method", "taa", "--plan",
+              "--quiet", "-o", out, *extra)
+        records = sorted(out.glob("run*.json"))
+        assert len(records) == 1, records
+        return json.loads(records[0].read_text())["plan"]["passes"]
+
+    assert "motion" not in plan(tmp_path / "alone"), "frames 5-8 alone are still"
+    assert "motion" in plan(tmp_path / "chunk", "--shot", "1-8")
+
+
 # ---- the pre-roll table (not a test) ---------------------------------------------------------------
 
 MEASURE_SCENES = (("camera_dolly", 24, 21), ("spinning_cube", 24, 21), ("still_life", 48, 41))
