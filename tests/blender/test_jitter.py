@@ -99,6 +99,25 @@ class JitterTest(unittest.TestCase):
     def test_blackman_harris_halton(self):
         self.check("blackman-harris", [3, 4])
 
+    def test_fixed_sensor_fit(self):
+        """A camera whose sensor fit is fixed to the short or the long side of the non-square image: the
+        camera shift per pixel is along that side (render.shift_per_pixel), so the samples move by the
+        requested jitter with either fit (a shift taken along the other side is 64/36 too large or small)."""
+        cam = self.scene.camera.data
+        self.addCleanup(setattr, cam, "sensor_fit", cam.sensor_fit)
+        still = plan.make_plan("none", plan.scene_facts(self.scene, 1, 3))
+        for fit in ("HORIZONTAL", "VERTICAL"):
+            cam.sensor_fit = fit
+            out = os.path.join(self.tmp.name, fit)
+            render.render_frames(self.scene, still, [1], os.path.join(out, "plain"))
+            render.render_frames(self.scene, self.jittered_plan, [1], out, jitter_distribution="uniform")
+            want_x, want_y, _ = render.jitter_offset(1, "uniform", self.scene.render.filter_size)
+            got_x, got_y = measure(exr_util.read(os.path.join(out, "plain", "frame_0001.exr"))[1],
+                                   exr_util.read(os.path.join(out, "frame_0001.exr"))[1])
+            with self.subTest(sensor_fit=fit):
+                self.assertAlmostEqual(got_x, want_x, delta=0.01)
+                self.assertAlmostEqual(got_y, want_y, delta=0.01)
+
     def test_halton_points(self):
         self.assertEqual([render.halton(i, 2) for i in (1, 2, 3)], [0.5, 0.25, 0.75])
         self.assertAlmostEqual(render.halton(1, 3), 1 / 3)

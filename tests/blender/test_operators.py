@@ -3,6 +3,9 @@
 Load into Compositor, on a scene whose user picked Cycles (Crisp renders with EEVEE and gives the
 scene back as it was)."""
 
+import contextlib
+import io
+import json
 import math
 import os
 import subprocess
@@ -15,7 +18,7 @@ import harness  # noqa: E402
 
 import bpy  # noqa: E402
 import crisp  # noqa: E402
-from crisp import pipeline  # noqa: E402
+from crisp import compositor, native, pipeline  # noqa: E402
 
 LIB_OK, LIB_WHY = harness.library_usable()
 
@@ -139,6 +142,86 @@ class OperatorTest(unittest.TestCase):
         shown = {os.path.basename(i.filepath) for i in bpy.data.images}
         self.assertIn("frame_0001.exr", shown)
         self.assertNotIn("frame_0001.png", shown)
+
+    def small_scene(self, first, last, load_result):
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 64, 36, 100
+        scene.frame_start, scene.frame_end = first, last
+        scene.crisp.method = "fxaa"
+        scene.crisp.output_dir = self.tmp.name
+        scene.crisp.load_result = load_result
+        return scene
+
+    def test_render_loads_every_frame_of_the_range(self):
+        """Render with Crisp over frames 2..4 loads a sequence of all three into the compositor (the
+        Image node starts at frame 2 and lasts 3 frames), not the first frame alone."""
+        scene = self.small_scene(2, 4, load_result=True)
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        node = next(n for n in scene.node_tree.nodes if n.get(compositor.NODE_TAG))
+        frames = node.node_tree.nodes["Crisp Frames"]
+        self.assertEqual((frames.frame_start, frames.frame_duration), (2, 3))
+
+    def test_load_result_warns_of_a_missing_last_frame(self):
+        """Load into Compositor checks the scene's whole range, the last frame too: with that frame's
+        filtered image gone it loads the rest and warns, naming the frame."""
+        scene = self.small_scene(1, 2, load_result=False)
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        os.remove(os.path.join(self.tmp.name, "filtered", "frame_0002.exr"))
+        reports = io.StringIO()  # an operator's reports other than errors go to stdout
+        with contextlib.redirect_stdout(reports):
+            self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        self.assertIn("frame 2 has no filtered image", reports.getvalue())
+        self.assertIsNotNone(next((n for n in scene.node_tree.nodes if n.get(compositor.NODE_TAG)), None))
+
+    def test_compositor_shows_each_frames_own_file(self):
+        """The loaded sequence maps scene frame N to filtered/frame_N.exr (two frames of other colours,
+        composited at each frame; only the compositor runs, no Render Layers node)."""
+        folder = os.path.join(self.tmp.name, "filtered")
+        os.makedirs(folder)
+        colours = {2: (0.2, 0.3, 0.4), 3: (0.9, 0.1, 0.05)}
+        for f, c in colours.items():
+            subprocess.run(["oiiotool", "--pattern", "constant:color=%g,%g,%g" % c, "8x8", "3", "-d", "float",
+                            "-o", os.path.join(folder, "frame_%04d.exr" % f)], check=True, capture_output=True)
+        scene = bpy.data.scenes.new("Compositor Frames")
+        self.addCleanup(bpy.data.scenes.remove, scene)
+        scene.render.resolution_x = scene.render.resolution_y = 8
+        scene.render.resolution_percentage = 100
+        scene.render.image_settings.file_format = "OPEN_EXR"
+        node = compositor.load_result(scene, folder, 2, 3)
+        tree = scene.node_tree
+        for n in [n for n in tree.nodes if n.bl_idname == "CompositorNodeRLayers"]:
+            tree.nodes.remove(n)
+        composite = next(n for n in tree.nodes if n.bl_idname == "CompositorNodeComposite")
+        tree.links.new(node.outputs["Image"], composite.inputs["Image"])
+        for f, c in colours.items():
+            scene.frame_set(f)
+            scene.render.filepath = os.path.join(self.tmp.name, "composited_%d.exr" % f)
+            with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0]):
+                bpy.ops.render.render(write_still=True)
+            image = bpy.data.images.load(scene.render.filepath)
+            shown = tuple(image.pixels[:3])
+            bpy.data.images.remove(image)
+            for got, want in zip(shown, c):
+                self.assertAlmostEqual(got, want, places=4, msg="frame %d shows %s" % (f, shown))
+
+    def test_compare_images_measures_the_test_against_the_reference(self):
+        """native.compare_images(reference, test) gives the figures of `crisp compare --reference --test`
+        for the same files (a checker reference against its darkened, blurred copy). SNR, over the
+        reference's energy, is the one a swap of the two images changes: PSNR, SSIM and the perceptual
+        error (flip.cpp) are symmetric."""
+        ref, test, js = (os.path.join(self.tmp.name, n) for n in ("ref.exr", "test.exr", "m.json"))
+        subprocess.run(["oiiotool", "--pattern", "checker:width=4:height=4", "48x32", "3", "-d", "float",
+                        "-o", ref], check=True, capture_output=True)
+        subprocess.run(["oiiotool", ref, "--blur", "5x5", "--mulc", "0.8", "-d", "float", "-o", test],
+                       check=True, capture_output=True)
+        with native.Context(1) as ctx:
+            got = native.compare_images(ctx, ref, test)
+        subprocess.run([os.path.join(harness.BUILD_DIR, "bin", "crisp"), "compare", "-q", "--reference", ref,
+                        "--test", test, "--json", js], check=True, capture_output=True)
+        with open(js) as f:
+            want = json.load(f)["frames"][0]
+        for k in ("psnr", "ssim", "snr", "flip"):
+            self.assertAlmostEqual(got[k], want[k], places=5, msg=k)
 
     def test_compare_without_reference_says_what_is_missing(self):
         scene = harness.build_scene("still_life")

@@ -61,6 +61,20 @@ class ViewLayerTest(unittest.TestCase):
         self.assertEqual(render.default_view_layer(scene, first).name, first.name, "a layer given is kept")
         first.use = True
 
+    def test_an_object_hidden_from_render_is_neither_visible_nor_moving(self):
+        """An object hidden from render (its camera icon) does not reach the render: the scene's facts list
+        it neither as visible nor as moving, and taa's plan renders no motion for it (ghosting with its
+        moving sphere hidden: only the still wall is left)."""
+        scene = harness.build_scene("ghosting")
+        the_plan, facts = pipeline.scene_plan(scene, "taa", [1, 2, 3])
+        self.assertEqual((facts.visible_objects, facts.moving_objects), (["Wall", "Sphere"], ["Sphere"]))
+        self.assertIn("motion", the_plan.passes)
+        bpy.data.objects["Sphere"].hide_render = True
+        the_plan, facts = pipeline.scene_plan(scene, "taa", [1, 2, 3])
+        self.assertEqual(facts.visible_objects, ["Wall"])
+        self.assertEqual(facts.moving_objects, [])
+        self.assertNotIn("motion", the_plan.passes)
+
 
 if __name__ == "__main__":
     harness.run(ViewLayerTest)

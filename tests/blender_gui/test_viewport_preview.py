@@ -4,9 +4,9 @@
 it (screenshot of the window after a redraw and buffer swap): the still_life test scene through its
 camera in solid shading, the 3D view alone in the window (640x400). With the preview on, each method must
 change the pixels on edges of the unfiltered view (edges: its 3x3 luma range) and leave its flat areas
-(7x7 range) alone, must not be black or shifted, taa must accumulate redraws and restart when the view
-changes; switched off, no handler and no buffers remain and the view is the unfiltered one again. In
-background mode the toggle must switch itself off with a message."""
+(7x7 range) alone, must not be black or shifted, taa must accumulate redraws and restart when the view,
+the frame or the scene changes; switched off, no handler and no buffers remain and the view is the
+unfiltered one again. In background mode the toggle must switch itself off with a message."""
 
 import os
 import subprocess
@@ -231,6 +231,29 @@ class ViewportPreview(unittest.TestCase):
         params.feedbackMax = 0.9
         redraw(1)
         self.assertEqual(viewport.accumulated_frames(), 1, "a settings edit must reset the history")
+        self.switch_off()
+
+    def test_taa_restarts_on_frame_change_and_scene_edit(self):
+        """A frame change or an edit of the scene (the view itself unchanged) restarts taa's history: with
+        no motion vectors to reproject it, a history kept across them ghosts."""
+        scene = bpy.context.scene
+        ball = bpy.data.objects["Ball"]
+        self.addCleanup(setattr, ball, "location", ball.location.copy())
+        self.addCleanup(scene.frame_set, scene.frame_current)
+        self.addCleanup(setattr, self.settings, "enabled", False)
+
+        def move_ball():
+            ball.location.x += 0.1
+            bpy.context.view_layer.update()
+
+        self.switch_on("taa")
+        for change, edit in (("a frame change", lambda: scene.frame_set(scene.frame_current + 1)),
+                             ("a scene edit", move_ball)):
+            redraw(TAA_REDRAWS)
+            self.assertGreaterEqual(viewport.accumulated_frames(), TAA_REDRAWS)
+            edit()
+            redraw(1)
+            self.assertEqual(viewport.accumulated_frames(), 1, change + " must reset the history")
         self.switch_off()
 
     def test_taa_jitters_as_the_renders(self):
