@@ -192,8 +192,9 @@ void crispSetFilterImage(CrispFilter filter, const char* name, void* ptr, CrispF
       filter->filter->unsetImage(n);
       return;
     }
-    if (format < CRISP_FORMAT_FLOAT || format > CRISP_FORMAT_RSAA_SUBSAMPLES)
-      crisp::invalidArgument("image '" + n + "': unknown format " + std::to_string(int(format)));
+    const int formatValue = static_cast<int>(format);  // any int from C: compared as one, never as the enum
+    if (formatValue < CRISP_FORMAT_FLOAT || formatValue > CRISP_FORMAT_RSAA_SUBSAMPLES)
+      crisp::invalidArgument("image '" + n + "': unknown format " + std::to_string(formatValue));
     if (width > (1u << 16) || height > (1u << 16))
       crisp::invalidArgument("image '" + n + "': size " + std::to_string(width) + "x" + std::to_string(height) +
                              " is out of range [1, 65536]");
@@ -394,8 +395,10 @@ void crispWriteImage(CrispContext context, const char* path, const void* ptr, Cr
     if (width == 0 || height == 0 || width > (1u << 16) || height > (1u << 16))
       crisp::invalidArgument("image to write to '" + p + "' has size " + std::to_string(width) + "x" +
                              std::to_string(height));
-    crisp::writeImage(p, crisp::makeView(const_cast<void*>(ptr), crisp::Format(format), int(width), int(height),
-                                         pixelByteStride, rowByteStride));
+    const crisp::ImageView view = crisp::makeView(const_cast<void*>(ptr), crisp::Format(format), int(width),
+                                                  int(height), pixelByteStride, rowByteStride);
+    crisp::checkViewLayout("image to write to '" + p + "'", view);  // as crispSetFilterImage checks its views
+    crisp::writeImage(p, view);
   });
 }
 

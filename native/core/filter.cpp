@@ -12,7 +12,6 @@
 
 namespace crisp {
 
-constexpr int kMaxDimension = 1 << 16;
 
 Filter::Filter(Context& context, std::vector<ParamSpec> params, std::vector<ImageRole> roles)
     : context_(context), params_(std::move(params)), roles_(std::move(roles)) {
@@ -54,17 +53,7 @@ void Filter::setImage(const std::string& name, const ImageView& view) {
   if (!formatOk)
     invalidArgument("image '" + name + "': format " + formatName(view.format) + " not accepted (needs " +
                     acceptedFormats(*role) + ")");
-  if (view.width <= 0 || view.height <= 0 || view.width > kMaxDimension || view.height > kMaxDimension)
-    invalidArgument("image '" + name + "': size " + std::to_string(view.width) + "x" + std::to_string(view.height) +
-                    " is out of range [1, " + std::to_string(kMaxDimension) + "]");
-  // Checked: a stride near SIZE_MAX would wrap the span and let pixel addresses run wild.
-  std::size_t rowSpan = 0, span = 0;
-  if (!viewSpan(view, rowSpan, span))
-    invalidArgument("image '" + name + "': strides (pixel " + std::to_string(view.pixelStride) + ", row " +
-                    std::to_string(view.rowStride) + " bytes) span more memory than a process can address");
-  if (view.pixelStride < formatBytes(view.format) || view.rowStride < rowSpan)
-    invalidArgument("image '" + name + "': strides (pixel " + std::to_string(view.pixelStride) + ", row " +
-                    std::to_string(view.rowStride) + " bytes) are smaller than the pixels they hold");
+  checkViewLayout("image '" + name + "'", view);
   auto it = images_.find(name);
   // Re-pointing a buffer of the same shape does not need a new commit.
   if (it == images_.end())

@@ -4,6 +4,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "core/error.h"
+
 namespace crisp {
 
 const char* formatName(Format f) {
@@ -23,6 +25,23 @@ bool viewSpan(const ImageView& v, std::size_t& rowBytes, std::size_t& bytes) {
          !__builtin_add_overflow(rowBytes, formatBytes(v.format), &rowBytes) &&
          !__builtin_mul_overflow(v.rowStride, std::size_t(v.height - 1), &bytes) &&
          !__builtin_add_overflow(bytes, rowBytes, &bytes) && bytes <= std::size_t(PTRDIFF_MAX);
+}
+
+void checkViewLayout(const std::string& what, const ImageView& v) {
+  if (v.width <= 0 || v.height <= 0 || v.width > kMaxDimension || v.height > kMaxDimension)
+    invalidArgument(what + ": size " + std::to_string(v.width) + "x" + std::to_string(v.height) +
+                    " is out of range [1, " + std::to_string(kMaxDimension) + "]");
+  const std::string strides =
+      "strides (pixel " + std::to_string(v.pixelStride) + ", row " + std::to_string(v.rowStride) + " bytes)";
+  // Checked: a stride near SIZE_MAX would wrap the span and let pixel addresses run wild.
+  std::size_t rowSpan = 0, span = 0;
+  if (!viewSpan(v, rowSpan, span)) invalidArgument(what + ": " + strides + " span more memory than a process can address");
+  if (v.pixelStride < formatBytes(v.format) || v.rowStride < rowSpan)
+    invalidArgument(what + ": " + strides + " are smaller than the pixels they hold");
+  constexpr std::size_t kAlign = alignof(float);  // = alignof(std::uint32_t)
+  if (reinterpret_cast<std::uintptr_t>(v.ptr) % kAlign != 0 || v.pixelStride % kAlign != 0 || v.rowStride % kAlign != 0)
+    invalidArgument(what + ": the pointer and " + strides + " must be multiples of " + std::to_string(kAlign) +
+                    " bytes (values are read as 32-bit floats or integers)");
 }
 
 bool viewsOverlap(const ImageView& a, const ImageView& b) {

@@ -52,9 +52,17 @@ struct ImageView {
   bool packed() const { return pixelStride == formatBytes(format) && rowStride == pixelStride * std::size_t(width); }
 };
 
+// The largest width or height of an image the library takes (the C API's limit).
+constexpr int kMaxDimension = 1 << 16;
+
 // The bytes a view addresses from its first pixel: one row's (rowBytes) and the whole view's
 // (bytes). False when they overflow what a process can address (a stride near SIZE_MAX).
 bool viewSpan(const ImageView& v, std::size_t& rowBytes, std::size_t& bytes);
+// Throws InvalidArgument, naming `what` ("image 'color'"), unless the view's size is in [1,
+// kMaxDimension], its strides hold its pixels without wrapping the address space, and its pointer
+// and strides are multiples of 4 bytes (its values are read as floats or uint32). Every view the C
+// API is given passes here.
+void checkViewLayout(const std::string& what, const ImageView& v);
 // True if the bytes two views address may overlap (an output given an input's buffer).
 bool viewsOverlap(const ImageView& a, const ImageView& b);
 

@@ -368,6 +368,55 @@ TEST(CApi, StridesThatWrapAreRefused) {
   EXPECT_EQ(crispGetError(nullptr), CRISP_ERROR_NONE);
 }
 
+// crispWriteImage checks its view as crispSetFilterImage does: a stride that wraps, one smaller
+// than a pixel or row, or a pointer or stride off the 4-byte grid is refused (it used to read
+// outside the buffer: SIGSEGV for a stride of (size_t)-16), and nothing is written.
+TEST(CApi, BadViewsAreRefusedByWriteImageAndSetImage) {
+  auto ctx = crisp::ContextRef::create();
+  auto f = ctx.newFilter("fxaa");
+  const std::string path = ::testing::TempDir() + "crisp_badview_" + std::to_string(::getpid()) + ".exr";
+  std::remove(path.c_str());
+  std::vector<float> img(4 * 4 * 4 + 1, 0.5f);
+  char* bytes = reinterpret_cast<char*>(img.data());
+  struct Case {
+    void* ptr;
+    std::size_t pixel, row;
+    const char* words;
+  };
+  const Case cases[] = {
+      {img.data(), std::size_t(-16), 0, "span more memory"},
+      {img.data(), 4, 0, "smaller than the pixels"},
+      {img.data(), 16, 7, "smaller than the pixels"},
+      {bytes + 1, 0, 0, "multiples of 4 bytes"},
+      {img.data(), 18, 0, "multiples of 4 bytes"},
+      {img.data(), 16, 66, "multiples of 4 bytes"},
+  };
+  for (const Case& c : cases) {
+    CrispError code;
+    crispWriteImage(ctx.handle(), path.c_str(), c.ptr, CRISP_FORMAT_FLOAT4, 4, 1, c.pixel, c.row);
+    const std::string written = lastError(&code);
+    EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT) << c.pixel << " " << c.row;
+    EXPECT_NE(written.find(c.words), std::string::npos) << written;
+    EXPECT_NE(written.find("image to write to"), std::string::npos) << written;
+    EXPECT_NE(::access(path.c_str(), F_OK), 0) << "nothing written for " << written;
+    crispSetFilterImage(f.handle(), "color", c.ptr, CRISP_FORMAT_FLOAT4, 4, 1, c.pixel, c.row);
+    const std::string set = lastError(&code);
+    EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT) << c.pixel << " " << c.row;
+    EXPECT_NE(set.find(c.words), std::string::npos) << set;
+  }
+  // The good view writes; a format no enumerator names is refused as one.
+  crispWriteImage(ctx.handle(), path.c_str(), img.data(), CRISP_FORMAT_FLOAT4, 4, 1, 16, 64);
+  EXPECT_EQ(lastError(), "");
+  EXPECT_EQ(::access(path.c_str(), F_OK), 0);
+  std::remove(path.c_str());
+  crispSetFilterImage(f.handle(), "color", img.data(), static_cast<CrispFormat>(99), 4, 1, 0, 0);
+  EXPECT_NE(lastError().find("unknown format 99"), std::string::npos);
+  // No error: the message pointer is set to NULL, as crisp.h says.
+  const char* message = "stale";
+  EXPECT_EQ(crispGetError(&message), CRISP_ERROR_NONE);
+  EXPECT_EQ(message, nullptr);
+}
+
 // crisp.h: ptr = NULL unsets the image, with any format and size.
 TEST(CApi, NullPointerUnsetsTheImage) {
   auto ctx = crisp::ContextRef::create();

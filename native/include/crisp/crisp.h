@@ -39,11 +39,13 @@ extern "C" {
 typedef enum CrispError {
   CRISP_ERROR_NONE = 0,
   CRISP_ERROR_UNKNOWN = 1,
-  CRISP_ERROR_INVALID_ARGUMENT = 2,   // bad name, value, size or null handle
+  CRISP_ERROR_INVALID_ARGUMENT = 2,   // bad name, value, format (channel count), image size,
+                                      // stride or alignment, or a NULL handle
   CRISP_ERROR_INVALID_OPERATION = 3,  // wrong order (execute before commit, ...)
   CRISP_ERROR_OUT_OF_MEMORY = 4,
   CRISP_ERROR_IO = 5,                 // unreadable, truncated or corrupt file
-  CRISP_ERROR_INVALID_DATA = 6        // missing pass, wrong channel count, ...
+  CRISP_ERROR_INVALID_DATA = 6        // at commit: a required image not set, images of
+                                      // different sizes; a file's missing or unusable pass
 } CrispError;
 
 typedef enum CrispFormat {
@@ -58,7 +60,10 @@ typedef enum CrispFormat {
   // planar depth[8], then int16 world normal x[8], y[8], z[8] (snorm:
   // component x 32767, rounded). The rsaa filter's image "subsamples";
   // crispAttachFrameSubsamples makes it.
-  CRISP_FORMAT_RSAA_SUBSAMPLES = 6
+  CRISP_FORMAT_RSAA_SUBSAMPLES = 6,
+  // Never a format: makes the enum 32 bits wide, so any int a C caller passes is a
+  // value of it (and refused as an unknown format, INVALID_ARGUMENT).
+  CRISP_FORMAT_MAX_ENUM_ = 0x7FFFFFFF
 } CrispFormat;
 
 typedef struct CrispContextImpl* CrispContext;
@@ -70,11 +75,24 @@ CRISP_API int crispGetVersion(void);                 // CRISP_VERSION of the loa
 CRISP_API const char* crispGetVersionString(void);   // "0.1.0"
 // Returns the first error recorded on this thread since the last query and
 // clears it. *outMessage (if not NULL) points to a thread-local string valid
-// until the next Crisp call on this thread.
+// until the next Crisp call on this thread, or is set to NULL when there is
+// no error (CRISP_ERROR_NONE). An error on one thread is never seen on another.
 CRISP_API CrispError crispGetError(const char** outMessage);
 
+// ---- threads and handles ----------------------------------------------------
+// A context may be shared by filters running on several threads; each filter
+// (and frame) is used by one thread at a time. Set the context's parameters
+// before its filters run: a change while one executes is a data race. A filter
+// keeps its context alive, so the two may be released in either order.
+// Releasing a handle more often than it was made and retained, or using it
+// after its last release, is undefined.
+
 // ---- context --------------------------------------------------------------
-// Parameters: "numThreads" (int, 0 = all cores), "verbose" (int 0..2).
+// Parameters: "numThreads" (int, 0 = all cores; used from the next execute of
+// every filter of the context, no commit needed), "verbose" (int 0..2;
+// checked and kept, nothing is printed yet). crispGetContextInt also reads
+// "version" (CRISP_VERSION). crispCommitContext has nothing to apply (the
+// parameters act at once); it is kept for the OIDN shape.
 CRISP_API CrispContext crispNewContext(void);
 CRISP_API void crispRetainContext(CrispContext context);
 CRISP_API void crispReleaseContext(CrispContext context);
@@ -91,7 +109,9 @@ CRISP_API CrispFilter crispNewFilter(CrispContext context, const char* type);
 CRISP_API void crispRetainFilter(CrispFilter filter);
 CRISP_API void crispReleaseFilter(CrispFilter filter);
 
-// Non-owning strided view. pixelByteStride/rowByteStride 0 = packed.
+// Non-owning strided view. pixelByteStride/rowByteStride 0 = packed. The
+// pointer and both strides must be multiples of 4 bytes (values are read as
+// 32-bit floats or integers), the strides at least a pixel and a row.
 // Passing ptr = NULL unsets the image. The "output" image may share an input's
 // buffer (in place): the result is the same as with separate buffers.
 CRISP_API void crispSetFilterImage(CrispFilter filter, const char* name, void* ptr,
@@ -99,6 +119,8 @@ CRISP_API void crispSetFilterImage(CrispFilter filter, const char* name, void* p
                                    size_t pixelByteStride, size_t rowByteStride);
 CRISP_API void crispUnsetFilterImage(CrispFilter filter, const char* name);
 
+// Each parameter has one type (crispGetFilterInfo); crispSetFilterInt also
+// sets a float parameter. Any other mismatch is INVALID_ARGUMENT.
 CRISP_API void crispSetFilterInt(CrispFilter filter, const char* name, int value);
 CRISP_API void crispSetFilterFloat(CrispFilter filter, const char* name, float value);
 CRISP_API void crispSetFilterBool(CrispFilter filter, const char* name, int value);
@@ -123,8 +145,9 @@ CRISP_API const char* crispGetFilterInfo(CrispFilter filter);
 // or is first set; re-pointing an image of the same size and format is not a
 // change. Until then execute fails (INVALID_OPERATION) naming the first change.
 CRISP_API void crispCommitFilter(CrispFilter filter);
-// Runs one frame. Allocates nothing, except on the first in-place run of a
-// size (a copy of the inputs the output overwrites, kept for the next frames).
+// Runs one frame. Allocates no image-sized memory, except on the first in-place
+// run of a size (a copy of the inputs the output overwrites, kept for the next
+// frames); small blocks (per-row scratch, the thread pool's tasks) may be.
 // Temporal filters keep history between calls (below).
 CRISP_API void crispExecuteFilter(CrispFilter filter);
 // Forgets temporal history: call it at a camera cut, a jump in time or a
@@ -152,7 +175,8 @@ CRISP_API int crispGetFrameHeight(CrispFrame frame);
 CRISP_API const char* crispGetFramePasses(CrispFrame frame);
 // How many colour values (channels) the file held as NaN or +-Inf; the
 // "color" pass holds them sanitised (0 for NaN, clamped for Inf). An image
-// with any has no error to measure: crisp compare refuses it.
+// with any has no error to measure: the CLI's crisp compare refuses it
+// (crispCompareImages measures the sanitised values).
 CRISP_API long long crispGetFrameNonFiniteColour(CrispFrame frame);
 // Pointer to the pass's packed pixels (owned by the frame), or NULL with an
 // error if absent. *outFormat receives its format.
@@ -184,7 +208,8 @@ CRISP_API void crispReconstructFrameMotion(CrispContext context, CrispFrame fram
 // camera matrices.
 CRISP_API void crispAttachFrameSubsamples(CrispContext context, CrispFrame frame, CrispFilter filter);
 
-// Writes an image (RGB or RGBA float view) to `path`; the type comes from the
+// Writes an image (RGB or RGBA float view, checked as crispSetFilterImage
+// checks its views) to `path`; the type comes from the
 // extension (.exr: float RGBA; .png: 8-bit sRGB-encoded). Writes to a
 // temporary name then renames, so an existing file is never left half-written.
 CRISP_API void crispWriteImage(CrispContext context, const char* path, const void* ptr,
@@ -193,13 +218,16 @@ CRISP_API void crispWriteImage(CrispContext context, const char* path, const voi
 
 // ---- metrics ---------------------------------------------------------------
 // Figures comparing a test image with a reference, on display-encoded values
-// (linear clamped to [0,1], sRGB-encoded). Fields are only ever appended.
+// (linear clamped to [0,1], sRGB-encoded). crispCompareImages writes the whole
+// struct and the caller passes no size, so a field may be added only with a
+// new CRISP_VERSION_MAJOR.
 typedef struct CrispMetrics {
   double mse, rmse, psnr, snr, ssim, flip;
 } CrispMetrics;
 
-// reference/test: RGB or RGBA float views of the same size. mask (may be NULL):
-// float view; only pixels with mask > 0 count.
+// reference/test: packed (no strides) RGB or RGBA float images of the same
+// size; NaN reads as 0 and +-Inf is clamped, as a frame's colour. mask (may be
+// NULL): packed float image; only pixels with mask > 0 count.
 CRISP_API void crispCompareImages(CrispContext context, const void* reference, const void* test, CrispFormat format,
                                   size_t width, size_t height, const float* mask, CrispMetrics* outMetrics);
 
