@@ -7,8 +7,8 @@
 # OUTDIR/report.html (+ results.json, results.csv, images/).
 #
 # Size chosen for a 2-core machine without a GPU (EEVEE on software OpenGL,
-# about 0.1 s for a 1-sample 480x270 frame and 0.065 s per further sample, as
-# measured on 2026-12-04): 480x270, frames 1-16 (seed 000's static protocol:
+# about 0.075 s for a 1-sample 480x270 frame and 0.035 s per further sample,
+# as the report of 2026-12-05 gives them): 480x270, frames 1-16 (seed 000's static protocol:
 # 16 frames, then compare, so --warmup 15 keeps frame 16 alone in the means;
 # every frame is in the per-frame figures), reference 64 samples; about 2-3
 # minutes of rendering. For final figures use --reference-samples 256 and the
