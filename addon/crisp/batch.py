@@ -154,11 +154,9 @@ def main(argv):
     scene = bpy.context.scene
     if args.resolution:
         try:
-            w, h = (int(v) for v in args.resolution.lower().split("x"))
-            if w < 1 or h < 1:
-                raise ValueError
-        except ValueError:
-            fail(2, "bad --resolution '%s' (expected WxH, e.g. 480x270)" % args.resolution)
+            w, h = pipeline.parse_resolution(args.resolution)
+        except pipeline.InputError as e:
+            fail(2, str(e))
         scene.render.resolution_x, scene.render.resolution_y = w, h
         scene.render.resolution_percentage = 100
 
@@ -179,9 +177,11 @@ def main(argv):
         fail(2 if "camera" in str(e) or "frame" in str(e) else 4, str(e))
     except native.CrispError as e:
         fail(3, str(e))
-    except OSError as e:  # a file of ours that could not be written (run.json on a full disk, say)
+    except render.WriteFailed as e:  # a file of ours that could not be written (run.json on a full disk, say)
+        fail(4, str(e.strerror))
+    except OSError as e:  # any other file error: named, not a traceback
         where = e.filename2 or e.filename
-        fail(4, "cannot write %s: %s" % (where, e.strerror or e) if where else "cannot write: %s" % e)
+        fail(4, "%s: %s" % (where, e.strerror or e) if where else str(e))
     print("crisp: done: %s" % os.path.abspath(args.output), flush=True)
 
 

@@ -37,6 +37,7 @@ def make_parser():
     p.add_argument("-o", "--output", required=True)
     p.add_argument("--methods", default="none")
     p.add_argument("--frames", default="")
+    p.add_argument("--warmup", type=int, default=0)  # crisp eval --warmup: checked here against the range
     p.add_argument("--resolution", default="")
     p.add_argument("--scene-script", default="")
     p.add_argument("--reference-samples", type=int, default=64)
@@ -98,17 +99,18 @@ def main(argv):
             fail(2, "bad CRISP_EVAL_FILTER_SIZE '%s' (pixels, e.g. 0.5)" % filter_size)
     if args.resolution:
         try:
-            w, h = (int(v) for v in args.resolution.lower().split("x"))
-            if w < 1 or h < 1:
-                raise ValueError
-        except ValueError:
-            fail(2, "bad --resolution '%s' (expected WxH, e.g. 480x270)" % args.resolution)
+            w, h = pipeline.parse_resolution(args.resolution)
+        except pipeline.InputError as e:
+            fail(2, str(e))
         scene.render.resolution_x, scene.render.resolution_y = w, h
         scene.render.resolution_percentage = 100
     out = os.path.abspath(args.output)
     try:
         render.check_blender_version()
         frames = list(pipeline.parse_frames(args.frames, scene))
+        if args.warmup >= len(frames):  # before anything is rendered (the scene's own range, without --frames)
+            raise pipeline.InputError("--warmup %d leaves none of the %d frames (%d-%d) to measure"
+                                      % (args.warmup, len(frames), frames[0], frames[-1]))
         if scene.camera is None:
             raise pipeline.InputError("scene '%s' has no camera: add one and set it as the scene camera" % scene.name)
         pipeline.check_output_dir(out)

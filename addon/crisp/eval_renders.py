@@ -42,11 +42,7 @@ from . import render
 SMAA_THRESHOLD = 0.2
 
 
-def write_json(path, data):
-    tmp = path + ".tmp"
-    with open(tmp, "w") as f:
-        json.dump(data, f, indent=1)
-    os.replace(tmp, path)
+write_json = render.write_json  # through a temporary name; WriteFailed names the file
 
 
 def read_json(path, default):
@@ -81,7 +77,7 @@ def group_plans(scene, methods, frames):
     """Plans of the library methods `methods` (names plan.py knows), grouped into render sets.
 
     Returns (plans, sets, unknown, facts): plans {method: Plan}; sets {set name: Plan} for the
-    1-sample renders to make ("jittered", maybe "unjittered", and "warp" where something moves: the
+    1-sample renders to make (one per distinct plan, plan.render_set_name, and "warp" where something moves: the
     temporal error's geometry); unknown: methods plan.py has no passes for (they get the plain
     1-sample frames); facts: plan.SceneFacts of the frame range."""
     engine = render.eevee_engine(scene)

@@ -58,6 +58,23 @@ def parse_frames(text, scene=None):
     return range(a, b + 1)
 
 
+# Blender's smallest render size (resolution_x/y, clamped there) and the library's largest.
+MIN_RESOLUTION, MAX_RESOLUTION = 4, 65536
+
+
+def parse_resolution(text):
+    """'WxH' -> (w, h), each in [MIN_RESOLUTION, MAX_RESOLUTION], as the CLI checks it
+    (cli/options.cpp checkResolutionOption); anything else is an InputError."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        w = h = 0
+    if not (MIN_RESOLUTION <= w <= MAX_RESOLUTION and MIN_RESOLUTION <= h <= MAX_RESOLUTION):
+        raise InputError("bad --resolution '%s' (expected WxH, each %d to %d, e.g. 480x270)"
+                         % (text, MIN_RESOLUTION, MAX_RESOLUTION))
+    return w, h
+
+
 def check_output_dir(out_dir):
     """Creates out_dir if needed and proves it writable, or raises InputError naming it."""
     try:
@@ -91,17 +108,7 @@ def scene_plan(scene, method, frames, view_layer=None, engine_name="eevee"):
 def _write_json(path, data):
     if os.path.dirname(path):
         os.makedirs(os.path.dirname(path), exist_ok=True)
-    tmp = path + ".tmp"
-    try:
-        with open(tmp, "w") as f:
-            json.dump(data, f, indent=1)
-        os.replace(tmp, path)
-    except BaseException:
-        try:  # a full disk or a folder in the way: leave no half-written temporary behind
-            os.remove(tmp)
-        except OSError:
-            pass
-        raise
+    render.write_json(path, data)
 
 
 def _read_json(path):

@@ -265,11 +265,26 @@ def render_settings(scene, engine, samples):
             "motion_blur": False, "exr": "multilayer float32, codec NONE, linear scene-referred"}
 
 
-def _write_json(path, data):
+class WriteFailed(OSError):
+    """A file of ours could not be written (a full disk, a folder in its place): "cannot write PATH: why"."""
+
+
+def write_json(path, data):
+    """Writes data as JSON through a temporary name renamed into place; on failure the temporary is
+    removed and WriteFailed names the file."""
     tmp = path + ".tmp"
-    with open(tmp, "w") as f:
-        json.dump(data, f, indent=1)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w") as f:
+            json.dump(data, f, indent=1)
+        os.replace(tmp, path)
+    except BaseException as e:
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
+        if isinstance(e, OSError) and not isinstance(e, WriteFailed):
+            raise WriteFailed(e.errno, "cannot write %s: %s" % (path, e.strerror or e)) from e
+        raise
 
 
 # ---- rendering -------------------------------------------------------------------------------------
@@ -427,7 +442,7 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
                 sidecar["subsamples"] = _render_subsamples(snap, scene, view_layer, f, out_dir, base_shift,
                                                            shift_per_pixel(scene), dx, dy)
                 cam_data.shift_x, cam_data.shift_y = base_shift
-            _write_json(os.path.join(out_dir, frame_name(f, ".json")), sidecar)
+            write_json(os.path.join(out_dir, frame_name(f, ".json")), sidecar)
             info = {"frame": f, "render_s": render_s, "exr": path, "jitter": [dx, dy]}
             infos.append(info)
             if on_frame:

@@ -193,11 +193,9 @@ int runEval(const ParsedArgs& args) {
   std::string methodList;
   for (const std::string& m : rendered) methodList += (methodList.empty() ? "" : ",") + m;
   cmd.insert(cmd.end(), {"--methods", methodList, "--reference-samples", std::to_string(refSamples), "--curve", curve});
-  for (const char* opt : {"frames", "resolution"})
-    if (args.has(opt)) {
-      cmd.push_back(std::string("--") + opt);
-      cmd.push_back(args.get(opt));
-    }
+  // --frames=A-B as one argument: "-5-3" alone would read as an option to the driver's argparse.
+  for (const char* opt : {"frames", "resolution", "warmup"})
+    if (args.has(opt)) cmd.push_back(std::string("--") + opt + "=" + args.get(opt));
 
   const fs::path log = logs / "blender.log";
   if (!quiet) std::fprintf(stderr, "crisp eval: rendering in Blender (log: %s)\n", log.c_str());

@@ -37,12 +37,10 @@ int runRender(const ParsedArgs& args) {
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch.py");
   cmd.push_back("-o");
   cmd.push_back(args.get("output"));
+  // --opt=VALUE as one argument: a frame range "-5-3" alone would read as an option to batch.py's argparse.
   for (const char* opt :
        {"frames", "preroll", "shot", "method", "samples", "reference-samples", "resolution", "threads"})
-    if (args.has(opt)) {
-      cmd.push_back(std::string("--") + opt);
-      cmd.push_back(args.get(opt));
-    }
+    if (args.has(opt)) cmd.push_back(std::string("--") + opt + "=" + args.get(opt));
   for (const std::string& kv : args.all("set")) {
     cmd.push_back("--set");
     cmd.push_back(kv);

@@ -191,9 +191,11 @@ void checkResolutionOption(const ParsedArgs& a) {
   std::string lower = r;
   std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   int w = 0, h = 0, consumed = 0;
-  if (std::sscanf(lower.c_str(), "%dx%d%n", &w, &h, &consumed) != 2 || consumed != int(r.size()) || w < 1 || h < 1 ||
-      w > 65536 || h > 65536)
-    throw UsageError("bad --resolution '" + r + "' (expected WxH, e.g. 480x270)");
+  constexpr int kLowest = 4, kHighest = 65536;  // Blender's smallest render size; the library's largest
+  if (std::sscanf(lower.c_str(), "%dx%d%n", &w, &h, &consumed) != 2 || consumed != int(r.size()) || w < kLowest ||
+      h < kLowest || w > kHighest || h > kHighest)
+    throw UsageError("bad --resolution '" + r + "' (expected WxH, each " + std::to_string(kLowest) + " to " +
+                     std::to_string(kHighest) + ", e.g. 480x270)");
 }
 
 void checkBlenderFrameRangeOption(const ParsedArgs& a, const std::string& name) {

@@ -116,7 +116,7 @@ std::map<int, double> renderTimes(const fs::path& dir) {
 // ---- the methods ---------------------------------------------------------------------------------
 
 
-// Motion for the frames of a render set that has depth (renders/jittered, renders/warp) of a
+// Motion for the frames of a render set that has depth (a jittered set, renders/warp) of a
 // scene where something moves: the renderer's pass, else reconstructed from
 // depth and the sidecars. A still scene gets none, as its pass plan says, so
 // the temporal filters take their static path.
@@ -462,12 +462,16 @@ double valueAt(const std::map<int, double>& m, int f) {
 void removeLastRunsPictures(const fs::path& out) {
   const json last = readJson(out / "results.json", false);
   if (!last.is_object() || !last.contains("scenes") || !last["scenes"].is_array()) return;
-  const fs::path images = (out / "images").lexically_normal();
   std::error_code ec;
+  const fs::path images = fs::weakly_canonical(out / "images", ec);
+  if (ec) return;
   auto remove = [&](const fs::path& relative) {
-    const fs::path p = (out / relative).lexically_normal();
+    // Resolved (symbolic links and '..' followed), so a listed path can only reach a file under images/.
+    std::error_code bad;
+    const fs::path p = fs::weakly_canonical(out / relative, bad);
+    if (bad) return;
     const auto [end, _] = std::mismatch(images.begin(), images.end(), p.begin(), p.end());
-    if (end == images.end() && p.extension() == ".png") fs::remove(p, ec);
+    if (end == images.end() && p != images && p.extension() == ".png") fs::remove(p, ec);
   };
   for (const json& scene : last["scenes"]) {
     if (!scene.is_object()) continue;
@@ -934,7 +938,8 @@ int run(const Options& o) {
   std::ostringstream csv;
   // The same figures as results.json (figuresJson): its "mean" and per-frame entries, one row each.
   csv << "scene,kind,name,frame,psnr,ssim,perceptual_error,temporal_error,render_s,filter_s,geometry_render_s,"
-         "time_s,equivalent_eevee_samples,error\n";
+         "time_s,equivalent_eevee_samples,equivalent_note,error\n";
+  // equivalent: the number (empty outside the curve) and the note ("> 16"), in columns of their own.
   auto row = [&](const Entry& e, const std::string& frame, const json& f, const std::string& equivalent) {
     std::string err = e.error;
     std::replace(err.begin(), err.end(), '"', '\'');
@@ -949,8 +954,8 @@ int run(const Options& o) {
     for (std::size_t k = 0; k < list->size(); ++k) {
       const Entry& e = (*list)[k];
       const json& j = (*results)[k];
-      row(e, "mean", j["mean"], std::isfinite(e.equivalentSamples) ? csvNumber(e.equivalentSamples) : e.equivalentNote);
-      for (const json& f : j["frames"]) row(e, std::to_string(f["frame"].get<int>()), f, "");
+      row(e, "mean", j["mean"], csvNumber(e.equivalentSamples) + "," + e.equivalentNote);
+      for (const json& f : j["frames"]) row(e, std::to_string(f["frame"].get<int>()), f, ",");
     }
   cli::writeTextFile((out / "results.csv").string(), csv.str());
   writeReport(o.outDir, results);

@@ -102,6 +102,9 @@ def test_help_prints_parameter_tables():
      ["--shot expects A-B or A", "got '9-1'"]),
     (["render", "--scene", "still_life", "--resolution", "0x36", "-o", "OUT", "--blender", "NOBLENDER"], 2,
      ["bad --resolution '0x36'"]),
+    # Blender's smallest render size is 4 (it would render 4x4 and say nothing).
+    (["render", "--scene", "still_life", "--resolution", "3x36", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["bad --resolution '3x36'", "each 4 to 65536"]),
     (["render", "--scene", "still_life", "--preroll", "-1", "-o", "OUT", "--blender", "NOBLENDER"], 2,
      ["--preroll expects a whole number in [0, "]),
     (["render", "--scene", "still_life", "--samples", "0", "-o", "OUT", "--blender", "NOBLENDER"], 2,
@@ -136,6 +139,19 @@ def test_eval_that_renders_nothing_leaves_no_settings(tmp_path):
     p = run("eval", "--scene", "still_life", "--frames", "5-3", "--resolution", "64x36", "-o", out, ok=False)
     assert p.returncode == 2 and "5-3" in p.stderr, p.stderr
     assert not (out / "eval_settings.json").exists()
+    # A warm-up longer than the scene's own range (no --frames): refused by the driver before it renders.
+    p = run("eval", "--scene", "still_life", "--warmup", "16", "--resolution", "64x36", "-o", out, ok=False)
+    assert p.returncode == 2 and "--warmup 16 leaves none of the 16 frames (1-16)" in p.stderr, p.stderr
+    assert not (out / "eval_settings.json").exists() and not list(out.rglob("*.exr"))
+
+
+@pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
+def test_render_passes_a_negative_frame_range_to_blender(tmp_path):
+    """Blender frames may be negative; '-2-1' reaches batch.py as one value (--frames=-2-1), not as an
+    option of its own."""
+    out = tmp_path / "out"
+    run("render", "--scene", "still_life", "--frames", "-2-1", "--plan", "--quiet", "-o", out)
+    assert json.loads((out / "run.json").read_text())["frames_requested"] == [-2, 1]
 
 
 def test_bad_files_name_the_file_and_write_nothing(chart, tmp_path):

@@ -149,6 +149,37 @@ def test_crop_scores_recomputed_from_the_files(run):
         assert abs(mine - c["score"]) <= 1e-4 * mine, (c, mine)
 
 
+def test_last_runs_pictures_are_removed_and_nothing_else(run):
+    """A rerun removes the pictures the last results.json lists (a shorter run must not leave the
+    last run's crops beside its own), and only those: a listed path that leads out of images/ (by
+    '..', or through a symbolic link) is left alone, as is a file of the user's in images/."""
+    out, _, _ = run
+    copy = tempfile.mkdtemp(prefix="crisp_eval_pictures_")
+    outside = tempfile.mkdtemp(prefix="crisp_eval_outside_")
+    try:
+        subprocess.run(["cp", "-a", out + "/.", copy], check=True)
+        keep = [os.path.join(outside, "a.png"), os.path.join(copy, "b.png"), os.path.join(copy, "images", "mine.png")]
+        for k in keep:
+            open(k, "wb").close()
+        os.symlink(outside, os.path.join(copy, "images", "link"))
+        results = json.load(open(os.path.join(copy, "results.json")))
+        crop = results["scenes"][0]["crops"][0]
+        stale = os.path.join(copy, "images", "crops", "c0", "none", "frame_0009.png")  # no frame 9 in this run
+        open(stale, "wb").close()
+        crop["files"]["none"] += ["images/link/a.png", "images/../b.png", os.path.relpath(stale, copy)]
+        json.dump(results, open(os.path.join(copy, "results.json"), "w"))
+        p = subprocess.run([CRISP, "eval"] + ARGS + ["-o", copy], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           timeout=300)
+        assert p.returncode == 0, p.stderr.decode()[-2000:]
+        assert not os.path.exists(stale), "the last run's crop of a frame this run does not have"
+        for k in keep:
+            assert os.path.exists(k), k
+        assert os.path.isfile(os.path.join(copy, "images", "crops", "c0", "none", "frame_0001.png"))
+    finally:
+        shutil.rmtree(copy, ignore_errors=True)
+        shutil.rmtree(outside, ignore_errors=True)
+
+
 def test_resume_redoes_nothing(run):
     out, _, _ = run
     before = {p: os.path.getmtime(os.path.join(dp, p)) for dp, _, fs in os.walk(os.path.join(out, "renders"))
