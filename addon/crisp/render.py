@@ -282,7 +282,7 @@ def write_json(path, data):
             os.remove(tmp)
         except OSError:
             pass
-        if isinstance(e, OSError) and not isinstance(e, WriteFailed):
+        if isinstance(e, OSError):
             raise WriteFailed(e.errno, "cannot write %s: %s" % (path, e.strerror or e)) from e
         raise
 

@@ -135,9 +135,8 @@ int runEval(const ParsedArgs& args) {
   // Checked here too: the folder's settings file is written before Blender starts, and a size Blender
   // then refused would lock the folder against the corrected command.
   checkResolutionOption(args);
-  checkBlenderFrameRangeOption(args, "frames");
   const int warmup = parseIntOption(args, "warmup", 0, 0, 1000000);
-  if (args.has("frames")) {
+  if (args.has("frames")) {  // checked as crisp render checks it (checkBlenderFrameRangeOption), and its length
     const FrameRange range = parseFrameRange("frames", args.get("frames"), kBlenderLowestFrame);
     if (warmup > range.last - range.first)
       throw UsageError("--warmup " + std::to_string(warmup) + " leaves none of the frames " + args.get("frames") +
