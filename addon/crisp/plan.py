@@ -18,6 +18,8 @@ one needs in Blender:
     subsamples  extra geometry-only renders (depth + normal) at sub-pixel offsets (RSAA)
 """
 
+import hashlib
+from array import array
 from dataclasses import dataclass, field
 
 # What each method reads when the scene needs everything (METHODS.md).
@@ -286,7 +288,8 @@ def _node_tree_varies(tree, seen):
 
 
 def _deforms(ob):
-    """True if the object's geometry can change over time (not covered by rigid reconstruction):
+    """True if, by its settings alone, the object's geometry can change over time (not covered by rigid
+    reconstruction; scene_facts also compares the evaluated geometry over the frames):
     animated mesh data or shape keys, a deforming or simulating modifier, a modifier whose settings are
     keyframed or driven, or Geometry Nodes that read the time or are animated."""
     data = getattr(ob, "data", None)
@@ -311,8 +314,65 @@ def _deforms(ob):
     return False
 
 
-def _same(a, b, eps=1e-6):
-    return all(abs(a[i][j] - b[i][j]) <= eps for i in range(4) for j in range(4))
+def _same(a, b, eps=1e-6, rows=range(4)):
+    return all(abs(a[i][j] - b[i][j]) <= eps for i in rows for j in range(4))
+
+
+def render_size(scene):
+    """The rendered image's size in pixels (resolution times its percentage)."""
+    r = scene.render
+    return (int(r.resolution_x * r.resolution_percentage / 100), int(r.resolution_y * r.resolution_percentage / 100))
+
+
+# Rows of a projection matrix that place a point on the image: x, y and w (row 2 carries depth, and
+# clip_start / clip_end with it, which move no pixel).
+IMAGE_ROWS = (0, 1, 3)
+
+
+def _camera_projection(cam, depsgraph, scene):
+    """The camera's projection at the render size: the lens, sensor, shift, orthographic scale and
+    camera type in one matrix, so that a zoom or an animated shift counts as camera motion."""
+    w, h = render_size(scene)
+    m = cam.calc_matrix_camera(depsgraph, x=w, y=h, scale_x=scene.render.pixel_aspect_x,
+                               scale_y=scene.render.pixel_aspect_y)
+    return [list(r) for r in m]
+
+
+# Object types whose evaluated geometry _geometry_fingerprint reads: meshes as evaluated, and the
+# types Blender turns into a mesh to render them (to_mesh).
+MESH_TYPES = {"CURVE", "SURFACE", "FONT", "META"}
+
+
+def _may_deform(ob):
+    """True if the object's evaluated geometry can differ from its data: modifiers, shape keys, or a
+    type evaluated into a mesh (a curve's bevel object, a metaball's other elements)."""
+    data = getattr(ob, "data", None)
+    return bool(len(getattr(ob, "modifiers", ())) or getattr(data, "shape_keys", None) is not None
+                or ob.type in MESH_TYPES)
+
+
+def _geometry_fingerprint(ob, depsgraph):
+    """A digest of the object's evaluated vertex positions (object space) and count, or None for a type
+    it does not read (volumes, point clouds, hair curves, grease pencil: left to _deforms)."""
+    try:
+        ob_eval = ob.evaluated_get(depsgraph)
+    except (RuntimeError, ReferenceError):
+        return None
+    if ob_eval.type == "MESH":
+        mesh, cleared = ob_eval.data, None
+    elif ob_eval.type in MESH_TYPES:
+        mesh, cleared = ob_eval.to_mesh(), ob_eval
+    else:
+        return None
+    try:
+        if mesh is None:
+            return b""
+        co = array("f", bytes(12 * len(mesh.vertices)))
+        mesh.vertices.foreach_get("co", co)
+        return hashlib.blake2b(co.tobytes() + len(co).to_bytes(8, "little"), digest_size=16).digest()
+    finally:
+        if cleared is not None:
+            cleared.to_mesh_clear()
 
 
 def rendered_instances(layer):
@@ -390,18 +450,22 @@ def _show_instanced(instancer, undo, seen):
 
 def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_pass=False):
     """Steps through the frame range and compares world matrices with the first frame's (each camera's
-    with its own: a switch of cameras at a timeline marker is a cut, listed in camera_cuts, where
-    temporal history restarts; FrameFilter and `crisp filter` see it in the sidecars).
+    with its own, and its projection: a zoom or an animated shift moves the picture; a switch of cameras
+    at a timeline marker is a cut, listed in camera_cuts, where temporal history restarts; FrameFilter
+    and `crisp filter` see it in the sidecars), and the evaluated geometry of what may deform with the
+    first frame's.
 
-    Restores the current frame and camera. Checks matrices (not only animation data) so constraints, drivers
-    and parenting count too."""
+    Restores the current frame and camera. Checks matrices and geometry (not only animation data) so
+    constraints, drivers, parenting and control objects count too. What the viewport does not evaluate
+    (a modifier shown in renders only) is left to the static checks of _deforms."""
     layer = view_layer or scene.view_layers[0]
     saved = (scene.frame_current, scene.frame_subframe, scene.camera)
     # What is hidden in the viewport alone still renders, but the viewport's depsgraph does not
     # evaluate it (its matrix_world would not follow the frames): shown while stepping, then hidden again.
     shown = show_in_viewport(scene, layer)
-    first_cam = {}  # camera object name -> its matrix at the first frame it is the scene's camera
+    first_cam = {}  # camera object name -> its matrix and projection at the first frame it is the scene's camera
     first, moving, names, cuts = {}, set(), [], []
+    first_geometry, reshaped = {}, set()  # object name -> _geometry_fingerprint at the first frame; changed since
     instances = []  # the last frame's (rendered_instances)
     camera_moves = False
     previous_cam = None
@@ -418,10 +482,11 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                 names = [o.name for o in obs]
                 names += sorted({source.name for source, _, _ in instances} - set(names))
             if cam is not None:
-                cm = [list(r) for r in cam.matrix_world]
+                cm = ([list(r) for r in cam.matrix_world], _camera_projection(cam, layer.depsgraph, scene))
                 if cam.name not in first_cam:
                     first_cam[cam.name] = cm
-                elif not _same(cm, first_cam[cam.name]):
+                elif not (_same(cm[0], first_cam[cam.name][0])
+                          and _same(cm[1], first_cam[cam.name][1], rows=IMAGE_ROWS)):
                     camera_moves = True
             for o in obs:
                 m = [list(r) for r in o.matrix_world]
@@ -429,6 +494,18 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                     first[o.name] = m
                 elif not _same(m, first[o.name]):
                     moving.add(o.name)
+            # Geometry that changes with no animation of its own (a hook or lattice whose control object
+            # moves, Geometry Nodes reading another object): measured, as the matrices are.
+            for o in obs + [source for source, _, _ in instances]:
+                if o.name in reshaped or not _may_deform(o):
+                    continue
+                fp = _geometry_fingerprint(o, layer.depsgraph)
+                if fp is None:
+                    continue
+                if o.name not in first_geometry:
+                    first_geometry[o.name] = fp
+                elif fp != first_geometry[o.name]:
+                    reshaped.add(o.name)
             seen = {}  # an instance is told from the others of its source and instancer by its order
             for source, parent, m in instances:
                 key = (source.name, parent, seen.setdefault((source.name, parent), 0))
@@ -437,8 +514,8 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                     first[key] = m
                 elif not _same(m, first[key]):
                     moving.add(source.name)
-        deforming = [o.name for o in visible_objects(scene, layer) if _deforms(o)]
-        deforming += sorted({source.name for source, _, _ in instances if _deforms(source)} - set(deforming))
+        deforming = {o.name for o in visible_objects(scene, layer) if _deforms(o)}
+        deforming |= {source.name for source, _, _ in instances if _deforms(source)} | reshaped
     finally:
         for restore in reversed(shown):
             restore()

@@ -205,9 +205,7 @@ def jitter_offset(frame, distribution="blackman-harris", filter_size=1.5, period
     return inv(u), inv(v), index
 
 
-def render_size(scene):
-    r = scene.render
-    return (int(r.resolution_x * r.resolution_percentage / 100), int(r.resolution_y * r.resolution_percentage / 100))
+render_size = plan_mod.render_size
 
 
 def shift_per_pixel(scene):
@@ -385,16 +383,21 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
     infos = []
     with Snapshot(scene) as snap:
         # The camera of each frame (timeline markers may switch cameras): its shift as the user left
-        # it, registered once for the restore.
-        base_shifts = {}
+        # it, registered once for the restore. The jitter is added to the shift of the frame: the user's,
+        # or what the animation or a driver makes it at that frame.
+        user_shifts = {}
 
         def frame_camera():
             data = scene.camera.data
-            if data.name not in base_shifts:
-                base_shifts[data.name] = (data.shift_x, data.shift_y)
+            if data.name not in user_shifts:
+                user_shifts[data.name] = (data, (data.shift_x, data.shift_y))
                 snap.set(data, "shift_x", data.shift_x)
                 snap.set(data, "shift_y", data.shift_y)
-            return data, base_shifts[data.name]
+            return data, (data.shift_x, data.shift_y)
+
+        def unjittered_cameras():  # before frame_set, which then animates the shifts that are animated
+            for data, (x, y) in user_shifts.values():
+                data.shift_x, data.shift_y = x, y
 
         cam_data, base_shift = frame_camera()
         snap.set(scene.render, "filepath", scene.render.filepath)
@@ -405,9 +408,9 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
         for f in frames:
             if should_cancel and should_cancel():
                 break
+            unjittered_cameras()
             scene.frame_set(f)
             cam_data, base_shift = frame_camera()
-            cam_data.shift_x, cam_data.shift_y = base_shift
             unit = shift_per_pixel(scene) if the_plan.jitter else 0.0
             depsgraph = bpy.context.evaluated_depsgraph_get()
             depsgraph.update()

@@ -287,6 +287,113 @@ class AddonTest(unittest.TestCase):
         self.assertFalse(ball.animation_data.action)
         self.assertEqual(plan_of(scene)[1].deforming_objects, [ball.name])
 
+    def test_geometry_moved_by_another_object_deforms(self):
+        """A hook pulled by an animated empty and Geometry Nodes that read an animated empty (Object
+        Info, relative) reshape the ball with no animation of the ball's own: measured, it deforms, so
+        taa gets motion (and with it depth for the disocclusion test). The same set-ups with the empty
+        still leave the scene still."""
+        def plan_of(scene):
+            return pipeline.scene_plan(scene, "taa", [1, 2, 3])
+
+        def controlled_ball(kind, animated):
+            scene = harness.build_scene("still_life")
+            ball = scene.objects["Ball"]
+            empty = bpy.data.objects.new("Control", None)  # not rendered: never in moving_objects
+            scene.collection.objects.link(empty)
+            if kind == "hook":
+                hook = ball.modifiers.new("Hook", "HOOK")
+                hook.object = empty
+                hook.vertex_indices_set([0, 1, 2])
+            else:
+                tree = bpy.data.node_groups.new("Follow", "GeometryNodeTree")
+                tree.inputs.new("NodeSocketGeometry", "Geometry")
+                tree.outputs.new("NodeSocketGeometry", "Geometry")
+                gin, gout = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
+                info = tree.nodes.new("GeometryNodeObjectInfo")
+                info.transform_space = "RELATIVE"
+                info.inputs["Object"].default_value = empty
+                setpos = tree.nodes.new("GeometryNodeSetPosition")
+                tree.links.new(gin.outputs[0], setpos.inputs["Geometry"])
+                tree.links.new(info.outputs["Location"], setpos.inputs["Offset"])
+                tree.links.new(setpos.outputs[0], gout.inputs[0])
+                ball.modifiers.new("Follow", "NODES").node_group = tree
+            if animated:
+                empty.keyframe_insert("location", frame=1)
+                empty.location.z = 0.5
+                empty.keyframe_insert("location", frame=3)
+            return scene, ball
+
+        for kind in ("hook", "object-info"):
+            with self.subTest(kind=kind):
+                scene, ball = controlled_ball(kind, animated=True)
+                self.assertFalse(plan._deforms(ball), "nothing in the ball's own settings says it deforms")
+                zs = []
+                for f in (1, 3):
+                    scene.frame_set(f)
+                    zs.append(ball.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices[0].co.z)
+                self.assertGreater(abs(zs[1] - zs[0]), 0.1, "the set-up moves the geometry")
+                scene.frame_set(1)
+                p, facts = plan_of(scene)
+                self.assertEqual(facts.deforming_objects, [ball.name])
+                self.assertEqual(facts.moving_objects, [])
+                self.assertIn("motion", p.passes)
+                self.assertIn("depth", p.passes)
+                self.assertEqual(scene.frame_current, 1, "planning restores the frame")
+                scene, ball = controlled_ball(kind, animated=False)
+                p, facts = plan_of(scene)
+                self.assertEqual(facts.deforming_objects, [], "a still control object: still")
+                self.assertEqual(p.passes, ["color"])
+
+    def test_camera_projection_changes_move_the_picture(self):
+        """A zoom (animated lens), an animated shift and an animated orthographic scale move every pixel
+        with the camera's matrix unchanged: the camera moves. Animated clipping distances move none."""
+        def animate(data, prop, a, b):
+            setattr(data, prop, a)
+            data.keyframe_insert(prop, frame=1)
+            setattr(data, prop, b)
+            data.keyframe_insert(prop, frame=3)
+
+        for prop, a, b, moves in (("lens", 35.0, 60.0, True), ("shift_x", 0.0, 0.2, True),
+                                  ("shift_y", 0.0, -0.1, True), ("ortho_scale", 4.0, 6.0, True),
+                                  ("clip_end", 50.0, 80.0, False), ("clip_start", 0.1, 0.5, False)):
+            with self.subTest(prop=prop):
+                scene = harness.build_scene("still_life")
+                data = scene.camera.data
+                if prop == "ortho_scale":
+                    data.type = "ORTHO"
+                animate(data, prop, a, b)
+                p, facts = pipeline.scene_plan(scene, "taa", [1, 2, 3])
+                self.assertEqual(facts.camera_moves, moves)
+                self.assertEqual("motion" in p.passes, moves, p.describe())
+
+    def test_rendered_frames_keep_an_animated_shift(self):
+        """The jitter is added to each frame's own shift: an animated shift is rendered as animated
+        (the sidecars' unjittered projections follow it, the jittered ones differ from those by the
+        jitter alone), and no jitter is left on the camera afterwards."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        data = scene.camera.data
+        data.shift_x = 0.0
+        data.keyframe_insert("shift_x", frame=1)
+        data.shift_x = 0.2
+        data.keyframe_insert("shift_x", frame=3)
+        p, _ = pipeline.scene_plan(scene, "taa", [1, 2, 3])
+        self.assertTrue(p.jitter)
+        scene.frame_set(2)
+        with tempfile.TemporaryDirectory() as d:
+            render.render_frames(scene, p, [1, 3], d)
+            sidecars = [json.load(open(os.path.join(d, "frame_%04d.json" % f))) for f in (1, 3)]
+        unit = 2.0 / 32  # projection x per pixel: 2 / width
+        for sidecar, shift in zip(sidecars, (0.0, 0.2)):
+            cam = sidecar["camera"]
+            self.assertAlmostEqual(cam["base_shift"][0], shift, places=6)
+            self.assertAlmostEqual(cam["projection_unjittered"][0][2], 2 * shift, places=5)
+            jx = cam["projection"][0][2] - cam["projection_unjittered"][0][2]
+            self.assertAlmostEqual(jx, sidecar["jitter"]["x"] * unit, places=5)
+            self.assertNotEqual(sidecar["jitter"]["x"], 0.0)
+        self.assertEqual(scene.frame_current, 2)
+        self.assertAlmostEqual(data.shift_x, 0.1, places=6, msg="the animation's shift at frame 2, no jitter left")
+
     @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
     def test_rsaa_without_geometry_takes_its_parameters(self):
         """rsaa on a plan with no sub-samples (nothing visible) filters as 'none'; the rsaa parameters
