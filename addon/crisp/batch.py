@@ -154,11 +154,9 @@ def main(argv):
     scene = bpy.context.scene
     if args.resolution:
         try:
-            w, h = pipeline.parse_resolution(args.resolution)
+            pipeline.apply_resolution(scene, args.resolution)
         except pipeline.InputError as e:
             fail(2, str(e))
-        scene.render.resolution_x, scene.render.resolution_y = w, h
-        scene.render.resolution_percentage = 100
 
     try:
         frames = pipeline.parse_frames(args.frames, scene)

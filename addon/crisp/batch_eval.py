@@ -99,11 +99,9 @@ def main(argv):
             fail(2, "bad CRISP_EVAL_FILTER_SIZE '%s' (pixels, e.g. 0.5)" % filter_size)
     if args.resolution:
         try:
-            w, h = pipeline.parse_resolution(args.resolution)
+            pipeline.apply_resolution(scene, args.resolution)
         except pipeline.InputError as e:
             fail(2, str(e))
-        scene.render.resolution_x, scene.render.resolution_y = w, h
-        scene.render.resolution_percentage = 100
     out = os.path.abspath(args.output)
     try:
         render.check_blender_version()

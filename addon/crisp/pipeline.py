@@ -75,6 +75,13 @@ def parse_resolution(text):
     return w, h
 
 
+def apply_resolution(scene, text):
+    """Renders `scene` at the --resolution 'WxH' (parse_resolution), at 100 %."""
+    w, h = parse_resolution(text)
+    scene.render.resolution_x, scene.render.resolution_y = w, h
+    scene.render.resolution_percentage = 100
+
+
 def check_output_dir(out_dir):
     """Creates out_dir if needed and proves it writable, or raises InputError naming it."""
     try:
