@@ -18,6 +18,7 @@ run. A texture whose row 0 is the bottom of the picture (the viewport's) needs r
 common.glsl "Row order".
 """
 
+import functools
 import os
 import struct
 
@@ -259,14 +260,22 @@ def _constants(file_key, params):
 
 def library_check(method, params):
     """None when the library accepts params for method, else its message (native.check_params). Without
-    the library there is nothing to check against: the add-on then offers only the defaults (properties.py)."""
+    the library there is nothing to check against: the add-on then offers only the defaults (properties.py).
+    The viewport asks on every redraw with the same settings: the answers are remembered by value."""
     from . import native
     try:
-        native.load()
+        library = native.load().path
     except native.CrispError:
         return None
     named = {k: CHOICES[k][v] if k in CHOICES and not isinstance(v, str) else v for k, v in params.items()}
-    return native.check_params(method, named)
+    return _checked(library, method, tuple(sorted(named.items())))
+
+
+@functools.lru_cache(maxsize=64)
+def _checked(library, method, items):
+    """library_check's answer for the library loaded from `library` (another one may answer otherwise)."""
+    from . import native
+    return native.check_params(method, dict(items))
 
 
 def texture_from_rgba(width, height, values):
