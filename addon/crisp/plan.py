@@ -343,12 +343,22 @@ def _camera_projection(cam, depsgraph, scene):
 MESH_TYPES = {"CURVE", "SURFACE", "FONT", "META"}
 
 
+def _reads_other_data(modifier):
+    """True for Geometry Nodes, and for a modifier that points at another datablock (a hook's or a
+    lattice's object, a displacement's texture): what it makes can change while its settings do not."""
+    if modifier.type == "NODES":
+        return True
+    for prop in modifier.bl_rna.properties:
+        if prop.type == "POINTER" and hasattr(getattr(modifier, prop.identifier, None), "users"):  # an ID
+            return True
+    return False
+
+
 def _may_deform(ob):
-    """True if the object's evaluated geometry can differ from its data: modifiers, shape keys, or a
-    type evaluated into a mesh (a curve's bevel object, a metaball's other elements)."""
-    data = getattr(ob, "data", None)
-    return bool(len(getattr(ob, "modifiers", ())) or getattr(data, "shape_keys", None) is not None
-                or ob.type in MESH_TYPES)
+    """True if the object's evaluated geometry can change with nothing of its own animated (what
+    _deforms does not see): a modifier that reads other data, or a type evaluated into a mesh (a curve's
+    bevel object, a metaball's other elements). A subdivision or a bevel alone is not measured."""
+    return ob.type in MESH_TYPES or any(_reads_other_data(m) for m in getattr(ob, "modifiers", ()))
 
 
 def _geometry_fingerprint(ob, depsgraph):

@@ -327,6 +327,7 @@ class AddonTest(unittest.TestCase):
             with self.subTest(kind=kind):
                 scene, ball = controlled_ball(kind, animated=True)
                 self.assertFalse(plan._deforms(ball), "nothing in the ball's own settings says it deforms")
+                self.assertTrue(plan._may_deform(ball), "so its geometry is measured")
                 zs = []
                 for f in (1, 3):
                     scene.frame_set(f)
@@ -343,6 +344,9 @@ class AddonTest(unittest.TestCase):
                 p, facts = plan_of(scene)
                 self.assertEqual(facts.deforming_objects, [], "a still control object: still")
                 self.assertEqual(p.passes, ["color"])
+        ball.modifiers.clear()
+        ball.modifiers.new("Smooth", "SUBSURF")
+        self.assertFalse(plan._may_deform(ball), "a modifier that reads nothing else is not measured")
 
     def test_camera_projection_changes_move_the_picture(self):
         """A zoom (animated lens), an animated shift and an animated orthographic scale move every pixel
