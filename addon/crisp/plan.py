@@ -268,10 +268,33 @@ def visible_objects(scene, view_layer=None):
 TIME_NODES = {"GeometryNodeInputSceneTime", "GeometryNodeSimulationInput", "GeometryNodeSimulationOutput"}
 
 
+def _actions(ad):
+    """The actions that animate a datablock: the active one and those of its NLA strips (unmuted)."""
+    out = [ad.action] if ad.action else []
+    for track in ad.nla_tracks:
+        if not track.mute:
+            out += [strip.action for strip in track.strips if strip.action and not strip.mute]
+    return out
+
+
 def _animated(id_data):
-    """True if a datablock has keyframes or drivers (a driver can read the frame, #frame)."""
+    """True if a datablock has keyframes (its action or NLA strips) or drivers (a driver can read the
+    frame, #frame)."""
     ad = getattr(id_data, "animation_data", None)
-    return bool(ad and (ad.action or len(ad.drivers)))
+    return bool(ad and (_actions(ad) or len(ad.drivers)))
+
+
+def _animated_paths(id_data):
+    """The data paths of a datablock's keyframes (active action and NLA strips) and drivers."""
+    ad = getattr(id_data, "animation_data", None)
+    if not ad:
+        return []
+    return [fc.data_path for action in _actions(ad) for fc in action.fcurves] + [d.data_path for d in ad.drivers]
+
+
+def _path_of_modifier(name):
+    """The data path of modifier `name` as Blender writes it in an F-curve (quotes and backslashes escaped)."""
+    return 'modifiers["%s"]' % name.replace("\\", "\\\\").replace('"', '\\"')
 
 
 def _node_tree_varies(tree, seen):
@@ -287,27 +310,49 @@ def _node_tree_varies(tree, seen):
     return False
 
 
+# Modifiers that deform or simulate by themselves (time, a cache, a simulation that needs the frames
+# before the range): flagged without measuring, since stepping through the range may not reproduce them.
+SELF_DEFORMING = {"CLOTH", "SOFT_BODY", "OCEAN", "WAVE", "DYNAMIC_PAINT", "FLUID", "MESH_CACHE",
+                  "MESH_SEQUENCE_CACHE", "EXPLODE", "PARTICLE_SYSTEM"}
+
+
+def _static_hair(m):
+    """A particle system of static hair: rendered strands that follow the emitter, nothing more."""
+    system = getattr(m, "particle_system", None)
+    return (system is not None and system.settings.type == "HAIR" and not system.use_hair_dynamics)
+
+
+def _grease_pencil_varies(ob):
+    """A grease pencil object drawn differently over time: several drawings (frames) in a layer, or a
+    modifier or effect of its own (noise, offset, build... many vary with the frame)."""
+    if any(m.show_render for m in getattr(ob, "grease_pencil_modifiers", ())):
+        return True
+    return any(len(layer.frames) > 1 for layer in getattr(ob.data, "layers", ()))
+
+
 def _deforms(ob):
     """True if, by its settings alone, the object's geometry can change over time (not covered by rigid
-    reconstruction; scene_facts also compares the evaluated geometry over the frames):
-    animated mesh data or shape keys, a deforming or simulating modifier, a modifier whose settings are
-    keyframed or driven, or Geometry Nodes that read the time or are animated."""
+    reconstruction; scene_facts also measures the evaluated geometry over the frames, which finds an
+    armature's pose, a hook's or a lattice's control object and the like): animated mesh data or shape
+    keys (keyframes, NLA strips or drivers), a modifier that deforms or simulates by itself
+    (SELF_DEFORMING) or whose settings are animated, Geometry Nodes that read the time or are animated,
+    grease pencil drawn differently over time. Modifiers off in renders do not count."""
     data = getattr(ob, "data", None)
     if data is not None and _animated(data):
         return True
     keys = getattr(data, "shape_keys", None)
-    if keys is not None and keys.animation_data:
+    if keys is not None and _animated(keys):
         return True
-    ad = ob.animation_data
-    animated_paths = [fc.data_path for fc in ad.action.fcurves] if ad and ad.action else []
-    animated_paths += [d.data_path for d in ad.drivers] if ad else []
+    if ob.type == "GPENCIL" and _grease_pencil_varies(ob):
+        return True
+    animated_paths = _animated_paths(ob)
     for m in getattr(ob, "modifiers", []):
-        if m.type in {"ARMATURE", "CLOTH", "SOFT_BODY", "OCEAN", "WAVE", "DYNAMIC_PAINT", "FLUID",
-                      "MESH_CACHE", "MESH_SEQUENCE_CACHE", "EXPLODE", "PARTICLE_SYSTEM"}:
-            return True
         if not getattr(m, "show_render", True):
             continue
-        if any(path.startswith('modifiers["%s"]' % m.name) for path in animated_paths):
+        if m.type in SELF_DEFORMING and not _static_hair(m):
+            return True
+        path = _path_of_modifier(m.name)
+        if any(p.startswith(path) for p in animated_paths):
             return True
         if m.type == "NODES" and _node_tree_varies(getattr(m, "node_group", None), set()):
             return True
@@ -429,6 +474,21 @@ def show_in_viewport(scene, layer):
     return undo
 
 
+def _show_render_modifiers(scene):
+    """Switches on in the viewport, for the measure of scene_facts, the modifiers shown in renders only
+    that read other data (_reads_other_data: an armature, a hook, a lattice...; a heavy subdivision kept
+    off in the viewport stays off); returns the calls that switch each off again."""
+    undo = []
+    for ob in scene.objects:
+        if ob.type not in RENDERABLE_TYPES or ob.hide_render:
+            continue
+        for m in getattr(ob, "modifiers", ()):
+            if m.show_render and not m.show_viewport and _reads_other_data(m):
+                m.show_viewport = True
+                undo.append(lambda m=m: setattr(m, "show_viewport", False))
+    return undo
+
+
 def _show_instanced(instancer, undo, seen):
     """The monitor icons inside a collection an object instances (an asset hidden in the viewport for
     speed still renders through its instancer): collections and objects that render, nested instances
@@ -472,10 +532,10 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
     saved = (scene.frame_current, scene.frame_subframe, scene.camera)
     # What is hidden in the viewport alone still renders, but the viewport's depsgraph does not
     # evaluate it (its matrix_world would not follow the frames): shown while stepping, then hidden again.
-    shown = show_in_viewport(scene, layer)
+    shown = show_in_viewport(scene, layer) + _show_render_modifiers(scene)
     first_cam = {}  # camera object name -> its matrix and projection at the first frame it is the scene's camera
     first, moving, names, cuts = {}, set(), [], []
-    first_geometry, reshaped = {}, set()  # object name -> _geometry_fingerprint at the first frame; changed since
+    first_geometry, deforming = {}, set()  # object name -> _geometry_fingerprint at the first frame; deforming
     instances = []  # the last frame's (rendered_instances)
     camera_moves = False
     previous_cam = None
@@ -506,16 +566,20 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                     moving.add(o.name)
             # Geometry that changes with no animation of its own (a hook or lattice whose control object
             # moves, Geometry Nodes reading another object): measured, as the matrices are.
+            # Each frame's visible objects: one hidden from the render on later frames deforms on earlier ones.
             for o in obs + [source for source, _, _ in instances]:
-                if o.name in reshaped or not _may_deform(o):
+                if o.name in deforming:
                     continue
-                fp = _geometry_fingerprint(o, layer.depsgraph)
+                if _deforms(o):
+                    deforming.add(o.name)
+                    continue
+                fp = _geometry_fingerprint(o, layer.depsgraph) if _may_deform(o) else None
                 if fp is None:
                     continue
                 if o.name not in first_geometry:
                     first_geometry[o.name] = fp
                 elif fp != first_geometry[o.name]:
-                    reshaped.add(o.name)
+                    deforming.add(o.name)
             seen = {}  # an instance is told from the others of its source and instancer by its order
             for source, parent, m in instances:
                 key = (source.name, parent, seen.setdefault((source.name, parent), 0))
@@ -524,8 +588,6 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                     first[key] = m
                 elif not _same(m, first[key]):
                     moving.add(source.name)
-        deforming = {o.name for o in visible_objects(scene, layer) if _deforms(o)}
-        deforming |= {source.name for source, _, _ in instances if _deforms(source)} | reshaped
     finally:
         for restore in reversed(shown):
             restore()

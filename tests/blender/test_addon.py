@@ -348,6 +348,97 @@ class AddonTest(unittest.TestCase):
         ball.modifiers.new("Smooth", "SUBSURF")
         self.assertFalse(plan._may_deform(ball), "a modifier that reads nothing else is not measured")
 
+    def test_deformation_found_wherever_blender_keeps_it(self):
+        """Each case reshapes geometry in renders (or, for the last three, does not) in a way an earlier
+        check missed (or flagged): keys in an NLA strip, a modifier whose name needs escaping in its
+        data path, an object hidden from render on the last frame only, a control object driving a
+        modifier shown in renders only, grease pencil drawn anew on each frame; an armature modifier
+        whose rig never moves, static hair, and a wave modifier off in renders."""
+        def keyed_displace(box, name):
+            m = box.modifiers.new(name, "DISPLACE")
+            path = plan._path_of_modifier(name) + ".strength"
+            m.strength = 0.0
+            box.keyframe_insert(path, frame=1)
+            m.strength = 0.5
+            box.keyframe_insert(path, frame=3)
+
+        def nla(scene):
+            box = scene.objects["Box"]
+            keyed_displace(box, "Disp")
+            ad = box.animation_data
+            ad.nla_tracks.new().strips.new("keys", 1, ad.action)
+            ad.action = None
+
+        def quoted(scene):
+            keyed_displace(scene.objects["Box"], 'Di"s\\p')
+
+        def hidden_last(scene):
+            ball = scene.objects["Ball"]
+            ball.modifiers.new("Wave", "WAVE").height = 0.3
+            ball.keyframe_insert("hide_render", frame=1)
+            ball.hide_render = True
+            ball.keyframe_insert("hide_render", frame=3)
+            scene.frame_set(1)
+
+        def render_only_hook(scene):
+            empty = bpy.data.objects.new("Control", None)
+            scene.collection.objects.link(empty)
+            hook = scene.objects["Ball"].modifiers.new("Hook", "HOOK")
+            hook.object = empty
+            hook.vertex_indices_set([0, 1, 2])
+            hook.show_viewport = False
+            empty.keyframe_insert("location", frame=1)
+            empty.location.z = 0.5
+            empty.keyframe_insert("location", frame=3)
+
+        def grease_pencil(scene):
+            gp = bpy.data.grease_pencils.new("Sketch")
+            scene.collection.objects.link(bpy.data.objects.new("Sketch", gp))
+            layer = gp.layers.new("Lines")
+            for f, x in ((1, 0.0), (2, 0.5), (3, 1.0)):
+                stroke = layer.frames.new(f).strokes.new()
+                stroke.points.add(2)
+                stroke.points[0].co, stroke.points[1].co = (x, 0, 1), (x + 0.5, 0, 1.5)
+
+        def still_rig(scene):
+            rig = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
+            scene.collection.objects.link(rig)
+            scene.objects["Box"].modifiers.new("Rig", "ARMATURE").object = rig
+
+        def posed_rig(scene):  # an armature whose bone is keyed: measured, as the viewport poses it
+            rig = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
+            scene.collection.objects.link(rig)
+            bpy.context.view_layer.objects.active = rig
+            bpy.ops.object.mode_set(mode="EDIT")
+            bone = rig.data.edit_bones.new("Bone")
+            bone.head, bone.tail = (0, 0, 0), (0, 0, 1)
+            bpy.ops.object.mode_set(mode="OBJECT")
+            box = scene.objects["Box"]
+            box.vertex_groups.new(name="Bone").add(range(len(box.data.vertices)), 1.0, "REPLACE")
+            box.modifiers.new("Rig", "ARMATURE").object = rig
+            pose = rig.pose.bones["Bone"]
+            pose.keyframe_insert("location", frame=1)
+            pose.location.x = 0.3
+            pose.keyframe_insert("location", frame=3)
+
+        def static_hair(scene):
+            scene.objects["Ball"].modifiers.new("Hair", "PARTICLE_SYSTEM").particle_system.settings.type = "HAIR"
+
+        def wave_off_in_renders(scene):
+            scene.objects["Box"].modifiers.new("Wave", "WAVE").show_render = False
+
+        for set_up, deforming in ((nla, ["Box"]), (quoted, ["Box"]), (hidden_last, ["Ball"]),
+                                  (render_only_hook, ["Ball"]), (grease_pencil, ["Sketch"]),
+                                  (posed_rig, ["Box"]), (still_rig, []), (static_hair, []), (wave_off_in_renders, [])):
+            with self.subTest(case=set_up.__name__):
+                scene = harness.build_scene("still_life")
+                set_up(scene)
+                p, facts = pipeline.scene_plan(scene, "taa", [1, 2, 3])
+                self.assertEqual(facts.deforming_objects, deforming)
+                self.assertEqual("motion" in p.passes, bool(deforming))
+                hooks = [m for m in scene.objects["Ball"].modifiers if m.type == "HOOK"]
+                self.assertTrue(all(not m.show_viewport for m in hooks), "planning switches it off again")
+
     def test_camera_projection_changes_move_the_picture(self):
         """A zoom (animated lens), an animated shift and an animated orthographic scale move every pixel
         with the camera's matrix unchanged: the camera moves. Animated clipping distances move none."""
