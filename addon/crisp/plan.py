@@ -359,6 +359,19 @@ def _deforms(ob):
     return False
 
 
+def geometry_record(ob, depsgraph):
+    """What a sidecar says of an object's geometry, for `crisp filter` to tell a still pair of frames
+    from one where it deforms (io/sidecar.h): {"geometry": digest of the evaluated vertices} for an
+    object that may deform and can be measured, {"deforms": True} for one whose settings make it deform
+    but which cannot be measured (grease pencil, volumes, hair curves), else nothing."""
+    static = _deforms(ob)
+    if static or _may_deform(ob):
+        fp = _geometry_fingerprint(ob, depsgraph)
+        if fp is not None:
+            return {"geometry": fp.hex()}
+    return {"deforms": True} if static else {}
+
+
 def _same(a, b, eps=1e-6, rows=range(4)):
     return all(abs(a[i][j] - b[i][j]) <= eps for i in rows for j in range(4))
 
@@ -474,7 +487,7 @@ def show_in_viewport(scene, layer):
     return undo
 
 
-def _show_render_modifiers(scene):
+def show_render_modifiers(scene):
     """Switches on in the viewport, for the measure of scene_facts, the modifiers shown in renders only
     that read other data (_reads_other_data: an armature, a hook, a lattice...; a heavy subdivision kept
     off in the viewport stays off); returns the calls that switch each off again."""
@@ -532,7 +545,7 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
     saved = (scene.frame_current, scene.frame_subframe, scene.camera)
     # What is hidden in the viewport alone still renders, but the viewport's depsgraph does not
     # evaluate it (its matrix_world would not follow the frames): shown while stepping, then hidden again.
-    shown = show_in_viewport(scene, layer) + _show_render_modifiers(scene)
+    shown = show_in_viewport(scene, layer) + show_render_modifiers(scene)
     first_cam = {}  # camera object name -> its matrix and projection at the first frame it is the scene's camera
     first, moving, names, cuts = {}, set(), [], []
     first_geometry, deforming = {}, set()  # object name -> _geometry_fingerprint at the first frame; deforming

@@ -237,18 +237,22 @@ def object_table(scene, view_layer):
     """The sidecar's objects by Cryptomatte hash: each visible object, and each instanced source that
     renders once (instances of one source share its ID, so their transforms cannot be told apart in
     the ID pass: those are left out, and motion reconstruction treats their pixels as still). A source
-    that is also a visible object shares that object's ID: the object's matrix is listed, for both."""
+    that is also a visible object shares that object's ID: the object's matrix is listed, for both.
+    Objects that may deform also carry plan.geometry_record."""
     out = {}
-    instances = plan_mod.rendered_instances(view_layer or scene.view_layers[0])
+    layer = view_layer or scene.view_layers[0]
+    instances = plan_mod.rendered_instances(layer)
     counts = {}
     for source, _, _ in instances:
         counts[source.name] = counts.get(source.name, 0) + 1
     for source, _, m in instances:
         key = hashing.cryptomatte_hex(source.name)
         if counts[source.name] == 1 and key not in out:
-            out[key] = {"name": source.name, "matrix_world": _matrix(m)}
+            out[key] = {"name": source.name, "matrix_world": _matrix(m),
+                        **plan_mod.geometry_record(source, layer.depsgraph)}
     for ob in plan_mod.visible_objects(scene, view_layer):
-        out[hashing.cryptomatte_hex(ob.name)] = {"name": ob.name, "matrix_world": _matrix(ob.matrix_world)}
+        out[hashing.cryptomatte_hex(ob.name)] = {"name": ob.name, "matrix_world": _matrix(ob.matrix_world),
+                                                 **plan_mod.geometry_record(ob, layer.depsgraph)}
     return out
 
 
@@ -402,8 +406,9 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
         cam_data, base_shift = frame_camera()
         snap.set(scene.render, "filepath", scene.render.filepath)
         _prepare(snap, scene, view_layer, engine, samples, set(the_plan.render_flags()))
-        # The sidecars' object matrices: what renders but is hidden in the viewport is not evaluated there.
-        snap.undo_later(plan_mod.show_in_viewport(scene, view_layer))
+        # The sidecars' object matrices and geometry: what renders but is hidden in the viewport (an
+        # object, a modifier reading another object) is not evaluated there.
+        snap.undo_later(plan_mod.show_in_viewport(scene, view_layer) + plan_mod.show_render_modifiers(scene))
         filter_size = scene.render.filter_size
         for f in frames:
             if should_cancel and should_cancel():

@@ -119,6 +119,16 @@ Sidecar parseSidecar(const std::string& text, const std::string& path) {
     if (!name.is_string()) rd.bad(key + ".name", "is not a string");
     ob.name = name.get<std::string>();
     ob.world = rd.matrix(rd.get(it.value(), key, "matrix_world"), key + ".matrix_world");
+    if (it.value().contains("geometry")) {
+      const Json& geometry = it.value()["geometry"];
+      if (!geometry.is_string()) rd.bad(key + ".geometry", "is not a string (a digest of the geometry)");
+      ob.geometry = geometry.get<std::string>();
+    }
+    if (it.value().contains("deforms")) {
+      const Json& deforms = it.value()["deforms"];
+      if (!deforms.is_boolean()) rd.bad(key + ".deforms", "is not true or false");
+      ob.deforms = deforms.get<bool>();
+    }
     s.objects[hash] = std::move(ob);
   }
   return s;
@@ -147,6 +157,7 @@ bool sameCameraAndObjects(const Sidecar& a, const Sidecar& b) {
   for (const auto& [hash, object] : a.objects) {
     const SidecarObject* other = b.object(hash);
     if (!other || other->world.m != object.world.m) return false;
+    if (other->geometry != object.geometry || other->deforms || object.deforms) return false;
   }
   return true;
 }

@@ -16,7 +16,9 @@ namespace crisp {
 
 struct SidecarObject {
   std::string name;
-  Mat4 world;  // object -> world ("matrix_world")
+  Mat4 world;            // object -> world ("matrix_world")
+  std::string geometry;  // "geometry": digest of its evaluated vertices, for an object that may deform; else ""
+  bool deforms = false;  // "deforms": its settings make it deform, and it has no digest (plan.geometry_record)
 };
 
 struct Sidecar {
@@ -53,8 +55,9 @@ Sidecar parseSidecar(const std::string& text, const std::string& path);
 std::string sidecarPathFor(const std::string& framePath);
 
 // True when the two frames have the same camera (view and unjittered
-// projection) and the same objects at the same world matrices: nothing moves
-// between them, so they need no motion vectors (jitter is not motion).
+// projection) and the same objects at the same world matrices with the same
+// geometry (digests equal, neither "deforms"): nothing moves between them, so
+// they need no motion vectors (jitter is not motion).
 bool sameCameraAndObjects(const Sidecar& a, const Sidecar& b);
 // Why `next` does not continue the shot of `previous`, where a temporal
 // filter's history starts over: "camera 'B' after 'A'" (a cut at a timeline

@@ -5,6 +5,7 @@ node group, and in-process bad input (no camera, empty range) touching nothing o
 
 import json
 import os
+import subprocess
 import sys
 import tempfile
 import unittest
@@ -54,6 +55,38 @@ def touched_state(scene):
     if cam:
         state["shift"] = (cam.shift_x, cam.shift_y)
     return state
+
+
+def controlled_ball(kind, animated):
+    """still_life with its ball reshaped by an empty ("Control", not rendered) through a hook on three
+    vertices (kind "hook") or Geometry Nodes offsetting it by the empty's relative location (kind
+    "object-info"); the empty rises 0.5 from frame 1 to 3 if animated. Returns (scene, ball)."""
+    scene = harness.build_scene("still_life")
+    ball = scene.objects["Ball"]
+    empty = bpy.data.objects.new("Control", None)  # not rendered: never in moving_objects
+    scene.collection.objects.link(empty)
+    if kind == "hook":
+        hook = ball.modifiers.new("Hook", "HOOK")
+        hook.object = empty
+        hook.vertex_indices_set([0, 1, 2])
+    else:
+        tree = bpy.data.node_groups.new("Follow", "GeometryNodeTree")
+        tree.inputs.new("NodeSocketGeometry", "Geometry")
+        tree.outputs.new("NodeSocketGeometry", "Geometry")
+        gin, gout = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
+        info = tree.nodes.new("GeometryNodeObjectInfo")
+        info.transform_space = "RELATIVE"
+        info.inputs["Object"].default_value = empty
+        setpos = tree.nodes.new("GeometryNodeSetPosition")
+        tree.links.new(gin.outputs[0], setpos.inputs["Geometry"])
+        tree.links.new(info.outputs["Location"], setpos.inputs["Offset"])
+        tree.links.new(setpos.outputs[0], gout.inputs[0])
+        ball.modifiers.new("Follow", "NODES").node_group = tree
+    if animated:
+        empty.keyframe_insert("location", frame=1)
+        empty.location.z = 0.5
+        empty.keyframe_insert("location", frame=3)
+    return scene, ball
 
 
 class AddonTest(unittest.TestCase):
@@ -295,34 +328,6 @@ class AddonTest(unittest.TestCase):
         def plan_of(scene):
             return pipeline.scene_plan(scene, "taa", [1, 2, 3])
 
-        def controlled_ball(kind, animated):
-            scene = harness.build_scene("still_life")
-            ball = scene.objects["Ball"]
-            empty = bpy.data.objects.new("Control", None)  # not rendered: never in moving_objects
-            scene.collection.objects.link(empty)
-            if kind == "hook":
-                hook = ball.modifiers.new("Hook", "HOOK")
-                hook.object = empty
-                hook.vertex_indices_set([0, 1, 2])
-            else:
-                tree = bpy.data.node_groups.new("Follow", "GeometryNodeTree")
-                tree.inputs.new("NodeSocketGeometry", "Geometry")
-                tree.outputs.new("NodeSocketGeometry", "Geometry")
-                gin, gout = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
-                info = tree.nodes.new("GeometryNodeObjectInfo")
-                info.transform_space = "RELATIVE"
-                info.inputs["Object"].default_value = empty
-                setpos = tree.nodes.new("GeometryNodeSetPosition")
-                tree.links.new(gin.outputs[0], setpos.inputs["Geometry"])
-                tree.links.new(info.outputs["Location"], setpos.inputs["Offset"])
-                tree.links.new(setpos.outputs[0], gout.inputs[0])
-                ball.modifiers.new("Follow", "NODES").node_group = tree
-            if animated:
-                empty.keyframe_insert("location", frame=1)
-                empty.location.z = 0.5
-                empty.keyframe_insert("location", frame=3)
-            return scene, ball
-
         for kind in ("hook", "object-info"):
             with self.subTest(kind=kind):
                 scene, ball = controlled_ball(kind, animated=True)
@@ -438,6 +443,32 @@ class AddonTest(unittest.TestCase):
                 self.assertEqual("motion" in p.passes, bool(deforming))
                 hooks = [m for m in scene.objects["Ball"].modifiers if m.type == "HOOK"]
                 self.assertTrue(all(not m.show_viewport for m in hooks), "planning switches it off again")
+
+    @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
+    def test_sidecars_tell_crisp_filter_the_geometry_changed(self):
+        """A ball reshaped by a hook keeps its matrix: the sidecars carry a digest of its geometry, which
+        differs between frames where the control object moves, so `crisp filter` rebuilds motion for
+        taa as the add-on's plan does; with the control object still, the digests agree and the
+        sequence is still."""
+        crisp_cli = os.path.join(harness.BUILD_DIR, "bin", "crisp")
+        for animated in (True, False):
+            with self.subTest(animated=animated), tempfile.TemporaryDirectory() as d:
+                scene, ball = controlled_ball("hook", animated)
+                scene.render.resolution_x, scene.render.resolution_y = 32, 18
+                p = plan.make_plan("taa", plan.SceneFacts(1, 3, deforming_objects=[ball.name],
+                                                          visible_objects=["Ball", "Box"]))
+                render.render_frames(scene, p, [1, 2, 3], d)
+                key = hashing.cryptomatte_hex(ball.name)
+                digests = [json.load(open(os.path.join(d, "frame_%04d.json" % f)))["objects"][key]["geometry"]
+                           for f in (1, 2, 3)]
+                self.assertEqual(len(set(digests)), 3 if animated else 1, digests)
+                out = os.path.join(d, "out")
+                run = subprocess.run([crisp_cli, "filter", "-m", "taa", "--quiet", "-o", out]
+                                     + [os.path.join(d, "frame_%04d.exr" % f) for f in (1, 2, 3)],
+                                     capture_output=True, text=True)
+                self.assertEqual(run.returncode, 0, run.stderr)
+                stamp = json.load(open(os.path.join(out, ".crisp", "frame_0003.json")))
+                self.assertEqual(stamp["motion_from_sidecars"], animated, stamp)
 
     def test_camera_projection_changes_move_the_picture(self):
         """A zoom (animated lens), an animated shift and an animated orthographic scale move every pixel

@@ -163,8 +163,8 @@ TEST(Motion, RotatingObjectMatchedByIdAndStaticRest) {
   // through the origin; ground (id 0) and an unknown id stay put.
   const double s = 2.0, d = 10.0, a0 = 0.30, a1 = 0.42;
   Sidecar prev = sidecar(translation(0, 0, d), s), cur = sidecar(translation(0, 0, d), s);
-  prev.objects[kCube] = {"Cube", rotationZ(a0) * translation(0, 0, 0)};
-  cur.objects[kCube] = {"Cube", rotationZ(a1)};
+  prev.objects[kCube] = {"Cube", rotationZ(a0) * translation(0, 0, 0), "", false};
+  cur.objects[kCube] = {"Cube", rotationZ(a1), "", false};
   Image ids = Image::uintImage(W, H);
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) ids.setUint(x, y, x < W / 2 ? kCube : (y < H / 2 ? 0u : kStranger));
@@ -289,7 +289,7 @@ TEST(Motion, PointsBehindThePreviousCameraAndBadDepthsAreInvalid) {
 
 TEST(Motion, ObjectMissingFromThePreviousFrameIsUnmatched) {
   Sidecar prev = sidecar(Mat4::identity()), cur = sidecar(Mat4::identity());
-  cur.objects[kBall] = {"Ball", translation(0, 0, -3)};
+  cur.objects[kBall] = {"Ball", translation(0, 0, -3), "", false};
   Image ids = Image::uintImage(W, H);
   ids.setUint(4, 4, kBall);
   const FrameMotion fm = reconstructMotion(constantDepth(3.0f), &ids, cur, prev, nullptr, "appear", 1);
@@ -300,14 +300,14 @@ TEST(Motion, ObjectMissingFromThePreviousFrameIsUnmatched) {
 TEST(Motion, WithoutIdsALoneObjectOwnsEveryPixel) {
   const double s = 1.8;
   Sidecar prev = sidecar(Mat4::identity(), s), cur = sidecar(Mat4::identity(), s);
-  prev.objects[kCube] = {"Cube", translation(-0.1, 0, -4)};
-  cur.objects[kCube] = {"Cube", translation(0, 0, -4)};
+  prev.objects[kCube] = {"Cube", translation(-0.1, 0, -4), "", false};
+  cur.objects[kCube] = {"Cube", translation(0, 0, -4), "", false};
   const FrameMotion fm = reconstructMotion(constantDepth(4.0f), nullptr, cur, prev, nullptr, "lone", 1);
   EXPECT_NEAR(fm.motion.at(7, 7)[0], -s * W / 2.0 * 0.1 / 4.0, 1e-4);  // was 0.1 to the left
 
   // Two objects, one moving, no IDs: refused, naming the frame and what to render.
-  cur.objects[kBall] = {"Ball", translation(1, 0, -4)};
-  prev.objects[kBall] = {"Ball", translation(1, 0, -4)};
+  cur.objects[kBall] = {"Ball", translation(1, 0, -4), "", false};
+  prev.objects[kBall] = {"Ball", translation(1, 0, -4), "", false};
   try {
     reconstructMotion(constantDepth(4.0f), nullptr, cur, prev, nullptr, "two.exr", 1);
     FAIL() << "expected an error";

@@ -127,6 +127,12 @@ TEST(Sidecar, WrongTypesAndShapesAreNamed) {
   j = addonSidecar();
   j["objects"] = Json::array();
   expectInvalid(j, "'objects' is not a JSON object");
+  j = addonSidecar();
+  j["objects"]["a8fce865"]["geometry"] = 12;
+  expectInvalid(j, "'objects.a8fce865.geometry' is not a string");
+  j = addonSidecar();
+  j["objects"]["a8fce865"]["deforms"] = "yes";
+  expectInvalid(j, "'objects.a8fce865.deforms' is not true or false");
 }
 
 TEST(Sidecar, BrokenJsonAndMissingFiles) {
@@ -186,4 +192,28 @@ TEST(Sidecar, StillFramesDifferOnlyInJitter) {
   Json gone = b;
   gone["objects"] = Json::object();
   EXPECT_FALSE(sameCameraAndObjects(parseSidecar(a.dump(), "a.json"), parseSidecar(gone.dump(), "g.json")));
+}
+
+// An object reshaped in place (a hook, a lattice: the add-on's plan.geometry_record)
+// keeps its matrix; its geometry digest tells the frames apart, and one that
+// deforms with no digest is never still.
+TEST(Sidecar, GeometryThatChangesInPlaceIsMotion) {
+  Json a = addonSidecar(), b = addonSidecar();
+  b["frame"] = 3;
+  a["objects"]["a8fce865"]["geometry"] = "00ff";
+  b["objects"]["a8fce865"]["geometry"] = "00ff";
+  EXPECT_EQ(parseSidecar(a.dump(), "a.json").object(0xa8fce865)->geometry, "00ff");
+  EXPECT_TRUE(sameCameraAndObjects(parseSidecar(a.dump(), "a.json"), parseSidecar(b.dump(), "b.json")));
+  Json reshaped = b;
+  reshaped["objects"]["a8fce865"]["geometry"] = "01ff";
+  EXPECT_FALSE(sameCameraAndObjects(parseSidecar(a.dump(), "a.json"), parseSidecar(reshaped.dump(), "r.json")));
+  Json unmeasured = b;  // an older sidecar: no digest where the other has one
+  unmeasured["objects"]["a8fce865"].erase("geometry");
+  EXPECT_FALSE(sameCameraAndObjects(parseSidecar(a.dump(), "a.json"), parseSidecar(unmeasured.dump(), "u.json")));
+  Json deforming = a;
+  deforming["objects"]["a8fce865"].erase("geometry");
+  deforming["objects"]["a8fce865"]["deforms"] = true;
+  EXPECT_FALSE(sameCameraAndObjects(parseSidecar(deforming.dump(), "d.json"), parseSidecar(deforming.dump(), "d.json")));
+  deforming["objects"]["a8fce865"]["deforms"] = false;
+  EXPECT_TRUE(sameCameraAndObjects(parseSidecar(deforming.dump(), "d.json"), parseSidecar(deforming.dump(), "d.json")));
 }
