@@ -268,7 +268,7 @@ def visible_objects(scene, view_layer=None):
 TIME_NODES = {"GeometryNodeInputSceneTime", "GeometryNodeSimulationInput", "GeometryNodeSimulationOutput"}
 
 
-def _actions(ad):
+def actions_of(ad):
     """The actions that animate a datablock: the active one and those of its NLA strips (unmuted)."""
     out = [ad.action] if ad.action else []
     for track in ad.nla_tracks:
@@ -281,7 +281,7 @@ def _animated(id_data):
     """True if a datablock has keyframes (its action or NLA strips) or drivers (a driver can read the
     frame, #frame)."""
     ad = getattr(id_data, "animation_data", None)
-    return bool(ad and (_actions(ad) or len(ad.drivers)))
+    return bool(ad and (actions_of(ad) or len(ad.drivers)))
 
 
 def _animated_paths(id_data):
@@ -289,7 +289,7 @@ def _animated_paths(id_data):
     ad = getattr(id_data, "animation_data", None)
     if not ad:
         return []
-    return [fc.data_path for action in _actions(ad) for fc in action.fcurves] + [d.data_path for d in ad.drivers]
+    return [fc.data_path for action in actions_of(ad) for fc in action.fcurves] + [d.data_path for d in ad.drivers]
 
 
 def _path_of_modifier(name):

@@ -233,6 +233,15 @@ def camera_matrices(scene, depsgraph):
     return _matrix(cam.matrix_world.inverted()), _matrix(proj)
 
 
+def shift_curves(camera_data):
+    """The unmuted F-curves (of its action and NLA strips) and drivers that animate a camera's shift."""
+    ad = camera_data.animation_data
+    if not ad:
+        return []
+    curves = [fc for action in plan_mod.actions_of(ad) for fc in action.fcurves] + list(ad.drivers)
+    return [fc for fc in curves if fc.data_path in ("shift_x", "shift_y") and not fc.mute]
+
+
 def object_table(scene, view_layer):
     """The sidecar's objects by Cryptomatte hash: each visible object, and each instanced source that
     renders once (instances of one source share its ID, so their transforms cannot be told apart in
@@ -388,20 +397,30 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
     with Snapshot(scene) as snap:
         # The camera of each frame (timeline markers may switch cameras): its shift as the user left
         # it, registered once for the restore. The jitter is added to the shift of the frame: the user's,
-        # or what the animation or a driver makes it at that frame.
+        # or what the animation or a driver makes it at that frame. The render evaluates the animation
+        # again and would put an animated shift back over the jitter, so the curves that animate it are
+        # muted from the frame's frame_set to the next.
         user_shifts = {}
 
         def frame_camera():
             data = scene.camera.data
             if data.name not in user_shifts:
-                user_shifts[data.name] = (data, (data.shift_x, data.shift_y))
+                curves = shift_curves(data)
+                user_shifts[data.name] = (data, (data.shift_x, data.shift_y), curves)
                 snap.set(data, "shift_x", data.shift_x)
                 snap.set(data, "shift_y", data.shift_y)
+                for curve in curves:
+                    snap.remember(curve, "mute")
+            data, _, curves = user_shifts[data.name]
+            for curve in curves:
+                curve.mute = True
             return data, (data.shift_x, data.shift_y)
 
         def unjittered_cameras():  # before frame_set, which then animates the shifts that are animated
-            for data, (x, y) in user_shifts.values():
+            for data, (x, y), curves in user_shifts.values():
                 data.shift_x, data.shift_y = x, y
+                for curve in curves:
+                    curve.mute = False
 
         cam_data, base_shift = frame_camera()
         snap.set(scene.render, "filepath", scene.render.filepath)

@@ -118,6 +118,42 @@ class JitterTest(unittest.TestCase):
                 self.assertAlmostEqual(got_x, want_x, delta=0.01)
                 self.assertAlmostEqual(got_y, want_y, delta=0.01)
 
+    def test_animated_shift_keeps_the_jitter(self):
+        """A shift animated by keyframes (x) and by a driver (y): the render evaluates the animation again,
+        which would put the shift back over the jitter. Each frame's samples move by the animated shift
+        plus the jitter (measured against an unjittered render with the same animation), the curves are
+        unmuted afterwards and the shift is the animation's again."""
+        cam = self.scene.camera.data
+        cam.keyframe_insert("shift_x", frame=1)
+        cam.shift_x = 0.02  # 0.64 px at 64 px across an orthographic scale of 2
+        cam.keyframe_insert("shift_x", frame=3)
+        driver = cam.driver_add("shift_y")
+        driver.driver.expression = "0.01 * frame"
+
+        def clean_up():
+            cam.driver_remove("shift_y")
+            cam.animation_data_clear()
+            cam.shift_x = cam.shift_y = 0.0
+        self.addCleanup(clean_up)
+        out = os.path.join(self.tmp.name, "animated")
+        still = plan.make_plan("none", plan.scene_facts(self.scene, 1, 3))
+        render.render_frames(self.scene, still, [2, 3], os.path.join(out, "plain"))
+        render.render_frames(self.scene, self.jittered_plan, [2, 3], out, jitter_distribution="uniform")
+        for f in (2, 3):
+            want_x, want_y, _ = render.jitter_offset(f, "uniform", self.scene.render.filter_size)
+            got_x, got_y = measure(exr_util.read(os.path.join(out, "plain", "frame_%04d.exr" % f))[1],
+                                   exr_util.read(os.path.join(out, "frame_%04d.exr" % f))[1])
+            with self.subTest(frame=f):
+                self.assertGreater(abs(want_x), 0.05)
+                self.assertGreater(abs(want_y), 0.05)
+                self.assertAlmostEqual(got_x, want_x, delta=0.01)
+                self.assertAlmostEqual(got_y, want_y, delta=0.01)
+        self.assertFalse(any(fc.mute for fc in cam.animation_data.action.fcurves))
+        self.assertFalse(driver.mute)
+        self.scene.frame_set(3)
+        self.assertAlmostEqual(cam.shift_x, 0.02, places=6)
+        self.assertAlmostEqual(cam.shift_y, 0.03, places=6)
+
     def test_halton_points(self):
         self.assertEqual([render.halton(i, 2) for i in (1, 2, 3)], [0.5, 0.25, 0.75])
         self.assertAlmostEqual(render.halton(1, 3), 1 / 3)
