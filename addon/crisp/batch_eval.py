@@ -109,8 +109,9 @@ def main(argv):
         if args.warmup >= len(frames):  # before anything is rendered (the scene's own range, without --frames)
             raise pipeline.InputError("--warmup %d leaves none of the %d frames (%d-%d) to measure"
                                       % (args.warmup, len(frames), frames[0], frames[-1]))
-        if scene.camera is None:
-            raise pipeline.InputError("scene '%s' has no camera: add one and set it as the scene camera" % scene.name)
+        problem = render.camera_problem(scene)
+        if problem:
+            raise pipeline.InputError(problem)
         pipeline.check_output_dir(out)
         plans, sets, unknown, facts = eval_renders.group_plans(scene, methods, frames)
     except pipeline.InputError as e:

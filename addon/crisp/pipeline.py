@@ -225,8 +225,9 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         raise InputError("frames %d-%d are not inside the shot %s" % (
             frames[0], frames[-1], "%d-%d" % (shot[0], shot[-1]) if shot else "(empty)"))
     render.check_blender_version()
-    if scene.camera is None:
-        raise InputError("scene '%s' has no camera: add one and set it as the scene camera" % scene.name)
+    problem = render.camera_problem(scene)
+    if problem:
+        raise InputError(problem)
     check_method(method, need_library=filter_frames and not plan_only)
     if filter_frames and not plan_only and params:
         # Every rule the library checks, also those between parameters (an odd patchSize, feedbackMin
@@ -234,6 +235,11 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         bad = native.check_params(method, params)
         if bad:
             raise InputError("%s: %s" % (method, bad))
+    if method in plan_mod.TEMPORAL_METHODS:  # their plans jitter (make_plan)
+        try:
+            render.shift_per_pixel(scene)
+        except render.RenderError as e:
+            raise InputError("%s renders jittered frames, and %s" % (method, e))
     check_output_dir(out_dir)
     user_engine = scene.render.engine
     if user_engine not in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):
@@ -246,6 +252,12 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     view_layer = render.default_view_layer(scene, view_layer)  # one layer planned and rendered
     the_plan, facts = scene_plan(scene, method, shot or frames, view_layer, engine_name)
     log(the_plan.describe())
+    if scene.eevee.use_motion_blur or scene.render.use_motion_blur:
+        log("note: the scene's motion blur is off in Crisp's renders (a blurred sample cannot be reprojected, "
+            "and the reference would blur differently); it is back on afterwards")
+    if scene.render.use_compositing and scene.use_nodes and scene.node_tree and len(scene.node_tree.nodes):
+        log("note: the scene's compositor is not applied to Crisp's frames (they are filtered as rendered); "
+            "apply it to the filtered frames through the 'Crisp Result' node group")
     result = {"blender_version": bpy.app.version_string, "method": method, "params": dict(params or {}),
               "scene": scene.name, "frames_requested": [frames[0], frames[-1]], "samples": samples,
               "engine": engine, "user_engine": user_engine,

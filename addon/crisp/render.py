@@ -82,6 +82,26 @@ def check_blender_version():
         raise RenderError("Blender %s is not supported: Crisp needs 3.4 or newer" % bpy.app.version_string)
 
 
+def camera_problem(scene):
+    """Why Crisp cannot render the scene through its camera, or None: no camera, a scene camera that is
+    not a camera object (Crisp jitters the camera's shift and records its projection), or stereoscopy
+    (Crisp renders and filters one view)."""
+    cam = scene.camera
+    if cam is None:
+        return "scene '%s' has no camera: add one and set it as the scene camera" % scene.name
+    if cam.type != "CAMERA":
+        return ("the scene camera '%s' is %s object, not a camera: Crisp jitters a camera's shift and records "
+                "its projection; set a camera object as the scene camera" % (cam.name, _article(cam.type.lower())))
+    if scene.render.use_multiview:
+        return ("stereoscopy is on (Output properties > Stereoscopy): Crisp renders and filters one view; "
+                "switch it off")
+    return None
+
+
+def _article(word):
+    return ("an " if word[:1] in "aeiou" else "a ") + word
+
+
 # ---- restoring what we touch ---------------------------------------------------------------------
 
 class Snapshot:
@@ -360,11 +380,12 @@ def frame_name(frame, ext=".exr"):
 
 
 def _checked_inputs(scene, frames, view_layer):
-    """What every render needs before it touches the scene: a supported Blender, a camera, a frame, and
-    a view layer of this scene. Returns (frames as a list, view layer)."""
+    """What every render needs before it touches the scene: a supported Blender, a camera (camera_problem),
+    a frame, and a view layer of this scene. Returns (frames as a list, view layer)."""
     check_blender_version()
-    if scene.camera is None:
-        raise RenderError("scene '%s' has no camera: set one (Scene properties > Camera)" % scene.name)
+    problem = camera_problem(scene)
+    if problem:
+        raise RenderError(problem)
     frames = list(frames)
     if not frames:
         raise RenderError("no frames to render (empty frame range)")

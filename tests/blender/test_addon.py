@@ -583,8 +583,55 @@ class AddonTest(unittest.TestCase):
                 scene.camera = cam
             with self.assertRaisesRegex(pipeline.InputError, "unknown method 'smaa'"):
                 pipeline.run(scene, "smaa", range(1, 3), out, filter_frames=False)
+            # An empty as the scene camera (Blender renders through it), stereoscopy, non-square pixels
+            # under a jittering method: refused by name before anything is written.
+            empty = bpy.data.objects.new("Viewpoint", None)
+            scene.collection.objects.link(empty)
+            scene.camera = empty
+            try:
+                with self.assertRaisesRegex(pipeline.InputError, "'Viewpoint' is an empty object, not a camera"):
+                    pipeline.run(scene, "fxaa", range(1, 3), out, filter_frames=False)
+                with self.assertRaisesRegex(render.RenderError, "not a camera"):
+                    render.render_frames(scene, plan.make_plan("none", plan.SceneFacts(1, 2)), [1], out)
+            finally:
+                scene.camera = cam
+            scene.render.use_multiview = True
+            try:
+                with self.assertRaisesRegex(pipeline.InputError, "stereoscopy is on"):
+                    pipeline.run(scene, "fxaa", range(1, 3), out, filter_frames=False)
+            finally:
+                scene.render.use_multiview = False
+            scene.render.pixel_aspect_x = 2.0
+            logged = []
+            try:
+                with self.assertRaisesRegex(pipeline.InputError, "taa renders jittered frames, and jitter needs "
+                                                                 "square pixels"):
+                    pipeline.run(scene, "taa", range(1, 3), out, filter_frames=False, log=logged.append)
+            finally:
+                scene.render.pixel_aspect_x = 1.0
             self.assertFalse(os.path.exists(out), "nothing written on bad input")
         self.assertEqual(touched_state(scene), before_state)
+
+    def test_settings_crisp_leaves_out_are_said(self):
+        """The scene's motion blur and its compositor are not applied to Crisp's frames: the log says so
+        (and what the run does instead) rather than dropping them silently."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        scene.eevee.use_motion_blur = True
+        scene.use_nodes = True  # a default compositor: Render Layers -> Composite
+        logged = []
+        with tempfile.TemporaryDirectory() as d:
+            pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
+        notes = [line for line in logged if line.startswith("note:")]
+        self.assertTrue(any("motion blur is off" in n for n in notes), logged)
+        self.assertTrue(any("compositor is not applied" in n for n in notes), logged)
+        self.assertTrue(scene.eevee.use_motion_blur, "put back")
+        scene.eevee.use_motion_blur = False
+        scene.use_nodes = False
+        logged.clear()
+        with tempfile.TemporaryDirectory() as d:
+            pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
+        self.assertFalse([line for line in logged if "motion blur" in line or "compositor" in line], logged)
 
     def test_run_json_says_how_the_run_ended(self):
         """run.json is this run's record also when the run is stopped or fails part-way; a resume
