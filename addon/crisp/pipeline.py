@@ -255,6 +255,9 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     if scene.eevee.use_motion_blur or scene.render.use_motion_blur:
         log("note: the scene's motion blur is off in Crisp's renders (a blurred sample cannot be reprojected, "
             "and the reference would blur differently); it is back on afterwards")
+    if scene.render.film_transparent and filter_frames and method != "none":
+        log("note: the film is transparent: %s anti-aliases the colour, not the alpha, which keeps the 1-sample "
+            "render's hard edges; for clean edges, render the background in the scene (Film > Transparent off)" % method)
     if scene.render.use_compositing and scene.use_nodes and scene.node_tree and len(scene.node_tree.nodes):
         log("note: the scene's compositor is not applied to Crisp's frames (they are filtered as rendered); "
             "apply it to the filtered frames through the 'Crisp Result' node group")
@@ -295,12 +298,13 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     def on_frame(f, info):
         entry = {"frame": f, "render_s": round(info["render_s"], 4), "jitter": info["jitter"]}
         if frame_filter is not None:
-            outs = [os.path.join(filtered_dir, render.frame_name(f))]
+            exr = os.path.join(filtered_dir, render.frame_name(f))
             png = os.path.join(filtered_dir, render.frame_name(f, ".png"))
-            if write_png:
-                outs.append(png)
-            times = frame_filter.run(info["exr"], outs)
-            if write_png:
+            times = frame_filter.run(info["exr"], [exr])
+            if write_png:  # through the scene's colour management, as its own PNGs
+                t0 = time.perf_counter()
+                render.write_display_png(scene, exr, png)
+                times["write_s"] += time.perf_counter() - t0
                 _write_json(_png_record_path(png), _png_record(png))
             elif os.path.isfile(png):
                 _drop_stale_png(png, log)

@@ -375,6 +375,29 @@ def _render_to(scene, path):
     return dt
 
 
+def write_display_png(scene, exr_path, png_path):
+    """png_path: the RGBA EXR at exr_path as the scene's own PNGs show it, through its colour management
+    (view transform, look, exposure, gamma and display, or its output's override), 8-bit RGBA, written
+    through a temporary name. The library's PNGs are a plain sRGB encoding of the linear values, which
+    matches Blender's only for the Standard view without a look."""
+    settings = scene.render.image_settings
+    saved = [(attr, getattr(settings, attr)) for attr in ("file_format", "color_mode", "color_depth",
+                                                           "compression", "exr_codec")]
+    image = bpy.data.images.load(exr_path, check_existing=False)
+    tmp = os.path.join(os.path.dirname(png_path), "." + os.path.basename(png_path) + ".tmp")
+    try:
+        settings.file_format = "PNG"
+        settings.color_mode, settings.color_depth = "RGBA", "8"
+        image.save_render(tmp, scene=scene)
+        os.replace(tmp, png_path)
+    finally:
+        bpy.data.images.remove(image)
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        for attr, value in saved:  # the file format first: setting it changes the others
+            setattr(settings, attr, value)
+
+
 def frame_name(frame, ext=".exr"):
     return "frame_%04d%s" % (frame, ext)
 

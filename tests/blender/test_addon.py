@@ -612,19 +612,57 @@ class AddonTest(unittest.TestCase):
             self.assertFalse(os.path.exists(out), "nothing written on bad input")
         self.assertEqual(touched_state(scene), before_state)
 
+    @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
+    def test_pngs_follow_the_scenes_colour_management(self):
+        """Under Filmic with a look and an exposure, the run's PNG of method "none" (the 1-sample frame
+        as rendered) matches Blender's own PNG of that frame within its dither (a plain sRGB encoding of
+        the linear EXR was 0.034 off on average, 0.17 at most); the output settings are put back."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 64, 36
+        view = scene.view_settings
+        view.view_transform, view.look, view.exposure = "Filmic", "High Contrast", 0.7
+        settings = scene.render.image_settings
+        settings.file_format, settings.color_depth = "OPEN_EXR", "16"
+        with tempfile.TemporaryDirectory() as d:
+            pipeline.run(scene, "none", [1], d, log=lambda *a: None)
+            self.assertEqual((settings.file_format, settings.color_depth), ("OPEN_EXR", "16"))
+            ours = bpy.data.images.load(os.path.join(d, "filtered", "frame_0001.png"))
+            # Blender's own 1-sample PNG of frame 1, with the light probes Crisp renders with.
+            scene.eevee.taa_render_samples = 1
+            scene.eevee.gi_cubemap_resolution = render.CUBEMAP_RESOLUTION
+            scene.render.use_compositing = False  # as Crisp renders (the scene may hold an earlier test's nodes)
+            settings.file_format, settings.color_mode, settings.color_depth = "PNG", "RGBA", "8"
+            scene.render.filepath = os.path.join(d, "own.png")
+            scene.frame_set(1)
+            bpy.ops.render.render(write_still=True, scene=scene.name)  # not the context's scene
+            own = bpy.data.images.load(scene.render.filepath)
+            a, b = list(ours.pixels), list(own.pixels)
+        diff = [abs(x - y) for i, (x, y) in enumerate(zip(a, b)) if i % 4 != 3]
+        self.assertEqual(len(a), len(b))
+        self.assertLessEqual(max(diff), 3.5 / 255)
+        self.assertLess(sum(diff) / len(diff), 0.005)
+
     def test_settings_crisp_leaves_out_are_said(self):
         """The scene's motion blur and its compositor are not applied to Crisp's frames: the log says so
         (and what the run does instead) rather than dropping them silently."""
         scene = harness.build_scene("still_life")
         scene.render.resolution_x, scene.render.resolution_y = 32, 18
         scene.eevee.use_motion_blur = True
-        scene.use_nodes = True  # a default compositor: Render Layers -> Composite
+        scene.use_nodes = scene.render.use_compositing = True  # at least the default Render Layers -> Composite
         logged = []
         with tempfile.TemporaryDirectory() as d:
             pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
         notes = [line for line in logged if line.startswith("note:")]
         self.assertTrue(any("motion blur is off" in n for n in notes), logged)
         self.assertTrue(any("compositor is not applied" in n for n in notes), logged)
+        scene.render.film_transparent = True
+        logged.clear()
+        with tempfile.TemporaryDirectory() as d:
+            pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
+            self.assertFalse(any("transparent" in line for line in logged), "nothing filtered: nothing to say")
+            pipeline.run(scene, "fxaa", [1], d, log=logged.append)
+        self.assertTrue(any("anti-aliases the colour, not the alpha" in line for line in logged), logged)
+        scene.render.film_transparent = False
         self.assertTrue(scene.eevee.use_motion_blur, "put back")
         scene.eevee.use_motion_blur = False
         scene.use_nodes = False
