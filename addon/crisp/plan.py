@@ -580,7 +580,11 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
             # Geometry that changes with no animation of its own (a hook or lattice whose control object
             # moves, Geometry Nodes reading another object): measured, as the matrices are.
             # Each frame's visible objects: one hidden from the render on later frames deforms on earlier ones.
-            for o in obs + [source for source, _, _ in instances]:
+            # A source is measured once per frame, however many times it is instanced.
+            measured = {o.name: o for o in obs}
+            for source, _, _ in instances:
+                measured.setdefault(source.name, source)
+            for o in measured.values():
                 if o.name in deforming:
                     continue
                 if _deforms(o):

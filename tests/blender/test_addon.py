@@ -353,6 +353,34 @@ class AddonTest(unittest.TestCase):
         ball.modifiers.new("Smooth", "SUBSURF")
         self.assertFalse(plan._may_deform(ball), "a modifier that reads nothing else is not measured")
 
+    def test_an_instanced_source_is_measured_once_a_frame(self):
+        """A hooked ball instanced on 50 vertices is one object to measure, not 50: its geometry digest
+        is taken once a frame (a scattered asset with thousands of instances would otherwise be digested
+        thousands of times a frame), and its deformation is still found."""
+        scene, ball = controlled_ball("hook", animated=True)
+        points = bpy.data.meshes.new("Points")
+        points.from_pydata([(i * 0.1, 0.0, 0.0) for i in range(50)], [], [])
+        scatter = bpy.data.objects.new("Scatter", points)
+        scene.collection.objects.link(scatter)
+        scatter.instance_type = "VERTS"
+        ball.parent = scatter
+        scene.frame_set(1)
+        self.assertEqual(len(plan.rendered_instances(scene.view_layers[0])), 51)
+        digests = []
+        measure = plan._geometry_fingerprint
+
+        def counted(ob, depsgraph):
+            digests.append(ob.name)
+            return measure(ob, depsgraph)
+
+        plan._geometry_fingerprint = counted
+        try:
+            facts = plan.scene_facts(scene, 1, 3)
+        finally:
+            plan._geometry_fingerprint = measure
+        self.assertEqual(facts.deforming_objects, [ball.name])
+        self.assertLessEqual(digests.count(ball.name), 3, "at most once a frame")
+
     def test_deformation_found_wherever_blender_keeps_it(self):
         """Each case reshapes geometry in renders (or, for the last three, does not) in a way an earlier
         check missed (or flagged): keys in an NLA strip, a modifier whose name needs escaping in its
