@@ -488,9 +488,11 @@ def show_in_viewport(scene, layer):
 
 
 def show_render_modifiers(scene):
-    """Switches on in the viewport, for the measure of scene_facts, the modifiers shown in renders only
-    that read other data (_reads_other_data: an armature, a hook, a lattice...; a heavy subdivision kept
-    off in the viewport stays off); returns the calls that switch each off again."""
+    """Shows in the viewport, for the measure of scene_facts and the sidecars' digests, the modifiers
+    as renders show them: switches on those shown in renders only that read other data
+    (_reads_other_data: an armature, a hook, a lattice...; a heavy subdivision kept off in the viewport
+    stays off), and off those shown in the viewport only (a hook off in renders reshapes nothing that
+    renders); returns the calls that switch each back."""
     undo = []
     for ob in scene.objects:
         if ob.type not in RENDERABLE_TYPES or ob.hide_render:
@@ -499,6 +501,9 @@ def show_render_modifiers(scene):
             if m.show_render and not m.show_viewport and _reads_other_data(m):
                 m.show_viewport = True
                 undo.append(lambda m=m: setattr(m, "show_viewport", False))
+            elif m.show_viewport and not m.show_render:
+                m.show_viewport = False
+                undo.append(lambda m=m: setattr(m, "show_viewport", True))
     return undo
 
 
@@ -539,8 +544,8 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
     first frame's.
 
     Restores the current frame and camera. Checks matrices and geometry (not only animation data) so
-    constraints, drivers, parenting and control objects count too. What the viewport does not evaluate
-    (a modifier shown in renders only) is left to the static checks of _deforms."""
+    constraints, drivers, parenting and control objects count too. Modifiers are measured as renders
+    show them (show_render_modifiers)."""
     layer = view_layer or scene.view_layers[0]
     saved = (scene.frame_current, scene.frame_subframe, scene.camera)
     # What is hidden in the viewport alone still renders, but the viewport's depsgraph does not

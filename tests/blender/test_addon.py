@@ -472,6 +472,27 @@ class AddonTest(unittest.TestCase):
                 hooks = [m for m in scene.objects["Ball"].modifiers if m.type == "HOOK"]
                 self.assertTrue(all(not m.show_viewport for m in hooks), "planning switches it off again")
 
+    def test_a_modifier_off_in_renders_reshapes_nothing(self):
+        """A hook shown in the viewport but not in renders, pulled by an animated empty: the renders do
+        not deform, so neither the plan nor the sidecars' digests say so; the hook stays on in the
+        viewport afterwards."""
+        scene, ball = controlled_ball("hook", animated=True)
+        hook = ball.modifiers["Hook"]
+        hook.show_render = False
+        p, facts = pipeline.scene_plan(scene, "taa", [1, 2, 3])
+        self.assertEqual(facts.deforming_objects, [])
+        self.assertNotIn("motion", p.passes)
+        self.assertTrue(hook.show_viewport)
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        key = hashing.cryptomatte_hex(ball.name)
+        with tempfile.TemporaryDirectory() as d:
+            render.render_frames(scene, p, [1, 3], d)
+            digests = [json.load(open(os.path.join(d, "frame_%04d.json" % f)))["objects"][key].get("geometry")
+                       for f in (1, 3)]
+        self.assertIsNotNone(digests[0])
+        self.assertEqual(digests[0], digests[1])
+        self.assertTrue(hook.show_viewport)
+
     @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
     def test_sidecars_tell_crisp_filter_the_geometry_changed(self):
         """A ball reshaped by a hook keeps its matrix: the sidecars carry a digest of its geometry, which
