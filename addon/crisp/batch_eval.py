@@ -109,7 +109,7 @@ def main(argv):
         if args.warmup >= len(frames):  # before anything is rendered (the scene's own range, without --frames)
             raise pipeline.InputError("--warmup %d leaves none of the %d frames (%d-%d) to measure"
                                       % (args.warmup, len(frames), frames[0], frames[-1]))
-        problem = render.camera_problem(scene)
+        problem = render.camera_problem(scene, frames)
         if problem:
             raise pipeline.InputError(problem)
         pipeline.check_output_dir(out)

@@ -225,7 +225,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         raise InputError("frames %d-%d are not inside the shot %s" % (
             frames[0], frames[-1], "%d-%d" % (shot[0], shot[-1]) if shot else "(empty)"))
     render.check_blender_version()
-    problem = render.camera_problem(scene)
+    # The frames rendered: these and their pre-roll (chunk_run).
+    problem = render.camera_problem(scene, [max((shot or frames)[0], frames[0] - preroll)] + frames)
     if problem:
         raise InputError(problem)
     check_method(method, need_library=filter_frames and not plan_only)

@@ -82,9 +82,10 @@ def check_blender_version():
         raise RenderError("Blender %s is not supported: Crisp needs 3.4 or newer" % bpy.app.version_string)
 
 
-def camera_problem(scene):
+def camera_problem(scene, frames=None):
     """Why Crisp cannot render the scene through its camera, or None: no camera, a scene camera that is
-    not a camera object (Crisp jitters the camera's shift and records its projection), or stereoscopy
+    not a camera object (Crisp jitters the camera's shift and records its projection), also one that a
+    timeline marker makes the scene camera within `frames` (all markers without frames), or stereoscopy
     (Crisp renders and filters one view)."""
     cam = scene.camera
     if cam is None:
@@ -92,10 +93,27 @@ def camera_problem(scene):
     if cam.type != "CAMERA":
         return ("the scene camera '%s' is %s object, not a camera: Crisp jitters a camera's shift and records "
                 "its projection; set a camera object as the scene camera" % (cam.name, _article(cam.type.lower())))
+    for marker in _camera_markers(scene, frames):
+        if marker.camera.type != "CAMERA":
+            return ("timeline marker '%s' (frame %d) makes '%s' the scene camera, %s object, not a camera: Crisp "
+                    "jitters a camera's shift and records its projection; bind a camera object to the marker"
+                    % (marker.name, marker.frame, marker.camera.name, _article(marker.camera.type.lower())))
     if scene.render.use_multiview:
         return ("stereoscopy is on (Output properties > Stereoscopy): Crisp renders and filters one view; "
                 "switch it off")
     return None
+
+
+def _camera_markers(scene, frames):
+    """The timeline markers bound to a camera that choose the scene camera on one of `frames` (the last
+    at or before the first frame, and those after it up to the last), or all of them without frames."""
+    markers = sorted((m for m in scene.timeline_markers if m.camera is not None), key=lambda m: m.frame)
+    frames = list(frames) if frames is not None else []
+    if not frames:
+        return markers
+    first, last = min(frames), max(frames)
+    before = [m for m in markers if m.frame <= first]
+    return before[-1:] + [m for m in markers if first < m.frame <= last]
 
 
 def _article(word):
@@ -406,10 +424,10 @@ def _checked_inputs(scene, frames, view_layer):
     """What every render needs before it touches the scene: a supported Blender, a camera (camera_problem),
     a frame, and a view layer of this scene. Returns (frames as a list, view layer)."""
     check_blender_version()
-    problem = camera_problem(scene)
+    frames = list(frames)
+    problem = camera_problem(scene, frames)
     if problem:
         raise RenderError(problem)
-    frames = list(frames)
     if not frames:
         raise RenderError("no frames to render (empty frame range)")
     return frames, default_view_layer(scene, view_layer)

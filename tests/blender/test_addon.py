@@ -644,6 +644,19 @@ class AddonTest(unittest.TestCase):
                     render.render_frames(scene, plan.make_plan("none", plan.SceneFacts(1, 2)), [1], out)
             finally:
                 scene.camera = cam
+            # ... also when a timeline marker makes it the scene camera on a later frame of the run (a
+            # marker after the run's frames does not matter).
+            scene.timeline_markers.new("Start", frame=1).camera = cam
+            scene.timeline_markers.new("Cut", frame=2).camera = empty
+            try:
+                with self.assertRaisesRegex(pipeline.InputError, "marker 'Cut' \\(frame 2\\) makes 'Viewpoint'"):
+                    pipeline.run(scene, "fxaa", range(1, 3), out, filter_frames=False)
+                with self.assertRaisesRegex(render.RenderError, "marker 'Cut'"):
+                    render.render_frames(scene, plan.make_plan("none", plan.SceneFacts(1, 2)), [1, 2], out)
+                self.assertIsNone(render.camera_problem(scene, [1]))
+            finally:
+                scene.timeline_markers.clear()
+                scene.camera = cam
             scene.render.use_multiview = True
             try:
                 with self.assertRaisesRegex(pipeline.InputError, "stereoscopy is on"):
