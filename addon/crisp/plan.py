@@ -268,33 +268,38 @@ def visible_objects(scene, view_layer=None):
 TIME_NODES = {"GeometryNodeInputSceneTime", "GeometryNodeSimulationInput", "GeometryNodeSimulationOutput"}
 
 
-def actions_of(ad):
-    """The actions that animate a datablock: the active one and those of its NLA strips (unmuted)."""
-    out = [ad.action] if ad.action else []
+def animation_curves(id_data):
+    """The F-curves that animate a datablock (its active action and its unmuted NLA strips') and its
+    drivers."""
+    ad = getattr(id_data, "animation_data", None)
+    if not ad:
+        return []
+    actions = [ad.action] if ad.action else []
     for track in ad.nla_tracks:
         if not track.mute:
-            out += [strip.action for strip in track.strips if strip.action and not strip.mute]
-    return out
+            actions += [strip.action for strip in track.strips if strip.action and not strip.mute]
+    return [fc for action in actions for fc in action.fcurves] + list(ad.drivers)
 
 
 def _animated(id_data):
     """True if a datablock has keyframes (its action or NLA strips) or drivers (a driver can read the
     frame, #frame)."""
-    ad = getattr(id_data, "animation_data", None)
-    return bool(ad and (actions_of(ad) or len(ad.drivers)))
+    return bool(animation_curves(id_data))
 
 
 def _animated_paths(id_data):
     """The data paths of a datablock's keyframes (active action and NLA strips) and drivers."""
-    ad = getattr(id_data, "animation_data", None)
-    if not ad:
-        return []
-    return [fc.data_path for action in actions_of(ad) for fc in action.fcurves] + [d.data_path for d in ad.drivers]
+    return [fc.data_path for fc in animation_curves(id_data)]
+
+
+def _escaped(name):
+    """A name as Blender writes it inside the quotes of a data path (quotes and backslashes escaped)."""
+    return name.replace("\\", "\\\\").replace('"', '\\"')
 
 
 def _path_of_modifier(name):
-    """The data path of modifier `name` as Blender writes it in an F-curve (quotes and backslashes escaped)."""
-    return 'modifiers["%s"]' % name.replace("\\", "\\\\").replace('"', '\\"')
+    """The data path of modifier `name` as Blender writes it in an F-curve."""
+    return 'modifiers["%s"]' % _escaped(name)
 
 
 def _node_tree_varies(tree, seen):
@@ -322,12 +327,26 @@ def _static_hair(m):
     return (system is not None and system.settings.type == "HAIR" and not system.use_hair_dynamics)
 
 
+# Grease pencil modifiers that vary with the frame by themselves.
+GP_SELF_VARYING = {"GP_NOISE", "GP_BUILD", "GP_TIME"}
+
+
 def _grease_pencil_varies(ob):
-    """A grease pencil object drawn differently over time: several drawings (frames) in a layer, or a
-    modifier or effect of its own (noise, offset, build... many vary with the frame)."""
-    if any(m.show_render for m in getattr(ob, "grease_pencil_modifiers", ())):
+    """A grease pencil object drawn differently over time: several drawings (frames) in a layer, a
+    modifier that varies by itself (GP_SELF_VARYING) or follows another object (a hook, a lattice, an
+    armature), or a modifier or shader effect whose settings are animated. Grease pencil is not
+    measured (_geometry_fingerprint), so these are judged by their settings."""
+    if any(len(layer.frames) > 1 for layer in getattr(ob.data, "layers", ())):
         return True
-    return any(len(layer.frames) > 1 for layer in getattr(ob.data, "layers", ()))
+    paths = _animated_paths(ob)
+    for m in getattr(ob, "grease_pencil_modifiers", ()):
+        if not m.show_render:
+            continue
+        if m.type in GP_SELF_VARYING or _reads_other_data(m):
+            return True
+        if any(p.startswith('grease_pencil_modifiers["%s"]' % _escaped(m.name)) for p in paths):
+            return True
+    return any(p.startswith('shader_effects[') for p in paths)
 
 
 def _deforms(ob):
@@ -387,7 +406,7 @@ def render_size(scene):
 IMAGE_ROWS = (0, 1, 3)
 
 
-def _camera_projection(cam, depsgraph, scene):
+def camera_projection(cam, depsgraph, scene):
     """The camera's projection at the render size: the lens, sensor, shift, orthographic scale and
     camera type in one matrix, so that a zoom or an animated shift counts as camera motion."""
     w, h = render_size(scene)
@@ -548,16 +567,19 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
     show them (show_render_modifiers)."""
     layer = view_layer or scene.view_layers[0]
     saved = (scene.frame_current, scene.frame_subframe, scene.camera)
-    # What is hidden in the viewport alone still renders, but the viewport's depsgraph does not
-    # evaluate it (its matrix_world would not follow the frames): shown while stepping, then hidden again.
-    shown = show_in_viewport(scene, layer) + show_render_modifiers(scene)
     first_cam = {}  # camera object name -> its matrix and projection at the first frame it is the scene's camera
     first, moving, names, cuts = {}, set(), [], []
     first_geometry, deforming = {}, set()  # object name -> _geometry_fingerprint at the first frame; deforming
     instances = []  # the last frame's (rendered_instances)
     camera_moves = False
     previous_cam = None
+    shown = []
     try:
+        # What is hidden in the viewport alone still renders, but the viewport's depsgraph does not
+        # evaluate it (its matrix_world would not follow the frames): shown while stepping, then hidden
+        # again; modifiers as renders show them.
+        shown += show_in_viewport(scene, layer)
+        shown += show_render_modifiers(scene)
         for f in range(frame_start, frame_end + 1):
             scene.frame_set(f)  # switches scene.camera at timeline markers bound to cameras
             cam = scene.camera
@@ -570,7 +592,7 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                 names = [o.name for o in obs]
                 names += sorted({source.name for source, _, _ in instances} - set(names))
             if cam is not None:
-                cm = ([list(r) for r in cam.matrix_world], _camera_projection(cam, layer.depsgraph, scene))
+                cm = ([list(r) for r in cam.matrix_world], camera_projection(cam, layer.depsgraph, scene))
                 if cam.name not in first_cam:
                     first_cam[cam.name] = cm
                 elif not (_same(cm[0], first_cam[cam.name][0])

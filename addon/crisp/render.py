@@ -265,19 +265,13 @@ def _matrix(m):
 
 def camera_matrices(scene, depsgraph):
     cam = scene.camera
-    w, h = render_size(scene)
-    proj = cam.calc_matrix_camera(depsgraph, x=w, y=h, scale_x=scene.render.pixel_aspect_x,
-                                  scale_y=scene.render.pixel_aspect_y)
-    return _matrix(cam.matrix_world.inverted()), _matrix(proj)
+    return _matrix(cam.matrix_world.inverted()), _matrix(plan_mod.camera_projection(cam, depsgraph, scene))
 
 
 def shift_curves(camera_data):
     """The unmuted F-curves (of its action and NLA strips) and drivers that animate a camera's shift."""
-    ad = camera_data.animation_data
-    if not ad:
-        return []
-    curves = [fc for action in plan_mod.actions_of(ad) for fc in action.fcurves] + list(ad.drivers)
-    return [fc for fc in curves if fc.data_path in ("shift_x", "shift_y") and not fc.mute]
+    return [fc for fc in plan_mod.animation_curves(camera_data)
+            if fc.data_path in ("shift_x", "shift_y") and not fc.mute]
 
 
 def object_table(scene, view_layer):
