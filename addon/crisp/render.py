@@ -20,7 +20,7 @@ import time
 
 import bpy
 
-from . import hashing
+from . import exr_file, hashing
 from . import plan as plan_mod
 
 CUBEMAP_RESOLUTION = "64"
@@ -383,6 +383,11 @@ def _render_to(scene, path):
     dt = time.perf_counter() - t0
     if not os.path.isfile(tmp):
         raise RenderError("Blender wrote no file for frame %d (expected %s)" % (scene.frame_current, tmp))
+    broken = exr_file.incomplete(tmp)
+    if broken:  # a disk that filled up while Blender wrote: it says nothing, and the file must not take the name
+        os.remove(tmp)
+        raise RenderFailed("Blender wrote an incomplete file for frame %d (%s: %s); is the disk full?"
+                           % (scene.frame_current, path, broken))
     os.replace(tmp, path)
     return dt
 

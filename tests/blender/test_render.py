@@ -16,7 +16,7 @@ import harness  # noqa: E402
 
 import bpy  # noqa: E402
 import exr_util  # noqa: E402
-from crisp import hashing, native, render  # noqa: E402
+from crisp import exr_file, hashing, native, render  # noqa: E402
 
 LIB_OK, LIB_WHY = harness.library_usable()
 
@@ -117,6 +117,11 @@ class BatchTest(unittest.TestCase):
         self.assertEqual(rc, 0, log[-3000:])
         for f in (3, 4):
             exr = os.path.join(out, "input", "frame_%04d.exr" % f)
+            # Whole, as render._render_to checked before the rename; cut short, it would not have been.
+            self.assertIsNone(exr_file.incomplete(exr))
+            with open(exr, "rb") as src, open(os.path.join(self.tmp.name, "cut.exr"), "wb") as dst:
+                dst.write(src.read()[:-100])
+            self.assertIn("last chunk ends after the file", exr_file.incomplete(dst.name))
             names, header = exr_util.channels(exr)
             layers = {n.split(".")[1] for n in names}
             self.assertEqual(layers, {"Combined", "Depth", "CryptoObject00", "DiffCol"}, names)
