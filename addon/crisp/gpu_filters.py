@@ -129,12 +129,21 @@ class GpuParamsError(GpuFilterError):
 
 
 def shader_dirs():
-    here = os.path.dirname(os.path.abspath(__file__))
+    """Where the GLSL files are looked for: $CRISP_SHADER_DIR; beside the add-on's real folder (a link
+    into Blender's add-ons folder is followed to the checkout: its shaders/; an installed add-on in
+    share/crisp/addon/crisp: share/crisp/shaders); beside the loaded library (a copied or zipped add-on
+    given the library's path: build/lib -> the checkout's shaders/, lib -> share/crisp/shaders)."""
+    from . import native
+    here = os.path.dirname(os.path.realpath(__file__))
     dirs = []
     if os.environ.get("CRISP_SHADER_DIR"):
         dirs.append(os.environ["CRISP_SHADER_DIR"])
     dirs += [os.path.join(here, "shaders"), os.path.normpath(os.path.join(here, "..", "..", "shaders"))]
-    return dirs
+    if native._lib is not None:
+        lib = os.path.dirname(os.path.realpath(native._lib.path))
+        dirs += [os.path.normpath(os.path.join(lib, "..", "share", "crisp", "shaders")),
+                 os.path.normpath(os.path.join(lib, "..", "..", "shaders"))]
+    return list(dict.fromkeys(dirs))
 
 
 def shader_source(name):

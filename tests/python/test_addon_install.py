@@ -14,17 +14,20 @@ from crisp_test_util import LIBRARY, SOURCE
 pytestmark = [pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")]
 
 PROBE = ("import addon_utils; addon_utils.enable('crisp', default_set=False); "
-         "from crisp import native; ok, text = native.status(); print('STATUS', ok, text)")
+         "from crisp import native; ok, text = native.status(); print('STATUS', ok, text); "
+         "from crisp import gpu_filters\n"
+         "try:\n    print('SHADER', len(gpu_filters.shader_source('taa.glsl')))\n"
+         "except gpu_filters.GpuFilterError as e:\n    print('SHADER', e)")
 
 
-def status(scripts, library=None):
+def status(scripts, library=None, want="STATUS "):
     env = dict(os.environ, BLENDER_USER_SCRIPTS=str(scripts))
     env.pop("CRISP_LIBRARY", None)
     if library:
         env["CRISP_LIBRARY"] = library
     p = subprocess.run(["blender", "-b", "--factory-startup", "--python-expr", PROBE], env=env,
                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300)
-    lines = [line for line in p.stdout.splitlines() if line.startswith("STATUS ")]
+    lines = [line for line in p.stdout.splitlines() if line.startswith(want)]
     assert lines, p.stdout[-2000:]
     return lines[-1]
 
@@ -37,6 +40,19 @@ def test_linked_addon_finds_the_checkouts_build(tmp_path):
     (tmp_path / "addons" / "crisp").symlink_to(os.path.join(SOURCE, "addon", "crisp"))
     line = status(tmp_path)
     assert line.startswith("STATUS True") and os.path.normpath(repo_build) in line, line
+    # The viewport preview's shaders: the link is followed to the checkout's shaders/.
+    assert status(tmp_path, want="SHADER ").split()[1].isdigit()
+
+
+def test_copied_addon_finds_its_shaders_beside_the_library(tmp_path):
+    """A copied (or zipped) add-on given the library's path finds the preview's shaders from there:
+    the checkout's build/lib -> shaders/ (an installed lib/ -> share/crisp/shaders)."""
+    shutil.copytree(os.path.join(SOURCE, "addon", "crisp"), tmp_path / "addons" / "crisp",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    line = status(tmp_path, library=LIBRARY, want="SHADER ")
+    assert line.split()[1].isdigit(), line
+    line = status(tmp_path, want="SHADER ")  # no library: nothing to look beside
+    assert "not found" in line, line
 
 
 def test_copied_addon_without_a_library_says_where_to_give_it(tmp_path):
