@@ -33,8 +33,12 @@ def method_items(self, context):
     return _enum_cache
 
 
+# rsaa's camera, which each frame's sidecar gives (native/io/subsamples.h rsaaCameraParamNames; the
+# CLI refuses them in --set, and FrameFilter sets them from the sidecar, replacing a panel value).
+RSAA_CAMERA_PARAMS = {"orthographic", "proj00", "proj11", "proj02", "proj12"} | {
+    "view%d%d" % (r, c) for r in range(3) for c in range(3)}
 # Parameters the pipeline sets itself (per frame) or that only tests use: not shown to artists.
-PIPELINE_PARAMS = {"jitterX", "jitterY", "reference"}
+PIPELINE_PARAMS = {"jitterX", "jitterY", "reference"} | RSAA_CAMERA_PARAMS
 
 
 def group_name(method):

@@ -126,6 +126,19 @@ class AddonTest(unittest.TestCase):
                     else:
                         self.assertEqual(value, p["default"], (method, p["name"]))
                 self.assertEqual(properties.changed_params(s, method), {}, method)
+            # rsaa's camera comes from each frame's sidecar: not in the panel, and exactly the parameters
+            # the CLI refuses in --set for that reason.
+            rsaa_names = {p["name"] for p in native.filter_info("rsaa")["params"]}
+            self.assertLessEqual(properties.RSAA_CAMERA_PARAMS, rsaa_names)
+            self.assertFalse(any(hasattr(s.rsaa, name) for name in properties.RSAA_CAMERA_PARAMS))
+            cli = os.path.join(harness.BUILD_DIR, "bin", "crisp")
+            with tempfile.TemporaryDirectory() as d:
+                for name in sorted(rsaa_names):
+                    value = "true" if name == "orthographic" else "1"
+                    run = subprocess.run([cli, "filter", "-m", "rsaa", "--set", "%s=%s" % (name, value), "-o", d,
+                                          os.path.join(d, "none.exr")], capture_output=True, text=True)
+                    refused = "takes its camera from each frame's sidecar" in run.stderr
+                    self.assertEqual(refused, name in properties.RSAA_CAMERA_PARAMS, (name, run.stderr))
             s.repair.kappa = -1.0
             s.repair.mask = "box3"
             self.assertEqual(properties.changed_params(s, "repair"), {"kappa": -1.0, "mask": "box3"})
