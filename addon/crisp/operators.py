@@ -29,9 +29,15 @@ def _fail(op, e):
     return {"CANCELLED"}
 
 
+# Operators that change the file (the Output folder, the plan text, the compositor's node, an image)
+# push one undo step of their own, so that Ctrl-Z takes back what they did, not the artist's edit before.
+UNDOABLE = {"REGISTER", "UNDO"}
+
+
 class CRISP_OT_plan(bpy.types.Operator):
     bl_idname = "crisp.plan"
     bl_label = "Update Plan"
+    bl_options = UNDOABLE
     bl_description = "Work out which passes the chosen method needs on this scene, with reasons"
 
     def execute(self, context):
@@ -47,6 +53,7 @@ class CRISP_OT_plan(bpy.types.Operator):
 class CRISP_OT_render(bpy.types.Operator):
     bl_idname = "crisp.render"
     bl_label = "Render with Crisp"
+    bl_options = UNDOABLE
     bl_description = "Render the frame range at 1 sample with the planned passes and filter each frame"
 
     def execute(self, context):
@@ -85,6 +92,7 @@ class CRISP_OT_render(bpy.types.Operator):
 class CRISP_OT_render_reference(bpy.types.Operator):
     bl_idname = "crisp.render_reference"
     bl_label = "Render Reference"
+    bl_options = UNDOABLE
     bl_description = "Render the frame range with the reference sample count (no jitter, colour only)"
 
     def execute(self, context):
@@ -105,6 +113,7 @@ class CRISP_OT_render_reference(bpy.types.Operator):
 class CRISP_OT_compare(bpy.types.Operator):
     bl_idname = "crisp.compare"
     bl_label = "Compare"
+    bl_options = UNDOABLE
     bl_description = "PSNR and SSIM of the filtered frames against the reference frames (through libcrisp)"
 
     def execute(self, context):
@@ -124,6 +133,7 @@ class CRISP_OT_compare(bpy.types.Operator):
 class CRISP_OT_load_result(bpy.types.Operator):
     bl_idname = "crisp.load_result"
     bl_label = "Load into Compositor"
+    bl_options = UNDOABLE
     bl_description = "Load the filtered sequence into this scene's compositor node group 'Crisp Result: <scene>'"
 
     def execute(self, context):
@@ -142,6 +152,7 @@ class CRISP_OT_load_result(bpy.types.Operator):
 class CRISP_OT_preview(bpy.types.Operator):
     bl_idname = "crisp.preview"
     bl_label = "Preview Frame"
+    bl_options = UNDOABLE
     bl_description = "Show the current frame's filtered image in the Image Editor"
 
     def execute(self, context):

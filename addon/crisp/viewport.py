@@ -61,6 +61,8 @@ class _State:
     stack_guard = None   # a 4x4 offscreen bound around the work to restore the region's framebuffer
     saved_settings = None  # (scene name, [(group, name, value before)]) of ONE_SAMPLE
     forced_while_saving = None  # saved_settings put back for a save, forced again after it
+    restored = None      # the saved_settings put back when the preview last went off (_after_undo)
+    pending_off = None   # the timer that switches the preview off after a failed draw, until it runs
     views = {}           # region -> (view key, taa's index into the Halton sequence); {}: every view restarts
     last_region = None   # the region drawn last (accumulated_frames)
     rejected = None      # the library's message when it rejects the scene's settings (not filtered), else None
@@ -136,7 +138,8 @@ def _draw():
     except Exception as e:
         message = "Crisp preview off: %s" % e
         print(message)
-        bpy.app.timers.register(lambda: _switch_off(message), first_interval=0.0)
+        _State.pending_off = lambda: _switch_off(message)
+        bpy.app.timers.register(_State.pending_off, first_interval=0.0)
     finally:
         _State.drawing = False
 
@@ -270,6 +273,7 @@ def _restore_settings():
     if _State.saved_settings is not None:
         scene_name, saved = _State.saved_settings
         _State.saved_settings = None
+        _State.restored = (scene_name, saved)
         scene = bpy.data.scenes.get(scene_name)
         for group, name, value in saved if scene is not None else ():
             setattr(getattr(scene, group), name, value)
@@ -308,6 +312,7 @@ def _remove():
 
 
 def _switch_off(message):
+    _State.pending_off = None
     wm = bpy.context.window_manager
     s = wm.crisp_viewport
     s.status = message
@@ -406,6 +411,7 @@ def _before_file_load(*_args):
     in that file's scene (not in a same-named scene of the next file), its handlers gone; the next
     file starts with the toggle off (also with Load UI off, which keeps this window manager)."""
     _remove()
+    _State.restored = None  # those settings belong to the file being closed
     s = getattr(bpy.context.window_manager, "crisp_viewport", None)
     if s is not None and s.enabled:
         s.enabled = False  # its update callback finds nothing left to remove
@@ -428,8 +434,29 @@ def _after_save(*_args):
             _force_one_sample(scene)
 
 
+@bpy.app.handlers.persistent
+def _after_undo(*_args):
+    """Undo and redo bring the scene back as it was at that step, with the sample settings it had then:
+    forced ones from a step taken while the preview was on, the user's from one taken before. While the
+    preview is on, it forces one sample again; once it is off, the user's settings it put back replace
+    forced values an undo brought back."""
+    if is_active() and _State.saved_settings is not None:
+        scene = bpy.data.scenes.get(_State.saved_settings[0])
+        for group, name, value in ONE_SAMPLE if scene is not None else ():
+            if getattr(getattr(scene, group), name) != value:
+                setattr(getattr(scene, group), name, value)
+    elif not is_active() and _State.restored is not None:
+        scene_name, saved = _State.restored
+        scene = bpy.data.scenes.get(scene_name)
+        forced = {(group, name): value for group, name, value in ONE_SAMPLE}
+        for group, name, value in saved if scene is not None else ():
+            if getattr(getattr(scene, group), name) == forced[(group, name)]:
+                setattr(getattr(scene, group), name, value)
+
+
 _FILE_HANDLERS = ((bpy.app.handlers.load_pre, _before_file_load), (bpy.app.handlers.save_pre, _before_save),
-                  (bpy.app.handlers.save_post, _after_save))
+                  (bpy.app.handlers.save_post, _after_save), (bpy.app.handlers.undo_post, _after_undo),
+                  (bpy.app.handlers.redo_post, _after_undo))
 
 
 def register():
@@ -443,6 +470,16 @@ def register():
 
 def unregister():
     _remove()
+    # The toggle's value outlives the property (it is kept on the window manager): off, so that the
+    # add-on enabled again does not show it on with nothing drawing. A switch-off still queued goes too.
+    for wm in bpy.data.window_managers:
+        s = getattr(wm, "crisp_viewport", None)
+        if s is not None and s.enabled:
+            s.enabled = False
+    for timer in (_State.pending_off, _tag_redraw):
+        if timer is not None and bpy.app.timers.is_registered(timer):
+            bpy.app.timers.unregister(timer)
+    _State.pending_off = None
     for handlers, handler in _FILE_HANDLERS:
         if handler in handlers:
             handlers.remove(handler)

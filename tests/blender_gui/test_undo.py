@@ -1,0 +1,105 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+# xvfb-screen: 640x400x24
+"""Undo and the add-on, as an artist meets them (found by a user test):
+* Crisp's render is an undo step of its own: Ctrl-Z takes back what it set (the Output folder, the plan
+  text), not the artist's edit before it (it used to take back both, and redo brought back neither).
+* The viewport preview forces one sample while it is on; an undo to a step taken while it was on,
+  after it went off, used to leave the scene at one sample with viewport anti-aliasing off. An undo
+  to a step before it went on, while it is on, must not leave the user's settings in place either.
+* Disabling and enabling the add-on again leaves the preview toggle off, not on with nothing drawing."""
+
+import os
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import gui_harness  # noqa: E402
+
+import bpy  # noqa: E402
+
+import crisp  # noqa: E402
+from crisp import viewport  # noqa: E402
+
+bpy.context.preferences.view.show_splash = False
+USER = (16, "FXAA")  # the artist's viewport samples and anti-aliasing
+
+
+def samples():
+    scene = bpy.context.scene
+    return scene.eevee.taa_samples, scene.display.viewport_aa
+
+
+class UndoWithCrisp(unittest.TestCase):
+    def setUp(self):
+        crisp.register()
+        self.addCleanup(lambda: crisp.unregister() if hasattr(bpy.types.Scene, "crisp") else None)
+        scene = bpy.context.scene
+        scene.eevee.taa_samples, scene.display.viewport_aa = USER
+        bpy.ops.ed.undo_push(message="start")
+
+    def test_render_is_its_own_undo_step(self):
+        tmp = tempfile.TemporaryDirectory()
+        self.addCleanup(tmp.cleanup)
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(tmp.name, "shot.blend"))
+        scene = bpy.context.scene
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        scene.frame_start = scene.frame_end = 1
+        scene.crisp.method = "fxaa"
+        scene.crisp.load_result = False
+        bpy.ops.ed.undo_push(message="settings")
+        cube = bpy.data.objects["Cube"]
+        cube.location.x += 0.5
+        bpy.ops.ed.undo_push(message="move the cube")
+        # As a click on the panel's button: undo=True asks for the step an operator with the UNDO option
+        # pushes (Blender pushes none for an operator without it).
+        self.assertEqual(bpy.ops.crisp.render("EXEC_DEFAULT", True), {"FINISHED"})
+        self.assertTrue(bpy.context.scene.crisp.output_dir)
+        self.assertTrue(os.path.isfile(os.path.join(tmp.name, "crisp", "Scene", "filtered", "frame_0001.exr")))
+        bpy.ops.ed.undo()
+        self.assertEqual(bpy.context.scene.crisp.output_dir, "", "the render's own change is undone")
+        self.assertAlmostEqual(bpy.data.objects["Cube"].location.x, 0.5, places=6, msg="the artist's edit stays")
+        bpy.ops.ed.redo()
+        self.assertTrue(bpy.context.scene.crisp.output_dir, "and redone")
+
+    def test_undo_keeps_the_settings_the_preview_is_not_showing(self):
+        settings = bpy.context.window_manager.crisp_viewport
+        settings.method = "fxaa"
+        settings.enabled = True
+        self.assertTrue(viewport.is_active())
+        self.assertEqual(samples(), (1, "OFF"))
+        bpy.data.objects["Cube"].location.z += 0.3
+        bpy.ops.ed.undo_push(message="move while the preview is on")
+        bpy.data.objects["Cube"].location.z += 0.3
+        bpy.ops.ed.undo_push(message="move again")
+        bpy.ops.ed.undo()  # to a step taken while on, while on: still forced
+        self.assertEqual(samples(), (1, "OFF"))
+        bpy.ops.ed.undo()
+        bpy.ops.ed.undo()  # to the step before the preview went on, while it is on: forced again
+        self.assertEqual(samples(), (1, "OFF"))
+        bpy.ops.ed.redo()
+        settings = bpy.context.window_manager.crisp_viewport
+        settings.enabled = False
+        self.assertEqual(samples(), USER)
+        bpy.ops.ed.redo()  # to a step taken while it was on, now off: the artist's settings
+        self.assertEqual(samples(), USER)
+        bpy.ops.ed.undo()
+        self.assertEqual(samples(), USER)
+
+    def test_add_on_enabled_again_starts_with_the_preview_off(self):
+        settings = bpy.context.window_manager.crisp_viewport
+        settings.method = "fxaa"
+        settings.enabled = True
+        self.assertTrue(viewport.is_active())
+        crisp.unregister()
+        self.assertEqual(samples(), USER)
+        crisp.register()
+        self.assertFalse(bpy.context.window_manager.crisp_viewport.enabled, "toggle on with nothing drawing")
+        self.assertFalse(viewport.is_active())
+        bpy.context.window_manager.crisp_viewport.enabled = True
+        self.assertTrue(viewport.is_active())
+        bpy.context.window_manager.crisp_viewport.enabled = False
+
+
+if __name__ == "__main__":
+    gui_harness.run(UndoWithCrisp, delay=0.5)
