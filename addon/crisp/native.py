@@ -105,6 +105,19 @@ def set_preference_path(path):
             _load_error = None
 
 
+def preference_note():
+    """What the preferences' library path does not do yet, or None: no file there, or (a library
+    loaded from elsewhere, which a process cannot unload) a restart of Blender to load it."""
+    if not _preference_path:
+        return None
+    path = os.path.abspath(os.path.expanduser(_preference_path))
+    if not os.path.isfile(path):
+        return "no file at %s" % path
+    if _lib is not None and os.path.realpath(_lib.path) != os.path.realpath(path):
+        return "restart Blender to load %s (the library loaded from %s stays until then)" % (path, _lib.path)
+    return None
+
+
 class _Library:
     def __init__(self, path):
         self.path = path

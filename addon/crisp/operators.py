@@ -85,7 +85,8 @@ class CRISP_OT_render(bpy.types.Operator):
             return _fail(self, e)
         finally:
             wm.progress_end()
-        _done(self, scene, "Crisp: %d frames filtered with %s into %s" % (len(result["frames"]), s.method, out))
+        how = "copied unfiltered (method none)" if s.method == "none" else "filtered with %s" % s.method
+        _done(self, scene, "Crisp: %d frames %s into %s" % (len(result["frames"]), how, out))
         return {"FINISHED"}
 
 

@@ -84,6 +84,8 @@ def apply_resolution(scene, text):
 
 def check_output_dir(out_dir):
     """Creates out_dir if needed and proves it writable, or raises InputError naming it."""
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise InputError("output folder '%s' is a file, not a folder: choose another" % out_dir)
     try:
         os.makedirs(out_dir, exist_ok=True)
         # A probe of its own: farm chunks check one shared folder at the same time.

@@ -24,6 +24,9 @@ class CrispPreferences(bpy.types.AddonPreferences):
         self.layout.prop(self, "threads")
         ok, text = native.status()
         self.layout.label(text=text, icon="CHECKMARK" if ok else "ERROR")
+        note = native.preference_note()
+        if note:
+            self.layout.label(text="Library path: " + note, icon="INFO")
 
 
 def get(context=None):

@@ -5,6 +5,7 @@ node group, and in-process bad input (no camera, empty range) touching nothing o
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -146,6 +147,29 @@ class AddonTest(unittest.TestCase):
                 s.repair.mask = "gaussian"  # not one of the library's choices
         finally:
             crisp.unregister()
+
+    @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
+    def test_library_path_changed_after_loading_says_what_it_takes(self):
+        """The preferences' library path changed once a library is loaded: a path with no file is named,
+        and another library asks for a restart (a process cannot unload one); the loaded one's own path
+        asks nothing. (Each used to be ignored without a word.)"""
+        native.load()
+        saved = native._preference_path
+        self.addCleanup(native.set_preference_path, saved)
+        with tempfile.TemporaryDirectory() as d:
+            native.set_preference_path(os.path.join(d, "libcrisp.so"))
+            self.assertIn("no file at", native.preference_note())
+            other = shutil.copy(native._lib.path, os.path.join(d, "libcrisp.so"))
+            self.assertIn("restart Blender to load " + other, native.preference_note())
+        native.set_preference_path(native._lib.path)
+        self.assertIsNone(native.preference_note())
+        native.set_preference_path("")
+        self.assertIsNone(native.preference_note())
+
+    def test_output_folder_that_is_a_file_is_named_so(self):
+        with tempfile.NamedTemporaryFile() as f:
+            with self.assertRaisesRegex(pipeline.InputError, "is a file, not a folder"):
+                pipeline.check_output_dir(f.name)
 
     def test_missing_library_still_registers_and_says_why(self):
         saved_lib, saved_env = native._lib, os.environ.get("CRISP_LIBRARY")
