@@ -48,8 +48,12 @@ ACCUMULATE_FRAMES = 16  # taa: redraws requested after the view stops changing (
 # draw_view3d draws as an image render: workbench anti-aliases it by scene.display.viewport_aa (FXAA by
 # default: measured, 54% of the edge pixels of the still_life view changed) and EEVEE renders all its
 # viewport samples in one call. The preview must filter the 1-sample view, so these are set while it is
-# on and restored when it goes off (a file saved meanwhile keeps the 1-sample values).
+# on and restored when it goes off (and around a save: the file keeps the user's values).
 ONE_SAMPLE = (("display", "viewport_aa", "OFF"), ("eevee", "taa_samples", 1))
+# On the scene while ONE_SAMPLE is forced: {"group.name": the user's value}. Part of the scene, so each
+# undo step says whether it was taken with the forced values and which values they replaced (_after_undo).
+# Not in saved files (_before_save removes it); "_": not shown among the scene's custom properties.
+FORCED_KEY = "_crisp_preview_forced"
 
 
 class _State:
@@ -61,7 +65,6 @@ class _State:
     stack_guard = None   # a 4x4 offscreen bound around the work to restore the region's framebuffer
     saved_settings = None  # (scene name, [(group, name, value before)]) of ONE_SAMPLE
     forced_while_saving = None  # saved_settings put back for a save, forced again after it
-    restored = None      # the saved_settings put back when the preview last went off (_after_undo)
     pending_off = None   # the timer that switches the preview off after a failed draw, until it runs
     views = {}           # region -> (view key, taa's index into the Halton sequence); {}: every view restarts
     last_region = None   # the region drawn last (accumulated_frames)
@@ -267,16 +270,33 @@ def _force_one_sample(scene):
             saved.append((group, name, getattr(owner, name)))
             setattr(owner, name, value)
     _State.saved_settings = (scene.name, saved)
+    _mark_forced(scene, saved)
+
+
+def _mark_forced(scene, saved):
+    scene[FORCED_KEY] = {"%s.%s" % (group, name): value for group, name, value in saved}
+
+
+def _put_back(scene, saved):
+    """The user's values `saved` ([(group, name, value)]) where scene still has the forced ones."""
+    forced = {(group, name): value for group, name, value in ONE_SAMPLE}
+    for group, name, value in saved:
+        if getattr(getattr(scene, group), name) == forced[(group, name)]:
+            setattr(getattr(scene, group), name, value)
+    if FORCED_KEY in scene:
+        del scene[FORCED_KEY]
 
 
 def _restore_settings():
     if _State.saved_settings is not None:
         scene_name, saved = _State.saved_settings
         _State.saved_settings = None
-        _State.restored = (scene_name, saved)
         scene = bpy.data.scenes.get(scene_name)
-        for group, name, value in saved if scene is not None else ():
-            setattr(getattr(scene, group), name, value)
+        if scene is not None:
+            for group, name, value in saved:
+                setattr(getattr(scene, group), name, value)
+            if FORCED_KEY in scene:
+                del scene[FORCED_KEY]
 
 
 def _install():
@@ -411,7 +431,6 @@ def _before_file_load(*_args):
     in that file's scene (not in a same-named scene of the next file), its handlers gone; the next
     file starts with the toggle off (also with Load UI off, which keeps this window manager)."""
     _remove()
-    _State.restored = None  # those settings belong to the file being closed
     s = getattr(bpy.context.window_manager, "crisp_viewport", None)
     if s is not None and s.enabled:
         s.enabled = False  # its update callback finds nothing left to remove
@@ -437,21 +456,21 @@ def _after_save(*_args):
 @bpy.app.handlers.persistent
 def _after_undo(*_args):
     """Undo and redo bring the scene back as it was at that step, with the sample settings it had then:
-    forced ones from a step taken while the preview was on, the user's from one taken before. While the
-    preview is on, it forces one sample again; once it is off, the user's settings it put back replace
-    forced values an undo brought back."""
-    if is_active() and _State.saved_settings is not None:
-        scene = bpy.data.scenes.get(_State.saved_settings[0])
-        for group, name, value in ONE_SAMPLE if scene is not None else ():
-            if getattr(getattr(scene, group), name) != value:
-                setattr(getattr(scene, group), name, value)
-    elif not is_active() and _State.restored is not None:
-        scene_name, saved = _State.restored
-        scene = bpy.data.scenes.get(scene_name)
-        forced = {(group, name): value for group, name, value in ONE_SAMPLE}
-        for group, name, value in saved if scene is not None else ():
-            if getattr(getattr(scene, group), name) == forced[(group, name)]:
-                setattr(getattr(scene, group), name, value)
+    forced ones (and FORCED_KEY) from a step taken while the preview was on, the user's from one taken
+    before. While the preview is on, its scene is forced again; every other scene that comes back forced
+    (the preview off since, or on in another scene) gets the user's values that step recorded. A step
+    taken after the preview went off keeps its values, even one sample chosen by the user."""
+    active = _State.saved_settings if is_active() else None
+    for scene in bpy.data.scenes:
+        if active is not None and scene.name == active[0]:
+            for group, name, value in ONE_SAMPLE:
+                if getattr(getattr(scene, group), name) != value:
+                    setattr(getattr(scene, group), name, value)
+            if FORCED_KEY not in scene:
+                _mark_forced(scene, active[1])
+        elif FORCED_KEY in scene:
+            recorded = scene[FORCED_KEY].to_dict()
+            _put_back(scene, [(g, n, recorded[g + "." + n]) for g, n, _v in ONE_SAMPLE if g + "." + n in recorded])
 
 
 _FILE_HANDLERS = ((bpy.app.handlers.load_pre, _before_file_load), (bpy.app.handlers.save_pre, _before_save),

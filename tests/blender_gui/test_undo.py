@@ -25,8 +25,8 @@ bpy.context.preferences.view.show_splash = False
 USER = (16, "FXAA")  # the artist's viewport samples and anti-aliasing
 
 
-def samples():
-    scene = bpy.context.scene
+def samples(scene=None):
+    scene = scene or bpy.context.scene
     return scene.eevee.taa_samples, scene.display.viewport_aa
 
 
@@ -85,6 +85,54 @@ class UndoWithCrisp(unittest.TestCase):
         self.assertEqual(samples(), USER)
         bpy.ops.ed.undo()
         self.assertEqual(samples(), USER)
+
+    def test_one_sample_chosen_after_the_preview_went_off_survives_undo(self):
+        """The user's values the preview put back are only for steps taken while it was on: a later
+        choice of one sample (or no viewport anti-aliasing) is the artist's, and an undo keeps it. (The
+        values put back were once applied after every later undo and redo.)"""
+        settings = bpy.context.window_manager.crisp_viewport
+        settings.method = "fxaa"
+        settings.enabled = True
+        bpy.data.objects["Cube"].location.z += 0.3
+        bpy.ops.ed.undo_push(message="move while the preview is on")
+        settings.enabled = False
+        self.assertEqual(samples(), USER)
+        scene = bpy.context.scene
+        scene.eevee.taa_samples, scene.display.viewport_aa = 1, "OFF"
+        bpy.ops.ed.undo_push(message="the artist's own choice")
+        bpy.data.objects["Cube"].location.z += 0.3
+        bpy.ops.ed.undo_push(message="move again")
+        bpy.ops.ed.undo()
+        self.assertEqual(samples(), (1, "OFF"), "the artist's choice after the preview went off")
+        bpy.ops.ed.undo()
+        bpy.ops.ed.undo()  # to the step taken while the preview was on: the artist's values then
+        self.assertEqual(samples(), USER)
+        bpy.ops.ed.redo()
+        bpy.ops.ed.redo()
+        self.assertEqual(samples(), (1, "OFF"))
+        self.assertNotIn(viewport.FORCED_KEY, bpy.context.scene)
+
+    def test_file_saved_while_the_preview_is_on_has_the_users_values(self):
+        tmp = tempfile.TemporaryDirectory()
+        self.addCleanup(tmp.cleanup)
+        settings = bpy.context.window_manager.crisp_viewport
+        settings.method = "fxaa"
+        settings.enabled = True
+        path = os.path.join(tmp.name, "on.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+        self.assertEqual(samples(), (1, "OFF"), "forced again after the save")
+        bpy.data.objects["Cube"].location.z += 0.3
+        bpy.ops.ed.undo_push(message="move after the save")
+        bpy.ops.ed.undo()
+        self.assertEqual(samples(), (1, "OFF"))
+        settings.enabled = False
+        self.assertEqual(samples(), USER)
+        with bpy.data.libraries.load(path, link=True) as (_src, dst):
+            dst.scenes = ["Scene"]
+        saved = dst.scenes[0]
+        self.addCleanup(bpy.data.libraries.remove, saved.library)
+        self.assertEqual(samples(saved), USER)
+        self.assertNotIn(viewport.FORCED_KEY, saved, "the file holds no trace of the preview")
 
     def test_add_on_enabled_again_starts_with_the_preview_off(self):
         settings = bpy.context.window_manager.crisp_viewport
