@@ -141,8 +141,9 @@ def _draw():
     except Exception as e:
         message = "Crisp preview off: %s" % e
         print(message)
-        _State.pending_off = lambda: _switch_off(message)
-        bpy.app.timers.register(_State.pending_off, first_interval=0.0)
+        if _State.pending_off is None:  # one switch-off: each view's failed draw must not queue another
+            _State.pending_off = lambda: _switch_off(message)
+            bpy.app.timers.register(_State.pending_off, first_interval=0.0)
     finally:
         _State.drawing = False
 

@@ -134,6 +134,25 @@ class UndoWithCrisp(unittest.TestCase):
         self.assertEqual(samples(saved), USER)
         self.assertNotIn(viewport.FORCED_KEY, saved, "the file holds no trace of the preview")
 
+    def test_failed_draws_leave_no_timer_after_unregister(self):
+        """Each view's failed draw (two 3D views, or the same one drawn again before the timers run)
+        queued a switch-off; unregister removed only the last, and the others ran without the add-on."""
+        settings = bpy.context.window_manager.crisp_viewport
+        settings.method = "fxaa"
+        settings.enabled = True
+        queued = []
+        real = viewport._draw_preview
+
+        def failing(_context):
+            raise RuntimeError("probe")
+        viewport._draw_preview = failing
+        self.addCleanup(setattr, viewport, "_draw_preview", real)
+        for _ in range(2):
+            viewport._draw()
+            queued.append(viewport._State.pending_off)
+        crisp.unregister()
+        self.assertFalse([t for t in queued if bpy.app.timers.is_registered(t)], "a switch-off outlives the add-on")
+
     def test_add_on_enabled_again_starts_with_the_preview_off(self):
         settings = bpy.context.window_manager.crisp_viewport
         settings.method = "fxaa"
