@@ -22,6 +22,9 @@ import crisp  # noqa: E402
 from crisp import viewport  # noqa: E402
 
 bpy.context.preferences.view.show_splash = False
+# The render case needs the library of CRISP_BUILD_DIR, which need not be the checkout's build/ that the
+# add-on finds by itself (as the other GUI tests give it).
+os.environ.setdefault("CRISP_LIBRARY", gui_harness.LIBRARY)
 USER = (16, "FXAA")  # the artist's viewport samples and anti-aliasing
 
 
