@@ -139,8 +139,12 @@ def shader_dirs():
     if os.environ.get("CRISP_SHADER_DIR"):
         dirs.append(os.environ["CRISP_SHADER_DIR"])
     dirs += [os.path.join(here, "shaders"), os.path.normpath(os.path.join(here, "..", "..", "shaders"))]
-    if native._lib is not None:
-        lib = os.path.dirname(os.path.realpath(native._lib.path))
+    try:
+        library = native.load().path  # loaded already when a filter checked its settings; else now
+    except native.CrispError:
+        library = None
+    if library is not None:
+        lib = os.path.dirname(os.path.realpath(library))
         dirs += [os.path.normpath(os.path.join(lib, "..", "share", "crisp", "shaders")),
                  os.path.normpath(os.path.join(lib, "..", "..", "shaders"))]
     return list(dict.fromkeys(dirs))
