@@ -297,9 +297,10 @@ def _escaped(name):
     return name.replace("\\", "\\\\").replace('"', '\\"')
 
 
-def _path_of_modifier(name):
-    """The data path of modifier `name` as Blender writes it in an F-curve."""
-    return 'modifiers["%s"]' % _escaped(name)
+def _path_of_modifier(name, collection="modifiers"):
+    """The data path of modifier `name` of an object's `collection` (modifiers, grease_pencil_modifiers)
+    as Blender writes it in an F-curve."""
+    return '%s["%s"]' % (collection, _escaped(name))
 
 
 def _node_tree_varies(tree, seen):
@@ -344,7 +345,7 @@ def _grease_pencil_varies(ob):
             continue
         if m.type in GP_SELF_VARYING or _reads_other_data(m):
             return True
-        if any(p.startswith('grease_pencil_modifiers["%s"]' % _escaped(m.name)) for p in paths):
+        if any(p.startswith(_path_of_modifier(m.name, "grease_pencil_modifiers")) for p in paths):
             return True
     return any(p.startswith('shader_effects[') for p in paths)
 

@@ -368,11 +368,16 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
         snap.set(view_layer, "pass_cryptomatte_depth", 2)  # one EXR layer: rank 0 is all a 1-sample pixel has
 
 
+def _temporary_path(path):
+    """Where a file Blender writes for `path` goes until it is whole: hidden beside it, renamed into place."""
+    folder, name = os.path.split(path)
+    return os.path.join(folder, "." + name + ".tmp")
+
+
 def _render_to(scene, path):
     """Renders the current frame (the view layer _prepare left on) to `path` through a temporary name,
     renamed once complete."""
-    folder, name = os.path.split(path)
-    tmp = os.path.join(folder, "." + name + ".tmp")
+    tmp = _temporary_path(path)
     scene.render.filepath = tmp
     t0 = time.perf_counter()
     try:
@@ -401,7 +406,7 @@ def write_display_png(scene, exr_path, png_path):
     saved = [(attr, getattr(settings, attr)) for attr in ("file_format", "color_mode", "color_depth",
                                                            "compression", "exr_codec")]
     image = bpy.data.images.load(exr_path, check_existing=False)
-    tmp = os.path.join(os.path.dirname(png_path), "." + os.path.basename(png_path) + ".tmp")
+    tmp = _temporary_path(png_path)
     try:
         settings.file_format = "PNG"
         settings.color_mode, settings.color_depth = "RGBA", "8"

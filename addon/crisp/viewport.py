@@ -263,13 +263,19 @@ def _on_scene_change(*_args):
 _SCENE_HANDLERS = (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post)
 
 
-def _force_one_sample(scene):
-    saved = []
+def _apply_one_sample(scene):
+    """Sets ONE_SAMPLE on scene; returns [(group, name, value before)] of those it changed."""
+    changed = []
     for group, name, value in ONE_SAMPLE:
         owner = getattr(scene, group)
         if getattr(owner, name) != value:
-            saved.append((group, name, getattr(owner, name)))
+            changed.append((group, name, getattr(owner, name)))
             setattr(owner, name, value)
+    return changed
+
+
+def _force_one_sample(scene):
+    saved = _apply_one_sample(scene)
     _State.saved_settings = (scene.name, saved)
     _mark_forced(scene, saved)
 
@@ -464,9 +470,7 @@ def _after_undo(*_args):
     active = _State.saved_settings if is_active() else None
     for scene in bpy.data.scenes:
         if active is not None and scene.name == active[0]:
-            for group, name, value in ONE_SAMPLE:
-                if getattr(getattr(scene, group), name) != value:
-                    setattr(getattr(scene, group), name, value)
+            _apply_one_sample(scene)  # forced again; the user's values stay those saved at switch-on (active[1])
             if FORCED_KEY not in scene:
                 _mark_forced(scene, active[1])
         elif FORCED_KEY in scene:

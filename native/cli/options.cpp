@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "cli/frame_range.h"
+#include "core/image.h"
 
 namespace crisp::cli {
 
@@ -191,11 +192,11 @@ void checkResolutionOption(const ParsedArgs& a) {
   std::string lower = r;
   std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   int w = 0, h = 0, consumed = 0;
-  constexpr int kLowest = 4, kHighest = 65536;  // Blender's smallest render size; the library's largest
+  constexpr int kLowest = 4;  // Blender's smallest render size; the largest is the library's (kMaxDimension)
   if (std::sscanf(lower.c_str(), "%dx%d%n", &w, &h, &consumed) != 2 || consumed != int(r.size()) || w < kLowest ||
-      h < kLowest || w > kHighest || h > kHighest)
+      h < kLowest || w > kMaxDimension || h > kMaxDimension)
     throw UsageError("bad --resolution '" + r + "' (expected WxH, each " + std::to_string(kLowest) + " to " +
-                     std::to_string(kHighest) + ", e.g. 480x270)");
+                     std::to_string(kMaxDimension) + ", e.g. 480x270)");
 }
 
 void checkBlenderFrameRangeOption(const ParsedArgs& a, const std::string& name) {
