@@ -254,13 +254,48 @@ def _render_collections_objects(layer):
     return {o.name for lc in _rendering_layer_collections(layer) for o in lc.collection.objects}
 
 
+def scenes_with_sets(scene):
+    """The scene, then each scene of its chain of background sets (Scene > Background Scene), which
+    render behind it and move with its frames."""
+    out, seen = [], set()
+    while scene is not None and scene.as_pointer() not in seen:
+        seen.add(scene.as_pointer())
+        out.append(scene)
+        scene = scene.background_set
+    return out
+
+
+def render_layers(layer):
+    """(scene, view layer) pairs that make the layer's render: the layer itself, then for each
+    background set the layer Blender renders it with (the first whose Use for Rendering is on, else the
+    first)."""
+    scene = layer.id_data
+    pairs = [(scene, layer)]
+    for s in scenes_with_sets(scene)[1:]:
+        pairs.append((s, next((l for l in s.view_layers if l.use), s.view_layers[0])))
+    return pairs
+
+
+def _layer_objects(layer):
+    """The objects of the layer's scene and of its background sets, each once, as [(object, the view
+    layer that renders it, whether it is in a collection that renders there)]."""
+    out, names = [], set()
+    for s, l in render_layers(layer):
+        rendered = _render_collections_objects(l)
+        for ob in s.objects:
+            if ob.name not in names:
+                names.add(ob.name)
+                out.append((ob, l, ob.name in rendered))
+    return out
+
+
 def visible_objects(scene, view_layer=None):
     """Objects that reach the render: renderable types, not hidden from render, in a collection that
-    renders in the layer. Hidden in the viewport only, an object still renders, so it counts."""
+    renders in the layer or in a background set's. Hidden in the viewport only, an object still renders,
+    so it counts."""
     layer = view_layer or scene.view_layers[0]
-    rendered = _render_collections_objects(layer)
-    return [ob for ob in scene.objects
-            if ob.type in RENDERABLE_TYPES and not ob.hide_render and ob.name in rendered]
+    return [ob for ob, _, rendered in _layer_objects(layer)
+            if rendered and ob.type in RENDERABLE_TYPES and not ob.hide_render]
 
 
 # Geometry Nodes that make a tree's output change with time without a keyframe: the scene's time, and
@@ -468,7 +503,7 @@ def rendered_instances(layer):
     geometry nodes instances), as [(source object, instancer name, matrix_world as lists)], from
     the layer's depsgraph at the current frame. Cryptomatte names an instance by its source object, so
     instances of one source share one object ID."""
-    rendered = _render_collections_objects(layer)
+    rendered = {ob.name for ob, _, r in _layer_objects(layer) if r}
     out = []
     for inst in layer.depsgraph.object_instances:
         if not inst.is_instance or inst.parent is None:
@@ -484,25 +519,25 @@ def rendered_instances(layer):
 
 def show_in_viewport(scene, layer):
     """Unhides in the viewport (object eye and monitor icons, collection eye and monitor icons) what
-    renders in the layer; returns the calls that hide each again."""
+    renders in the layer and its background sets; returns the calls that hide each again."""
     undo = []
-    for lc in _rendering_layer_collections(layer):
-        if lc.hide_viewport:
-            lc.hide_viewport = False
-            undo.append(lambda lc=lc: setattr(lc, "hide_viewport", True))
-        if lc.collection.hide_viewport:
-            lc.collection.hide_viewport = False
-            undo.append(lambda c=lc.collection: setattr(c, "hide_viewport", True))
-    rendered = _render_collections_objects(layer)
-    for ob in scene.objects:  # every type: an empty that instances a collection too
-        if ob.hide_render or ob.name not in rendered:
+    for _, set_layer in render_layers(layer):
+        for lc in _rendering_layer_collections(set_layer):
+            if lc.hide_viewport:
+                lc.hide_viewport = False
+                undo.append(lambda lc=lc: setattr(lc, "hide_viewport", True))
+            if lc.collection.hide_viewport:
+                lc.collection.hide_viewport = False
+                undo.append(lambda c=lc.collection: setattr(c, "hide_viewport", True))
+    for ob, own_layer, rendered in _layer_objects(layer):  # every type: an empty instancing a collection too
+        if ob.hide_render or not rendered:
             continue
         if ob.hide_viewport:
             ob.hide_viewport = False
             undo.append(lambda ob=ob: setattr(ob, "hide_viewport", True))
-        if ob.hide_get(view_layer=layer):
-            ob.hide_set(False, view_layer=layer)
-            undo.append(lambda ob=ob: ob.hide_set(True, view_layer=layer))
+        if ob.hide_get(view_layer=own_layer):
+            ob.hide_set(False, view_layer=own_layer)
+            undo.append(lambda ob=ob, l=own_layer: ob.hide_set(True, view_layer=l))
         _show_instanced(ob, undo, set())
     return undo
 
@@ -514,7 +549,7 @@ def show_render_modifiers(scene):
     stays off), and off those shown in the viewport only (a hook off in renders reshapes nothing that
     renders); returns the calls that switch each back."""
     undo = []
-    for ob in scene.objects:
+    for ob in {o.name: o for s in scenes_with_sets(scene) for o in s.objects}.values():
         if ob.type not in RENDERABLE_TYPES or ob.hide_render:
             continue
         for m in getattr(ob, "modifiers", ()):

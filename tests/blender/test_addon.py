@@ -307,6 +307,39 @@ class AddonTest(unittest.TestCase):
             render.render_frames(scene, p, [1], d)
             self.assertNotIn(key, json.load(open(os.path.join(d, "frame_0001.json")))["objects"])
 
+    def test_background_set_objects_count(self):
+        """Objects of the scene's background set render behind it, at its frames: the plan sees them and
+        their motion (also when hidden in the set's viewport), the sidecars carry their matrices, and
+        what planning unhid in the set is hidden again. A set object hidden from render does not count."""
+        scene = harness.build_scene("ghosting")  # Sphere moves across a still Wall
+        backdrop = bpy.data.scenes.new("Backdrop")
+        sphere = scene.objects["Sphere"]
+        for c in list(sphere.users_collection):
+            c.objects.unlink(sphere)
+        backdrop.collection.objects.link(sphere)
+        scene.background_set = backdrop
+        sphere.hide_set(True, view_layer=backdrop.view_layers[0])
+        sphere.hide_viewport = True
+        frames = [1, 2, 3]
+        p, facts = pipeline.scene_plan(scene, "taa", frames)
+        self.assertEqual(facts.visible_objects, ["Wall", "Sphere"])
+        self.assertEqual(facts.moving_objects, ["Sphere"])
+        self.assertIn("motion", p.passes)
+        self.assertIn("id", p.passes)
+        self.assertTrue(sphere.hide_viewport and sphere.hide_get(view_layer=backdrop.view_layers[0]))
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        key = hashing.cryptomatte_hex("Sphere")
+        with tempfile.TemporaryDirectory() as d:
+            render.render_frames(scene, p, frames, d)
+            moved = [json.load(open(os.path.join(d, "frame_%04d.json" % f)))["objects"][key]["matrix_world"]
+                     for f in (1, 3)]
+        self.assertNotEqual(moved[0], moved[1])
+        self.assertTrue(sphere.hide_viewport and sphere.hide_get(view_layer=backdrop.view_layers[0]))
+        sphere.hide_render = True
+        p, facts = pipeline.scene_plan(scene, "taa", frames)
+        self.assertEqual(facts.visible_objects, ["Wall"])
+        self.assertNotIn("motion", p.passes)
+
     def test_geometry_that_varies_without_keyframes_deforms(self):
         """Geometry Nodes reading the scene's time (inside a nested group), and a modifier setting driven
         by the frame, change the geometry with no keyframe: the object deforms, so taa gets motion and
