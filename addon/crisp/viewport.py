@@ -63,7 +63,7 @@ class _State:
     offscreen_size = None
     decoded = None       # gpu_filters.Target: the linear input
     stack_guard = None   # a 4x4 offscreen bound around the work to restore the region's framebuffer
-    saved_settings = None  # (scene name, [(group, name, value before)]) of ONE_SAMPLE
+    saved_settings = {}  # scene name -> [(group, name, value before)] of ONE_SAMPLE: the scenes forced
     forced_while_saving = None  # saved_settings put back for a save, forced again after it
     pending_off = None   # the timer that switches the preview off after a failed draw, until it runs
     views = {}           # region -> (view key, taa's index into the Halton sequence); {}: every view restarts
@@ -162,6 +162,8 @@ def _draw_preview(context):
     width, height = region.width, region.height
     if width < 4 or height < 4:
         return
+    if _follow_windows(context):
+        return  # as Blender drew it: the forced settings reach the scene's evaluated copy after this draw
     # The result must be drawn into the framebuffer bound when the handler starts (the region's). Creating
     # framebuffers and draw_view3d bind others and do not restore it (Blender 3.4): drawing after them
     # went elsewhere, the "black preview". Binding a small offscreen pushes the region's framebuffer on
@@ -276,8 +278,24 @@ def _apply_one_sample(scene):
 
 def _force_one_sample(scene):
     saved = _apply_one_sample(scene)
-    _State.saved_settings = (scene.name, saved)
+    _State.saved_settings[scene.name] = saved
     _mark_forced(scene, saved)
+
+
+def _follow_windows(context):
+    """The preview forces the scenes that windows show: the one drawn now, if a window switched to it
+    (True: this draw still has its old settings, the next has the forced ones), and the user's values go
+    back to a forced scene no window shows any more."""
+    shown = {w.scene.name for w in context.window_manager.windows}
+    for name in [n for n in _State.saved_settings if n not in shown and n != context.scene.name]:
+        _restore_settings(name)
+    if context.scene.name in _State.saved_settings:
+        return False
+    _force_one_sample(context.scene)
+    _State.views = {}
+    if not bpy.app.timers.is_registered(_tag_redraw):
+        bpy.app.timers.register(_tag_redraw, first_interval=0.0)
+    return True
 
 
 def _mark_forced(scene, saved):
@@ -294,10 +312,10 @@ def _put_back(scene, saved):
         del scene[FORCED_KEY]
 
 
-def _restore_settings():
-    if _State.saved_settings is not None:
-        scene_name, saved = _State.saved_settings
-        _State.saved_settings = None
+def _restore_settings(only=None):
+    """The user's values back in every forced scene, or in the one named `only`."""
+    for scene_name in [only] if only is not None else list(_State.saved_settings):
+        saved = _State.saved_settings.pop(scene_name)
         scene = bpy.data.scenes.get(scene_name)
         if scene is not None:
             for group, name, value in saved:
@@ -422,7 +440,7 @@ class CRISP_PT_viewport(bpy.types.Panel):
             row.label(text="Not filtered: " + rejected_settings(), icon="ERROR")
         elif is_active():
             layout.label(text="%.1f ms per redraw" % _State.last_ms)
-        if _State.saved_settings and _State.saved_settings[1]:
+        if _State.saved_settings.get(context.scene.name):
             layout.label(text="While on: " + ", ".join("%s.%s = %r" % (g, n, v) for g, n, v in ONE_SAMPLE),
                          icon="INFO")
 
@@ -446,17 +464,16 @@ def _before_file_load(*_args):
 @bpy.app.handlers.persistent
 def _before_save(*_args):
     """The file is saved with the user's sample settings, not the one sample forced while the preview is on."""
-    if _State.saved_settings is not None:
-        _State.forced_while_saving = _State.saved_settings
+    if _State.saved_settings:
+        _State.forced_while_saving = list(_State.saved_settings)
         _restore_settings()
 
 
 @bpy.app.handlers.persistent
 def _after_save(*_args):
-    if _State.forced_while_saving is not None and is_active():
-        scene = bpy.data.scenes.get(_State.forced_while_saving[0])
-        _State.forced_while_saving = None
-        if scene is not None:
+    names, _State.forced_while_saving = _State.forced_while_saving, None
+    if names is not None and is_active():
+        for scene in filter(None, map(bpy.data.scenes.get, names)):
             _force_one_sample(scene)
 
 
@@ -464,15 +481,15 @@ def _after_save(*_args):
 def _after_undo(*_args):
     """Undo and redo bring the scene back as it was at that step, with the sample settings it had then:
     forced ones (and FORCED_KEY) from a step taken while the preview was on, the user's from one taken
-    before. While the preview is on, its scene is forced again; every other scene that comes back forced
+    before. While the preview is on, its scenes are forced again; every other scene that comes back forced
     (the preview off since, or on in another scene) gets the user's values that step recorded. A step
     taken after the preview went off keeps its values, even one sample chosen by the user."""
-    active = _State.saved_settings if is_active() else None
+    active = _State.saved_settings if is_active() else {}
     for scene in bpy.data.scenes:
-        if active is not None and scene.name == active[0]:
-            _apply_one_sample(scene)  # forced again; the user's values stay those saved at switch-on (active[1])
+        if scene.name in active:
+            _apply_one_sample(scene)  # forced again; the user's values stay those saved when it was forced
             if FORCED_KEY not in scene:
-                _mark_forced(scene, active[1])
+                _mark_forced(scene, active[scene.name])
         elif FORCED_KEY in scene:
             recorded = scene[FORCED_KEY].to_dict()
             _put_back(scene, [(g, n, recorded[g + "." + n]) for g, n, _v in ONE_SAMPLE if g + "." + n in recorded])

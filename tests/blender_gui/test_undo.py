@@ -6,7 +6,10 @@
 * The viewport preview forces one sample while it is on; an undo to a step taken while it was on,
   after it went off, used to leave the scene at one sample with viewport anti-aliasing off. An undo
   to a step before it went on, while it is on, must not leave the user's settings in place either.
-* Disabling and enabling the add-on again leaves the preview toggle off, not on with nothing drawing."""
+* Disabling and enabling the add-on again leaves the preview toggle off, not on with nothing drawing.
+* A window switched to another scene while the preview is on: the preview forced only the first scene,
+  so it filtered the other's fully sampled view, and the first kept one sample until the preview went
+  off."""
 
 import os
 import sys
@@ -155,6 +158,34 @@ class UndoWithCrisp(unittest.TestCase):
             queued.append(viewport._State.pending_off)
         crisp.unregister()
         self.assertFalse([t for t in queued if bpy.app.timers.is_registered(t)], "a switch-off outlives the add-on")
+
+    def test_the_preview_follows_the_window_to_another_scene(self):
+        first = bpy.context.window.scene
+        other = bpy.data.scenes.new("Other")
+        self.addCleanup(bpy.data.scenes.remove, other)
+        other.eevee.taa_samples, other.display.viewport_aa = 32, "8"
+        settings = bpy.context.window_manager.crisp_viewport
+        settings.method = "fxaa"
+        settings.enabled = True
+        self.addCleanup(lambda: setattr(bpy.context.window, "scene", first))
+        self.assertEqual(samples(first), (1, "OFF"))
+        bpy.context.window.scene = other
+        area = next(a for a in bpy.context.screen.areas if a.type == "VIEW_3D")
+        region = next(r for r in area.regions if r.type == "WINDOW")
+        with bpy.context.temp_override(window=bpy.context.window, area=area, region=region):
+            bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=2)
+        self.assertEqual(viewport._State.rejected, None)
+        self.assertEqual(samples(other), (1, "OFF"), "the scene the window shows now is drawn with one sample")
+        self.assertEqual(samples(first), USER, "the scene no window shows has the artist's values back")
+        self.assertIn(viewport.FORCED_KEY, other)
+        self.assertNotIn(viewport.FORCED_KEY, first)
+        bpy.context.window.scene = first
+        with bpy.context.temp_override(window=bpy.context.window, area=area, region=region):
+            bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
+        self.assertEqual((samples(first), samples(other)), ((1, "OFF"), (32, "8")))
+        settings.enabled = False
+        self.assertEqual((samples(first), samples(other)), (USER, (32, "8")))
+        self.assertNotIn(viewport.FORCED_KEY, first)
 
     def test_add_on_enabled_again_starts_with_the_preview_off(self):
         settings = bpy.context.window_manager.crisp_viewport
