@@ -491,11 +491,27 @@ def _after_undo(*_args):
             if FORCED_KEY not in scene:
                 _mark_forced(scene, active[scene.name])
         elif FORCED_KEY in scene:
-            recorded = scene[FORCED_KEY].to_dict()
-            _put_back(scene, [(g, n, recorded[g + "." + n]) for g, n, _v in ONE_SAMPLE if g + "." + n in recorded])
+            _put_back_recorded(scene)
 
 
-_FILE_HANDLERS = ((bpy.app.handlers.load_pre, _before_file_load), (bpy.app.handlers.save_pre, _before_save),
+def _put_back_recorded(scene):
+    """The user's values that scene's FORCED_KEY recorded, where it still has the forced ones."""
+    recorded = scene[FORCED_KEY].to_dict()
+    _put_back(scene, [(g, n, recorded[g + "." + n]) for g, n, _v in ONE_SAMPLE if g + "." + n in recorded])
+
+
+@bpy.app.handlers.persistent
+def _after_file_load(*_args):
+    """An auto save and the last session's quit.blend are written without the save handlers, so a scene
+    the preview forced comes back forced, with FORCED_KEY; the preview is off after a load (it ends with
+    the file it filtered), so the user's values go back."""
+    for scene in bpy.data.scenes:
+        if FORCED_KEY in scene:
+            _put_back_recorded(scene)
+
+
+_FILE_HANDLERS = ((bpy.app.handlers.load_pre, _before_file_load), (bpy.app.handlers.load_post, _after_file_load),
+                  (bpy.app.handlers.save_pre, _before_save),
                   (bpy.app.handlers.save_post, _after_save), (bpy.app.handlers.undo_post, _after_undo),
                   (bpy.app.handlers.redo_post, _after_undo))
 

@@ -5,7 +5,8 @@ handlers go, the one-sample settings it forced go back into that file's scene, a
 whose scene has the same name, keeps its own settings, also after the preview is switched on and off
 there; with Load UI off the toggle goes off too. A file saved while the preview is on holds the
 user's settings, not the forced ones. (It used to keep drawing with the toggle shown off, and wrote the
-first file's settings into the second.)"""
+first file's settings into the second.) A file written without the save handlers while the preview was
+on (an auto save, the last session's quit.blend) opens with the user's settings too."""
 
 import os
 import sys
@@ -61,6 +62,24 @@ class PreviewAcrossFileOpen(unittest.TestCase):
         settings.enabled = True
         settings.enabled = False
         self.assertEqual((opened.eevee.taa_samples, opened.display.viewport_aa), (16, "8"))
+
+    def test_a_file_written_without_the_save_handlers_opens_with_the_users_settings(self):
+        crisp.register()
+        self.addCleanup(crisp.unregister)
+        tmp = tempfile.TemporaryDirectory()
+        self.addCleanup(tmp.cleanup)
+        scene = bpy.context.scene
+        scene.eevee.taa_samples, scene.display.viewport_aa = 24, "16"
+        settings = bpy.context.window_manager.crisp_viewport
+        settings.enabled = True
+        self.assertEqual((scene.eevee.taa_samples, scene.display.viewport_aa), (1, "OFF"))
+        # As an auto save writes the file: no save_pre, so the forced values and their record go in.
+        autosaved = os.path.join(tmp.name, "autosave.blend")
+        bpy.data.libraries.write(autosaved, {scene})
+        bpy.ops.wm.open_mainfile(filepath=autosaved, load_ui=False)
+        opened = bpy.data.scenes[0]
+        self.assertEqual((opened.eevee.taa_samples, opened.display.viewport_aa), (24, "16"))
+        self.assertNotIn(viewport.FORCED_KEY, opened)
 
 
 if __name__ == "__main__":
