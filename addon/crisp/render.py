@@ -536,11 +536,27 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
                                                            shift_per_pixel(scene), dx, dy)
                 cam_data.shift_x, cam_data.shift_y = base_shift
             write_json(os.path.join(out_dir, frame_name(f, ".json")), sidecar)
+            if "subsamples" not in the_plan.passes:
+                _remove_subsamples(out_dir, f)
             info = {"frame": f, "render_s": render_s, "exr": path, "jitter": [dx, dy]}
             infos.append(info)
             if on_frame:
                 on_frame(f, info)
     return infos
+
+
+def _subsample_path(out_dir, frame, k):
+    return os.path.join(out_dir, "frame_%04d_sub%d.exr" % (frame, k))
+
+
+def _remove_subsamples(out_dir, frame):
+    """An earlier rsaa render's sub-samples of a frame just rendered anew without them: its sidecar no
+    longer lists them, and they belong to the picture that frame replaced (8 renders' worth of disk)."""
+    for k in range(len(RSAA_PATTERN)):
+        try:
+            os.remove(_subsample_path(out_dir, frame, k))
+        except FileNotFoundError:
+            pass
 
 
 def _render_subsamples(snap, scene, view_layer, frame, out_dir, base_shift, unit, dx, dy):
@@ -559,7 +575,7 @@ def _render_subsamples(snap, scene, view_layer, frame, out_dir, base_shift, unit
         for k, (ox, oy) in enumerate(RSAA_PATTERN):
             cam.shift_x = base_shift[0] + (dx + ox) * unit
             cam.shift_y = base_shift[1] + (dy + oy) * unit
-            path = os.path.join(out_dir, "frame_%04d_sub%d.exr" % (frame, k))
+            path = _subsample_path(out_dir, frame, k)
             out.append({"offset": [ox, oy], "file": os.path.basename(path), "render_s": _render_to(scene, path)})
     finally:
         for prop, value in main.items():  # back to the main frames' settings

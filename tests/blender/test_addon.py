@@ -656,6 +656,22 @@ class AddonTest(unittest.TestCase):
         self.assertAlmostEqual(data.shift_x, 0.1, places=6, msg="the animation's shift at frame 2, no jitter left")
 
     @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
+    def test_a_frame_rendered_again_without_subsamples_drops_the_old_ones(self):
+        """rsaa's eight geometry renders of a frame belong to that frame's picture: rendered again for
+        another method, the frame's sidecar no longer lists them and they go; frames not rendered again
+        keep theirs."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 16, 8
+        facts = plan.SceneFacts(1, 2, visible_objects=["Box", "Ball"])
+        with tempfile.TemporaryDirectory() as d:
+            render.render_frames(scene, plan.make_plan("rsaa", facts), [1, 2], d)
+            subs = lambda f: sorted(n for n in os.listdir(d) if n.startswith("frame_%04d_sub" % f))
+            self.assertEqual(len(subs(1)), len(render.RSAA_PATTERN))
+            render.render_frames(scene, plan.make_plan("taa", facts), [1], d)
+            self.assertEqual(subs(1), [])
+            self.assertEqual(len(subs(2)), len(render.RSAA_PATTERN))
+            self.assertNotIn("subsamples", json.load(open(os.path.join(d, "frame_0001.json"))))
+
     def test_rsaa_without_geometry_takes_its_parameters(self):
         """rsaa on a plan with no sub-samples (nothing visible) filters as 'none'; the rsaa parameters
         the user set are not set on that filter (they failed as unknown to 'none')."""
