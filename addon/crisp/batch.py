@@ -40,7 +40,8 @@ OUTDIR/reference/frame_NNNN.exr when asked, and OUTDIR/run.json (see pipeline.py
 temporary name renamed into place. The opened .blend is never saved.
 
 Exit codes: 0 done; 2 bad input (no camera, empty frame range, unwritable output, unknown method,
-bad arguments); 3 library missing or failing; 4 render failed, or a file could not be written.
+bad arguments); 3 library missing or failing; 4 render failed, a file could not be written, or
+stopped by Ctrl-C, SIGTERM or SIGHUP (after the frame it was on).
 Messages start with "crisp: error:".
 """
 
@@ -86,6 +87,30 @@ def fail(code, message):
     sys.exit(code)
 
 
+class Stopped(Exception):
+    """A stop signal (SIGTERM, SIGHUP): the run ends after the frame it is on, as after Ctrl-C."""
+
+
+def stop_on_signals():
+    """Ctrl-C, SIGTERM and SIGHUP end the run as an exception, so its record says why it stopped and its
+    pre-roll folder goes. Blender's own Ctrl-C handler only flags a render to stop and kills Blender at
+    the second one (crisp passes its Ctrl-C on, so it comes twice): the first signal stops, others wait
+    for that stop to finish. A signal Blender was started ignoring (nohup) stays ignored."""
+    import signal
+    stopping = []
+
+    def stop(sig, _frame):
+        if stopping:
+            return
+        stopping.append(sig)
+        if sig == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Stopped("stopped by %s" % signal.Signals(sig).name)
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(sig) != signal.SIG_IGN:
+            signal.signal(sig, stop)
+
+
 def scene_script_path(text):
     if os.path.isfile(text):
         return os.path.abspath(text)
@@ -126,6 +151,7 @@ def main(argv):
     class ArgError(Exception):
         pass
 
+    stop_on_signals()
     parser = make_parser()
     parser.error = lambda msg: fail(2, msg)  # argparse would exit 2 with usage; keep one message style
     args = parser.parse_args(argv)
@@ -177,6 +203,10 @@ def main(argv):
         fail(3, str(e))
     except render.WriteFailed as e:  # a file of ours that could not be written (run.json on a full disk, say)
         fail(4, str(e.strerror))
+    except KeyboardInterrupt:
+        fail(4, "stopped by Ctrl-C (SIGINT)")
+    except Stopped as e:
+        fail(4, str(e))
     except OSError as e:  # any other file error: named, not a traceback
         where = e.filename2 or e.filename
         fail(4, "%s: %s" % (where, e.strerror or e) if where else str(e))

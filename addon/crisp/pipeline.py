@@ -10,7 +10,8 @@ OUTDIR/run.json. Layout:
 
 run.json is rewritten as each frame is made; its "status" says how the run ended: "complete",
 "cancelled at frame N" or "cancelled at reference frame N" (should_cancel, a caller's stop),
-"failed: <why>" (also "failed: KeyboardInterrupt", Ctrl-C), "running" (also a run that was killed),
+"failed: <why>" (also "failed: KeyboardInterrupt", Ctrl-C, and "failed: stopped by SIGTERM", batch.py's
+stop signals), "running" (also a run that was killed),
 or "planned" (plan_only).
 
 A farm chunk (issue 8, docs/farm.md) writes frames A..B of a shot and first renders and filters the

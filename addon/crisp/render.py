@@ -381,19 +381,23 @@ def _render_to(scene, path):
     scene.render.filepath = tmp
     t0 = time.perf_counter()
     try:
-        bpy.ops.render.render(write_still=True, scene=scene.name)
-    except RuntimeError as e:  # Blender's own failure to render or write (a read-only folder, a full disk)
-        raise RenderFailed("Blender could not render frame %d to %s: %s"
-                          % (scene.frame_current, tmp, str(e).strip().splitlines()[-1] if str(e).strip() else e))
-    dt = time.perf_counter() - t0
-    if not os.path.isfile(tmp):
-        raise RenderError("Blender wrote no file for frame %d (expected %s)" % (scene.frame_current, tmp))
-    broken = exr_file.incomplete(tmp)
-    if broken:  # a disk that filled up while Blender wrote: it says nothing, and the file must not take the name
-        os.remove(tmp)
-        raise RenderFailed("Blender wrote an incomplete file for frame %d (%s: %s); is the disk full?"
-                           % (scene.frame_current, path, broken))
-    os.replace(tmp, path)
+        try:
+            bpy.ops.render.render(write_still=True, scene=scene.name)
+        except RuntimeError as e:  # Blender's own failure to render or write (a read-only folder, a full disk)
+            raise RenderFailed("Blender could not render frame %d to %s: %s"
+                              % (scene.frame_current, tmp, str(e).strip().splitlines()[-1] if str(e).strip() else e))
+        dt = time.perf_counter() - t0
+        if not os.path.isfile(tmp):
+            raise RenderError("Blender wrote no file for frame %d (expected %s)" % (scene.frame_current, tmp))
+        broken = exr_file.incomplete(tmp)
+        if broken:  # a disk that filled up while Blender wrote: it says nothing, and the file must not take the name
+            raise RenderFailed("Blender wrote an incomplete file for frame %d (%s: %s); is the disk full?"
+                               % (scene.frame_current, path, broken))
+        os.replace(tmp, path)
+    except BaseException:  # also a stop signal, which arrives as the render returns: no temporary left
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
     return dt
 
 

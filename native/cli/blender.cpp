@@ -5,14 +5,17 @@
 // its output that say what went wrong.
 #include <fcntl.h>
 #include <poll.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <iterator>
 #include <sstream>
 #include <string>
 
@@ -121,6 +124,56 @@ bool readSome(int fd, std::string& buffer) {
   }
 }
 
+// Blender's pid while it runs, and the first stop signal crisp got meanwhile.
+volatile sig_atomic_t blenderPid = 0;
+volatile sig_atomic_t stopSignal = 0;
+constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
+
+// Only async-signal-safe calls: kill.
+extern "C" void passStopToBlender(int sig) {
+  if (stopSignal == 0) stopSignal = sig;
+  if (blenderPid > 0) ::kill(pid_t(blenderPid), sig);
+}
+
+// While Blender runs, a stop signal crisp gets (a farm cancelling its task,
+// kill PID, Ctrl-C) goes on to Blender, whose driver stops after the frame
+// it is on and records why, and crisp waits for it: otherwise Blender would
+// go on alone, writing into the output folder. A signal the shell made crisp
+// ignore (nohup) is left alone.
+class StopSignalsToBlender {
+ public:
+  StopSignalsToBlender() {
+    stopSignal = 0;
+    blenderPid = 0;
+    for (std::size_t i = 0; i < std::size(kStopSignals); ++i) {
+      struct sigaction action {};
+      action.sa_handler = passStopToBlender;
+      sigemptyset(&action.sa_mask);
+      installed_[i] = ::sigaction(kStopSignals[i], nullptr, &old_[i]) == 0 && old_[i].sa_handler != SIG_IGN &&
+                      ::sigaction(kStopSignals[i], &action, nullptr) == 0;
+    }
+  }
+  void started(pid_t pid) {
+    blenderPid = pid;
+    if (stopSignal != 0) ::kill(pid, stopSignal);  // one that came before the pid was known
+  }
+  void ended() { blenderPid = 0; }  // reaped: its pid may be another process's now
+  // After Blender ended: crisp's own handlers back and, if crisp was asked to
+  // stop, it stops now by the same signal.
+  ~StopSignalsToBlender() {
+    blenderPid = 0;
+    for (std::size_t i = 0; i < std::size(kStopSignals); ++i)
+      if (installed_[i]) ::sigaction(kStopSignals[i], &old_[i], nullptr);
+    if (stopSignal != 0) ::raise(stopSignal);
+  }
+  StopSignalsToBlender(const StopSignalsToBlender&) = delete;
+  StopSignalsToBlender& operator=(const StopSignalsToBlender&) = delete;
+
+ private:
+  struct sigaction old_[std::size(kStopSignals)] {};
+  bool installed_[std::size(kStopSignals)] = {};
+};
+
 }  // namespace
 
 BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const std::string& log,
@@ -151,12 +204,17 @@ BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const 
   argv.push_back(nullptr);
   std::fflush(stdout);
   std::fflush(stderr);
+  StopSignalsToBlender stops;
+  const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid < 0) {
     closeAll();
     ioError("cannot start Blender (fork failed)");
   }
   if (pid == 0) {
+    // crisp killed outright (kill -9, the OOM killer): Blender gets SIGTERM rather than going on alone.
+    prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (getppid() != parent) _exit(127);  // crisp died before that
     int to = output == BlenderOutput::Captured ? capture[1] : -1;
     if (output == BlenderOutput::Logged) to = open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
     if (to >= 0) {
@@ -169,6 +227,7 @@ BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const 
     (void)!write(exec[1], &error, sizeof error);
     _exit(127);
   }
+  stops.started(pid);
   close(exec[1]);
   exec[1] = -1;
   int execError = 0;
@@ -179,6 +238,7 @@ BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const 
     closeAll();
     while (waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {
     }
+    stops.ended();
     std::fprintf(stderr, "crisp: error: cannot run Blender '%s': %s (install it, or pass --blender PATH)\n",
                  cmd[0].c_str(), std::strerror(execError));
     BlenderRun failed;
@@ -221,6 +281,7 @@ BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const 
   int status = 0;
   while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
+  stops.ended();
   if (WIFEXITED(status))
     run.exitCode = WEXITSTATUS(status);
   else

@@ -27,6 +27,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 
 import numpy as np
 import pytest
@@ -464,6 +465,67 @@ def test_render_chunk_without_shot_and_resume_of_lost_files(tmp_path):
     assert os.stat(whole / "filtered" / frame(1)).st_mtime_ns == kept, "frame 1 was complete"
     record = json.loads((whole / "run.json").read_text())
     assert record["status"] == "complete", record["status"]
+
+
+def _processes_naming(text):
+    """Pids of the running processes whose command line holds text."""
+    pids = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open("/proc/%s/cmdline" % pid, "rb") as f:
+                if text.encode() in f.read():
+                    pids.append(int(pid))
+        except OSError:
+            pass
+    return pids
+
+
+@pytest.mark.parametrize("how", ["SIGTERM", "Ctrl-C", "SIGKILL"])
+def test_a_stopped_render_stops_blender_and_says_so(tmp_path, how):
+    """A farm cancelling a task signals crisp (SIGTERM; a lost task's process may get SIGKILL), a
+    terminal's Ctrl-C signals crisp and Blender: Blender stops with it after the frame it is on, rather
+    than going on alone into the shared folder (and ending "complete"); the chunk's record says why it
+    stopped, and no temporary file or pre-roll folder is left."""
+    import signal
+    out, tmp = tmp_path / "out", tmp_path / "tmp"
+    tmp.mkdir()
+    sig = {"SIGTERM": signal.SIGTERM, "Ctrl-C": signal.SIGINT, "SIGKILL": signal.SIGKILL}[how]
+    p = subprocess.Popen([CRISP, "render", "--scene", "spinning_cube", "--resolution", SIZE, "--frames", "3-900",
+                          "--shot", "1-900", "--preroll", "2", "--method", "taa", "-o", str(out)],  # as the job type runs it
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=dict(os.environ, TMPDIR=str(tmp)),
+                         start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    record = out / "run_0003-0900.json"
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and p.poll() is None:
+            try:
+                if json.loads(record.read_text())["frames"]:
+                    break
+            except (OSError, ValueError, KeyError):
+                pass
+            time.sleep(0.05)
+        assert p.poll() is None, "the run ended before it was stopped"
+        if how == "Ctrl-C":
+            os.killpg(p.pid, sig)  # the terminal signals its foreground process group
+        else:
+            p.send_signal(sig)
+        p.wait(timeout=60)
+        assert p.returncode == -sig
+        time.sleep(1)
+        assert _processes_naming(str(out)) == [], "Blender goes on after crisp stopped"
+    finally:
+        for pid in _processes_naming(str(out)):
+            os.kill(pid, signal.SIGKILL)
+        if p.poll() is None:
+            p.kill()
+    status = json.loads(record.read_text())["status"]
+    assert status == {"SIGTERM": "failed: stopped by SIGTERM", "Ctrl-C": "failed: KeyboardInterrupt",
+                      "SIGKILL": "failed: stopped by SIGTERM"}[how]
+    made = len(json.loads(record.read_text())["frames"])
+    assert 0 < made < 898
+    left = [os.path.join(d, n) for d in ("input", "filtered", "filtered/.crisp") for n in os.listdir(out / d)
+            if n != ".crisp" and (n.startswith(".") or ".tmp" in n)]
+    assert left == [] and [n for n in os.listdir(tmp) if n.startswith("crisp")] == []
 
 
 MAKE_EARLY_MOTION = """
