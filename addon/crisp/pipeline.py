@@ -195,6 +195,51 @@ def older_than_input(input_dir, f, outputs):
     return [p for p in outputs if os.path.getmtime(p) < rendered]
 
 
+PREROLL_PREFIX = "crisp-preroll-"
+
+
+def _host_tag():
+    """This host's name as the pre-roll folders hold it (io/temporary_file.cpp hostTag's rule)."""
+    import socket
+    name = socket.gethostname() or "host"
+    return "".join(c if c.isascii() and (c.isalnum() or c in "_.-") else "_" for c in name)[:64]
+
+
+def _preroll_prefix(pid):
+    return "%s%d-%s-" % (PREROLL_PREFIX, pid, _host_tag())
+
+
+def remove_stale_preroll_dirs(log):
+    """Removes the pre-roll folders that runs of this host left when they were killed without a chance to
+    clean up (kill -9, a crash, the OOM killer): those named with a process that no longer runs, untouched
+    for a minute. A pre-roll folder holds a chunk's worth of full-size EXRs; each killed chunk would keep
+    one on the worker's disk."""
+    folder = tempfile.gettempdir()
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return
+    for name in names:
+        pid = name[len(PREROLL_PREFIX):].split("-", 1)[0] if name.startswith(PREROLL_PREFIX) else ""
+        if not pid.isdigit() or int(pid) == os.getpid() or not name.startswith(_preroll_prefix(int(pid))):
+            continue
+        try:
+            os.kill(int(pid), 0)
+            continue  # still running
+        except ProcessLookupError:
+            pass
+        except OSError:
+            continue  # not ours to ask: running
+        path = os.path.join(folder, name)
+        try:
+            if not os.path.isdir(path) or time.time() - os.path.getmtime(path) < 60:
+                continue
+        except OSError:
+            continue
+        shutil.rmtree(path, ignore_errors=True)
+        log("note: removed %s, the pre-roll folder of a run that was killed" % path)
+
+
 def chunk_run(frames, shot_first, preroll, is_complete=None):
     """(pre-roll frames, frames to write) of a chunk: with is_complete (resume) the frames to write start
     at the first frame that is not complete, and the pre-roll is the `preroll` frames before that one,
@@ -383,6 +428,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     record("running")
     t0 = time.perf_counter()
     preroll_dir = None
+    if preroll_frames:
+        remove_stale_preroll_dirs(log)
     try:
         try:
             # Contiguous and in order, so the history sees them as a sequential run would.
@@ -392,7 +439,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                     for f in group:
                         on_preroll(f, {"exr": os.path.join(input_dir, render.frame_name(f))})
                     continue
-                preroll_dir = preroll_dir or tempfile.mkdtemp(prefix="crisp-preroll-")
+                # Named by this process, so a later run can tell it was left by a killed one.
+                preroll_dir = preroll_dir or tempfile.mkdtemp(prefix=_preroll_prefix(os.getpid()))
                 render.render_frames(scene, the_plan, group, preroll_dir, samples=samples,
                                      jitter_distribution=jitter_distribution, view_layer=view_layer,
                                      on_frame=on_preroll, should_cancel=should_cancel,

@@ -528,6 +528,36 @@ def test_a_stopped_render_stops_blender_and_says_so(tmp_path, how):
     assert left == [] and [n for n in os.listdir(tmp) if n.startswith("crisp")] == []
 
 
+def test_a_chunk_removes_preroll_folders_of_killed_runs(tmp_path):
+    """A pre-roll folder holds a chunk's worth of full-size EXRs in the worker's temporary folder; a run
+    killed outright (kill -9, a crash) cannot delete its own, so the next chunk with a pre-roll on the
+    host removes those of processes that no longer run, once a minute old, and leaves the others."""
+    import socket
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    host = "".join(c if c.isascii() and (c.isalnum() or c in "_.-") else "_" for c in socket.gethostname())[:64]
+    gone = subprocess.Popen(["true"])
+    gone.wait()
+    old = time.time() - 120
+    folders = {"stale": "crisp-preroll-%d-%s-abc" % (gone.pid, host),  # killed a while ago
+               "young": "crisp-preroll-%d-%s-def" % (gone.pid, host),  # just killed, or just made
+               "running": "crisp-preroll-%d-%s-ghi" % (os.getpid(), host),
+               "other host": "crisp-preroll-%d-%s-jkl" % (gone.pid, host + "x"),
+               "not ours": "crisp-preroll-xyz"}
+    for what, name in folders.items():
+        (tmp / name).mkdir()
+        (tmp / name / frame(1)).write_text("pre-roll")
+        if what != "young":
+            os.utime(tmp / name, (old, old))
+    p = subprocess.run([CRISP, "render", "--scene", "spinning_cube", "--resolution", SIZE, "--frames", "3-3",
+                        "--preroll", "1", "--method", "taa", "-o", str(tmp_path / "out")],
+                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dict(os.environ, TMPDIR=str(tmp)),
+                       timeout=300)
+    assert p.returncode == 0, p.stdout[-3000:]
+    assert sorted(os.listdir(tmp)) == sorted(n for w, n in folders.items() if w != "stale")
+    assert "removed %s" % (tmp / folders["stale"]) in p.stdout
+
+
 MAKE_EARLY_MOTION = """
 import sys
 sys.path[:0] = [%r]
