@@ -198,15 +198,8 @@ def older_than_input(input_dir, f, outputs):
 PREROLL_PREFIX = "crisp-preroll-"
 
 
-def _host_tag():
-    """This host's name as the pre-roll folders hold it (io/temporary_file.cpp hostTag's rule)."""
-    import socket
-    name = socket.gethostname() or "host"
-    return "".join(c if c.isascii() and (c.isalnum() or c in "_.-") else "_" for c in name)[:64]
-
-
 def _preroll_prefix(pid):
-    return "%s%d-%s-" % (PREROLL_PREFIX, pid, _host_tag())
+    return "%s%d-%s-" % (PREROLL_PREFIX, pid, render.host_tag())
 
 
 def remove_stale_preroll_dirs(log):
@@ -221,15 +214,9 @@ def remove_stale_preroll_dirs(log):
         return
     for name in names:
         pid = name[len(PREROLL_PREFIX):].split("-", 1)[0] if name.startswith(PREROLL_PREFIX) else ""
-        if not pid.isdigit() or int(pid) == os.getpid() or not name.startswith(_preroll_prefix(int(pid))):
+        if not pid.isdigit() or int(pid) == os.getpid() or not name.startswith(_preroll_prefix(int(pid))) \
+                or not render.process_gone(int(pid)):
             continue
-        try:
-            os.kill(int(pid), 0)
-            continue  # still running
-        except ProcessLookupError:
-            pass
-        except OSError:
-            continue  # not ours to ask: running
         path = os.path.join(folder, name)
         try:
             if not os.path.isdir(path) or time.time() - os.path.getmtime(path) < 60:
@@ -424,6 +411,12 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         _write_json(run_json, written)
         return written
 
+    # Temporary files of a run on this host that was killed mid-write (kill -9, a crash).
+    for folder in (out_dir, input_dir, filtered_dir, _png_records_dir(filtered_dir), reference_dir):
+        stale = render.remove_stale_temporaries(folder)
+        if stale:
+            log("note: removed %d temporary file(s) an interrupted run left in %s (first: %s)"
+                % (len(stale), folder, stale[0]))
     # From here on run.json describes this run, also one that fails or is stopped ("status").
     record("running")
     t0 = time.perf_counter()

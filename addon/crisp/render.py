@@ -13,9 +13,11 @@ Facts used (../../../shared/BLENDER.md, checked on Blender 3.4.1):
 """
 
 import bisect
+import itertools
 import json
 import math
 import os
+import socket
 import time
 
 import bpy
@@ -308,6 +310,66 @@ def render_settings(scene, engine, samples):
             "motion_blur": False, "exr": "multilayer float32, codec NONE, linear scene-referred"}
 
 
+# ---- temporary files ------------------------------------------------------------------------------
+
+def host_tag():
+    """This host's name as temporary names hold it: at most 64 bytes of [A-Za-z0-9_.-], others as _
+    (io/temporary_file.cpp hostTag)."""
+    name = socket.gethostname() or "host"
+    return "".join(c if c.isascii() and (c.isalnum() or c in "_.-") else "_" for c in name)[:64]
+
+
+_temporaries = itertools.count()
+
+
+def temporary_path(path):
+    """Where a file goes until it is whole, then renamed into place: hidden beside it and named by host,
+    process and call as the library names its own (io/temporary_file.h), ".<stem>.tmp-<host>-<pid>-<n><ext>",
+    so two runs writing one file (a farm task run twice at once) never write the same temporary, and
+    one that a killed run left can be told from one being written (remove_stale_temporaries)."""
+    folder, name = os.path.split(path)
+    stem, ext = os.path.splitext(name)
+    return os.path.join(folder, ".%s.tmp-%s-%d-%d%s" % (stem[:64], host_tag(), os.getpid(), next(_temporaries), ext))
+
+
+def process_gone(pid):
+    """Whether no process of this host has that id (one we may not signal is running)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:
+        pass
+    return False
+
+
+def remove_stale_temporaries(folder):
+    """Removes from folder the temporary files (temporary_path, and the library's) that a process of this
+    host left when it was killed without a chance to clean up (kill -9, a crash): its process no longer
+    runs and the file is a minute old, as `crisp filter` does (io/temporary_file.h). Returns their names."""
+    marker = ".tmp-%s-" % host_tag()
+    removed = []
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return removed
+    for name in names:
+        at = name.rfind(marker)
+        if not name.startswith(".") or at <= 0:
+            continue
+        pid, _, n = name[at + len(marker):].partition("-")
+        if not (pid.isdigit() and n.split(".", 1)[0].isdigit()) or int(pid) == os.getpid() or not process_gone(int(pid)):
+            continue
+        path = os.path.join(folder, name)
+        try:
+            if os.path.isfile(path) and time.time() - os.path.getmtime(path) >= 60:
+                os.remove(path)
+                removed.append(name)
+        except OSError:
+            pass
+    return removed
+
+
 class WriteFailed(OSError):
     """A file of ours could not be written (a full disk, a folder in its place): "cannot write PATH: why"."""
 
@@ -315,7 +377,7 @@ class WriteFailed(OSError):
 def write_json(path, data):
     """Writes data as JSON through a temporary name renamed into place; on failure the temporary is
     removed and WriteFailed names the file."""
-    tmp = path + ".tmp"
+    tmp = temporary_path(path)
     try:
         with open(tmp, "w") as f:
             json.dump(data, f, indent=1)
@@ -368,16 +430,10 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
         snap.set(view_layer, "pass_cryptomatte_depth", 2)  # one EXR layer: rank 0 is all a 1-sample pixel has
 
 
-def _temporary_path(path):
-    """Where a file Blender writes for `path` goes until it is whole: hidden beside it, renamed into place."""
-    folder, name = os.path.split(path)
-    return os.path.join(folder, "." + name + ".tmp")
-
-
 def _render_to(scene, path):
     """Renders the current frame (the view layer _prepare left on) to `path` through a temporary name,
     renamed once complete."""
-    tmp = _temporary_path(path)
+    tmp = temporary_path(path)
     scene.render.filepath = tmp
     t0 = time.perf_counter()
     try:
@@ -410,7 +466,7 @@ def write_display_png(scene, exr_path, png_path):
     saved = [(attr, getattr(settings, attr)) for attr in ("file_format", "color_mode", "color_depth",
                                                            "compression", "exr_codec")]
     image = bpy.data.images.load(exr_path, check_existing=False)
-    tmp = _temporary_path(png_path)
+    tmp = temporary_path(png_path)
     try:
         settings.file_format = "PNG"
         settings.color_mode, settings.color_depth = "RGBA", "8"

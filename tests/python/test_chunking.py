@@ -558,6 +558,52 @@ def test_a_chunk_removes_preroll_folders_of_killed_runs(tmp_path):
     assert "removed %s" % (tmp / folders["stale"]) in p.stdout
 
 
+def test_one_chunk_run_twice_at_once_and_temporaries_of_killed_runs(shot, lib, tmp_path):
+    """A task that Flamenco gave to a second worker while the first still runs it: two runs of one chunk
+    into one folder at once write the same files, each through a temporary name of its own (host,
+    process, call), so both succeed and the frames are the sequential run's; before, they shared
+    ".frame_N.exr.tmp" and one failed ("Blender wrote no file", "No such file or directory") at
+    whichever file the other renamed away first. A temporary file that a run killed mid-write left
+    (its process gone, a minute old) is removed by the next run into that folder."""
+    import socket
+    seq, _ = shot
+    out = tmp_path / "twice"
+    for _ in range(2):  # the race is not hit every time at this size
+        shutil.rmtree(out, ignore_errors=True)
+        procs = [subprocess.Popen([CRISP, "render", "--scene", "spinning_cube", "--resolution", "320x180",
+                                   "--frames", "1-8", "--shot", "1-8", "--preroll", "8", "--method", "taa-improved",
+                                   "--resume", "--quiet", "-o", str(out)],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+        for p in procs:
+            _, err = p.communicate(timeout=300)
+            assert p.returncode == 0, err[-3000:]
+    assert [n for d in ("", "input", "filtered", "filtered/.crisp") for n in os.listdir(out / d) if ".tmp" in n] == []
+    once = tmp_path / "once"
+    crisp("render", "--scene", "spinning_cube", "--resolution", "320x180", "--frames", "1-8", "--method",
+          "taa-improved", "--quiet", "-o", once)
+    assert max_diff(lib, once / "filtered", out / "filtered", range(1, 9)) == 0.0
+
+    host = "".join(c if c.isascii() and (c.isalnum() or c in "_.-") else "_" for c in socket.gethostname())[:64]
+    gone = subprocess.Popen(["true"])
+    gone.wait()
+    old = time.time() - 120
+    out = tmp_path / "killed"
+    render(out, SHOT)
+    left = {"input": ".frame_0004.tmp-%s-%d-0.exr" % (host, gone.pid),
+            "filtered": ".frame_0004.tmp-%s-%d-1.png" % (host, gone.pid),
+            "filtered/.crisp": ".frame_0004.png.tmp-%s-%d-2.json" % (host, gone.pid),
+            "": ".run.tmp-%s-%d-3.json" % (host, gone.pid)}
+    young = out / "input" / (".frame_0005.tmp-%s-%d-4.exr" % (host, gone.pid))  # a minute not yet past
+    for folder, name in left.items():
+        (out / folder / name).write_text("half")
+        os.utime(out / folder / name, (old, old))
+    young.write_text("half")
+    render(out, SHOT, "taa-improved", "--resume")
+    assert [name for folder, name in left.items() if (out / folder / name).exists()] == []
+    assert young.exists()
+    assert max_diff(lib, seq / "filtered", out / "filtered", range(1, 9)) == 0.0
+
+
 MAKE_EARLY_MOTION = """
 import sys
 sys.path[:0] = [%r]
