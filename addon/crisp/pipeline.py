@@ -367,7 +367,12 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
             log("frame %d: %s older than its input (a run stopped before writing it): making it again"
                 % (f, ", ".join(map(os.path.basename, older))))
             return False
-        same, why = same_making(render.read_sidecar(input_dir, f).get("made_with"), stamp)
+        side = render.read_sidecar(input_dir, f)
+        same, why = same_making(side.get("made_with"), stamp)
+        if same and side.get("passes") != list(the_plan.passes):
+            # The plan is made over the shot: the same settings with another --shot may plan other passes.
+            same, why = False, "passes %s there, %s here" % (json.dumps(side.get("passes")),
+                                                             json.dumps(list(the_plan.passes)))
         if not same:
             log("frame %d was made with other settings (%s): making it again" % (f, why))
         return same

@@ -639,6 +639,20 @@ def test_a_chunk_is_planned_over_its_shot(tmp_path):
     assert "motion" not in plan(tmp_path / "alone"), "frames 5-8 alone are still"
     assert "motion" in plan(tmp_path / "chunk", "--shot", "1-8")
 
+    # A resume with another --shot, whose plan has other passes, makes again the frames made with the
+    # old plan: the folder never mixes two plans under a record that names one.
+    out = tmp_path / "reshot"
+    crisp("render", "--scene", blend, "--resolution", SIZE, "--frames", "5-8", "--shot", "1-8", "--preroll", "4",
+          "--method", "taa", "--quiet", "-o", out)
+    os.remove(out / "filtered" / frame(7))
+    p = crisp("render", "--scene", blend, "--resolution", SIZE, "--frames", "5-8", "--shot", "5-8", "--preroll", "4",
+              "--method", "taa", "--resume", "-o", out)
+    assert "frame 5 was made with other settings (passes" in p.stdout, p.stdout[-2000:]
+    record = json.loads((out / "run_0005-0008.json").read_text())
+    assert record["chunk"]["resumed_at"] == 5 and record["status"] == "complete"
+    assert {json.loads((out / "input" / frame(f, ".json")).read_text())["passes"] == record["plan"]["passes"]
+            for f in range(5, 9)} == {True}
+
 
 # ---- the pre-roll table (not a test) ---------------------------------------------------------------
 
