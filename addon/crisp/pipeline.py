@@ -20,7 +20,8 @@ pre-roll inputs go to a private temporary folder that is deleted afterwards (an 
 OUTDIR/input/ is read from there instead of rendered again), so input/ and filtered/ hold exactly the
 frames some chunk owns and two chunks never write the same file. The pass plan of a chunk is made
 over the whole shot so every chunk renders the same passes. With `resume`, a run starts at the
-chunk's first frame with a missing output and takes its pre-roll before that frame.
+chunk's first frame with a missing output and takes its pre-roll before that frame (a method without
+history makes only the frames that need it).
 """
 
 import itertools
@@ -381,6 +382,13 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     warms = frame_filter is not None and method in plan_mod.TEMPORAL_METHODS
     preroll_frames, todo = chunk_run(frames, (shot or frames)[0], preroll if warms else 0,
                                      is_complete if resume else None)
+    if resume and not warms and todo:
+        # Without a history each frame's outputs stand alone: the resume makes only the frames that need
+        # it, also after the first, and keeps the others (as crisp filter's resume of a spatial method).
+        kept_after = [f for f in todo[1:] if is_complete(f)]
+        todo = [f for f in todo if f not in kept_after]
+        if kept_after:
+            log("frames kept (complete, made with these settings): %s" % ", ".join(map(str, kept_after)))
     reused = [f for f in preroll_frames if render.reusable_input(scene, engine, input_dir, f, the_plan, samples,
                                                                      jitter_distribution, scene_key)]
     result["chunk"] = {"shot": [shot[0], shot[-1]] if shot else None, "preroll": preroll,
@@ -402,7 +410,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
 
             def merged(before, now):
                 before = {e.get("frame"): e for e in before if isinstance(e, dict)}
-                return [before.get(f, {"frame": f}) for f in kept] + now
+                # In frame order: a spatial resume keeps frames after those it makes.
+                return sorted([before.get(f, {"frame": f}) for f in kept] + now, key=lambda e: e["frame"])
 
             previous = previous_record or {}
             written["frames"] = merged(previous.get("frames", []), result["frames"])

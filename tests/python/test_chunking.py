@@ -604,6 +604,29 @@ def test_one_chunk_run_twice_at_once_and_temporaries_of_killed_runs(shot, lib, t
     assert max_diff(lib, seq / "filtered", out / "filtered", range(1, 9)) == 0.0
 
 
+def test_a_spatial_render_resume_makes_only_the_frames_that_need_it(tmp_path):
+    """docs/farm.md, Resume: the run writes from the first missing frame to the end of the chunk, a
+    spatial method only the frames that need it. Without a history every frame stands alone, so
+    `crisp render --resume` of fxaa makes the frames whose outputs are missing and keeps the complete
+    ones after the first (before, it rendered and filtered every frame after it again)."""
+    out = tmp_path / "spatial"
+    render(out, (1, 8), "fxaa")
+    os.remove(out / "filtered" / frame(3))
+    os.remove(out / "filtered" / frame(6, ".png"))
+    before = {f: os.stat(out / "filtered" / frame(f)).st_mtime_ns for f in (1, 2, 4, 5, 7, 8)}
+    inputs = {f: os.stat(out / "input" / frame(f)).st_mtime_ns for f in (4, 5, 7, 8)}
+    p = render(out, (1, 8), "fxaa", "--resume")
+    assert {f: os.stat(out / "filtered" / frame(f)).st_mtime_ns for f in before} == before
+    assert {f: os.stat(out / "input" / frame(f)).st_mtime_ns for f in inputs} == inputs
+    assert all((out / "filtered" / frame(f, e)).is_file() for f in (3, 6) for e in (".exr", ".png"))
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "complete" and record["chunk"]["resumed_at"] == 3
+    assert [e["frame"] for e in record["frames"]] == list(range(1, 9))
+    fresh = tmp_path / "fresh"
+    render(fresh, (1, 8), "fxaa")
+    assert max_diff(Lib(), fresh / "filtered", out / "filtered", range(1, 9)) == 0.0
+
+
 MAKE_EARLY_MOTION = """
 import sys
 sys.path[:0] = [%r]
