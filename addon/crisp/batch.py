@@ -63,7 +63,7 @@ def make_parser():
     p = argparse.ArgumentParser(prog="batch.py", description="Crisp headless render driver (inside Blender)")
     p.add_argument("-o", "--output", required=True)
     p.add_argument("--frames", default="")
-    p.add_argument("--preroll", type=int, default=0)
+    p.add_argument("--preroll", type=int, default=None)  # None: not given (0 given still makes a chunk)
     p.add_argument("--shot", default="")
     p.add_argument("--resume", action="store_true")
     p.add_argument("--method", default="fxaa")
@@ -159,7 +159,7 @@ def main(argv):
         os.environ["CRISP_LIBRARY"] = os.path.abspath(args.library)
     if args.samples < 1 or args.reference_samples < 0:
         fail(2, "--samples must be >= 1 and --reference-samples >= 0")
-    if args.preroll < 0:
+    if args.preroll is not None and args.preroll < 0:
         fail(2, "--preroll must be >= 0 frames, got %d" % args.preroll)
     if args.jitter not in render.JITTER_DISTRIBUTIONS:
         fail(2, "unknown --jitter '%s' (known: %s)" % (args.jitter, ", ".join(render.JITTER_DISTRIBUTIONS)))
@@ -186,13 +186,14 @@ def main(argv):
 
     try:
         frames = pipeline.parse_frames(args.frames, scene)
-        # A chunk of a shot: the shot given, or the scene's range when only a pre-roll is asked for.
-        shot = pipeline.parse_frames(args.shot, scene) if args.shot or args.preroll else None
+        # A chunk of a shot: the shot given, or the scene's range when only a pre-roll is asked for, also
+        # --preroll 0 (a spatial method's chunk, or the first one): its record and plan are a chunk's.
+        shot = pipeline.parse_frames(args.shot, scene) if args.shot or args.preroll is not None else None
         pipeline.run(scene, args.method, frames, os.path.abspath(args.output), params=params,
                      samples=args.samples, reference_samples=args.reference_samples, plan_only=args.plan_only,
                      filter_frames=not args.no_filter, threads=args.threads, jitter_distribution=args.jitter,
                      write_png=not args.no_png, log=lambda s: print(s, flush=True), engine_name=args.engine,
-                     preroll=args.preroll, shot=shot, resume=args.resume, scene_key=key)
+                     preroll=args.preroll or 0, shot=shot, resume=args.resume, scene_key=key)
     except pipeline.InputError as e:
         fail(2, str(e))
     except render.RenderFailed as e:

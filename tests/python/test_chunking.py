@@ -627,6 +627,20 @@ def test_a_spatial_render_resume_makes_only_the_frames_that_need_it(tmp_path):
     assert max_diff(Lib(), fresh / "filtered", out / "filtered", range(1, 9)) == 0.0
 
 
+def test_a_chunk_with_a_preroll_of_0_is_a_chunk(tmp_path):
+    """--preroll 0 is given (a spatial method's chunks, as docs/farm.md has the job type pass it): without
+    --shot the shot is the scene's range, as for any --preroll, so each chunk writes its own
+    run_AAAA-BBBB.json and is planned over the shot; before, 0 counted as not given, and every such
+    chunk wrote run.json over the one before."""
+    out = tmp_path / "spatial"
+    render(out, (5, 6), "fxaa", "--preroll", "0")
+    render(out, (7, 8), "fxaa", "--preroll", "0")
+    assert sorted(n for n in os.listdir(out) if n.endswith(".json")) == ["run_0005-0006.json", "run_0007-0008.json"]
+    for name, frames in (("run_0005-0006.json", [5, 6]), ("run_0007-0008.json", [7, 8])):
+        record = json.loads((out / name).read_text())
+        assert record["chunk"]["shot"] == [1, 48] and [e["frame"] for e in record["frames"]] == frames
+
+
 MAKE_EARLY_MOTION = """
 import sys
 sys.path[:0] = [%r]
