@@ -95,20 +95,30 @@ def stop_on_signals():
     """Ctrl-C, SIGTERM and SIGHUP end the run as an exception, so its record says why it stopped and its
     pre-roll folder goes. Blender's own Ctrl-C handler only flags a render to stop and kills Blender at
     the second one (crisp passes its Ctrl-C on, so it comes twice): the first signal stops, others wait
-    for that stop to finish. A signal Blender was started ignoring (nohup) stays ignored."""
+    for that stop to finish. A signal Blender was started ignoring (nohup) stays ignored. Returns the
+    run's should_cancel: it raises the stop again before each frame, as one raised in Python that Blender
+    runs and reports itself (a frame change handler, a driver) goes no further."""
     import signal
     stopping = []
+
+    def stop_exception():
+        sig = stopping[0]
+        return KeyboardInterrupt() if sig == signal.SIGINT else Stopped("stopped by %s" % signal.Signals(sig).name)
 
     def stop(sig, _frame):
         if stopping:
             return
         stopping.append(sig)
-        if sig == signal.SIGINT:
-            raise KeyboardInterrupt
-        raise Stopped("stopped by %s" % signal.Signals(sig).name)
+        raise stop_exception()
+
+    def should_cancel():
+        if stopping:
+            raise stop_exception()
+        return False
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         if signal.getsignal(sig) != signal.SIG_IGN:
             signal.signal(sig, stop)
+    return should_cancel
 
 
 def scene_script_path(text):
@@ -151,7 +161,7 @@ def main(argv):
     class ArgError(Exception):
         pass
 
-    stop_on_signals()
+    stopped = stop_on_signals()
     parser = make_parser()
     parser.error = lambda msg: fail(2, msg)  # argparse would exit 2 with usage; keep one message style
     args = parser.parse_args(argv)
@@ -193,7 +203,8 @@ def main(argv):
                      samples=args.samples, reference_samples=args.reference_samples, plan_only=args.plan_only,
                      filter_frames=not args.no_filter, threads=args.threads, jitter_distribution=args.jitter,
                      write_png=not args.no_png, log=lambda s: print(s, flush=True), engine_name=args.engine,
-                     preroll=args.preroll or 0, shot=shot, resume=args.resume, scene_key=key)
+                     preroll=args.preroll or 0, shot=shot, resume=args.resume, scene_key=key,
+                     should_cancel=stopped)
     except pipeline.InputError as e:
         fail(2, str(e))
     except render.RenderFailed as e:
