@@ -313,7 +313,14 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         result["library"] = text
     run_json = os.path.join(out_dir, "run.json" if shot is None else "run_%04d-%04d.json" % (frames[0], frames[-1]))
     if plan_only:
-        _write_json(run_json, dict(result, status="planned"))
+        # A record of frames made there is not replaced by a plan of none (a plan asked of a farm job's
+        # folder would lose its chunks' records, and their status).
+        before = _read_json(run_json)
+        if before is not None and before.get("status") != "planned":
+            log("note: kept %s, the record of a run (status: %s); the plan is not written" % (
+                run_json, before.get("status")))
+        else:
+            _write_json(run_json, dict(result, status="planned"))
         return result
 
     stamp = made_with(scene, method, params, samples, reference_samples,

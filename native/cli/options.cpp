@@ -53,7 +53,7 @@ const std::vector<OptionSpec>& options() {
       {"render", "reference-samples", 0, "N", false, false, "also render reference frames with N samples"},
       {"render", "resolution", 0, "WxH", false, false, "override the render size"},
       {"render", "jitter", 0, "DIST", false, false, "sub-pixel jitter of the temporal methods' frames: blackman-harris (EEVEE's own pixel filter, default) or uniform (inside the pixel)"},
-      {"render", "plan", 0, nullptr, false, false, "print the pass plan with the reason for each pass and write it to OUTDIR/run.json; render nothing"},
+      {"render", "plan", 0, nullptr, false, false, "print the pass plan with the reason for each pass and write it to OUTDIR/run.json (not over a run's record); render nothing"},
       {"render", "blender", 0, "PATH", false, false, "Blender executable (default: blender on PATH)"},
       {"render", "output", 'o', "OUTDIR", false, true, "output folder: input/, filtered/, reference/, run.json"},
       {"synth", "output", 'o', "OUTDIR", false, true, "output folder (created if missing)"},

@@ -652,6 +652,28 @@ def test_a_chunk_with_a_preroll_of_0_is_a_chunk(tmp_path):
         assert record["chunk"]["shot"] == [1, 48] and [e["frame"] for e in record["frames"]] == frames
 
 
+def test_a_plan_keeps_the_record_of_a_run(shot, tmp_path):
+    """--plan writes its plan to the run's record only where no run has made one: the plan of a farm job,
+    asked of its own folder, left a complete chunk's run_AAAA-BBBB.json "planned", without its frames,
+    and a later --resume then listed stubs ({"frame": 4}) for them."""
+    seq, _ = shot
+    out = tmp_path / "job"
+    shutil.copytree(seq, out)  # a sequential run's run.json, and a chunk's record beside it
+    render(out, (4, 6), "taa-improved", "--shot", "1-8", "--preroll", "3")
+    for args, name in ((("--frames", "4-6", "--shot", "1-8", "--preroll", "3"), "run_0004-0006.json"),
+                       (("--frames", "1-8"), "run.json")):
+        before = (out / name).read_text()
+        p = crisp("render", "--scene", "spinning_cube", "--resolution", SIZE, "--method", "taa-improved",
+                  "--plan", "-o", out, *args)
+        assert "plan for taa-improved" in p.stdout and "kept %s" % (out / name) in p.stdout, p.stdout[-2000:]
+        assert (out / name).read_text() == before
+    record = json.loads((out / "run_0004-0006.json").read_text())
+    assert record["status"] == "complete" and all("render_s" in e for e in record["frames"])
+    fresh = tmp_path / "fresh"
+    crisp("render", "--scene", "spinning_cube", "--resolution", SIZE, "--method", "taa", "--plan", "--quiet", "-o", fresh)
+    assert json.loads((fresh / "run.json").read_text())["status"] == "planned"
+
+
 MAKE_EARLY_MOTION = """
 import sys
 sys.path[:0] = [%r]
