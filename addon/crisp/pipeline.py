@@ -400,7 +400,10 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                                                                      jitter_distribution, scene_key)]
     result["chunk"] = {"shot": [shot[0], shot[-1]] if shot else None, "preroll": preroll,
                        "preroll_frames": [preroll_frames[0], preroll_frames[-1]] if preroll_frames else None,
-                       "preroll_reused": reused, "resumed_at": todo[0] if resume and todo else None}
+                       "preroll_reused": reused,
+                       # A run resumed: one that keeps frames made before it (with --resume alone, as the job
+                       # type passes to every task, a run that finds nothing to keep starts afresh).
+                       "resumed_at": todo[0] if resume and todo and len(todo) < len(frames) else None}
     if not todo:
         log("every output of frames %d-%d exists; nothing to do" % (frames[0], frames[-1]))
 

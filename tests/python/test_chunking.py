@@ -674,6 +674,17 @@ def test_a_plan_keeps_the_record_of_a_run(shot, tmp_path):
     assert json.loads((fresh / "run.json").read_text())["status"] == "planned"
 
 
+def test_a_run_that_keeps_nothing_is_not_recorded_as_resumed(tmp_path):
+    """The job type passes --resume to every task: a chunk's record says resumed_at only when the run kept
+    frames made before it, so a TD can tell the tasks that were resumed from those that ran afresh."""
+    out = tmp_path / "job"
+    render(out, (5, 8), "taa", "--shot", "1-8", "--preroll", "2", "--resume")
+    assert json.loads((out / "run_0005-0008.json").read_text())["chunk"]["resumed_at"] is None
+    os.remove(out / "filtered" / frame(7))
+    render(out, (5, 8), "taa", "--shot", "1-8", "--preroll", "2", "--resume")
+    assert json.loads((out / "run_0005-0008.json").read_text())["chunk"]["resumed_at"] == 7
+
+
 MAKE_EARLY_MOTION = """
 import sys
 sys.path[:0] = [%r]
@@ -719,7 +730,7 @@ def test_a_chunk_is_planned_over_its_shot(tmp_path):
               "--method", "taa", "--resume", "-o", out)
     assert "frame 5 was made with other settings (passes" in p.stdout, p.stdout[-2000:]
     record = json.loads((out / "run_0005-0008.json").read_text())
-    assert record["chunk"]["resumed_at"] == 5 and record["status"] == "complete"
+    assert record["chunk"]["resumed_at"] is None and record["status"] == "complete"  # nothing kept
     assert {json.loads((out / "input" / frame(f, ".json")).read_text())["passes"] == record["plan"]["passes"]
             for f in range(5, 9)} == {True}
 
