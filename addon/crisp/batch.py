@@ -215,10 +215,6 @@ def main(argv):
         fail(3, str(e))
     except render.WriteFailed as e:  # a file of ours that could not be written (run.json on a full disk, say)
         fail(4, str(e.strerror))
-    except KeyboardInterrupt:
-        fail(4, "stopped by Ctrl-C (SIGINT)")
-    except Stopped as e:
-        fail(4, str(e))
     except OSError as e:  # any other file error: named, not a traceback
         where = e.filename2 or e.filename
         fail(4, "%s: %s" % (where, e.strerror or e) if where else str(e))
@@ -226,4 +222,9 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    main(_argv())
+    try:
+        main(_argv())
+    except KeyboardInterrupt:  # during the run (its record says so), or while the scene is made before it
+        fail(4, "stopped by Ctrl-C (SIGINT)")
+    except Stopped as e:
+        fail(4, str(e))

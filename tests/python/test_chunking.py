@@ -539,6 +539,35 @@ def test_a_stopped_render_stops_blender_and_says_so(tmp_path, how):
     assert left == [] and [n for n in os.listdir(tmp) if n.startswith("crisp")] == []
 
 
+def test_a_render_stopped_while_its_scene_is_made_says_so(tmp_path):
+    """A stop signal that comes while batch.py builds the scene, before the run: a clear error, not a
+    Python traceback."""
+    import signal
+    tree = tmp_path / "tree"
+    for d in ("addon", "test_scenes"):
+        shutil.copytree(os.path.join(SOURCE, d), tree / d)
+    with open(tree / "test_scenes" / "spinning_cube.py", "a") as f:
+        f.write("\n\nimport os  # noqa: E402\nimport time  # noqa: E402\n"
+                "open(os.environ['CRISP_TEST_BUILDING'], 'w').close()\ntime.sleep(30)\n")
+    building = tmp_path / "building"
+    p = subprocess.Popen([CRISP, "render", "--scene", "spinning_cube", "--resolution", SIZE, "--frames", "1-2",
+                          "--method", "taa", "-o", str(tmp_path / "out")], stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True,
+                         env=dict(os.environ, CRISP_ADDON_DIR=str(tree / "addon"), CRISP_TEST_BUILDING=str(building)))
+    try:
+        deadline = time.monotonic() + 120
+        while not building.exists() and time.monotonic() < deadline and p.poll() is None:
+            time.sleep(0.05)
+        assert building.exists(), "the scene script did not run"
+        p.send_signal(signal.SIGTERM)
+        out, _ = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == -signal.SIGTERM
+    assert "crisp: error: stopped by SIGTERM" in out and "Traceback" not in out, out[-2000:]
+
+
 def test_a_chunk_removes_preroll_folders_of_killed_runs(tmp_path):
     """A pre-roll folder holds a chunk's worth of full-size EXRs in the worker's temporary folder; a run
     killed outright (kill -9, a crash) cannot delete its own, so the next chunk with a pre-roll on the
