@@ -444,7 +444,7 @@ def _render_to(scene, path):
                               % (scene.frame_current, tmp, str(e).strip().splitlines()[-1] if str(e).strip() else e))
         dt = time.perf_counter() - t0
         if not os.path.isfile(tmp):
-            raise RenderError("Blender wrote no file for frame %d (expected %s)" % (scene.frame_current, tmp))
+            raise RenderFailed("Blender wrote no file for frame %d (expected %s)" % (scene.frame_current, tmp))
         broken = exr_file.incomplete(tmp)
         if broken:  # a disk that filled up while Blender wrote: it says nothing, and the file must not take the name
             raise RenderFailed("Blender wrote an incomplete file for frame %d (%s: %s); is the disk full?"

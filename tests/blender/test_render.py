@@ -215,6 +215,20 @@ class BatchTest(unittest.TestCase):
         self.assertEqual(rc, 4, log[-2000:])
         self.assertIn("crisp: error: Blender could not render frame 1", log)
         self.assertNotIn("Traceback", log)
+        # A frame's file gone as Blender wrote it (a scene's handler removes it here): a failed render,
+        # exit 4, not bad input.
+        vanish = os.path.join(self.tmp.name, "vanish.py")
+        with open(vanish, "w") as f:
+            f.write("import bpy, os\n"
+                    "def vanish(scene, *_):\n"
+                    "    path = bpy.path.abspath(scene.render.filepath)\n"
+                    "    if os.path.isfile(path):\n"
+                    "        os.remove(path)\n"
+                    "bpy.app.handlers.render_write.append(vanish)\n")
+        rc, log = harness.blender_batch(["--frames", "1", "--resolution", "16x8", "--scene-script", vanish,
+                                         "-o", os.path.join(self.tmp.name, "vanished")])
+        self.assertEqual(rc, 4, log[-2000:])
+        self.assertIn("crisp: error: Blender wrote no file for frame 1", log)
         # run.json that cannot be written (a folder in its place): exit 4, named, no temporary left.
         jammed = os.path.join(self.tmp.name, "jammed")
         os.makedirs(os.path.join(jammed, "run.json"))
