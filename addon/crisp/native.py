@@ -8,6 +8,7 @@ library cannot be loaded, the add-on still registers and `status()` says why.
 """
 
 import ctypes
+import hashlib
 import json
 import os
 import time
@@ -121,6 +122,7 @@ def preference_note():
 class _Library:
     def __init__(self, path):
         self.path = path
+        self.digest = _file_digest(path)  # the build that filters (a resume remakes frames another made)
         self.dll = ctypes.CDLL(path)
         self.fns = {}
         missing = []
@@ -144,6 +146,14 @@ class _Library:
                 text = msg.value.decode("utf-8", "replace") if msg.value else "(no message)"
                 raise CrispError("%s: %s error: %s" % (name, ERROR_NAMES.get(code, code), text), text)
         return result
+
+
+def _file_digest(path):
+    h = hashlib.blake2b(digest_size=8)
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return "blake2b:" + h.hexdigest()
 
 
 def load():

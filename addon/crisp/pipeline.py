@@ -163,12 +163,12 @@ def _drop_stale_png(png, log):
 
 def made_with(scene, method, params, samples, reference_samples, jitter, engine, filter_frames, scene_key):
     """What makes a frame's outputs what they are, recorded in its input sidecar ("made_with"): a resume
-    makes again every frame made otherwise. scene_key None (unknown: a scene edited in this session)
-    matches any."""
+    makes again every frame made otherwise, also by another build of the library. scene_key None
+    (unknown: a scene edited in this session) matches any."""
     return {"scene": scene.name, "scene_key": scene_key, "resolution": list(render.render_size(scene)),
             "method": method if filter_frames else None, "params": {k: str(v) for k, v in (params or {}).items()},
             "samples": samples, "reference_samples": reference_samples, "jitter_distribution": jitter,
-            "engine": engine}
+            "engine": engine, "library": native.load().digest if filter_frames else None}
 
 
 def same_making(recorded, wanted):

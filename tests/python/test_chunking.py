@@ -667,6 +667,34 @@ def test_a_spatial_render_resume_makes_only_the_frames_that_need_it(tmp_path):
     assert max_diff(Lib(), fresh / "filtered", out / "filtered", range(1, 9)) == 0.0
 
 
+def test_a_resume_remakes_the_frames_another_build_filtered(tmp_path):
+    """A frame's made_with records which libcrisp file filtered it, so a resume with another build
+    (an upgrade in the middle of a shot) makes the frames again rather than keeping another build's
+    outputs beside this one's; the same build keeps them."""
+    out = tmp_path / "out"
+    render(out, (1, 2), "fxaa")
+    other = tmp_path / "other"
+    (other / "bin").mkdir(parents=True)
+    (other / "lib").mkdir()
+    shutil.copy2(CRISP, other / "bin" / "crisp")
+    (other / "lib" / "libcrisp.so").write_bytes(open(LIBRARY, "rb").read() + b"\0")  # loads as before
+    env = dict(os.environ, CRISP_ADDON_DIR=os.path.join(SOURCE, "addon"))
+
+    def resume(crisp_cli):
+        before = mtimes(out / "filtered", (1, 2))
+        p = subprocess.run([str(crisp_cli), "render", "--scene", "spinning_cube", "--resolution", SIZE,
+                            "--frames", "1-2", "--method", "fxaa", "--resume", "-o", str(out)],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300, env=env)
+        assert p.returncode == 0, p.stdout[-3000:]
+        return p.stdout, rewritten(before, out / "filtered")
+
+    log, remade = resume(other / "bin" / "crisp")
+    assert remade == [1, 2], log[-3000:]
+    assert "made with other settings (library" in log
+    assert resume(other / "bin" / "crisp")[1] == []
+    assert resume(CRISP)[1] == [1, 2]
+
+
 def test_a_chunk_with_a_preroll_of_0_is_a_chunk(tmp_path):
     """--preroll 0 is given (a spatial method's chunks, as docs/farm.md has the job type pass it): without
     --shot the shot is the scene's range, as for any --preroll, so each chunk writes its own
