@@ -669,8 +669,13 @@ def render_reference(scene, frames, out_dir, samples, view_layer=None, on_frame=
 # ---- reusing earlier renders ----------------------------------------------------------------------
 
 def input_complete(input_dir, f):
-    # render_frames writes the EXR before its sidecar, both renamed into place: a sidecar means both are whole.
-    return all(os.path.isfile(os.path.join(input_dir, frame_name(f, ext))) for ext in (".exr", ".json"))
+    # render_frames writes the EXR and rsaa's sub-samples before the sidecar, all renamed into place: a
+    # sidecar means they are whole, unless one was lost since (the sidecar lists the sub-samples).
+    if not all(os.path.isfile(os.path.join(input_dir, frame_name(f, ext))) for ext in (".exr", ".json")):
+        return False
+    subsamples = read_sidecar(input_dir, f).get("subsamples") or []
+    return isinstance(subsamples, list) and all(
+        isinstance(s, dict) and os.path.isfile(os.path.join(input_dir, str(s.get("file") or "."))) for s in subsamples)
 
 
 def read_sidecar(input_dir, f):

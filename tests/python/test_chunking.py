@@ -695,6 +695,18 @@ def test_a_resume_remakes_the_frames_another_build_filtered(tmp_path):
     assert resume(CRISP)[1] == [1, 2]
 
 
+def test_a_resume_makes_again_a_frame_that_lost_a_subsample(tmp_path):
+    """rsaa's frames have eight geometry sub-samples beside the input; one lost (a partial copy between
+    farm storages) makes its frame incomplete, so a resume renders it again, and only it."""
+    out = tmp_path / "rsaa"
+    render(out, (1, 2), "rsaa")
+    os.remove(out / "input" / "frame_0002_sub3.exr")
+    before = mtimes(out / "filtered", (1, 2))
+    render(out, (1, 2), "rsaa", "--resume")
+    assert rewritten(before, out / "filtered") == [2]
+    assert (out / "input" / "frame_0002_sub3.exr").is_file()
+
+
 def test_a_chunk_with_a_preroll_of_0_is_a_chunk(tmp_path):
     """--preroll 0 is given (a spatial method's chunks, as docs/farm.md has the job type pass it): without
     --shot the shot is the scene's range, as for any --preroll, so each chunk writes its own
