@@ -166,8 +166,7 @@ class SmaaCompositor:
 
     def run(self, src, dst):
         """Returns the wall seconds of the compositor render (image load + SMAA + write)."""
-        folder, name = os.path.split(dst)
-        tmp = os.path.join(folder, "." + name + ".tmp")
+        tmp = render.temporary_path(dst)
         t0 = time.perf_counter()
         img = bpy.data.images.load(src, check_existing=False)
         try:
