@@ -346,6 +346,11 @@ inline void sharpenPixel(const Frame& f, float amount, int x, int y) {
   storeOutput(f.output, x, y, toRgb4(Vec4{result[0], result[1], result[2], 0.0f}, f.space, alphaOf(f.color, x, y)));
 }
 
+// A history at least this large (4 planes; 1024x1024 and up) is written with
+// streaming stores where the rows run on 16 lanes (Frame::streamHistory):
+// nothing reads it before the next frame, and it would not stay in the caches.
+constexpr std::size_t kStreamHistoryBytes = std::size_t(16) << 20;
+
 // Row bands of the fast path: enough to keep the threads busy, few enough
 // that the halo rows (staged twice) stay a small fraction.
 int bandCount(int height) { return std::clamp(height / 32, 1, 16); }
@@ -361,8 +366,8 @@ void Kernel::allocate(int width, int height, bool withDepth) {
     height_ = height;
     bands_ = bandCount(height);
     bandScratch_.assign(std::size_t(bands_) * bandFloats(width), 0.0f);
-    history_[0] = Image(width, height, 4);
-    history_[1] = Image(width, height, 4);
+    history_[0].assign(std::size_t(width) * height * 4, 0.0f);
+    history_[1].assign(std::size_t(width) * height * 4, 0.0f);
     historyState_.assign(std::size_t(width) * height, 0);
     holdWindows_.allocate(std::size_t(width) * height);
     sourceColumn_.assign(std::size_t(planeFloats(width)), 0);
@@ -387,7 +392,7 @@ void Kernel::reset() {
 }
 
 std::size_t Kernel::bytesKeptBetweenFrames() const {
-  return (history_[0].data.size() + history_[1].data.size() + depth_[0].size() + depth_[1].size()) * sizeof(float) +
+  return (history_[0].size() + history_[1].size() + depth_[0].size() + depth_[1].size()) * sizeof(float) +
          historyState_.size() + holdWindows_.bytes();
 }
 
@@ -396,7 +401,7 @@ std::size_t Kernel::bytesScratch() const { return bandScratch_.size() * sizeof(f
 float Kernel::largestSampleWeight() const {
   if (frames_ == 0) return 0.0f;
   const std::size_t planeSize = std::size_t(width_) * height_;
-  const float* weight = history_[current_].data.data() + 3 * planeSize;
+  const float* weight = history_[current_].data() + 3 * planeSize;
   float largest = 0.0f;
   for (std::size_t i = 0; i < planeSize; ++i) largest = std::max(largest, std::fabs(weight[i]));
   return largest;
@@ -428,11 +433,12 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   // Each history image holds four planes (Kernel::history_).
   const std::size_t planeSize = std::size_t(width_) * height_;
   for (int c = 0; c < 4; ++c) {
-    f.previous.plane[c] = history_[current_].data.data() + c * planeSize;
-    f.history[c] = history_[next].data.data() + c * planeSize;
+    f.previous.plane[c] = history_[current_].data() + c * planeSize;
+    f.history[c] = history_[next].data() + c * planeSize;
   }
   f.previous.width = width_;
   f.previous.height = height_;
+  f.streamHistory = 4 * planeSize * sizeof(float) >= kStreamHistoryBytes;
   f.hasHistory = frames_ > 0;
   f.output = in.output;
   f.writeOutput = !(s.sharpen > 0.0f);

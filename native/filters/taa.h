@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/aligned_vector.h"
 #include "core/image.h"
 #include "core/params.h"
 #include "temporal/hold_release.h"
@@ -134,8 +135,9 @@ class Kernel {
   // The history written by the last run and the one before, each width x
   // height x 4 floats as four planes (not interleaved, so eight pixels' taps
   // are one load): colour in the clip space of that run, then the signed
-  // sample weight (negative: the pixel was moving).
-  Image history_[2];
+  // sample weight (negative: the pixel was moving). Cache-line aligned: the
+  // AVX-512 rows stream them (Frame::streamHistory).
+  AlignedVector<float> history_[2];
   // One byte per pixel, read and written in place (each pixel touches only
   // its own entry). Bit 0: the history went through the feedback path
   // (moving, or static history rejected) since its last reset; such history

@@ -45,6 +45,7 @@ struct Frame {
   temporal::HistoryPlanes previous;  // valid only if hasHistory
   bool hasHistory;
   float* history[4];           // written: planes R G B (or Y Co Cg) and the signed weight
+  bool streamHistory;          // written by streaming stores where aligned (16 lanes only; taa.cpp)
   ImageView output;            // written unless sharpening
   bool writeOutput;
   ClipSpace space;
@@ -649,6 +650,16 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
                               s.planes[std::min(y + 2, h - 1) % kRing]};
     if (followDepth) temporal::closestDepthTapsRow<T>(s.depth[up], s.depth[mid], s.depth[down], w, s.tap, s.tapDepth);
     const std::size_t rowStart = std::size_t(y) * w;
+    // The history row by streaming stores (no read of the lines first), on
+    // 16 lanes where its four planes' rows start on a cache line.
+    bool streamRow = false;
+#if defined(__AVX512F__)
+    if constexpr (std::is_same_v<T, temporal::Vec16>) {
+      streamRow = f.streamHistory;
+      for (int c = 0; c < 4; ++c)
+        streamRow = streamRow && reinterpret_cast<std::uintptr_t>(f.history[c] + rowStart) % 64 == 0;
+    }
+#endif
     for (int x0 = 0; x0 < w; x0 += kL) {
       const int lanes = std::min(kL, w - x0), i = x0 + 1;  // i: plane index of pixel x0
       PixelLanes<T> in;
@@ -774,8 +785,15 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         temporal::storeBytesOf<T>(f.historyState + rowStart + x0,
                                   (r.feedbackSinceReset & 1) | temporal::truncOf(r.framesSinceReset) << 1);
         if (f.release.words) temporal::storeHoldWords<T>(f.release.words + rowStart + x0, r.holdWord);
-        for (int c = 0; c < 3; ++c) temporal::storeLanes(f.history[c] + rowStart + x0, r.color[c]);
-        temporal::storeLanes(f.history[3] + rowStart + x0, r.signedWeight);
+        if (streamRow) {
+#if defined(__AVX512F__)
+          for (int c = 0; c < 3; ++c) _mm512_stream_ps(f.history[c] + rowStart + x0, (__m512)r.color[c]);
+          _mm512_stream_ps(f.history[3] + rowStart + x0, (__m512)r.signedWeight);
+#endif
+        } else {
+          for (int c = 0; c < 3; ++c) temporal::storeLanes(f.history[c] + rowStart + x0, r.color[c]);
+          temporal::storeLanes(f.history[3] + rowStart + x0, r.signedWeight);
+        }
         if (packedOutput) {
           // storeOutputPixel on packed RGBA, where it reads the input for the
           // alpha only (the unjittered mix is the current colour even on a reset).
@@ -800,6 +818,10 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
     if (resets) f.resets->fetch_add(resets, std::memory_order_relaxed);
     if (releases) f.releases->fetch_add(releases, std::memory_order_relaxed);
   }
+#if defined(__AVX512F__)
+  // The streamed stores are weakly ordered: visible before the band is done.
+  if constexpr (std::is_same_v<T, temporal::Vec16>) _mm_sfence();
+#endif
 }
 
 }  // namespace
