@@ -482,6 +482,24 @@ TEST(Taa, ReferencePathEqualsFastPath) {
   }
 }
 
+// From 1024 x 1024 up (16 MB of history) the 16-lane rows write the history
+// by streaming stores (taa.cpp kStreamHistoryBytes): still the reference's
+// bits, frame after frame, each frame reading the history the last one wrote.
+TEST(Taa, ReferencePathEqualsFastPathWhereTheHistoryStreams) {
+  const int w = 1024, h = 1024;
+  synth::FrameOptions options;
+  options.reference = synth::ReferenceKind::None;
+  const std::vector<synth::FrameData> frames = test::pannedChart(w, h, 3, 0.6f, -0.3f, options);
+  Driver ref(1), fast(2);
+  ref.filter->params().setBool("reference", true);
+  for (std::size_t t = 0; t < frames.size(); ++t) {
+    const Image& a = ref.run(frames[t]);
+    const Image& b = fast.run(frames[t]);
+    ASSERT_EQ(0, std::memcmp(a.data.data(), b.data.data(), a.data.size() * sizeof(float)))
+        << "frame " << t << " " << temporal::fastPathIsaName();
+  }
+}
+
 // A 2-channel motion view with a 16-byte pixel stride (channels 0-1 of a
 // wider buffer) is read as what it is: the fast path gives the reference's
 // bits, and with the view's last pixel at the very end of its buffer the
