@@ -406,12 +406,8 @@ def test_render_reuses_only_what_the_same_settings_made(shot, lib, tmp_path):
     assert side["made_with"]["params"] == {"feedbackMin": "0.5"} and side["made_with"]["method"] == "taa-improved"
 
     # The same scene name from an edited script (CRISP_ADDON_DIR: another tree's add-on and scenes).
+    env = dict(os.environ, CRISP_ADDON_DIR=addon_with_spinning_cube_ending(tmp_path, "# edited"))
     tree = tmp_path / "tree"
-    for d in ("addon", "test_scenes"):
-        shutil.copytree(os.path.join(SOURCE, d), tree / d)
-    with open(tree / "test_scenes" / "spinning_cube.py", "a") as f:
-        f.write("\n# edited\n")
-    env = dict(os.environ, CRISP_ADDON_DIR=str(tree / "addon"))
     p = subprocess.run([CRISP, "render", "--scene", "spinning_cube", "--resolution", SIZE, "--frames", "5-8",
                         "--shot", "1-8", "--preroll", "4", "--method", "taa-improved", "--quiet", "-o", str(out)],
                        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, timeout=300)
@@ -467,6 +463,18 @@ def test_render_chunk_without_shot_and_resume_of_lost_files(tmp_path):
     assert record["status"] == "complete", record["status"]
 
 
+def addon_with_spinning_cube_ending(tmp_path, code):
+    """A copy of this tree's add-on and test scenes whose spinning_cube script ends with `code`; returns
+    the add-on folder, for CRISP_ADDON_DIR."""
+    tree = tmp_path / "tree"
+    for d in ("addon", "test_scenes"):
+        shutil.copytree(os.path.join(SOURCE, d), tree / d)
+    with open(tree / "test_scenes" / "spinning_cube.py", "a") as f:
+        f.write("\n\n" + "".join(line + "  # noqa: E402\n" if line.startswith("import ") else line + "\n"
+                                   for line in code.splitlines()))
+    return str(tree / "addon")
+
+
 def _processes_naming(text):
     """Pids of the running processes whose command line holds text."""
     pids = []
@@ -491,14 +499,9 @@ def test_a_stopped_render_stops_blender_and_says_so(tmp_path, how):
     out, tmp = tmp_path / "out", tmp_path / "tmp"
     tmp.mkdir()
     env = dict(os.environ, TMPDIR=str(tmp))
-    if how == "SIGTERM in a handler":  # the bundled scene with a slow handler (CRISP_ADDON_DIR: this tree)
-        tree = tmp_path / "tree"
-        for d in ("addon", "test_scenes"):
-            shutil.copytree(os.path.join(SOURCE, d), tree / d)
-        with open(tree / "test_scenes" / "spinning_cube.py", "a") as f:
-            f.write("\n\nimport bpy  # noqa: E402\nimport time  # noqa: E402\n"
-                    "bpy.app.handlers.frame_change_pre.append(lambda *_: time.sleep(0.2))\n")
-        env["CRISP_ADDON_DIR"] = str(tree / "addon")
+    if how == "SIGTERM in a handler":  # the bundled scene with a slow handler
+        env["CRISP_ADDON_DIR"] = addon_with_spinning_cube_ending(
+            tmp_path, "import bpy\nimport time\nbpy.app.handlers.frame_change_pre.append(lambda *_: time.sleep(0.2))\n")
     sig = {"SIGTERM": signal.SIGTERM, "Ctrl-C": signal.SIGINT, "SIGKILL": signal.SIGKILL,
            "SIGTERM in a handler": signal.SIGTERM}[how]
     last = 60 if how == "SIGTERM in a handler" else 900  # a shot long enough to stop part-way
@@ -543,17 +546,13 @@ def test_a_render_stopped_while_its_scene_is_made_says_so(tmp_path):
     """A stop signal that comes while batch.py builds the scene, before the run: a clear error, not a
     Python traceback."""
     import signal
-    tree = tmp_path / "tree"
-    for d in ("addon", "test_scenes"):
-        shutil.copytree(os.path.join(SOURCE, d), tree / d)
-    with open(tree / "test_scenes" / "spinning_cube.py", "a") as f:
-        f.write("\n\nimport os  # noqa: E402\nimport time  # noqa: E402\n"
-                "open(os.environ['CRISP_TEST_BUILDING'], 'w').close()\ntime.sleep(30)\n")
+    addon = addon_with_spinning_cube_ending(
+        tmp_path, "import os\nimport time\nopen(os.environ['CRISP_TEST_BUILDING'], 'w').close()\ntime.sleep(30)\n")
     building = tmp_path / "building"
     p = subprocess.Popen([CRISP, "render", "--scene", "spinning_cube", "--resolution", SIZE, "--frames", "1-2",
                           "--method", "taa", "-o", str(tmp_path / "out")], stdout=subprocess.PIPE,
                          stderr=subprocess.STDOUT, text=True,
-                         env=dict(os.environ, CRISP_ADDON_DIR=str(tree / "addon"), CRISP_TEST_BUILDING=str(building)))
+                         env=dict(os.environ, CRISP_ADDON_DIR=addon, CRISP_TEST_BUILDING=str(building)))
     try:
         deadline = time.monotonic() + 120
         while not building.exists() and time.monotonic() < deadline and p.poll() is None:
