@@ -215,17 +215,12 @@ def remove_stale_preroll_dirs(log):
         return
     for name in names:
         pid = name[len(PREROLL_PREFIX):].split("-", 1)[0] if name.startswith(PREROLL_PREFIX) else ""
-        if not pid.isdigit() or int(pid) == os.getpid() or not name.startswith(_preroll_prefix(int(pid))) \
-                or not render.process_gone(int(pid)):
+        if not pid.isdigit() or not name.startswith(_preroll_prefix(int(pid))):
             continue
         path = os.path.join(folder, name)
-        try:
-            if not os.path.isdir(path) or time.time() - os.path.getmtime(path) < 60:
-                continue
-        except OSError:
-            continue
-        shutil.rmtree(path, ignore_errors=True)
-        log("note: removed %s, the pre-roll folder of a run that was killed" % path)
+        if os.path.isdir(path) and render.left_by_a_killed_run(path, int(pid)):
+            shutil.rmtree(path, ignore_errors=True)
+            log("note: removed %s, the pre-roll folder of a run that was killed" % path)
 
 
 def chunk_run(frames, shot_first, preroll, is_complete=None):

@@ -343,6 +343,17 @@ def process_gone(pid):
     return False
 
 
+def left_by_a_killed_run(path, pid):
+    """Whether path, named by process pid of this host, is what a run killed without a chance to clean up
+    left (kill -9, a crash): that process no longer runs and the path has not changed for a minute."""
+    if pid == os.getpid() or not process_gone(pid):
+        return False
+    try:
+        return time.time() - os.path.getmtime(path) >= 60
+    except OSError:
+        return False
+
+
 def remove_stale_temporaries(folder):
     """Removes from folder the temporary files (temporary_path, and the library's) that a process of this
     host left when it was killed without a chance to clean up (kill -9, a crash): its process no longer
@@ -358,15 +369,15 @@ def remove_stale_temporaries(folder):
         if not name.startswith(".") or at <= 0:
             continue
         pid, _, n = name[at + len(marker):].partition("-")
-        if not (pid.isdigit() and n.split(".", 1)[0].isdigit()) or int(pid) == os.getpid() or not process_gone(int(pid)):
+        if not (pid.isdigit() and n.split(".", 1)[0].isdigit()):
             continue
         path = os.path.join(folder, name)
-        try:
-            if os.path.isfile(path) and time.time() - os.path.getmtime(path) >= 60:
+        if os.path.isfile(path) and left_by_a_killed_run(path, int(pid)):
+            try:
                 os.remove(path)
                 removed.append(name)
-        except OSError:
-            pass
+            except OSError:
+                pass
     return removed
 
 
