@@ -427,6 +427,11 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
     snap.set(r, "use_file_extension", False)
     for attr in ("color_depth", "exr_codec", "color_mode"):  # file_format changes them as a side effect
         snap.remember(r.image_settings, attr)
+    # Switching the format back to FFmpeg resets a movie without audio to an MKV container and its H.264
+    # preset: remembered before the switch, so they are put back after it.
+    for prop in r.ffmpeg.bl_rna.properties:
+        if not prop.is_readonly:
+            snap.remember(r.ffmpeg, prop.identifier)
     snap.set(r.image_settings, "file_format", file_format)
     snap.set(r.image_settings, "color_depth", "32")
     snap.set(r.image_settings, "exr_codec", "NONE")

@@ -708,6 +708,29 @@ class AddonTest(unittest.TestCase):
             self.assertEqual(sorted(f for f in os.listdir(os.path.join(d, "c")) if f.endswith(".exr")),
                              ["frame_0001.exr"])
 
+    def test_a_movie_output_keeps_its_settings(self):
+        """A scene whose output is a movie without audio: Blender resets the movie settings (an MKV
+        container, its H.264 preset) when the file format is switched back to FFmpeg, so Crisp's renders
+        (which write EXRs) left an MPEG-4 container as MKV and another quality behind."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        scene.render.image_settings.file_format = "FFMPEG"
+        ffmpeg = scene.render.ffmpeg
+        ffmpeg.format, ffmpeg.codec, ffmpeg.audio_codec = "MPEG4", "H264", "NONE"
+        ffmpeg.constant_rate_factor, ffmpeg.ffmpeg_preset, ffmpeg.gopsize = "HIGH", "BEST", 12
+
+        def settings():
+            return {p.identifier: getattr(ffmpeg, p.identifier) for p in ffmpeg.bl_rna.properties
+                    if p.identifier != "rna_type"}
+        before = settings()
+        try:
+            with tempfile.TemporaryDirectory() as d:
+                render.render_frames(scene, plan.make_plan("fxaa", plan.SceneFacts(1, 1)), [1], d)
+            self.assertEqual(scene.render.image_settings.file_format, "FFMPEG")
+            self.assertEqual({k: v for k, v in settings().items() if v != before[k]}, {})
+        finally:
+            scene.render.image_settings.file_format = "PNG"
+
     def test_frame_ranges_parse_as_the_cli_checks_them(self):
         """crisp render checks --frames before Blender starts (cli/frame_range.h); batch.py must read
         the ranges that check lets through, negative frames among them, as the same frames."""
