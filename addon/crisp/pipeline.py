@@ -267,11 +267,12 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         bad = native.check_params(method, params)
         if bad:
             raise InputError("%s: %s" % (method, bad))
-    if method in plan_mod.TEMPORAL_METHODS:  # their plans jitter (make_plan)
-        try:
+    if method in plan_mod.TEMPORAL_METHODS or "subsamples" in plan_mod.METHOD_PASSES[method]:
+        try:  # their plans jitter (make_plan), rsaa's sub-samples shift the camera (render_frames)
             render.shift_per_pixel(scene)
         except render.RenderError as e:
-            raise InputError("%s renders jittered frames, and %s" % (method, e))
+            raise InputError("%s renders %s, and %s" % (method, "jittered frames" if method in plan_mod.TEMPORAL_METHODS
+                                                         else "its sub-samples by jittering the camera", e))
     check_output_dir(out_dir)
     user_engine = scene.render.engine
     if user_engine not in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):

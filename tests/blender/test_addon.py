@@ -794,6 +794,10 @@ class AddonTest(unittest.TestCase):
                 with self.assertRaisesRegex(pipeline.InputError, "taa renders jittered frames, and jitter needs "
                                                                  "square pixels"):
                     pipeline.run(scene, "taa", range(1, 3), out, filter_frames=False, log=logged.append)
+                # rsaa's sub-samples are jittered renders too: refused before its first frame, not after it
+                with self.assertRaisesRegex(pipeline.InputError, "rsaa renders its sub-samples by jittering the "
+                                                                 "camera, and jitter needs square pixels"):
+                    pipeline.run(scene, "rsaa", range(1, 3), out, filter_frames=False, log=logged.append)
             finally:
                 scene.render.pixel_aspect_x = 1.0
             self.assertFalse(os.path.exists(out), "nothing written on bad input")
