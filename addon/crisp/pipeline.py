@@ -288,6 +288,10 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     if scene.eevee.use_motion_blur or scene.render.use_motion_blur:
         log("note: the scene's motion blur is off in Crisp's renders (a blurred sample cannot be reprojected, "
             "and the reference would blur differently); it is back on afterwards")
+    if scene.render.use_border:
+        log("note: the render region is not used: Crisp renders and filters the whole frame, %dx%d (a filter needs "
+            "the pixels around the region's edges)%s" % (render.render_size(scene) + (
+                "; crop the filtered frames to the region afterwards" if scene.render.use_crop_to_border else "",)))
     if scene.render.film_transparent and filter_frames and method != "none":
         log("note: the film is transparent: %s anti-aliases the colour, not the alpha, which keeps the 1-sample "
             "render's hard edges; for clean edges, render the background in the scene (Film > Transparent off)" % method)

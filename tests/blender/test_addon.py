@@ -856,13 +856,25 @@ class AddonTest(unittest.TestCase):
             pipeline.run(scene, "fxaa", [1], d, log=logged.append)
         self.assertTrue(any("anti-aliases the colour, not the alpha" in line for line in logged), logged)
         scene.render.film_transparent = False
+        # A render region (cropped or not): Crisp renders and filters the whole frame, and says so.
+        scene.render.use_border = scene.render.use_crop_to_border = True
+        scene.render.border_min_x = scene.render.border_min_y = 0.25
+        logged.clear()
+        with tempfile.TemporaryDirectory() as d:
+            pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
+            with open(os.path.join(d, "input", "frame_0001.json")) as f:
+                self.assertEqual(json.load(f)["render_settings"]["resolution"], [32, 18])
+        self.assertTrue(any("render region is not used" in n and "whole frame, 32x18" in n for n in logged), logged)
+        self.assertTrue(scene.render.use_border, "put back")
+        scene.render.use_border = False
         self.assertTrue(scene.eevee.use_motion_blur, "put back")
         scene.eevee.use_motion_blur = False
         scene.use_nodes = False
         logged.clear()
         with tempfile.TemporaryDirectory() as d:
             pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
-        self.assertFalse([line for line in logged if "motion blur" in line or "compositor" in line], logged)
+        self.assertFalse([line for line in logged if "motion blur" in line or "compositor" in line
+                          or "region" in line], logged)
 
     def test_run_json_says_how_the_run_ended(self):
         """run.json is this run's record also when the run is stopped or fails part-way; a resume
