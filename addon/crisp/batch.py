@@ -8,7 +8,8 @@
         [--engine eevee|cycles]
 
 Arguments (after Blender's `--`):
-  -o, --output OUTDIR      where everything goes (created; must be writable)
+  -o, --output OUTDIR      where everything goes (created; must be writable); //NAME is NAME beside
+                           the opened .blend, as in Blender
   --frames A-B | A         frame range (default: the scene's)
   --preroll N              a farm chunk: first render and filter the N frames before --frames (not
                            before the shot's first frame) to warm the temporal history; they are
@@ -195,11 +196,12 @@ def main(argv):
             fail(2, str(e))
 
     try:
+        out = pipeline.output_argument(args.output)
         frames = pipeline.parse_frames(args.frames, scene)
         # A chunk of a shot: the shot given, or the scene's range when only a pre-roll is asked for, also
         # --preroll 0 (a spatial method's chunk, or the first one): its record and plan are a chunk's.
         shot = pipeline.parse_frames(args.shot, scene) if args.shot or args.preroll is not None else None
-        pipeline.run(scene, args.method, frames, os.path.abspath(args.output), params=params,
+        pipeline.run(scene, args.method, frames, out, params=params,
                      samples=args.samples, reference_samples=args.reference_samples, plan_only=args.plan_only,
                      filter_frames=not args.no_filter, threads=args.threads, jitter_distribution=args.jitter,
                      write_png=not args.no_png, log=lambda s: print(s, flush=True), engine_name=args.engine,
@@ -218,7 +220,7 @@ def main(argv):
     except OSError as e:  # any other file error: named, not a traceback
         where = e.filename2 or e.filename
         fail(4, "%s: %s" % (where, e.strerror or e) if where else str(e))
-    print("crisp: done: %s" % os.path.abspath(args.output), flush=True)
+    print("crisp: done: %s" % out, flush=True)
 
 
 if __name__ == "__main__":

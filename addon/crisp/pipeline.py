@@ -84,6 +84,18 @@ def apply_resolution(scene, text):
     scene.render.resolution_percentage = 100
 
 
+def output_argument(text):
+    """An -o folder of batch.py or batch_eval.py as an absolute path. One starting with // is relative to
+    the opened .blend file's folder, as Blender reads its own -o (os.path would take it for the root
+    folder, and Blender would then write the frames beside the .blend); refused without a saved .blend."""
+    if text.startswith("//"):
+        if not bpy.data.filepath:
+            raise InputError("the output folder '%s' is relative to the .blend file, and no saved .blend file is "
+                             "open: give a folder" % text)
+        text = bpy.path.abspath(text)
+    return os.path.abspath(text)
+
+
 def check_output_dir(out_dir):
     """Creates out_dir if needed and proves it writable, or raises InputError naming it."""
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):

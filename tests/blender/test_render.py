@@ -241,6 +241,29 @@ class BatchTest(unittest.TestCase):
         self.assertEqual(os.stat(blend).st_mtime_ns, mtime)
         self.assertFalse(os.path.exists(blend + "1"), "no .blend1 backup: the file was never saved")
 
+    @unittest.skipUnless(LIB_OK, "library not usable: " + LIB_WHY)
+    def test_an_output_relative_to_the_blend_file(self):
+        """-o //NAME is NAME beside the opened .blend, as Blender's own -o reads it. It was made at the
+        root folder (/NAME) while Blender wrote the frame beside the .blend, where Crisp did not look:
+        'Blender wrote no file', a temporary left there. Without a saved .blend it is refused."""
+        folder = os.path.join(self.tmp.name, "my shot ü")
+        os.makedirs(folder)
+        blend = os.path.join(folder, "shot.blend")
+        harness.build_scene("still_life")
+        bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+        name = "crisp_out_%d" % os.getpid()
+        self.addCleanup(lambda: os.path.isdir("/" + name) and __import__("shutil").rmtree("/" + name))
+        rc, log = harness.blender_batch(["--frames", "1", "--resolution", "16x8", "-o", "//" + name], blend=blend)
+        self.assertEqual(rc, 0, log[-2000:])
+        self.assertEqual(files(os.path.join(folder, name, "filtered")), [".crisp", "frame_0001.exr", "frame_0001.png"])
+        self.assertIn("crisp: done: %s" % os.path.join(folder, name), log)
+        self.assertFalse(os.path.exists("/" + name), "a folder made at the root")
+        rc, log = harness.blender_batch(["--frames", "1", "--resolution", "16x8", "--scene-script", "still_life",
+                                         "-o", "//" + name])
+        self.assertEqual(rc, 2, log[-2000:])
+        self.assertIn("crisp: error: the output folder '//%s' is relative to the .blend file" % name, log)
+        self.assertFalse(os.path.exists("/" + name), "a folder made at the root")
+
     def test_plan_only_prints_reasons(self):
         out = os.path.join(self.tmp.name, "plan")
         rc, log = harness.blender_batch(["--scene-script", "camera_dolly", "--method", "taa", "--plan-only", "-o", out])
