@@ -304,6 +304,10 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         log("note: the render region is not used: Crisp renders and filters the whole frame, %dx%d (a filter needs "
             "the pixels around the region's edges)%s" % (render.render_size(scene) + (
                 "; crop the filtered frames to the region afterwards" if scene.render.use_crop_to_border else "",)))
+    if scene.render.use_sequencer and scene.sequence_editor and any(
+            strip.type != "SOUND" for strip in scene.sequence_editor.sequences):  # as Blender decides to render the edit
+        log("note: the scene's sequencer strips are not applied to Crisp's frames: Crisp renders the scene through "
+            "its camera, as with Post Processing > Sequencer off")
     if scene.render.film_transparent and filter_frames and method != "none":
         log("note: the film is transparent: %s anti-aliases the colour, not the alpha, which keeps the 1-sample "
             "render's hard edges; for clean edges, render the background in the scene (Film > Transparent off)" % method)

@@ -867,6 +867,15 @@ class AddonTest(unittest.TestCase):
         self.assertTrue(any("render region is not used" in n and "whole frame, 32x18" in n for n in logged), logged)
         self.assertTrue(scene.render.use_border, "put back")
         scene.render.use_border = False
+        # Sequencer strips (Blender would render the edit, not the camera's view); a sound strip alone
+        # changes no picture.
+        editor = scene.sequence_editor_create()
+        red = editor.sequences.new_effect("Red", "COLOR", channel=1, frame_start=1, frame_end=10)
+        logged.clear()
+        with tempfile.TemporaryDirectory() as d:
+            pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
+        self.assertTrue(any("sequencer strips are not applied" in n for n in logged), logged)
+        editor.sequences.remove(red)
         self.assertTrue(scene.eevee.use_motion_blur, "put back")
         scene.eevee.use_motion_blur = False
         scene.use_nodes = False
@@ -874,7 +883,7 @@ class AddonTest(unittest.TestCase):
         with tempfile.TemporaryDirectory() as d:
             pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
         self.assertFalse([line for line in logged if "motion blur" in line or "compositor" in line
-                          or "region" in line], logged)
+                          or "region" in line or "sequencer" in line], logged)
 
     def test_run_json_says_how_the_run_ended(self):
         """run.json is this run's record also when the run is stopped or fails part-way; a resume
