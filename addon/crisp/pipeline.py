@@ -285,6 +285,12 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         except render.RenderError as e:
             raise InputError("%s renders %s, and %s" % (method, "jittered frames" if method in plan_mod.TEMPORAL_METHODS
                                                          else "its sub-samples by jittering the camera", e))
+    if not plan_only:  # the folders the run will write into, checked as out_dir is
+        for sub in ["input"] + ["filtered"] * filter_frames + ["reference"] * bool(reference_samples):
+            path = os.path.join(out_dir, sub)
+            if os.path.exists(path) and not os.path.isdir(path):
+                raise InputError("'%s' is a file, not a folder: Crisp writes the run's %s frames there; move it, or "
+                                 "choose another output folder" % (path, sub))
     check_output_dir(out_dir)
     user_engine = scene.render.engine
     if user_engine not in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):

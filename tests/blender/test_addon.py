@@ -171,6 +171,22 @@ class AddonTest(unittest.TestCase):
             with self.assertRaisesRegex(pipeline.InputError, "is a file, not a folder"):
                 pipeline.check_output_dir(f.name)
 
+    def test_a_file_where_a_run_writes_its_frames_is_named_so(self):
+        """A file named input (or filtered) in the output folder: refused as bad input before anything is
+        rendered or written, naming it, rather than a 'File exists' error mid-run; the file is kept."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        for sub, filter_frames in (("input", False), ("filtered", True)):
+            with tempfile.TemporaryDirectory() as d:
+                with open(os.path.join(d, sub), "w") as f:
+                    f.write("the user's")
+                with self.assertRaisesRegex(pipeline.InputError, "'%s' is a file, not a folder"
+                                            % os.path.join(d, sub)):
+                    pipeline.run(scene, "none", [1], d, filter_frames=filter_frames, log=lambda *a: None)
+                self.assertEqual(sorted(os.listdir(d)), [sub])
+                with open(os.path.join(d, sub)) as f:
+                    self.assertEqual(f.read(), "the user's")
+
     def test_missing_library_still_registers_and_says_why(self):
         saved_lib, saved_env = native._lib, os.environ.get("CRISP_LIBRARY")
         native._lib = None
