@@ -428,6 +428,11 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                        "resumed_at": todo[0] if resume and todo and len(todo) < len(frames) else None}
     if not todo:
         log("every output of frames %d-%d exists; nothing to do" % (frames[0], frames[-1]))
+    elif warms and not preroll_frames and todo[0] not in facts.camera_cuts and \
+            os.path.isfile(os.path.join(filtered_dir, render.frame_name(todo[0] - 1))):
+        log("note: %s's history starts again at frame %d, from one sample: frame %d in %s was filtered with the "
+            "frames before it, so the sequence may jump there; to continue it, render from the shot's first frame "
+            "or with a pre-roll (crisp render --preroll N)" % (method, todo[0], todo[0] - 1, filtered_dir))
 
     def on_preroll(f, info):
         frame_filter.run(info["exr"], [])

@@ -950,6 +950,26 @@ class AddonTest(unittest.TestCase):
                          reference_samples=2, should_cancel=lambda: calls.append(1) or len(calls) > 2)
             self.assertEqual(record(d), ("cancelled at reference frame 1", [1, 2]))
 
+    @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
+    def test_a_temporal_run_that_cannot_continue_the_frames_before_says_so(self):
+        """Frame 3 rendered again alone (a retake, a farm task run again without pre-roll) starts taa's history
+        at one sample, while the frame 2 beside it in filtered/ continues a history from frame 1: the
+        sequence flickers there. The log says so and how to continue it; with a pre-roll it is not said."""
+        scene = harness.build_scene("spinning_cube")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        with tempfile.TemporaryDirectory() as d:
+            pipeline.run(scene, "taa", range(1, 4), d, log=lambda *a: None)
+            logged = []
+            pipeline.run(scene, "taa", [3], d, log=logged.append)
+            self.assertTrue(any(line.startswith("note: taa's history starts again at frame 3") and "--preroll" in line
+                                for line in logged), logged)
+            logged.clear()
+            pipeline.run(scene, "taa", [3], d, log=logged.append, preroll=2, shot=range(1, 4))
+            self.assertFalse([line for line in logged if "history starts again" in line], logged)
+            logged.clear()
+            pipeline.run(scene, "fxaa", [3], d, log=logged.append)  # no history to continue
+            self.assertFalse([line for line in logged if "history starts again" in line], logged)
+
     def test_frame_step_is_named_not_silently_ignored(self):
         scene = harness.build_scene("still_life")
         scene.frame_step = 2
