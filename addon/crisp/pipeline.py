@@ -301,6 +301,11 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
             "each frame of %d-%d is rendered and filtered" % (scene.frame_step, frames[0], frames[-1]))
     engine = render.render_engine(scene, engine_name)
     view_layer = render.default_view_layer(scene, view_layer)  # one layer planned and rendered
+    others = [layer.name for layer in scene.view_layers if layer.use and layer != view_layer]
+    if others:  # Blender's own render makes each of them
+        log("note: only the view layer '%s' is rendered and filtered, not %s: to filter another, make it the "
+            "window's view layer and render again into another Output folder"
+            % (view_layer.name, ", ".join("'%s'" % name for name in others)))
     the_plan, facts = scene_plan(scene, method, shot or frames, view_layer, engine_name)
     log(the_plan.describe())
     if scene.eevee.use_motion_blur or scene.render.use_motion_blur:
@@ -326,7 +331,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         log("note: the scene's compositor is not applied to Crisp's frames (they are filtered as rendered); "
             "apply it to the filtered frames through the 'Crisp Result' node group")
     result = {"blender_version": bpy.app.version_string, "method": method, "params": dict(params or {}),
-              "scene": scene.name, "frames_requested": [frames[0], frames[-1]], "samples": samples,
+              "scene": scene.name, "view_layer": view_layer.name, "frames_requested": [frames[0], frames[-1]],
+              "samples": samples,
               "engine": engine, "user_engine": user_engine,
               "plan": the_plan.to_json(), "facts": {"camera_moves": facts.camera_moves,
                                                    "moving_objects": facts.moving_objects,
