@@ -436,6 +436,7 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
     snap.set(r.image_settings, "color_depth", "32")
     snap.set(r.image_settings, "exr_codec", "NONE")
     snap.set(r.image_settings, "color_mode", "RGBA")
+    snap.set(r.image_settings, "use_preview", False)  # an EXR's preview: a JPEG beside each temporary name
     for prop in view_layer.bl_rna.properties:
         if prop.identifier.startswith("use_pass_"):
             snap.set(view_layer, prop.identifier, prop.identifier in flags or prop.identifier == "use_pass_combined")

@@ -747,6 +747,21 @@ class AddonTest(unittest.TestCase):
         finally:
             scene.render.image_settings.file_format = "PNG"
 
+    def test_an_exr_output_with_a_preview_leaves_no_jpeg(self):
+        """The user's EXR output with Preview on (a JPEG beside each EXR): Crisp's renders wrote a JPEG beside
+        each temporary EXR (.frame_0001.tmp-<host>-<pid>-<n>.jpg) and left it in input/."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        settings = scene.render.image_settings
+        settings.file_format, settings.use_preview = "OPEN_EXR", True
+        try:
+            with tempfile.TemporaryDirectory() as d:
+                render.render_frames(scene, plan.make_plan("fxaa", plan.SceneFacts(1, 1)), [1], d)
+                self.assertEqual(sorted(os.listdir(d)), ["frame_0001.exr", "frame_0001.json"])
+            self.assertTrue(settings.use_preview, "put back")
+        finally:
+            settings.file_format, settings.use_preview = "PNG", False
+
     def test_frame_ranges_parse_as_the_cli_checks_them(self):
         """crisp render checks --frames before Blender starts (cli/frame_range.h); batch.py must read
         the ranges that check lets through, negative frames among them, as the same frames."""
