@@ -320,8 +320,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
             "Size): it is rendered again for every frame, which at 512 px costs about 1.4 s on 2 cores; sharp "
             "reflections of a detailed world look blurrier than in Blender's own render (a baked light cache is used "
             "as baked)" % (render.CUBEMAP_RESOLUTION, scene.eevee.gi_cubemap_resolution))
-    if scene.render.use_sequencer and scene.sequence_editor and any(
-            strip.type != "SOUND" for strip in scene.sequence_editor.sequences):  # as Blender decides to render the edit
+    if scene.render.use_sequencer and scene.sequence_editor and any(  # Blender's rule for rendering the edit
+            strip.type != "SOUND" for strip in scene.sequence_editor.sequences):
         log("note: the scene's sequencer strips are not applied to Crisp's frames: Crisp renders the scene through "
             "its camera, as with Post Processing > Sequencer off")
     if scene.render.film_transparent and filter_frames and method != "none":

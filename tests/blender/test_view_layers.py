@@ -51,8 +51,8 @@ class ViewLayerTest(unittest.TestCase):
                 result = pipeline.run(scene, "taa-improved", [1], out, threads=1, view_layer=layer, log=logged.append)
                 # The other layer renders in Blender's own render too: its absence is said, the layer recorded.
                 other = second if layer is first else first
-                self.assertIn("note: only the view layer '%s' is rendered and filtered, not '%s'" % (layer.name, other.name),
-                              "\n".join(logged))
+                self.assertIn("note: only the view layer '%s' is rendered and filtered, not '%s'"
+                              % (layer.name, other.name), "\n".join(logged))
                 self.assertEqual(result["view_layer"], layer.name)
                 with open(os.path.join(out, "input", "frame_0001.json")) as fh:
                     objects = sorted(o["name"] for o in json.load(fh)["objects"].values())
