@@ -74,6 +74,16 @@ std::vector<std::string> blenderDriverCommand(const ParsedArgs& args, const std:
   return cmd;
 }
 
+fs::path blenderOutputFolder(const ParsedArgs& args) {
+  const std::string out = args.get("output");
+  if (out.rfind("//", 0) != 0) return fs::absolute(out);
+  const std::string scene = args.get("scene");
+  if (fs::path(scene).extension() != ".blend")
+    throw UsageError("-o '" + out + "' is relative to the .blend file, as Blender reads //, and --scene '" + scene +
+                     "' is no .blend file: give a folder");
+  return fs::absolute(scene).parent_path() / out.substr(2);
+}
+
 std::string sceneFingerprint(const ParsedArgs& args) {
   const std::string scene = args.get("scene");
   std::vector<fs::path> files;

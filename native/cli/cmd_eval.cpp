@@ -89,7 +89,7 @@ std::string blenderErrors(const fs::path& log) {
 int runEval(const ParsedArgs& args) {
   if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
   const std::string scene = args.get("scene");
-  const fs::path outDir = fs::absolute(args.get("output"));
+  const fs::path outDir = blenderOutputFolder(args);
   const bool quiet = args.has("quiet");
   const int threads = parseIntOption(args, "threads", 0, 0, 1024);
   const int refSamples = parseIntOption(args, "reference-samples", 64, 1, 65536);

@@ -36,7 +36,7 @@ int runRender(const ParsedArgs& args) {
   parseIntOption(args, "threads", 0, 0, 1024);
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch.py");
   cmd.push_back("-o");
-  cmd.push_back(args.get("output"));
+  cmd.push_back(blenderOutputFolder(args).string());
   // --opt=VALUE as one argument: a frame range "-5-3" alone would read as an option to batch.py's argparse.
   for (const char* opt :
        {"frames", "preroll", "shot", "method", "samples", "reference-samples", "resolution", "threads"})

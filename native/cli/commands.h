@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <string>
@@ -99,6 +100,10 @@ std::string hex64(std::uint64_t v);
 // --scene of args (a .blend to open, or a bundled test scene to build); it ends
 // after "--" with the driver's scene arguments, callers append the rest.
 std::vector<std::string> blenderDriverCommand(const ParsedArgs& args, const std::string& script);
+// The -o folder of args as an absolute path: //NAME is NAME beside the --scene
+// .blend, as Blender reads // (POSIX would take it for the root, while Blender,
+// handed such a path, writes beside the .blend); a UsageError without a .blend.
+std::filesystem::path blenderOutputFolder(const ParsedArgs& args);
 // What the --scene of args is made of, as "fnv1a64:<hex>": the bytes of the
 // .blend, or of the bundled scene's script and the test_scenes/common.py it
 // imports. Files the scene links or loads (textures, libraries) are not in it.

@@ -113,6 +113,11 @@ def test_help_prints_parameter_tables():
      ["--reference-samples expects a whole number", "got 'many'"]),
     (["render", "--scene", "still_life", "--threads", "-2", "-o", "OUT", "--blender", "NOBLENDER"], 2,
      ["--threads expects a whole number"]),
+    # Blender's "beside the .blend", which a bundled scene has not.
+    (["render", "--scene", "still_life", "-o", "//crisp_out", "--blender", "NOBLENDER"], 2,
+     ["-o '//crisp_out' is relative to the .blend file", "'still_life' is no .blend file"]),
+    (["eval", "--scene", "still_life", "-o", "//crisp_out", "--blender", "NOBLENDER"], 2,
+     ["-o '//crisp_out' is relative to the .blend file"]),
 ])
 def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
     place = {"IN": str(chart / "chart_1spp.exr"), "OUT": str(tmp_path / "out"), "NOBLENDER": str(tmp_path / "none")}
@@ -124,6 +129,19 @@ def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
     assert not (tmp_path / "out" / "chart_1spp.exr").exists()
     if args[0] in ("eval", "render"):
         assert not (tmp_path / "out").exists()  # refused before anything is made
+
+
+def test_eval_output_relative_to_the_blend_file_is_beside_it(tmp_path):
+    """crisp eval -o //NAME makes NAME beside the .blend, as Blender reads // (and as the renders it starts
+    write there): it was made at the root folder, /NAME, while Blender wrote beside the .blend."""
+    blend = tmp_path / "my shot" / "shot.blend"
+    blend.parent.mkdir()
+    blend.write_bytes(b"BLENDER")  # never opened: no Blender is there to start
+    name = "crisp_eval_%d" % os.getpid()
+    p = run("eval", "--scene", blend, "--frames", "1", "-o", "//" + name, "--blender", tmp_path / "none", ok=False)
+    assert p.returncode != 0
+    assert (blend.parent / name).is_dir(), p.stderr
+    assert not os.path.exists("/" + name), "made at the root folder"
 
 
 @pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
