@@ -87,8 +87,8 @@ def check_blender_version():
 def camera_problem(scene, frames=None):
     """Why Crisp cannot render the scene through its camera, or None: no camera, a scene camera that is
     not a camera object (Crisp jitters the camera's shift and records its projection), also one that a
-    timeline marker makes the scene camera within `frames` (all markers without frames), or stereoscopy
-    (Crisp renders and filters one view)."""
+    timeline marker makes the scene camera within `frames` (all markers without frames), stereoscopy
+    (Crisp renders and filters one view), or a render size of no pixel (a small resolution's percentage)."""
     cam = scene.camera
     if cam is None:
         return "scene '%s' has no camera: add one and set it as the scene camera" % scene.name
@@ -103,6 +103,10 @@ def camera_problem(scene, frames=None):
     if scene.render.use_multiview:
         return ("stereoscopy is on (Output properties > Stereoscopy): Crisp renders and filters one view; "
                 "switch it off")
+    if min(render_size(scene)) < 1:
+        r = scene.render
+        return ("scene '%s' renders %dx%d pixels (%dx%d at %d%%): raise the resolution or its percentage"
+                % ((scene.name,) + render_size(scene) + (r.resolution_x, r.resolution_y, r.resolution_percentage)))
     return None
 
 

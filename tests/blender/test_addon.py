@@ -819,6 +819,17 @@ class AddonTest(unittest.TestCase):
                     pipeline.run(scene, "fxaa", range(1, 3), out, filter_frames=False)
             finally:
                 scene.render.use_multiview = False
+            # A percentage that leaves no pixel (Blender: "Image too small"; taa divided by zero).
+            size = scene.render.resolution_x, scene.render.resolution_y
+            scene.render.resolution_x, scene.render.resolution_y = 64, 36
+            scene.render.resolution_percentage = 1
+            try:
+                for method in ("fxaa", "taa"):
+                    with self.assertRaisesRegex(pipeline.InputError, "renders 0x0 pixels \\(64x36 at 1%\\)"):
+                        pipeline.run(scene, method, range(1, 3), out, filter_frames=False)
+            finally:
+                scene.render.resolution_percentage = 100
+                scene.render.resolution_x, scene.render.resolution_y = size
             scene.render.pixel_aspect_x = 2.0
             logged = []
             try:
