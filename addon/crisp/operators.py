@@ -65,13 +65,15 @@ class CRISP_OT_render(bpy.types.Operator):
         wm = context.window_manager
         frames = list(_frames(scene))
         wm.progress_begin(0, len(frames))
-        done = []
+        done, notes = [], []
 
         def log(text):
             print(text)
             if text.startswith("frame "):
                 done.append(text)
                 wm.progress_update(len(done))
+            elif text.startswith("note: "):  # what the run leaves out or changes: for the artist, not the console only
+                notes.append(text[len("note: "):])
         try:
             result = pipeline.run(scene, s.method, frames, out, params=props.changed_params(s, s.method),
                                   threads=preferences.threads(context), jitter_distribution=s.jitter_distribution,
@@ -86,7 +88,10 @@ class CRISP_OT_render(bpy.types.Operator):
         finally:
             wm.progress_end()
         how = "copied unfiltered (method none)" if s.method == "none" else "filtered with %s" % s.method
-        _done(self, scene, "Crisp: %d frames %s into %s" % (len(result["frames"]), how, out))
+        for note in notes:
+            self.report({"WARNING"}, "Crisp: " + note)
+        _done(self, scene, "Crisp: %d frames %s into %s%s" % (len(result["frames"]), how, out, "; %d note%s in the "
+              "Info editor" % (len(notes), "s" * (len(notes) > 1)) if notes else ""))
         return {"FINISHED"}
 
 

@@ -161,6 +161,18 @@ class OperatorTest(unittest.TestCase):
         frames = node.node_tree.nodes["Crisp Frames"]
         self.assertEqual((frames.frame_start, frames.frame_duration), (2, 3))
 
+    def test_the_runs_notes_reach_the_artist(self):
+        """What the run says it leaves out (here the render region) is reported as a warning, in the Info
+        editor, not printed to the console alone, where an artist in Blender's window never sees it."""
+        scene = self.small_scene(1, 1, load_result=False)
+        scene.render.use_border = True
+        reports = io.StringIO()  # an operator's reports other than errors go to stdout
+        with contextlib.redirect_stdout(reports):
+            self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        self.assertIn("Warning: Crisp: the render region is not used", reports.getvalue())
+        # (the scene may hold an earlier test's compositor, which is another note)
+        self.assertRegex(reports.getvalue(), "filtered with fxaa into %s; [1-9] notes? in the Info editor" % self.tmp.name)
+
     def test_load_result_warns_of_a_missing_last_frame(self):
         """Load into Compositor checks the scene's whole range, the last frame too: with that frame's
         filtered image gone it loads the rest and warns, naming the frame."""
