@@ -114,6 +114,7 @@ def main(argv):
             raise pipeline.InputError(problem)
         pipeline.check_output_dir(out)
         plans, sets, unknown, facts = eval_renders.group_plans(scene, methods, frames)
+        pipeline.check_camera_shifts(scene, list(plans))
     except pipeline.InputError as e:
         fail(2, str(e))
     except render.RenderError as e:

@@ -120,6 +120,22 @@ def check_method(method, need_library):
             raise InputError("method '%s' is not in this libcrisp (it has: %s)" % (method, ", ".join(types)))
 
 
+def check_camera_shifts(scene, methods):
+    """The methods that shift the camera by sub-pixel amounts (the temporal ones' jitter, make_plan; rsaa's
+    sub-samples, render_frames) need a scene where a shift moves the samples by whole pixels
+    (render.shift_per_pixel: square pixels): an InputError naming them otherwise, before anything renders."""
+    jittered = [m for m in methods if m in plan_mod.TEMPORAL_METHODS]
+    subsampled = [m for m in methods if "subsamples" in plan_mod.METHOD_PASSES.get(m, ())]
+    if not (jittered or subsampled):
+        return
+    try:
+        render.shift_per_pixel(scene)
+    except render.RenderError as e:
+        raise InputError("%s, and %s" % (" and ".join(
+            "%s render%s %s" % (", ".join(ms), "s" * (len(ms) == 1), what) for ms, what in (
+                (jittered, "jittered frames"), (subsampled, "sub-samples by jittering the camera")) if ms), e))
+
+
 def scene_plan(scene, method, frames, view_layer=None, engine_name="eevee"):
     engine = render.render_engine(scene, engine_name)
     # Over the whole span whatever the order (a list given backwards, as the Python API allows).
@@ -279,12 +295,7 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         bad = native.check_params(method, params)
         if bad:
             raise InputError("%s: %s" % (method, bad))
-    if method in plan_mod.TEMPORAL_METHODS or "subsamples" in plan_mod.METHOD_PASSES[method]:
-        try:  # their plans jitter (make_plan), rsaa's sub-samples shift the camera (render_frames)
-            render.shift_per_pixel(scene)
-        except render.RenderError as e:
-            raise InputError("%s renders %s, and %s" % (method, "jittered frames" if method in plan_mod.TEMPORAL_METHODS
-                                                         else "its sub-samples by jittering the camera", e))
+    check_camera_shifts(scene, [method])
     if not plan_only:  # the folders the run will write into, checked as out_dir is
         for sub in ["input"] + ["filtered"] * filter_frames + ["reference"] * bool(reference_samples):
             path = os.path.join(out_dir, sub)

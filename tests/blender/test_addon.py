@@ -837,7 +837,7 @@ class AddonTest(unittest.TestCase):
                                                                  "square pixels"):
                     pipeline.run(scene, "taa", range(1, 3), out, filter_frames=False, log=logged.append)
                 # rsaa's sub-samples are jittered renders too: refused before its first frame, not after it
-                with self.assertRaisesRegex(pipeline.InputError, "rsaa renders its sub-samples by jittering the "
+                with self.assertRaisesRegex(pipeline.InputError, "rsaa renders sub-samples by jittering the "
                                                                  "camera, and jitter needs square pixels"):
                     pipeline.run(scene, "rsaa", range(1, 3), out, filter_frames=False, log=logged.append)
             finally:

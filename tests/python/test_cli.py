@@ -145,6 +145,24 @@ def test_eval_output_relative_to_the_blend_file_is_beside_it(tmp_path):
 
 
 @pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
+def test_eval_of_jittered_methods_on_non_square_pixels_is_refused_before_rendering(tmp_path):
+    """taa jitters, rsaa's sub-samples shift the camera: both need square pixels. crisp eval rendered the
+    1-sample frames first and then failed as a render failure, naming no method."""
+    blend = tmp_path / "wide_pixels.blend"
+    subprocess.run(["blender", "-b", "--factory-startup", "--python-expr",
+                    "import bpy; r = bpy.context.scene.render; r.pixel_aspect_x = 2; "
+                    "bpy.ops.wm.save_as_mainfile(filepath=%r)" % str(blend)], capture_output=True, check=True)
+    out = tmp_path / "out"
+    p = run("eval", "--scene", blend, "--frames", "1-2", "--methods", "fxaa,taa,rsaa", "--resolution", "16x8",
+            "--reference-samples", "1", "--warmup", "1", "-o", out, ok=False)
+    assert p.returncode == 2, p.stderr
+    log = (out / "logs" / "blender.log").read_text()
+    assert "taa renders jittered frames and rsaa renders sub-samples by jittering the camera, and jitter needs " \
+           "square pixels (pixel aspect is 2:1)" in log, p.stderr
+    assert not list(out.rglob("*.exr"))
+
+
+@pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
 def test_eval_that_renders_nothing_leaves_no_settings(tmp_path):
     """eval_settings.json makes a later run into the folder match this one; a run that renders nothing
     (a bad CRISP_EVAL_FILTER_SIZE refused by the CLI, a frame range Blender refuses) must not leave it,
