@@ -90,12 +90,17 @@ def camera_problem(scene, frames=None):
     timeline marker makes the scene camera within `frames` (all markers without frames), stereoscopy
     (Crisp renders and filters one view), or a render size of no pixel (a small resolution's percentage)."""
     cam = scene.camera
+    bound = _camera_markers(scene, frames)
+    if cam is None and bound:  # Blender would make a marker's camera the scene camera as the frame changes
+        return ("scene '%s' has no scene camera; timeline marker '%s' binds '%s', which Blender makes the scene camera "
+                "as the frame changes, but Crisp starts from the scene camera: set it (Scene properties > Camera)"
+                % (scene.name, bound[0].name, bound[0].camera.name))
     if cam is None:
         return "scene '%s' has no camera: add one and set it as the scene camera" % scene.name
     if cam.type != "CAMERA":
         return ("the scene camera '%s' is %s object, not a camera: Crisp jitters a camera's shift and records "
                 "its projection; set a camera object as the scene camera" % (cam.name, _article(cam.type.lower())))
-    for marker in _camera_markers(scene, frames):
+    for marker in bound:
         if marker.camera.type != "CAMERA":
             return ("timeline marker '%s' (frame %d) makes '%s' the scene camera, %s object, not a camera: Crisp "
                     "jitters a camera's shift and records its projection; bind a camera object to the marker"

@@ -786,6 +786,16 @@ class AddonTest(unittest.TestCase):
                     pipeline.run(scene, "fxaa", range(1, 3), out, filter_frames=False)
             finally:
                 scene.camera = cam
+            # No scene camera, but a timeline marker binds one: Blender renders through it (the marker makes it
+            # the scene camera as the frame changes); Crisp, which starts from the scene camera, says so.
+            scene.timeline_markers.new("Shot", frame=1).camera = cam
+            scene.camera = None
+            try:
+                with self.assertRaisesRegex(pipeline.InputError, "no scene camera; timeline marker 'Shot' binds 'Camera'"):
+                    pipeline.run(scene, "fxaa", range(1, 3), out, filter_frames=False)
+            finally:
+                scene.timeline_markers.clear()
+                scene.camera = cam
             with self.assertRaisesRegex(pipeline.InputError, "unknown method 'smaa'"):
                 pipeline.run(scene, "smaa", range(1, 3), out, filter_frames=False)
             # An empty as the scene camera (Blender renders through it), stereoscopy, non-square pixels
