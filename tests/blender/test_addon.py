@@ -791,7 +791,8 @@ class AddonTest(unittest.TestCase):
             scene.timeline_markers.new("Shot", frame=1).camera = cam
             scene.camera = None
             try:
-                with self.assertRaisesRegex(pipeline.InputError, "no scene camera; timeline marker 'Shot' binds 'Camera'"):
+                with self.assertRaisesRegex(pipeline.InputError,
+                                            "no scene camera; timeline marker 'Shot' binds 'Camera'"):
                     pipeline.run(scene, "fxaa", range(1, 3), out, filter_frames=False)
             finally:
                 scene.timeline_markers.clear()
