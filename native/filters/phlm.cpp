@@ -1493,8 +1493,7 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
   const std::size_t pixels = std::size_t(width) * std::size_t(height);
   const bool sameSize = width == width_ && height == height_ && !staged_.empty();
   if (!sameSize) {
-    width_ = width;
-    height_ = height;
+    width_ = height_ = 0;  // no size until every buffer has it (a retry after a throw allocates again)
     staged_ = Image(width, height, 4);
     blocksPerRow_ = (width + kBlock - 1) / kBlock;
     models_[0].assign(std::size_t(blocksPerRow_) * kBlock * std::size_t(height) * kRecord, T(0));
@@ -1511,6 +1510,8 @@ void Kernel<T>::allocate(int width, int height, bool withMotion, bool withDepth)
     withMotion_ = withDepth_ = false;
     rowStats_.assign(std::size_t(height), FrameStats{});
     alphaOne_.assign(std::size_t(height), 0);
+    width_ = width;
+    height_ = height;
     reset();
   }
   if (withMotion && !withMotion_) {

@@ -362,8 +362,9 @@ std::size_t Kernel::scratchFloatsPerBand() const { return bandFloats(width_); }
 void Kernel::allocate(int width, int height, bool withDepth) {
   const bool sameShape = width == width_ && height == height_ && !history_[0].empty();
   if (!sameShape) {  // a new size starts over
-    width_ = width;
-    height_ = height;
+    // No size until every buffer has it: after an allocation that throws, the next call allocates
+    // again instead of taking the old size's buffers for the new size.
+    width_ = height_ = 0;
     bands_ = bandCount(height);
     bandScratch_.assign(std::size_t(bands_) * bandFloats(width), 0.0f);
     history_[0].assign(std::size_t(width) * height * 4, 0.0f);
@@ -371,16 +372,23 @@ void Kernel::allocate(int width, int height, bool withDepth) {
     historyState_.assign(std::size_t(width) * height, 0);
     holdWindows_.allocate(std::size_t(width) * height);
     sourceColumn_.assign(std::size_t(planeFloats(width)), 0);
+    width_ = width;
+    height_ = height;
     reset();
   }
   // A depth image that appears or goes keeps the colour history (as phlm
   // keeps its models): the next frame has no previous depth to test against.
   if (!sameShape || withDepth == depth_[0].empty()) {
-    for (auto& d : depth_) {
-      if (withDepth)
-        d.assign(std::size_t(width) * height, kBackgroundDepth);
-      else
-        std::vector<float>().swap(d);
+    try {
+      for (auto& d : depth_) {
+        if (withDepth)
+          d.assign(std::size_t(width) * height, kBackgroundDepth);
+        else
+          std::vector<float>().swap(d);
+      }
+    } catch (...) {
+      for (auto& d : depth_) std::vector<float>().swap(d);  // both planes or none, so a retry allocates both
+      throw;
     }
     previousDepthValid_ = false;
   }

@@ -198,13 +198,14 @@ void Kernel::allocate(int width, int height, bool withDepth) {
   const bool sameShape = width == width_ && height == height_ && !aliased_.empty();
   taa_.allocate(width, height, withDepth);
   if (sameShape) return;
-  width_ = width;
-  height_ = height;
+  width_ = height_ = 0;  // no size until every buffer has it (a retry after a throw allocates again)
   const std::size_t n = std::size_t(width) * height;
   for (auto* v : {&aliased_, &sobel_[0], &sobel_[1]}) v->assign(n, 0.0f);
   for (auto* v : {&lumaLit_, &lumaUnlit_, &sobelRaw_}) v->clear();  // the reference path's, sized on first use
   bands_ = bandCount(height);
   bandRings_.assign(std::size_t(bands_) * rows::bandFloats(width), 0.0f);
+  width_ = width;
+  height_ = height;
   reset();
 }
 
