@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <new>
 #include <sstream>
 
 #include "core/color.h"
@@ -88,7 +89,12 @@ void Filter::commit() {
                   " but 'color' is " + std::to_string(color.width) + "x" + std::to_string(color.height));
   width_ = color.width;
   height_ = color.height;
-  onCommit();
+  try {
+    onCommit();
+  } catch (const std::bad_alloc&) {  // say whose buffers and at what size, not a bare "out of memory"
+    fail(CRISP_ERROR_OUT_OF_MEMORY, std::string("filter '") + type() + "': out of memory allocating its buffers for " +
+                                        std::to_string(width_) + "x" + std::to_string(height_) + " images");
+  }
   committed_ = true;
   everCommitted_ = true;
   commitFailed_ = false;
