@@ -69,6 +69,11 @@ TEST(Params, FilterErrorsNameTheFilterAndWholeNumbers) {
             "filter 'taa': parameter 'maxSamples' = 2147483647 is out of range [1, 65536]");
   EXPECT_EQ(errorOf([&] { makeSet().setFloat("k", 2.5e9f); }), "parameter 'k' = 2500000000 is out of range [-4, 4]");
   EXPECT_EQ(errorOf([&] { makeSet().setFloat("k", 4.25f); }), "parameter 'k' = 4.25 is out of range [-4, 4]");
+  // A value just past a bound prints with the digits that tell it from the bound.
+  EXPECT_EQ(errorOf([&] { makeSet().setFloat("k", std::nextafter(4.0f, 5.0f)); }),
+            "parameter 'k' = 4.00000048 is out of range [-4, 4]");
+  EXPECT_EQ(errorOf([&] { makeSet().setFromText("k", "-4.000004"); }),
+            "parameter 'k' = -4.00000381 is out of range [-4, 4]");
   // Text: a number too large to hold is named as typed; blanks on either side are refused alike.
   EXPECT_EQ(errorOf([&] { makeSet().setFromText("n", "99999999999999999999"); }),
             "parameter 'n' = 99999999999999999999 is out of range [3, 9]");
