@@ -10,6 +10,7 @@ library cannot be loaded, the add-on still registers and `status()` says why.
 import ctypes
 import hashlib
 import json
+import math
 import os
 import time
 
@@ -20,6 +21,9 @@ FORMAT_RSAA_SUBSAMPLES = 6
 # 4-byte words per pixel.
 FORMAT_CHANNELS = {FORMAT_FLOAT: 1, FORMAT_FLOAT2: 2, FORMAT_FLOAT3: 3, FORMAT_FLOAT4: 4, FORMAT_UINT: 1,
                    FORMAT_RSAA_SUBSAMPLES: 20}
+# What a C int and a float32 hold (ctypes wraps or rounds to infinity beyond them).
+C_INT_MIN, C_INT_MAX = -2 ** 31, 2 ** 31 - 1
+FLOAT32_MAX = 3.4028234663852886e38
 ERROR_NAMES = {0: "none", 1: "unknown", 2: "invalid argument", 3: "invalid operation", 4: "out of memory",
                5: "I/O", 6: "invalid data"}
 
@@ -291,6 +295,8 @@ class Filter:
                 kind = _infer_kind(value)
         if isinstance(value, str) and kind in ("bool", "int", "float"):
             value = _parsed_text(name, kind, value)
+        if kind in ("int", "float"):
+            self._check_representable(name, kind, value)
         if kind == "bool":
             call("crispSetFilterBool", self.handle, _b(name), int(bool(value)))
         elif kind == "int":
@@ -299,6 +305,20 @@ class Filter:
             call("crispSetFilterFloat", self.handle, _b(name), float(value))
         else:
             call("crispSetFilterString", self.handle, _b(name), _b(str(value)))
+
+    def _check_representable(self, name, kind, value):
+        """ctypes passes an int beyond C int's range wrapped (2**32 + 5 arrives as 5) and a float beyond
+        float32's as infinity: refuse such a value here, as typed, in the library's words."""
+        if kind == "int":
+            fits = C_INT_MIN <= int(value) <= C_INT_MAX
+        else:
+            fits = not math.isfinite(float(value)) or abs(float(value)) <= FLOAT32_MAX
+        if fits:
+            return
+        spec = next((p for p in self.info()["params"] if p["name"] == name), {})
+        detail = "filter '%s': parameter '%s' = %s is out of range [%s, %s]" % (
+            self.method, name, value, spec.get("min"), spec.get("max"))
+        raise CrispError("crispSetFilter%s: invalid argument error: %s" % (kind.capitalize(), detail), detail)
 
     def set_image(self, name, ptr, fmt, width, height):
         call("crispSetFilterImage", self.handle, _b(name), ptr, fmt, width, height, 0, 0)

@@ -1,0 +1,53 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The add-on's ctypes layer (addon/crisp/native.py) against the real libcrisp: what it passes
+through ctypes reaches the library as the caller gave it, or is refused naming the parameter."""
+import ctypes
+import importlib.util
+import os
+import pathlib
+
+import pytest
+
+BUILD = pathlib.Path(os.environ.get("CRISP_BUILD_DIR", pathlib.Path(__file__).resolve().parents[2] / "build"))
+SOURCE = pathlib.Path(os.environ.get("CRISP_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[2]))
+
+
+@pytest.fixture(scope="module")
+def native():
+    os.environ["CRISP_LIBRARY"] = str(BUILD / "lib" / "libcrisp.so")
+    # native.py is pure ctypes; load it alone (the package's __init__ needs bpy).
+    spec = importlib.util.spec_from_file_location("crisp_native_alone", SOURCE / "addon" / "crisp" / "native.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("value", [2 ** 32 + 5, "4294967301", 2 ** 31, -(2 ** 32) + 7])
+def test_an_int_beyond_c_int_is_refused_as_typed(native, value):
+    """ctypes wraps an int beyond C int's range (2**32 + 5 arrived as 5, and maxSamples took it), so
+    the add-on refuses it before the call, naming the parameter, the value given and the range."""
+    assert native.check_params("taa", {"maxSamples": value}) == (
+        "filter 'taa': parameter 'maxSamples' = %s is out of range [1, 65536]" % value)
+    with native.Context() as ctx:
+        f = native.Filter(ctx, "taa")
+        try:
+            with pytest.raises(native.CrispError):
+                f.set_param("maxSamples", value)
+            get = native.load().dll.crispGetFilterInt
+            get.restype, get.argtypes = ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p]
+            assert get(f.handle, b"maxSamples") == 128  # the default, untouched
+        finally:
+            f.close()
+
+
+def test_a_float_beyond_float32_is_refused_as_typed(native):
+    """ctypes rounds 1e40 to float32 infinity, which the library named as 'inf'."""
+    assert native.check_params("taa", {"feedbackMax": 1e40}) == (
+        "filter 'taa': parameter 'feedbackMax' = 1e+40 is out of range [0, 1]")
+    assert native.check_params("taa", {"feedbackMax": "1e40"}) == (
+        "filter 'taa': parameter 'feedbackMax' = 1e+40 is out of range [0, 1]")
+    # Values ctypes carries as given still reach the library, which judges them.
+    assert native.check_params("taa", {"maxSamples": 2 ** 31 - 1}) == (
+        "filter 'taa': parameter 'maxSamples' = 2147483647 is out of range [1, 65536]")
+    assert "'feedbackMax' = inf is out of range" in native.check_params("taa", {"feedbackMax": float("inf")})
+    assert native.check_params("taa", {"maxSamples": 65536, "feedbackMax": 1.0}) is None
