@@ -259,6 +259,9 @@ int runFilter(const ParsedArgs& args) {
     stamps.reading(int(i) + 1);
     Frame frame = readFrame(in);
     warnNonFiniteColour(frame);
+    for (const std::string& part : frame.partsNotRead)
+      std::fprintf(stderr, "filter: warning: '%s': %s is not read (only an EXR's first part is)\n", in.c_str(),
+                   part.c_str());
     // A gap in the frame numbers or a cut to another camera: the history starts over, and the
     // frame gets zero motion as a first frame does.
     const std::string cut = historyBreak(*filter, in, shot);

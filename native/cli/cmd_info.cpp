@@ -28,6 +28,7 @@ int runInfo(const ParsedArgs& args) {
     std::printf("%s\n  size: %dx%d\n  channels:", path.c_str(), frame.width, frame.height);
     for (const std::string& c : frame.channelNames) std::printf(" %s", c.c_str());
     std::printf("\n  passes: %s\n", frame.passList().c_str());
+    for (const std::string& part : frame.partsNotRead) std::printf("  not read: %s\n", part.c_str());
     for (const auto& [role, why] : frame.unusable) std::printf("  unusable: %s (%s)\n", role.c_str(), why.c_str());
     if (!frame.objectIds.empty()) {
       std::printf("  objects (cryptomatte):");

@@ -31,6 +31,8 @@ struct Frame {
   // Passes the file holds in a form that cannot be used, and why (an ID pass
   // stored as half float): an error only for a method that reads them.
   std::map<std::string, std::string> unusable;
+  // The parts of a multi-part EXR after the first, which are not read: "part 2 of 2 (channels: Z)".
+  std::vector<std::string> partsNotRead;
 
   bool has(const std::string& role) const { return passes.count(role) != 0; }
   // Throws CRISP_ERROR_INVALID_DATA naming the file and the pass if absent

@@ -320,6 +320,21 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   frame.path = path;
   frame.width = win.width;
   frame.height = win.height;
+  // A multi-part EXR: only the first part is read (pixels are read from subimage 0 below); the
+  // others are named, so that passes they hold are not lost without a word.
+  {
+    std::vector<std::string> parts;
+    for (int s = 1; in->seek_subimage(s, 0); ++s) {
+      std::string list;
+      for (const std::string& n : in->spec().channelnames) list += (list.empty() ? "" : ", ") + n;
+      parts.push_back(list);
+    }
+    for (std::size_t k = 0; k < parts.size(); ++k)
+      frame.partsNotRead.push_back("part " + std::to_string(k + 2) + " of " + std::to_string(parts.size() + 1) +
+                                   " (channels: " + parts[k] + ")");
+    if (!parts.empty() && !in->seek_subimage(0, 0))
+      ioError("cannot read '" + path + "' (truncated or corrupt file?): " + oiioErrors(in.get()));
+  }
 
   std::vector<ChannelName> names;
   for (int i = 0; i < spec.nchannels; ++i) {
@@ -369,7 +384,9 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
     } else {
       std::string list;
       for (const auto& n : frame.channelNames) list += (list.empty() ? "" : ", ") + n;
-      invalidData("no colour in '" + path + "': expected a Combined pass or R,G,B channels (channels: " + list + ")");
+      invalidData("no colour in '" + path + "': expected a Combined pass or R,G,B channels (channels: " + list + ")" +
+                  (frame.partsNotRead.empty() ? std::string()
+                                              : "; it is a multi-part EXR, and only its first part is read"));
     }
     frame.passes["color"] = convertPass(*in, path, "color", idx, win, Image(win.width, win.height, 4, 0.0f), colorConvert);
     // Blender's single-layer EXR can carry a top-level "Z" depth channel.

@@ -304,6 +304,27 @@ def test_a_pass_missing_mid_sequence_is_reported(chart, tmp_path):
     assert "warning" not in p.stderr
 
 
+def test_parts_of_a_multi_part_exr_that_are_not_read_are_named(chart, tmp_path):
+    """Only a multi-part EXR's first part is read: info lists the others, filter warns that they are
+    not read (a depth part would otherwise be dropped without a word), and a file whose colour is in
+    a later part is refused saying so."""
+    z = tmp_path / "z.exr"
+    subprocess.run(["oiiotool", str(chart / "chart_1spp.exr"), "--ch", "Z=0.5", "-o", str(z)], check=True)
+    colour_first, colour_later = tmp_path / "colour_first.exr", tmp_path / "colour_later.exr"
+    subprocess.run(["oiiotool", str(chart / "chart_1spp.exr"), str(z), "--siappend", "-o", str(colour_first)], check=True)
+    subprocess.run(["oiiotool", str(z), str(chart / "chart_1spp.exr"), "--siappend", "-o", str(colour_later)], check=True)
+    info = run("info", colour_first).stdout
+    assert "not read: part 2 of 2 (channels: Z)" in info, info
+    p = run("filter", "-q", "--method", "taa", colour_first, "-o", tmp_path / "out")
+    assert "warning: '%s': part 2 of 2 (channels: Z) is not read" % colour_first in p.stderr, p.stderr
+    assert "not read" not in run("filter", "-q", "--method", "taa", chart / "chart_1spp.exr", "-o",
+                                 tmp_path / "single").stderr
+    p = run("filter", "-q", "--method", "taa", colour_later, "-o", tmp_path / "later", ok=False)
+    assert p.returncode == 1
+    assert "no colour in '%s'" % colour_later in p.stderr and "multi-part EXR" in p.stderr, p.stderr
+    assert not (tmp_path / "later").exists()
+
+
 def test_rerun_without_png_leaves_no_stale_png(chart, tmp_path):
     out = tmp_path / "out"
     run("filter", "--method", "fxaa", "--png", chart / "chart_1spp.exr", "-o", out)
