@@ -605,6 +605,9 @@ def test_non_finite_colour_is_reported_per_file(chart, tmp_path):
     assert not (tmp_path / "m.json").exists()
     p = run("compare", "-r", bad, "-t", chart / "chart_1spp.exr", ok=False)
     assert p.returncode == 1 and "nan.exr" in p.stderr, p.stderr
+    # info, which says what a file holds, says it too (and nothing of a finite file).
+    assert "non-finite colour values: %d" % (97 * 61 * 3) in run("info", bad).stdout
+    assert "non-finite" not in run("info", chart / "chart_1spp.exr").stdout
 
 
 def test_a_one_channel_mask_is_read_whatever_its_name(chart, tmp_path):
