@@ -2,6 +2,7 @@
 // crisp compare --reference REF... --test TEST... [--mask M] [--json FILE] [--maps DIR]
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <sstream>
 #include <vector>
@@ -67,6 +68,27 @@ std::string figuresJson(const Metrics& m) {
   return s.str();
 }
 
+// Files are paired in the order given. A reference paired with a test of another name while a test
+// of its own name is given elsewhere (a sequence listed in another order, or one frame missing
+// from each list) is most often a mistake: said, not refused (comparing frame N with N+1 is a use).
+void warnCrossedPairs(const std::vector<std::string>& refs, const std::vector<std::string>& tests) {
+  std::map<std::string, std::size_t> testAt;
+  for (std::size_t i = 0; i < tests.size(); ++i) testAt.emplace(fileStem(tests[i]), i);
+  std::size_t crossed = 0;
+  std::string first;
+  for (std::size_t i = 0; i < refs.size(); ++i) {
+    const std::string stem = fileStem(refs[i]);
+    const auto same = testAt.find(stem);
+    if (stem == fileStem(tests[i]) || same == testAt.end()) continue;
+    if (crossed++ == 0)
+      first = "reference '" + refs[i] + "' is paired with test '" + tests[i] + "', though test '" +
+              tests[same->second] + "' has its name";
+  }
+  if (crossed > 0)
+    std::fprintf(stderr, "compare: warning: files are paired in the order given: %s (%zu such pair%s)\n",
+                 first.c_str(), crossed, crossed == 1 ? "" : "s");
+}
+
 }  // namespace
 
 int runCompare(const ParsedArgs& args) {
@@ -77,6 +99,7 @@ int runCompare(const ParsedArgs& args) {
     throw UsageError("--reference has " + std::to_string(refs.size()) + " files but --test has " +
                      std::to_string(tests.size()) + "; they are paired in order");
   const int threads = parseIntOption(args, "threads", 0, 0, 1024);
+  warnCrossedPairs(refs, tests);
   Image mask;
   if (args.has("mask")) mask = readMask(args.get("mask"));
   const std::string mapsDir = args.getOr("maps", "");

@@ -482,6 +482,29 @@ def test_long_file_names_get_their_records(chart, tmp_path):
     assert sorted(os.listdir(out / ".crisp")) == [stem + ".json", stem + ".png.stamp"]
 
 
+def test_compare_warns_when_a_reference_is_paired_with_another_frames_test(chart, tmp_path):
+    """Files are paired in the order given: a sequence listed in another order for --test than for
+    --reference compares frame 1 with frame 2 and the other way round. The figures are still given
+    (comparing neighbouring frames is a use), with a warning naming the first crossed pair."""
+    ref, test = tmp_path / "ref", tmp_path / "test"
+    ref.mkdir()
+    test.mkdir()
+    for name, source in (("frame_0001.exr", "chart_reference.exr"), ("frame_0002.exr", "chart_1spp.exr")):
+        shutil.copy(chart / source, ref / name)
+        shutil.copy(chart / source, test / name)
+    p = run("compare", "-q", "-r", ref / "frame_0001.exr", ref / "frame_0002.exr",
+            "-t", test / "frame_0002.exr", test / "frame_0001.exr")
+    assert ("warning: files are paired in the order given: reference '%s' is paired with test '%s', though test "
+            "'%s' has its name (2 such pairs)" % (ref / "frame_0001.exr", test / "frame_0002.exr",
+                                                  test / "frame_0001.exr")) in p.stderr, p.stderr
+    p = run("compare", "-q", "-r", ref / "frame_0001.exr", ref / "frame_0002.exr",
+            "-t", test / "frame_0001.exr", test / "frame_0002.exr")
+    assert "warning" not in p.stderr
+    # Names that match no test's are no sign of a mix-up.
+    p = run("compare", "-q", "-r", chart / "chart_reference.exr", "-t", test / "frame_0001.exr")
+    assert "warning" not in p.stderr
+
+
 def test_compare_refuses_maps_and_json_that_would_replace_files(chart, tmp_path):
     ref, test = chart / "chart_reference.exr", chart / "chart_1spp.exr"
     a, b = tmp_path / "a", tmp_path / "b"
