@@ -307,8 +307,15 @@ class Filter:
             call("crispSetFilterString", self.handle, _b(name), _b(str(value)))
 
     def _check_representable(self, name, kind, value):
-        """ctypes passes an int beyond C int's range wrapped (2**32 + 5 arrives as 5) and a float beyond
-        float32's as infinity: refuse such a value here, as typed, in the library's words."""
+        """A value ctypes cannot pass as given is refused here, as typed: one that is not a number
+        (None), a fraction for an int (int() truncated 5.7 to 5; NaN and Inf raised ValueError), and, in
+        the library's words, an int beyond C int's range (ctypes wraps 2**32 + 5 to 5) or a float beyond
+        float32's (ctypes rounds it to infinity)."""
+        whole = isinstance(value, int) or (isinstance(value, float) and value.is_integer())
+        if not isinstance(value, (int, float)) or (kind == "int" and not whole):
+            wanted = "a whole number" if kind == "int" else "a number"
+            detail = "parameter '%s' takes %s, not '%s'" % (name, wanted, value)
+            raise CrispError("invalid argument: " + detail, detail)
         if kind == "int":
             fits = C_INT_MIN <= int(value) <= C_INT_MAX
         else:

@@ -51,3 +51,18 @@ def test_a_float_beyond_float32_is_refused_as_typed(native):
         "filter 'taa': parameter 'maxSamples' = 2147483647 is out of range [1, 65536]")
     assert "'feedbackMax' = inf is out of range" in native.check_params("taa", {"feedbackMax": float("inf")})
     assert native.check_params("taa", {"maxSamples": 65536, "feedbackMax": 1.0}) is None
+
+
+@pytest.mark.parametrize("name, value, words", [
+    ("maxSamples", 5.7, "takes a whole number, not '5.7'"),
+    ("maxSamples", float("nan"), "takes a whole number, not 'nan'"),
+    ("maxSamples", float("inf"), "takes a whole number, not 'inf'"),
+    ("maxSamples", None, "takes a whole number, not 'None'"),
+    ("feedbackMax", None, "takes a number, not 'None'"),
+    ("feedbackMax", [1], "takes a number, not '[1]'"),
+])
+def test_a_value_that_is_not_the_parameters_number_is_refused(native, name, value, words):
+    """check_params answers with a message, never a Python exception, and never passes on a value
+    other than the one given (int() truncated 5.7 to 5, which the library then took)."""
+    assert native.check_params("taa", {name: value}) == "parameter '%s' %s" % (name, words)
+    assert native.check_params("taa", {"maxSamples": 5.0, "feedbackMax": 1}) is None  # whole, and an int for a float
