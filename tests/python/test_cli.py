@@ -311,8 +311,9 @@ def test_parts_of_a_multi_part_exr_that_are_not_read_are_named(chart, tmp_path):
     z = tmp_path / "z.exr"
     subprocess.run(["oiiotool", str(chart / "chart_1spp.exr"), "--ch", "Z=0.5", "-o", str(z)], check=True)
     colour_first, colour_later = tmp_path / "colour_first.exr", tmp_path / "colour_later.exr"
-    subprocess.run(["oiiotool", str(chart / "chart_1spp.exr"), str(z), "--siappend", "-o", str(colour_first)], check=True)
-    subprocess.run(["oiiotool", str(z), str(chart / "chart_1spp.exr"), "--siappend", "-o", str(colour_later)], check=True)
+    colour = str(chart / "chart_1spp.exr")
+    subprocess.run(["oiiotool", colour, str(z), "--siappend", "-o", str(colour_first)], check=True)
+    subprocess.run(["oiiotool", str(z), colour, "--siappend", "-o", str(colour_later)], check=True)
     info = run("info", colour_first).stdout
     assert "not read: part 2 of 2 (channels: Z)" in info, info
     p = run("filter", "-q", "--method", "taa", colour_first, "-o", tmp_path / "out")
