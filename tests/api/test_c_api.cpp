@@ -585,3 +585,14 @@ TEST(CApi, CommitAfterOutOfMemoryAllocatesAgain) {
     EXPECT_TRUE(out == freshOut) << type;
   }
 }
+
+// The C++ wrapper takes a double literal for a float parameter (it was ambiguous between the int,
+// float and bool overloads: a compile error), and the value still goes through the range check.
+TEST(CApi, WrapperSetsAFloatParameterFromADouble) {
+  auto ctx = crisp::ContextRef::create();
+  auto f = ctx.newFilter("taa");
+  f.set("jitterX", 0.25);
+  EXPECT_EQ(f.get<float>("jitterX"), 0.25f);
+  EXPECT_THROW(f.set("jitterX", 4.5), crisp::Error);
+  EXPECT_EQ(f.get<float>("jitterX"), 0.25f);
+}

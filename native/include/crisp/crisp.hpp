@@ -70,6 +70,9 @@ class FilterRef : public Ref<CrispFilter, crispRetainFilter, crispReleaseFilter>
     crispSetFilterFloat(h_, name, v);
     checkError();
   }
+  // A double (a literal such as 0.25) sets a float parameter; without this overload the call was
+  // ambiguous between the int, float and bool ones and did not compile.
+  void set(const char* name, double v) { set(name, static_cast<float>(v)); }
   void set(const char* name, bool v) {
     crispSetFilterBool(h_, name, v ? 1 : 0);
     checkError();
