@@ -115,7 +115,12 @@ void Filter::execute() {
     fail(CRISP_ERROR_INVALID_OPERATION,
          who + "execute called without a new commit after a change (" + firstChange_ + "; call commit again)");
   }
-  onExecute();
+  try {
+    onExecute();
+  } catch (const std::bad_alloc&) {  // the first in-place run of a size copies the inputs the output overwrites
+    fail(CRISP_ERROR_OUT_OF_MEMORY, std::string("filter '") + type() + "': out of memory filtering a " +
+                                        std::to_string(width_) + "x" + std::to_string(height_) + " frame");
+  }
 }
 
 std::string Filter::doc() const {
