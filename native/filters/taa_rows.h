@@ -198,7 +198,7 @@ __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const 
       }
     }
     if (!loaded) {  // clamped to the image
-      auto clampIndex = [](temporal::IntOf<T> v, int hi) { return v < 0 ? 0 : (hi < v ? hi : v); };
+      auto clampIndex = [](temporal::IntOf<T> v, int hi) __attribute__((always_inline)) { return v < 0 ? 0 : (hi < v ? hi : v); };
       const auto xa = clampIndex(r.x0, w - 1), xb = clampIndex(r.x0 + 1, w - 1);
       const auto ya = clampIndex(r.y0, h - 1), yb = clampIndex(r.y0 + 1, h - 1);
       d00 = temporal::gatherOf(f.previousDepth, w, xa, ya);
@@ -271,14 +271,14 @@ struct ResolvedLanes {
 };
 
 template <class T>
-inline T lumaOf(const T c[3], ClipSpace space) {
+CRISP_LANES_INLINE T lumaOf(const T c[3], ClipSpace space) {
   return space == ClipSpace::YCoCg ? c[0] : 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
 }
 
 // clipTowardCentre4 (neighbourhood.h) on lanes 0-2: the clipped colour into
 // `out` (when given) and the excess returned.
 template <class T>
-inline T clipTowardCentreOf(const T p[3], const T lo[3], const T hi[3], T* out) {
+CRISP_LANES_INLINE T clipTowardCentreOf(const T p[3], const T lo[3], const T hi[3], T* out) {
   T centre[3], offset[3], ratio[3];
   for (int c = 0; c < 3; ++c) {
     centre[c] = 0.5f * (hi[c] + lo[c]);
@@ -629,7 +629,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
   using temporal::minOf;
   using Int = temporal::IntOf<T>;
   constexpr int kL = temporal::kLanesOf<T>;
-  const auto load = [](const float* p) { return temporal::loadLanes<T>(p); };
+  const auto load = [](const float* p) __attribute__((always_inline)) { return temporal::loadLanes<T>(p); };
   const int w = f.width, h = f.height;
   const bool followDepth = f.depth.ptr && f.motion.ptr;
   if (y0 > 1) stageRow<T>(f, s, y0 - 2, nullptr);

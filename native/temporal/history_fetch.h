@@ -63,7 +63,7 @@ inline float floorExact(float x) {
 }
 // floorExact on vector lanes (lanes.h: Vec4, Vec8), the same values lane by lane.
 template <class T, IfVector<T> = 0>
-inline T floorExact(T x) {
+CRISP_LANES_INLINE T floorExact(T x) {
   const MaskOfT<T> big = notOf(fabsOf(x) < 8388608.0f);
   const T safe = big ? lanesOf<T>(0.0f) : x;
   const T t = floatOf(truncOf(safe));

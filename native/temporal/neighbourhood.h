@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "temporal/color_space.h"
+#include "temporal/lanes.h"
 #include "temporal/vec4.h"
 
 namespace crisp::temporal {
@@ -178,7 +179,7 @@ inline MinMax4 footprintBox(const MinMax4& box3x3, const TwoExtremes4& e) {
 // T: Vec4 (a pixel's RGBA) or any lane type of one channel (lanes.h Vec8).
 // W: float, or T with the weights broadcast once per row (same products).
 template <class T, class W>
-inline T unjitteredMix(const T taps[9], const W weights[9]) {
+CRISP_LANES_INLINE T unjitteredMix(const T taps[9], const W weights[9]) {
   T sum = taps[4] * weights[4];
   for (int i = 0; i < 9; ++i)
     if (i != 4) sum = sum + taps[i] * weights[i];

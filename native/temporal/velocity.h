@@ -83,7 +83,7 @@ CRISP_LANES_INLINE void closestDepthTapsRow(const float* up, const float* middle
 // comparison below cannot tell apart.
 // T: float, or Vec8 (lanes.h) for eight pixels at once.
 template <class T>
-inline MaskOfT<T> sameSurfaceDepth(T a, T b, float tolerance) {
+CRISP_LANES_INLINE MaskOfT<T> sameSurfaceDepth(T a, T b, float tolerance) {
   using M = MaskOfT<T>;
   const T nearer = M(M(b < a) | M(a != a)) ? b : a;
   return fabsOf(a - b) <= tolerance * nearer;
