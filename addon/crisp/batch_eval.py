@@ -102,8 +102,8 @@ def main(argv):
             pipeline.apply_resolution(scene, args.resolution)
         except pipeline.InputError as e:
             fail(2, str(e))
-    out = os.path.abspath(args.output)
     try:
+        out = pipeline.output_argument(args.output)  # crisp eval resolves // itself; a direct run as well
         render.check_blender_version()
         frames = list(pipeline.parse_frames(args.frames, scene))
         if args.warmup >= len(frames):  # before anything is rendered (the scene's own range, without --frames)

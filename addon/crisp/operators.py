@@ -29,6 +29,20 @@ def _fail(op, e):
     return {"CANCELLED"}
 
 
+MAX_NOTES_REPORTED = 5
+
+
+def _report_notes(op, notes):
+    """The run's notes as warnings, each once and at most MAX_NOTES_REPORTED (a note made per frame, such as
+    a kept PNG, would otherwise fill the Info editor); the console has them all. Returns how many."""
+    distinct = list(dict.fromkeys(notes))
+    for note in distinct[:MAX_NOTES_REPORTED]:
+        op.report({"WARNING"}, "Crisp: " + note)
+    if len(distinct) > MAX_NOTES_REPORTED:
+        op.report({"WARNING"}, "Crisp: and %d more notes in the console" % (len(distinct) - MAX_NOTES_REPORTED))
+    return len(distinct)
+
+
 # Operators that change the file (the Output folder, the plan text, the compositor's node, an image)
 # push one undo step of their own, so that Ctrl-Z takes back what they did, not the artist's edit before.
 UNDOABLE = {"REGISTER", "UNDO"}
@@ -84,14 +98,14 @@ class CRISP_OT_render(bpy.types.Operator):
             if s.load_result:
                 compositor.load_result(scene, os.path.join(out, "filtered"), frames[0], frames[-1])
         except (pipeline.InputError, render.RenderError, native.CrispError, OSError) as e:
+            _report_notes(self, notes)  # what the run said before it failed still holds
             return _fail(self, e)
         finally:
             wm.progress_end()
         how = "copied unfiltered (method none)" if s.method == "none" else "filtered with %s" % s.method
-        for note in notes:
-            self.report({"WARNING"}, "Crisp: " + note)
+        n = _report_notes(self, notes)
         _done(self, scene, "Crisp: %d frames %s into %s%s" % (len(result["frames"]), how, out, "; %d note%s in the "
-              "Info editor" % (len(notes), "s" * (len(notes) > 1)) if notes else ""))
+              "Info editor" % (n, "s" * (n > 1)) if n else ""))
         return {"FINISHED"}
 
 

@@ -182,7 +182,7 @@ def _drop_stale_png(png, log):
         if _read_json(record) == _png_record(png):
             os.remove(png)
             os.remove(record)
-            log("note: removed %s, written by an earlier run" % png)
+            log("info: removed %s, written by an earlier run" % png)
             return
     except OSError:
         pass
@@ -313,7 +313,9 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     engine = render.render_engine(scene, engine_name)
     view_layer = render.default_view_layer(scene, view_layer)  # one layer planned and rendered
     others = [layer.name for layer in scene.view_layers if layer.use and layer != view_layer]
-    if others:  # Blender's own render makes each of them
+    # Blender's own render makes each of them (F12 only the window's with Render Single Layer; a command-line
+    # render, as crisp render's, all of them whatever that flag says)
+    if others and not (scene.render.use_single_layer and not bpy.app.background):
         log("note: only the view layer '%s' is rendered and filtered, not %s: to filter another, make it the "
             "window's view layer and render again into another Output folder"
             % (view_layer.name, ", ".join("'%s'" % name for name in others)))
@@ -326,13 +328,17 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         log("note: the render region is not used: Crisp renders and filters the whole frame, %dx%d (a filter needs "
             "the pixels around the region's edges)%s" % (render.render_size(scene) + (
                 "; crop the filtered frames to the region afterwards" if scene.render.use_crop_to_border else "",)))
-    if scene.eevee.gi_cubemap_resolution != render.CUBEMAP_RESOLUTION:
-        log("note: the world's reflection probe is rendered at %s px, not the scene's %s (Indirect Lighting > Cubemap "
+    legacy_eevee = engine == "BLENDER_EEVEE" and bpy.app.version < (4, 2, 0)  # the EEVEE whose probe this is
+    if legacy_eevee and scene.eevee.gi_cubemap_resolution != render.CUBEMAP_RESOLUTION:
+        # "info", not "note": Blender's default is 512, so nearly every scene would warn of it, and there is
+        # nothing the artist can do about it but bake a light cache.
+        log("info: the world's reflection probe is rendered at %s px, not the scene's %s (Indirect Lighting > Cubemap "
             "Size): it is rendered again for every frame, which at 512 px costs about 1.4 s on 2 cores; sharp "
             "reflections of a detailed world look blurrier than in Blender's own render (a baked light cache is used "
             "as baked)" % (render.CUBEMAP_RESOLUTION, scene.eevee.gi_cubemap_resolution))
-    if scene.render.use_sequencer and scene.sequence_editor and any(  # Blender's rule for rendering the edit
-            strip.type != "SOUND" for strip in scene.sequence_editor.sequences):
+    editor = scene.sequence_editor
+    strips = (editor.strips if hasattr(editor, "strips") else editor.sequences) if editor else ()  # 'strips': 4.4+
+    if scene.render.use_sequencer and any(strip.type != "SOUND" for strip in strips):  # Blender's rule for the edit
         log("note: the scene's sequencer strips are not applied to Crisp's frames: Crisp renders the scene through "
             "its camera, as with Post Processing > Sequencer off")
     if scene.render.film_transparent and filter_frames and method != "none":
@@ -450,8 +456,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                        "resumed_at": todo[0] if resume and todo and len(todo) < len(frames) else None}
     if not todo:
         log("every output of frames %d-%d exists; nothing to do" % (frames[0], frames[-1]))
-    elif warms and not preroll_frames and todo[0] not in facts.camera_cuts and \
-            os.path.isfile(os.path.join(filtered_dir, render.frame_name(todo[0] - 1))):
+    elif warms and not preroll_frames and todo[0] not in facts.camera_cuts and (not shot or todo[0] > shot[0]) \
+            and os.path.isfile(os.path.join(filtered_dir, render.frame_name(todo[0] - 1))):
         log("note: %s's history starts again at frame %d, from one sample: frame %d in %s was filtered with the "
             "frames before it, so the sequence may jump there; to continue it, render from the shot's first frame "
             "or with a pre-roll (crisp render --preroll N)" % (method, todo[0], todo[0] - 1, filtered_dir))

@@ -117,14 +117,15 @@ def camera_problem(scene, frames=None):
 
 def _camera_markers(scene, frames):
     """The timeline markers bound to a camera that choose the scene camera on one of `frames` (the last
-    at or before the first frame, and those after it up to the last), or all of them without frames."""
+    at or before the first frame, else the first marker, as Blender takes it before every marker; and those
+    after the first frame up to the last), or all of them without frames."""
     markers = sorted((m for m in scene.timeline_markers if m.camera is not None), key=lambda m: m.frame)
     frames = list(frames) if frames is not None else []
     if not frames:
         return markers
     first, last = min(frames), max(frames)
-    before = [m for m in markers if m.frame <= first]
-    return before[-1:] + [m for m in markers if first < m.frame <= last]
+    before = [m for m in markers if m.frame <= first] or markers[:1]
+    return before[-1:] + [m for m in markers if first < m.frame <= last and m not in before]
 
 
 def _article(word):

@@ -18,7 +18,7 @@ import harness  # noqa: E402
 
 import bpy  # noqa: E402
 import crisp  # noqa: E402
-from crisp import compositor, native, pipeline  # noqa: E402
+from crisp import compositor, native, operators, pipeline  # noqa: E402
 
 LIB_OK, LIB_WHY = harness.library_usable()
 
@@ -166,12 +166,36 @@ class OperatorTest(unittest.TestCase):
         editor, not printed to the console alone, where an artist in Blender's window never sees it."""
         scene = self.small_scene(1, 1, load_result=False)
         scene.render.use_border = True
+        self.addCleanup(setattr, scene.render, "use_border", False)
         reports = io.StringIO()  # an operator's reports other than errors go to stdout
         with contextlib.redirect_stdout(reports):
             self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
         self.assertIn("Warning: Crisp: the render region is not used", reports.getvalue())
         # (the scene may hold an earlier test's compositor, which is another note)
-        self.assertRegex(reports.getvalue(), "filtered with fxaa into %s; [1-9] notes? in the Info editor" % self.tmp.name)
+        self.assertRegex(reports.getvalue(),
+                         "filtered with fxaa into %s; [1-9] notes? in the Info editor" % self.tmp.name)
+
+    def test_a_note_per_frame_does_not_fill_the_info_editor(self):
+        """A note made for each frame (here: a filtered PNG the artist changed, kept by a run without
+        PNGs) is reported for the first few frames and counted for the rest; the console has them all."""
+        scene = self.small_scene(1, 7, load_result=False)
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        for f in range(1, 8):
+            with open(os.path.join(self.tmp.name, "filtered", "frame_%04d.png" % f), "ab") as png:
+                png.write(b"\0")  # changed since: the artist's now
+        scene.crisp.write_png = False
+        reports = io.StringIO()
+        try:
+            with contextlib.redirect_stdout(reports):
+                self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        finally:  # (not a cleanup: those run after tearDown has unregistered scene.crisp)
+            scene.crisp.write_png = True
+        warnings = [line for line in reports.getvalue().splitlines() if line.startswith("Warning: Crisp:")]
+        kept = [line for line in warnings if "kept " in line]
+        self.assertEqual(len(kept), operators.MAX_NOTES_REPORTED, reports.getvalue())
+        self.assertIn("Warning: Crisp: and %d more notes in the console" % (7 - operators.MAX_NOTES_REPORTED),
+                      reports.getvalue())
+        self.assertRegex(reports.getvalue(), "; [7-9] notes in the Info editor")  # (and an earlier test's compositor)
 
     def test_load_result_warns_of_a_missing_last_frame(self):
         """Load into Compositor checks the scene's whole range, the last frame too: with that frame's
