@@ -295,7 +295,7 @@ class Filter:
                 kind = _infer_kind(value)
         if isinstance(value, str) and kind in ("bool", "int", "float"):
             value = _parsed_text(name, kind, value)
-        if kind in ("int", "float"):
+        if kind in ("int", "float") and name in self._param_types:  # an unknown name: the library's error
             self._check_representable(name, kind, value)
         if kind == "bool":
             call("crispSetFilterBool", self.handle, _b(name), int(bool(value)))
@@ -319,7 +319,10 @@ class Filter:
         if kind == "int":
             fits = C_INT_MIN <= int(value) <= C_INT_MAX
         else:
-            fits = not math.isfinite(float(value)) or abs(float(value)) <= FLOAT32_MAX
+            try:
+                fits = not math.isfinite(float(value)) or abs(float(value)) <= FLOAT32_MAX
+            except OverflowError:  # an int beyond any double (10 ** 400)
+                fits = False
         if fits:
             return
         spec = next((p for p in self.info()["params"] if p["name"] == name), {})

@@ -14,12 +14,17 @@ SOURCE = pathlib.Path(os.environ.get("CRISP_SOURCE_DIR", pathlib.Path(__file__).
 
 @pytest.fixture(scope="module")
 def native():
+    was = os.environ.get("CRISP_LIBRARY")
     os.environ["CRISP_LIBRARY"] = str(BUILD / "lib" / "libcrisp.so")
     # native.py is pure ctypes; load it alone (the package's __init__ needs bpy).
     spec = importlib.util.spec_from_file_location("crisp_native_alone", SOURCE / "addon" / "crisp" / "native.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return module
+    yield module
+    if was is None:  # the rest of the session's tests see the environment they were given
+        del os.environ["CRISP_LIBRARY"]
+    else:
+        os.environ["CRISP_LIBRARY"] = was
 
 
 @pytest.mark.parametrize("value", [2 ** 32 + 5, "4294967301", 2 ** 31, -(2 ** 32) + 7])
@@ -50,6 +55,9 @@ def test_a_float_beyond_float32_is_refused_as_typed(native):
     assert native.check_params("taa", {"maxSamples": 2 ** 31 - 1}) == (
         "filter 'taa': parameter 'maxSamples' = 2147483647 is out of range [1, 65536]")
     assert "'feedbackMax' = inf is out of range" in native.check_params("taa", {"feedbackMax": float("inf")})
+    # An int beyond any double is out of range too, in words (float() raised OverflowError).
+    assert native.check_params("taa", {"feedbackMax": 10 ** 400}) == (
+        "filter 'taa': parameter 'feedbackMax' = %d is out of range [0, 1]" % 10 ** 400)
     assert native.check_params("taa", {"maxSamples": 65536, "feedbackMax": 1.0}) is None
 
 
@@ -66,3 +74,11 @@ def test_a_value_that_is_not_the_parameters_number_is_refused(native, name, valu
     other than the one given (int() truncated 5.7 to 5, which the library then took)."""
     assert native.check_params("taa", {name: value}) == "parameter '%s' %s" % (name, words)
     assert native.check_params("taa", {"maxSamples": 5.0, "feedbackMax": 1}) is None  # whole, and an int for a float
+
+
+def test_an_unknown_parameter_is_named_by_the_library_whatever_its_value(native):
+    """A name the filter does not have gets the library's unknown-parameter error, which lists the
+    names it has, not a range check of its own with no bounds."""
+    for value in (2 ** 40, 1e40, 3):
+        message = native.check_params("taa", {"bogus": value})
+        assert "unknown parameter 'bogus'" in message and "out of range" not in message, message
