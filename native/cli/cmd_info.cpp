@@ -30,7 +30,7 @@ int runInfo(const ParsedArgs& args) {
     std::printf("\n  passes: %s\n", frame.passList().c_str());
     for (const std::string& part : frame.partsNotRead) std::printf("  not read: %s\n", part.c_str());
     if (frame.nonFiniteColour > 0)  // as crisp filter warns and crisp compare refuses
-      std::printf("  non-finite colour values: %ld (NaN or Inf; read as 0 and +-65504)\n", frame.nonFiniteColour);
+      std::printf("  non-finite colour values: %ld, read as 0 (NaN) or +-65504 (Inf)\n", frame.nonFiniteColour);
     for (const auto& [role, why] : frame.unusable) std::printf("  unusable: %s (%s)\n", role.c_str(), why.c_str());
     if (!frame.objectIds.empty()) {
       std::printf("  objects (cryptomatte):");

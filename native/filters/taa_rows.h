@@ -198,7 +198,9 @@ __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const 
       }
     }
     if (!loaded) {  // clamped to the image
-      auto clampIndex = [](temporal::IntOf<T> v, int hi) __attribute__((always_inline)) { return v < 0 ? 0 : (hi < v ? hi : v); };
+      auto clampIndex = [](temporal::IntOf<T> v, int hi) __attribute__((always_inline)) {
+        return v < 0 ? 0 : (hi < v ? hi : v);
+      };
       const auto xa = clampIndex(r.x0, w - 1), xb = clampIndex(r.x0 + 1, w - 1);
       const auto ya = clampIndex(r.y0, h - 1), yb = clampIndex(r.y0 + 1, h - 1);
       d00 = temporal::gatherOf(f.previousDepth, w, xa, ya);
