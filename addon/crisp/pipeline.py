@@ -96,10 +96,16 @@ def output_argument(text):
     return os.path.abspath(text)
 
 
-def check_output_dir(out_dir):
-    """Creates out_dir if needed and proves it writable, or raises InputError naming it."""
+def check_output_dir(out_dir, subfolders=()):
+    """Creates out_dir if needed and proves it writable, or raises InputError naming it; likewise when
+    one of `subfolders`, where a run writes frames of that name, is a file (the user's own)."""
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise InputError("output folder '%s' is a file, not a folder: choose another" % out_dir)
+    for sub in subfolders:
+        path = os.path.join(out_dir, sub)
+        if os.path.exists(path) and not os.path.isdir(path):
+            raise InputError("'%s' is a file, not a folder: Crisp writes the run's %s frames there; move it, or "
+                             "choose another output folder" % (path, sub))
     try:
         os.makedirs(out_dir, exist_ok=True)
         # A probe of its own: farm chunks check one shared folder at the same time.
@@ -296,13 +302,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         if bad:
             raise InputError("%s: %s" % (method, bad))
     check_camera_shifts(scene, [method])
-    if not plan_only:  # the folders the run will write into, checked as out_dir is
-        for sub in ["input"] + ["filtered"] * filter_frames + ["reference"] * bool(reference_samples):
-            path = os.path.join(out_dir, sub)
-            if os.path.exists(path) and not os.path.isdir(path):
-                raise InputError("'%s' is a file, not a folder: Crisp writes the run's %s frames there; move it, or "
-                                 "choose another output folder" % (path, sub))
-    check_output_dir(out_dir)
+    writes = [] if plan_only else ["input"] + ["filtered"] * filter_frames + ["reference"] * bool(reference_samples)
+    check_output_dir(out_dir, writes)
     user_engine = scene.render.engine
     if user_engine not in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):
         log("note: the scene's engine is %s; Crisp renders with EEVEE and puts %s back afterwards"
