@@ -3,10 +3,11 @@
 # The whole test suite, from a fresh Debian 12 machine: installs what is
 # missing, builds, then runs
 #   1. the unit and API tests under AddressSanitizer + UBSan,
-#   2. the libFuzzer targets for a short fixed time,
-#   3. every CTest test of the release build (unit, API, Python/ctypes,
+#   2. the fast paths' equality tests in a Debug (-O0) build,
+#   3. the libFuzzer targets for a short fixed time,
+#   4. every CTest test of the release build (unit, API, Python/ctypes,
 #      headless Blender, benchmark smoke run).
-# Set CRISP_FUZZ_SECONDS (default 30 per target) to change step 2.
+# Set CRISP_FUZZ_SECONDS (default 30 per target) to change step 3.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
@@ -19,6 +20,15 @@ scripts/build.sh sanitize --target crisp_unit crisp_api_test
 # the release stage below runs the full 20 000).
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 CRISP_STABILITY_FRAMES=2000 \
   ctest --test-dir build-sanitize -L 'unit|api' -j 2 --output-on-failure
+
+echo "== debug build (-O0): fast paths equal the reference paths"
+# At -O0 GCC inlines only always_inline functions: a vector helper left plain
+# inline is emitted for the default target and called from an AVX2/AVX-512 row
+# copy with another ABI for 32-byte vectors, which crashes or reads garbage
+# lanes. Optimised builds inline it and hide the mistake (62ff056).
+scripts/build.sh debug --target crisp_unit
+build-debug/bin/crisp_unit --gtest_brief=1 \
+  --gtest_filter='*FastPath*:*FastEquals*:*FastIsBitIdentical*:*FastEncoding*'
 
 echo "== fuzzing (${CRISP_FUZZ_SECONDS:-30} s per target)"
 scripts/build.sh fuzz --target fuzz_frame_reader fuzz_c_api crisp_cli
