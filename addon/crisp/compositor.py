@@ -29,6 +29,10 @@ def _group_output(group, name):
         group.outputs.new("NodeSocketColor" if name == "Image" else "NodeSocketFloat", name)
 
 
+def _folder_key(folder):
+    return os.path.normcase(os.path.abspath(folder))
+
+
 def load_sequence(first_path, name):
     """The filtered frames as one image datablock with source SEQUENCE."""
     if not os.path.isfile(first_path):
@@ -36,18 +40,27 @@ def load_sequence(first_path, name):
     image = bpy.data.images.load(first_path, check_existing=True)
     image.source = "SEQUENCE"
     image.name = name
+    if bpy.data.filepath and bpy.context.preferences.filepaths.use_relative_paths:
+        # As Blender's own Open Image: relative to the .blend, so the node still finds the frames when
+        # the project folder (the .blend with its //crisp/ output) is moved or renamed.
+        try:
+            image.filepath = bpy.path.relpath(first_path)
+        except ValueError:  # another drive than the .blend's (Windows): stays absolute
+            pass
     return image
 
 
 def result_group(scene, folder, image, frame_start, frame_end):
     """Creates or updates the group of a folder of filtered frames: Image node (the sequence) -> Group
     Output (Image, Alpha). Every node showing the group, the user's too, follows the update."""
-    key = os.path.normcase(os.path.abspath(folder))
-    group = next((g for g in bpy.data.node_groups
-                  if g.bl_idname == "CompositorNodeTree" and g.get(FOLDER_TAG) == key), None)
+    key = _folder_key(folder)
+    group = next((g for g in bpy.data.node_groups if g.bl_idname == "CompositorNodeTree"
+                  and isinstance(g.get(FOLDER_TAG), str) and _folder_key(bpy.path.abspath(g[FOLDER_TAG])) == key),
+                 None)
     if group is None:
         group = bpy.data.node_groups.new(group_name(scene), "CompositorNodeTree")
-        group[FOLDER_TAG] = key
+    # Relative to the .blend when the image's path is (load_sequence): a moved project keeps its group.
+    group[FOLDER_TAG] = bpy.path.relpath(os.path.abspath(folder)) if image.filepath.startswith("//") else key
     _group_output(group, "Image")
     _group_output(group, "Alpha")
     nodes = group.nodes

@@ -118,7 +118,8 @@ class OperatorTest(unittest.TestCase):
             bpy.data.images.remove(exr)
             # One node each (the copy's node of the first scene's group was switched to its own group).
             node, = [n for n in scene.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]
-            self.assertEqual(node.node_tree.get("crisp_folder"), os.path.join(folder[scene], "filtered"))
+            self.assertEqual(os.path.normpath(bpy.path.abspath(node.node_tree.get("crisp_folder"))),
+                             os.path.join(folder[scene], "filtered"))
             self.assertEqual(scene.crisp.output_dir, "//crisp/%s/" % os.path.basename(folder[scene]), "pinned")
             shown = bpy.path.abspath(node.node_tree.nodes["Crisp Frames"].image.filepath)
             self.assertEqual(os.path.dirname(os.path.normpath(shown)), os.path.join(folder[scene], "filtered"))
@@ -208,6 +209,34 @@ class OperatorTest(unittest.TestCase):
             self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
         self.assertIn("frame 2 has no filtered image", reports.getvalue())
         self.assertIsNotNone(next((n for n in scene.node_tree.nodes if n.get(compositor.NODE_TAG)), None))
+
+    def test_the_result_follows_a_moved_project(self):
+        """The compositor's frames are found after the project folder (the .blend with its //crisp/
+        output) is moved or renamed: the image's path is relative to the .blend, as Blender's own Open
+        Image makes it, and Load into Compositor there updates the same group, not a second one. (The
+        path was absolute: after a move the node showed no image.)"""
+        project = os.path.join(self.tmp.name, "project")
+        os.makedirs(project)
+        scene = self.small_scene(1, 2, load_result=True)
+        scene.crisp.property_unset("output_dir")  # the default, //crisp/<scene>/
+        name = scene.name
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(project, "shot.blend"))
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        bpy.ops.wm.save_mainfile()
+        moved = os.path.join(self.tmp.name, "moved")
+        os.rename(project, moved)
+        bpy.ops.wm.open_mainfile(filepath=os.path.join(moved, "shot.blend"))
+        scene = bpy.data.scenes[name]
+        node = next(n for n in scene.node_tree.nodes if n.get(compositor.NODE_TAG))
+        image = node.node_tree.nodes["Crisp Frames"].image
+        shown = os.path.normpath(bpy.path.abspath(image.filepath))
+        self.assertEqual(shown, os.path.join(moved, "crisp", name, "filtered", "frame_0001.exr"))
+        image.reload()
+        self.assertEqual(tuple(image.size), (64, 36))
+        with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0]):
+            self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        groups = [g for g in bpy.data.node_groups if g.name.startswith(compositor.GROUP_NAME)]
+        self.assertEqual(groups, [node.node_tree])
 
     def test_compositor_shows_each_frames_own_file(self):
         """The loaded sequence maps scene frame N to filtered/frame_N.exr (two frames of other colours,
