@@ -29,16 +29,29 @@ def _group_output(group, name):
         group.outputs.new("NodeSocketColor" if name == "Image" else "NodeSocketFloat", name)
 
 
-def _folder_key(folder):
-    return os.path.normcase(os.path.abspath(folder))
+def _path_key(path):
+    return os.path.normcase(os.path.abspath(path))
+
+
+def _image_of(path, source):
+    """The image of the file at `path` with that source ("FILE" or "SEQUENCE"), loaded if there is none.
+    The compositor's sequence starts at the first frame's file, and Preview Frame shows that file too: two
+    images, or the Image Editor is handed the sequence, which it numbers 1 to 100 from the timeline (at
+    frame 150 it read frame_0100.exr), and Load into Compositor turns a previewed still into a sequence."""
+    key = _path_key(path)
+    image = next((i for i in bpy.data.images if i.source == source and i.filepath
+                  and _path_key(bpy.path.abspath(i.filepath)) == key), None)
+    if image is None:
+        image = bpy.data.images.load(path, check_existing=False)
+        image.source = source
+    return image
 
 
 def load_sequence(first_path, name):
     """The filtered frames as one image datablock with source SEQUENCE."""
     if not os.path.isfile(first_path):
         raise FileNotFoundError("no filtered frame at %s: render with Crisp first" % first_path)
-    image = bpy.data.images.load(first_path, check_existing=True)
-    image.source = "SEQUENCE"
+    image = _image_of(first_path, "SEQUENCE")
     image.name = name
     if bpy.data.filepath and bpy.context.preferences.filepaths.use_relative_paths:
         # As Blender's own Open Image: relative to the .blend, so the node still finds the frames when
@@ -53,9 +66,9 @@ def load_sequence(first_path, name):
 def result_group(scene, folder, image, frame_start, frame_end):
     """Creates or updates the group of a folder of filtered frames: Image node (the sequence) -> Group
     Output (Image, Alpha). Every node showing the group, the user's too, follows the update."""
-    key = _folder_key(folder)
+    key = _path_key(folder)
     group = next((g for g in bpy.data.node_groups if g.bl_idname == "CompositorNodeTree"
-                  and isinstance(g.get(FOLDER_TAG), str) and _folder_key(bpy.path.abspath(g[FOLDER_TAG])) == key),
+                  and isinstance(g.get(FOLDER_TAG), str) and _path_key(bpy.path.abspath(g[FOLDER_TAG])) == key),
                  None)
     if group is None:
         group = bpy.data.node_groups.new(group_name(scene), "CompositorNodeTree")
@@ -112,7 +125,7 @@ def preview(path, context=None):
     """Shows one filtered frame in every open Image Editor (none in background mode); returns the image."""
     if not os.path.isfile(path):
         raise FileNotFoundError("no frame at %s" % path)
-    image = bpy.data.images.load(path, check_existing=True)
+    image = _image_of(path, "FILE")
     image.reload()
     wm = (context or bpy.context).window_manager
     for window in wm.windows:

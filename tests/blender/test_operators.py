@@ -238,6 +238,30 @@ class OperatorTest(unittest.TestCase):
         groups = [g for g in bpy.data.node_groups if g.name.startswith(compositor.GROUP_NAME)]
         self.assertEqual(groups, [node.node_tree])
 
+    def test_preview_of_the_first_frame_is_that_frame(self):
+        """Preview Frame without PNGs at the range's first frame shows that frame's EXR as a still image,
+        not the compositor's sequence, which starts with the same file: the Image Editor numbers a sequence
+        1 to 100 from the timeline, so at frame 150 it read frame_0100.exr, which does not exist. And Load
+        into Compositor after a preview leaves the previewed image a still one."""
+        scene = self.small_scene(150, 151, load_result=True)
+        scene.crisp.write_png = False
+        try:
+            self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        finally:  # (not a cleanup: those run after tearDown has unregistered scene.crisp)
+            scene.crisp.write_png = True
+        first = os.path.join(self.tmp.name, "filtered", "frame_0150.exr")
+        node = next(n for n in scene.node_tree.nodes if n.get(compositor.NODE_TAG))
+        sequence = node.node_tree.nodes["Crisp Frames"].image
+        shown = compositor.preview(first)
+        self.assertEqual(shown.source, "FILE")
+        self.assertEqual(os.path.normpath(bpy.path.abspath(shown.filepath_from_user())), first)
+        self.assertEqual(tuple(shown.size), (64, 36))
+        self.assertEqual(sequence.source, "SEQUENCE")
+        self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        self.assertEqual(shown.source, "FILE")
+        self.assertEqual(node.node_tree.nodes["Crisp Frames"].image, sequence)
+        self.assertEqual(compositor.preview(first), shown)
+
     def test_compositor_shows_each_frames_own_file(self):
         """The loaded sequence maps scene frame N to filtered/frame_N.exr (two frames of other colours,
         composited at each frame; only the compositor runs, no Render Layers node)."""
