@@ -466,6 +466,40 @@ class GpuParity(unittest.TestCase):
                 if "choices" in library[name]:
                     self.assertEqual(set(gpu_filters.CHOICES[name]), set(library[name]["choices"]), (method, name))
 
+    def test_params_the_other_cases_leave_at_default(self):
+        # Every parameter the preview takes from the panel at a value other than its default at least
+        # once (the cases above leave these at theirs), so a shader that used its default in place of
+        # the push constant fails here.
+        self.check("fxaa chart edgeThresholdMin=0.3", "fxaa", [(chart_image(), {})],
+                   {"edgeThresholdMin": 0.3, "edgeThreshold": 0.05})
+        # feedbackMin/Max and resampleDamping act on the pixels that do not average: moving ones.
+        self.check("taa 5 frames moving feedback, damping", "taa", moving_frames(5, 0.6, 0.35),
+                   {"feedbackMin": 0.3, "feedbackMax": 0.95, "resampleDamping": 0.9})
+        # holdRelease 1: held pixels are never released (test_taa_hold_release: that differs).
+        self.check("taa 20 frames hold 3, holdRelease=1", "taa", changing_frames(20, 9),
+                   {"holdPeriod": 3, "holdRelease": 1.0})
+
+    def test_tiny_images_and_non_finite_values(self):
+        # Images smaller than every filter's footprint, all of whose pixels are at a border, holding
+        # +-Inf, NaN and HDR values: every value within the tolerance, none let through as a flipped
+        # decision (in the cases above the few non-finite pixels fit in FLIP_FRACTION, so a shader that
+        # sanitised Inf to another value than kMaxColor passed).
+        specials = (float("inf"), 0.25, float("-inf"), 1.0, float("nan"), 5.0, 0.5, float("nan"), 0.02, 3.0, 0.7,
+                    float("inf"))
+        for width, height in ((1, 1), (2, 3), (3, 2)):
+            with image_size(width, height):
+                image = [specials[(i * 5 + k) % len(specials)] for i in range(W * H) for k in range(4)]
+                for method, frames in (("fxaa", [(image, {})]), ("repair", [(image, {})]),
+                                       ("taa", [(image, {"jitterX": jx, "jitterY": jy})
+                                                for jx, jy in ((0.3, -0.2), (-0.4, 0.1), (0.1, 0.45))])):
+                    for rows_up in (False, True):
+                        refs = library_filter(method, frames, {}, every=True)
+                        gots = gpu_filter(method, frames, {}, rows_up)
+                        for k, (ref, got) in enumerate(zip(refs, gots)):
+                            figures = differences(ref, got, frames[:k + 1], TOLERANCES[method][0])
+                            self.assertEqual(figures[3], 0.0, "%s %dx%d frame %d%s: %s" % (
+                                method, W, H, k, " (rows up)" if rows_up else "", figures))
+
     def test_taa_half_still_footprint(self):
         # The top half still, the bottom half moving: static pixels near the boundary must not use the
         # footprint box (taa.cpp stillFootprint), the rest must.
