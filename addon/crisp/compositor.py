@@ -114,6 +114,19 @@ def add_to_compositor(scene, group):
     return node
 
 
+# Nodes that pass the render through unchanged: a tree of these alone (Blender's default Render Layers ->
+# Composite, with Crisp's own result node beside it) composites nothing that Crisp's frames would miss.
+_PASS_THROUGH = {"CompositorNodeRLayers", "CompositorNodeComposite", "CompositorNodeViewer", "NodeReroute",
+                 "NodeFrame", "NodeGroupInput", "NodeGroupOutput"}
+
+
+def changes_the_image(scene):
+    """Whether the scene's compositor would change its rendered frames: some node in its tree other than
+    the pass-through ones and the node Crisp put there (add_to_compositor)."""
+    tree = scene.node_tree if scene.use_nodes and scene.render.use_compositing else None
+    return tree is not None and any(n.bl_idname not in _PASS_THROUGH and not n.get(NODE_TAG) for n in tree.nodes)
+
+
 def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
     first = os.path.join(filtered_dir, "frame_%04d%s" % (frame_start, ext))
     image = load_sequence(first, "Crisp " + scene.name)

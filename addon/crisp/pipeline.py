@@ -33,6 +33,7 @@ import time
 
 import bpy
 
+from . import compositor
 from . import native
 from . import plan as plan_mod
 from . import render
@@ -345,7 +346,7 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     if scene.render.film_transparent and filter_frames and method != "none":
         log("note: the film is transparent: %s anti-aliases the colour, not the alpha, which keeps the 1-sample "
             "render's hard edges; for clean edges, render the background in the scene (Film > Transparent off)" % method)
-    if scene.render.use_compositing and scene.use_nodes and scene.node_tree and len(scene.node_tree.nodes):
+    if compositor.changes_the_image(scene):
         log("note: the scene's compositor is not applied to Crisp's frames (they are filtered as rendered); "
             "apply it to the filtered frames through the 'Crisp Result' node group")
     result = {"blender_version": bpy.app.version_string, "method": method, "params": dict(params or {}),
