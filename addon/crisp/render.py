@@ -648,14 +648,21 @@ def _remove_subsamples(out_dir, frame):
 
 def _render_subsamples(snap, scene, view_layer, frame, out_dir, base_shift, unit, dx, dy):
     """RSAA's geometric sub-samples: depth + normal renders at RSAA_PATTERN offsets (around the
-    frame's own jitter), with a plain grey material override so shading costs nothing."""
+    frame's own jitter), with a plain grey material override so shading costs nothing, at one sample
+    whatever the frame's (--samples): rsaa reads a point sample of depth and normal, and EEVEE takes
+    both from the first sample alone (BLENDER.md), so more samples cost time and change no value."""
     mat = bpy.data.materials.get("CrispGeometryOnly") or bpy.data.materials.new("CrispGeometryOnly")
-    props = ("material_override", "use_pass_cryptomatte_object", "use_pass_diffuse_color")
-    for prop in props:  # registers the user's values for the final restore
-        snap.set(view_layer, prop, getattr(view_layer, prop))
-    main = {prop: getattr(view_layer, prop) for prop in props}
+    props = [(view_layer, "material_override"), (view_layer, "use_pass_cryptomatte_object"),
+             (view_layer, "use_pass_diffuse_color"), (scene.eevee, "taa_render_samples")]
+    if scene.render.engine == "CYCLES":
+        props.append((scene.cycles, "samples"))
+    for owner, prop in props:  # registers the user's values for the final restore
+        snap.set(owner, prop, getattr(owner, prop))
+    main = [(owner, prop, getattr(owner, prop)) for owner, prop in props]
     view_layer.material_override = mat
     view_layer.use_pass_cryptomatte_object = view_layer.use_pass_diffuse_color = False
+    for owner, prop in props[3:]:
+        setattr(owner, prop, 1)
     out = []
     cam = scene.camera.data
     try:
@@ -665,8 +672,8 @@ def _render_subsamples(snap, scene, view_layer, frame, out_dir, base_shift, unit
             path = _subsample_path(out_dir, frame, k)
             out.append({"offset": [ox, oy], "file": os.path.basename(path), "render_s": _render_to(scene, path)})
     finally:
-        for prop, value in main.items():  # back to the main frames' settings
-            setattr(view_layer, prop, value)
+        for owner, prop, value in main:  # back to the main frames' settings
+            setattr(owner, prop, value)
     return out
 
 
