@@ -283,6 +283,9 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   context.setInt("numThreads", o.threads);
   std::unique_ptr<Filter> filter = createFilter(context, e.method);
   for (const auto& [key, value] : parseMethodSpec(e.name).params) filter->params().setFromText(key, value);
+  // rsaa on a plan that rendered no geometry (no visible object, so no geometric edge) keeps every
+  // colour, as the add-on filters it (native.FrameFilter): 'none'; setting its parameters above checked them.
+  if (readsSubsamples(*filter) && !e.subsamplesRendered) filter = createFilter(context, "none");
   Image output;
   cli::ShotPosition shot;
   for (int f : frames) {
@@ -592,6 +595,10 @@ int run(const Options& o) {
     e.inputSet = set;
     const json& plan = scene["plans"].contains(e.method) ? scene["plans"][e.method] : json::object();
     e.temporal = plan.value("jitter", false);
+    if (plan.contains("passes") && plan["passes"].is_array()) {
+      const json& passes = plan["passes"];
+      e.subsamplesRendered = std::find(passes.begin(), passes.end(), "subsamples") != passes.end();
+    }
     methods.push_back(e);
   }
   {

@@ -52,6 +52,7 @@ struct Entry {
   int samples = 1;       // EEVEE samples of its input
   std::string inputSet;  // renders/<set> its input came from
   bool temporal = false;
+  bool subsamplesRendered = true;  // false: its plan renders no geometric sub-samples (rsaa, nothing visible)
   std::string error;     // not empty: the method failed, this says why
   std::vector<FrameFigures> frames;
   double psnr = kNaN, ssim = kNaN, flip = kNaN, temporalError = kNaN;

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, display, needs_cli_and_blender  # noqa: E402
+from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, display, needs_cli_and_blender, run_eval  # noqa: E402
 
 sys.path.insert(0, os.path.join(SOURCE, "addon", "crisp"))
 import plan  # noqa: E402
@@ -145,3 +145,47 @@ def test_plan_renders_no_geometry_without_visible_objects():
         assert "no visible object" in empty.skipped[q]
     one = plan.make_plan("rsaa", plan.SceneFacts(frame_start=1, frame_end=1, visible_objects=["Cube"]))
     assert one.passes == ["color", "depth", "normal", "subsamples"]
+
+
+# A scene with no visible object: Blender's startup file without its cube, a world with a checker
+# texture (hard colour edges that FXAA, and so rsaa's default textureAA, would blend).
+NOTHING_VISIBLE = """
+import bpy, sys
+bpy.data.objects.remove(bpy.data.objects["Cube"])
+w = bpy.context.scene.world
+w.use_nodes = True
+checker = w.node_tree.nodes.new("ShaderNodeTexChecker")
+checker.inputs["Scale"].default_value = 40.0
+w.node_tree.links.new(checker.outputs["Color"], w.node_tree.nodes["Background"].inputs["Color"])
+bpy.context.scene.eevee.gi_cubemap_resolution = "64"
+bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
+"""
+
+
+def test_eval_of_a_scene_with_nothing_visible_keeps_the_colour():
+    """With no visible object the plan renders no geometry, and rsaa keeps every colour, as the add-on
+    filters it (native.FrameFilter): crisp eval did run rsaa on those frames and reported it failed
+    (no sub-sample list in the sidecar)."""
+    work = tempfile.mkdtemp(prefix="crisp_rsaa_empty_")
+    out = None
+    try:
+        blend = os.path.join(work, "nothing.blend")
+        p = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr",
+                            NOTHING_VISIBLE, "--", blend], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           timeout=300)
+        assert p.returncode == 0, p.stdout.decode()[-3000:]
+        out, _, _ = run_eval(["--scene", blend, "--frames", "1-1", "--resolution", "32x18", "-m", "rsaa",
+                              "--reference-samples", "2", "--curve", "1", "-q"], "crisp_rsaa_empty_eval_")
+        results = json.load(open(os.path.join(out, "results.json")))
+        entry = next(m for m in results["scenes"][0]["methods"] if m["name"] == "rsaa")
+        assert entry["error"] is None, entry["error"]
+        assert entry["input"] == "eevee_1"
+        lib = Lib()
+        src = lib.color(os.path.join(out, "renders", "eevee_1", "frame_0001.exr"))
+        assert np.array_equal(lib.color(os.path.join(out, "methods", "rsaa", "frame_0001.exr")), src)
+        assert not np.array_equal(lib.color(os.path.join(out, "methods", "none", "frame_0001.exr"))[..., :3],
+                                  np.broadcast_to(src[:1, :1, :3], src[..., :3].shape))  # a textured world
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+        if out:
+            shutil.rmtree(out, ignore_errors=True)
