@@ -85,7 +85,7 @@ class SceneFacts:
     camera_moves: bool = False
     moving_objects: list = field(default_factory=list)      # names whose world matrix changes
     deforming_objects: list = field(default_factory=list)   # names with animated geometry
-    visible_objects: list = field(default_factory=list)     # renderable, visible object names
+    visible_objects: list = field(default_factory=list)     # renderable, visible object names (on any frame)
     renderer_motion_pass: bool = False                      # the renderer writes a Vector pass
     camera_cuts: list = field(default_factory=list)         # frames whose camera is another than the frame before's
 
@@ -624,9 +624,10 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
             previous_cam = cam.name if cam else None
             obs = visible_objects(scene, layer)
             instances = rendered_instances(layer)
-            if f == frame_start:
-                names = [o.name for o in obs]
-                names += sorted({source.name for source, _, _ in instances} - set(names))
+            # Over every frame: an object that appears later (hide_render keyed) renders there too, and
+            # rsaa renders geometry only where something is visible.
+            names += [o.name for o in obs if o.name not in names]
+            names += sorted({source.name for source, _, _ in instances} - set(names))
             if cam is not None:
                 cm = ([list(r) for r in cam.matrix_world], camera_projection(cam, layer.depsgraph, scene))
                 if cam.name not in first_cam:

@@ -688,6 +688,23 @@ class AddonTest(unittest.TestCase):
             self.assertEqual(len(subs(2)), len(render.RSAA_PATTERN))
             self.assertNotIn("subsamples", json.load(open(os.path.join(d, "frame_0001.json"))))
 
+    def test_an_object_that_appears_later_gets_rsaas_geometry(self):
+        """An object hidden from the render on the first frame and shown from the second (hide_render
+        keyed) is visible over the range: rsaa renders its geometry. The facts were taken from the first
+        frame alone, so rsaa rendered none and left frames 2-3 as rendered ("no visible object")."""
+        scene = harness.build_scene("spinning_cube")
+        cube = scene.objects["Cube"]
+        cube.hide_render = True
+        cube.keyframe_insert("hide_render", frame=1)
+        cube.hide_render = False
+        cube.keyframe_insert("hide_render", frame=2)
+        p, facts = pipeline.scene_plan(scene, "rsaa", [1, 2, 3])
+        self.assertEqual(facts.visible_objects, ["Cube"])
+        self.assertIn("subsamples", p.passes, p.describe())
+        p, facts = pipeline.scene_plan(scene, "rsaa", [1])  # hidden on every frame planned: nothing to render
+        self.assertEqual(facts.visible_objects, [])
+        self.assertNotIn("subsamples", p.passes, p.describe())
+
     def test_subsamples_render_at_one_sample(self):
         """A frame rendered with more samples (--samples 4) still gets its eight geometry renders at one
         sample: their depth and normal are the first sample's at any count, so more only cost time
