@@ -648,9 +648,10 @@ def _remove_subsamples(out_dir, frame):
 
 def _render_subsamples(snap, scene, view_layer, frame, out_dir, base_shift, unit, dx, dy):
     """RSAA's geometric sub-samples: depth + normal renders at RSAA_PATTERN offsets (around the
-    frame's own jitter), with a plain grey material override so shading costs nothing, at one sample
-    whatever the frame's (--samples): rsaa reads a point sample of depth and normal, and EEVEE takes
-    both from the first sample alone (BLENDER.md), so more samples cost time and change no value."""
+    frame's own jitter), with a plain grey material override (meant to make shading cost nothing, but
+    EEVEE 3.4 ignores a view layer's override: they are shaded in full), at one sample whatever the
+    frame's (--samples): rsaa reads a point sample of depth and normal, and EEVEE takes both from the
+    first sample alone (BLENDER.md), so more samples cost time and change no value."""
     mat = bpy.data.materials.get("CrispGeometryOnly") or bpy.data.materials.new("CrispGeometryOnly")
     props = [(view_layer, "material_override"), (view_layer, "use_pass_cryptomatte_object"),
              (view_layer, "use_pass_diffuse_color"), (scene.eevee, "taa_render_samples")]
