@@ -64,6 +64,16 @@ inline std::vector<SubsampleEntry> readSubsampleList(const std::string& sidecarP
     invalidData("sidecar '" + sidecarPath + "' is not valid JSON (" + e.what() + ")");
   }
   const auto bad = [&](const std::string& what) { invalidData("sidecar '" + sidecarPath + "': " + what); };
+  // crisp render --method rsaa renders no geometry when no object is visible (plan.py) and passes the
+  // colour through: such a frame was made for rsaa (made_with) with a plan without sub-samples (passes).
+  const auto has = [&](const char* key) { return root.is_object() && root.contains(key); };
+  const bool planWithoutGeometry =
+      has("made_with") && root["made_with"].is_object() && root["made_with"].contains("method") &&
+      root["made_with"]["method"] == "rsaa" && has("passes") && root["passes"].is_array() &&
+      std::find(root["passes"].begin(), root["passes"].end(), "subsamples") == root["passes"].end();
+  if (planWithoutGeometry && !has("subsamples"))
+    bad("has no 'subsamples' list: the frame was rendered for rsaa with no visible object, so without geometry "
+        "(crisp render --method rsaa keeps such frames' colour as rendered; filter them with -m none)");
   if (!root.is_object() || !root.contains("subsamples"))
     bad("has no 'subsamples' list: the frame was not rendered for rsaa (crisp render --method rsaa renders the 8 "
         "geometric sub-samples frame_NNNN_sub0..7.exr)");

@@ -162,19 +162,25 @@ bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
 """
 
 
-def test_eval_of_a_scene_with_nothing_visible_keeps_the_colour():
+@pytest.fixture(scope="module")
+def nothing_visible():
+    """The .blend of NOTHING_VISIBLE."""
+    work = tempfile.mkdtemp(prefix="crisp_rsaa_empty_")
+    blend = os.path.join(work, "nothing.blend")
+    p = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr",
+                        NOTHING_VISIBLE, "--", blend], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=300)
+    assert p.returncode == 0, p.stdout.decode()[-3000:]
+    yield blend
+    shutil.rmtree(work, ignore_errors=True)
+
+
+def test_eval_of_a_scene_with_nothing_visible_keeps_the_colour(nothing_visible):
     """With no visible object the plan renders no geometry, and rsaa keeps every colour, as the add-on
     filters it (native.FrameFilter): crisp eval did run rsaa on those frames and reported it failed
     (no sub-sample list in the sidecar)."""
-    work = tempfile.mkdtemp(prefix="crisp_rsaa_empty_")
     out = None
     try:
-        blend = os.path.join(work, "nothing.blend")
-        p = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr",
-                            NOTHING_VISIBLE, "--", blend], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                           timeout=300)
-        assert p.returncode == 0, p.stdout.decode()[-3000:]
-        out, _, _ = run_eval(["--scene", blend, "--frames", "1-1", "--resolution", "32x18", "-m", "rsaa",
+        out, _, _ = run_eval(["--scene", nothing_visible, "--frames", "1-1", "--resolution", "32x18", "-m", "rsaa",
                               "--reference-samples", "2", "--curve", "1", "-q"], "crisp_rsaa_empty_eval_")
         results = json.load(open(os.path.join(out, "results.json")))
         entry = next(m for m in results["scenes"][0]["methods"] if m["name"] == "rsaa")
@@ -186,6 +192,27 @@ def test_eval_of_a_scene_with_nothing_visible_keeps_the_colour():
         assert not np.array_equal(lib.color(os.path.join(out, "methods", "none", "frame_0001.exr"))[..., :3],
                                   np.broadcast_to(src[:1, :1, :3], src[..., :3].shape))  # a textured world
     finally:
-        shutil.rmtree(work, ignore_errors=True)
         if out:
             shutil.rmtree(out, ignore_errors=True)
+
+
+def test_cli_filter_of_a_frame_rendered_without_geometry_says_why(nothing_visible):
+    """crisp render --method rsaa with nothing visible keeps the colour and writes no sub-samples; crisp
+    filter -m rsaa on its frames said they were "not rendered for rsaa" and to render them with
+    crisp render --method rsaa, which is what made them. It now names the reason and what to use."""
+    out = tempfile.mkdtemp(prefix="crisp_rsaa_empty_render_")
+    try:
+        p = subprocess.run([CRISP, "render", "--scene", nothing_visible, "--method", "rsaa", "--resolution", "32x18",
+                            "--frames", "1-1", "-q", "-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           env=env(), timeout=600)
+        assert p.returncode == 0, p.stderr.decode()[-3000:]
+        frame = os.path.join(out, "input", "frame_0001.exr")
+        assert not os.path.exists(os.path.join(out, "input", "frame_0001_sub0.exr"))
+        lib = Lib()
+        assert np.array_equal(lib.color(os.path.join(out, "filtered", "frame_0001.exr")), lib.color(frame))
+        p = filter_cli([frame], os.path.join(out, "again"))
+        err = p.stderr.decode()
+        assert p.returncode == 1 and "rendered for rsaa with no visible object" in err and "-m none" in err, err
+        assert "not rendered for rsaa" not in err, err
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
