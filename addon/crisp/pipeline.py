@@ -343,7 +343,11 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
     if scene.render.use_sequencer and any(strip.type != "SOUND" for strip in strips):  # Blender's rule for the edit
         log("note: the scene's sequencer strips are not applied to Crisp's frames: Crisp renders the scene through "
             "its camera, as with Post Processing > Sequencer off")
-    if scene.render.film_transparent and filter_frames and method != "none":
+    if scene.render.film_transparent and filter_frames and method == "rsaa":
+        # rsaa's resampling fetches colour and alpha together (an outline against the film is a geometric edge).
+        log("note: the film is transparent: rsaa anti-aliases colour and alpha together on geometric edges (an "
+            "object's outline too); elsewhere it changes the colour only, and the alpha keeps the 1-sample render's")
+    elif scene.render.film_transparent and filter_frames and method != "none":
         log("note: the film is transparent: %s anti-aliases the colour, not the alpha, which keeps the 1-sample "
             "render's hard edges; for clean edges, render the background in the scene (Film > Transparent off)" % method)
     if compositor.changes_the_image(scene):

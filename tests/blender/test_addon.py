@@ -3,6 +3,7 @@
 for every method, scene state restored after a render and after an error mid-render, the compositor
 node group, and in-process bad input (no camera, empty range) touching nothing of the user's."""
 
+import ctypes
 import json
 import os
 import shutil
@@ -968,6 +969,19 @@ class AddonTest(unittest.TestCase):
             self.assertFalse(any("transparent" in line for line in logged), "nothing filtered: nothing to say")
             pipeline.run(scene, "fxaa", [1], d, log=logged.append)
         self.assertTrue(any("anti-aliases the colour, not the alpha" in line for line in logged), logged)
+        # rsaa resamples colour and alpha together at geometric edges: the outline's alpha is smooth.
+        logged.clear()
+        with tempfile.TemporaryDirectory() as d:
+            pipeline.run(scene, "rsaa", [1], d, write_png=False, log=logged.append)
+            with native.Context() as ctx, native.Frame(ctx, os.path.join(d, "filtered", "frame_0001.exr")) as fr:
+                ptr, fmt = fr.pass_pointer("color")
+                self.assertEqual(fmt, native.FORMAT_FLOAT4)
+                alpha = list((ctypes.c_float * (fr.width * fr.height * 4)).from_address(ptr))[3::4]
+        self.assertTrue(any(0.0 < a < 1.0 for a in alpha), "some outline pixel blends alpha")
+        notes = [line for line in logged if "transparent" in line]
+        self.assertEqual(len(notes), 1, logged)
+        self.assertIn("colour and alpha together on geometric edges", notes[0])
+        self.assertNotIn("not the alpha", notes[0])
         scene.render.film_transparent = False
         # A render region (cropped or not): Crisp renders and filters the whole frame, and says so.
         scene.render.use_border = scene.render.use_crop_to_border = True
