@@ -397,6 +397,8 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
 
     def on_frame(f, info):
         entry = {"frame": f, "render_s": round(info["render_s"], 4), "jitter": info["jitter"]}
+        if "geometry_render_s" in info:  # rsaa's sub-samples: eight more renders, part of the frame's cost
+            entry["geometry_render_s"] = round(info["geometry_render_s"], 4)
         if frame_filter is not None:
             exr = os.path.join(filtered_dir, render.frame_name(f))
             png = os.path.join(filtered_dir, render.frame_name(f, ".png"))
@@ -414,8 +416,10 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                 log("frame %d: temporal history restarts (%s)" % (f, frame_filter.restart_reason))
         result["frames"].append(entry)
         record("running")  # a run killed later still says how far it got
-        log("frame %d: render %.3f s%s" % (f, info["render_s"], ", load %.3f s, filter %.3f s, write %.3f s" % (
-            entry["load_s"], entry["filter_s"], entry["write_s"]) if "filter_s" in entry else ""))
+        geometry = ", geometry %.3f s" % info["geometry_render_s"] if "geometry_render_s" in info else ""
+        log("frame %d: render %.3f s%s%s" % (f, info["render_s"], geometry, ", load %.3f s, filter %.3f s, write %.3f s"
+                                             % (entry["load_s"], entry["filter_s"], entry["write_s"])
+                                             if "filter_s" in entry else ""))
 
     reference_dir = os.path.join(out_dir, "reference")
 

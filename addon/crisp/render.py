@@ -540,9 +540,10 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
     """Renders `frames` of `scene` into out_dir/frame_NNNN.exr + .json with the plan's passes; the
     sidecar records made_with (what the frame's outputs are made with, pipeline.made_with) when given.
 
-    on_frame(frame, info) is called after each frame (info: dict with render_s, paths); it may raise to
-    stop. should_cancel() -> True stops after the current frame. Returns the list of infos. The scene
-    is restored on return, error or cancel. engine: None (EEVEE) or 'CYCLES' (see CYCLES_SETTINGS)."""
+    on_frame(frame, info) is called after each frame (info: dict with render_s, paths, and rsaa's
+    geometry_render_s); it may raise to stop. should_cancel() -> True stops after the current frame.
+    Returns the list of infos. The scene is restored on return, error or cancel. engine: None (EEVEE) or
+    'CYCLES' (see CYCLES_SETTINGS)."""
     frames, view_layer = _checked_inputs(scene, frames, view_layer)
     engine = engine or eevee_engine(scene)
     os.makedirs(out_dir, exist_ok=True)
@@ -626,6 +627,8 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
             if "subsamples" not in the_plan.passes:
                 _remove_subsamples(out_dir, f)
             info = {"frame": f, "render_s": render_s, "exr": path, "jitter": [dx, dy]}
+            if "subsamples" in sidecar:  # rsaa's eight geometry renders, apart from the frame's own
+                info["geometry_render_s"] = sum(s["render_s"] for s in sidecar["subsamples"])
             infos.append(info)
             if on_frame:
                 on_frame(f, info)

@@ -56,6 +56,8 @@ def test_render_writes_subsamples_and_filters_edges(rendered):
     run = json.load(open(os.path.join(rendered, "run.json")))
     assert run["plan"]["passes"] == ["color", "depth", "normal", "subsamples"]
     assert run["frames"][0]["filter_s"] > 0
+    # The eight geometry renders are part of the frame's cost: run.json gives them apart from its render.
+    assert run["frames"][0]["geometry_render_s"] == round(sum(s["render_s"] for s in side["subsamples"]), 4) > 0
     lib = Lib()
     src = lib.color(os.path.join(rendered, "input", "frame_0001.exr"))
     out = lib.color(os.path.join(rendered, "filtered", "frame_0001.exr"))
