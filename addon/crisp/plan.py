@@ -604,7 +604,7 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
     layer = view_layer or scene.view_layers[0]
     saved = (scene.frame_current, scene.frame_subframe, scene.camera)
     first_cam = {}  # camera object name -> its matrix and projection at the first frame it is the scene's camera
-    first, moving, names, cuts = {}, set(), [], []
+    first, moving, names, named, cuts = {}, set(), [], set(), []
     first_geometry, deforming = {}, set()  # object name -> _geometry_fingerprint at the first frame; deforming
     instances = []  # the last frame's (rendered_instances)
     camera_moves = False
@@ -626,8 +626,10 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
             instances = rendered_instances(layer)
             # Over every frame: an object that appears later (hide_render keyed) renders there too, and
             # rsaa renders geometry only where something is visible.
-            names += [o.name for o in obs if o.name not in names]
-            names += sorted({source.name for source, _, _ in instances} - set(names))
+            for name in [o.name for o in obs] + sorted({source.name for source, _, _ in instances}):
+                if name not in named:  # a set: a list's `in` would cost objects x objects per frame
+                    named.add(name)
+                    names.append(name)
             if cam is not None:
                 cm = ([list(r) for r in cam.matrix_world], camera_projection(cam, layer.depsgraph, scene))
                 if cam.name not in first_cam:
