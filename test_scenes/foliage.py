@@ -1,10 +1,12 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 """foliage: alpha-cut leaves on a swaying branch over a ground plane.
 
-Stresses: edges made by an alpha test inside a texture (not geometry): depth, normal and ID passes
-see the whole leaf quad while colour sees a leaf shape, so geometry-driven methods (RSAA, depth
-terms) miss these edges; small holes between leaves; a gentle rigid sway of the branch. Two visible
-objects (branch and ground), one moving. Frames 1-16, 480x270.
+Stresses: edges made by an alpha test inside a texture, not by geometry: a leaf is one quad whose
+shape only the material cuts. EEVEE 3.4's Depth pass follows the cut (alpha clip discards there), so
+rsaa's geometry renders see the leaf shapes; a renderer whose geometry passes ignore the material
+would show whole quads there and geometry-driven methods would miss these edges. Small holes between
+leaves; a gentle rigid sway of the branch. Two visible objects (branch and ground), one moving.
+Frames 1-16, 480x270.
 """
 
 import math
