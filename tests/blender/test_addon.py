@@ -709,29 +709,39 @@ class AddonTest(unittest.TestCase):
     def test_subsamples_render_at_one_sample(self):
         """A frame rendered with more samples (--samples 4) still gets its eight geometry renders at one
         sample: their depth and normal are the first sample's at any count, so more only cost time
-        (16 samples made them 4.5x slower). The frame itself keeps its samples, the scene its settings."""
+        (16 samples made them 4.5x slower). EEVEE's effects that shade Combined alone (AO, SSR, bloom,
+        soft shadows) are off in them too. The frame itself keeps its samples and effects, the scene its
+        settings."""
         scene = harness.build_scene("still_life")
         scene.render.resolution_x, scene.render.resolution_y = 16, 8
+        scene.eevee.use_gtao = scene.eevee.use_ssr = scene.eevee.use_bloom = True
+        effects = ("use_gtao", "use_ssr", "use_bloom", "use_soft_shadows")
         facts = plan.SceneFacts(1, 1, visible_objects=["Box", "Ball"])
         seen = []
 
         def record(s, *args):
-            seen.append((os.path.basename(s.render.filepath), s.eevee.taa_render_samples, s.cycles.samples))
+            seen.append((os.path.basename(s.render.filepath), s.eevee.taa_render_samples, s.cycles.samples,
+                         [getattr(s.eevee, e) for e in effects]))
         bpy.app.handlers.render_pre.append(record)
         self.addCleanup(bpy.app.handlers.render_pre.remove, record)
         for engine in (None, "CYCLES"):
             seen.clear()
-            before = (scene.eevee.taa_render_samples, scene.cycles.samples)
+            before = (scene.eevee.taa_render_samples, scene.cycles.samples, [getattr(scene.eevee, e) for e in effects])
+            self.assertEqual(before[2], [True] * 4)
             with tempfile.TemporaryDirectory() as d:
                 render.render_frames(scene, plan.make_plan("rsaa", facts), [1], d, samples=4, engine=engine)
             self.assertEqual(len(seen), 1 + len(render.RSAA_PATTERN), seen)
             main = seen[0][1] if engine is None else seen[0][2]
             self.assertEqual(main, 4, seen)
             self.assertNotIn("_sub", seen[0][0])
-            for name, eevee, cycles in seen[1:]:
+            self.assertEqual(seen[0][3], [True] * 4, seen)
+            for name, eevee, cycles, on in seen[1:]:
                 self.assertIn("frame_0001_sub", name)
                 self.assertEqual(eevee if engine is None else cycles, 1, seen)
-            self.assertEqual((scene.eevee.taa_render_samples, scene.cycles.samples), before)
+                if engine is None:
+                    self.assertEqual(on, [False] * 4, seen)
+            self.assertEqual((scene.eevee.taa_render_samples, scene.cycles.samples,
+                              [getattr(scene.eevee, e) for e in effects]), before)
 
     def test_rsaa_without_geometry_takes_its_parameters(self):
         """rsaa on a plan with no sub-samples (nothing visible) filters as 'none'; the rsaa parameters
