@@ -39,8 +39,8 @@ def _image_of(path, source):
     images, or the Image Editor is handed the sequence, which it numbers 1 to 100 from the timeline (at
     frame 150 it read frame_0100.exr), and Load into Compositor turns a previewed still into a sequence."""
     key = _path_key(path)
-    image = next((i for i in bpy.data.images if i.source == source and i.filepath
-                  and _path_key(bpy.path.abspath(i.filepath)) == key), None)
+    image = next((i for i in bpy.data.images if i.library is None and i.source == source and i.filepath
+                  and _path_key(bpy.path.abspath(i.filepath)) == key), None)  # a linked image cannot be changed
     if image is None:
         image = bpy.data.images.load(path, check_existing=False)
         image.source = source
@@ -63,17 +63,27 @@ def load_sequence(first_path, name):
     return image
 
 
+def _folder_shown(group):
+    """The folder of the frames a result group's image node shows. Its tag (FOLDER_TAG, absolute) is the
+    folder it was made for; the image's path is relative to the .blend where load_sequence made it so, and
+    Blender rebases it on Save As, so after a moved project or Save As elsewhere the group is still found
+    by its frames, and its tag brought up to date."""
+    node = group.nodes.get("Crisp Frames")
+    image = node.image if node is not None and node.bl_idname == "CompositorNodeImage" else None
+    if image is None or not image.filepath:
+        return None
+    return _path_key(os.path.dirname(bpy.path.abspath(image.filepath, library=image.library)))
+
+
 def result_group(scene, folder, image, frame_start, frame_end):
     """Creates or updates the group of a folder of filtered frames: Image node (the sequence) -> Group
     Output (Image, Alpha). Every node showing the group, the user's too, follows the update."""
     key = _path_key(folder)
-    group = next((g for g in bpy.data.node_groups if g.bl_idname == "CompositorNodeTree"
-                  and isinstance(g.get(FOLDER_TAG), str) and _path_key(bpy.path.abspath(g[FOLDER_TAG])) == key),
-                 None)
+    group = next((g for g in bpy.data.node_groups if g.bl_idname == "CompositorNodeTree" and g.library is None
+                  and key in (g.get(FOLDER_TAG), _folder_shown(g))), None)
     if group is None:
         group = bpy.data.node_groups.new(group_name(scene), "CompositorNodeTree")
-    # Relative to the .blend when the image's path is (load_sequence): a moved project keeps its group.
-    group[FOLDER_TAG] = bpy.path.relpath(os.path.abspath(folder)) if image.filepath.startswith("//") else key
+    group[FOLDER_TAG] = key
     _group_output(group, "Image")
     _group_output(group, "Alpha")
     nodes = group.nodes

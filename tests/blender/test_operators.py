@@ -220,7 +220,7 @@ class OperatorTest(unittest.TestCase):
         scene = self.small_scene(1, 2, load_result=True)
         scene.crisp.property_unset("output_dir")  # the default, //crisp/<scene>/
         name = scene.name
-        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(project, "shot.blend"))
+        self.save_as(os.path.join(project, "shot.blend"))
         self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
         bpy.ops.wm.save_mainfile()
         moved = os.path.join(self.tmp.name, "moved")
@@ -261,6 +261,76 @@ class OperatorTest(unittest.TestCase):
         self.assertEqual(shown.source, "FILE")
         self.assertEqual(node.node_tree.nodes["Crisp Frames"].image, sequence)
         self.assertEqual(compositor.preview(first), shown)
+
+    def result_groups(self):
+        return [g for g in bpy.data.node_groups if g.name.startswith(compositor.GROUP_NAME)]
+
+    @staticmethod
+    def save_as(path):
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        bpy.ops.wm.save_as_mainfile(filepath=path)
+
+    def test_the_result_group_survives_save_as_and_a_first_save(self):
+        """Load into Compositor finds the group it made (one group, which every node showing it follows)
+        after Save As to another folder, which rebases the image's relative path, and after a file that
+        was unsaved at the load is saved, which makes the path relative, and then moved. (A group tag
+        relative to the .blend went stale in both: a second group was made.)"""
+        bpy.ops.wm.read_homefile(use_empty=True)  # no group an earlier test's file holds
+        renders = os.path.join(self.tmp.name, "renders")
+        scene = self.small_scene(1, 1, load_result=True)
+        scene.crisp.output_dir = renders
+        name = scene.name
+        self.save_as(os.path.join(self.tmp.name, "a", "proj", "shot.blend"))
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        self.save_as(os.path.join(self.tmp.name, "b", "deeper", "proj", "shot.blend"))
+        with bpy.context.temp_override(scene=bpy.data.scenes[name]):
+            self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        self.assertEqual(len(self.result_groups()), 1, [(g.name, g.get(compositor.FOLDER_TAG))
+                                                        for g in self.result_groups()])
+
+        bpy.ops.wm.read_homefile(use_empty=True)  # unsaved, frames inside the folder-to-be of the project
+        project = os.path.join(self.tmp.name, "project")
+        scene = self.small_scene(1, 1, load_result=True)
+        scene.crisp.output_dir = os.path.join(project, "crisp", "Scene")
+        name = scene.name
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        scene.crisp.output_dir = "//crisp/Scene/"
+        self.save_as(os.path.join(project, "shot.blend"))  # remaps paths relative
+        moved = os.path.join(self.tmp.name, "moved")
+        os.rename(project, moved)
+        bpy.ops.wm.open_mainfile(filepath=os.path.join(moved, "shot.blend"))
+        with bpy.context.temp_override(scene=bpy.data.scenes[name]):
+            self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        groups = self.result_groups()
+        self.assertEqual(len(groups), 1, [(g.name, g.get(compositor.FOLDER_TAG)) for g in groups])
+        self.assertEqual(groups[0].get(compositor.FOLDER_TAG), os.path.join(moved, "crisp", "Scene", "filtered"))
+
+    def test_linked_images_and_groups_are_not_taken_over(self):
+        """A result group and image linked from another project's .blend, with the same relative paths
+        as this project's, are that project's frames: Render with Crisp loads this project's into groups
+        and images of its own (the linked ones were resolved against this .blend and reused, showing the
+        other project's frames)."""
+        lib_dir, main_dir = os.path.join(self.tmp.name, "lib"), os.path.join(self.tmp.name, "main")
+        for d in (lib_dir, main_dir):
+            bpy.ops.wm.read_homefile(use_empty=True)
+            scene = self.small_scene(1, 1, load_result=True)
+            scene.crisp.property_unset("output_dir")  # //crisp/<scene>/ in each project
+            name = scene.name
+            self.save_as(os.path.join(d, "shot.blend"))
+            if d == main_dir:  # the other project's result, linked before this one has any
+                with bpy.data.libraries.load(os.path.join(lib_dir, "shot.blend"), link=True, relative=True) as (
+                        src, dst):
+                    dst.node_groups = [n for n in src.node_groups if n.startswith(compositor.GROUP_NAME)]
+                self.assertEqual([g.library is not None for g in self.result_groups()], [True])
+                self.assertEqual([i.library is not None for i in bpy.data.images], [True])
+            self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+            bpy.ops.wm.save_mainfile()
+        node = next(n for n in scene.node_tree.nodes if n.get(compositor.NODE_TAG))
+        self.assertIsNone(node.node_tree.library, "the linked group was taken over")
+        image = node.node_tree.nodes["Crisp Frames"].image
+        self.assertIsNone(image.library, "the linked image was taken over")
+        self.assertEqual(os.path.dirname(os.path.normpath(bpy.path.abspath(image.filepath))),
+                         os.path.join(main_dir, "crisp", name, "filtered"))
 
     def test_compositor_shows_each_frames_own_file(self):
         """The loaded sequence maps scene frame N to filtered/frame_N.exr (two frames of other colours,
