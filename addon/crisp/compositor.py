@@ -130,11 +130,39 @@ _PASS_THROUGH = {"CompositorNodeRLayers", "CompositorNodeComposite", "Compositor
                  "NodeFrame", "NodeGroupInput", "NodeGroupOutput"}
 
 
+def _changes(node):
+    if node.bl_idname in _PASS_THROUGH or node.mute or node.get(NODE_TAG):
+        return False
+    # A node of a Crisp result group, the user's own too (add_to_compositor leaves that untagged).
+    return not (node.bl_idname == "CompositorNodeGroup" and node.node_tree is not None
+                and FOLDER_TAG in node.node_tree)
+
+
 def changes_the_image(scene):
-    """Whether the scene's compositor would change its rendered frames: some node in its tree other than
-    the pass-through ones and the node Crisp put there (add_to_compositor)."""
+    """Whether the scene's compositor would change its rendered frames: a node that feeds its Composite
+    output (every node where there is none) other than the pass-through ones, muted ones and Crisp's
+    result groups."""
     tree = scene.node_tree if scene.use_nodes and scene.render.use_compositing else None
-    return tree is not None and any(n.bl_idname not in _PASS_THROUGH and not n.get(NODE_TAG) for n in tree.nodes)
+    if tree is None:
+        return False
+    feeding = [n for n in tree.nodes if n.bl_idname == "CompositorNodeComposite"]
+    if not feeding:
+        return any(_changes(n) for n in tree.nodes)
+    upstream = {}
+    for link in tree.links:
+        if getattr(link, "is_muted", False):
+            continue
+        upstream.setdefault(link.to_node.name, []).append(link.from_node)
+    seen = {n.name for n in feeding}
+    while feeding:
+        node = feeding.pop()
+        if _changes(node):
+            return True
+        for source in upstream.get(node.name, ()):
+            if source.name not in seen:
+                seen.add(source.name)
+                feeding.append(source)
+    return False
 
 
 def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):

@@ -957,8 +957,8 @@ class AddonTest(unittest.TestCase):
         scene.use_nodes = scene.render.use_compositing = True
         tree = scene.node_tree  # Blender's default, made here: an earlier test may have left other nodes
         tree.nodes.clear()
-        tree.links.new(tree.nodes.new("CompositorNodeRLayers").outputs["Image"],
-                       tree.nodes.new("CompositorNodeComposite").inputs["Image"])
+        layers, composite = tree.nodes.new("CompositorNodeRLayers"), tree.nodes.new("CompositorNodeComposite")
+        tree.links.new(layers.outputs["Image"], composite.inputs["Image"])
         logged = []
         with tempfile.TemporaryDirectory() as d:
             pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
@@ -969,7 +969,19 @@ class AddonTest(unittest.TestCase):
             compositor.load_result(scene, os.path.join(d, "filtered"), 1, 1)
             pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
             self.assertFalse(any("compositor is not applied" in line for line in logged), logged)
-            tree.nodes.new("CompositorNodeGlare")  # a node that changes the image
+            # Nor does a node that feeds nothing, a muted one, or the user's own node of Crisp's group.
+            glare = tree.nodes.new("CompositorNodeGlare")
+            mine = tree.nodes.new("CompositorNodeGroup")
+            mine.node_tree = next(n.node_tree for n in tree.nodes if n.get(compositor.NODE_TAG))
+            pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
+            tree.links.new(mine.outputs["Image"], composite.inputs["Image"])
+            pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
+            tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
+            tree.links.new(glare.outputs["Image"], composite.inputs["Image"])
+            glare.mute = True
+            pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
+            self.assertFalse(any("compositor is not applied" in line for line in logged), logged)
+            glare.mute = False  # a node that changes the image
             pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
         self.assertTrue(any("compositor is not applied" in line for line in logged), logged)
         scene.render.film_transparent = True
