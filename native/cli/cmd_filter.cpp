@@ -97,12 +97,16 @@ void checkSidecarSettings(const Filter& filter, const ParsedArgs& args, const Si
 }
 
 // Non-finite colour is read as the library reads it (NaN -> 0, +-Inf ->
-// +-65504, conventions.h), which hides a broken render: say so, per file.
-void warnNonFiniteColour(const Frame& frame) {
-  const long count = frame.nonFiniteColour;
+// +-65504, conventions.h), which hides a broken render, and a brighter value
+// is clamped to 65504, which dims a light's edges: say so, per file.
+void warnSanitisedColour(const Frame& frame) {
+  const long count = frame.nonFiniteColour, clamped = frame.clampedColour;
   if (count > 0)
     std::fprintf(stderr, "filter: warning: '%s': %ld non-finite colour value%s, read as 0 (NaN) or +-65504 (Inf)\n",
                  frame.path.c_str(), count, count == 1 ? "" : "s");
+  if (clamped > 0)
+    std::fprintf(stderr, "filter: warning: '%s': %ld colour value%s beyond +-65504, read as +-65504\n",
+                 frame.path.c_str(), clamped, clamped == 1 ? "" : "s");
 }
 
 // An input without a motion pass gets motion reconstructed from its depth and
@@ -258,7 +262,7 @@ int runFilter(const ParsedArgs& args) {
     }
     stamps.reading(int(i) + 1);
     Frame frame = readFrame(in);
-    warnNonFiniteColour(frame);
+    warnSanitisedColour(frame);
     for (const std::string& part : frame.partsNotRead)
       std::fprintf(stderr, "filter: warning: '%s': %s is not read (only an EXR's first part is)\n", in.c_str(),
                    part.c_str());

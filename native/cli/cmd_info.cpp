@@ -31,6 +31,8 @@ int runInfo(const ParsedArgs& args) {
     for (const std::string& part : frame.partsNotRead) std::printf("  not read: %s\n", part.c_str());
     if (frame.nonFiniteColour > 0)  // as crisp filter warns and crisp compare refuses
       std::printf("  non-finite colour values: %ld, read as 0 (NaN) or +-65504 (Inf)\n", frame.nonFiniteColour);
+    if (frame.clampedColour > 0)
+      std::printf("  colour values beyond +-65504: %ld, read as +-65504\n", frame.clampedColour);
     for (const auto& [role, why] : frame.unusable) std::printf("  unusable: %s (%s)\n", role.c_str(), why.c_str());
     if (!frame.objectIds.empty()) {
       std::printf("  objects (cryptomatte):");

@@ -28,6 +28,8 @@ struct Frame {
   // Colour values (RGBA) that were NaN or +-Inf in the file; the colour pass
   // holds them sanitised (NaN -> 0, +-Inf -> +-65504, conventions.h).
   long nonFiniteColour = 0;
+  // Finite colour values beyond +-65504 in the file, which the colour pass holds clamped to it.
+  long clampedColour = 0;
   // Passes the file holds in a form that cannot be used, and why (an ID pass
   // stored as half float): an error only for a method that reads them.
   std::map<std::string, std::string> unusable;

@@ -359,7 +359,10 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   const bool decode = needsSrgbDecode(spec);
   auto colorConvert = [decode, &frame](const float* s, Image& im, int x, int y) {
     float* d = im.at(x, y);
-    for (int k = 0; k < 4; ++k) frame.nonFiniteColour += !std::isfinite(s[k]);
+    for (int k = 0; k < 4; ++k) {
+      frame.nonFiniteColour += !std::isfinite(s[k]);
+      frame.clampedColour += std::isfinite(s[k]) && std::fabs(s[k]) > kMaxColor;
+    }
     for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(decode ? srgbDecode(s[k]) : s[k]);
     d[3] = sanitizeColor(s[3]);
   };

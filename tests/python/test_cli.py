@@ -634,6 +634,20 @@ def test_non_finite_colour_is_reported_per_file(chart, tmp_path):
     assert "non-finite" not in run("info", chart / "chart_1spp.exr").stdout
 
 
+def test_colour_beyond_half_float_range_is_reported_per_file(chart, tmp_path):
+    """The library clamps finite colour to +-65504 (the GLSL preview's half floats): filter warns, per
+    file, and info says it, as for non-finite values; a file within range gets no word of it."""
+    bright = tmp_path / "bright.exr"
+    subprocess.run(["oiiotool", "--pattern", "constant:color=1e5,0.5,-2e5", "97x61", "3", "-d", "float",
+                    "-o", str(bright)], check=True, capture_output=True)
+    p = run("filter", "--method", "fxaa", chart / "chart_1spp.exr", bright, "-o", tmp_path / "out")
+    warnings = [line for line in p.stderr.splitlines() if "65504" in line]
+    assert len(warnings) == 1 and "bright.exr" in warnings[0], p.stderr
+    assert " %d colour values beyond +-65504" % (97 * 61 * 2) in warnings[0], warnings[0]
+    assert "colour values beyond +-65504: %d" % (97 * 61 * 2) in run("info", bright).stdout
+    assert "65504" not in run("info", chart / "chart_1spp.exr").stdout
+
+
 def test_a_one_channel_mask_is_read_whatever_its_name(chart, tmp_path):
     """compare --mask takes the mask's first channel: a one-channel file's whatever its name, the
     same pixels as the RGB edge mask's R."""
