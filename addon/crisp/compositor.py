@@ -63,15 +63,15 @@ def load_sequence(first_path, name):
     return image
 
 
-def _folder_shown(group):
-    """The folder of the frames a result group's image node shows. Its tag (FOLDER_TAG, absolute) is the
-    folder it was made for; the image's path is relative to the .blend where load_sequence made it so, and
-    Blender rebases it on Save As, so after a moved project or Save As elsewhere the group is still found
-    by its frames, and its tag brought up to date."""
+def _folder_of(group):
+    """The folder of the frames a result group shows: that of its image node's image, whose path is
+    relative to the .blend where load_sequence made it so and which Blender rebases on Save As, so a
+    moved or saved-elsewhere project still finds its group; the tag (FOLDER_TAG, absolute, the folder
+    the group was made for) where the group has no image."""
     node = group.nodes.get("Crisp Frames")
     image = node.image if node is not None and node.bl_idname == "CompositorNodeImage" else None
     if image is None or not image.filepath:
-        return None
+        return group.get(FOLDER_TAG)
     return _path_key(os.path.dirname(bpy.path.abspath(image.filepath, library=image.library)))
 
 
@@ -79,8 +79,9 @@ def result_group(scene, folder, image, frame_start, frame_end):
     """Creates or updates the group of a folder of filtered frames: Image node (the sequence) -> Group
     Output (Image, Alpha). Every node showing the group, the user's too, follows the update."""
     key = _path_key(folder)
+    # Crisp's own groups only (tagged): a user's group holding a copy of the image node is theirs.
     group = next((g for g in bpy.data.node_groups if g.bl_idname == "CompositorNodeTree" and g.library is None
-                  and key in (g.get(FOLDER_TAG), _folder_shown(g))), None)
+                  and FOLDER_TAG in g and _folder_of(g) == key), None)
     if group is None:
         group = bpy.data.node_groups.new(group_name(scene), "CompositorNodeTree")
     group[FOLDER_TAG] = key
@@ -133,9 +134,11 @@ _PASS_THROUGH = {"CompositorNodeRLayers", "CompositorNodeComposite", "Compositor
 def _changes(node):
     if node.bl_idname in _PASS_THROUGH or node.mute or node.get(NODE_TAG):
         return False
-    # A node of a Crisp result group, the user's own too (add_to_compositor leaves that untagged).
-    return not (node.bl_idname == "CompositorNodeGroup" and node.node_tree is not None
-                and FOLDER_TAG in node.node_tree)
+    # A node of a Crisp result group, the user's own too (add_to_compositor leaves that untagged), unless
+    # the group holds more than result_group puts there (a copy the user edited, which keeps the tag).
+    tree = node.node_tree if node.bl_idname == "CompositorNodeGroup" else None
+    return not (tree is not None and FOLDER_TAG in tree
+                and {n.bl_idname for n in tree.nodes} <= {"CompositorNodeImage", "NodeGroupOutput"})
 
 
 def changes_the_image(scene):
@@ -150,7 +153,7 @@ def changes_the_image(scene):
         return any(_changes(n) for n in tree.nodes)
     upstream = {}
     for link in tree.links:
-        if getattr(link, "is_muted", False):
+        if getattr(link, "is_muted", False) or not link.is_valid:
             continue
         upstream.setdefault(link.to_node.name, []).append(link.from_node)
     seen = {n.name for n in feeding}

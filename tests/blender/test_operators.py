@@ -305,6 +305,34 @@ class OperatorTest(unittest.TestCase):
         self.assertEqual(len(groups), 1, [(g.name, g.get(compositor.FOLDER_TAG)) for g in groups])
         self.assertEqual(groups[0].get(compositor.FOLDER_TAG), os.path.join(moved, "crisp", "Scene", "filtered"))
 
+    def test_a_users_group_showing_the_frames_is_not_taken_over(self):
+        """A group of the user's own that holds a copy of Crisp's image node (ungrouped and grouped
+        again with their nodes) shows the same frames, but is theirs: Load into Compositor makes or
+        keeps Crisp's own group and leaves the user's as it was (it was found by its frames, tagged,
+        and rewired, image straight to output, cutting the user's chain)."""
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = self.small_scene(1, 1, load_result=True)
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        crisp_group, = self.result_groups()
+        image = crisp_group.nodes["Crisp Frames"].image
+        for node in [n for n in scene.node_tree.nodes if n.get(compositor.NODE_TAG)]:
+            scene.node_tree.nodes.remove(node)
+        bpy.data.node_groups.remove(crisp_group)
+        theirs = bpy.data.node_groups.new("A grade", "CompositorNodeTree")  # sorts before "Crisp Result"
+        theirs.outputs.new("NodeSocketColor", "Image")
+        frames = theirs.nodes.new("CompositorNodeImage")
+        frames.name, frames.image = "Crisp Frames", image
+        glare, out = theirs.nodes.new("CompositorNodeGlare"), theirs.nodes.new("NodeGroupOutput")
+        theirs.links.new(frames.outputs["Image"], glare.inputs["Image"])
+        theirs.links.new(glare.outputs["Image"], out.inputs["Image"])
+        with bpy.context.temp_override(scene=scene):
+            self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        node = next(n for n in scene.node_tree.nodes if n.get(compositor.NODE_TAG))
+        self.assertNotEqual(node.node_tree, theirs)
+        self.assertNotIn(compositor.FOLDER_TAG, theirs)
+        self.assertEqual(sorted((l.from_node.name, l.to_node.name) for l in theirs.links),
+                         [("Crisp Frames", glare.name), (glare.name, out.name)])
+
     def test_linked_images_and_groups_are_not_taken_over(self):
         """A result group and image linked from another project's .blend, with the same relative paths
         as this project's, are that project's frames: Render with Crisp loads this project's into groups
