@@ -710,13 +710,13 @@ class AddonTest(unittest.TestCase):
         """A frame rendered with more samples (--samples 4) still gets its eight geometry renders at one
         sample: their depth and normal are the first sample's at any count, so more only cost time
         (16 samples made them 4.5x slower). EEVEE's effects that shade Combined alone (AO, SSR, bloom,
-        soft shadows) are off in them too. The frame itself keeps its samples and effects, the scene its
-        settings."""
+        soft shadows) are off in them too. The frames themselves, the second after the first's geometry
+        renders too, keep their samples and effects; the scene its settings."""
         scene = harness.build_scene("still_life")
         scene.render.resolution_x, scene.render.resolution_y = 16, 8
         scene.eevee.use_gtao = scene.eevee.use_ssr = scene.eevee.use_bloom = True
         effects = ("use_gtao", "use_ssr", "use_bloom", "use_soft_shadows")
-        facts = plan.SceneFacts(1, 1, visible_objects=["Box", "Ball"])
+        facts = plan.SceneFacts(1, 2, visible_objects=["Box", "Ball"])
         seen = []
 
         def record(s, *args):
@@ -729,14 +729,16 @@ class AddonTest(unittest.TestCase):
             before = (scene.eevee.taa_render_samples, scene.cycles.samples, [getattr(scene.eevee, e) for e in effects])
             self.assertEqual(before[2], [True] * 4)
             with tempfile.TemporaryDirectory() as d:
-                render.render_frames(scene, plan.make_plan("rsaa", facts), [1], d, samples=4, engine=engine)
-            self.assertEqual(len(seen), 1 + len(render.RSAA_PATTERN), seen)
-            main = seen[0][1] if engine is None else seen[0][2]
-            self.assertEqual(main, 4, seen)
-            self.assertNotIn("_sub", seen[0][0])
-            self.assertEqual(seen[0][3], [True] * 4, seen)
-            for name, eevee, cycles, on in seen[1:]:
-                self.assertIn("frame_0001_sub", name)
+                render.render_frames(scene, plan.make_plan("rsaa", facts), [1, 2], d, samples=4, engine=engine)
+            per_frame = 1 + len(render.RSAA_PATTERN)
+            self.assertEqual(len(seen), 2 * per_frame, seen)
+            for first in (0, per_frame):  # each frame's own render, then its geometry renders
+                main = seen[first][1] if engine is None else seen[first][2]
+                self.assertEqual(main, 4, seen)
+                self.assertNotIn("_sub", seen[first][0])
+                self.assertEqual(seen[first][3], [True] * 4, seen)
+            for name, eevee, cycles, on in seen[1:per_frame] + seen[per_frame + 1:]:
+                self.assertIn("_sub", name)
                 self.assertEqual(eevee if engine is None else cycles, 1, seen)
                 if engine is None:
                     self.assertEqual(on, [False] * 4, seen)
@@ -982,6 +984,16 @@ class AddonTest(unittest.TestCase):
             pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
             self.assertFalse(any("compositor is not applied" in line for line in logged), logged)
             glare.mute = False  # a node that changes the image
+            pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
+            self.assertTrue(any("compositor is not applied" in line for line in logged), logged)
+            # So does the user's copy of Crisp's group (which keeps its tag) with a node added inside.
+            logged.clear()
+            mine.node_tree = mine.node_tree.copy()
+            inner = mine.node_tree.nodes
+            inner_glare = inner.new("CompositorNodeGlare")
+            mine.node_tree.links.new(inner["Crisp Frames"].outputs["Image"], inner_glare.inputs["Image"])
+            mine.node_tree.links.new(inner_glare.outputs["Image"], inner["Group Output"].inputs["Image"])
+            tree.links.new(mine.outputs["Image"], composite.inputs["Image"])
             pipeline.run(scene, "fxaa", [1], d, filter_frames=False, log=logged.append)
         self.assertTrue(any("compositor is not applied" in line for line in logged), logged)
         scene.render.film_transparent = True
