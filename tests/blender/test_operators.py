@@ -153,6 +153,14 @@ class OperatorTest(unittest.TestCase):
         scene.crisp.load_result = load_result
         return scene
 
+    def result_groups(self):
+        return [g for g in bpy.data.node_groups if g.name.startswith(compositor.GROUP_NAME)]
+
+    @staticmethod
+    def save_as(path):
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        bpy.ops.wm.save_as_mainfile(filepath=path)
+
     def test_render_loads_every_frame_of_the_range(self):
         """Render with Crisp over frames 2..4 loads a sequence of all three into the compositor (the
         Image node starts at frame 2 and lasts 3 frames), not the first frame alone."""
@@ -216,7 +224,6 @@ class OperatorTest(unittest.TestCase):
         Image makes it, and Load into Compositor there updates the same group, not a second one. (The
         path was absolute: after a move the node showed no image.)"""
         project = os.path.join(self.tmp.name, "project")
-        os.makedirs(project)
         scene = self.small_scene(1, 2, load_result=True)
         scene.crisp.property_unset("output_dir")  # the default, //crisp/<scene>/
         name = scene.name
@@ -235,8 +242,7 @@ class OperatorTest(unittest.TestCase):
         self.assertEqual(tuple(image.size), (64, 36))
         with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0]):
             self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
-        groups = [g for g in bpy.data.node_groups if g.name.startswith(compositor.GROUP_NAME)]
-        self.assertEqual(groups, [node.node_tree])
+        self.assertEqual(self.result_groups(), [node.node_tree])
 
     def test_preview_of_the_first_frame_is_that_frame(self):
         """Preview Frame without PNGs at the range's first frame shows that frame's EXR as a still image,
@@ -261,14 +267,6 @@ class OperatorTest(unittest.TestCase):
         self.assertEqual(shown.source, "FILE")
         self.assertEqual(node.node_tree.nodes["Crisp Frames"].image, sequence)
         self.assertEqual(compositor.preview(first), shown)
-
-    def result_groups(self):
-        return [g for g in bpy.data.node_groups if g.name.startswith(compositor.GROUP_NAME)]
-
-    @staticmethod
-    def save_as(path):
-        os.makedirs(os.path.dirname(path), exist_ok=True)
-        bpy.ops.wm.save_as_mainfile(filepath=path)
 
     def test_the_result_group_survives_save_as_and_a_first_save(self):
         """Load into Compositor finds the group it made (one group, which every node showing it follows)
