@@ -64,18 +64,98 @@ class CRISP_OT_plan(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class CRISP_OT_render(bpy.types.Operator):
+class _FrameByFrame:
+    """An operator that renders the frame range through a generator, steps(context), which yields after each
+    frame and returns the operator's result. Run from a script (EXEC_DEFAULT, also in background mode) it
+    runs to the end in execute. Clicked (INVOKE_DEFAULT) it runs a frame per timer tick: Blender draws
+    between frames (the progress, the frames written), takes no other input, and Esc stops the run after
+    the frame being rendered, as Blender's own animation render does. The steps record a stop the same way
+    either way (run.json "cancelled at frame N")."""
+
+    ERRORS = (pipeline.InputError, render.RenderError, native.CrispError, output_folder.UnsavedFile, OSError)
+    running = None  # the run going on in this Blender (one at a time: they would share the scene's settings)
+
+    def execute(self, context):
+        if _FrameByFrame.running is not None:
+            return _fail(self, "a Crisp render is running already; press Esc to stop it")
+        self.stop_asked = False
+        _FrameByFrame.running = self
+        try:
+            return render.drain(self.steps(context))
+        except self.ERRORS as e:
+            return _fail(self, e)
+        finally:
+            _FrameByFrame.running = None
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        if _FrameByFrame.running is not None:
+            return _fail(self, "a Crisp render is running already; press Esc to stop it")
+        self.stop_asked = False
+        self._steps = self.steps(context)
+        self._status(context, "Crisp: rendering %s; Esc stops after this frame" % self.bl_label)
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.01, window=context.window)
+        wm.modal_handler_add(self)
+        _FrameByFrame.running = self
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC" and event.value == "PRESS" and not self.stop_asked:
+            self.stop_asked = True
+            self._status(context, "Crisp: stopping after this frame")
+        if event.type != "TIMER":
+            return {"RUNNING_MODAL"}  # no edits between frames: the scene holds the run's render settings
+        try:
+            next(self._steps)
+        except StopIteration as done:
+            self._end(context)
+            return done.value
+        except self.ERRORS as e:
+            self._end(context)
+            return _fail(self, e)
+        except BaseException:
+            self._end(context)
+            raise
+        return {"RUNNING_MODAL"}
+
+    def cancel(self, context):
+        """Blender ends the operator (a file loaded, the window closed): the steps put the scene back and
+        record the stop."""
+        self._end(context)
+        try:
+            self._steps.close()
+        except self.ERRORS as e:
+            print("Crisp: %s" % e)
+
+    def _end(self, context):
+        context.window_manager.event_timer_remove(self._timer)
+        self._status(context, None)
+        _FrameByFrame.running = None
+
+    @staticmethod
+    def _status(context, text):
+        if context.workspace is not None:
+            context.workspace.status_text_set(text)
+
+
+def _stopped_note(result):
+    """' (stopped before frame N)' for a run stopped by Esc (run.json "cancelled at frame N"), else ''."""
+    status = result.get("status", "")
+    return " (stopped before %s)" % status[len("cancelled at "):] if status.startswith("cancelled at ") else ""
+
+
+class CRISP_OT_render(_FrameByFrame, bpy.types.Operator):
     bl_idname = "crisp.render"
     bl_label = "Render with Crisp"
     bl_options = UNDOABLE
-    bl_description = "Render the frame range at 1 sample with the planned passes and filter each frame"
+    bl_description = ("Render the frame range at 1 sample with the planned passes and filter each frame "
+                      "(Esc stops after the frame being rendered)")
 
-    def execute(self, context):
+    def steps(self, context):
         scene, s = context.scene, context.scene.crisp
-        try:
-            out = output_folder.out_dir(scene, writing=True)
-        except output_folder.UnsavedFile as e:
-            return _fail(self, e)
+        out = output_folder.out_dir(scene, writing=True)
         wm = context.window_manager
         frames = list(_frames(scene))
         wm.progress_begin(0, len(frames))
@@ -89,44 +169,49 @@ class CRISP_OT_render(bpy.types.Operator):
             elif text.startswith("note: "):  # what the run leaves out or changes: for the artist, not the console only
                 notes.append(text[len("note: "):])
         try:
-            result = pipeline.run(scene, s.method, frames, out, params=props.changed_params(s, s.method),
-                                  threads=preferences.threads(context), jitter_distribution=s.jitter_distribution,
-                                  write_png=s.write_png, log=log, view_layer=context.view_layer)
+            result = yield from pipeline.iter_run(
+                scene, s.method, frames, out, params=props.changed_params(s, s.method),
+                threads=preferences.threads(context), jitter_distribution=s.jitter_distribution,
+                write_png=s.write_png, log=log, view_layer=context.view_layer, should_cancel=lambda: self.stop_asked)
             s.plan_text = "\n".join(
                 ["plan for %s:" % s.method] + ["  + %s: %s" % (p, result["plan"]["reasons"][p])
                                                for p in result["plan"]["passes"]])
-            if s.load_result:
-                compositor.load_result(scene, os.path.join(out, "filtered"), frames[0], frames[-1])
-        except (pipeline.InputError, render.RenderError, native.CrispError, OSError) as e:
+            made = [e["frame"] for e in result["frames"]]
+            if s.load_result and made:
+                compositor.load_result(scene, os.path.join(out, "filtered"), frames[0], made[-1])
+        except self.ERRORS:
             _report_notes(self, notes)  # what the run said before it failed still holds
-            return _fail(self, e)
+            raise
         finally:
             wm.progress_end()
         how = "copied unfiltered (method none)" if s.method == "none" else "filtered with %s" % s.method
         n = _report_notes(self, notes)
-        _done(self, scene, "Crisp: %d frames %s into %s%s" % (len(result["frames"]), how, out, "; %d note%s in the "
-              "Info editor" % (n, "s" * (n > 1)) if n else ""))
+        count = len(result["frames"])
+        _done(self, scene, "Crisp: %d frame%s %s into %s%s%s" % (
+            count, "s" * (count != 1), how, out, _stopped_note(result),
+            "; %d note%s in the Info editor" % (n, "s" * (n > 1)) if n else ""))
         return {"FINISHED"}
 
 
-class CRISP_OT_render_reference(bpy.types.Operator):
+class CRISP_OT_render_reference(_FrameByFrame, bpy.types.Operator):
     bl_idname = "crisp.render_reference"
     bl_label = "Render Reference"
     bl_options = UNDOABLE
-    bl_description = "Render the frame range with the reference sample count (no jitter, colour only)"
+    bl_description = ("Render the frame range with the reference sample count (no jitter, colour only; "
+                      "Esc stops after the frame being rendered)")
 
-    def execute(self, context):
+    def steps(self, context):
         scene, s = context.scene, context.scene.crisp
-        try:
-            out = os.path.join(output_folder.out_dir(scene, writing=True), "reference")
-            pipeline.check_output_dir(out)
-            infos = render.render_reference(scene, _frames(scene), out, s.reference_samples,
-                                            view_layer=context.view_layer)
-        except (pipeline.InputError, render.RenderError, output_folder.UnsavedFile, OSError) as e:
-            return _fail(self, e)
+        out = os.path.join(output_folder.out_dir(scene, writing=True), "reference")
+        pipeline.check_output_dir(out)
+        frames = list(_frames(scene))
+        infos = yield from render.iter_render_reference(scene, frames, out, s.reference_samples,
+                                                        view_layer=context.view_layer,
+                                                        should_cancel=lambda: self.stop_asked)
         mean = sum(i["render_s"] for i in infos) / max(len(infos), 1)
-        _done(self, scene, "Crisp: %d reference frames at %d samples (%.2f s/frame)"
-              % (len(infos), s.reference_samples, mean))
+        stopped = " (stopped at frame %d)" % frames[len(infos)] if len(infos) < len(frames) else ""
+        _done(self, scene, "Crisp: %d reference frame%s at %d samples (%.2f s/frame)%s"
+              % (len(infos), "s" * (len(infos) != 1), s.reference_samples, mean, stopped))
         return {"FINISHED"}
 
 

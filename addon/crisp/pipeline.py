@@ -270,11 +270,18 @@ def chunk_run(frames, shot_first, preroll, is_complete=None):
     return list(range(max(shot_first, first - max(preroll, 0)), first)) if todo else [], todo
 
 
-def run(scene, method, frames, out_dir, params=None, samples=1, reference_samples=0, plan_only=False,
-        filter_frames=True, threads=0, jitter_distribution="blackman-harris", write_png=True, log=print,
-        view_layer=None, should_cancel=None, engine_name="eevee", preroll=0, shot=None, resume=False,
-        scene_key=None):
-    """Returns the run.json dictionary (also written to out_dir/run.json). engine_name: 'eevee', or
+def run(*args, **kwargs):
+    """iter_run to its end: the run.json dictionary."""
+    return render.drain(iter_run(*args, **kwargs))
+
+
+def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_samples=0, plan_only=False,
+             filter_frames=True, threads=0, jitter_distribution="blackman-harris", write_png=True, log=print,
+             view_layer=None, should_cancel=None, engine_name="eevee", preroll=0, shot=None, resume=False,
+             scene_key=None):
+    """A generator: yields after each frame rendered (render.iter_render_frames' info, also of pre-roll
+    and reference frames) and returns the run.json dictionary (also written to out_dir/run.json); closed
+    between frames, it records the run as cancelled at the next frame. engine_name: 'eevee', or
     'cycles' to render the same frames with Cycles (cheap settings, its own Vector pass) for checks.
     A chunk of a shot: shot (a range holding frames; the plan is made over it), preroll (frames before
     the chunk filtered but not written), resume (start at the first frame with a missing output); the
@@ -500,6 +507,15 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
         _write_json(run_json, written)
         return written
 
+    def ended():
+        """How a run that raised nothing ended: complete, or cancelled at the first frame it did not make."""
+        made = {e["frame"] for e in result["frames"]}
+        made_refs = {e["frame"] for e in result.get("reference", {}).get("frames", [])} if reference_samples else made
+        stopped = [f for f in todo if f not in made]
+        stopped_refs = [f for f in todo if f not in made_refs]
+        return ("cancelled at frame %d" % stopped[0] if stopped else
+                "cancelled at reference frame %d" % stopped_refs[0] if stopped_refs else "complete")
+
     # Temporary files of a run on this host that was killed mid-write (kill -9, a crash).
     for folder in (out_dir, input_dir, filtered_dir, _png_records_dir(filtered_dir), reference_dir):
         stale = render.remove_stale_temporaries(folder)
@@ -523,15 +539,15 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                     continue
                 # Named by this process, so a later run can tell it was left by a killed one.
                 preroll_dir = preroll_dir or tempfile.mkdtemp(prefix=_preroll_prefix(os.getpid()))
-                render.render_frames(scene, the_plan, group, preroll_dir, samples=samples,
-                                     jitter_distribution=jitter_distribution, view_layer=view_layer,
-                                     on_frame=on_preroll, should_cancel=should_cancel,
-                                     engine=engine if engine == "CYCLES" else None, made_with=stamp)
+                yield from render.iter_render_frames(scene, the_plan, group, preroll_dir, samples=samples,
+                                                     jitter_distribution=jitter_distribution, view_layer=view_layer,
+                                                     on_frame=on_preroll, should_cancel=should_cancel,
+                                                     engine=engine if engine == "CYCLES" else None, made_with=stamp)
             if todo:
-                render.render_frames(scene, the_plan, todo, input_dir, samples=samples,
-                                     jitter_distribution=jitter_distribution, view_layer=view_layer,
-                                     on_frame=on_frame, should_cancel=should_cancel,
-                                     engine=engine if engine == "CYCLES" else None, made_with=stamp)
+                yield from render.iter_render_frames(scene, the_plan, todo, input_dir, samples=samples,
+                                                     jitter_distribution=jitter_distribution, view_layer=view_layer,
+                                                     on_frame=on_frame, should_cancel=should_cancel,
+                                                     engine=engine if engine == "CYCLES" else None, made_with=stamp)
         finally:
             if frame_filter is not None:
                 frame_filter.close()
@@ -539,23 +555,27 @@ def run(scene, method, frames, out_dir, params=None, samples=1, reference_sample
                 shutil.rmtree(preroll_dir, ignore_errors=True)
         result["total_s"] = round(time.perf_counter() - t0, 3)
         if reference_samples and todo:
-            ref = render.render_reference(scene, todo, reference_dir, reference_samples,
-                                          view_layer=view_layer, should_cancel=should_cancel)
-            result["reference"] = {"samples": reference_samples,
-                                   "frames": [{"frame": r["frame"], "render_s": round(r["render_s"], 4)}
-                                              for r in ref]}
+            result["reference"] = {"samples": reference_samples, "frames": []}
+
+            def on_reference(f, info):
+                result["reference"]["frames"].append({"frame": f, "render_s": round(info["render_s"], 4)})
+
+            yield from render.iter_render_reference(scene, todo, reference_dir, reference_samples,
+                                                    view_layer=view_layer, on_frame=on_reference,
+                                                    should_cancel=should_cancel)
+    except GeneratorExit:  # closed between frames (an operator Blender ended): as a stop by should_cancel
+        try:
+            record(ended())
+        except OSError:
+            pass
+        raise
     except BaseException as e:  # also KeyboardInterrupt: the record says the run did not finish
         try:
             record("failed: %s" % (str(e) or type(e).__name__))
         except OSError:
             pass  # the folder itself failing: the error that stopped the run is the one to report
         raise
-    made = {e["frame"] for e in result["frames"]}
-    made_refs = {e["frame"] for e in result.get("reference", {}).get("frames", [])} if reference_samples else made
-    stopped = [f for f in todo if f not in made]
-    stopped_refs = [f for f in todo if f not in made_refs]
-    return record("cancelled at frame %d" % stopped[0] if stopped else
-                  "cancelled at reference frame %d" % stopped_refs[0] if stopped_refs else "complete")
+    return record(ended())
 
 
 def sequence_warnings(out_dir, frames):

@@ -535,15 +535,31 @@ def default_view_layer(scene, view_layer=None):
     return next((layer for layer in scene.view_layers if layer.use), scene.view_layers[0])
 
 
-def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distribution="blackman-harris",
-                  view_layer=None, on_frame=None, should_cancel=None, engine=None, made_with=None):
+def drain(steps):
+    """Runs a generator of steps (iter_render_frames, pipeline.iter_run, ...) to its end and returns its value:
+    the blocking call that scripts and batch runs make. The operators step them a frame per timer tick."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value
+
+
+def render_frames(*args, **kwargs):
+    """iter_render_frames to its end: the list of infos."""
+    return drain(iter_render_frames(*args, **kwargs))
+
+
+def iter_render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distribution="blackman-harris",
+                       view_layer=None, on_frame=None, should_cancel=None, engine=None, made_with=None):
     """Renders `frames` of `scene` into out_dir/frame_NNNN.exr + .json with the plan's passes; the
     sidecar records made_with (what the frame's outputs are made with, pipeline.made_with) when given.
+    A generator: yields each frame's info once it is made, and returns the list of infos.
 
     on_frame(frame, info) is called after each frame (info: dict with render_s, paths, and rsaa's
     geometry_render_s); it may raise to stop. should_cancel() -> True stops after the current frame.
-    Returns the list of infos. The scene is restored on return, error or cancel. engine: None (EEVEE) or
-    'CYCLES' (see CYCLES_SETTINGS)."""
+    The scene is restored on return, error, cancel or close() (the render settings stay in place while
+    the generator waits between frames). engine: None (EEVEE) or 'CYCLES' (see CYCLES_SETTINGS)."""
     frames, view_layer = _checked_inputs(scene, frames, view_layer)
     engine = engine or eevee_engine(scene)
     os.makedirs(out_dir, exist_ok=True)
@@ -632,6 +648,7 @@ def render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distributi
             infos.append(info)
             if on_frame:
                 on_frame(f, info)
+            yield info
     return infos
 
 
@@ -690,10 +707,16 @@ def _render_subsamples(snap, scene, view_layer, frame, out_dir, base_shift, unit
     return out
 
 
-def render_reference(scene, frames, out_dir, samples, view_layer=None, on_frame=None, should_cancel=None):
+def render_reference(*args, **kwargs):
+    """iter_render_reference to its end: [{frame, render_s, exr}]."""
+    return drain(iter_render_reference(*args, **kwargs))
+
+
+def iter_render_reference(scene, frames, out_dir, samples, view_layer=None, on_frame=None, should_cancel=None):
     """The same frames with `samples` EEVEE samples, no jitter, colour only, into out_dir/frame_NNNN.exr
-    (plain RGBA float EXR). Returns [{frame, render_s, exr}]. Hook for the sample curve (issue 3 item 5):
-    call this once per sample count and keep each render_s."""
+    (plain RGBA float EXR). A generator like iter_render_frames: yields each frame's info, returns
+    [{frame, render_s, exr}]. Hook for the sample curve (issue 3 item 5): call this once per sample
+    count and keep each render_s."""
     frames, view_layer = _checked_inputs(scene, frames, view_layer)
     engine = eevee_engine(scene)
     os.makedirs(out_dir, exist_ok=True)
@@ -710,6 +733,7 @@ def render_reference(scene, frames, out_dir, samples, view_layer=None, on_frame=
             infos.append(info)
             if on_frame:
                 on_frame(f, info)
+            yield info
     return infos
 
 

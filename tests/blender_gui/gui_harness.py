@@ -41,3 +41,44 @@ def run(*cases, delay=0.5, ready=None, wait_s=60.0):
         os._exit(code)
 
     bpy.app.timers.register(start, first_interval=delay)
+
+
+def run_scenarios(*scenarios, delay=0.5, timeout_s=300.0):
+    """For what needs Blender's event loop between its steps (a modal operator): each scenario is a
+    generator function that yields the seconds to wait before its next step, and raises (an assert)
+    to fail. They run one after another from a timer once the window is up; exits 1 if any failed or
+    ran past timeout_s."""
+    import time
+
+    import bpy
+    queue, failed = list(scenarios), []
+    current = {}
+
+    def finish():
+        print("%d passed, %d failed%s" % (len(scenarios) - len(failed), len(failed),
+                                          ": " + ", ".join(failed) if failed else ""))
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(1 if failed else 0)
+
+    def tick():
+        if not current:
+            if not queue:
+                finish()
+            scenario = queue.pop(0)
+            current.update(name=scenario.__name__, steps=scenario(), deadline=time.monotonic() + timeout_s,
+                           t0=time.monotonic())
+            print("%s ..." % current["name"])
+        try:
+            if time.monotonic() > current["deadline"]:
+                raise TimeoutError("%s ran past %.0f s" % (current["name"], timeout_s))
+            return next(current["steps"])
+        except StopIteration:
+            print("%s ok (%.1f s)" % (current["name"], time.monotonic() - current["t0"]))
+        except Exception:
+            traceback.print_exc()
+            failed.append(current["name"])
+        current.clear()
+        return 0.01
+
+    bpy.app.timers.register(tick, first_interval=delay, persistent=True)  # a scenario may load a file

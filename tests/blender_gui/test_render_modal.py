@@ -1,0 +1,218 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+# xvfb-screen: 640x400x24
+# blender-args: --enable-event-simulate
+"""Render with Crisp and Render Reference clicked in Blender's window (INVOKE_DEFAULT) render a frame per
+timer tick: Blender keeps drawing between frames, Esc stops the run after the frame being rendered, and
+the scene gets its settings back however the run ends. They used to block the window until the last
+frame, with no way to stop short of killing Blender.
+
+The Esc is simulated (Window.event_simulate, which needs --enable-event-simulate: Blender then ignores
+real input, as a test wants)."""
+
+import ctypes
+import json
+import os
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import gui_harness  # noqa: E402
+
+import bpy  # noqa: E402
+
+import crisp  # noqa: E402
+from crisp import operators  # noqa: E402
+
+bpy.context.preferences.view.show_splash = False
+os.environ.setdefault("CRISP_LIBRARY", gui_harness.LIBRARY)
+crisp.register()
+TMP = tempfile.mkdtemp(prefix="crisp_modal_")
+
+
+def settings(scene):
+    """What a run changes while it renders and must put back."""
+    return (scene.eevee.taa_render_samples, scene.render.filepath, scene.render.image_settings.file_format,
+            bpy.context.view_layer.use_pass_z, scene.camera.data.shift_x, scene.frame_current)
+
+
+def small_scene(name, first, last, method="fxaa"):
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 32, 18, 100
+    scene.frame_start, scene.frame_end = first, last
+    scene.frame_current = first
+    scene.crisp.method = method
+    scene.crisp.output_dir = os.path.join(TMP, name)
+    scene.crisp.load_result = False
+    scene.crisp.write_png = False
+    return scene
+
+
+def record(scene):
+    path = os.path.join(scene.crisp.output_dir, "run.json")
+    if not os.path.isfile(path):
+        return {}
+    with open(path) as f:
+        try:
+            return json.load(f)
+        except ValueError:  # being replaced: read it on the next tick
+            return {}
+
+
+def invoke(operator):
+    window = bpy.context.window_manager.windows[0]
+    with bpy.context.temp_override(window=window):
+        return operator("INVOKE_DEFAULT")
+
+
+class Console:
+    """What Blender prints (the operators' reports are printed as they are made, "Info: ...", "Error: ..."),
+    captured at file descriptor 1 from start() until text(); Blender's C stdio and Python's both write there."""
+
+    def __init__(self):
+        self.libc = ctypes.CDLL(None)
+        self.file = tempfile.TemporaryFile(mode="w+b")
+        self.saved = None
+
+    def _flush(self):
+        sys.stdout.flush()
+        self.libc.fflush(None)
+
+    def start(self):
+        self._flush()
+        self.file.seek(0)
+        self.file.truncate()
+        self.saved = os.dup(1)
+        os.dup2(self.file.fileno(), 1)
+
+    def text(self):
+        """What was printed since start(), also echoed to the real output."""
+        self._flush()
+        os.dup2(self.saved, 1)
+        os.close(self.saved)
+        self.file.seek(0)
+        printed = self.file.read().decode(errors="replace")
+        sys.stdout.write(printed)
+        return printed
+
+
+CONSOLE = Console()
+
+
+def filtered(scene):
+    folder = os.path.join(scene.crisp.output_dir, "filtered")
+    return sorted(f for f in os.listdir(folder) if f.endswith(".exr")) if os.path.isdir(folder) else []
+
+
+def wait_for_the_run_to_end():
+    while operators._FrameByFrame.running is not None:
+        yield 0.05
+
+
+def clicked_render_draws_between_frames():
+    """The click returns at once; Blender's timers (and so its drawing) run while frames are made; the run
+    ends complete, with every frame filtered and the scene's settings as they were."""
+    assert operators._FrameByFrame.running is None
+    scene = small_scene("clicked", 1, 4, method="taa")
+    before = settings(scene)
+    CONSOLE.start()
+    assert invoke(bpy.ops.crisp.render) == {"RUNNING_MODAL"}
+    ticks_mid_run = 0
+    while operators._FrameByFrame.running is not None:
+        made = len(record(scene).get("frames", []))
+        ticks_mid_run += 1 <= made < 4
+        yield 0.05
+    printed = CONSOLE.text()
+    run = record(scene)
+    assert run["status"] == "complete", run.get("status")
+    assert [e["frame"] for e in run["frames"]] == [1, 2, 3, 4], run["frames"]
+    assert filtered(scene) == ["frame_0001.exr", "frame_0002.exr", "frame_0003.exr", "frame_0004.exr"]
+    assert ticks_mid_run >= 2, "Blender ran no timer between frames (%d ticks)" % ticks_mid_run
+    assert settings(scene) == before, (settings(scene), before)
+    assert "Info: Crisp: 4 frames filtered with taa into %s\n" % scene.crisp.output_dir in printed
+
+
+def esc_stops_after_the_frame_being_rendered():
+    """Esc pressed after the first frame: the run stops after the frame being rendered, says so in run.json
+    and in its report, writes no later frame, and leaves the scene as it was."""
+    assert operators._FrameByFrame.running is None
+    scene = small_scene("esc", 1, 8)
+    before = settings(scene)
+    CONSOLE.start()
+    assert invoke(bpy.ops.crisp.render) == {"RUNNING_MODAL"}
+    while len(record(scene).get("frames", [])) < 1:
+        yield 0.02
+    bpy.context.window_manager.windows[0].event_simulate(type="ESC", value="PRESS")
+    yield from wait_for_the_run_to_end()
+    printed = CONSOLE.text()
+    run = record(scene)
+    made = [e["frame"] for e in run["frames"]]
+    assert 1 <= len(made) <= 3 and run["status"] == "cancelled at frame %d" % (made[-1] + 1), run
+    assert filtered(scene) == ["frame_%04d.exr" % f for f in made], filtered(scene)
+    assert settings(scene) == before, (settings(scene), before)
+    assert "filtered with fxaa into %s (stopped before frame %d)" % (scene.crisp.output_dir, made[-1] + 1) in printed
+
+
+def a_second_run_is_refused_while_one_runs():
+    """The window takes no clicks during a run, but a script (or another window) could start a second run on
+    the same scene's settings: it is refused, and the first one goes on to the end."""
+    assert operators._FrameByFrame.running is None
+    scene = small_scene("twice", 1, 3)
+    assert invoke(bpy.ops.crisp.render) == {"RUNNING_MODAL"}
+    yield 0.05
+    for second in (lambda: invoke(bpy.ops.crisp.render_reference), bpy.ops.crisp.render):
+        try:
+            second()
+        except RuntimeError as e:  # an operator's error report, raised to the script that called it
+            assert "a Crisp render is running already; press Esc to stop it" in str(e), e
+        else:
+            raise AssertionError("a second run started")
+    yield from wait_for_the_run_to_end()
+    assert record(scene)["status"] == "complete"
+
+
+def reference_render_stops_on_esc():
+    """Render Reference, clicked, also runs a frame per tick and stops on Esc, with the scene put back."""
+    assert operators._FrameByFrame.running is None
+    scene = small_scene("reference", 1, 8)
+    scene.crisp.reference_samples = 2
+    before = settings(scene)
+    folder = os.path.join(scene.crisp.output_dir, "reference")
+    CONSOLE.start()
+    assert invoke(bpy.ops.crisp.render_reference) == {"RUNNING_MODAL"}
+    while not (os.path.isdir(folder) and os.listdir(folder)):
+        yield 0.02
+    bpy.context.window_manager.windows[0].event_simulate(type="ESC", value="PRESS")
+    yield from wait_for_the_run_to_end()
+    printed = CONSOLE.text()
+    made = sorted(f for f in os.listdir(folder) if f.endswith(".exr"))
+    assert 1 <= len(made) <= 3, made
+    assert settings(scene) == before, (settings(scene), before)
+    assert "Info: Crisp: %d reference frame%s at 2 samples" % (len(made), "s" * (len(made) > 1)) in printed
+    assert "(stopped at frame %d)" % (len(made) + 1) in printed
+
+
+def a_file_loaded_mid_run_ends_it():
+    """Blender ends a running operator when a file is loaded: the run is recorded as stopped, and the
+    loaded file renders nothing more."""
+    assert operators._FrameByFrame.running is None
+    scene = small_scene("loaded", 1, 8)
+    out = scene.crisp.output_dir
+    assert invoke(bpy.ops.crisp.render) == {"RUNNING_MODAL"}
+    while not os.path.isfile(os.path.join(out, "filtered", "frame_0001.exr")):
+        yield 0.02
+    window = bpy.context.window_manager.windows[0]
+    with bpy.context.temp_override(window=window):
+        bpy.ops.wm.read_homefile(use_empty=False)
+    yield 0.5
+    assert operators._FrameByFrame.running is None
+    with open(os.path.join(out, "run.json")) as f:
+        run = json.load(f)
+    assert run["status"].startswith("cancelled at frame "), run["status"]
+    made = sorted(f for f in os.listdir(os.path.join(out, "filtered")) if f.endswith(".exr"))
+    yield 1.0
+    assert sorted(f for f in os.listdir(os.path.join(out, "filtered")) if f.endswith(".exr")) == made
+
+
+gui_harness.run_scenarios(clicked_render_draws_between_frames, esc_stops_after_the_frame_being_rendered,
+                          a_second_run_is_refused_while_one_runs, reference_render_stops_on_esc,
+                          a_file_loaded_mid_run_ends_it)
