@@ -169,9 +169,17 @@ def changes_the_image(scene):
 
 
 def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
-    first = os.path.join(filtered_dir, "frame_%04d%s" % (frame_start, ext))
-    image = load_sequence(first, "Crisp " + scene.name)
-    group = result_group(scene, filtered_dir, image, frame_start, frame_end)
+    """The frames frame_start..frame_end of filtered_dir into the scene's compositor, from the first that
+    exists (a run of a later part of the range, or one whose first frames were removed); the caller names
+    the missing ones (pipeline.sequence_warnings)."""
+    def path(f):
+        return os.path.join(filtered_dir, "frame_%04d%s" % (f, ext))
+    first = next((f for f in range(frame_start, frame_end + 1) if os.path.isfile(path(f))), None)
+    if first is None:
+        raise FileNotFoundError("no filtered frame of frames %d-%d in %s: render with Crisp first"
+                                % (frame_start, frame_end, filtered_dir))
+    image = load_sequence(path(first), "Crisp " + scene.name)
+    group = result_group(scene, filtered_dir, image, first, frame_end)
     return add_to_compositor(scene, group)
 
 

@@ -218,6 +218,27 @@ class OperatorTest(unittest.TestCase):
         self.assertIn("frame 2 has no filtered image", reports.getvalue())
         self.assertIsNotNone(next((n for n in scene.node_tree.nodes if n.get(compositor.NODE_TAG)), None))
 
+    def test_load_result_starts_at_the_first_frame_there_is(self):
+        """With the range's first frames missing (a run of a later part of the range), Load into Compositor
+        loads from the first frame there is, shown at its own scene frame, and warns of the others; with no
+        frame of the range at all it fails, naming the range. (It failed whenever the first was missing.)"""
+        scene = self.small_scene(2, 4, load_result=False)
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        os.remove(os.path.join(self.tmp.name, "filtered", "frame_0002.exr"))
+        scene.frame_start = 1
+        reports = io.StringIO()
+        with contextlib.redirect_stdout(reports):
+            self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        self.assertIn("frames 1, 2 have no filtered image", reports.getvalue())
+        node = next(n for n in scene.node_tree.nodes if n.get(compositor.NODE_TAG))
+        frames = node.node_tree.nodes["Crisp Frames"]
+        self.assertEqual((frames.frame_start, frames.frame_duration, frames.frame_offset), (3, 2, 2))
+        self.assertEqual(os.path.basename(frames.image.filepath), "frame_0003.exr")
+        scene.frame_start, scene.frame_end = 6, 7
+        with self.assertRaisesRegex(RuntimeError, "no filtered frame of frames 6-7 in .*filtered: render with "
+                                                  "Crisp first"):
+            bpy.ops.crisp.load_result()
+
     def test_the_result_follows_a_moved_project(self):
         """The compositor's frames are found after the project folder (the .blend with its //crisp/
         output) is moved or renamed: the image's path is relative to the .blend, as Blender's own Open
