@@ -94,7 +94,8 @@ class _FrameByFrame:
             return _fail(self, "a Crisp render is running already; press Esc to stop it")
         self.stop_asked = False
         self._steps = self.steps(context)
-        self._status(context, "Crisp: rendering %s; Esc stops after this frame" % self.bl_label)
+        self._made, self._total = 0, len(_frames(context.scene))
+        self._status(context, self._progress_text())
         wm = context.window_manager
         self._timer = wm.event_timer_add(0.01, window=context.window)
         wm.modal_handler_add(self)
@@ -109,6 +110,9 @@ class _FrameByFrame:
             return {"RUNNING_MODAL"}  # no edits between frames: the scene holds the run's render settings
         try:
             next(self._steps)
+            self._made += 1
+            if not self.stop_asked:
+                self._status(context, self._progress_text())
         except StopIteration as done:
             self._end(context)
             return done.value
@@ -128,6 +132,10 @@ class _FrameByFrame:
             self._steps.close()
         except self.ERRORS as e:
             print("Crisp: %s" % e)
+
+    def _progress_text(self):
+        return "Crisp: %s, %d of %d frames made; Esc stops after the frame being rendered" % (
+            self.bl_label, self._made, self._total)
 
     def _end(self, context):
         context.window_manager.event_timer_remove(self._timer)
