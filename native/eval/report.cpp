@@ -288,16 +288,14 @@ window.addEventListener("load", () => {
 
 void writeReport(const std::string& outDir, const nlohmann::json& results) {
   std::string data = results.dump();
-  // Inside <script>, "</" could end the element early.
+  // Inside <script>, "</" could end the element early, and "<!--" followed by "<script" would make
+  // the HTML parser read past the element's end (a scene named after such a .blend left the page
+  // empty). '<' only occurs inside JSON strings, where \u003c is the same character to JSON.parse.
   std::string safe;
   safe.reserve(data.size());
-  for (std::size_t i = 0; i < data.size(); ++i) {
-    if (data[i] == '<' && i + 1 < data.size() && data[i + 1] == '/') {
-      safe += "<\\/";
-      ++i;
-    } else {
-      safe += data[i];
-    }
+  for (char c : data) {
+    if (c == '<') safe += "\\u003c";
+    else safe += c;
   }
   cli::writeTextFile(cli::joinPath(outDir, "report.html"), std::string(kHead) + safe + kTail);
 }

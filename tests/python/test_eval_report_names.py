@@ -1,0 +1,68 @@
+# SPDX-License-Identifier: Apache-2.0
+"""`crisp eval` of a saved .blend whose folder and file name hold what is special in HTML, CSV and the
+shell (space, &, <, ', a comma, "<!--<script>"), over 3 frames with --warmup 2, then:
+  * report.html opens in headless Chromium with its self-check "OK" and the scene name shown as text.
+Needs Blender, the built CLI (CRISP_BUILD_DIR) and Debian's chromium."""
+
+import html
+import json
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import urllib.parse
+
+import pytest
+
+from crisp_test_util import CRISP, SOURCE, needs_cli_and_blender
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+NAME = "it's <!--<script> & a, b"
+
+pytestmark = needs_cli_and_blender()
+
+
+@pytest.fixture(scope="module")
+def run():
+    root = tempfile.mkdtemp(prefix="crisp_eval_names_")
+    folder = os.path.join(root, "a & <b> dir")
+    os.makedirs(folder)
+    blend = os.path.join(folder, NAME + ".blend")
+    save = ("import runpy, sys, bpy\n"
+            "sys.path.insert(0, %r)\n"
+            "runpy.run_path(%r, run_name='__main__')\n"
+            "bpy.ops.wm.save_as_mainfile(filepath=%r)\n"
+            % (os.path.join(SOURCE, "test_scenes"), os.path.join(SOURCE, "test_scenes", "still_life.py"), blend))
+    p = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr", save],
+                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=300)
+    assert p.returncode == 0 and os.path.isfile(blend), p.stderr.decode()[-3000:]
+    out = os.path.join(root, "out & <o>")
+    argv = [CRISP, "eval", "--scene", blend, "--resolution", "48x27", "--frames", "1-3", "--warmup", "2",
+            "--reference-samples", "2", "--curve", "1,2", "--methods", "none,fxaa", "-o", out]
+    p = subprocess.run(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=600)
+    assert p.returncode == 0, p.stderr.decode()[-3000:]
+    with open(os.path.join(out, "results.json")) as f:
+        results = json.load(f)
+    yield out, argv, results
+    shutil.rmtree(root, ignore_errors=True)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian chromium not installed")
+def test_report_opens_with_the_name_as_text(run):
+    out, _, _ = run
+    profile = tempfile.mkdtemp(prefix="crisp_chromium_")
+    flags = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             "--user-data-dir=" + profile, "--enable-logging=stderr", "--v=0", "--virtual-time-budget=3000"]
+    url = "file://" + urllib.parse.quote(os.path.join(out, "report.html"))
+    try:
+        dom = subprocess.run(flags + ["--dump-dom", url], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             timeout=120)
+        page = dom.stdout.decode()
+        title = re.search(r"<title>([^<]*)</title>", page).group(1)
+        assert title == "crisp eval report: OK - " + html.escape(NAME, quote=False), title
+        assert "Scene <b>%s</b>" % html.escape(NAME, quote=False) in page
+        assert page.count("<svg") >= 4
+    finally:
+        shutil.rmtree(profile, ignore_errors=True)
