@@ -544,6 +544,15 @@ std::string csvNumber(double v) {
   return buf;
 }
 
+// A text field as RFC 4180 has it: quoted (quotes doubled) when it holds a comma, a quote or a line
+// break, as a scene named after its .blend may.
+std::string csvText(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string out = "\"";
+  for (char c : text) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
 }  // namespace
 
 double equivalentSamples(const std::vector<int>& samples, const std::vector<double>& psnr, double value,
@@ -951,7 +960,7 @@ int run(const Options& o) {
     std::string err = e.error;
     std::replace(err.begin(), err.end(), '"', '\'');
     auto number = [&](const char* key) { return csvNumber(f.value(key, json()).is_number() ? f[key].get<double>() : kNaN); };
-    csv << sceneJson["name"].get<std::string>() << "," << e.kind << "," << e.name << "," << frame;
+    csv << csvText(sceneJson["name"].get<std::string>()) << "," << e.kind << "," << e.name << "," << frame;
     for (const char* key : {"psnr", "ssim", "perceptual_error", "temporal_error", "render_s", "filter_s",
                             "geometry_render_s", "time_s"})
       csv << "," << number(key);

@@ -1,9 +1,11 @@
 # SPDX-License-Identifier: Apache-2.0
 """`crisp eval` of a saved .blend whose folder and file name hold what is special in HTML, CSV and the
 shell (space, &, <, ', a comma, "<!--<script>"), over 3 frames with --warmup 2, then:
+  * results.csv parses (RFC 4180) with every row as long as its header, the scene column the name;
   * report.html opens in headless Chromium with its self-check "OK" and the scene name shown as text.
 Needs Blender, the built CLI (CRISP_BUILD_DIR) and Debian's chromium."""
 
+import csv
 import html
 import json
 import os
@@ -46,6 +48,18 @@ def run():
         results = json.load(f)
     yield out, argv, results
     shutil.rmtree(root, ignore_errors=True)
+
+
+def test_csv_rows_parse_and_name_the_scene(run):
+    out, _, results = run
+    assert results["scenes"][0]["name"] == NAME
+    with open(os.path.join(out, "results.csv"), newline="") as f:
+        rows = list(csv.reader(f))
+    header = rows[0]
+    assert len(rows) > 1
+    for row in rows[1:]:
+        assert len(row) == len(header), row
+        assert row[header.index("scene")] == NAME, row
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="Debian chromium not installed")
