@@ -47,7 +47,9 @@ std::string commandLine() {
   auto flush = [&]() {
     bool plain = !arg.empty() && arg.find_first_not_of(
         "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-_./=,:+") == std::string::npos;
-    out += (out.empty() ? "" : " ") + (plain ? arg : "'" + arg + "'");
+    std::string quoted = "'";
+    for (char c : arg) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);  // ' ends, \' is one, ' reopens
+    out += (out.empty() ? "" : " ") + (plain ? arg : quoted + "'");
     arg.clear();
   };
   for (char c : all) {

@@ -2,6 +2,7 @@
 """`crisp eval` of a saved .blend whose folder and file name hold what is special in HTML, CSV and the
 shell (space, &, <, ', a comma, "<!--<script>"), over 3 frames with --warmup 2, then:
   * results.csv parses (RFC 4180) with every row as long as its header, the scene column the name;
+  * the command line in results.json splits (shlex) back into the arguments given;
   * report.html opens in headless Chromium with its self-check "OK" and the scene name shown as text.
 Needs Blender, the built CLI (CRISP_BUILD_DIR) and Debian's chromium."""
 
@@ -10,6 +11,7 @@ import html
 import json
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import tempfile
@@ -60,6 +62,11 @@ def test_csv_rows_parse_and_name_the_scene(run):
     for row in rows[1:]:
         assert len(row) == len(header), row
         assert row[header.index("scene")] == NAME, row
+
+
+def test_command_line_splits_back_into_its_arguments(run):
+    _, argv, results = run
+    assert shlex.split(results["command"]) == argv, results["command"]
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="Debian chromium not installed")
