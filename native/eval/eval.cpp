@@ -731,7 +731,9 @@ int run(const Options& o) {
   }
   std::map<std::string, EdgeFigures> edgeFigures;
 
-  const int mapFrame = frames[frames.size() / 2];
+  // The middle frame of those the error means cover: the images and maps shown beside the headline are
+  // of a frame it measures, not of the warm-up (--warmup 15 of 16: frame 16, not 9).
+  const int mapFrame = frames[std::size_t(o.warmup) + (frames.size() - std::size_t(o.warmup)) / 2];
   Image errorSum(width, height, 1);  // the 1-sample frames' squared error, summed over errorFrames frames
   int errorFrames = 0;
   const fs::path images = out / "images";

@@ -3,6 +3,7 @@
 shell (space, &, <, ', a comma, "<!--<script>"), over 3 frames with --warmup 2, then:
   * results.csv parses (RFC 4180) with every row as long as its header, the scene column the name;
   * the command line in results.json splits (shlex) back into the arguments given;
+  * the maps and full images are of a frame the error means cover, not of the warm-up;
   * report.html opens in headless Chromium with its self-check "OK" and the scene name shown as text.
 Needs Blender, the built CLI (CRISP_BUILD_DIR) and Debian's chromium."""
 
@@ -67,6 +68,14 @@ def test_csv_rows_parse_and_name_the_scene(run):
 def test_command_line_splits_back_into_its_arguments(run):
     _, argv, results = run
     assert shlex.split(results["command"]) == argv, results["command"]
+
+
+def test_maps_are_of_a_measured_frame(run):
+    _, _, results = run
+    scene = results["scenes"][0]
+    first, last = scene["means_over_frames"]
+    assert (first, last) == (3, 3)
+    assert first <= scene["map_frame"] <= last, scene["map_frame"]
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="Debian chromium not installed")
