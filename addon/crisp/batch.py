@@ -133,14 +133,37 @@ def scene_script_path(text):
     fail(2, "scene script '%s' not found (bundled scenes: %s)" % (text, ", ".join(known)))
 
 
+def imported_modules(path):
+    """The modules a Python file's import statements name ("import a, b", "from a import b"), indented too."""
+    names = []
+    try:
+        with open(path) as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return names
+    for line in lines:
+        words = line.split(None, 1)
+        if len(words) < 2 or words[0] not in ("import", "from"):
+            continue
+        listed = words[1].split(" import")[0] if words[0] == "from" else words[1]
+        names += [name.split()[0] for name in listed.split(",") if name.split()]
+    return names
+
+
 def scene_key(script_path):
     """What the scene is made of, for reuse checks (pipeline.run scene_key): a hash of the bundled
-    scene's script and the test_scenes/common.py it imports, or of the .blend Blender opened (as saved:
-    call before anything changes the scene); None for an unsaved scene. Linked files are not in it."""
+    scene's script, the test_scenes/common.py it imports and the other bundled scenes it imports
+    (light_switch: still_life), or of the .blend Blender opened (as saved: call before anything changes
+    the scene); None for an unsaved scene. Linked files are not in it."""
     import hashlib
     import bpy
     if script_path:
         files = [script_path, os.path.join(os.path.dirname(script_path), "common.py")]
+        for path in files:  # grows: the scenes imported, through theirs (as cli/blender.cpp sceneFingerprint)
+            for module in imported_modules(path):
+                other = os.path.join(os.path.dirname(script_path), module + ".py")
+                if os.path.isfile(other) and other not in files:
+                    files.append(other)
     elif bpy.data.filepath:
         files = [bpy.data.filepath]
     else:

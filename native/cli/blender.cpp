@@ -9,12 +9,14 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <iterator>
 #include <sstream>
 #include <string>
@@ -45,6 +47,30 @@ std::string bundledScenes(const fs::path& dir) {
     if (e.path().extension() == ".py" && stem != "common") names += (names.empty() ? "" : ", ") + stem;
   }
   return names;
+}
+
+// The modules a Python script's import statements name ("import a, b", "from a import b"), indented too.
+std::vector<std::string> importedModules(const fs::path& script) {
+  std::vector<std::string> out;
+  std::ifstream in(script);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream words(line);
+    std::string keyword, names;
+    words >> keyword;
+    if (keyword != "import" && keyword != "from") continue;
+    std::getline(words, names);
+    if (keyword == "from") names = names.substr(0, names.find(" import"));
+    std::istringstream list(names);
+    std::string name;
+    while (std::getline(list, name, ',')) {
+      std::istringstream one(name);
+      std::string module;
+      one >> module;  // "a as b" -> "a"
+      if (!module.empty()) out.push_back(module);
+    }
+  }
+  return out;
 }
 
 }  // namespace
@@ -92,6 +118,13 @@ std::string sceneFingerprint(const ParsedArgs& args) {
   } else {
     const fs::path scenes = addonDir("batch.py").parent_path() / "test_scenes";
     files = {scenes / (scene + ".py"), scenes / "common.py"};
+    // And the other bundled scenes it imports, through theirs (light_switch builds still_life's scene):
+    // an edit of still_life.py changes light_switch too. A scene importing none hashes as before.
+    for (std::size_t k = 0; k < files.size(); ++k)
+      for (const std::string& module : importedModules(files[k])) {
+        const fs::path f = scenes / (module + ".py");
+        if (fs::is_regular_file(f) && std::find(files.begin(), files.end(), f) == files.end()) files.push_back(f);
+      }
   }
   std::uint64_t hash = kFnv1a64Seed;
   for (const fs::path& f : files)

@@ -105,8 +105,9 @@ std::vector<std::string> blenderDriverCommand(const ParsedArgs& args, const std:
 // handed such a path, writes beside the .blend); a UsageError without a .blend.
 std::filesystem::path blenderOutputFolder(const ParsedArgs& args);
 // What the --scene of args is made of, as "fnv1a64:<hex>": the bytes of the
-// .blend, or of the bundled scene's script and the test_scenes/common.py it
-// imports. Files the scene links or loads (textures, libraries) are not in it.
+// .blend, or of the bundled scene's script, the test_scenes/common.py it
+// imports and the other bundled scenes it imports (light_switch: still_life).
+// Files the scene links or loads (textures, libraries) are not in it.
 std::string sceneFingerprint(const ParsedArgs& args);
 // Appends "--jitter DIST" for the driver when args has --jitter; a distribution
 // the add-on does not know (render.JITTER_DISTRIBUTIONS) is a UsageError.
