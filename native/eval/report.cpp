@@ -42,7 +42,8 @@ const R = JSON.parse(document.getElementById("results").textContent);
 const S = R.scenes[0];
 const app = document.getElementById("app");
 const problems = [];
-const PALETTE = ["#555555","#1f77b4","#2ca02c","#d62728","#9467bd","#8c564b","#e377c2","#17becf","#bcbd22","#ff7f0e"];
+// Methods' colours: never the EEVEE curve's orange (nor the Pareto front's black).
+const PALETTE = ["#555555","#1f77b4","#2ca02c","#d62728","#9467bd","#8c564b","#e377c2","#17becf","#bcbd22","#393b79"];
 const colour = {};
 S.methods.forEach((m, i) => colour[m.name] = PALETTE[i % PALETTE.length]);
 const EEVEE = "#ff7f0e";

@@ -4,7 +4,8 @@ shell (space, &, <, ', a comma, "<!--<script>"), over 3 frames with --warmup 2, 
   * results.csv parses (RFC 4180) with every row as long as its header, the scene column the name;
   * the command line in results.json splits (shlex) back into the arguments given;
   * the maps and full images are of a frame the error means cover, not of the warm-up;
-  * report.html opens in headless Chromium with its self-check "OK" and the scene name shown as text.
+  * report.html opens in headless Chromium with its self-check "OK" and the scene name shown as text;
+  * with ten methods (blender-smaa the tenth), no method's colour is the EEVEE curve's orange.
 Needs Blender, the built CLI (CRISP_BUILD_DIR) and Debian's chromium."""
 
 import csv
@@ -24,6 +25,9 @@ from crisp_test_util import CRISP, SOURCE, needs_cli_and_blender
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 NAME = "it's <!--<script> & a, b"
+# Nine library entries on the plain 1-sample frames, blender-smaa the tenth.
+METHODS = ["none", "fxaa", "repair"] + ["fxaa:subpix=%s" % v for v in ("0", "0.25", "0.5")] + \
+    ["fxaa:edgeThreshold=%s" % v for v in ("0.05", "0.1", "0.3")]
 
 pytestmark = needs_cli_and_blender()
 
@@ -44,7 +48,7 @@ def run():
     assert p.returncode == 0 and os.path.isfile(blend), p.stderr.decode()[-3000:]
     out = os.path.join(root, "out & <o>")
     argv = [CRISP, "eval", "--scene", blend, "--resolution", "48x27", "--frames", "1-3", "--warmup", "2",
-            "--reference-samples", "2", "--curve", "1,2", "--methods", "none,fxaa", "-o", out]
+            "--reference-samples", "2", "--curve", "1,2", "--methods", ",".join(METHODS), "-o", out]
     p = subprocess.run(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=600)
     assert p.returncode == 0, p.stderr.decode()[-3000:]
     with open(os.path.join(out, "results.json")) as f:
@@ -78,8 +82,11 @@ def test_maps_are_of_a_measured_frame(run):
     assert first <= scene["map_frame"] <= last, scene["map_frame"]
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="Debian chromium not installed")
-def test_report_opens_with_the_name_as_text(run):
+@pytest.fixture(scope="module")
+def page(run):
+    """report.html as headless Chromium has it after its scripts ran (the DOM)."""
+    if CHROMIUM is None:
+        pytest.skip("Debian chromium not installed")
     out, _, _ = run
     profile = tempfile.mkdtemp(prefix="crisp_chromium_")
     flags = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -89,10 +96,24 @@ def test_report_opens_with_the_name_as_text(run):
     try:
         dom = subprocess.run(flags + ["--dump-dom", url], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                              timeout=120)
-        page = dom.stdout.decode()
-        title = re.search(r"<title>([^<]*)</title>", page).group(1)
-        assert title == "crisp eval report: OK - " + html.escape(NAME, quote=False), title
-        assert "Scene <b>%s</b>" % html.escape(NAME, quote=False) in page
-        assert page.count("<svg") >= 4
+        yield dom.stdout.decode()
     finally:
         shutil.rmtree(profile, ignore_errors=True)
+
+
+def test_report_opens_with_the_name_as_text(page):
+    title = re.search(r"<title>([^<]*)</title>", page).group(1)
+    assert title == "crisp eval report: OK - " + html.escape(NAME, quote=False), title
+    assert "Scene <b>%s</b>" % html.escape(NAME, quote=False) in page
+    assert page.count("<svg") >= 4
+
+
+def test_no_method_takes_the_eevee_curve_colour(page):
+    # The legend of the first chart (PSNR against time): a swatch and a name per series.
+    chart = page[:page.index("</svg>")]
+    legend = re.findall(r'<rect x="[^"]*" y="[^"]*" width="10" height="10" fill="([^"]*)"></rect>'
+                        r'<text x="[^"]*" y="[^"]*">([^<]*)</text>', chart)
+    names = [name for _, name in legend]
+    assert names[:2] == ["EEVEE curve", "Pareto front"] and "blender-smaa" in names, names
+    eevee = legend[0][0]
+    assert [name for colour, name in legend[2:] if colour == eevee] == [], legend
