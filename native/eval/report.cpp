@@ -155,6 +155,9 @@ function perSample() {
   const sxx = pts.reduce((a, p) => a + (p[0] - mx) ** 2, 0);
   if (!(sxx > 0)) return "";
   const slope = pts.reduce((a, p) => a + (p[0] - mx) * (p[1] - my), 0) / sxx;
+  // A short run on a busy machine can time more samples faster: no negative cost, nor a negative frame.
+  if (!(slope > 0 && my - slope * (mx - 1) > 0))
+    return " EEVEE's times here do not grow with the sample count (too few frames, or too noisy, for a cost per sample).";
   return ` EEVEE here: about ${ms(my - slope * (mx - 1))} ms for a 1-sample frame and ${ms(slope)} ms per further sample (a line through the curve's times).`;
 }
 const meansOver = S.means_over_frames || S.frames;
