@@ -294,5 +294,15 @@ def register():
 
 
 def unregister():
+    # Blender frees a running operator of a class unregistered (the add-on disabled in the Preferences
+    # window during a clicked run) without calling its cancel(): the run would keep the scene's render
+    # settings and run.json "running", and every later run would be refused as one already running.
+    running = _FrameByFrame.running
+    if running is not None and getattr(running, "_steps", None) is not None:
+        try:
+            running.cancel(bpy.context)
+        except Exception as e:  # the classes go all the same
+            print("Crisp: stopping the run: %s" % e)
+        _FrameByFrame.running = None
     for c in reversed(CLASSES):
         bpy.utils.unregister_class(c)

@@ -191,6 +191,32 @@ def reference_render_stops_on_esc():
     assert "(stopped at frame %d)" % (len(made) + 1) in printed
 
 
+def disabling_the_add_on_mid_run_ends_it():
+    """The add-on disabled during a run (in the Preferences window, which takes input while the run's window
+    does not): Blender frees the running operator without calling its cancel(). The run is closed first:
+    the scene gets its settings back, run.json says where it stopped, and the add-on enabled again renders
+    (it used to refuse every run as 'a Crisp render is running already')."""
+    assert operators._FrameByFrame.running is None
+    scene = small_scene("disabled", 1, 8)
+    before = settings(scene)
+    out = scene.crisp.output_dir
+    assert invoke(bpy.ops.crisp.render) == {"RUNNING_MODAL"}
+    while not os.path.isfile(os.path.join(out, "filtered", "frame_0001.exr")):
+        yield 0.02
+    crisp.unregister()
+    yield 0.2
+    crisp.register()
+    assert operators._FrameByFrame.running is None
+    assert settings(scene) == before, (settings(scene), before)
+    with open(os.path.join(out, "run.json")) as f:
+        status = json.load(f)["status"]
+    assert status.startswith("cancelled at frame "), status
+    scene.crisp.output_dir = os.path.join(TMP, "enabled_again")
+    assert invoke(bpy.ops.crisp.render) == {"RUNNING_MODAL"}
+    yield from wait_for_the_run_to_end()
+    assert record(scene)["status"] == "complete", record(scene)
+
+
 def a_file_loaded_mid_run_ends_it():
     """Blender ends a running operator when a file is loaded: the run is recorded as stopped, and the
     loaded file renders nothing more."""
@@ -215,4 +241,4 @@ def a_file_loaded_mid_run_ends_it():
 
 gui_harness.run_scenarios(clicked_render_draws_between_frames, esc_stops_after_the_frame_being_rendered,
                           a_second_run_is_refused_while_one_runs, reference_render_stops_on_esc,
-                          a_file_loaded_mid_run_ends_it)
+                          disabling_the_add_on_mid_run_ends_it, a_file_loaded_mid_run_ends_it)
