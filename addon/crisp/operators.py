@@ -72,7 +72,9 @@ class _FrameByFrame:
     the frame being rendered, as Blender's own animation render does. The steps record a stop the same way
     either way (run.json "cancelled at frame N")."""
 
-    ERRORS = (pipeline.InputError, render.RenderError, native.CrispError, output_folder.UnsavedFile, OSError)
+    # ReferenceError: the scene deleted while the run waited between frames (render.Snapshot.restore).
+    ERRORS = (pipeline.InputError, render.RenderError, native.CrispError, output_folder.UnsavedFile, OSError,
+              ReferenceError)
     running = None  # the run going on in this Blender (one at a time: they would share the scene's settings)
 
     def execute(self, context):

@@ -152,7 +152,7 @@ class Snapshot:
         key = (owner.as_pointer() if hasattr(owner, "as_pointer") else id(owner), attr)
         if key not in self._seen:
             self._seen.add(key)
-            self._saved.append((owner, attr, getattr(owner, attr)))
+            self._saved.append((owner, attr, getattr(owner, attr), self._of_scene(owner)))
         if getattr(owner, attr) != value:
             setattr(owner, attr, value)
 
@@ -164,10 +164,29 @@ class Snapshot:
         self._frame = (self.scene.frame_current, self.scene.frame_subframe)
         return self
 
+    def _of_scene(self, owner):
+        """Whether owner is the scene's own data (its render settings, view layers): freed with it."""
+        id_data = getattr(owner, "id_data", None)
+        return id_data is not None and id_data.as_pointer() == self.scene.as_pointer()
+
+    def _scene_gone(self):
+        try:
+            self.scene.name
+        except ReferenceError:
+            return True
+        return False
+
     def restore(self):
         """Puts every value back. Two passes: some values are only valid once another one is back
-        (an 8-bit colour depth is refused while the file format is still EXR)."""
+        (an 8-bit colour depth is refused while the file format is still EXR). The scene deleted (or
+        read again by an undo) while a clicked run waited between frames: its own data went with it and
+        the Python objects of that data point at freed memory, so only the values of other data (a
+        camera's shift, an animation curve) are put back."""
         errors, undo_errors = {}, {}
+        gone = self._scene_gone()
+        if gone:  # the calls hide objects again in the scene's view layers and layer collections
+            self._undo.clear()
+            self._saved = [entry for entry in self._saved if not entry[3]]
         for call in reversed(self._undo):
             try:
                 call()
@@ -176,18 +195,19 @@ class Snapshot:
         self._undo.clear()
         for _ in range(2):
             errors.clear()
-            for owner, attr, value in reversed(self._saved):
+            for owner, attr, value, _ in reversed(self._saved):
                 try:
                     if getattr(owner, attr) != value:
                         setattr(owner, attr, value)
                 except Exception as e:  # keep restoring the rest
                     errors[attr] = str(e)
-        errors.update({attr: "still %r, not %r" % (getattr(o, attr), v) for o, attr, v in self._saved
+        errors.update({attr: "still %r, not %r" % (getattr(o, attr), v) for o, attr, v, _ in self._saved
                        if attr not in errors and getattr(o, attr) != v})
         errors.update(undo_errors)
         self._saved.clear()
         self._seen.clear()
-        self.scene.frame_set(self._frame[0], subframe=self._frame[1])
+        if not gone:
+            self.scene.frame_set(self._frame[0], subframe=self._frame[1])
         return ["%s: %s" % kv for kv in errors.items()]
 
     def __exit__(self, *exc):

@@ -781,6 +781,27 @@ class AddonTest(unittest.TestCase):
             self.assertEqual(sorted(f for f in os.listdir(os.path.join(d, "c")) if f.endswith(".exr")),
                              ["frame_0001.exr"])
 
+    def test_a_run_closed_after_its_scene_was_deleted_touches_nothing_of_it(self):
+        """A clicked run waits between frames (iter_render_frames) while scripts and other windows run: its
+        scene deleted then, the run's restore wrote the scene's old settings into the freed scene's render
+        settings and view layer (Blender crashed, or not), and raised ReferenceError. What other data
+        holds (the camera's jittered shift) is still put back."""
+        scene = harness.build_scene("spinning_cube")
+        doomed = bpy.data.scenes.new("Doomed")
+        doomed.render.resolution_x, doomed.render.resolution_y = 32, 18
+        doomed.collection.objects.link(scene.camera)
+        doomed.camera = scene.camera
+        doomed.camera.data.shift_x = 0.01
+        the_plan = plan.make_plan("taa", plan.scene_facts(doomed, 1, 3))
+        self.assertTrue(the_plan.jitter)
+        with tempfile.TemporaryDirectory() as d:
+            steps = render.iter_render_frames(doomed, the_plan, [1, 2, 3], d)
+            next(steps)
+            self.assertNotEqual(scene.camera.data.shift_x, 0.01)  # the first frame's jitter, kept between frames
+            bpy.data.scenes.remove(doomed)
+            steps.close()
+        self.assertAlmostEqual(scene.camera.data.shift_x, 0.01, places=7)
+
     def test_a_movie_output_keeps_its_settings(self):
         """A scene whose output is a movie without audio: Blender resets the movie settings (an MKV
         container, its H.264 preset) when the file format is switched back to FFmpeg, so Crisp's renders

@@ -217,6 +217,35 @@ def disabling_the_add_on_mid_run_ends_it():
     assert record(scene)["status"] == "complete", record(scene)
 
 
+def the_scene_deleted_mid_run_ends_it():
+    """The run's scene deleted between frames (by a script, or in another window): the run ends with an
+    error report, not an exception out of the operator, and its restore touches nothing of the freed scene
+    (writing into it could crash Blender) while what other data holds (the camera's jittered shift) is put
+    back."""
+    assert operators._FrameByFrame.running is None
+    scene = small_scene("deleted", 1, 8, method="taa")
+    camera = scene.camera.data
+    shift = camera.shift_x
+    other = bpy.data.scenes.new("Other")
+    out = scene.crisp.output_dir
+    raised, hook = [], sys.excepthook  # Blender prints an exception out of an operator through it
+    sys.excepthook = lambda *exc: raised.append(exc[1]) or hook(*exc)
+    try:
+        assert invoke(bpy.ops.crisp.render) == {"RUNNING_MODAL"}
+        while not os.path.isfile(os.path.join(out, "filtered", "frame_0001.exr")):
+            yield 0.02
+        bpy.context.window_manager.windows[0].scene = other
+        bpy.data.scenes.remove(scene)
+        yield from wait_for_the_run_to_end()
+    finally:
+        sys.excepthook = hook
+    assert not raised, raised
+    assert camera.shift_x == shift, (camera.shift_x, shift)
+    with open(os.path.join(out, "run.json")) as f:
+        status = json.load(f)["status"]
+    assert status == "failed: StructRNA of type Scene has been removed", status
+
+
 def a_file_loaded_mid_run_ends_it():
     """Blender ends a running operator when a file is loaded: the run is recorded as stopped, and the
     loaded file renders nothing more."""
@@ -241,4 +270,5 @@ def a_file_loaded_mid_run_ends_it():
 
 gui_harness.run_scenarios(clicked_render_draws_between_frames, esc_stops_after_the_frame_being_rendered,
                           a_second_run_is_refused_while_one_runs, reference_render_stops_on_esc,
-                          disabling_the_add_on_mid_run_ends_it, a_file_loaded_mid_run_ends_it)
+                          disabling_the_add_on_mid_run_ends_it, a_file_loaded_mid_run_ends_it,
+                          the_scene_deleted_mid_run_ends_it)
