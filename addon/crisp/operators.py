@@ -105,6 +105,9 @@ class _FrameByFrame:
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
+        if self._steps is None:  # stopped at once by a save or an undo (stop_now)
+            self._end(context)
+            return {"CANCELLED"}
         if event.type == "ESC" and event.value == "PRESS" and not self.stop_asked:
             self.stop_asked = True
             self._status(context, "Crisp: stopping after this frame")
@@ -130,10 +133,21 @@ class _FrameByFrame:
         """Blender ends the operator (a file loaded, the window closed): the steps put the scene back and
         record the stop."""
         self._end(context)
+        if self._steps is not None:
+            try:
+                self._steps.close()
+            except self.ERRORS as e:
+                print("Crisp: %s" % e)
+
+    def stop_now(self, why):
+        """Stops the run between frames, at once: the steps put the scene back and record the stop
+        (run.json "cancelled at frame N"); the next event ends the operator."""
+        steps, self._steps = self._steps, None
         try:
-            self._steps.close()
+            steps.close()
         except self.ERRORS as e:
             print("Crisp: %s" % e)
+        self.report({"WARNING"}, "Crisp: %s stopped by %s" % (self.bl_label, why))
 
     def _progress_text(self):
         return "Crisp: %s, %d of %d frames made; Esc stops after the frame being rendered" % (
@@ -290,12 +304,40 @@ CLASSES = (CRISP_OT_plan, CRISP_OT_render, CRISP_OT_render_reference, CRISP_OT_c
            CRISP_OT_preview)
 
 
+@bpy.app.handlers.persistent
+def _stop_before_save(*_args):
+    _stop_clicked_run("a save (the file keeps the scene's own settings)")
+
+
+@bpy.app.handlers.persistent
+def _stop_before_undo(*_args):
+    _stop_clicked_run("an undo or redo")
+
+
+def _stop_clicked_run(why):
+    """A save, undo or redo during a clicked run: made in another window (the run's own takes no input) or
+    by a script. The scene holds the run's render settings between frames, so the save would write them
+    into the file, and an undo would read the scene again under the run: it stops first."""
+    running = _FrameByFrame.running
+    if running is not None and getattr(running, "_steps", None) is not None:
+        running.stop_now(why)
+
+
+_HANDLERS = ((bpy.app.handlers.save_pre, _stop_before_save), (bpy.app.handlers.undo_pre, _stop_before_undo),
+             (bpy.app.handlers.redo_pre, _stop_before_undo))
+
+
 def register():
     for c in CLASSES:
         bpy.utils.register_class(c)
+    for handlers, handler in _HANDLERS:
+        handlers.append(handler)
 
 
 def unregister():
+    for handlers, handler in _HANDLERS:
+        if handler in handlers:
+            handlers.remove(handler)
     # Blender frees a running operator of a class unregistered (the add-on disabled in the Preferences
     # window during a clicked run) without calling its cancel(): the run would keep the scene's render
     # settings and run.json "running", and every later run would be refused as one already running.

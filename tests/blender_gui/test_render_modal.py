@@ -246,6 +246,45 @@ def the_scene_deleted_mid_run_ends_it():
     assert status == "failed: StructRNA of type Scene has been removed", status
 
 
+def saved_file_settings(blend):
+    """settings() of the scene of a saved file, read by another Blender."""
+    import subprocess
+    expr = ("import bpy; s = bpy.context.scene; print('SETTINGS', repr((s.eevee.taa_render_samples, "
+            "s.render.filepath, s.render.image_settings.file_format, s.view_layers[0].use_pass_z, "
+            "s.camera.data.shift_x, s.frame_current)))")
+    out = subprocess.run([bpy.app.binary_path, "-b", "--factory-startup", blend, "--python-expr", expr],
+                         capture_output=True, text=True).stdout
+    return eval(next(line for line in out.splitlines() if line.startswith("SETTINGS "))[len("SETTINGS "):])
+
+
+def a_save_or_an_undo_mid_run_stops_it_first():
+    """Only the run's window takes no input: a save or an undo in another window (or by a script) during
+    a run wrote the run's render settings into the file (1 sample, its EXR format and temporary path, its
+    passes), or read the scene again under the run (which then failed on a removed scene). The run now
+    stops first, with the scene's settings back: the file holds the user's, and run.json says where the
+    run stopped."""
+    assert operators._FrameByFrame.running is None
+    blend = os.path.join(TMP, "saved_mid_run.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    for name, act in (("save", lambda: bpy.ops.wm.save_mainfile()), ("undo", lambda: bpy.ops.ed.undo())):
+        scene = small_scene("stopped_by_" + name, 1, 8, method="taa")
+        bpy.ops.ed.undo_push(message="before the run")
+        before = settings(scene)
+        out = scene.crisp.output_dir
+        assert invoke(bpy.ops.crisp.render) == {"RUNNING_MODAL"}
+        while not os.path.isfile(os.path.join(out, "filtered", "frame_0001.exr")):
+            yield 0.02
+        with bpy.context.temp_override(window=bpy.context.window_manager.windows[0]):
+            act()
+        yield from wait_for_the_run_to_end()
+        with open(os.path.join(out, "run.json")) as f:
+            status = json.load(f)["status"]
+        assert status.startswith("cancelled at frame "), (name, status)
+        assert settings(bpy.context.scene) == before, (name, settings(bpy.context.scene), before)
+        if name == "save":
+            assert saved_file_settings(blend) == before, (saved_file_settings(blend), before)
+
+
 def a_file_loaded_mid_run_ends_it():
     """Blender ends a running operator when a file is loaded: the run is recorded as stopped, and the
     loaded file renders nothing more."""
@@ -270,5 +309,6 @@ def a_file_loaded_mid_run_ends_it():
 
 gui_harness.run_scenarios(clicked_render_draws_between_frames, esc_stops_after_the_frame_being_rendered,
                           a_second_run_is_refused_while_one_runs, reference_render_stops_on_esc,
-                          disabling_the_add_on_mid_run_ends_it, a_file_loaded_mid_run_ends_it,
+                          disabling_the_add_on_mid_run_ends_it, a_save_or_an_undo_mid_run_stops_it_first,
+                          a_file_loaded_mid_run_ends_it,
                           the_scene_deleted_mid_run_ends_it)
