@@ -68,7 +68,8 @@ class _FrameByFrame:
     """An operator that renders the frame range through a generator, steps(context), which yields after each
     frame and returns the operator's result. Run from a script (EXEC_DEFAULT, also in background mode) it
     runs to the end in execute. Clicked (INVOKE_DEFAULT) it runs a frame per timer tick: Blender draws
-    between frames (the progress, the frames written), takes no other input, and Esc stops the run after
+    between frames (the progress, the frames written), takes no other input in any window (the other windows
+    through CRISP_OT_hold_window), and Esc in any of them stops the run after
     the frame being rendered, as Blender's own animation render does. The steps record a stop the same way
     either way (run.json "cancelled at frame N")."""
 
@@ -102,15 +103,24 @@ class _FrameByFrame:
         self._timer = wm.event_timer_add(0.01, window=context.window)
         wm.modal_handler_add(self)
         _FrameByFrame.running = self
+        for window in wm.windows:  # the other windows take no input either, but Esc
+            if window != context.window:
+                with context.temp_override(window=window):
+                    bpy.ops.crisp.hold_window("INVOKE_DEFAULT")
         return {"RUNNING_MODAL"}
+
+    def ask_stop(self, context):
+        """Esc: the run stops after the frame being rendered."""
+        if not self.stop_asked:
+            self.stop_asked = True
+            self._status(context, "Crisp: stopping after this frame")
 
     def modal(self, context, event):
         if self._steps is None:  # stopped at once by a save or an undo (stop_now)
             self._end(context)
             return {"CANCELLED"}
-        if event.type == "ESC" and event.value == "PRESS" and not self.stop_asked:
-            self.stop_asked = True
-            self._status(context, "Crisp: stopping after this frame")
+        if event.type == "ESC" and event.value == "PRESS":
+            self.ask_stop(context)
         if event.type != "TIMER":
             return {"RUNNING_MODAL"}  # no edits between frames: the scene holds the run's render settings
         try:
@@ -162,6 +172,39 @@ class _FrameByFrame:
     def _status(context, text):
         if context.workspace is not None:
             context.workspace.status_text_set(text)
+
+
+class CRISP_OT_hold_window(bpy.types.Operator):
+    """Takes the input of a window other than the one a clicked run was started in, until the run ends: an
+    edit there would go into an undo step while the scene holds the run's render settings. Esc there stops
+    the run as in the run's own window."""
+    bl_idname = "crisp.hold_window"
+    bl_label = "Crisp Render Running"
+    bl_options = {"INTERNAL"}
+    holding = []  # timers of the windows held, for unregister(), which frees these without cancel()
+
+    def invoke(self, context, event):
+        self._run = _FrameByFrame.running
+        if self._run is None:
+            return {"CANCELLED"}
+        self._timer = context.window_manager.event_timer_add(0.1, window=context.window)
+        CRISP_OT_hold_window.holding.append(self._timer)
+        context.window_manager.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if _FrameByFrame.running is not self._run:
+            self.cancel(context)
+            return {"CANCELLED"}
+        if event.type == "ESC" and event.value == "PRESS":
+            self._run.ask_stop(context)
+        return {"RUNNING_MODAL"}
+
+    def cancel(self, context):
+        if self._timer in CRISP_OT_hold_window.holding:
+            CRISP_OT_hold_window.holding.remove(self._timer)
+            context.window_manager.event_timer_remove(self._timer)
+        _FrameByFrame._status(context, None)  # an Esc here may have said "stopping" in this window's workspace
 
 
 def _stopped_note(result):
@@ -300,8 +343,8 @@ class CRISP_OT_preview(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (CRISP_OT_plan, CRISP_OT_render, CRISP_OT_render_reference, CRISP_OT_compare, CRISP_OT_load_result,
-           CRISP_OT_preview)
+CLASSES = (CRISP_OT_plan, CRISP_OT_render, CRISP_OT_render_reference, CRISP_OT_hold_window, CRISP_OT_compare,
+           CRISP_OT_load_result, CRISP_OT_preview)
 
 
 @bpy.app.handlers.persistent
@@ -348,5 +391,8 @@ def unregister():
         except Exception as e:  # the classes go all the same
             print("Crisp: stopping the run: %s" % e)
         _FrameByFrame.running = None
+    for timer in CRISP_OT_hold_window.holding:
+        bpy.context.window_manager.event_timer_remove(timer)
+    CRISP_OT_hold_window.holding.clear()
     for c in reversed(CLASSES):
         bpy.utils.unregister_class(c)

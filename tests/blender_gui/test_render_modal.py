@@ -285,6 +285,44 @@ def a_save_or_an_undo_mid_run_stops_it_first():
             assert saved_file_settings(blend) == before, (saved_file_settings(blend), before)
 
 
+def another_window_takes_no_input_but_esc():
+    """A second window during a run: a key there does nothing (it would go into an undo step while the scene
+    holds the run's settings: Ctrl-Z after the run brought them back), and Esc there stops the run as in the
+    run's own window. (Before: 'A' selected everything there, and the run went on to the end.)"""
+    assert operators._FrameByFrame.running is None
+    with bpy.context.temp_override(window=bpy.context.window_manager.windows[0]):
+        bpy.ops.wm.window_new()
+    yield 0.5
+    second = bpy.context.window_manager.windows[-1]
+    view = max((a for a in second.screen.areas if a.type == "VIEW_3D"), key=lambda a: a.width * a.height)
+    for obj in bpy.context.scene.objects:
+        obj.select_set(False)
+    scene = small_scene("second_window", 1, 8)
+    before = settings(scene)
+    assert invoke(bpy.ops.crisp.render) == {"RUNNING_MODAL"}
+    while len(record(scene).get("frames", [])) < 1:
+        yield 0.02
+    second.event_simulate(type="MOUSEMOVE", value="NOTHING", x=view.x + view.width // 2, y=view.y + view.height // 2)
+    second.event_simulate(type="A", value="PRESS")
+    second.event_simulate(type="A", value="RELEASE")
+    yield 0.1
+    second.event_simulate(type="ESC", value="PRESS")
+    yield from wait_for_the_run_to_end()
+    run = record(scene)
+    assert run["status"] == "cancelled at frame %d" % (run["frames"][-1]["frame"] + 1) and len(run["frames"]) <= 4, run
+    assert not any(obj.select_get() for obj in scene.objects), [o.name for o in scene.objects if o.select_get()]
+    assert settings(scene) == before, (settings(scene), before)
+    yield 0.3  # the second window's hold ends at its next tick: it takes input again
+    second.event_simulate(type="MOUSEMOVE", value="NOTHING", x=view.x + view.width // 2, y=view.y + view.height // 2)
+    second.event_simulate(type="A", value="PRESS")
+    second.event_simulate(type="A", value="RELEASE")
+    yield 0.3
+    assert all(obj.select_get() for obj in scene.objects if obj.visible_get()), "the window takes input again"
+    with bpy.context.temp_override(window=second):
+        bpy.ops.wm.window_close()
+    yield 0.3
+
+
 def a_file_loaded_mid_run_ends_it():
     """Blender ends a running operator when a file is loaded: the run is recorded as stopped, and the
     loaded file renders nothing more."""
@@ -310,5 +348,5 @@ def a_file_loaded_mid_run_ends_it():
 gui_harness.run_scenarios(clicked_render_draws_between_frames, esc_stops_after_the_frame_being_rendered,
                           a_second_run_is_refused_while_one_runs, reference_render_stops_on_esc,
                           disabling_the_add_on_mid_run_ends_it, a_save_or_an_undo_mid_run_stops_it_first,
-                          a_file_loaded_mid_run_ends_it,
+                          another_window_takes_no_input_but_esc, a_file_loaded_mid_run_ends_it,
                           the_scene_deleted_mid_run_ends_it)
