@@ -117,6 +117,7 @@ int runEval(const ParsedArgs& args) {
     std::unique_ptr<Filter> probe = createFilter(context, spec.method);
     try {
       for (const auto& [key, value] : spec.params) probe->params().setFromText(key, value);
+      checkSettingsByCommit(context, spec.method, spec.params);  // rules a commit checks (an odd patchSize)
     } catch (const Exception& e) {
       throw UsageError("--methods '" + m + "': " + e.what());
     }

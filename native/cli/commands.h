@@ -46,9 +46,14 @@ struct ShotPosition {
 // (as batch.py strips them); a UsageError for one without KEY or '='.
 std::vector<std::pair<std::string, std::string>> settingsOf(const ParsedArgs& args);
 // The method's filter with the --set KEY=VALUE settings of args applied
-// (throws naming a bad one): what crisp filter runs, and what crisp render
-// checks before it starts Blender.
+// (throws naming a bad one, checkSettingsByCommit): what crisp filter runs,
+// and what crisp render checks before it starts Blender.
 std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args);
+// Throws, as a commit does, when the method refuses the settings, also for a
+// rule between parameters that only a commit checks (repair's odd patchSize,
+// taa's feedbackMin <= feedbackMax): a probe filter is committed on 1x1 images.
+void checkSettingsByCommit(Context& context, const std::string& method,
+                           const std::vector<std::pair<std::string, std::string>>& settings);
 // Binds the frame's passes and its jitter (from its sidecar, or the jitter
 // saved in shot when it has none). shot: the position historyBreak just
 // updated for this frame, whose sidecar is then not parsed again.

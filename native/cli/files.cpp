@@ -232,7 +232,25 @@ std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& me
                        "was rendered with), which replaces any value set here");
     filter->params().setFromText(key, value);
   }
+  checkSettingsByCommit(context, method, settingsOf(args));
   return filter;
+}
+
+void checkSettingsByCommit(Context& context, const std::string& method,
+                           const std::vector<std::pair<std::string, std::string>>& settings) {
+  std::unique_ptr<Filter> probe = createFilter(context, method);
+  for (const auto& [key, value] : settings) probe->params().setFromText(key, value);
+  // 1x1 zero images bound to the images the filter requires, and rsaa's sub-sample record, as the
+  // add-on's native.check_params binds them: a commit then checks what it checks between parameters.
+  std::vector<std::vector<float>> buffers;
+  for (const ImageRole& role : probe->roles()) {
+    const bool subsamples = std::string(role.name) == "subsamples";
+    if (!role.required && !subsamples) continue;
+    const Format format = subsamples ? Format::RsaaSubsamples : role.isUint ? Format::UInt : Format(role.maxChannels);
+    buffers.emplace_back(std::size_t(formatChannels(format)), 0.0f);
+    probe->setImage(role.name, makeView(buffers.back().data(), format, 1, 1));
+  }
+  probe->commit();
 }
 
 void bindFrame(Filter& filter, Frame& frame, ShotPosition& shot) {

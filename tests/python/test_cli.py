@@ -118,6 +118,14 @@ def test_help_prints_parameter_tables():
      ["-o '//crisp_out' is relative to the .blend file", "'still_life' is no .blend file"]),
     (["eval", "--scene", "still_life", "-o", "//crisp_out", "--blender", "NOBLENDER"], 2,
      ["-o '//crisp_out' is relative to the .blend file"]),
+    # Rules a commit checks between parameters (an odd patchSize, feedbackMin <= feedbackMax): said before
+    # Blender renders anything, not as a failed method in the report of a run that exits 0.
+    (["eval", "--scene", "still_life", "--methods", "fxaa,repair:patchSize=4", "-o", "OUT", "--blender", "NOBLENDER"],
+     2, ["--methods 'repair:patchSize=4'", "'patchSize' = 4 must be odd"]),
+    (["eval", "--scene", "still_life", "--methods", "taa:feedbackMin=0.9:feedbackMax=0.5", "-o", "OUT", "--blender",
+      "NOBLENDER"], 2, ["--methods 'taa:feedbackMin=0.9:feedbackMax=0.5'", "feedbackMin"]),
+    (["render", "--scene", "still_life", "-m", "repair", "--set", "patchSize=4", "-o", "OUT", "--blender", "NOBLENDER"],
+     1, ["'patchSize' = 4 must be odd"]),
 ])
 def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
     place = {"IN": str(chart / "chart_1spp.exr"), "OUT": str(tmp_path / "out"), "NOBLENDER": str(tmp_path / "none")}
