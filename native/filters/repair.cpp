@@ -11,8 +11,9 @@
 //   5. a smoothing mask rotated to that angle (eq. 3.7), each tap sampled by
 //      bilinear interpolation (eq. 3.8-3.9, Algorithm 4); non-edge pixels are
 //      copied unchanged.
-// All four RGBA channels are smoothed with the same weights (premultiplied
-// colour and its coverage stay consistent). Output stays linear.
+// The colour is smoothed; the alpha passes through (sanitised), as in every
+// method but rsaa (README: the EXRs keep the alpha as rendered, and the
+// add-on's log says so for a transparent film). Output stays linear.
 //
 // Deliberate deviations from the thesis (also in the parameter table):
 //  * Algorithm 2 computes sigma^2 = s2 - 2 mu s + mu^2 (an algebra slip) and
@@ -814,6 +815,7 @@ void Kernel::runReference(const ImageView& color, const ImageView& output, const
         gatherPatch<true>(gradient_.data.data(), W, H, x, y, n, T, patch);
         const Direction d = edgeDirection(fitPatch(patch, n), s.estimator);
         smoothAt(stagedSource, W, H, x, y, d, mask, result);
+        result[3] = staged_.at(x, y)[3];  // alpha passes through
         ++edges;
       } else {
         std::memcpy(result, staged_.at(x, y), sizeof result);
@@ -928,7 +930,8 @@ void Kernel::runFast(const ImageView& color, const ImageView& output, const Sett
           else
             result = interior ? smoothPacked<true, false>(source, W, H, x, y, d, mask)
                               : smoothPacked<false, false>(source, W, H, x, y, d, mask);
-          std::memcpy(output.pixel(x, y), &result, std::size_t(cout) * 4);
+          // Colour only: the output's alpha is already the sanitised input's (pass 1 or the row copy above).
+          std::memcpy(output.pixel(x, y), &result, 3 * 4);
         }
       }
       rowEdges_[std::size_t(y)] = edges;
@@ -972,7 +975,8 @@ class RepairFilter final : public Filter {
   explicit RepairFilter(Context& c)
       : Filter(c, repairParams(),
                {{"color", true, 3, 4, false, "linear RGB(A) colour"},
-                {"output", true, 3, 4, false, "filtered colour, same size (may be the colour buffer)"}}) {}
+                {"output", true, 3, 4, false,
+                 "filtered colour, same size (may be the colour buffer); alpha passes through"}}) {}
   const char* type() const override { return "repair"; }
 
  protected:

@@ -106,7 +106,8 @@ class Kernel {
   // Allocates every buffer (called from Filter::onCommit, never in run()).
   void allocate(int width, int height);
   // Runs REPAIR from `color` (3/4 channels, any strides) to `output` (3/4
-  // channels, same size; may be the same memory as `color`).
+  // channels, same size; may be the same memory as `color`). The alpha is the
+  // input's (sanitised; 1 for 3 channels): only the colour is smoothed.
   // reference = true: the scalar reference path (single thread, clamp-to-edge
   // addressing everywhere). false: the fast path (rows in parallel, edge
   // pixels found from the gradient rows, no clamping in the interior). Both

@@ -356,6 +356,46 @@ TEST(RepairQuality, NonFiniteInputsGiveFiniteOutput) {
   }
 }
 
+// README: "alpha as rendered. Alpha is not anti-aliased" (rsaa alone resamples it), and the add-on's
+// log tells an artist with a transparent film that repair "anti-aliases the colour, not the alpha".
+// An object on a transparent film (premultiplied colour, alpha 1 inside and 0 outside, a few
+// fractional and non-finite alphas): the colour is smoothed on the outline, the alpha is the input's.
+TEST(RepairQuality, OutputAlphaIsTheInputAlpha) {
+  const int W = 37, H = 70;  // two bands of the fast path's first pass
+  Image in(W, H, 4);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      float a = float(y) < 0.6f * float(x) + 5.0f ? 1.0f : 0.0f;
+      if ((x * 7 + y * 3) % 41 == 0) a = 0.5f;
+      float* p = in.at(x, y);
+      p[0] = 0.8f * a;
+      p[1] = 0.4f * a;
+      p[2] = 0.2f * a;
+      p[3] = a;
+    }
+  in.at(3, 60)[3] = NAN;
+  in.at(20, 10)[3] = INFINITY;
+  for (bool reference : {true, false})
+    for (int threads : {1, 0}) {
+      for (bool inPlace : {false, true}) {
+        repair::Kernel k;
+        k.allocate(W, H);
+        Image out = inPlace ? in : Image(W, H, 4);  // in place: the output is the colour buffer
+        k.run(inPlace ? out.view() : in.view(), out.view(), Settings{}, reference, threads);
+        ASSERT_GT(k.edgeCount(), 0);
+        long colourChanged = 0;
+        for (int y = 0; y < H; ++y)
+          for (int x = 0; x < W; ++x) {
+            colourChanged += out.at(x, y)[0] != sanitizeColor(in.at(x, y)[0]);
+            ASSERT_EQ(out.at(x, y)[3], sanitizeColor(in.at(x, y)[3]))
+                << "alpha changed at " << x << "," << y << (reference ? " (reference)" : " (fast)")
+                << (inPlace ? " in place" : "");
+          }
+        EXPECT_GT(colourChanged, 20);
+      }
+    }
+}
+
 // ---- fast path == reference path ---------------------------------------------
 
 namespace {
