@@ -131,7 +131,8 @@ TEST(Fxaa, FastPathIsBitIdenticalToReference) {
   };
   const Case cases[] = {{1, 1, false, false, false}, {2, 3, false, true, false},  {17, 9, false, false, true},
                         {3, 41, false, true, true},  {64, 48, true, false, false}, {131, 77, true, false, false},
-                        {97, 61, false, false, false}, {200, 150, false, true, true}};
+                        {97, 61, false, false, false}, {200, 150, false, true, true},
+                        {1, 37, false, false, true},  {37, 1, false, true, true}};  // a single column, a single row
   fxaa::Settings variants[4];
   variants[1].subpix = 0.0f;
   variants[2].edgeThreshold = 0.0f;

@@ -423,7 +423,8 @@ TEST(RepairPaths, FastIsBitIdenticalToReference) {
   std::vector<Image> inputs;
   inputs.push_back(synth::renderCentre(synth::testChart(120, 80), 120, 80));
   // 37x150: three bands of the fast path's first pass (grey rows recomputed at their edges).
-  for (auto [w, h] : {std::pair{1, 1}, {2, 3}, {17, 9}, {9, 17}, {33, 20}, {5, 64}, {37, 150}})
+  // 1x70 and 70x1: a single column over two bands, a single row (Sobel and patches clamp on both sides).
+  for (auto [w, h] : {std::pair{1, 1}, {2, 3}, {17, 9}, {9, 17}, {33, 20}, {5, 64}, {37, 150}, {1, 70}, {70, 1}})
     inputs.push_back(randomImage(w, h, unsigned(w * 100 + h)));
   Image withBad = randomImage(31, 13, 3);
   withBad.data[5] = NAN;
