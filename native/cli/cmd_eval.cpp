@@ -209,16 +209,16 @@ int runEval(const ParsedArgs& args) {
   if (!quiet && tty) std::fprintf(stderr, "\n");
   const int code = run.signal ? 128 + run.signal : run.exitCode;
   double blenderSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!run.started) return 1;  // said by runBlender
-  if (code != 0) {
-    // Nothing rendered (Blender refused the scene or the arguments): the settings file must not lock the
-    // folder against the corrected command.
+  if (!run.started || code != 0) {
+    // Nothing rendered (Blender could not start, or refused the scene or the arguments): the settings file
+    // must not lock the folder against the corrected command.
     bool rendered = false;
     std::error_code ec;
     for (auto it = fs::recursive_directory_iterator(renders, ec); !ec && it != fs::recursive_directory_iterator();
          it.increment(ec))
       rendered |= it->path().extension() == ".exr";
     if (!rendered) fs::remove(settings, ec);
+    if (!run.started) return 1;  // said by runBlender
     std::fprintf(stderr, "crisp: error: Blender failed (exit %d); from %s:\n%s", code, log.c_str(),
                  blenderErrors(log).c_str());
     return code == 2 ? 2 : 1;

@@ -424,6 +424,12 @@ def test_a_missing_blender_is_named_on_stderr(tmp_path, command):
     assert "cannot run Blender '%s'" % (tmp_path / "no-blender") in p.stderr, p.stderr
     if command == "eval":
         assert (tmp_path / "out" / "logs" / "blender.log").read_text() == ""
+        # Nothing was rendered: the folder is not locked to this run's settings, and the corrected command
+        # (another size too) gets as far as Blender again.
+        assert not (tmp_path / "out" / "eval_settings.json").exists()
+        p = run(command, "--scene", "spinning_cube", "--frames", "1-2", *args, "--quiet", "--resolution", "64x36",
+                "--blender", tmp_path / "no-blender", "-o", tmp_path / "out", ok=False)
+        assert "cannot run Blender" in p.stderr and "other settings" not in p.stderr, p.stderr
 
 
 @pytest.mark.parametrize("command", ["render", "eval"])
