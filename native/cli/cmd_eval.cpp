@@ -168,13 +168,15 @@ int runEval(const ParsedArgs& args) {
   const fs::path settings = outDir / "eval_settings.json";
   const nlohmann::json want = {{"scene", scene},
                                {"scene_contents", sceneFingerprint(args)},
-                               {"resolution", args.getOr("resolution", "")},
+                               {"resolution", canonicalResolution(args.getOr("resolution", ""))},
                                {"filter_size", filterSize ? filterSize : ""}};
   if (fs::exists(settings)) {
     std::ifstream in(settings);
     nlohmann::json have = nlohmann::json::parse(in, nullptr, false);
     if (have.is_object() && !have.contains("filter_size")) have["filter_size"] = "";
     if (have.is_object() && !have.contains("scene_contents")) have["scene_contents"] = want["scene_contents"];
+    if (have.is_object() && have.contains("resolution") && have["resolution"].is_string())  // spelled as then
+      have["resolution"] = canonicalResolution(have["resolution"].get<std::string>());
     if (have != want) {
       std::string differences;
       for (const auto& [key, value] : want.items()) {

@@ -186,17 +186,30 @@ int parseIntOption(const ParsedArgs& a, const std::string& name, int fallback, i
   return int(x);
 }
 
+namespace {
+constexpr int kLowestResolution = 4;  // Blender's smallest render size; the largest is the library's (kMaxDimension)
+
+bool parseResolution(const std::string& r, int& w, int& h) {
+  std::string lower = r;
+  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  int consumed = 0;
+  return std::sscanf(lower.c_str(), "%dx%d%n", &w, &h, &consumed) == 2 && consumed == int(r.size()) &&
+         w >= kLowestResolution && h >= kLowestResolution && w <= kMaxDimension && h <= kMaxDimension;
+}
+}  // namespace
+
 void checkResolutionOption(const ParsedArgs& a) {
   if (!a.has("resolution")) return;
   const std::string& r = a.get("resolution");
-  std::string lower = r;
-  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  int w = 0, h = 0, consumed = 0;
-  constexpr int kLowest = 4;  // Blender's smallest render size; the largest is the library's (kMaxDimension)
-  if (std::sscanf(lower.c_str(), "%dx%d%n", &w, &h, &consumed) != 2 || consumed != int(r.size()) || w < kLowest ||
-      h < kLowest || w > kMaxDimension || h > kMaxDimension)
-    throw UsageError("bad --resolution '" + r + "' (expected WxH, each " + std::to_string(kLowest) + " to " +
+  int w = 0, h = 0;
+  if (!parseResolution(r, w, h))
+    throw UsageError("bad --resolution '" + r + "' (expected WxH, each " + std::to_string(kLowestResolution) + " to " +
                      std::to_string(kMaxDimension) + ", e.g. 480x270)");
+}
+
+std::string canonicalResolution(const std::string& text) {
+  int w = 0, h = 0;
+  return parseResolution(text, w, h) ? std::to_string(w) + "x" + std::to_string(h) : text;
 }
 
 void checkBlenderFrameRangeOption(const ParsedArgs& a, const std::string& name) {

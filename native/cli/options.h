@@ -58,6 +58,9 @@ int parseIntOption(const ParsedArgs& a, const std::string& name, int fallback, i
 // before Blender starts: --resolution WxH, and the frame ranges "A-B" or "A"
 // named (Blender frame numbers, which may be negative).
 void checkResolutionOption(const ParsedArgs& a);
+// A --resolution value as "WxH" however it was spelled (64X36, 064x36, " 64x36" are 64x36); text that
+// checkResolutionOption refuses is returned as it is.
+std::string canonicalResolution(const std::string& text);
 void checkBlenderFrameRangeOption(const ParsedArgs& a, const std::string& name);
 
 }  // namespace crisp::cli

@@ -189,6 +189,24 @@ def test_eval_that_renders_nothing_leaves_no_settings(tmp_path):
     assert not (out / "eval_settings.json").exists() and not list(out.rglob("*.exr"))
 
 
+def test_eval_settings_take_a_size_however_it_is_spelled(tmp_path):
+    """eval_settings.json refuses a run into a folder rendered at another size; 64X36 and 064x36 are the
+    size 64x36 (both pass the --resolution check and Blender renders them alike), not other settings.
+    The 'Blender' here renders a frame and fails, so the folder holds a render and keeps its settings."""
+    wrapper = tmp_path / "blender-wrapper"
+    wrapper.write_text('#!/bin/sh\nwhile [ "$1" != "-o" ]; do shift; done\nmkdir -p "$2/eevee_1"\n'
+                       'touch "$2/eevee_1/frame_0001.exr"\nexit 3\n')
+    wrapper.chmod(0o755)
+    out = tmp_path / "out"
+    for size in ("64X36", "064x36", "64x36"):
+        p = run("eval", "--scene", "still_life", "--frames", "1", "--methods", "fxaa", "--quiet", "--resolution", size,
+                "--blender", wrapper, "-o", out, ok=False)
+        assert "Blender failed (exit 3)" in p.stderr and "other settings" not in p.stderr, (size, p.stderr)
+    p = run("eval", "--scene", "still_life", "--frames", "1", "--methods", "fxaa", "--quiet", "--resolution", "48x27",
+            "--blender", wrapper, "-o", out, ok=False)
+    assert p.returncode == 2 and 'resolution "64x36" there, "48x27" here' in p.stderr, p.stderr
+
+
 @pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
 def test_render_passes_a_negative_frame_range_to_blender(tmp_path):
     """Blender frames may be negative; '-2-1' reaches batch.py as one value (--frames=-2-1), not as an
