@@ -99,6 +99,9 @@ int runEval(const ParsedArgs& args) {
   // Methods: the library's, or the list given; "none" (the 1-sample frames) always comes first.
   std::vector<std::string> methods;
   std::vector<std::string> asked = args.has("methods") ? splitList(args.get("methods")) : filterTypes();
+  if (asked.empty())  // an unset shell variable, say; `--methods none` asks for the baseline alone
+    throw UsageError("--methods '" + args.get("methods") + "' names no method (e.g. fxaa,repair; none measures the "
+                     "1-sample frames alone)");
   methods.push_back("none");
   std::vector<std::string> rendered = {"none"};  // library methods whose inputs Blender renders
   for (const std::string& m : asked) {
@@ -109,6 +112,9 @@ int runEval(const ParsedArgs& args) {
     } catch (const std::invalid_argument& e) {
       throw UsageError(std::string("--methods: ") + e.what());
     }
+    if (spec.method == "blender-smaa")
+      throw UsageError("--methods '" + m + "': blender-smaa takes no settings (Blender's Anti-Aliasing node, "
+                       "always measured, at the threshold eval_renders.py sets)");
     if (!isFilterType(spec.method))
       throw UsageError("--methods: unknown method '" + spec.method + "' (known: " + filterTypesJoined() +
                        ", blender-smaa)");

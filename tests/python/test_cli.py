@@ -126,6 +126,14 @@ def test_help_prints_parameter_tables():
       "NOBLENDER"], 2, ["--methods 'taa:feedbackMin=0.9:feedbackMax=0.5'", "feedbackMin"]),
     (["render", "--scene", "still_life", "-m", "repair", "--set", "patchSize=4", "-o", "OUT", "--blender", "NOBLENDER"],
      1, ["'patchSize' = 4 must be odd"]),
+    # blender-smaa is known (always measured) but takes no settings; an empty list (an unset shell variable)
+    # is no method, not an evaluation of none alone (--methods none asks for that).
+    (["eval", "--scene", "still_life", "--methods", "blender-smaa:threshold=0.1", "-o", "OUT", "--blender", "NOBLENDER"],
+     2, ["--methods 'blender-smaa:threshold=0.1': blender-smaa takes no settings"]),
+    (["eval", "--scene", "still_life", "--methods", "", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["--methods '' names no method"]),
+    (["eval", "--scene", "still_life", "--methods", ",", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["--methods ',' names no method"]),
 ])
 def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
     place = {"IN": str(chart / "chart_1spp.exr"), "OUT": str(tmp_path / "out"), "NOBLENDER": str(tmp_path / "none")}
