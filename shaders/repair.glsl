@@ -256,7 +256,7 @@ void repairResolvePass() {
   float T = thresholdOf(texelFetch(statsImage, ivec2(0, 0), 0), kappa);
   if (edgeValue(texelFetch(gradientImage, fragmentPixel(), 0).r, T) > 0.0) {
     Direction d = edgeDirection(fitPatch(p.x, p.y, patchSize, T), angleEstimator);
-    fragColor = smoothAt(p.x, p.y, d, mask);
+    fragColor = vec4(smoothAt(p.x, p.y, d, mask).rgb, stagedAt(p.x, p.y).a);  // the alpha passes through
   } else {
     fragColor = stagedAt(p.x, p.y);
   }
