@@ -2,6 +2,7 @@
 // `crisp eval` after the renders: methods, measurements, results files (eval.h).
 #include "eval/eval.h"
 
+#include <sys/prctl.h>
 #include <sys/utsname.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -12,6 +13,7 @@
 #include <chrono>
 #include <cerrno>
 #include <cmath>
+#include <csignal>
 #include <cstring>
 #include <cstdint>
 #include <cstdio>
@@ -636,9 +638,15 @@ int run(const Options& o) {
     fs::remove(errorFile, ec);
     std::fflush(stdout);
     std::fflush(stderr);
+    const pid_t parent = getpid();
     pid_t pid = fork();
     if (pid < 0) ioError("cannot run method '" + e.name + "' (fork failed)");
     if (pid == 0) {
+      // crisp stopped (kill PID, a farm cancelling its task) or killed outright: the method stops with it
+      // (its temporary files removed by their signal handler) rather than going on alone, writing into the
+      // folder, as Blender does (cli/blender.cpp).
+      prctl(PR_SET_PDEATHSIG, SIGTERM);
+      if (getppid() != parent) _exit(1);  // crisp died before that
       int code = 0;
       try {
         cli::Progress progress("method " + e.name, int(frames.size()), o.quiet);

@@ -3,11 +3,14 @@
 
 Every failure must exit non-zero with a message naming the file, pass or parameter, and leave no
 partial output under a final name (nor touch existing files)."""
+import glob
 import json
 import os
 import pathlib
 import shutil
+import signal
 import subprocess
+import time
 
 import pytest
 
@@ -213,6 +216,58 @@ def test_eval_settings_take_a_size_however_it_is_spelled(tmp_path):
     p = run("eval", "--scene", "still_life", "--frames", "1", "--methods", "fxaa", "--quiet", "--resolution", "48x27",
             "--blender", wrapper, "-o", out, ok=False)
     assert p.returncode == 2 and 'resolution "64x36" there, "48x27" here' in p.stderr, p.stderr
+
+
+def _method_child_of(pid):
+    """A process crisp eval forked to run a method (its executable is crisp), or None."""
+    for children in glob.glob("/proc/%d/task/*/children" % pid):
+        try:
+            with open(children) as f:
+                kids = [int(k) for k in f.read().split()]
+        except OSError:
+            continue
+        for kid in kids:
+            try:
+                if os.path.realpath("/proc/%d/exe" % kid) == os.path.realpath(str(CRISP)):
+                    return kid
+            except OSError:
+                pass
+    return None
+
+
+def _running(pid):
+    try:
+        with open("/proc/%d/stat" % pid) as f:
+            return f.read().rsplit(")", 1)[1].split()[0] not in ("Z", "X")  # an unreaped zombie has stopped
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
+def test_a_stopped_eval_leaves_no_method_writing(tmp_path):
+    """kill PID (a farm cancelling its task) stops crisp eval with the method it is running: eval runs each
+    method in a child process, which must not go on alone writing into the folder after crisp has exited
+    (Blender does not: blender.cpp). The renders are made first; the second run only runs the methods."""
+    out = tmp_path / "out"
+    args = ["eval", "--scene", "still_life", "--resolution", "1920x1080", "--frames", "1-4", "--methods", "repair",
+            "--reference-samples", "1", "--curve", "1", "--quiet", "-o", str(out)]
+    run(*args)
+    shutil.rmtree(out / "methods")
+    p = subprocess.Popen([str(CRISP), *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    child, deadline = None, time.monotonic() + 120
+    while child is None and p.poll() is None and time.monotonic() < deadline:
+        child = _method_child_of(p.pid)
+        time.sleep(0.005)
+    assert child, "no method process seen"
+    p.send_signal(signal.SIGTERM)
+    assert p.wait(timeout=60) == -signal.SIGTERM
+    deadline = time.monotonic() + 1.0
+    while _running(child) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert not _running(child), "the method process went on after crisp eval was stopped"
+    listing = sorted((f.name, f.stat().st_size) for f in (out / "methods").rglob("*"))
+    time.sleep(1.0)
+    assert sorted((f.name, f.stat().st_size) for f in (out / "methods").rglob("*")) == listing
 
 
 @pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
