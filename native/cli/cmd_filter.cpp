@@ -299,10 +299,11 @@ int runFilter(const ParsedArgs& args) {
     if (output.width != frame.width || output.height != frame.height) {
       // A size change part-way is legitimate (a cut to another camera) but
       // more often mixed-up folders: carry on, and say so.
-      if (output.width != 0)
-        std::fprintf(stderr,
-                     "filter: warning: '%s' is %dx%d, the frames before it %dx%d: %s starts over at the new size\n",
-                     in.c_str(), frame.width, frame.height, output.width, output.height, filter->type());
+      if (output.width != 0) {  // a temporal method's history starts over; a spatial one has none to lose
+        const std::string consequence = temporal ? std::string(": ") + filter->type() + " starts over at the new size" : "";
+        std::fprintf(stderr, "filter: warning: '%s' is %dx%d, the frames before it %dx%d%s\n", in.c_str(),
+                     frame.width, frame.height, output.width, output.height, consequence.c_str());
+      }
       output = Image(frame.width, frame.height, 4);
     }
     filter->setImage("output", output.view());

@@ -370,7 +370,11 @@ def test_size_change_mid_sequence_is_reported(chart, tmp_path):
     out = tmp_path / "out"
     p = run("filter", "-q", "--method", "taa", a, b, "-o", out)  # a cut: carries on
     assert "warning" in p.stderr and "b.exr" in p.stderr and "31x17" in p.stderr and "97x61" in p.stderr
+    assert "taa starts over at the new size" in p.stderr
     assert (out / "a.exr").is_file() and (out / "b.exr").is_file()
+    # A spatial method has no history to start over: the warning says what is odd, nothing more.
+    p = run("filter", "-q", "--method", "fxaa", a, b, "-o", tmp_path / "spatial")
+    assert "'%s' is 31x17, the frames before it 97x61\n" % b in p.stderr and "starts over" not in p.stderr
     a2 = tmp_path / "a2.exr"
     shutil.copy(a, a2)
     p = run("filter", "-q", "--method", "taa", a, a2, "-o", tmp_path / "same")
