@@ -564,6 +564,7 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
                                                     view_layer=view_layer, on_frame=on_reference,
                                                     should_cancel=should_cancel)
     except GeneratorExit:  # closed between frames (an operator Blender ended): as a stop by should_cancel
+        result.setdefault("total_s", round(time.perf_counter() - t0, 3))
         try:
             record(ended())
         except OSError:

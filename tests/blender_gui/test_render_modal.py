@@ -340,6 +340,7 @@ def a_file_loaded_mid_run_ends_it():
     with open(os.path.join(out, "run.json")) as f:
         run = json.load(f)
     assert run["status"].startswith("cancelled at frame "), run["status"]
+    assert run["total_s"] > 0, "as a run stopped by Esc records it"
     made = sorted(f for f in os.listdir(os.path.join(out, "filtered")) if f.endswith(".exr"))
     yield 1.0
     assert sorted(f for f in os.listdir(os.path.join(out, "filtered")) if f.endswith(".exr")) == made
