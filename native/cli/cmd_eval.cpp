@@ -135,11 +135,19 @@ int runEval(const ParsedArgs& args) {
     for (int s = 1; s < refSamples && s <= 16; s *= 2) curve += (curve.empty() ? "" : ",") + std::to_string(s);
     if (curve.empty()) curve = "1";
   }
+  std::string notBelowReference;  // curve points the reference is no better than
   for (const std::string& c : splitList(curve)) {
     char* end = nullptr;
     long v = std::strtol(c.c_str(), &end, 10);
     if (*end || v < 1 || v > 65536) throw UsageError("--curve expects sample counts like 1,2,4,8; got '" + c + "'");
+    if (v >= refSamples) notBelowReference += (notBelowReference.empty() ? "" : ", ") + std::to_string(v);
   }
+  if (!notBelowReference.empty())
+    std::fprintf(stderr,
+                 "eval: warning: EEVEE at %s sample(s) is measured against a reference of %d, which is no better: its "
+                 "error says nothing (the same count gives 100 dB); give --reference-samples above the curve's "
+                 "largest count\n",
+                 notBelowReference.c_str(), refSamples);
 
   // Checked here too: the folder's settings file is written before Blender starts, and a size Blender
   // then refused would lock the folder against the corrected command.

@@ -63,7 +63,7 @@ const std::vector<OptionSpec>& options() {
       {"eval", "resolution", 0, "WxH", false, false, "override the render size"},
       {"eval", "warmup", 0, "N", false, false, "leave the first N frames out of the error means (a temporal method's warm-up; seed 000's static protocol: 15 of 16); they stay in the per-frame figures (default 0)"},
       {"eval", "reference-samples", 0, "N", false, false, "EEVEE samples of the reference (default 64; 256 for final figures)"},
-      {"eval", "curve", 0, "LIST", false, false, "EEVEE sample counts of the curve (default 1,2,4,... up to 16, below the reference)"},
+      {"eval", "curve", 0, "LIST", false, false, "EEVEE sample counts of the curve, each below the reference's (default 1,2,4,... up to 16)"},
       {"eval", "jitter", 0, "DIST", false, false, "sub-pixel jitter of the temporal methods' input frames: blackman-harris (EEVEE's own pixel filter, default) or uniform (inside the pixel)"},
       {"eval", "blender", 0, "PATH", false, false, "Blender executable (default: blender on PATH)"},
       {"eval", "output", 'o', "OUTDIR", false, true, "output folder: report.html, results.json/.csv, images/, renders/, methods/; rerun to resume"},

@@ -517,6 +517,18 @@ def test_a_missing_blender_is_named_on_stderr(tmp_path, command):
         assert "cannot run Blender" in p.stderr and "other settings" not in p.stderr, p.stderr
 
 
+def test_eval_warns_of_curve_points_the_reference_is_no_better_than(tmp_path):
+    """A curve point at or above the reference's sample count is measured against a reference no better than
+    itself (the same count: 100 dB): said before anything runs. Points below it, as the default curve's, are not."""
+    base = ["eval", "--scene", "spinning_cube", "--frames", "1-2", "--methods", "none", "--quiet", "--blender",
+            tmp_path / "no-blender"]
+    p = run(*base, "--reference-samples", "4", "--curve", "1,4,8", "-o", tmp_path / "a", ok=False)
+    assert "eval: warning: EEVEE at 4, 8 sample(s) is measured against a reference of 4" in p.stderr, p.stderr
+    for more in (["--reference-samples", "4", "--curve", "1,2"], ["--reference-samples", "4"]):
+        p = run(*base, *more, "-o", tmp_path / "b", ok=False)
+        assert "cannot run Blender" in p.stderr and "warning" not in p.stderr, p.stderr
+
+
 @pytest.mark.parametrize("command", ["render", "eval"])
 def test_a_blender_that_exits_127_is_not_taken_for_a_missing_one(tmp_path, command):
     # A wrapper script starts (exec succeeds) and then fails with 127 itself: its own message must
