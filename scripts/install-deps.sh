@@ -9,6 +9,7 @@ packages=(
   libopenimageio-dev openimageio-tools libopenexr-dev libglm-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev
+  llvm  # llvm-symbolizer: clang's LeakSanitizer names the frames tests/fuzz/lsan.supp matches by function only with it
   python3 python3-numpy python3-skimage python3-pytest
   blender xvfb xauth chromium
   nodejs
