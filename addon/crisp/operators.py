@@ -78,9 +78,22 @@ class _FrameByFrame:
               ReferenceError)
     running = None  # the run going on in this Blender (one at a time: they would share the scene's settings)
 
+    def _second_run(self):
+        """The refusal of a run while another runs, or None."""
+        if _FrameByFrame.running is None:
+            return None
+        return _fail(self, "a Crisp render is running already; press Esc to stop it")
+
+    @staticmethod
+    def clicked_run():
+        """The clicked run still stepping (not yet closed), or None."""
+        running = _FrameByFrame.running
+        return running if running is not None and getattr(running, "_steps", None) is not None else None
+
     def execute(self, context):
-        if _FrameByFrame.running is not None:
-            return _fail(self, "a Crisp render is running already; press Esc to stop it")
+        refused = self._second_run()
+        if refused:
+            return refused
         self.stop_asked = False
         _FrameByFrame.running = self
         try:
@@ -93,8 +106,9 @@ class _FrameByFrame:
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
             return self.execute(context)
-        if _FrameByFrame.running is not None:
-            return _fail(self, "a Crisp render is running already; press Esc to stop it")
+        refused = self._second_run()
+        if refused:
+            return refused
         self.stop_asked = False
         self._steps = self.steps(context)
         self._made, self._total = 0, len(_frames(context.scene))
@@ -143,21 +157,22 @@ class _FrameByFrame:
         """Blender ends the operator (a file loaded, the window closed): the steps put the scene back and
         record the stop."""
         self._end(context)
-        if self._steps is not None:
-            try:
-                self._steps.close()
-            except self.ERRORS as e:
-                print("Crisp: %s" % e)
+        self._close_steps()
 
     def stop_now(self, why):
         """Stops the run between frames, at once: the steps put the scene back and record the stop
         (run.json "cancelled at frame N"); the next event ends the operator."""
-        steps, self._steps = self._steps, None
-        try:
-            steps.close()
-        except self.ERRORS as e:
-            print("Crisp: %s" % e)
+        self._close_steps()
         self.report({"WARNING"}, "Crisp: %s stopped by %s" % (self.bl_label, why))
+
+    def _close_steps(self):
+        """Closes the steps between frames (they put the scene back and record the stop), once."""
+        steps, self._steps = self._steps, None
+        if steps is not None:
+            try:
+                steps.close()
+            except self.ERRORS as e:
+                print("Crisp: %s" % e)
 
     def _progress_text(self):
         return "Crisp: %s, %d of %d frames made; Esc stops after the frame being rendered" % (
@@ -361,8 +376,8 @@ def _stop_clicked_run(why):
     """A save, undo or redo during a clicked run: made in another window (the run's own takes no input) or
     by a script. The scene holds the run's render settings between frames, so the save would write them
     into the file, and an undo would read the scene again under the run: it stops first."""
-    running = _FrameByFrame.running
-    if running is not None and getattr(running, "_steps", None) is not None:
+    running = _FrameByFrame.clicked_run()
+    if running is not None:
         running.stop_now(why)
 
 
@@ -384,8 +399,8 @@ def unregister():
     # Blender frees a running operator of a class unregistered (the add-on disabled in the Preferences
     # window during a clicked run) without calling its cancel(): the run would keep the scene's render
     # settings and run.json "running", and every later run would be refused as one already running.
-    running = _FrameByFrame.running
-    if running is not None and getattr(running, "_steps", None) is not None:
+    running = _FrameByFrame.clicked_run()
+    if running is not None:
         try:
             running.cancel(bpy.context)
         except Exception as e:  # the classes go all the same
