@@ -3,11 +3,12 @@
 
 import bpy
 
-from . import native
+from . import native, properties
 
 
 def _library_changed(self, context):
     native.set_preference_path(bpy.path.abspath(self.library_path) if self.library_path else "")
+    properties.add_param_groups()  # a library that loads now brings the methods' settings
 
 
 class CrispPreferences(bpy.types.AddonPreferences):

@@ -80,6 +80,7 @@ def _library_param_groups():
 
 
 _param_classes = {}  # method -> registered PropertyGroup class
+_groups_built = False  # whether _param_classes came from a loaded library (else it could not load)
 
 
 def param_group(settings, method):
@@ -129,9 +130,19 @@ class CrispSettings(bpy.types.PropertyGroup):
     last_compare: bpy.props.StringProperty(name="Last comparison", default="")
 
 
+def _library_loaded():
+    try:
+        native.load()
+    except native.CrispError:
+        return False
+    return True
+
+
 def register():
+    global _groups_built
     _param_classes.clear()
     _param_classes.update(_library_param_groups())
+    _groups_built = _library_loaded()
     for cls in _param_classes.values():
         bpy.utils.register_class(cls)
     # One pointer per method with parameters, added before CrispSettings is registered.
@@ -141,10 +152,38 @@ def register():
     bpy.types.Scene.crisp = bpy.props.PointerProperty(type=CrispSettings)
 
 
+def param_groups_missing():
+    """Whether the methods' settings wait for the library: registered without one, which loads now."""
+    return CrispSettings.is_registered and not _groups_built and native._lib is not None
+
+
+def add_param_groups():
+    """The methods' settings, when the add-on was registered without a library that loads now (its path
+    given in the preferences, or built since): added to the registered scene settings, so the panel shows
+    them and a run sends them (without them every run took the defaults until the add-on was enabled
+    again). Values a scene kept from an earlier session come back with them. Returns None (a timer)."""
+    global _groups_built
+    if not CrispSettings.is_registered or _groups_built or not _library_loaded():
+        return None
+    groups = _library_param_groups()
+    _groups_built = True
+    for method, cls in groups.items():
+        bpy.utils.register_class(cls)
+        _param_classes[method] = cls
+        pointer = bpy.props.PointerProperty(type=cls)
+        CrispSettings.__annotations__[group_name(method)] = pointer  # unregister() takes it out again
+        setattr(CrispSettings, group_name(method), pointer)  # on the registered class: the property now
+    return None
+
+
 def unregister():
+    global _groups_built
     del bpy.types.Scene.crisp
     bpy.utils.unregister_class(CrispSettings)
     for method, cls in reversed(list(_param_classes.items())):
         CrispSettings.__annotations__.pop(group_name(method), None)
+        if group_name(method) in CrispSettings.__dict__:  # added by add_param_groups
+            delattr(CrispSettings, group_name(method))
         bpy.utils.unregister_class(cls)
     _param_classes.clear()
+    _groups_built = False

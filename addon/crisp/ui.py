@@ -20,6 +20,10 @@ class CRISP_PT_render(bpy.types.Panel):
         row = layout.row()
         row.alert = not ok
         row.label(text=text if ok else "Library: " + text, icon="CHECKMARK" if ok else "ERROR")
+        if ok and props.param_groups_missing() and not bpy.app.timers.is_registered(props.add_param_groups):
+            # The library loaded since the add-on was registered: its methods' settings, after this draw
+            # (a draw may not register classes).
+            bpy.app.timers.register(props.add_param_groups, first_interval=0.0)
         layout.prop(s, "method")
         group = props.param_group(s, s.method)
         if group is not None:
