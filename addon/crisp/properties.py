@@ -37,8 +37,9 @@ def method_items(self, context):
 # CLI refuses them in --set, and FrameFilter sets them from the sidecar, replacing a panel value).
 RSAA_CAMERA_PARAMS = {"orthographic", "proj00", "proj11", "proj02", "proj12"} | {
     "view%d%d" % (r, c) for r in range(3) for c in range(3)}
-# Parameters the pipeline sets itself (per frame) or that only tests use: not shown to artists.
-PIPELINE_PARAMS = {"jitterX", "jitterY", "reference"} | RSAA_CAMERA_PARAMS
+# Parameters the pipeline sets itself (per frame, or filterSize from the scene's Film > Filter Size:
+# pipeline.with_scene_filter_size) or that only tests use: not shown to artists.
+PIPELINE_PARAMS = {"jitterX", "jitterY", "filterSize", "reference"} | RSAA_CAMERA_PARAMS
 
 
 def group_name(method):

@@ -4,6 +4,7 @@
 import bpy
 
 from . import native, output_folder
+from . import plan as plan_mod
 from . import properties as props
 
 
@@ -31,6 +32,8 @@ class CRISP_PT_render(bpy.types.Panel):
             for p in group.bl_rna.properties:
                 if p.identifier not in ("rna_type", "name"):
                     box.prop(group, p.identifier)
+            if s.method in plan_mod.TEMPORAL_METHODS:  # pipeline.with_scene_filter_size
+                box.label(text="filterSize: Film > Filter Size, %g px" % context.scene.render.filter_size)
         layout.prop(s, "jitter_distribution")
         layout.prop(s, "reference_samples")
         layout.prop(s, "output_dir")

@@ -108,7 +108,8 @@ def _settings(context):
 
 def _filter_params(context, method):
     """The scene's parameters for `method` (scene.crisp, built from the library's table) that the GPU
-    version has; defaults when the add-on's settings are unavailable."""
+    version has, and taa's filterSize from the scene's Film > Filter Size; defaults when the add-on's
+    settings are unavailable."""
     from . import gpu_filters
     out = {}
     try:
@@ -120,6 +121,9 @@ def _filter_params(context, method):
         for name in gpu_filters.DEFAULTS[method]:
             if hasattr(group, name):
                 out[name] = getattr(group, name)
+    if "filterSize" in gpu_filters.DEFAULTS[method]:  # as the renders are filtered (pipeline.with_scene_filter_size)
+        from . import pipeline
+        out["filterSize"] = max(float(context.scene.render.filter_size), pipeline.MIN_FILTER_SIZE)
     return out
 
 
@@ -206,6 +210,8 @@ def _filter_view(context, region, space, rv3d, width, height):
         filt.set_params(params)
     except gpu_filters.GpuParamsError as e:
         rejected = str(e)
+        if "'filterSize'" in rejected:  # not a Crisp setting: the scene's (_filter_params)
+            rejected = "the scene's Film > Filter Size (%g px): %s" % (context.scene.render.filter_size, rejected)
     if rejected is None:
         view = rv3d.view_matrix.copy()
         projection = rv3d.window_matrix.copy()

@@ -167,6 +167,46 @@ class AddonTest(unittest.TestCase):
         native.set_preference_path("")
         self.assertIsNone(native.preference_note())
 
+    @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
+    def test_temporal_methods_filter_with_the_scenes_filter_size(self):
+        """The frames are jittered over the scene's Film > Filter Size, and EEVEE's reference is filtered
+        with it: a temporal method's filterSize (the pixel filter its unjitter assumes) is that size, not
+        the library's 1.5 whatever the scene said. A size the library refuses is said before anything is
+        rendered, naming the Film setting; the default size sends nothing."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 32, 18, 100
+
+        def colour(path):
+            with native.Context(1) as ctx, native.Frame(ctx, path) as frame:
+                return frame.pass_values("color")[0]
+
+        for method in plan.TEMPORAL_METHODS:
+            with tempfile.TemporaryDirectory() as d:
+                scene.render.filter_size = 0.75
+                result = pipeline.run(scene, method, [1, 2], d, write_png=False, log=lambda *a: None)
+                self.assertEqual(result["params"], {"filterSize": 0.75}, method)
+                inputs = [os.path.join(d, "input", render.frame_name(f)) for f in (1, 2)]
+                made = colour(os.path.join(d, "filtered", render.frame_name(2)))
+                for params, same in (({"filterSize": 0.75}, True), ({}, False)):
+                    ff = native.FrameFilter(method, params, 1, result["plan"]["passes"])
+                    try:
+                        for i, path in enumerate(inputs):
+                            ff.run(path, [os.path.join(d, "check_%d.exr" % i)])
+                    finally:
+                        ff.close()
+                    self.assertEqual(colour(os.path.join(d, "check_1.exr")) == made, same, (method, params))
+                # A crisp render --set filterSize=... keeps its own; the default size adds nothing.
+                result = pipeline.run(scene, method, [1], d, params={"filterSize": "2"}, log=lambda *a: None)
+                self.assertEqual(result["params"], {"filterSize": "2"})
+                scene.render.filter_size = 1.5
+                self.assertEqual(pipeline.run(scene, method, [1], d, log=lambda *a: None)["params"], {})
+            with tempfile.TemporaryDirectory() as d:
+                scene.render.filter_size = 5.0
+                with self.assertRaisesRegex(pipeline.InputError, r"'filterSize' = 5 is out of range.*Film > Filter "
+                                                                 r"Size, 5 px"):
+                    pipeline.run(scene, method, [1], d, log=lambda *a: None)
+                self.assertEqual(os.listdir(d), [])
+
     def test_output_folder_that_is_a_file_is_named_so(self):
         with tempfile.NamedTemporaryFile() as f:
             with self.assertRaisesRegex(pipeline.InputError, "is a file, not a folder"):

@@ -291,14 +291,23 @@ class ViewportPreview(unittest.TestCase):
                 self.assertGreater(largest, 0.5, "EEVEE's jitter reaches past the pixel")
         size = scene.render.filter_size
         self.addCleanup(setattr, scene.render, "filter_size", size)
-        # A filter size whose Blackman-Harris jitter leaves taa's range (+-4 px) is said in the panel, the
-        # view is left unfiltered, and the preview stays on.
+        # taa's filterSize (the pixel filter its unjitter assumes) is the scene's, as in the renders
+        # (pipeline.with_scene_filter_size), not the library's 1.5 whatever the scene says.
         scene.crisp.jitter_distribution = "blackman-harris"
+        filt = next(f for (_region, method), f in viewport._State.filters.items() if method == "taa")
+        self.assertEqual(filt.params["filterSize"], size)
+        scene.render.filter_size = 0.75
+        redraw(2)
+        self.assertEqual(filt.params["filterSize"], 0.75)
+        self.assertIsNone(viewport._State.rejected)
+        # A filter size the library refuses (taa's range is 4 px, within which the jitter stays in its
+        # +-4 px) is said in the panel naming the scene's setting, the view is left unfiltered, and the
+        # preview stays on.
         scene.render.filter_size = 10.0
         redraw(3)
         self.assertTrue(viewport.is_active(), self.settings.status)
-        self.assertIn("reaches", viewport._State.rejected or "")
-        self.assertIn("jitterX", viewport._State.rejected or "")
+        self.assertIn("Film > Filter Size (10 px)", viewport._State.rejected or "")
+        self.assertIn("'filterSize' = 10 is out of range", viewport._State.rejected or "")
         scene.render.filter_size = size
         redraw(1)
         self.assertIsNone(viewport._State.rejected)
