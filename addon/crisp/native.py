@@ -77,6 +77,10 @@ SIGNATURES = {
     "crispAttachFrameSubsamples": (None, [_vp, _vp, _vp]),
     "crispCompareImages": (None, [_vp, _vp, _vp, _int, _sz, _sz, _vp, ctypes.POINTER(Metrics)]),
 }
+# The C API this add-on is written for (crisp.h CRISP_VERSION_MAJOR, _MINOR): a library of another major
+# version may differ in what a call means (crisp.h: CrispMetrics grows only with a new major), and one of
+# an older minor version may lack a filter, parameter or pass this add-on sends.
+API_VERSION = (0, 1)
 # Calls that do not record errors (and crispGetError itself).
 _NO_CHECK = {"crispGetError", "crispGetVersion", "crispGetVersionString", "crispGetFilterTypes"}
 
@@ -140,6 +144,12 @@ class _Library:
             self.fns[name] = fn
         if missing:
             raise OSError("%s lacks %s (an older libcrisp?)" % (path, ", ".join(missing)))
+        version = self.fns["crispGetVersion"]()
+        have = (version // 10000, version // 100 % 100)
+        if have[0] != API_VERSION[0] or have[1] < API_VERSION[1]:
+            raise OSError("it is libcrisp %s; this add-on needs %d.x, at least %d.%d (build the library of the add-on's "
+                          "own checkout)" % (self.fns["crispGetVersionString"]().decode("utf-8", "replace"),
+                                             API_VERSION[0], API_VERSION[0], API_VERSION[1]))
 
     def call(self, name, *args):
         result = self.fns[name](*args)

@@ -82,3 +82,22 @@ def test_an_unknown_parameter_is_named_by_the_library_whatever_its_value(native)
     for value in (2 ** 40, 1e40, 3):
         message = native.check_params("taa", {"bogus": value})
         assert "unknown parameter 'bogus'" in message and "out of range" not in message, message
+
+
+def test_a_library_of_another_version_is_refused_saying_which(native, monkeypatch):
+    """A library of another major version (crisp.h: what a call means may change with it) or of an older
+    minor one than the add-on needs is not loaded, and the status says which it is and what is needed;
+    one of the same major and a newer minor is. (Any library with the calls' names used to load.)"""
+    version = native.load().call("crispGetVersion")
+    have, major, minor = native._lib.call("crispGetVersionString").decode(), version // 10000, version // 100 % 100
+    monkeypatch.setattr(native, "_lib", None)
+    for wanted in ((major + 1, 0), (major, minor + 1)):
+        monkeypatch.setattr(native, "API_VERSION", wanted)
+        ok, text = native.status()
+        assert not ok, wanted
+        assert ("it is libcrisp %s; this add-on needs %d.x, at least %d.%d" % (have, wanted[0], wanted[0], wanted[1])
+                in text), text
+        assert text.startswith("libcrisp not loaded; $CRISP_LIBRARY %s" % os.environ["CRISP_LIBRARY"]), text
+        assert native._lib is None
+    monkeypatch.setattr(native, "API_VERSION", (major, 0))
+    assert native.status()[0]
