@@ -47,6 +47,15 @@ def group_name(method):
     return method.replace("-", "_")
 
 
+def _precision(spec):
+    """Decimals the panel shows of a float parameter: 4, or as many as its default and limits need (up
+    to Blender's 6), so that phlm's lambda at its largest, 0.99999, does not read 1.0000."""
+    for digits in range(4, 7):
+        if all(abs(round(float(spec[k]), digits) - float(spec[k])) < 1e-9 for k in ("default", "min", "max")):
+            return digits
+    return 6
+
+
 def _property_for(spec):
     """A bpy property built from one row of the library's parameter table (crispGetFilterInfo)."""
     desc = (spec.get("meaning") or "") + (" [" + spec["source"] + "]" if spec.get("source") else "")
@@ -58,7 +67,7 @@ def _property_for(spec):
                                      max=int(spec["max"]), description=desc)
     if kind == "float":
         return bpy.props.FloatProperty(name=name, default=float(spec["default"]), min=float(spec["min"]),
-                                       max=float(spec["max"]), description=desc, precision=4)
+                                       max=float(spec["max"]), description=desc, precision=_precision(spec))
     items = [(c, c, "") for c in spec["choices"]]
     return bpy.props.EnumProperty(name=name, items=items, default=spec["default"], description=desc)
 

@@ -123,6 +123,10 @@ class AddonTest(unittest.TestCase):
                     continue
                 for p in shown:  # same names and defaults as the library
                     value = getattr(group, p["name"])
+                    if p["type"] == "float":  # the panel shows its default and limits as they are
+                        digits = group.bl_rna.properties[p["name"]].precision
+                        for k in ("default", "min", "max"):
+                            self.assertAlmostEqual(round(p[k], digits), p[k], places=9, msg=(method, p["name"], k))
                     if p["type"] == "float":
                         self.assertAlmostEqual(value, p["default"], places=5, msg=(method, p["name"]))
                     else:
