@@ -248,6 +248,7 @@ int runFilter(const ParsedArgs& args) {
   Image output;
   Progress progress("filter " + std::string(filter->type()), run.last - run.start + 1, quiet);
   ShotPosition shot;
+  shot.filterSizeGiven = settings["params"].contains("filterSize");  // else each sidecar's Film > Filter Size
   std::set<std::string> optionalBound;  // the optional passes bound for the frame before
   for (std::size_t i = std::size_t(run.start - 1); i < std::size_t(run.last); ++i) {
     const std::string& in = args.positional[i];

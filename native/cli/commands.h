@@ -30,17 +30,19 @@ int runBench(const ParsedArgs& args, const char* argv0);
 // name, if the frame has it. Errors from commit name the file. With an add-on
 // sidecar beside the frame it also adds what the sidecar holds for the filter:
 // rsaa's sub-samples and camera (attached to the frame, so they live as long
-// as it does) and a temporal filter's jitterX / jitterY.
+// as it does) and a temporal filter's jitterX / jitterY and filterSize.
 // Where a sequence is, for a temporal filter's history: the sidecar of the
-// last frame it filtered, and that sidecar's path; and the jitter the filter
-// had before the first frame (its default or --set), for frames without a
-// sidecar.
+// last frame it filtered, and that sidecar's path; and the jitter and filter
+// size the filter had before the first frame (its defaults or --set), for
+// frames without a sidecar. filterSizeGiven: --set (or the method's settings)
+// gave filterSize, which then wins over the sidecars' Film > Filter Size.
 struct ShotPosition {
   bool known = false;
   Sidecar sidecar;
   std::string path;
   bool jitterSaved = false;
-  float jitterX = 0.0f, jitterY = 0.0f;
+  float jitterX = 0.0f, jitterY = 0.0f, filterSize = 0.0f;
+  bool filterSizeGiven = false;
 };
 // The --set KEY=VALUE settings of args, blanks around KEY and VALUE trimmed
 // (as batch.py strips them); a UsageError for one without KEY or '='.

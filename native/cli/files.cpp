@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
@@ -140,11 +141,12 @@ std::string jsonNumber(double v) {
 
 namespace {
 
-bool hasParam(const Filter& f, const char* name) {
+const ParamSpec* findParam(const Filter& f, const char* name) {
   for (const ParamSpec& s : f.params().specs())
-    if (std::strcmp(s.name, name) == 0) return true;
-  return false;
+    if (std::strcmp(s.name, name) == 0) return &s;
+  return nullptr;
 }
+bool hasParam(const Filter& f, const char* name) { return findParam(f, name) != nullptr; }
 
 }  // namespace
 
@@ -156,13 +158,19 @@ namespace {
 // (the sidecar's y is up, the library's down), parsed already when shot holds
 // this frame's sidecar; without a sidecar, the jitter the filter had before
 // the first frame (a frame of another renderer is not jittered, or --set says
-// how). Re-commit only on a change.
+// how). The same for filterSize, the pixel filter the unjitter assumes: the
+// sidecar's Film > Filter Size, over which the add-on jittered the frame and
+// EEVEE filters the reference (the add-on's pipeline.with_scene_filter_size),
+// unless --set gave one; Blender's 0 is the library's smallest size.
+// Re-commit only on a change.
 void bindJitter(Filter& filter, const Frame& frame, ShotPosition& shot) {
   if (!hasParam(filter, "jitterX") || !hasParam(filter, "jitterY")) return;
+  const ParamSpec* sized = findParam(filter, "filterSize");
   if (!shot.jitterSaved) {
     shot.jitterSaved = true;
     shot.jitterX = filter.params().getFloat("jitterX");
     shot.jitterY = filter.params().getFloat("jitterY");
+    if (sized) shot.filterSize = filter.params().getFloat("filterSize");
   }
   const std::string side = sidecarPathFor(frame.path);
   Sidecar parsed;
@@ -175,16 +183,33 @@ void bindJitter(Filter& filter, const Frame& frame, ShotPosition& shot) {
     s = &parsed;
   }
   const float x = s ? float(s->jitterX) : shot.jitterX, y = s ? float(-s->jitterY) : shot.jitterY;
-  if (filter.params().getFloat("jitterX") == x && filter.params().getFloat("jitterY") == y) return;
-  try {
-    filter.params().setFloat("jitterX", x);
-    filter.params().setFloat("jitterY", y);
-  } catch (const Exception& e) {
-    if (!s) throw;
-    throw Exception(e.code(), "sidecar '" + side + "' gives jitter (" + jsonNumber(s->jitterX) + ", " +
-                                  jsonNumber(s->jitterY) + ") px (y up): " + e.what());
+  float size = shot.filterSize;
+  if (sized && s && s->filterSize >= 0.0 && !shot.filterSizeGiven) size = std::max(float(s->filterSize), float(sized->minValue));
+  const bool jitterChanged = filter.params().getFloat("jitterX") != x || filter.params().getFloat("jitterY") != y;
+  const bool sizeChanged = sized && filter.params().getFloat("filterSize") != size;
+  if (!jitterChanged && !sizeChanged) return;
+  const std::string from = s ? "sidecar '" + side + "'" : std::string("the shot");
+  if (jitterChanged) {
+    try {
+      filter.params().setFloat("jitterX", x);
+      filter.params().setFloat("jitterY", y);
+    } catch (const Exception& e) {
+      if (!s) throw;
+      throw Exception(e.code(), "sidecar '" + side + "' gives jitter (" + jsonNumber(s->jitterX) + ", " +
+                                    jsonNumber(s->jitterY) + ") px (y up): " + e.what());
+    }
+    filter.markDirty("jitterX and jitterY were set for " + from);
   }
-  filter.markDirty("jitterX and jitterY were set for " + (s ? "sidecar '" + side + "'" : std::string("the shot")));
+  if (sizeChanged) {
+    try {
+      filter.params().setFloat("filterSize", size);
+    } catch (const Exception& e) {
+      if (!s) throw;
+      throw Exception(e.code(), "sidecar '" + side + "' gives Film > Filter Size " + jsonNumber(s->filterSize) +
+                                    " px (render_settings.filter_size): " + e.what());
+    }
+    filter.markDirty("filterSize was set for " + from);
+  }
 }
 
 }  // namespace

@@ -96,6 +96,11 @@ Sidecar parseSidecar(const std::string& text, const std::string& path) {
   if (s.width < 1 || s.height < 1 || s.width > (1 << 16) || s.height > (1 << 16))
     rd.bad("render_settings.resolution", "is out of range (" + std::to_string(s.width) + "x" + std::to_string(s.height) + ")");
 
+  if (settings.is_object() && settings.contains("filter_size")) {
+    s.filterSize = rd.number(settings["filter_size"], "render_settings.filter_size");
+    if (!(s.filterSize >= 0.0)) rd.bad("render_settings.filter_size", "is negative");
+  }
+
   const Json& jitter = rd.get(root, "", "jitter");
   s.jitterX = rd.number(rd.get(jitter, "jitter", "x"), "jitter.x");
   s.jitterY = rd.number(rd.get(jitter, "jitter", "y"), "jitter.y");

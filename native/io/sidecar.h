@@ -30,6 +30,10 @@ struct Sidecar {
   // shift moved every sample point by (+jitterX, +jitterY)). 0 when disabled.
   double jitterX = 0.0;
   double jitterY = 0.0;
+  // render_settings.filter_size: Blender's Film > Filter Size (px), the pixel
+  // filter the frame was jittered over and EEVEE filters with; < 0 when the
+  // sidecar does not give it.
+  double filterSize = -1.0;
   std::string camera;         // camera.name: the scene's camera this frame (empty if not given)
   Mat4 view;                  // world -> camera (camera.view; camera looks down -Z)
   Mat4 projection;            // camera -> clip, with the jitter shift (camera.projection)

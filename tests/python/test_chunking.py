@@ -878,6 +878,43 @@ def test_cli_and_addon_take_each_frames_jitter_from_its_sidecar(shot, lib, tmp_p
     assert max_diff(lib, tmp_path / "cli", tmp_path / "plain", frames) > 0.0
 
 
+def test_cli_takes_the_filter_size_from_the_sidecars_as_the_addon(shot, lib, tmp_path):
+    """`crisp filter` gives a temporal filter each sidecar's Film > Filter Size (render_settings.
+    filter_size), as the add-on takes the scene's (pipeline.with_scene_filter_size): the frames with
+    their sidecars saying 0.75 filter as --set filterSize=0.75 on the originals (1.5), and not as the
+    originals alone; a --set filterSize wins over the sidecars; a size the library refuses names
+    the sidecar and the Film setting."""
+    _, inputs = shot
+
+    def folder(name, size):
+        d = tmp_path / name
+        d.mkdir()
+        for f in range(1, 5):
+            shutil.copy(inputs[f - 1], d / frame(f))
+            with open(inputs[f - 1][:-len(".exr")] + ".json") as fh:
+                data = json.load(fh)
+            assert data["render_settings"]["filter_size"] == 1.5, data["render_settings"]
+            data["render_settings"]["filter_size"] = size
+            with open(d / frame(f, ".json"), "w") as fh:
+                json.dump(data, fh)
+        return [d / frame(f) for f in range(1, 5)]
+
+    narrow = folder("narrow", 0.75)
+    runs = {"narrow": (narrow, ()), "set": (inputs[:4], ("--set", "filterSize=0.75")), "plain": (inputs[:4], ()),
+            "narrow_set": (narrow, ("--set", "filterSize=2")), "set2": (inputs[:4], ("--set", "filterSize=2"))}
+    frames = range(1, 5)
+    for method in TEMPORAL:
+        for name, (files, extra) in runs.items():
+            crisp("filter", "--method", method, "--quiet", *extra, "-o", tmp_path / method / name, *files)
+        out = tmp_path / method
+        assert max_diff(lib, out / "narrow", out / "set", frames) == 0.0, method
+        assert max_diff(lib, out / "narrow", out / "plain", frames) > 0.0, method
+        assert max_diff(lib, out / "narrow_set", out / "set2", frames) == 0.0, method
+    wide = folder("wide", 6.0)
+    p = crisp("filter", "--method", "taa", "-o", tmp_path / "wide_out", *wide, ok=False)
+    assert p.returncode != 0 and "Film > Filter Size 6" in p.stderr and frame(1, ".json") in p.stderr, p.stderr
+
+
 def test_a_frame_without_sidecar_is_not_given_the_previous_frames_jitter(shot, lib, tmp_path):
     """A frame with no sidecar (another renderer's) takes the jitter given with --set, or none: not
     the jitter of the frame before it, which the filter would otherwise keep. Frame 1 has no sidecar

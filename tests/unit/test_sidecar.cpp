@@ -64,6 +64,7 @@ TEST(Sidecar, ReadsEverythingTheAddonWrites) {
   EXPECT_EQ(s.height, 54);
   EXPECT_DOUBLE_EQ(s.jitterX, 0.14410602351926033);
   EXPECT_DOUBLE_EQ(s.jitterY, -0.2579012933898057);
+  EXPECT_DOUBLE_EQ(s.filterSize, 1.5);
   // Rows as written (m[row][col]): the translation is the last column.
   EXPECT_DOUBLE_EQ(s.view.m[2][3], -6.5);
   EXPECT_DOUBLE_EQ(s.view.m[1][2], 0.923076868057251);
@@ -118,6 +119,15 @@ TEST(Sidecar, WrongTypesAndShapesAreNamed) {
   j = addonSidecar();
   j["render_settings"]["resolution"] = Json::array({0, 54});
   expectInvalid(j, "out of range");
+  j = addonSidecar();
+  j["render_settings"]["filter_size"] = -0.5;
+  expectInvalid(j, "'render_settings.filter_size' is negative");
+  j = addonSidecar();
+  j["render_settings"]["filter_size"] = "1.5";
+  expectInvalid(j, "'render_settings.filter_size' is not a number");
+  j = addonSidecar();
+  j["render_settings"].erase("filter_size");  // older sidecars: not given
+  EXPECT_LT(parseSidecar(j.dump(), "frame_0002.json").filterSize, 0.0);
   j = addonSidecar();
   j["objects"]["not-hex!"] = j["objects"]["a8fce865"];
   expectInvalid(j, "'objects.not-hex!' is not an 8-hex-digit");
