@@ -96,9 +96,11 @@ function compileJob(job) {
   const method = crispText(settings, "method");
   if (CRISP_METHODS.indexOf(method) < 0)
     crispFail("setting 'method' must be one of " + CRISP_METHODS.join(", ") + ", got '" + method + "'");
-  // A spatial method has no history to warm: its chunks need no pre-roll.
+  // A spatial method has no history to warm: its chunks need no pre-roll (a bad
+  // setting is refused all the same, as flamenco/README.md says).
   const temporal = CRISP_TEMPORAL_METHODS.indexOf(method) >= 0;
-  const preroll = temporal ? crispWholeNumber(settings, "preroll", 0) : 0;
+  const prerollSetting = crispWholeNumber(settings, "preroll", 0);
+  const preroll = temporal ? prerollSetting : 0;
   const blendfile = crispText(settings, "blendfile");
   const outputDir = crispText(settings, "output_dir");
   const crispExe = crispText(settings, "crisp_exe");

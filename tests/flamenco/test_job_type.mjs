@@ -150,6 +150,7 @@ test("bad settings raise an error naming the setting", () => {
     [{ chunk_size: 0 }, /'chunk_size' must be a whole number >= 1/],
     [{ chunk_size: 2.5 }, /'chunk_size'/],
     [{ preroll: -1 }, /'preroll' must be a whole number >= 0/],
+    [{ preroll: -1, method: "fxaa" }, /'preroll' must be a whole number >= 0/],  // refused though unused
     [{ method: "smaa" }, /'method' must be one of/],
     [{ output_dir: "  " }, /'output_dir' is empty/],
     [{ blendfile: undefined }, /'blendfile' is empty/],
