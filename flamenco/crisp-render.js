@@ -36,7 +36,7 @@ const JOB_TYPE = {
     { key: "preroll", type: "int32", default: 16, required: true,
       description: "Frames rendered and filtered before each chunk to warm the temporal history (not written)" },
     { key: "output_dir", type: "string", subtype: "dir_path", required: true,
-      description: "Shared folder for input/, filtered/ and one run_AAAA-BBBB.json per chunk" },
+      description: "Shared folder, an absolute path, for input/, filtered/ and one run_AAAA-BBBB.json per chunk" },
     { key: "resolution", type: "string", default: "",
       description: "Render size WxH (empty: the scene's)" },
     { key: "filter_params", type: "string", default: "",
@@ -103,6 +103,16 @@ function compileJob(job) {
   const preroll = temporal ? prerollSetting : 0;
   const blendfile = crispText(settings, "blendfile");
   const outputDir = crispText(settings, "output_dir");
+  // The workers must all write one shared folder: `crisp render -o` reads a
+  // Blender-relative "//..." beside the copy of the .blend the worker opens
+  // (job storage, a Shaman checkout), and any other relative path from the
+  // worker's working folder. Blender's folder browser makes "//" paths by default.
+  if (outputDir.trim().startsWith("//"))
+    crispFail("setting 'output_dir' '" + outputDir + "' is relative to the .blend file, which the workers open " +
+              "from another folder: give the shared folder's absolute path");
+  if (!/^\s*(\/|\\\\|[A-Za-z]:[\\/]|\{)/.test(outputDir))
+    crispFail("setting 'output_dir' '" + outputDir + "' is a relative path: give the shared folder's absolute " +
+              "path (or a Manager variable such as {render}/...)");
   const crispExe = crispText(settings, "crisp_exe");
   const resolution = settings.resolution ? String(settings.resolution).trim() : "";
   if (resolution !== "" && !/^\d+x\d+$/.test(resolution))

@@ -141,6 +141,11 @@ test("optional settings reach the command line", () => {
   assert.deepEqual(Array.from(args).filter((a, i) => args[i - 1] === "--set"), ["feedbackMin=0.8", "sharpen=0.2"]);
 });
 
+test("absolute output folders and Manager variables are accepted", () => {
+  for (const dir of ["/farm/out/sh010", "{render}/sh010", "C:\\farm\\out", "D:/farm/out", "\\\\server\\share\\out"])
+    assert.equal(flagValue(compile({ ...base, frames: "1-2", output_dir: dir })[0].commands[0].parameters.args, "-o"), dir);
+});
+
 test("bad settings raise an error naming the setting", () => {
   const bad = [
     [{ frames: "1-10,20-30" }, /'frames' must be one contiguous range/],
@@ -153,6 +158,9 @@ test("bad settings raise an error naming the setting", () => {
     [{ preroll: -1, method: "fxaa" }, /'preroll' must be a whole number >= 0/],  // refused though unused
     [{ method: "smaa" }, /'method' must be one of/],
     [{ output_dir: "  " }, /'output_dir' is empty/],
+    // Blender's folder browser writes "//out/" (relative to the .blend); the workers open a copy elsewhere.
+    [{ output_dir: "//out/" }, /'output_dir' '\/\/out\/' is relative to the \.blend file/],
+    [{ output_dir: "out/sh010" }, /'output_dir' 'out\/sh010' is a relative path/],
     [{ blendfile: undefined }, /'blendfile' is empty/],
     [{ resolution: "big" }, /'resolution' must be WxH/],
     [{ filter_params: "sharpen" }, /'filter_params' needs KEY=VALUE/],
