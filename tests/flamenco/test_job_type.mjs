@@ -126,6 +126,30 @@ test("a single frame, frame 0 and spaces are accepted", () => {
   assert.equal(flagValue(tasks[1].commands[0].parameters.args, "--preroll"), "2");
 });
 
+// The methods `crisp render` knows and those it warms with a pre-roll, as the add-on's plan.py
+// (which crisp render runs) lists them: METHOD_PASSES' keys and TEMPORAL_METHODS.
+function addonMethods() {
+  const plan = fs.readFileSync(path.join(here, "..", "..", "addon", "crisp", "plan.py"), "utf8");
+  const passes = /^METHOD_PASSES = \{\n([\s\S]*?)^\}/m.exec(plan);
+  const temporal = /^TEMPORAL_METHODS = \(([^)]*)\)/m.exec(plan);
+  assert.ok(passes && temporal, "plan.py: METHOD_PASSES or TEMPORAL_METHODS not found");
+  const names = (text, re) => Array.from(text.matchAll(re), (m) => m[1]).sort();
+  return { all: names(passes[1], /^\s*"([^"]+)":/gm), temporal: names(temporal[1], /"([^"]+)"/g) };
+}
+
+test("the method choices are crisp render's, and every temporal one gets a pre-roll", () => {
+  const context = vm.createContext(flamencoStub());
+  vm.runInContext(source + "\n;globalThis.__jobType = JOB_TYPE;", context);
+  const choices = context.__jobType.settings.find((s) => s.key === "method").choices;
+  const { all, temporal } = addonMethods();
+  assert.deepEqual(Array.from(choices).sort(), all);
+  for (const method of all) {
+    const prerolls = compile({ ...base, method }).map((t) => Number(flagValue(t.commands[0].parameters.args, "--preroll")));
+    // chunks 1-30, 31-60, 61-90, 91-100 with a pre-roll of 16 for a temporal method, none for a spatial one
+    assert.deepEqual(prerolls, temporal.includes(method) ? [0, 16, 16, 16] : [0, 0, 0, 0], method);
+  }
+});
+
 test("spatial methods get no pre-roll (no history to warm)", () => {
   for (const method of ["fxaa", "repair", "rsaa", "none"])
     for (const t of compile({ ...base, method }))
