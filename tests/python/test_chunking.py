@@ -13,7 +13,9 @@ read; its filtered/ is the sequential taa-improved result of the add-on's filter
     method, later ones up to the next gap or cut; a spatial method keeps every complete output);
   * `crisp render --frames A-B --preroll N --shot S-E`: chunks rendered out of order, two of them at
     the same time, into one output folder equal the sequential render; pre-roll frames never reach
-    input/ or filtered/; a resumed chunk reads its pre-roll from input/ instead of rendering it again.
+    input/ or filtered/; a resumed chunk reads its pre-roll from input/ instead of rendering it again;
+  * the Flamenco job type (flamenco/crisp-render.js, compiled under Node.js): its tasks' commands, run
+    in reverse order, equal the sequential render.
 
 `python3 tests/python/test_chunking.py --measure [OUTDIR] [--scene NAME:FRAMES:CHUNK_START]...
 [--prerolls 0,1,2,...]` prints the pre-roll table of docs/farm.md (chunked against sequential for each
@@ -373,6 +375,51 @@ def test_render_chunks_equal_sequential_and_resume(shot, lib, tmp_path):
     assert os.stat(out / "filtered" / frame(6)).st_mtime_ns == kept
     first = json.loads((out / "run_0001-0004.json").read_text())
     assert first["chunk"]["preroll_frames"] is None and [e["frame"] for e in first["frames"]] == [1, 2, 3, 4]
+
+
+# Compiles a job of the Flamenco job type flamenco/crisp-render.js under Node.js, with the stub of
+# Flamenco's job-compiler API that tests/flamenco/test_job_type.mjs uses: prints its tasks as JSON.
+_COMPILE_JOB = r"""
+const fs = require("fs"), vm = require("vm");
+const author = {
+  Task(name, type) { return { name, type, commands: [], addCommand(c) { this.commands.push(c); }, addDependency() {} }; },
+  Command(name, parameters) { return { name, parameters }; },
+};
+const context = vm.createContext({ author, print: () => {} });
+vm.runInContext(fs.readFileSync(process.argv[1], "utf8") + "\n;globalThis.__jobType = JOB_TYPE;", context);
+const settings = {};
+for (const s of context.__jobType.settings) if (s.default !== undefined) settings[s.key] = s.default;
+const job = { settings: Object.assign(settings, JSON.parse(process.argv[2])), tasks: [], addTask(t) { this.tasks.push(t); } };
+context.compileJob(job);
+console.log(JSON.stringify(job.tasks.map((t) => ({ name: t.name, type: t.type, commands: t.commands }))));
+"""
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="node not installed (the Flamenco job type is JavaScript)")
+def test_the_flamenco_job_types_chunks_equal_sequential(shot, lib, tmp_path):
+    """docs/farm.md: the commands the job type makes for frames 1-8, chunk size 3, pre-roll 8,
+    taa-improved, run by the real CLI in reverse order into one folder (as workers may take them),
+    give filtered frames bit-identical to one sequential `crisp render --frames 1-8`."""
+    seq, _ = shot
+    out = tmp_path / "farm"
+    settings = {"blendfile": "spinning_cube", "frames": "1-8", "chunk_size": 3, "preroll": 8,
+                "method": "taa-improved", "output_dir": str(out), "resolution": SIZE}
+    p = subprocess.run(["node", "-e", _COMPILE_JOB, os.path.join(SOURCE, "flamenco", "crisp-render.js"),
+                        json.dumps(settings)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    tasks = json.loads(p.stdout)
+    assert [t["name"] for t in tasks] == ["crisp-1-3", "crisp-4-6", "crisp-7-8"]
+    for task in reversed(tasks):
+        (command,) = task["commands"]
+        assert command["name"] == "exec" and command["parameters"]["exe"] == "crisp"
+        # What the Manager hands a worker: its {blender} variable expanded (here: blender on PATH).
+        args = ["blender" if a == "{blender}" else a for a in command["parameters"]["args"]]
+        crisp(*args, "--quiet")
+    assert sorted(os.listdir(out)) == ["filtered", "input", "run_0001-0003.json", "run_0004-0006.json",
+                                       "run_0007-0008.json"]
+    assert [json.loads((out / name).read_text())["chunk"]["preroll_frames"]
+            for name in ("run_0001-0003.json", "run_0004-0006.json", "run_0007-0008.json")] == [None, [1, 3], [1, 6]]
+    assert max_diff(lib, seq / "filtered", out / "filtered", range(1, 9)) == 0.0
 
 
 def test_render_reuses_only_what_the_same_settings_made(shot, lib, tmp_path):
