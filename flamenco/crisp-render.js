@@ -13,7 +13,8 @@
 // flamenco-manager executable and restart the Manager (see flamenco/README.md
 // and docs/farm.md). Flamenco's job-compiler API used here: the JOB_TYPE
 // settings table, compileJob(job), author.Task(name, type),
-// author.Command("exec", {exe, args}), task.addCommand, job.addTask.
+// author.Command("exec", {exe, args}), task.addCommand, job.addTask. The
+// Worker command `exec` exists since Flamenco 3.3 (so do settings' evalInfo).
 
 const CRISP_METHODS = ["taa", "taa-improved", "phlm", "fxaa", "repair", "rsaa", "none"];
 const CRISP_TEMPORAL_METHODS = ["taa", "taa-improved", "phlm"];
