@@ -116,8 +116,10 @@ function compileJob(job) {
               "path (or a Manager variable such as {render}/...)");
   const crispExe = crispText(settings, "crisp_exe");
   const resolution = settings.resolution ? String(settings.resolution).trim() : "";
-  if (resolution !== "" && !/^\d+x\d+$/.test(resolution))
-    crispFail("setting 'resolution' must be WxH (e.g. 1920x1080) or empty, got '" + resolution + "'");
+  // crisp render takes each side from 4 (Blender's smallest) to 65536 (the library's largest).
+  const size = /^(\d+)x(\d+)$/.exec(resolution);
+  if (resolution !== "" && !(size && [size[1], size[2]].every((side) => +side >= 4 && +side <= 65536)))
+    crispFail("setting 'resolution' must be WxH, each 4 to 65536 (e.g. 1920x1080), or empty, got '" + resolution + "'");
   const params = settings.filter_params ? String(settings.filter_params).trim().split(/\s+/) : [];
   for (const kv of params)
     if (kv.indexOf("=") <= 0) crispFail("setting 'filter_params' needs KEY=VALUE items, got '" + kv + "'");

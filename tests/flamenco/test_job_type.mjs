@@ -157,6 +157,8 @@ test("spatial methods get no pre-roll (no history to warm)", () => {
 });
 
 test("optional settings reach the command line", () => {
+  assert.equal(flagValue(compile({ ...base, frames: "1-4", resolution: "4x65536" })[0].commands[0].parameters.args,
+                         "--resolution"), "4x65536");
   const [t] = compile({ ...base, frames: "1-4", resolution: "640x360", filter_params: "feedbackMin=0.8  sharpen=0.2",
                         crisp_exe: "/opt/crisp/bin/crisp" });
   const args = t.commands[0].parameters.args;
@@ -187,6 +189,8 @@ test("bad settings raise an error naming the setting", () => {
     [{ output_dir: "out/sh010" }, /'output_dir' 'out\/sh010' is a relative path/],
     [{ blendfile: undefined }, /'blendfile' is empty/],
     [{ resolution: "big" }, /'resolution' must be WxH/],
+    [{ resolution: "2x2" }, /'resolution' must be WxH, each 4 to 65536/],  // crisp render refuses it on every worker
+    [{ resolution: "640x65537" }, /'resolution' must be WxH, each 4 to 65536/],
     [{ filter_params: "sharpen" }, /'filter_params' needs KEY=VALUE/],
   ];
   for (const [override, message] of bad)
