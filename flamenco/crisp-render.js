@@ -18,6 +18,7 @@
 
 const CRISP_METHODS = ["taa", "taa-improved", "phlm", "fxaa", "repair", "rsaa", "none"];
 const CRISP_TEMPORAL_METHODS = ["taa", "taa-improved", "phlm"];
+const CRISP_JITTERS = ["blackman-harris", "uniform"];
 
 const JOB_TYPE = {
   label: "Crisp Render (chunked, with pre-roll)",
@@ -40,6 +41,10 @@ const JOB_TYPE = {
       description: "Shared folder, an absolute path, for input/, filtered/ and one run_AAAA-BBBB.json per chunk" },
     { key: "resolution", type: "string", default: "",
       description: "Render size WxH (empty: the scene's)" },
+    // crisp render --jitter: the add-on's panel offers both (Jitter); a resume keeps only frames made
+    // with the same one.
+    { key: "jitter", type: "string", default: "blackman-harris", choices: CRISP_JITTERS,
+      description: "Sub-pixel jitter of a temporal method's frames: blackman-harris (EEVEE's own pixel filter) or uniform (inside the pixel)" },
     { key: "filter_params", type: "string", default: "",
       description: "Filter parameters, KEY=VALUE separated by spaces (see `crisp help METHOD`)" },
     { key: "crisp_exe", type: "string", default: "crisp", visible: "submission",
@@ -120,6 +125,10 @@ function compileJob(job) {
   const size = /^(\d+)x(\d+)$/.exec(resolution);
   if (resolution !== "" && !(size && [size[1], size[2]].every((side) => +side >= 4 && +side <= 65536)))
     crispFail("setting 'resolution' must be WxH, each 4 to 65536 (e.g. 1920x1080), or empty, got '" + resolution + "'");
+  // Absent (a job submitted before this setting existed): crisp render's default.
+  const jitter = settings.jitter === undefined || settings.jitter === "" ? "" : String(settings.jitter);
+  if (jitter !== "" && CRISP_JITTERS.indexOf(jitter) < 0)
+    crispFail("setting 'jitter' must be one of " + CRISP_JITTERS.join(", ") + ", got '" + jitter + "'");
   const params = settings.filter_params ? String(settings.filter_params).trim().split(/\s+/) : [];
   for (const kv of params)
     if (kv.indexOf("=") <= 0) crispFail("setting 'filter_params' needs KEY=VALUE items, got '" + kv + "'");
@@ -133,6 +142,7 @@ function compileJob(job) {
                   "--resume", "-o", outputDir];
     if (settings.blender_exe) args.push("--blender", String(settings.blender_exe));
     if (resolution !== "") args.push("--resolution", resolution);
+    if (jitter !== "") args.push("--jitter", jitter);
     for (const kv of params) args.push("--set", kv);
     const task = author.Task("crisp-" + chunk.first + "-" + chunk.last, "blender");
     task.addCommand(author.Command("exec", { exe: crispExe, args: args }));

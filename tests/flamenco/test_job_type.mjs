@@ -150,6 +150,21 @@ test("the method choices are crisp render's, and every temporal one gets a pre-r
   }
 });
 
+test("the jitter choices are crisp render's and reach its command line", () => {
+  const context = vm.createContext(flamencoStub());
+  vm.runInContext(source + "\n;globalThis.__jobType = JOB_TYPE;", context);
+  const setting = context.__jobType.settings.find((s) => s.key === "jitter");
+  const render = fs.readFileSync(path.join(here, "..", "..", "addon", "crisp", "render.py"), "utf8");
+  const known = /^JITTER_DISTRIBUTIONS = \(([^)]*)\)/m.exec(render);
+  assert.ok(known, "render.py: JITTER_DISTRIBUTIONS not found");
+  assert.deepEqual(Array.from(setting.choices), Array.from(known[1].matchAll(/"([^"]+)"/g), (m) => m[1]));
+  assert.equal(setting.default, "blackman-harris");  // crisp render's default: a job's frames equal a plain run's
+  for (const t of compile({ ...base, jitter: "uniform" }))
+    assert.equal(flagValue(t.commands[0].parameters.args, "--jitter"), "uniform");
+  // A job submitted before the setting existed: no flag, crisp render's default.
+  assert.equal(flagValue(compile({ ...base, jitter: undefined })[0].commands[0].parameters.args, "--jitter"), undefined);
+});
+
 test("spatial methods get no pre-roll (no history to warm)", () => {
   for (const method of ["fxaa", "repair", "rsaa", "none"])
     for (const t of compile({ ...base, method }))
@@ -192,6 +207,7 @@ test("bad settings raise an error naming the setting", () => {
     [{ resolution: "2x2" }, /'resolution' must be WxH, each 4 to 65536/],  // crisp render refuses it on every worker
     [{ resolution: "640x65537" }, /'resolution' must be WxH, each 4 to 65536/],
     [{ filter_params: "sharpen" }, /'filter_params' needs KEY=VALUE/],
+    [{ jitter: "gauss" }, /'jitter' must be one of blackman-harris, uniform/],
   ];
   for (const [override, message] of bad)
     assert.throws(() => compile({ ...base, ...override }), message, JSON.stringify(override));
