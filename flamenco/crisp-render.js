@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Flamenco 3 job type "crisp-render": renders a shot with Crisp on a render
+// Flamenco 3.3 job type "crisp-render": renders a shot with Crisp on a render
 // farm. The shot is split into contiguous chunks; each chunk is one task that
 // runs `crisp render` on a worker, which renders the chunk's 1-sample frames in
 // Blender, filters them with libcrisp and writes OUTDIR/input/ and
@@ -107,19 +107,20 @@ function compileJob(job) {
   const temporal = CRISP_TEMPORAL_METHODS.indexOf(method) >= 0;
   const prerollSetting = crispWholeNumber(settings, "preroll", 0);
   const preroll = temporal ? prerollSetting : 0;
-  const blendfile = crispText(settings, "blendfile");
-  const outputDir = crispText(settings, "output_dir");
+  // Paths as typed, without the spaces around them (crisp render would read " /farm" as relative).
+  const blendfile = crispText(settings, "blendfile").trim();
+  const outputDir = crispText(settings, "output_dir").trim();
   // The workers must all write one shared folder: `crisp render -o` reads a
   // Blender-relative "//..." beside the copy of the .blend the worker opens
   // (job storage, a Shaman checkout), and any other relative path from the
   // worker's working folder. Blender's folder browser makes "//" paths by default.
-  if (outputDir.trim().startsWith("//"))
+  if (outputDir.startsWith("//"))
     crispFail("setting 'output_dir' '" + outputDir + "' is relative to the .blend file, which the workers open " +
               "from another folder: give the shared folder's absolute path");
-  if (!/^\s*(\/|\\\\|[A-Za-z]:[\\/]|\{)/.test(outputDir))
+  if (!/^(\/|\\\\|[A-Za-z]:[\\/]|\{)/.test(outputDir))
     crispFail("setting 'output_dir' '" + outputDir + "' is a relative path: give the shared folder's absolute " +
               "path (or a Manager variable such as {render}/...)");
-  const crispExe = crispText(settings, "crisp_exe");
+  const crispExe = crispText(settings, "crisp_exe").trim();
   const resolution = settings.resolution ? String(settings.resolution).trim() : "";
   // crisp render takes each side from 4 (Blender's smallest) to 65536 (the library's largest).
   const size = /^(\d+)x(\d+)$/.exec(resolution);

@@ -187,6 +187,15 @@ test("absolute output folders and Manager variables are accepted", () => {
     assert.equal(flagValue(compile({ ...base, frames: "1-2", output_dir: dir })[0].commands[0].parameters.args, "-o"), dir);
 });
 
+test("spaces around the paths are not passed on", () => {
+  const [t] = compile({ ...base, frames: "1-2", blendfile: " /farm/shots/sh010.blend ", output_dir: " /farm/out/sh010\t",
+                        crisp_exe: " /opt/crisp/bin/crisp " });
+  const args = t.commands[0].parameters.args;
+  assert.equal(flagValue(args, "--scene"), "/farm/shots/sh010.blend");
+  assert.equal(flagValue(args, "-o"), "/farm/out/sh010");  // " /farm/out" is a relative path to crisp render
+  assert.equal(t.commands[0].parameters.exe, "/opt/crisp/bin/crisp");
+});
+
 test("bad settings raise an error naming the setting", () => {
   const bad = [
     [{ frames: "1-10,20-30" }, /'frames' must be one contiguous range/],
