@@ -31,7 +31,14 @@ const JOB_TYPE = {
       eval: "f'{C.scene.frame_start}-{C.scene.frame_end}'",
       evalInfo: { showLinkButton: true, description: "Scene frame range" },
       description: "The shot: one contiguous range A-B (temporal history runs through it)" },
+    // method, jitter and filter_params follow the scene's Crisp panel (scene.crisp, addon/crisp/properties.py):
+    // Flamenco's add-on evaluates `eval` in the submitting Blender when the job is submitted, as long as
+    // the setting's link button is on (its default; off, the field is edited by hand). Without the Crisp
+    // add-on there is no scene.crisp and each gives its default: an expression that raised would stop
+    // the submission with a Python error.
     { key: "method", type: "string", required: true, default: "taa", choices: CRISP_METHODS,
+      eval: "getattr(getattr(C.scene, 'crisp', None), 'method', 'taa')",
+      evalInfo: { showLinkButton: true, description: "Crisp panel's Method" },
       description: "Crisp filter to run on every frame" },
     { key: "chunk_size", type: "int32", default: 50, required: true,
       description: "Frames written per task" },
@@ -44,8 +51,14 @@ const JOB_TYPE = {
     // crisp render --jitter: the add-on's panel offers both (Jitter); a resume keeps only frames made
     // with the same one.
     { key: "jitter", type: "string", default: "blackman-harris", choices: CRISP_JITTERS,
+      eval: "getattr(getattr(C.scene, 'crisp', None), 'jitter_distribution', 'blackman-harris')",
+      evalInfo: { showLinkButton: true, description: "Crisp panel's Jitter" },
       description: "Sub-pixel jitter of a temporal method's frames: blackman-harris (EEVEE's own pixel filter) or uniform (inside the pixel)" },
+    // The panel's parameters of its method that differ from the library's defaults, as a render from the
+    // panel sends them (properties.py set_params_text). No lambda may name C: eval's locals are not its scope.
     { key: "filter_params", type: "string", default: "",
+      eval: "getattr(getattr(C.scene, 'crisp', None), 'set_params_text', lambda: '')()",
+      evalInfo: { showLinkButton: true, description: "Crisp panel's parameters of its method" },
       description: "Filter parameters, KEY=VALUE separated by spaces (see `crisp help METHOD`)" },
     { key: "crisp_exe", type: "string", default: "crisp", visible: "submission",
       description: "The crisp executable on the workers (a path, or a Manager variable such as {crisp})" },

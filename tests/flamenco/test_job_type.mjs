@@ -165,6 +165,33 @@ test("the jitter choices are crisp render's and reach its command line", () => {
   assert.equal(flagValue(compile({ ...base, jitter: undefined })[0].commands[0].parameters.args, "--jitter"), undefined);
 });
 
+test("method, jitter and filter_params follow the scene's Crisp panel at submission", () => {
+  const context = vm.createContext(flamencoStub());
+  vm.runInContext(source + "\n;globalThis.__jobType = JOB_TYPE;", context);
+  const settings = Object.fromEntries(context.__jobType.settings.map((s) => [s.key, s]));
+  // Flamenco's add-on evaluates `eval` at submission only while the setting is linked (evalInfo.showLinkButton,
+  // linked by default); without it, only when the artist presses the setting's button.
+  const panel = { method: "method", jitter: "jitter_distribution", filter_params: "set_params_text" };
+  for (const [key, attribute] of Object.entries(panel)) {
+    const s = settings[key];
+    assert.equal(typeof s.eval, "string", key + ": no eval");
+    assert.ok(s.eval.includes("getattr(C.scene, 'crisp', None)"), key + ": " + s.eval);
+    assert.ok(s.eval.includes("'" + attribute + "'"), key + ": " + s.eval);
+    assert.equal(s.evalInfo && s.evalInfo.showLinkButton, true, key);
+    assert.ok(s.evalInfo.description, key);
+    // Without the Crisp add-on (no scene.crisp) the expression gives the setting's default.
+    const fallback = /'([^']*)'\)(?:\(\))?$/.exec(s.eval);
+    assert.ok(fallback, key + ": no fallback in " + s.eval);
+    assert.equal(fallback[1], s.default, key);
+  }
+  // The panel's parameters come from the add-on's own conversion, a method of its scene settings.
+  const properties = fs.readFileSync(path.join(here, "..", "..", "addon", "crisp", "properties.py"), "utf8");
+  const settingsClass = /^class CrispSettings\([\s\S]*?(?=^\S)/m.exec(properties);
+  assert.ok(settingsClass && /^    def set_params_text\(self\):/m.test(settingsClass[0]),
+            "properties.py: CrispSettings.set_params_text not found");
+  assert.ok(/jitter_distribution: bpy\.props\.EnumProperty/.test(settingsClass[0]), "properties.py: jitter_distribution");
+});
+
 test("spatial methods get no pre-roll (no history to warm)", () => {
   for (const method of ["fxaa", "repair", "rsaa", "none"])
     for (const t of compile({ ...base, method }))
