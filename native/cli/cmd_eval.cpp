@@ -165,6 +165,27 @@ int runEval(const ParsedArgs& args) {
     const double v = std::strtod(filterSize, &end);
     if (*end || !(v >= 0.0 && v <= 100.0))
       throw UsageError(std::string("bad CRISP_EVAL_FILTER_SIZE '") + filterSize + "' (pixels, e.g. 0.5)");
+    // A temporal method filters with the renders' filter size (their sidecars, files.cpp bindJitter)
+    // unless its settings give one: a size it refuses is refused now, not after every render.
+    for (const std::string& m : methods) {
+      if (m == "none") continue;
+      const eval::MethodSpec spec = eval::parseMethodSpec(m);
+      Context context;
+      std::unique_ptr<Filter> probe = createFilter(context, spec.method);
+      const ParamSpec* sized = nullptr;
+      for (const ParamSpec& s : probe->params().specs())
+        if (std::string(s.name) == "filterSize") sized = &s;
+      const bool given = std::any_of(spec.params.begin(), spec.params.end(),
+                                     [](const auto& kv) { return kv.first == "filterSize"; });
+      if (!sized || !keepsHistory(*probe) || given) continue;
+      try {
+        probe->params().setFloat("filterSize", float(std::max(v, sized->minValue)));
+      } catch (const Exception& e) {
+        throw UsageError("CRISP_EVAL_FILTER_SIZE " + std::string(filterSize) + " (the renders' Film > Filter Size, " +
+                         "which " + spec.method + " filters with): " + e.what() + "; give --methods '" +
+                         spec.method + ":filterSize=...' to filter with another");
+      }
+    }
   }
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch_eval.py");
   appendJitterOption(args, cmd);

@@ -200,6 +200,33 @@ def test_eval_that_renders_nothing_leaves_no_settings(tmp_path):
     assert not (out / "eval_settings.json").exists() and not list(out.rglob("*.exr"))
 
 
+def test_eval_refuses_a_filter_size_a_temporal_method_refuses_before_rendering(tmp_path):
+    """A temporal method filters with the renders' Film > Filter Size (their sidecars), which
+    CRISP_EVAL_FILTER_SIZE sets: a size it refuses (above 4 px) is refused before Blender starts,
+    as bad --methods settings are, naming the variable, not after every render; a method whose settings
+    give filterSize, or a spatial one, is not refused. The 'Blender' here fails at once: reaching it
+    means the CLI let the run through."""
+    wrapper = tmp_path / "blender-wrapper"
+    wrapper.write_text("#!/bin/sh\nexit 3\n")
+    wrapper.chmod(0o755)
+    out = tmp_path / "out"
+
+    def ev(methods):
+        return subprocess.run([str(CRISP), "eval", "--scene", "still_life", "--frames", "1-2", "--resolution", "16x8",
+                               "--methods", methods, "--quiet", "--blender", str(wrapper), "-o", str(out)],
+                              capture_output=True, text=True, env=dict(os.environ, CRISP_EVAL_FILTER_SIZE="5"),
+                              timeout=60)
+    for methods in ("fxaa,taa", "phlm", "taa-improved"):
+        p = ev(methods)
+        assert p.returncode == 2 and "CRISP_EVAL_FILTER_SIZE 5" in p.stderr and "Blender failed" not in p.stderr, \
+            (methods, p.stderr)
+        assert "filterSize=" in p.stderr, p.stderr
+        assert not out.exists(), methods
+    for methods in ("fxaa", "taa:filterSize=1.5"):
+        p = ev(methods)
+        assert "Blender failed (exit 3)" in p.stderr and "CRISP_EVAL_FILTER_SIZE" not in p.stderr, (methods, p.stderr)
+
+
 def test_eval_settings_take_a_size_however_it_is_spelled(tmp_path):
     """eval_settings.json refuses a run into a folder rendered at another size; 64X36 and 064x36 are the
     size 64x36 (both pass the --resolution check and Blender renders them alike), not other settings.
