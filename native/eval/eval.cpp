@@ -941,6 +941,9 @@ int run(const Options& o) {
       {"plans", scene.value("plans", json::object())},
       {"facts", facts},
       {"jitter_distribution", scene.value("jitter_distribution", std::string())},
+      // Film > Filter Size (px): the jitter's spread, EEVEE's pixel filter (the reference's, the
+      // curve's) and the temporal methods' filterSize unless their settings give one (runMethod).
+      {"filter_size", scene.value("filter_size", json())},
       {"map_frame", mapFrame},
       {"crops", cropsJson},
       {"images", {{"full", "images/full"}, {"maps", "images/maps"}}},

@@ -274,7 +274,7 @@ h(`<h2>How this was made</h2><table>
 <tr><th class="l">run time</th><td class="l">Blender renders ${fmt(R.run_seconds.blender, 1)} s (this run; resumed frames not re-rendered), methods + measurements ${fmt(R.run_seconds.methods_and_measures, 1)} s</td></tr>
 <tr><th class="l">metrics</th><td class="l">${esc(R.metrics_note)}</td></tr>
 <tr><th class="l">blender-smaa</th><td class="l">Blender's compositor Anti-Aliasing node (SMAA 1×) on the 1-sample frames: node threshold ${short(smaa.threshold)} (= SMAA threshold ${short(smaa.smaa_threshold)}), contrast limit ${short(smaa.contrast_limit)}, corner rounding ${short(smaa.corner_rounding)}; its time includes loading and writing the image. ${esc(smaa.note || "")}</td></tr>
-<tr><th class="l">temporal inputs</th><td class="l">jitter ${esc(S.jitter_distribution)} (Halton 2,3); sidecar y up, passed to the library as jitterY = −y</td></tr>
+<tr><th class="l">temporal inputs</th><td class="l">jitter ${esc(S.jitter_distribution)} (Halton 2,3); sidecar y up, passed to the library as jitterY = −y${fin(S.filter_size) ? `; Film &gt; Filter Size ${short(S.filter_size)} px (the Blackman-Harris jitter's spread, EEVEE's pixel filter and the temporal methods' filterSize, unless their settings give one)` : ""}</td></tr>
 </table><details><summary>Pass plans</summary><pre>${esc(JSON.stringify(S.plans, null, 1))}</pre></details>`);
 
 // Self-check: every image decoded, every chart drawn.

@@ -263,3 +263,25 @@ def test_jitter_uniform_renders_the_jittered_set_again(run):
         assert mtime(copy, "methods", "none", "frame_0002.exr") == made["none"]
         scene = json.load(open(os.path.join(copy, "results.json")))["scenes"][0]
         assert scene["jitter_distribution"] == "uniform"
+
+
+def test_report_says_the_filter_size_the_temporal_methods_filter_with(run):
+    """The renders' Film > Filter Size spreads the jitter, filters EEVEE's reference and is the temporal
+    methods' filterSize (runMethod, from the sidecars): results.json and the report's "How this was
+    made" say it, as they say the jitter's distribution."""
+    out, _ = run
+    scene = json.load(open(os.path.join(out, "results.json")))["scenes"][0]
+    assert scene["filter_size"] == 1.5, scene.get("filter_size")
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        return
+    profile = tempfile.mkdtemp(prefix="crisp_chromium_")
+    try:
+        dom = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                              "--user-data-dir=" + profile, "--virtual-time-budget=3000", "--dump-dom",
+                              "file://" + os.path.join(out, "report.html")],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=120).stdout.decode()
+    finally:
+        shutil.rmtree(profile, ignore_errors=True)
+    assert "crisp eval report: OK" in dom
+    assert "Film &gt; Filter Size 1.5 px (the Blackman-Harris jitter" in dom
