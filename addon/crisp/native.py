@@ -12,6 +12,7 @@ import hashlib
 import json
 import math
 import os
+import struct
 import time
 
 # Mirrors of the C enums in native/include/crisp/crisp.h.
@@ -356,6 +357,42 @@ class Filter:
         if self.handle:
             call("crispReleaseFilter", self.handle)
             self.handle = None
+
+
+def param_text(value):
+    """One parameter value as `crisp render --set K=V` reads it: a bool true/false, a float the shortest
+    decimal that is the same float32 (the panel's and the library's type), anything else as it is."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        single = struct.unpack("f", struct.pack("f", value))[0]
+        for digits in range(1, 10):
+            text = "%.*g" % (digits, single)
+            if struct.unpack("f", struct.pack("f", float(text)))[0] == single:
+                return text
+    return str(value)
+
+
+def canonical_param_texts(method, params):
+    """params ({name: value or --set text}) as param_text gives them, a text first read as the
+    parameter's type: the panel's 0.9900000095367432 and --set's "0.99" (or "0.990") are the same
+    "0.99", "1" and "true" of a bool the same "true". A text that is not of its type stays as it is."""
+    kinds = {}
+    if params:
+        try:
+            kinds = {p["name"]: p["type"] for p in filter_info(method)["params"]}
+        except CrispError:  # no library, or not its method: the texts as they are
+            pass
+    out = {}
+    for name, value in (params or {}).items():
+        kind = kinds.get(name)
+        if isinstance(value, str) and kind in ("bool", "int", "float"):
+            try:
+                value = _parsed_text(name, kind, value)
+            except CrispError:
+                pass
+        out[name] = param_text(value)
+    return out
 
 
 def _parsed_text(name, kind, text):

@@ -221,7 +221,7 @@ def made_with(scene, method, params, samples, reference_samples, jitter, engine,
     makes again every frame made otherwise, also by another build of the library. scene_key None
     (unknown: a scene edited in this session) matches any."""
     return {"scene": scene.name, "scene_key": scene_key, "resolution": list(render.render_size(scene)),
-            "method": method if filter_frames else None, "params": {k: str(v) for k, v in (params or {}).items()},
+            "method": method if filter_frames else None, "params": native.canonical_param_texts(method, params),
             "samples": samples, "reference_samples": reference_samples, "jitter_distribution": jitter,
             "engine": engine, "library": native.load().digest if filter_frames else None}
 

@@ -5,8 +5,6 @@ Each method's parameters are built at registration from the library's own table
 (crispGetFilterInfo): same names, types, defaults and ranges as `crisp help METHOD`. Only values that
 differ from the default are sent."""
 
-import struct
-
 import bpy
 
 from . import native
@@ -120,24 +118,10 @@ def changed_params(settings, method):
     return out
 
 
-def _set_text(value):
-    """One parameter value as `crisp render --set K=V` reads it: a bool true/false, a float the shortest
-    decimal that is the same float32 (the panel's and the library's type), anything else as it is."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        single = struct.unpack("f", struct.pack("f", value))[0]
-        for digits in range(1, 10):
-            text = "%.*g" % (digits, single)
-            if struct.unpack("f", struct.pack("f", float(text)))[0] == single:
-                return text
-    return str(value)
-
-
 def set_params_text(settings, method):
     """changed_params as `crisp render --set` takes them: "KEY=VALUE KEY=VALUE", empty when every
     parameter is the library's default (the Flamenco job type crisp-render reads it at submission)."""
-    return " ".join("%s=%s" % (k, _set_text(v)) for k, v in changed_params(settings, method).items())
+    return " ".join("%s=%s" % (k, native.param_text(v)) for k, v in changed_params(settings, method).items())
 
 
 class CrispSettings(bpy.types.PropertyGroup):

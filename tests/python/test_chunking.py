@@ -451,6 +451,10 @@ def test_render_reuses_only_what_the_same_settings_made(shot, lib, tmp_path):
     assert max_diff(lib, variant / "filtered", out / "filtered", range(1, 9)) == 0.0
     side = json.loads((out / "input" / frame(1, ".json")).read_text())
     assert side["made_with"]["params"] == {"feedbackMin": "0.5"} and side["made_with"]["method"] == "taa-improved"
+    # The same value spelt otherwise (a farm job's text, the panel's float32) is the same setting: kept.
+    mtime = os.stat(out / "filtered" / frame(3)).st_mtime_ns
+    render(out, SHOT, "taa-improved", "--resume", "--set", "feedbackMin=0.50")
+    assert os.stat(out / "filtered" / frame(3)).st_mtime_ns == mtime
 
     # The same scene name from an edited script (CRISP_ADDON_DIR: another tree's add-on and scenes).
     env = dict(os.environ, CRISP_ADDON_DIR=addon_with_spinning_cube_ending(tmp_path, "# edited"))

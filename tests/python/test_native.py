@@ -101,3 +101,18 @@ def test_a_library_of_another_version_is_refused_saying_which(native, monkeypatc
         assert native._lib is None
     monkeypatch.setattr(native, "API_VERSION", (major, 0))
     assert native.status()[0]
+
+
+def test_a_value_spelt_otherwise_is_recorded_as_the_same_setting(native):
+    """A frame's made_with records parameters in one spelling (canonical_param_texts), so a resume
+    sees the panel's float32 0.99 (0.9900000095367432 as Python holds it), a farm job's --set 0.99 and
+    0.990 as the same setting, and a bool's 1 and True; another value stays another."""
+    panel = ctypes.c_float(0.99).value
+    assert panel != 0.99
+    same = [native.canonical_param_texts("phlm", {"lambda": v, "footprintBox": b})
+            for v, b in ((panel, False), ("0.99", "false"), (" 0.990", "0"), ("9.9e-1", "off"))]
+    assert same == [{"lambda": "0.99", "footprintBox": "false"}] * 4, same
+    assert native.canonical_param_texts("phlm", {"lambda": "0.991"}) == {"lambda": "0.991"}
+    assert native.canonical_param_texts("taa", {"maxSamples": "064", "clipSpace": "rgb"}) == {
+        "maxSamples": "64", "clipSpace": "rgb"}
+    assert native.canonical_param_texts("taa", {"maxSamples": "many"}) == {"maxSamples": "many"}
