@@ -172,14 +172,10 @@ int runEval(const ParsedArgs& args) {
       const eval::MethodSpec spec = eval::parseMethodSpec(m);
       Context context;
       std::unique_ptr<Filter> probe = createFilter(context, spec.method);
-      const ParamSpec* sized = nullptr;
-      for (const ParamSpec& s : probe->params().specs())
-        if (std::string(s.name) == "filterSize") sized = &s;
-      const bool given = std::any_of(spec.params.begin(), spec.params.end(),
-                                     [](const auto& kv) { return kv.first == "filterSize"; });
-      if (!sized || !keepsHistory(*probe) || given) continue;
+      const std::optional<float> size = filterSizeForFilm(*probe, v);
+      if (!size || !keepsHistory(*probe) || spec.gives("filterSize")) continue;
       try {
-        probe->params().setFloat("filterSize", float(std::max(v, sized->minValue)));
+        probe->params().setFloat("filterSize", *size);
       } catch (const Exception& e) {
         throw UsageError("CRISP_EVAL_FILTER_SIZE " + std::string(filterSize) + " (the renders' Film > Filter Size, " +
                          "which " + spec.method + " filters with): " + e.what() + "; give --methods '" +

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -68,6 +69,10 @@ std::string historyBreak(const Filter& filter, const std::string& framePath, Sho
 // Whether the filter keeps history between frames (the temporal filters,
 // which take a jitter): its output depends on the frames before.
 bool keepsHistory(const Filter& filter);
+// The filter's filterSize for a render whose Film > Filter Size was filmSize
+// px (Blender's 0 is the library's smallest size), or nothing when the filter
+// has no filterSize. Not checked against the largest: setFloat refuses that.
+std::optional<float> filterSizeForFilm(const Filter& filter, double filmSize);
 
 // A file's size and modification time as "SIZE TIME", "" when it cannot be
 // read: what tells a file apart from the one a run wrote or read before.

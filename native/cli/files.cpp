@@ -152,6 +152,12 @@ bool hasParam(const Filter& f, const char* name) { return findParam(f, name) != 
 
 bool keepsHistory(const Filter& filter) { return hasParam(filter, "jitterX"); }
 
+std::optional<float> filterSizeForFilm(const Filter& filter, double filmSize) {
+  const ParamSpec* spec = findParam(filter, "filterSize");
+  if (!spec) return std::nullopt;
+  return std::max(float(filmSize), float(spec->minValue));
+}
+
 namespace {
 
 // This frame's sub-pixel jitter from its sidecar, for filters that take it
@@ -165,7 +171,7 @@ namespace {
 // Re-commit only on a change.
 void bindJitter(Filter& filter, const Frame& frame, ShotPosition& shot) {
   if (!hasParam(filter, "jitterX") || !hasParam(filter, "jitterY")) return;
-  const ParamSpec* sized = findParam(filter, "filterSize");
+  const bool sized = hasParam(filter, "filterSize");
   if (!shot.jitterSaved) {
     shot.jitterSaved = true;
     shot.jitterX = filter.params().getFloat("jitterX");
@@ -184,7 +190,7 @@ void bindJitter(Filter& filter, const Frame& frame, ShotPosition& shot) {
   }
   const float x = s ? float(s->jitterX) : shot.jitterX, y = s ? float(-s->jitterY) : shot.jitterY;
   float size = shot.filterSize;
-  if (sized && s && s->filterSize >= 0.0 && !shot.filterSizeGiven) size = std::max(float(s->filterSize), float(sized->minValue));
+  if (sized && s && s->filterSize >= 0.0 && !shot.filterSizeGiven) size = *filterSizeForFilm(filter, s->filterSize);
   const bool jitterChanged = filter.params().getFloat("jitterX") != x || filter.params().getFloat("jitterY") != y;
   const bool sizeChanged = sized && filter.params().getFloat("filterSize") != size;
   if (!jitterChanged && !sizeChanged) return;

@@ -284,15 +284,15 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   Context context;
   context.setInt("numThreads", o.threads);
   std::unique_ptr<Filter> filter = createFilter(context, e.method);
-  const auto methodParams = parseMethodSpec(e.name).params;
-  for (const auto& [key, value] : methodParams) filter->params().setFromText(key, value);
+  const MethodSpec spec = parseMethodSpec(e.name);
+  for (const auto& [key, value] : spec.params) filter->params().setFromText(key, value);
   // rsaa on a plan that rendered no geometry (no visible object, so no geometric edge) keeps every
   // colour, as the add-on filters it (native.FrameFilter): 'none'; setting its parameters above checked them.
   if (readsSubsamples(*filter) && !e.subsamplesRendered) filter = createFilter(context, "none");
   Image output;
   cli::ShotPosition shot;
   // The renders' Film > Filter Size (their sidecars; CRISP_EVAL_FILTER_SIZE sets it) unless the method's settings give one.
-  shot.filterSizeGiven = std::any_of(methodParams.begin(), methodParams.end(), [](const auto& p) { return p.first == "filterSize"; });
+  shot.filterSizeGiven = spec.gives("filterSize");
   for (int f : frames) {
     if (!e.temporal ? done(f) : allDone) {
       progress.step(e.name + " frame " + std::to_string(f) + " (done before)");

@@ -39,6 +39,11 @@ struct FrameFigures {
 struct MethodSpec {
   std::string method;                                       // library filter type ("taa")
   std::vector<std::pair<std::string, std::string>> params;  // in the order given
+  bool gives(const std::string& key) const {
+    for (const auto& kv : params)
+      if (kv.first == key) return true;
+    return false;
+  }
 };
 // Splits a spec at ':' into the method and KEY=VALUE pairs; throws std::invalid_argument naming
 // the malformed part. Does not check the method or the keys (the library does, when they are set).
