@@ -240,6 +240,8 @@
 #include "core/parallel.h"
 #include "filters/phlm_feature.h"
 #include "filters/phlm_stage.h"
+#include "filters/taa.h"
+#include "filters/temporal_alpha.h"
 #include "temporal/history_fetch.h"
 #include "temporal/hold_release.h"
 #include "temporal/isa.h"
@@ -1782,6 +1784,22 @@ std::vector<ParamSpec> phlmParams() {
   return specs;
 }
 
+// taa's settings for phlm's alpha (temporal_alpha.h): phlm's jitter, pixel
+// filter, unjitter, hold and depth tolerance, taa's defaults for the rest.
+taa::Settings alphaSettings(const phlm::Settings& s) {
+  taa::Settings a;
+  a.jitterX = s.jitterX;
+  a.jitterY = s.jitterY;
+  a.weighting = s.weighting == phlm::JitterWeighting::BlackmanHarris ? taa::JitterWeighting::BlackmanHarris
+                                                                     : taa::JitterWeighting::None;
+  a.filterSize = s.filterSize;
+  a.unjitter = s.unjitter;
+  a.holdPeriod = s.holdPeriod;
+  a.holdRelease = s.holdRelease;
+  a.depthTolerance = s.depthTolerance;
+  return a;
+}
+
 class PhlmFilter final : public Filter {
  public:
   explicit PhlmFilter(Context& c)
@@ -1790,9 +1808,12 @@ class PhlmFilter final : public Filter {
                 {"motion", false, 2, 4, false,
                  "motion vectors in pixels, previous - current, y down (absent: static scene, no reprojection)"},
                 {"depth", false, 1, 4, false, "planar depth (channel 0): closest-depth velocity, disocclusion"},
-                {"output", true, 3, 4, false, "anti-aliased linear colour; alpha passes through"}}) {}
+                {"output", true, 3, 4, false, "anti-aliased linear colour; alpha anti-aliased as well when below 1 (temporal_alpha.h)"}}) {}
   const char* type() const override { return "phlm"; }
-  void reset() override { kernel_.reset(); }
+  void reset() override {
+    kernel_.reset();
+    alpha_.reset();
+  }
 
  protected:
   void onCommit() override {
@@ -1823,6 +1844,7 @@ class PhlmFilter final : public Filter {
     reference_ = p.getBool("reference");
     // Re-committing for a new jitter keeps the state; a new size starts over.
     kernel_.allocate(width(), height(), hasImage("motion"), hasImage("depth"));
+    alpha_.allocate(width(), height(), hasImage("depth"));
   }
   void onExecute() override {
     phlm::Inputs in;
@@ -1831,12 +1853,14 @@ class PhlmFilter final : public Filter {
     if (hasImage("depth")) in.depth = inputApartFromOutput("depth");
     in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
+    alpha_.run(in.color, in.motion, in.depth, nullptr, in.output, alphaSettings(settings_), reference_, numThreads());
   }
 
  private:
   phlm::Settings settings_;
   bool reference_ = false;
   phlm::Kernel<float> kernel_;
+  TemporalAlpha alpha_;
 };
 
 }  // namespace

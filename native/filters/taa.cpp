@@ -199,6 +199,7 @@
 #include "core/parallel.h"
 #include "core/row_stage.h"
 #include "filters/taa_rows.h"
+#include "filters/temporal_alpha.h"
 #include "temporal/color_space.h"
 #include "temporal/history_fetch.h"
 #include "temporal/hold_release.h"
@@ -629,9 +630,12 @@ class TaaFilter final : public Filter {
                 {"motion", false, 2, 4, false,
                  "motion vectors in pixels, previous - current, y down (absent: static scene, no reprojection)"},
                 {"depth", false, 1, 4, false, "planar depth (channel 0): closest-depth velocity, disocclusion"},
-                {"output", true, 3, 4, false, "anti-aliased linear colour; alpha passes through"}}) {}
+                {"output", true, 3, 4, false, "anti-aliased linear colour; alpha anti-aliased as well when below 1 (temporal_alpha.h)"}}) {}
   const char* type() const override { return "taa"; }
-  void reset() override { kernel_.reset(); }
+  void reset() override {
+    kernel_.reset();
+    alpha_.reset();
+  }
 
  protected:
   void onCommit() override {
@@ -640,6 +644,7 @@ class TaaFilter final : public Filter {
     reference_ = p.getBool("reference");
     // Re-committing for a new jitter keeps the history; a new size starts over.
     kernel_.allocate(width(), height(), hasImage("depth"));
+    alpha_.allocate(width(), height(), hasImage("depth"));
   }
   void onExecute() override {
     taa::Inputs in;
@@ -648,12 +653,14 @@ class TaaFilter final : public Filter {
     if (hasImage("depth")) in.depth = inputApartFromOutput("depth");
     in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
+    alpha_.run(in.color, in.motion, in.depth, nullptr, in.output, settings_, reference_, numThreads());
   }
 
  private:
   taa::Settings settings_;
   bool reference_ = false;
   taa::Kernel kernel_;
+  TemporalAlpha alpha_;
 };
 
 }  // namespace

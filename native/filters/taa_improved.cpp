@@ -51,6 +51,7 @@
 #include "core/parallel.h"
 #include "core/row_stage.h"
 #include "filters/taa_improved_rows.h"
+#include "filters/temporal_alpha.h"
 #include "temporal/isa.h"
 #include "temporal/lanes.h"
 
@@ -223,6 +224,14 @@ std::size_t Kernel::bytesScratch() const {
                                 bandRings_.size()) * sizeof(float);
 }
 
+taa::Settings baselineSettings(const Settings& s) {
+  taa::Settings base = s.base;
+  base.aliasedNeighbourhood = s.aliasedNeighbourhood;
+  base.aliasedBoxSize = s.aliasedBoxSize;
+  base.sharpen = s.normalizedSharpen ? 0.25f * s.sharpen : s.sharpen;
+  return base;
+}
+
 void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThreads) {
   if (in.color.width != width_ || in.color.height != height_)
     invalidData("taa-improved: colour is " + std::to_string(in.color.width) + "x" + std::to_string(in.color.height) +
@@ -282,10 +291,7 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   }
 
   // Pass 5: the baseline kernel, steered.
-  taa::Settings base = s.base;
-  base.aliasedNeighbourhood = s.aliasedNeighbourhood;
-  base.aliasedBoxSize = s.aliasedBoxSize;
-  base.sharpen = s.normalizedSharpen ? 0.25f * s.sharpen : s.sharpen;
+  const taa::Settings base = baselineSettings(s);
   taa::Inputs tin;
   tin.color = in.color;
   tin.motion = in.motion;
@@ -356,9 +362,12 @@ class TaaImprovedFilter final : public Filter {
                  "planar depth (channel 0): closest-depth velocity, disocclusion, depth Sobel and pseudo-variances"},
                 {"id", false, 1, 1, true, "object ids (Cryptomatte hash): modelAverage (eq. 4.1)"},
                 {"albedo", false, 3, 4, false, "unlit colour (Blender's DiffCol): unlit luminance Sobel"},
-                {"output", true, 3, 4, false, "anti-aliased linear colour; alpha passes through"}}) {}
+                {"output", true, 3, 4, false, "anti-aliased linear colour; alpha anti-aliased as well when below 1 (temporal_alpha.h)"}}) {}
   const char* type() const override { return "taa-improved"; }
-  void reset() override { kernel_.reset(); }
+  void reset() override {
+    kernel_.reset();
+    alpha_.reset();
+  }
 
  protected:
   void onCommit() override {
@@ -378,6 +387,7 @@ class TaaImprovedFilter final : public Filter {
     settings_.normalizedSharpen = p.getBool("normalizedSharpen");
     reference_ = p.getBool("reference");
     kernel_.allocate(width(), height(), hasImage("depth"));
+    alpha_.allocate(width(), height(), hasImage("depth"));
   }
   void onExecute() override {
     taa_improved::Inputs in;
@@ -388,12 +398,18 @@ class TaaImprovedFilter final : public Filter {
     if (hasImage("albedo")) in.albedo = inputApartFromOutput("albedo");
     in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
+    // The alpha, steered by the colour's aliasedValue plane (temporal_alpha.h).
+    const taa::Settings base = taa_improved::baselineSettings(settings_);
+    alpha_.run(in.color, in.motion, in.depth,
+               base.aliasedNeighbourhood || base.aliasedBoxSize ? kernel_.aliasedValue().data() : nullptr, in.output,
+               base, reference_, numThreads());
   }
 
  private:
   taa_improved::Settings settings_;
   bool reference_ = false;
   taa_improved::Kernel kernel_;
+  TemporalAlpha alpha_;
 };
 
 }  // namespace

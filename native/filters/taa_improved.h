@@ -35,6 +35,10 @@ struct Settings {
   float depthThreshold = 0.002f;      // eq. 4.4's threshold, relative to the centre depth
 };
 
+// The baseline's settings as the kernel runs it (pass 5): steering switches
+// and the sharpen amount of `s` applied to s.base.
+taa::Settings baselineSettings(const Settings& s);
+
 struct Inputs {
   ImageView color;   // required
   ImageView motion;  // optional

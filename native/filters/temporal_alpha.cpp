@@ -1,0 +1,102 @@
+// SPDX-License-Identifier: Apache-2.0
+// The alpha of the temporal methods' outputs: temporal_alpha.h says why and how.
+#include "filters/temporal_alpha.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cstring>
+
+#include "core/color.h"
+#include "core/parallel.h"
+
+namespace crisp {
+
+namespace {
+
+float alphaAt(const ImageView& v, int x, int y) {
+  float a;
+  std::memcpy(&a, reinterpret_cast<const char*>(v.pixel(x, y)) + 3 * sizeof(float), sizeof a);
+  return a;
+}
+
+}  // namespace
+
+bool hasAlphaBelowOne(const ImageView& color, int numThreads) {
+  if (color.channels() < 4) return false;
+  std::atomic<bool> found{false};
+  parallelRows(color.width, color.height, numThreads, [&](int y0, int y1) {
+    for (int y = y0; y < y1 && !found.load(std::memory_order_relaxed); ++y) {
+      bool below = false;  // OR over the row, no branch: the loop vectorises for packed RGBA
+      if (color.packed()) {
+        const float* row = color.row(y);
+        for (int x = 0; x < color.width; ++x) below |= !(row[4 * x + 3] == 1.0f);
+      } else {
+        for (int x = 0; x < color.width; ++x) below |= !(alphaAt(color, x, y) == 1.0f);
+      }
+      if (below) found.store(true, std::memory_order_relaxed);
+    }
+  });
+  return found.load();
+}
+
+void TemporalAlpha::allocate(int width, int height, bool withDepth) {
+  if (width != width_ || height != height_) {  // a new size starts over, opaque until alpha shows up
+    active_ = false;
+    kernel_.reset();
+    grey_ = Image();
+    filtered_ = Image();
+  }
+  width_ = width;
+  height_ = height;
+  withDepth_ = withDepth;
+  if (kernel_) kernel_->allocate(width, height, withDepth);  // keeps the history (taa.h)
+}
+
+void TemporalAlpha::reset() {
+  active_ = false;
+  if (kernel_) kernel_->reset();
+}
+
+void TemporalAlpha::run(const ImageView& color, const ImageView& motion, const ImageView& depth,
+                        const float* aliasedValue, const ImageView& output, const taa::Settings& base, bool reference,
+                        int numThreads) {
+  if (color.channels() < 4 || output.channels() < 4) return;
+  if (!active_) {
+    if (!hasAlphaBelowOne(color, numThreads)) return;
+    if (!kernel_) kernel_ = std::make_unique<taa::Kernel>();
+    kernel_->allocate(width_, height_, withDepth_);
+    kernel_->reset();  // the first filtered frame bootstraps, whatever came before
+    if (grey_.width != width_ || grey_.height != height_) {
+      grey_ = Image(width_, height_, 3);
+      filtered_ = Image(width_, height_, 3);
+    }
+    active_ = true;
+  }
+  const int w = width_;
+  parallelRows(w, height_, numThreads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      float* g = grey_.data.data() + std::size_t(y) * w * 3;
+      for (int x = 0; x < w; ++x) g[3 * x] = g[3 * x + 1] = g[3 * x + 2] = sanitizeColor(alphaAt(color, x, y));
+    }
+  });
+  taa::Inputs in;
+  in.color = grey_.view();
+  in.motion = motion;
+  in.depth = depth;
+  in.output = filtered_.view();
+  in.aliasedValue = aliasedValue;
+  kernel_->run(in, base, reference, numThreads);
+  parallelRows(w, height_, numThreads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const float* f = filtered_.data.data() + std::size_t(y) * w * 3;
+      for (int x = 0; x < w; ++x) output.pixel(x, y)[3] = std::clamp(f[3 * x], 0.0f, 1.0f);
+    }
+  });
+}
+
+std::size_t TemporalAlpha::bytesKeptBetweenFrames() const {
+  if (!active_) return 0;
+  return kernel_->bytesKeptBetweenFrames() + (grey_.data.size() + filtered_.data.size()) * sizeof(float);
+}
+
+}  // namespace crisp

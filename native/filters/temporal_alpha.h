@@ -1,0 +1,65 @@
+// SPDX-License-Identifier: Apache-2.0
+// The alpha of the temporal methods' outputs (taa, taa-improved, phlm).
+//
+// A render with Film > Transparent carries coverage in alpha, and its one
+// jittered sample per pixel makes that alpha as aliased as the colour: 0 or
+// 1 along every silhouette against the empty background. The colour (which
+// Blender premultiplies) is anti-aliased by the method; an alpha passed
+// through would leave a jagged matte under a smooth edge, and a composite
+// over a plate would show the stair steps again.
+//
+// So once a frame's input alpha is below 1 anywhere, the method's alpha is
+// filtered too: taa's kernel (taa.h) over the alpha as a grey image, with
+// the same motion, depth, jitter, pixel filter and hold as the colour, so it
+// converges to the same filtered coverage EEVEE's many-sample alpha shows.
+// taa-improved steers it by the colour's aliasedValue plane; phlm uses taa's
+// kernel too, not a second set of linear models (a coverage signal has no use
+// for them, and they would cost 250-500 MB more at 1080p). The result is
+// clamped to [0, 1].
+//
+// Opaque renders pay one read of the input's alpha per frame and keep
+// nothing; a transparent one keeps taa's history for alpha (about 90 MB at
+// 1080p with depth) and runs that kernel once more each frame. Once alpha
+// has shown up, it is filtered every frame until the filter resets, so its
+// history never skips a frame.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+
+#include "core/image.h"
+#include "filters/taa.h"
+
+namespace crisp {
+
+// True if `color` has a fourth channel and some pixel's value there is not 1
+// (NaN counts as not 1). Stops at the first such pixel.
+bool hasAlphaBelowOne(const ImageView& color, int numThreads);
+
+class TemporalAlpha {
+ public:
+  // Keeps the size; the history starts over when the size changes.
+  void allocate(int width, int height, bool withDepth);
+  void reset();
+  // Filters this frame's alpha into output's fourth channel when the colour
+  // and the output both have one and alpha has been below 1 since the last
+  // reset (this frame included); otherwise leaves the output alone (the
+  // method passed the input's alpha through). `base` is the method's taa
+  // settings (jitter, pixel filter, hold); aliasedValue as taa::Inputs.
+  void run(const ImageView& color, const ImageView& motion, const ImageView& depth, const float* aliasedValue,
+           const ImageView& output, const taa::Settings& base, bool reference, int numThreads);
+  bool active() const { return active_; }
+  std::size_t bytesKeptBetweenFrames() const;
+  // The alpha's kernel while active, else null (tests).
+  const taa::Kernel* kernel() const { return active_ ? kernel_.get() : nullptr; }
+
+ private:
+  int width_ = 0, height_ = 0;
+  bool withDepth_ = false;
+  bool active_ = false;
+  std::unique_ptr<taa::Kernel> kernel_;  // made when alpha first shows up
+  Image grey_;      // this frame's alpha as RGB
+  Image filtered_;  // the kernel's output
+};
+
+}  // namespace crisp
