@@ -108,6 +108,33 @@ function crispChunks(shot, chunkSize, preroll) {
   return chunks;
 }
 
+// filter_params as `crisp render --set` arguments: KEY=VALUE items separated by spaces. Their syntax is
+// checked here, so a typo fails the submission rather than every task on the workers: the key a
+// parameter name (letters, digits, '_'; `crisp help METHOD` lists them), the value present, without
+// a second '=', list separators or quotes (the workers run crisp without a shell, so quotes would
+// reach it as part of the value). Which names and values a method takes is the library's table
+// (crisp render checks them on each worker before Blender starts); the Manager has no library.
+function crispFilterParams(text) {
+  const items = text === undefined || text === null ? [] : String(text).split(/\s+/).filter((kv) => kv !== "");
+  for (const kv of items) {
+    const eq = kv.indexOf("=");
+    if (eq <= 0) crispFail("setting 'filter_params' needs KEY=VALUE items, got '" + kv + "'");
+    const key = kv.slice(0, eq), value = kv.slice(eq + 1);
+    const separator = /[,;]/.exec(kv);
+    if (separator)
+      crispFail("setting 'filter_params' items are separated by spaces, not '" + separator[0] + "': got '" + kv + "'");
+    if (!/^[A-Za-z][A-Za-z0-9_]*$/.test(key))
+      crispFail("setting 'filter_params' item '" + kv + "': '" + key + "' is no parameter name (e.g. feedbackMin; " +
+                "`crisp help METHOD` lists them)");
+    if (value === "") crispFail("setting 'filter_params' item '" + kv + "' has no value");
+    if (value.indexOf("=") >= 0) crispFail("setting 'filter_params' item '" + kv + "' has more than one '='");
+    if (/["'`]/.test(value))
+      crispFail("setting 'filter_params' item '" + kv + "' is quoted: give the value without quotes (crisp gets " +
+                "them as part of it)");
+  }
+  return items;
+}
+
 function compileJob(job) {
   const settings = job.settings;
   const shot = crispParseShot(settings.frames);
@@ -143,9 +170,7 @@ function compileJob(job) {
   const jitter = settings.jitter === undefined || settings.jitter === "" ? "" : String(settings.jitter);
   if (jitter !== "" && CRISP_JITTERS.indexOf(jitter) < 0)
     crispFail("setting 'jitter' must be one of " + CRISP_JITTERS.join(", ") + ", got '" + jitter + "'");
-  const params = settings.filter_params ? String(settings.filter_params).trim().split(/\s+/) : [];
-  for (const kv of params)
-    if (kv.indexOf("=") <= 0) crispFail("setting 'filter_params' needs KEY=VALUE items, got '" + kv + "'");
+  const params = crispFilterParams(settings.filter_params);
 
   const shotText = shot.first + "-" + shot.last;
   for (const chunk of crispChunks(shot, chunkSize, preroll)) {

@@ -209,6 +209,20 @@ test("optional settings reach the command line", () => {
   assert.deepEqual(Array.from(args).filter((a, i) => args[i - 1] === "--set"), ["feedbackMin=0.8", "sharpen=0.2"]);
 });
 
+test("filter_params of every value kind pass as typed; blank ones pass none", () => {
+  // Each kind crisp render --set takes (the add-on's panel writes them so: native.param_text): a float,
+  // an exponent, a negative number, a bool, a choice with a '-' in it, an int.
+  const items = ["feedbackMin=0.8", "holdRelease=1e-3", "sharpen=-0.5", "footprintBox=false",
+                 "modelFetch=catmull-rom", "holdPeriod=16"];
+  const [t] = compile({ ...base, frames: "1-4", filter_params: " " + items.join(" \t ") + " " });
+  const args = t.commands[0].parameters.args;
+  assert.deepEqual(Array.from(args).filter((a, i) => args[i - 1] === "--set"), items);
+  for (const blank of ["", "  ", "\t"]) {  // "  " was refused as an item '' without '='
+    const [u] = compile({ ...base, frames: "1-4", filter_params: blank });
+    assert.ok(!u.commands[0].parameters.args.includes("--set"), JSON.stringify(blank));
+  }
+});
+
 test("absolute output folders and Manager variables are accepted", () => {
   for (const dir of ["/farm/out/sh010", "{render}/sh010", "C:\\farm\\out", "D:/farm/out", "\\\\server\\share\\out"])
     assert.equal(flagValue(compile({ ...base, frames: "1-2", output_dir: dir })[0].commands[0].parameters.args, "-o"), dir);
@@ -243,6 +257,15 @@ test("bad settings raise an error naming the setting", () => {
     [{ resolution: "2x2" }, /'resolution' must be WxH, each 4 to 65536/],  // crisp render refuses it on every worker
     [{ resolution: "640x65537" }, /'resolution' must be WxH, each 4 to 65536/],
     [{ filter_params: "sharpen" }, /'filter_params' needs KEY=VALUE/],
+    // Syntax the workers' crisp render would refuse, every task of the job: refused at submission.
+    [{ filter_params: "sharpen=" }, /'filter_params' item 'sharpen=' has no value/],
+    [{ filter_params: "feedbackMin=0.8,sharpen=0.2" }, /'filter_params' items are separated by spaces, not ','/],
+    [{ filter_params: "feedbackMin=0.8;sharpen=0.2" }, /'filter_params' items are separated by spaces, not ';'/],
+    [{ filter_params: "sharpen=0.2=0.3" }, /'filter_params' item 'sharpen=0.2=0.3' has more than one '='/],
+    [{ filter_params: "sharpen='0.2'" }, /'filter_params' item 'sharpen='0.2'' is quoted/],
+    [{ filter_params: 'sharpen="0.2"' }, /is quoted/],
+    [{ filter_params: "feedback-min=0.8" }, /'filter_params' item 'feedback-min=0.8': 'feedback-min' is no parameter name/],
+    [{ filter_params: "--set=0.8" }, /is no parameter name/],
     [{ jitter: "gauss" }, /'jitter' must be one of blackman-harris, uniform/],
   ];
   for (const [override, message] of bad)
