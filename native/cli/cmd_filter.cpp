@@ -268,13 +268,13 @@ int runFilter(const ParsedArgs& args) {
       std::fprintf(stderr, "filter: warning: '%s': %s is not read (only an EXR's first part is)\n", in.c_str(),
                    part.c_str());
     // A gap in the frame numbers or a cut to another camera: the history starts over, and the
-    // frame gets zero motion as a first frame does.
+    // frame gets zero motion as a first frame does. Said also under --quiet, which hides progress
+    // and notes, not what changes the output (docs/farm.md tells farm users to look for this line).
     const std::string cut = historyBreak(*filter, in, shot);
     if (!cut.empty()) {
       filter->reset();
       stamps.historyStartsOver(int(i) + 1);
-      if (!quiet)
-        std::fprintf(stderr, "filter: '%s': %s history starts over (%s)\n", in.c_str(), filter->type(), cut.c_str());
+      std::fprintf(stderr, "filter: '%s': %s history starts over (%s)\n", in.c_str(), filter->type(), cut.c_str());
     }
     if (rebuildMotion) addReconstructedMotion(frame, args.positional, cut.empty() ? i : 0, context.numThreads());
     try {

@@ -18,6 +18,29 @@ namespace crisp::cli {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+// The lines of the driver's log that --quiet keeps: where a temporal method's
+// history starts over (addon/crisp/pipeline.py: at a cut or a gap, "frame N:
+// temporal history restarts (...)"; a resume without pre-roll, "note: ...'s
+// history starts again at frame N"), which changes the output and which
+// docs/farm.md tells farm users to look for. Progress and notes are dropped.
+std::string historyLines(const std::string& output) {
+  std::string out, line;
+  for (std::size_t begin = 0; begin < output.size();) {
+    std::size_t end = output.find('\n', begin);
+    if (end == std::string::npos) end = output.size();
+    line = output.substr(begin, end - begin);
+    if (line.find("temporal history restarts") != std::string::npos ||
+        line.find("history starts again at frame") != std::string::npos)
+      out += "render: " + line + "\n";
+    begin = end + 1;
+  }
+  return out;
+}
+
+}  // namespace
+
 int runRender(const ParsedArgs& args) {
   if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
   {
@@ -55,11 +78,13 @@ int runRender(const ParsedArgs& args) {
   }
 
   // --quiet: Blender's and the driver's output (progress, EGL's notes) is read here and dropped,
-  // except the lines that report an error when Blender fails (Blender prints "Error: ..." on stdout,
-  // e.g. for an unreadable .blend). --plan's output is what was asked for: kept.
+  // except where a temporal history starts over (historyLines, said once Blender has ended) and the
+  // lines that report an error when Blender fails (Blender prints "Error: ..." on stdout, e.g. for
+  // an unreadable .blend). --plan's output is what was asked for: kept.
   const bool capture = args.has("quiet") && !args.has("plan");
   const BlenderRun run = runBlender(cmd, capture ? BlenderOutput::Captured : BlenderOutput::Terminal);
   if (!run.started) return 1;  // said by runBlender
+  if (capture) std::fprintf(stderr, "%s", historyLines(run.output).c_str());
   if (capture && (run.signal != 0 || run.exitCode != 0)) {
     std::string errors = blenderErrorLines(run.output);
     if (errors.empty())  // none recognised: the end of what it printed

@@ -69,7 +69,7 @@ const std::vector<OptionSpec>& options() {
       {"eval", "output", 'o', "OUTDIR", false, true, "output folder: report.html, results.json/.csv, images/, renders/, methods/; rerun to resume"},
       {"synth", "size", 0, "WxH", false, false, "image size (default 320x180)"},
       {"*", "threads", 'j', "N", false, false, "worker threads (0 = all cores, default)"},
-      {"*", "quiet", 'q', nullptr, false, false, "no progress output"},
+      {"*", "quiet", 'q', nullptr, false, false, "no progress output or notes (warnings, such as where a temporal history starts over, are still said)"},
       {"*", "help", 'h', nullptr, false, false, "show this help"},
   };
   return o;

@@ -301,11 +301,11 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
     const fs::path in = inputDir / frameName(f);
     Frame frame = readFrame(in.string());
     // A cut to another camera (or a gap in the frame numbers): the history starts over (cli/files.cpp).
+    // Said also under --quiet, as crisp filter says it: quiet hides progress, not this.
     const std::string cut = cli::historyBreak(*filter, in.string(), shot);
     if (!cut.empty()) {
       filter->reset();
-      if (!o.quiet)
-        std::fprintf(stderr, "crisp eval: %s frame %d: history starts over (%s)\n", e.name.c_str(), f, cut.c_str());
+      std::fprintf(stderr, "crisp eval: %s frame %d: history starts over (%s)\n", e.name.c_str(), f, cut.c_str());
     }
     addMotion(frame, inputDir, f, cut.empty() ? frames.front() : f, sceneMoves, o.threads);
     cli::bindFrame(*filter, frame, shot);

@@ -325,6 +325,16 @@ def test_filter_resume_keeps_outputs_after_a_gap_when_an_earlier_input_changed(s
     assert max_diff(lib, alone, across, (5, 6, 7, 8)) == 0.0
 
 
+def test_filter_quiet_still_says_where_the_history_starts_over(shot, tmp_path):
+    """--quiet hides progress and notes, not warnings: the line saying a temporal method's history
+    starts over (a gap, a cut), which docs/farm.md tells farm users to look for, was hidden by it."""
+    source, _ = shot
+    inputs = [str(source / "input" / frame(f)) for f in (1, 2, 3, 5, 6)]  # frame 4 left out: a gap
+    p = crisp("filter", "--method", "taa", "--quiet", "-o", tmp_path / "out", *inputs)
+    assert "history starts over (frame 5 after frame 3)" in p.stderr, p.stderr
+    assert p.stderr.count("\n") == 1 and p.stdout == "", p.stderr + p.stdout  # and no progress
+
+
 def test_filter_chunk_errors(shot, tmp_path):
     _, inputs = shot
     for frames, message in (("7-9", "reaches past the last input (8 given"), ("0-3", "--frames expects A-B"),
