@@ -4,12 +4,15 @@
     blender -b [SCENE.blend] --factory-startup --python-exit-code 1 --python <repo>/addon/crisp/batch_eval.py -- \\
         -o RENDERDIR --methods none,fxaa,taa [--frames A-B] [--resolution WxH] [--scene-script NAME]
         [--reference-samples 64] [--curve 1,2,4,8] [--smaa-threshold 0.2] [--progress-fd N]
+        [--filter-size-max METHOD=PX]...
 
 Renders (eval_renders.py has the layout): EEVEE's curve (each count in --curve, always including 1),
 the 1-sample inputs of the methods whose plans need more than colour (jittered for temporal methods),
 the reference, and Blender's compositor SMAA on the 1-sample frames; writes RENDERDIR/scene.json.
 Frames already rendered (EXR present and timed) are skipped. The methods themselves run in the CLI,
-not here.
+not here. --filter-size-max (given by crisp eval, from the library's parameter tables): the largest Film >
+Filter Size a method filters with (a temporal method takes the renders' as its filterSize); a scene
+whose filter size is above it is refused before the first render, not after every render.
 
 Progress: one line per render on file descriptor --progress-fd (default: stderr):
     `progress DONE TOTAL COST_DONE COST_TOTAL SECONDS_LEFT ITEM`
@@ -45,7 +48,35 @@ def make_parser():
     p.add_argument("--smaa-threshold", type=float, default=None)
     p.add_argument("--jitter", default="blackman-harris")
     p.add_argument("--progress-fd", type=int, default=-1)
+    p.add_argument("--filter-size-max", action="append", default=[], metavar="METHOD=PX")
     return p
+
+
+def parse_filter_size_limits(items):
+    """--filter-size-max METHOD=PX items -> [(METHOD, PX)], in the order given."""
+    limits = []
+    for item in items:
+        method, _, px = item.rpartition("=")
+        try:
+            limits.append((method, float(px)))
+        except ValueError:
+            raise ValueError("bad --filter-size-max '%s' (expected METHOD=PX)" % item)
+        if not method:
+            raise ValueError("bad --filter-size-max '%s' (expected METHOD=PX)" % item)
+    return limits
+
+
+def filter_size_problem(size, limits):
+    """Why the methods of limits cannot filter frames rendered with Film > Filter Size `size` px, or None."""
+    over = [(m, px) for m, px in limits if size > px]
+    if not over:
+        return None
+    largest = min(px for _, px in over)
+    names = ", ".join(m for m, _ in over)
+    return ("the scene's Film > Filter Size %g px is above %g px, the largest %s filter%s with (a temporal method "
+            "takes the renders' Filter Size as its filterSize): lower it, give --methods '%s:filterSize=...' to "
+            "filter with another, or set CRISP_EVAL_FILTER_SIZE to render with another"
+            % (size, largest, names, "s" if len(over) == 1 else "", over[0][0]))
 
 
 def parse_curve(text):
@@ -73,6 +104,7 @@ def main(argv):
     progress = os.fdopen(args.progress_fd, "w", buffering=1) if args.progress_fd >= 0 else sys.stderr
     try:
         curve = parse_curve(args.curve)
+        filter_size_limits = parse_filter_size_limits(args.filter_size_max)
     except ValueError as e:
         fail(2, str(e))
     if args.reference_samples < 1:
@@ -109,7 +141,8 @@ def main(argv):
         if args.warmup >= len(frames):  # before anything is rendered (the scene's own range, without --frames)
             raise pipeline.InputError("--warmup %d leaves none of the %d frames (%d-%d) to measure"
                                       % (args.warmup, len(frames), frames[0], frames[-1]))
-        problem = render.camera_problem(scene, frames)
+        problem = render.camera_problem(scene, frames) or filter_size_problem(scene.render.filter_size,
+                                                                              filter_size_limits)
         if problem:
             raise pipeline.InputError(problem)
         pipeline.check_output_dir(out)

@@ -185,6 +185,18 @@ int runEval(const ParsedArgs& args) {
   }
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch_eval.py");
   appendJitterOption(args, cmd);
+  // The scene's own Film > Filter Size is known only in Blender: batch_eval.py refuses one above what a
+  // temporal method filters with (unless its settings give filterSize) before the first render, not
+  // after all of them, as CRISP_EVAL_FILTER_SIZE is refused above.
+  for (const std::string& m : methods) {
+    if (m == "none") continue;
+    const eval::MethodSpec spec = eval::parseMethodSpec(m);
+    Context context;
+    std::unique_ptr<Filter> probe = createFilter(context, spec.method);
+    const std::optional<double> largest = largestFilmFilterSize(*probe);
+    if (largest && keepsHistory(*probe) && !spec.gives("filterSize"))
+      cmd.push_back("--filter-size-max=" + m + "=" + jsonNumber(*largest));
+  }
   makeDirectories(outDir.string());
   const fs::path renders = outDir / "renders", logs = outDir / "logs";
   makeDirectories(renders.string());

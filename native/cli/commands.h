@@ -73,6 +73,9 @@ bool keepsHistory(const Filter& filter);
 // px (Blender's 0 is the library's smallest size), or nothing when the filter
 // has no filterSize. Not checked against the largest: setFloat refuses that.
 std::optional<float> filterSizeForFilm(const Filter& filter, double filmSize);
+// The largest Film > Filter Size (px) filterSizeForFilm gives the filter a
+// filterSize it takes (its table's largest), or nothing when it has none.
+std::optional<double> largestFilmFilterSize(const Filter& filter);
 
 // A file's size and modification time as "SIZE TIME", "" when it cannot be
 // read: what tells a file apart from the one a run wrote or read before.

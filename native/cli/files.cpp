@@ -158,6 +158,12 @@ std::optional<float> filterSizeForFilm(const Filter& filter, double filmSize) {
   return std::max(float(filmSize), float(spec->minValue));
 }
 
+std::optional<double> largestFilmFilterSize(const Filter& filter) {
+  const ParamSpec* spec = findParam(filter, "filterSize");
+  if (!spec) return std::nullopt;
+  return spec->maxValue;
+}
+
 namespace {
 
 // This frame's sub-pixel jitter from its sidecar, for filters that take it

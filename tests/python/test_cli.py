@@ -227,6 +227,31 @@ def test_eval_refuses_a_filter_size_a_temporal_method_refuses_before_rendering(t
         assert "Blender failed (exit 3)" in p.stderr and "CRISP_EVAL_FILTER_SIZE" not in p.stderr, (methods, p.stderr)
 
 
+@pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
+def test_eval_refuses_a_scenes_filter_size_a_temporal_method_refuses_before_rendering(tmp_path):
+    """A temporal method filters with the renders' Film > Filter Size (their sidecars): a .blend whose
+    Filter Size is above what it takes (4 px) failed only at the method step, after every render. The
+    driver refuses it before the first render, naming the size and the methods; a method whose settings
+    give filterSize, or a spatial one, is let through (that run renders and measures one tiny frame)."""
+    blend = tmp_path / "wide_filter.blend"
+    subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr",
+                    "import bpy; bpy.context.scene.render.filter_size = 5; "
+                    "bpy.ops.wm.save_as_mainfile(filepath=%r)" % str(blend)], capture_output=True, check=True)
+    for methods, named in (("fxaa,taa", "taa"), ("phlm,taa-improved,taa:filterSize=2", "phlm, taa-improved")):
+        out = tmp_path / ("out-" + methods.split(",")[0])
+        p = run("eval", "--scene", blend, "--frames", "1-2", "--methods", methods, "--resolution", "16x8",
+                "--reference-samples", "2", "--curve", "1", "-o", out, ok=False)
+        assert p.returncode == 2, p.stderr
+        assert "the scene's Film > Filter Size 5 px is above 4 px, the largest %s filter" % named in p.stderr, \
+            p.stderr
+        assert "filterSize=" in p.stderr and "CRISP_EVAL_FILTER_SIZE" in p.stderr, p.stderr  # the ways out
+        assert not list(out.rglob("*.exr")) and not (out / "eval_settings.json").exists()
+    out = tmp_path / "out"
+    p = run("eval", "--scene", blend, "--frames", "1-1", "--methods", "fxaa,taa:filterSize=1.5", "--resolution",
+            "16x8", "--reference-samples", "2", "--curve", "1", "--quiet", "-o", out)
+    assert (out / "methods" / "taa:filterSize=1.5" / "frame_0001.exr").is_file(), sorted(out.rglob("*"))
+
+
 def test_eval_settings_take_a_size_however_it_is_spelled(tmp_path):
     """eval_settings.json refuses a run into a folder rendered at another size; 64X36 and 064x36 are the
     size 64x36 (both pass the --resolution check and Blender renders them alike), not other settings.
