@@ -379,9 +379,14 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
         # rsaa's resampling fetches colour and alpha together (an outline against the film is a geometric edge).
         log("note: the film is transparent: rsaa anti-aliases colour and alpha together on geometric edges (an "
             "object's outline too); elsewhere it changes the colour only, and the alpha keeps the 1-sample render's")
+    elif scene.render.film_transparent and filter_frames and method in plan_mod.TEMPORAL_METHODS:
+        # The library filters the alpha with taa's kernel once it is below 1 (native/filters/temporal_alpha.h).
+        log("note: the film is transparent: %s anti-aliases the alpha as well as the colour, with the same motion "
+            "and jitter" % method)
     elif scene.render.film_transparent and filter_frames and method != "none":
         log("note: the film is transparent: %s anti-aliases the colour, not the alpha, which keeps the 1-sample "
-            "render's hard edges; for clean edges, render the background in the scene (Film > Transparent off)" % method)
+            "render's hard edges; for clean edges, use a temporal method or render the background in the scene "
+            "(Film > Transparent off)" % method)
     if compositor.changes_the_image(scene):
         log("note: the scene's compositor is not applied to Crisp's frames (they are filtered as rendered); "
             "apply it to the filtered frames through the 'Crisp Result' node group")

@@ -11,9 +11,9 @@
 //   5. a smoothing mask rotated to that angle (eq. 3.7), each tap sampled by
 //      bilinear interpolation (eq. 3.8-3.9, Algorithm 4); non-edge pixels are
 //      copied unchanged.
-// The colour is smoothed; the alpha passes through (sanitised), as in every
-// method but rsaa (README: the EXRs keep the alpha as rendered, and the
-// add-on's log says so for a transparent film). Output stays linear.
+// The colour is smoothed; the alpha passes through (sanitised), as in fxaa
+// (rsaa and the temporal methods anti-alias it; README, and the add-on's log
+// says which for a transparent film). Output stays linear.
 //
 // Deliberate deviations from the thesis (also in the parameter table):
 //  * Algorithm 2 computes sigma^2 = s2 - 2 mu s + mu^2 (an algebra slip) and
