@@ -69,8 +69,11 @@ def blender_batch(args, blend=None, env=None, timeout=300):
 def run(*cases):
     """Runs the test cases, prints timings and 'N passed, N failed', exits 1 on failure."""
     suite = unittest.TestSuite()
+    loader = unittest.TestLoader()
+    if os.environ.get("CRISP_TEST_PATTERN"):  # a developer's run of some tests: unittest's -k pattern
+        loader.testNamePatterns = ["*%s*" % os.environ["CRISP_TEST_PATTERN"]]
     for c in cases:
-        suite.addTests(unittest.defaultTestLoader.loadTestsFromTestCase(c))
+        suite.addTests(loader.loadTestsFromTestCase(c))
 
     class Timed(unittest.TextTestResult):
         def startTest(self, test):
