@@ -88,6 +88,7 @@ _NO_CHECK = {"crispGetError", "crispGetVersion", "crispGetVersionString", "crisp
 _preference_path = ""   # set by preferences.py
 _lib = None             # the loaded _Library, or None
 _load_error = None      # why loading failed (string), or None
+_failed_key = None      # the candidate files (_candidates_key) when loading failed: unchanged, no retry
 
 
 def repo_library_path():
@@ -171,11 +172,30 @@ def _file_digest(path):
     return "blake2b:" + h.hexdigest()
 
 
+def _candidates_key():
+    """Each candidate path with its file's modification time and size (None where there is no file): a
+    failed load is tried again only when one of these changes."""
+    key = []
+    for origin, path in candidate_paths():
+        try:
+            st = os.stat(path)
+            key.append((origin, path, st.st_mtime_ns, st.st_size))
+        except OSError:
+            key.append((origin, path, None, None))
+    return tuple(key)
+
+
 def load():
-    """The library, loading it on first use. Raises CrispError saying where it looked."""
-    global _lib, _load_error
+    """The library, loading it on first use. Raises CrispError saying where it looked. A failure is
+    remembered while the candidate paths and their files stay the same: the panel, the method menu and
+    the preview call this on every redraw, and each retry hashed the file (_file_digest) and dlopen'ed it
+    again. A changed path (preferences, $CRISP_LIBRARY) or a rebuilt file is tried."""
+    global _lib, _load_error, _failed_key
     if _lib is not None:
         return _lib
+    key = _candidates_key()
+    if _load_error is not None and key == _failed_key:
+        raise CrispError(_load_error)
     tried = []
     for origin, path in candidate_paths():
         if not os.path.isfile(path):
@@ -197,6 +217,7 @@ def load():
              "$CRISP_LIBRARY": "Correct $CRISP_LIBRARY, or set the path in %s, which comes first" % preferences}
     _load_error = "libcrisp not loaded; %s. %s" % ("; ".join(tried), where.get(
         origin, "Set its path in %s or in $CRISP_LIBRARY" % preferences))
+    _failed_key = key
     raise CrispError(_load_error)
 
 

@@ -93,6 +93,7 @@ def test_a_library_of_another_version_is_refused_saying_which(native, monkeypatc
     monkeypatch.setattr(native, "_lib", None)
     for wanted in ((major + 1, 0), (major, minor + 1)):
         monkeypatch.setattr(native, "API_VERSION", wanted)
+        monkeypatch.setattr(native, "_load_error", None)  # a failure is not retried while the file stays the same
         ok, text = native.status()
         assert not ok, wanted
         assert ("it is libcrisp %s; this add-on needs %d.x, at least %d.%d" % (have, wanted[0], wanted[0], wanted[1])
@@ -100,6 +101,49 @@ def test_a_library_of_another_version_is_refused_saying_which(native, monkeypatc
         assert text.startswith("libcrisp not loaded; $CRISP_LIBRARY %s" % os.environ["CRISP_LIBRARY"]), text
         assert native._lib is None
     monkeypatch.setattr(native, "API_VERSION", (major, 0))
+    monkeypatch.setattr(native, "_load_error", None)
+    assert native.status()[0]
+
+
+def test_a_failed_load_is_retried_only_when_the_file_or_path_changes(native, monkeypatch, tmp_path):
+    """The panel asks native.status() on every redraw: a library that failed to load is not hashed and
+    opened again each time (it was), but is again once its file changes (a rebuild: another modification
+    time or size) or another path is given."""
+    bad = tmp_path / "libcrisp.so"
+    bad.write_bytes(b"not a library")
+    monkeypatch.setattr(native, "_lib", None)
+    monkeypatch.setattr(native, "_load_error", None)
+    monkeypatch.setenv("CRISP_LIBRARY", str(bad))
+    hashed = []
+    digest = native._file_digest
+    monkeypatch.setattr(native, "_file_digest", lambda path: hashed.append(path) or digest(path))
+
+    def fails():
+        ok, text = native.status()
+        assert not ok
+        return text
+
+    first = fails()
+    assert first.startswith("libcrisp not loaded; $CRISP_LIBRARY %s: " % bad), first
+    assert [fails() for _ in range(5)] == [first] * 5
+    assert hashed == [str(bad)], "retried on every call"
+    st = bad.stat()
+    os.utime(bad, ns=(st.st_atime_ns, st.st_mtime_ns + 10 ** 9))  # rebuilt: another modification time
+    fails()
+    assert len(hashed) == 2
+    bad.write_bytes(b"not a library either")  # another size
+    os.utime(bad, ns=(st.st_atime_ns, st.st_mtime_ns + 10 ** 9))
+    fails()
+    assert len(hashed) == 3
+    fails()
+    assert len(hashed) == 3
+    other = tmp_path / "elsewhere.so"  # another path
+    monkeypatch.setenv("CRISP_LIBRARY", str(other))
+    assert "$CRISP_LIBRARY %s: no such file" % other in fails()
+    other.write_bytes(b"\0")  # a file where there was none
+    fails()
+    assert hashed[-1] == str(other) and len(hashed) == 4
+    monkeypatch.setenv("CRISP_LIBRARY", str(BUILD / "lib" / "libcrisp.so"))
     assert native.status()[0]
 
 
