@@ -5,6 +5,8 @@ Each method's parameters are built at registration from the library's own table
 (crispGetFilterInfo): same names, types, defaults and ranges as `crisp help METHOD`. Only values that
 differ from the default are sent."""
 
+import zlib
+
 import bpy
 
 from . import native
@@ -20,7 +22,21 @@ _DESCRIPTIONS = {
     "phlm": "Pixel history linear models (temporal, jittered)",
     "rsaa": "Resampling AA from geometric sub-samples (spatial)",
 }
+# The number a .blend stores for each method. Blender keeps an enum as a number, which for an item without
+# one (the 4th field) is its position in the list: the list is the library's, so a method inserted or
+# moved there changed the method of every saved file after it (taa-improved, put before phlm, turned
+# files' phlm into taa-improved and rsaa into phlm). The numbers are the positions the list has had since
+# then, so files saved since keep their method; a new method takes a new number, never one in use.
+METHOD_NUMBERS = {"none": 0, "fxaa": 1, "repair": 2, "taa": 3, "taa-improved": 4, "phlm": 5, "rsaa": 6}
 _enum_cache = []  # Blender needs the item strings kept alive
+
+
+def method_number(name):
+    """The number a .blend stores for a method: METHOD_NUMBERS, or for a method of a newer library that
+    this add-on does not know one from its name (the same wherever it sits in the library's list)."""
+    if name in METHOD_NUMBERS:
+        return METHOD_NUMBERS[name]
+    return 1000 + zlib.crc32(name.encode("utf-8")) % 1000000
 
 
 def method_items(self, context):
@@ -28,7 +44,7 @@ def method_items(self, context):
         names = native.filter_types()
     except native.CrispError:
         names = STATIC_METHODS
-    items = [(n, n, _DESCRIPTIONS.get(n, n)) for n in names]
+    items = [(n, n, _DESCRIPTIONS.get(n, n), method_number(n)) for n in names]
     _enum_cache[:] = items
     return _enum_cache
 
