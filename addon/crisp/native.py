@@ -133,6 +133,7 @@ class _Library:
     def __init__(self, path):
         self.path = path
         self.digest = _file_digest(path)  # the build that filters (a resume remakes frames another made)
+        self.param_specs = {}  # (method, name): the row of its parameter table (param_spec), read once
         self.dll = ctypes.CDLL(path)
         self.fns = {}
         missing = []
@@ -250,6 +251,17 @@ def filter_info(method):
             return f.info()
         finally:
             f.close()
+
+
+def param_spec(method, name):
+    """The row of the loaded library's parameter table for a method's parameter ({"name", "type",
+    "default", "min", "max", ...}), or None if the method has no such parameter. Read from the library
+    once and kept with it: the viewport asks on every draw."""
+    lib = load()
+    key = (method, name)
+    if key not in lib.param_specs:
+        lib.param_specs[key] = next((p for p in filter_info(method)["params"] if p["name"] == name), None)
+    return lib.param_specs[key]
 
 
 def check_params(method, params):

@@ -127,8 +127,27 @@ def check_method(method, need_library):
             raise InputError("method '%s' is not in this libcrisp (it has: %s)" % (method, ", ".join(types)))
 
 
-# The library's smallest filterSize (temporal/jitter.cpp jitterParamSpecs); Blender's Filter Size goes to 0.
-MIN_FILTER_SIZE = 0.01
+# The smallest filterSize when no library loads (the viewport's preview runs without one); with one, its
+# own table's (temporal/jitter.cpp jitterParamSpecs), read once. Blender's Filter Size goes to 0.
+FALLBACK_MIN_FILTER_SIZE = 0.01
+
+
+def min_filter_size(method="taa"):
+    """The smallest filterSize a temporal method takes: the loaded library's (native.param_spec, read
+    once per library), else FALLBACK_MIN_FILTER_SIZE."""
+    try:
+        spec = native.param_spec(method, "filterSize")
+    except native.CrispError:
+        spec = None
+    return float(spec["min"]) if spec is not None else FALLBACK_MIN_FILTER_SIZE
+
+
+def __getattr__(name):
+    """pipeline.MIN_FILTER_SIZE, the preview's floor of the scene's Filter Size (viewport.py reads it on each
+    draw): min_filter_size() of the library loaded by then."""
+    if name == "MIN_FILTER_SIZE":
+        return min_filter_size()
+    raise AttributeError("module %r has no attribute %r" % (__name__, name))
 
 
 def with_scene_filter_size(scene, method, params):
@@ -140,9 +159,11 @@ def with_scene_filter_size(scene, method, params):
     dB on still_life; 0.75: taa 19.58 -> 20.55 dB on still_life."""
     if method not in plan_mod.TEMPORAL_METHODS or "filterSize" in (params or {}):
         return params
-    spec = next((p for p in native.filter_info(method)["params"] if p["name"] == "filterSize"), None)
-    size = max(float(scene.render.filter_size), MIN_FILTER_SIZE)
-    if spec is None or abs(size - spec["default"]) < 1e-6:
+    spec = native.param_spec(method, "filterSize")
+    if spec is None:
+        return params
+    size = max(float(scene.render.filter_size), float(spec["min"]))
+    if abs(size - spec["default"]) < 1e-6:
         return params
     return dict(params or {}, filterSize=size)
 

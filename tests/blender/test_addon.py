@@ -211,6 +211,45 @@ class AddonTest(unittest.TestCase):
                     pipeline.run(scene, method, [1], d, log=lambda *a: None)
                 self.assertEqual(os.listdir(d), [])
 
+    @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
+    def test_the_smallest_filter_size_is_the_librarys(self):
+        """The floor put under the scene's Film > Filter Size (Blender's goes to 0) for the renders and the
+        viewport's preview (pipeline.MIN_FILTER_SIZE) is the loaded library's own minimum, read from its
+        table once, not on each draw; a literal 0.01 stood for it. Without a library: 0.01."""
+        spec = next(p for p in native.filter_info("taa")["params"] if p["name"] == "filterSize")
+        self.assertEqual(pipeline.MIN_FILTER_SIZE, spec["min"])
+        calls = []
+        real = native.filter_info
+        native.filter_info = lambda method: calls.append(method) or real(method)
+        try:
+            for _ in range(100):
+                pipeline.MIN_FILTER_SIZE
+        finally:
+            native.filter_info = real
+        self.assertEqual(calls, [])
+        scene = harness.build_scene("still_life")
+        scene.render.filter_size = 0.0
+        saved = dict(native.load().param_specs)
+        try:
+            for method in plan.TEMPORAL_METHODS:  # a library whose minimum is another
+                native.load().param_specs[(method, "filterSize")] = dict(spec, min=0.25)
+            self.assertEqual(pipeline.MIN_FILTER_SIZE, 0.25)
+            for method in plan.TEMPORAL_METHODS:
+                self.assertEqual(pipeline.with_scene_filter_size(scene, method, {}), {"filterSize": 0.25})
+        finally:
+            native.load().param_specs.clear()
+            native.load().param_specs.update(saved)
+        param_spec = native.param_spec
+
+        def no_library(*_args):
+            raise native.CrispError("no library")
+        native.param_spec = no_library
+        try:
+            self.assertEqual(pipeline.MIN_FILTER_SIZE, pipeline.FALLBACK_MIN_FILTER_SIZE)
+        finally:
+            native.param_spec = param_spec
+        scene.render.filter_size = 1.5
+
     def test_output_folder_that_is_a_file_is_named_so(self):
         with tempfile.NamedTemporaryFile() as f:
             with self.assertRaisesRegex(pipeline.InputError, "is a file, not a folder"):
