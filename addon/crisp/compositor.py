@@ -77,7 +77,10 @@ def _folder_of(group):
 
 def result_group(scene, folder, image, frame_start, frame_end):
     """Creates or updates the group of a folder of filtered frames: Image node (the sequence) -> Group
-    Output (Image, Alpha). Every node showing the group, the user's too, follows the update."""
+    Output (Image, Alpha). Every node showing the group, the user's too, follows the update. What the
+    artist did inside the group stays: nodes where they were put, and an output fed through their own
+    nodes (a grade between the frames and the output, where the run's note says to composite) is not
+    wired straight to the frames again."""
     key = _path_key(folder)
     # Crisp's own groups only (tagged): a user's group holding a copy of the image node is theirs.
     group = next((g for g in bpy.data.node_groups if g.bl_idname == "CompositorNodeTree" and g.library is None
@@ -88,18 +91,25 @@ def result_group(scene, folder, image, frame_start, frame_end):
     _group_output(group, "Image")
     _group_output(group, "Alpha")
     nodes = group.nodes
-    img = nodes.get("Crisp Frames") or nodes.new("CompositorNodeImage")
-    img.name = img.label = "Crisp Frames"
-    img.location = (-300, 0)
+    img = nodes.get("Crisp Frames")
+    if img is None:
+        img = nodes.new("CompositorNodeImage")
+        img.name = img.label = "Crisp Frames"
+        img.location = (-300, 0)
     img.image = image
     img.frame_duration = frame_end - frame_start + 1
     img.frame_start = frame_start
     img.frame_offset = frame_start - 1  # file frame_NNNN.exr shows at scene frame NNNN
     img.use_auto_refresh = True
-    out = nodes.get("Group Output") or nodes.new("NodeGroupOutput")
-    out.location = (0, 0)
-    group.links.new(img.outputs["Image"], out.inputs["Image"])
-    group.links.new(img.outputs["Alpha"], out.inputs["Alpha"])
+    out = nodes.get("Group Output")
+    if out is None:
+        out = nodes.new("NodeGroupOutput")
+        out.location = (0, 0)
+    for socket in ("Image", "Alpha"):
+        fed = out.inputs[socket].links
+        # Unfed, or fed by an image node (this one, or one Crisp made that was renamed): the frames.
+        if not fed or fed[0].from_node.bl_idname == "CompositorNodeImage":
+            group.links.new(img.outputs[socket], out.inputs[socket])
     return group
 
 

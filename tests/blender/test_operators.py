@@ -265,6 +265,63 @@ class OperatorTest(unittest.TestCase):
             self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
         self.assertEqual(self.result_groups(), [node.node_tree])
 
+    def test_a_rerun_keeps_the_artists_compositing(self):
+        """As an artist works: a scene whose compositor is in use (Render Layers -> Glare -> Composite) is
+        rendered with a temporal method, Crisp's node is wired into the tree and, inside Crisp's group, a
+        colour grade is put between the frames and the group's output (where the run's note says to apply
+        the compositor); the scene is renamed, rendered again and loaded again. Every run finds the same
+        node, group and image, and leaves every link, the group's inside too, and the nodes' places as
+        the artist left them. (A re-run wired the frames straight to the group's output again, cutting
+        the grade out of the chain, and moved the group's nodes back.)"""
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = self.small_scene(1, 3, load_result=True)
+        scene.crisp.method = "taa"
+        scene.use_nodes = True
+        tree = scene.node_tree
+        tree.nodes.clear()
+        layers, composite = tree.nodes.new("CompositorNodeRLayers"), tree.nodes.new("CompositorNodeComposite")
+        glare = tree.nodes.new("CompositorNodeGlare")
+        tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
+        tree.links.new(glare.outputs["Image"], composite.inputs["Image"])
+
+        def links(t):
+            return sorted((l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier)
+                          for l in t.links)
+
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        self.assertEqual(links(tree), [("Glare", "Image", "Composite", "Image"),
+                                       ("Render Layers", "Image", "Glare", "Image")])
+        node, = [n for n in tree.nodes if n.get(compositor.NODE_TAG)]
+        group = node.node_tree
+        frames = group.nodes["Crisp Frames"]
+        self.assertEqual(os.path.normpath(bpy.path.abspath(frames.image.filepath)),
+                         os.path.join(self.tmp.name, "filtered", "frame_0001.exr"))
+        self.assertEqual((frames.frame_start, frames.frame_duration, frames.frame_offset), (1, 3, 0))
+        mix = tree.nodes.new("CompositorNodeMixRGB")
+        tree.links.new(node.outputs["Image"], mix.inputs[1])
+        tree.links.new(glare.outputs["Image"], mix.inputs[2])
+        tree.links.new(node.outputs["Alpha"], mix.inputs["Fac"])
+        tree.links.new(mix.outputs["Image"], composite.inputs["Image"])
+        grade = group.nodes.new("CompositorNodeColorBalance")
+        group.links.new(frames.outputs["Image"], grade.inputs["Image"])
+        group.links.new(grade.outputs["Image"], group.nodes["Group Output"].inputs["Image"])
+        frames.location = (-700, 120)
+        node.location = (40, -500)
+        placed = {n.name: tuple(n.location) for t in (tree, group) for n in t.nodes}
+        wired = (links(tree), links(group))
+
+        scene.name = "sh010"
+        scene.crisp.method = "fxaa"
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        self.assertEqual([n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup"], [node])
+        self.assertEqual(self.result_groups(), [group])
+        self.assertEqual(node.node_tree, group)
+        self.assertEqual([i for i in bpy.data.images if i.source == "SEQUENCE"], [frames.image])
+        self.assertEqual((links(tree), links(group)), wired)
+        self.assertEqual({n.name: tuple(n.location) for t in (tree, group) for n in t.nodes}, placed)
+        self.assertEqual((frames.frame_start, frames.frame_duration, frames.frame_offset), (1, 3, 0))
+
     def test_preview_of_the_first_frame_is_that_frame(self):
         """Preview Frame without PNGs at the range's first frame shows that frame's EXR as a still image,
         not the compositor's sequence, which starts with the same file: the Image Editor numbers a sequence
