@@ -130,7 +130,7 @@ def add_to_compositor(scene, group):
         node = tree.nodes.new("CompositorNodeGroup")
         node.location = (-200, -350)
     node.node_tree = group
-    node.label = GROUP_NAME
+    node.label = node.label or GROUP_NAME  # one the artist gave it stays
     node[NODE_TAG] = True
     return node
 

@@ -307,6 +307,7 @@ class OperatorTest(unittest.TestCase):
         group.links.new(grade.outputs["Image"], group.nodes["Group Output"].inputs["Image"])
         frames.location = (-700, 120)
         node.location = (40, -500)
+        node.label = "Crisp AA"
         placed = {n.name: tuple(n.location) for t in (tree, group) for n in t.nodes}
         wired = (links(tree), links(group))
 
@@ -316,7 +317,7 @@ class OperatorTest(unittest.TestCase):
         self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
         self.assertEqual([n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup"], [node])
         self.assertEqual(self.result_groups(), [group])
-        self.assertEqual(node.node_tree, group)
+        self.assertEqual((node.node_tree, node.label), (group, "Crisp AA"))
         self.assertEqual([i for i in bpy.data.images if i.source == "SEQUENCE"], [frames.image])
         self.assertEqual((links(tree), links(group)), wired)
         self.assertEqual({n.name: tuple(n.location) for t in (tree, group) for n in t.nodes}, placed)
