@@ -2,14 +2,18 @@
 """Filtered frames back into Blender: an image sequence inside a compositor node group (an add-on
 cannot run its own code as a compositor node, BLENDER.md), and a still-frame preview in the Image
 Editor. A group belongs to a folder of filtered frames (tagged with it), so scenes with their own
-output folders (output_folder.py) have their own groups, named "Crisp Result: <scene>" when made."""
+output folders (output_folder.py) have their own groups, named "Crisp Result: <scene>" (after a renamed
+scene on its next load)."""
 
 import os
 
 import bpy
 
+from . import output_folder
+
 GROUP_NAME = "Crisp Result"
 FOLDER_TAG = "crisp_folder"  # custom property of a result group: the folder whose frames it shows
+NAME_TAG = "crisp_name"  # custom property of a result group: the name Crisp gave it (another: the artist's)
 NODE_TAG = "crisp_result"  # custom property of the node Crisp put in a scene's compositor
 
 
@@ -75,6 +79,28 @@ def _folder_of(group):
     return _path_key(os.path.dirname(bpy.path.abspath(image.filepath, library=image.library)))
 
 
+def _names_another_scene(group, scene, key):
+    """Whether a group Crisp named "Crisp Result: <name>" (NAME_TAG; or Blender's "<name>.001" of it) names
+    a scene other than this one that is gone or writes elsewhere: the scene was renamed since (its pinned
+    folder kept its frames, output_folder.py), and a new scene of the old name may have frames of its own.
+    A name the artist gave the group, or one naming another scene writing to this folder (a shared
+    Output), stays."""
+    prefix = GROUP_NAME + ": "
+    given = group.get(NAME_TAG, group.name)  # (groups of earlier add-ons have no tag: their name)
+    if group.name == group_name(scene) or group.name != given or not group.name.startswith(prefix):
+        return False
+    named = group.name[len(prefix):]
+    other = bpy.data.scenes.get(named) or bpy.data.scenes.get(named.rsplit(".", 1)[0])
+    if other is None:
+        return True
+    if other == scene:
+        return False
+    try:
+        return _path_key(os.path.join(output_folder.out_dir(other, writing=False), "filtered")) != key
+    except output_folder.UnsavedFile:
+        return True
+
+
 def result_group(scene, folder, image, frame_start, frame_end):
     """Creates or updates the group of a folder of filtered frames: Image node (the sequence) -> Group
     Output (Image, Alpha). Every node showing the group, the user's too, follows the update. What the
@@ -87,6 +113,10 @@ def result_group(scene, folder, image, frame_start, frame_end):
                   and FOLDER_TAG in g and _folder_of(g) == key), None)
     if group is None:
         group = bpy.data.node_groups.new(group_name(scene), "CompositorNodeTree")
+        group[NAME_TAG] = group.name
+    elif _names_another_scene(group, scene, key):
+        group.name = group_name(scene)
+        group[NAME_TAG] = group.name
     group[FOLDER_TAG] = key
     _group_output(group, "Image")
     _group_output(group, "Alpha")

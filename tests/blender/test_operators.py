@@ -271,7 +271,7 @@ class OperatorTest(unittest.TestCase):
         colour grade is put between the frames and the group's output (where the run's note says to apply
         the compositor); the scene is renamed, rendered again and loaded again. Every run finds the same
         node, group and image, and leaves every link, the group's inside too, and the nodes' places as
-        the artist left them. (A re-run wired the frames straight to the group's output again, cutting
+        the artist left them; the group takes the scene's new name. (A re-run wired the frames straight to the group's output again, cutting
         the grade out of the chain, and moved the group's nodes back.)"""
         bpy.ops.wm.read_homefile(use_empty=True)
         scene = self.small_scene(1, 3, load_result=True)
@@ -312,12 +312,17 @@ class OperatorTest(unittest.TestCase):
         wired = (links(tree), links(group))
 
         scene.name = "sh010"
+        bpy.data.scenes.new("Scene")  # a new scene of the old name: the group's name is no longer its
         scene.crisp.method = "fxaa"
         self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
         self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
         self.assertEqual([n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup"], [node])
         self.assertEqual(self.result_groups(), [group])
         self.assertEqual((node.node_tree, node.label), (group, "Crisp AA"))
+        self.assertEqual(group.name, "Crisp Result: sh010")
+        group.name = "Crisp Result: the AA pass"  # the artist's name for it stays
+        self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        self.assertEqual(group.name, "Crisp Result: the AA pass")
         self.assertEqual([i for i in bpy.data.images if i.source == "SEQUENCE"], [frames.image])
         self.assertEqual((links(tree), links(group)), wired)
         self.assertEqual({n.name: tuple(n.location) for t in (tree, group) for n in t.nodes}, placed)
