@@ -9,8 +9,6 @@ import os
 
 import bpy
 
-from . import output_folder
-
 GROUP_NAME = "Crisp Result"
 FOLDER_TAG = "crisp_folder"  # custom property of a result group: the folder whose frames it shows
 NAME_TAG = "crisp_name"  # custom property of a result group: the name Crisp gave it (another: the artist's)
@@ -79,12 +77,11 @@ def _folder_of(group):
     return _path_key(os.path.dirname(bpy.path.abspath(image.filepath, library=image.library)))
 
 
-def _names_another_scene(group, scene, key):
+def _names_another_scene(group, scene):
     """Whether a group Crisp named "Crisp Result: <name>" (NAME_TAG; or Blender's "<name>.001" of it) names
-    a scene other than this one that is gone or writes elsewhere: the scene was renamed since (its pinned
-    folder kept its frames, output_folder.py), and a new scene of the old name may have frames of its own.
-    A name the artist gave the group, or one naming another scene writing to this folder (a shared
-    Output), stays."""
+    a scene other than this one that is gone or does not show the group in its compositor: the scene was
+    renamed since (its pinned folder kept its frames, output_folder.py), and a new scene may have the old
+    name. A name the artist gave the group, or one of another scene showing it (a shared folder), stays."""
     prefix = GROUP_NAME + ": "
     given = group.get(NAME_TAG, group.name)  # (groups of earlier add-ons have no tag: their name)
     if group.name == group_name(scene) or group.name != given or not group.name.startswith(prefix):
@@ -95,10 +92,8 @@ def _names_another_scene(group, scene, key):
         return True
     if other == scene:
         return False
-    try:
-        return _path_key(os.path.join(output_folder.out_dir(other, writing=False), "filtered")) != key
-    except output_folder.UnsavedFile:
-        return True
+    return other.node_tree is None or not any(n.bl_idname == "CompositorNodeGroup" and n.node_tree == group
+                                              for n in other.node_tree.nodes)
 
 
 def result_group(scene, folder, image, frame_start, frame_end):
@@ -114,7 +109,7 @@ def result_group(scene, folder, image, frame_start, frame_end):
     if group is None:
         group = bpy.data.node_groups.new(group_name(scene), "CompositorNodeTree")
         group[NAME_TAG] = group.name
-    elif _names_another_scene(group, scene, key):
+    elif _names_another_scene(group, scene):
         group.name = group_name(scene)
         group[NAME_TAG] = group.name
     group[FOLDER_TAG] = key
