@@ -151,9 +151,9 @@ class CrispSettings(bpy.types.PropertyGroup):
                     "on the first render, so the scene keeps it when renamed and two scenes never share one)")
     output_pinned: bpy.props.StringProperty(options={"HIDDEN"}, description="The Output Crisp set itself "
                                             "(output_folder.py); empty or other: the user's")
-    jitter_distribution: bpy.props.EnumProperty(
-        name="Jitter", items=[("blackman-harris", "Blackman-Harris", "EEVEE's own sample distribution"),
-                              ("uniform", "Uniform", "Halton points inside the pixel")])
+    jitter_distribution: bpy.props.EnumProperty(  # numbers fixed, as METHOD_NUMBERS
+        name="Jitter", items=[("blackman-harris", "Blackman-Harris", "EEVEE's own sample distribution", 0),
+                              ("uniform", "Uniform", "Halton points inside the pixel", 1)])
     write_png: bpy.props.BoolProperty(name="Also write PNG", default=True)
     load_result: bpy.props.BoolProperty(name="Load into compositor", default=True)
     plan_text: bpy.props.StringProperty(name="Plan", default="")

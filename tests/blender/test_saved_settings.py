@@ -55,6 +55,9 @@ class SavedMethodTest(unittest.TestCase):
             self.assertEqual(self.scene.crisp.method, name)
             self.scene.crisp.method = name
             self.assertEqual(self.scene.crisp["method"], number)
+        for number, name in enumerate(["blackman-harris", "uniform"]):  # the Jitter menu's, fixed too
+            self.scene.crisp["jitter_distribution"] = number
+            self.assertEqual(self.scene.crisp.jitter_distribution, name)
 
     def test_a_method_added_or_moved_in_the_library_does_not_change_a_saved_scene(self):
         with tempfile.TemporaryDirectory() as d:
