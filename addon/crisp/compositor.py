@@ -145,9 +145,10 @@ def add_to_compositor(scene, group):
     to the group; nodes the user added are left alone."""
     scene.use_nodes = True
     tree = scene.node_tree
-    groups = [n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup" and n.node_tree is not None]
+    groups = [n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup"]
+    # Crisp's node showing no group (its group deleted in the Outliner) is Crisp's node still.
     node = next((n for n in groups if n.get(NODE_TAG)), None) or \
-        next((n for n in groups if n.node_tree.name == GROUP_NAME), None)
+        next((n for n in groups if n.node_tree is not None and n.node_tree.name == GROUP_NAME), None)
     if node is None:
         shown = next((n for n in groups if n.node_tree == group), None)
         if shown is not None:

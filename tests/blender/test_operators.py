@@ -328,6 +328,24 @@ class OperatorTest(unittest.TestCase):
         self.assertEqual({n.name: tuple(n.location) for t in (tree, group) for n in t.nodes}, placed)
         self.assertEqual((frames.frame_start, frames.frame_duration, frames.frame_offset), (1, 3, 0))
 
+    def test_a_deleted_result_group_is_made_again_in_the_same_node(self):
+        """The artist deletes Crisp's group (Outliner, Blender File > Node Groups > Delete): Crisp's node
+        in the compositor is left showing nothing, its links kept. Load into Compositor makes the group
+        again and puts it in that node, links and all, rather than a second node beside the empty one."""
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = self.small_scene(1, 1, load_result=True)
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        tree = scene.node_tree
+        node, = [n for n in tree.nodes if n.get(compositor.NODE_TAG)]
+        composite = next(n for n in tree.nodes if n.bl_idname == "CompositorNodeComposite")
+        tree.links.new(node.outputs["Image"], composite.inputs["Image"])
+        bpy.data.node_groups.remove(node.node_tree)
+        self.assertIsNone(node.node_tree)
+        self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        self.assertEqual([n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup"], [node])
+        self.assertEqual(self.result_groups(), [node.node_tree])
+        self.assertEqual([l.from_node for l in composite.inputs["Image"].links], [node])
+
     def test_preview_of_the_first_frame_is_that_frame(self):
         """Preview Frame without PNGs at the range's first frame shows that frame's EXR as a still image,
         not the compositor's sequence, which starts with the same file: the Image Editor numbers a sequence
