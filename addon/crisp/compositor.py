@@ -121,7 +121,11 @@ def result_group(scene, folder, image, frame_start, frame_end):
         img = nodes.new("CompositorNodeImage")
         img.name = img.label = "Crisp Frames"
         img.location = (-300, 0)
-    img.image = image
+    replaced, img.image = img.image, image
+    if replaced is not None and replaced != image and replaced.library is None and replaced.users == 0:
+        # The sequence of a range that started at another frame, shown nowhere else now: not left behind
+        # in the file's images, one more on each render of another range.
+        bpy.data.images.remove(replaced)
     img.frame_duration = frame_end - frame_start + 1
     img.frame_start = frame_start
     img.frame_offset = frame_start - 1  # file frame_NNNN.exr shows at scene frame NNNN
@@ -216,6 +220,7 @@ def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
                                 % (frame_start, frame_end, filtered_dir))
     image = load_sequence(path(first), "Crisp " + scene.name)
     group = result_group(scene, filtered_dir, image, first, frame_end)
+    image.name = "Crisp " + scene.name  # the name of the image it replaced, if that held it
     return add_to_compositor(scene, group)
 
 

@@ -346,6 +346,24 @@ class OperatorTest(unittest.TestCase):
         self.assertEqual(self.result_groups(), [node.node_tree])
         self.assertEqual([l.from_node for l in composite.inputs["Image"].links], [node])
 
+    def test_a_range_starting_elsewhere_leaves_no_image_behind(self):
+        """Renders of ranges that start at other frames load sequences starting at other files: the one
+        the group showed before, shown nowhere else now, goes, and the one shown takes its name. (Each
+        such render left one more image in the file: "Crisp Scene.001", ".002", ...)"""
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = self.small_scene(1, 2, load_result=True)
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        kept = bpy.data.images.new("the artist's", 4, 4)
+        for first, last in ((3, 4), (2, 3), (1, 2)):
+            scene.frame_start, scene.frame_end = first, last
+            self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+            node = next(n for n in scene.node_tree.nodes if n.get(compositor.NODE_TAG))
+            shown = node.node_tree.nodes["Crisp Frames"].image
+            self.assertEqual(os.path.basename(shown.filepath), "frame_%04d.exr" % first)
+            self.assertEqual(sorted(i.name for i in bpy.data.images if i.type != "RENDER_RESULT"),
+                             sorted(["Crisp " + scene.name, kept.name]))
+            self.assertEqual(shown.name, "Crisp " + scene.name)
+
     def test_preview_of_the_first_frame_is_that_frame(self):
         """Preview Frame without PNGs at the range's first frame shows that frame's EXR as a still image,
         not the compositor's sequence, which starts with the same file: the Image Editor numbers a sequence
