@@ -1853,7 +1853,7 @@ class PhlmFilter final : public Filter {
     if (hasImage("depth")) in.depth = inputApartFromOutput("depth");
     in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
-    alpha_.run(in.color, in.motion, in.depth, nullptr, in.output, alphaSettings(settings_), reference_, numThreads());
+    alpha_.run(in.color, kernel_.alphaBelowOneLastFrame(), in.motion, in.depth, nullptr, in.output, alphaSettings(settings_), reference_, numThreads());
   }
 
  private:

@@ -31,6 +31,7 @@
 #pragma once
 
 #include <array>
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -139,6 +140,11 @@ class Kernel {
   std::size_t bytesScratch() const;
   int framesSinceReset() const { return frames_; }
   const FrameStats& lastStats() const { return stats_; }
+  // Some input alpha of the last run was not 1 (sanitised; an RGB input's is
+  // 1), from the rows' staging: filters/temporal_alpha.h.
+  bool alphaBelowOneLastFrame() const {
+    return frames_ > 0 && std::find(alphaOne_.begin(), alphaOne_.end(), 0) != alphaOne_.end();
+  }
   // The record (kRecord scalars, phlm_rls.h layout) of pixel (x, y) after the last run.
   std::array<T, kRecord> record(int x, int y) const {
     std::array<T, kRecord> r;

@@ -344,7 +344,9 @@ inline void sharpenPixel(const Frame& f, float amount, int x, int y) {
     const float sharpened = plane[c] + amount * (4.0f * plane[c] - sum);
     result[ch] = std::clamp(sharpened, lo, hi);
   }
-  storeOutput(f.output, x, y, toRgb4(Vec4{result[0], result[1], result[2], 0.0f}, f.space, alphaOf(f.color, x, y)));
+  const float alpha = alphaOf(f.color, x, y);
+  if (alpha != 1.0f) noteAlphaBelowOne(f);
+  storeOutput(f.output, x, y, toRgb4(Vec4{result[0], result[1], result[2], 0.0f}, f.space, alpha));
 }
 
 // A history at least this large (4 planes; 1024x1024 and up) is written with
@@ -480,6 +482,8 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   f.resets = &resets_;
   releases_ = 0;
   f.releases = &releases_;
+  alphaBelowOne_ = false;
+  f.alphaBelowOne = &alphaBelowOne_;
 
   if (reference) {
     for (int y = 0; y < height_; ++y)
@@ -653,7 +657,7 @@ class TaaFilter final : public Filter {
     if (hasImage("depth")) in.depth = inputApartFromOutput("depth");
     in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
-    alpha_.run(in.color, in.motion, in.depth, nullptr, in.output, settings_, reference_, numThreads());
+    alpha_.run(in.color, kernel_.alphaBelowOneLastFrame(), in.motion, in.depth, nullptr, in.output, settings_, reference_, numThreads());
   }
 
  private:

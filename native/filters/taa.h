@@ -111,6 +111,9 @@ class Kernel {
   // Still pixels of the last run released from the hold (taa.cpp "Hold"):
   // their input changed for two windows running. Not in resetsLastFrame.
   long releasesLastFrame() const { return releases_.load(std::memory_order_relaxed); }
+  // Some input alpha of the last run was not 1 (sanitised; an RGB input's is
+  // 1), seen as the output's alpha was written: filters/temporal_alpha.h.
+  bool alphaBelowOneLastFrame() const { return alphaBelowOne_.load(std::memory_order_relaxed); }
   // The largest accumulated sample weight W (Kernel::history_'s fourth plane,
   // either sign) over the pixels after the last run; 0 without history. The
   // running average caps it at Settings::maxSamples (taa.cpp "Static-scene
@@ -156,6 +159,7 @@ class Kernel {
   std::atomic<long> guards_{0};
   std::atomic<long> resets_{0};
   std::atomic<long> releases_{0};
+  std::atomic<bool> alphaBelowOne_{false};
 };
 
 }  // namespace crisp::taa

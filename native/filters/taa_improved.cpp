@@ -400,7 +400,7 @@ class TaaImprovedFilter final : public Filter {
     kernel_.run(in, settings_, reference_, numThreads());
     // The alpha, steered by the colour's aliasedValue plane (temporal_alpha.h).
     const taa::Settings base = taa_improved::baselineSettings(settings_);
-    alpha_.run(in.color, in.motion, in.depth,
+    alpha_.run(in.color, kernel_.baseline().alphaBelowOneLastFrame(), in.motion, in.depth,
                base.aliasedNeighbourhood || base.aliasedBoxSize ? kernel_.aliasedValue().data() : nullptr, in.output,
                base, reference_, numThreads());
   }

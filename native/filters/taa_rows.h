@@ -71,7 +71,14 @@ struct Frame {
   std::atomic<long>* guards;   // Kernel::guards_: lanes whose guard fired (rare: counted on the spot)
   std::atomic<long>* resets;   // Kernel::resets_: lanes that started over (summed per row)
   std::atomic<long>* releases;  // Kernel::releases_: lanes released from the hold (summed per row)
+  std::atomic<bool>* alphaBelowOne;  // Kernel::alphaBelowOne_: an output pixel's input alpha is not 1
 };
+
+// Sets Frame::alphaBelowOne, reading it first: once set, no thread writes the
+// shared line again.
+inline void noteAlphaBelowOne(const Frame& f) {
+  if (!f.alphaBelowOne->load(std::memory_order_relaxed)) f.alphaBelowOne->store(true, std::memory_order_relaxed);
+}
 
 // Fast path scratch of one row band: a ring of five staged rows, one plane
 // per channel (Y Co Cg, or R G B, then motion x and y; no alpha, which the
@@ -446,6 +453,7 @@ inline float alphaOf(const ImageView& color, int x, int y) {
 inline void storeOutputPixel(const Frame& f, int x, int y, const float output[3], bool reset) {
   if (!f.writeOutput) return;
   const float alpha = alphaOf(f.color, x, y);
+  if (alpha != 1.0f) noteAlphaBelowOne(f);
   if (reset && !f.unjitter.enabled) {
     // Reset to current: the input colour itself (sanitised), not its YCoCg
     // round trip, which can differ in the last bit.
@@ -645,6 +653,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
                             f.output.pixelStride == 4 * sizeof(float);
   for (int y = y0; y < y1; ++y) {
     long resets = 0, releases = 0;  // Kernel::resetsLastFrame and releasesLastFrame, this row's
+    temporal::MaskOfT<T> alphaNotOne{};  // the packed output's lanes whose input alpha is not 1, this row's
     if (y + 2 < h) stageRow<T>(f, s, y + 2, y + 2 < y1 ? depthNow : nullptr);
     const int up = std::max(y - 1, 0) % kRing, mid = y % kRing, down = std::min(y + 1, h - 1) % kRing;
     float* const* rows[3] = {s.planes[up], s.planes[mid], s.planes[down]};
@@ -799,8 +808,9 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
         if (packedOutput) {
           // storeOutputPixel on packed RGBA, where it reads the input for the
           // alpha only (the unjittered mix is the current colour even on a reset).
-          temporal::storeInterleaved4(f.output.pixel(x0, y), r.output[0], r.output[1], r.output[2],
-                                      inputAlphaLanes<T>(f.color, x0, y));
+          const T alpha = inputAlphaLanes<T>(f.color, x0, y);
+          alphaNotOne |= alpha != temporal::lanesOf<T>(1.0f);
+          temporal::storeInterleaved4(f.output.pixel(x0, y), r.output[0], r.output[1], r.output[2], alpha);
         } else {
           for (int l = 0; l < kL; ++l) {
             const float output[3] = {r.output[0][l], r.output[1][l], r.output[2][l]};
@@ -819,6 +829,7 @@ __attribute__((always_inline)) inline void fastRowsBody(const Frame& f, const Ba
     }
     if (resets) f.resets->fetch_add(resets, std::memory_order_relaxed);
     if (releases) f.releases->fetch_add(releases, std::memory_order_relaxed);
+    if (temporal::anyOf(alphaNotOne)) noteAlphaBelowOne(f);
   }
 #if defined(__AVX512F__)
   // The streamed stores are weakly ordered: visible before the band is done.

@@ -3,7 +3,6 @@
 #include "filters/temporal_alpha.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cstring>
 
 #include "core/color.h"
@@ -21,28 +20,10 @@ float alphaAt(const ImageView& v, int x, int y) {
 
 }  // namespace
 
-bool hasAlphaBelowOne(const ImageView& color, int numThreads) {
-  if (color.channels() < 4) return false;
-  std::atomic<bool> found{false};
-  parallelRows(color.width, color.height, numThreads, [&](int y0, int y1) {
-    for (int y = y0; y < y1 && !found.load(std::memory_order_relaxed); ++y) {
-      bool below = false;  // OR over the row, no branch: the loop vectorises for packed RGBA
-      if (color.packed()) {
-        const float* row = color.row(y);
-        for (int x = 0; x < color.width; ++x) below |= !(row[4 * x + 3] == 1.0f);
-      } else {
-        for (int x = 0; x < color.width; ++x) below |= !(alphaAt(color, x, y) == 1.0f);
-      }
-      if (below) found.store(true, std::memory_order_relaxed);
-    }
-  });
-  return found.load();
-}
-
 void TemporalAlpha::allocate(int width, int height, bool withDepth) {
   if (width != width_ || height != height_) {  // a new size starts over, opaque until alpha shows up
     active_ = false;
-    kernel_.reset();
+    kernel_ = nullptr;
     grey_ = Image();
     filtered_ = Image();
   }
@@ -57,12 +38,12 @@ void TemporalAlpha::reset() {
   if (kernel_) kernel_->reset();
 }
 
-void TemporalAlpha::run(const ImageView& color, const ImageView& motion, const ImageView& depth,
+void TemporalAlpha::run(const ImageView& color, bool alphaBelowOne, const ImageView& motion, const ImageView& depth,
                         const float* aliasedValue, const ImageView& output, const taa::Settings& base, bool reference,
                         int numThreads) {
   if (color.channels() < 4 || output.channels() < 4) return;
   if (!active_) {
-    if (!hasAlphaBelowOne(color, numThreads)) return;
+    if (!alphaBelowOne) return;
     if (!kernel_) kernel_ = std::make_unique<taa::Kernel>();
     kernel_->allocate(width_, height_, withDepth_);
     kernel_->reset();  // the first filtered frame bootstraps, whatever came before

@@ -17,8 +17,8 @@
 // for them, and they would cost 250-500 MB more at 1080p). The result is
 // clamped to [0, 1].
 //
-// Opaque renders pay one read of the input's alpha per frame and keep
-// nothing; a transparent one keeps taa's history for alpha (about 90 MB at
+// Opaque renders cost nothing more (the methods' kernels note an alpha below
+// 1 as they read the colour) and keep nothing; a transparent one keeps taa's history for alpha (about 90 MB at
 // 1080p with depth) and runs that kernel once more each frame. Once alpha
 // has shown up, it is filtered every frame until the filter resets, so its
 // history never skips a frame.
@@ -32,10 +32,6 @@
 
 namespace crisp {
 
-// True if `color` has a fourth channel and some pixel's value there is not 1
-// (NaN counts as not 1). Stops at the first such pixel.
-bool hasAlphaBelowOne(const ImageView& color, int numThreads);
-
 class TemporalAlpha {
  public:
   // Keeps the size; the history starts over when the size changes.
@@ -43,11 +39,14 @@ class TemporalAlpha {
   void reset();
   // Filters this frame's alpha into output's fourth channel when the colour
   // and the output both have one and alpha has been below 1 since the last
-  // reset (this frame included); otherwise leaves the output alone (the
-  // method passed the input's alpha through). `base` is the method's taa
-  // settings (jitter, pixel filter, hold); aliasedValue as taa::Inputs.
-  void run(const ImageView& color, const ImageView& motion, const ImageView& depth, const float* aliasedValue,
-           const ImageView& output, const taa::Settings& base, bool reference, int numThreads);
+  // reset (alphaBelowOne: this frame's, as the method's kernel saw it while
+  // reading the colour, so opaque frames are not read again); otherwise
+  // leaves the output alone (the method passed the input's alpha through).
+  // `base` is the method's taa settings (jitter, pixel filter, hold);
+  // aliasedValue as taa::Inputs.
+  void run(const ImageView& color, bool alphaBelowOne, const ImageView& motion, const ImageView& depth,
+           const float* aliasedValue, const ImageView& output, const taa::Settings& base, bool reference,
+           int numThreads);
   bool active() const { return active_; }
   std::size_t bytesKeptBetweenFrames() const;
   // The alpha's kernel while active, else null (tests).

@@ -14,6 +14,8 @@
 
 #include "core/context.h"
 #include "core/filter.h"
+#include "filters/phlm.h"
+#include "filters/taa.h"
 #include "filters/temporal_alpha.h"
 #include "synth/moving.h"
 #include "temporal_test_util.h"
@@ -127,9 +129,9 @@ TEST(TemporalAlpha, MovingDiskAlphaFollowsWithoutATrail) {
   }
 }
 
-// An opaque render (alpha 1 everywhere, or no alpha) keeps no alpha history
-// and its outputs' alpha is 1; alpha that shows up later starts the alpha's
-// history, which then runs every frame until a reset.
+// An opaque render (alpha 1 everywhere) keeps no alpha history and its
+// outputs' alpha is 1; alpha that shows up later starts the alpha's history,
+// which then runs every frame until a reset.
 TEST(TemporalAlpha, OpaqueFramesKeepNothingAndAlphaStartsItsHistory) {
   const int w = 32, h = 16;
   synth::FrameOptions opt = eeveeJitter();
@@ -137,33 +139,25 @@ TEST(TemporalAlpha, OpaqueFramesKeepNothingAndAlphaStartsItsHistory) {
   const synth::FrameData opaque = synth::renderFrame(synth::staticChartSequence(w, h), w, h, 0, opt);
   const std::vector<synth::FrameData> transparent =
       transparentFrames(synth::staticChartSequence(w, h), w, h, 1, opt);
-  EXPECT_FALSE(hasAlphaBelowOne(opaque.color.view(), 1));
-  EXPECT_TRUE(hasAlphaBelowOne(transparent[0].color.view(), 2));
-  Image rgb(w, h, 3);
-  EXPECT_FALSE(hasAlphaBelowOne(rgb.view(), 1));
-  Image nanAlpha = opaque.color;
-  nanAlpha.data[4 * (w * h - 1) + 3] = std::numeric_limits<float>::quiet_NaN();  // the last pixel only
-  EXPECT_TRUE(hasAlphaBelowOne(nanAlpha.view(), 2));
-
   taa::Settings s;
   TemporalAlpha alpha;
   alpha.allocate(w, h, false);
   Image out(w, h, 4);
   for (float& v : out.data) v = 0.25f;
-  alpha.run(opaque.color.view(), {}, {}, nullptr, out.view(), s, false, 1);
+  alpha.run(opaque.color.view(), false, {}, {}, nullptr, out.view(), s, false, 1);
   EXPECT_FALSE(alpha.active());
   EXPECT_EQ(alpha.bytesKeptBetweenFrames(), 0u);
   EXPECT_EQ(out.data[3], 0.25f);  // left alone: the method passed the input's alpha through
 
-  alpha.run(transparent[0].color.view(), {}, {}, nullptr, out.view(), s, false, 1);
+  alpha.run(transparent[0].color.view(), true, {}, {}, nullptr, out.view(), s, false, 1);
   ASSERT_TRUE(alpha.active());
   EXPECT_GT(alpha.bytesKeptBetweenFrames(), 0u);
   EXPECT_EQ(alpha.kernel()->framesSinceReset(), 1);
-  alpha.run(opaque.color.view(), {}, {}, nullptr, out.view(), s, false, 1);  // still filtered: no gap in history
+  alpha.run(opaque.color.view(), false, {}, {}, nullptr, out.view(), s, false, 1);  // still filtered: no gap
   EXPECT_EQ(alpha.kernel()->framesSinceReset(), 2);
   alpha.reset();
   EXPECT_FALSE(alpha.active());
-  alpha.run(opaque.color.view(), {}, {}, nullptr, out.view(), s, false, 1);
+  alpha.run(opaque.color.view(), false, {}, {}, nullptr, out.view(), s, false, 1);
   EXPECT_FALSE(alpha.active());
 
   // Through the filters: the opaque chart's outputs keep alpha 1.
@@ -216,4 +210,66 @@ TEST(TemporalAlpha, FollowsTheFiltersReferencePathInPlaceUseAndReset) {
     Driver fresh(method, 2);
     EXPECT_EQ(fast.run(input[3], true, true).data, fresh.run(input[3], true, true).data) << method;
   }
+}
+
+// The kernels note an input alpha below 1 as they read the colour (so an
+// opaque frame is not read again for it), on every path that writes the
+// output's alpha: whole and partial lane groups of each fast-path copy,
+// strided output, sharpen, no unjitter, the reference; never for alpha 1 or
+// an RGB input. A NaN alpha counts (it reads as 0).
+TEST(TemporalAlpha, KernelsNoteAnAlphaBelowOneOnEveryPath) {
+  const int w = 37, h = 9;  // 37: a partial lane group at the end of each row
+  synth::FrameOptions opt = eeveeJitter();
+  opt.reference = synth::ReferenceKind::None;
+  std::vector<synth::FrameData> pan = test::pannedChart(w, h, 2, 0.37f, -0.21f, opt);
+  struct Where { int x, y; float alpha; };
+  const Where cases[] = {{-1, -1, 1.0f}, {5, 4, 0.5f}, {36, 7, 0.0f}, {0, 0, 0.99f},
+                         {20, 8, std::numeric_limits<float>::quiet_NaN()}};
+  int checked = 0;
+  for (const Where& c : cases)
+    for (int run = 0; run < 24; ++run) {
+      const bool reference = run % 2, sharpen = run / 2 % 2, unjitter = run / 4 % 2, strided = run / 8 % 3 == 1;
+      const bool rgb = run / 8 % 3 == 2;
+      const test::FastPathIsa isa(test::kFastPathIsas[run % 3]);
+      taa::Settings s;
+      s.sharpen = sharpen ? 0.5f : 0.0f;
+      s.unjitter = unjitter ? temporal::UnjitterMode::BlackmanHarris : temporal::UnjitterMode::None;
+      taa::Kernel taaKernel;
+      taaKernel.allocate(w, h, true);
+      phlm::Kernel<float> phlmKernel;
+      phlmKernel.allocate(w, h, true, true);
+      Image wide(w + 3, h, 4);  // the output as a strided view into a wider image
+      for (int t = 0; t < 2; ++t) {
+        synth::FrameData f = pan[std::size_t(t)];
+        if (c.x >= 0) f.color.at(c.x, c.y)[3] = c.alpha;
+        Image rgbColor(w, h, 3);
+        for (int i = 0; i < w * h; ++i)
+          for (int k = 0; k < 3; ++k) rgbColor.data[std::size_t(3 * i + k)] = f.color.data[std::size_t(4 * i + k)];
+        Image out(w, h, 4);
+        taa::Inputs in;
+        in.color = rgb ? rgbColor.view() : f.color.view();
+        in.motion = f.motion.view();
+        in.depth = f.depth.view();
+        in.output = strided ? makeView(wide.data.data(), Format::Float4, w, h, 16, std::size_t(w + 3) * 16)
+                            : out.view();
+        s.jitterX = f.jitter.x;
+        s.jitterY = f.jitter.y;
+        taaKernel.run(in, s, reference, 2);
+        phlm::Inputs pin;
+        pin.color = in.color;
+        pin.motion = in.motion;
+        pin.depth = in.depth;
+        pin.output = out.view();
+        phlm::Settings ps;
+        ps.jitterX = f.jitter.x;
+        ps.jitterY = f.jitter.y;
+        phlmKernel.run(pin, ps, reference, 2);
+        const bool want = c.x >= 0 && !rgb;
+        EXPECT_EQ(taaKernel.alphaBelowOneLastFrame(), want)
+            << "taa (" << c.x << "," << c.y << ") run " << run << " frame " << t << " " << temporal::fastPathIsaName();
+        EXPECT_EQ(phlmKernel.alphaBelowOneLastFrame(), want) << "phlm (" << c.x << "," << c.y << ") run " << run;
+        ++checked;
+      }
+    }
+  EXPECT_EQ(checked, 5 * 24 * 2);
 }
