@@ -31,12 +31,18 @@ METHOD_NUMBERS = {"none": 0, "fxaa": 1, "repair": 2, "taa": 3, "taa-improved": 4
 _enum_cache = []  # Blender needs the item strings kept alive
 
 
+def name_number(name):
+    """The number of an enum item the add-on has no fixed number for: from its name, so the same wherever
+    it sits in the library's list, and at least 1000, above every fixed one."""
+    return 1000 + zlib.crc32(name.encode("utf-8")) % 1000000
+
+
 def method_number(name):
     """The number a .blend stores for a method: METHOD_NUMBERS, or for a method of a newer library that
     this add-on does not know one from its name (the same wherever it sits in the library's list)."""
     if name in METHOD_NUMBERS:
         return METHOD_NUMBERS[name]
-    return 1000 + zlib.crc32(name.encode("utf-8")) % 1000000
+    return name_number(name)
 
 
 def method_items(self, context):
@@ -58,6 +64,48 @@ RSAA_CAMERA_PARAMS = {"orthographic", "proj00", "proj11", "proj02", "proj12"} | 
 PIPELINE_PARAMS = {"jitterX", "jitterY", "filterSize", "reference"} | RSAA_CAMERA_PARAMS
 
 
+# The same for the choices of the methods' string parameters ("a|b|c" in the library's tables): their
+# numbers were their positions in the library's lists, so a choice inserted or moved there would change
+# the choice of every saved file after it. Each choice below keeps the number of its position in these
+# lists, the library's own when they were fixed (so files saved before hold the same numbers); a choice of
+# a newer library takes a number from its name (choice_numbers). Never change or reorder these lists.
+_UNJITTER = ("blackman-harris", "nearest", "none")  # native/temporal/jitter.cpp, shared by the temporal ones
+_JITTER_WEIGHTING = ("none", "blackman-harris")
+_TAA_CHOICES = {"historyFilter": ("catmull-rom", "bilinear"), "clipSpace": ("rgb", "ycocg"),
+                "jitterWeighting": _JITTER_WEIGHTING, "unjitter": _UNJITTER}
+CHOICE_NUMBERS = {
+    "repair": {"mask": ("gauss5", "box3"), "angleEstimator": ("regression", "thesis")},
+    "taa": _TAA_CHOICES,
+    "taa-improved": _TAA_CHOICES,
+    "phlm": {"modelFetch": ("catmull-rom", "bilinear", "nearest"), "jitterWeighting": _JITTER_WEIGHTING,
+             "unjitter": _UNJITTER},
+    "rsaa": {"verification": ("halve", "reassign", "none"), "textureAA": ("fxaa", "none")},
+}
+
+
+def choice_numbers(method, param, choices):
+    """{choice: number a .blend stores} for the library's choices of a method's string parameter: its
+    position in CHOICE_NUMBERS, or for a choice those lists lack (of a newer library) one from its name,
+    never one of the recorded positions (below 1000) nor another choice's (the rare clash of two new
+    names moves the later one in name order up to the next free number)."""
+    recorded = CHOICE_NUMBERS.get(method, {}).get(param, ())
+    numbers = {c: recorded.index(c) for c in choices if c in recorded}
+    taken = set(numbers.values())
+    for c in sorted(c for c in choices if c not in recorded):
+        n = name_number(c)
+        while n in taken:
+            n += 1
+        numbers[c] = n
+        taken.add(n)
+    return numbers
+
+
+def saved_choice(method, param, number):
+    """The choice a .blend's number stands for (CHOICE_NUMBERS), or None: a choice of a newer library."""
+    recorded = CHOICE_NUMBERS.get(method, {}).get(param, ())
+    return recorded[number] if 0 <= number < len(recorded) else None
+
+
 def group_name(method):
     """Attribute of scene.crisp holding a method's parameters."""
     return method.replace("-", "_")
@@ -72,8 +120,8 @@ def _precision(spec):
     return 6
 
 
-def _property_for(spec):
-    """A bpy property built from one row of the library's parameter table (crispGetFilterInfo)."""
+def _property_for(method, spec):
+    """A bpy property built from one row of a method's parameter table (crispGetFilterInfo)."""
     desc = (spec.get("meaning") or "") + (" [" + spec["source"] + "]" if spec.get("source") else "")
     name, kind = spec["name"], spec["type"]
     if kind == "bool":
@@ -84,7 +132,8 @@ def _property_for(spec):
     if kind == "float":
         return bpy.props.FloatProperty(name=name, default=float(spec["default"]), min=float(spec["min"]),
                                        max=float(spec["max"]), description=desc, precision=_precision(spec))
-    items = [(c, c, "") for c in spec["choices"]]
+    numbers = choice_numbers(method, name, spec["choices"])
+    items = [(c, c, "", numbers[c]) for c in spec["choices"]]
     return bpy.props.EnumProperty(name=name, items=items, default=spec["default"], description=desc)
 
 
@@ -98,7 +147,8 @@ def _library_param_groups():
         return {}
     groups = {}
     for method, info in infos.items():
-        annotations = {p["name"]: _property_for(p) for p in info["params"] if p["name"] not in PIPELINE_PARAMS}
+        annotations = {p["name"]: _property_for(method, p) for p in info["params"]
+                       if p["name"] not in PIPELINE_PARAMS}
         if annotations:
             groups[method] = type("CrispParams_" + group_name(method), (bpy.types.PropertyGroup,),
                                   {"__annotations__": annotations})
@@ -115,7 +165,11 @@ def param_group(settings, method):
 
 
 def changed_params(settings, method):
-    """{library name: value} of the parameters that differ from the library's defaults."""
+    """{library name: value} of the parameters that differ from the library's defaults. A choice a saved
+    file holds that this library no longer offers reads "" in Blender (its number matches no item; the
+    file keeps the number, so an add-on and library that offer it again show it again): it is given by
+    its name (saved_choice), which the library refuses by name ("'ycocg' is not one of: rgb") before
+    a run, rather than a run taking another choice."""
     group = param_group(settings, method)
     out = {}
     if group is None:
@@ -125,6 +179,8 @@ def changed_params(settings, method):
         if ident in ("rna_type", "name"):
             continue
         value = getattr(group, ident)
+        if prop.type == "ENUM" and value == "" and group.get(ident) is not None:
+            value = saved_choice(method, ident, group.get(ident)) or value
         default = prop.default
         if isinstance(value, float) and abs(value - default) < 1e-7:
             continue
