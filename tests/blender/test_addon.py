@@ -1191,7 +1191,9 @@ class AddonTest(unittest.TestCase):
         self.assertEqual(len(filtered), len(reference))
         outline = [i for i, a in enumerate(reference) if 0.02 < a < 0.98]
         self.assertGreater(len(outline), 20, "the still life has an outline against the film")
-        self.assertTrue(all(a in (0.0, 1.0) for a in one), "the 1-sample alpha is hard-edged")
+        # (After some other tests' renders, EEVEE leaves a few alphas 2e-6 off 0 or 1.)
+        soft = sorted(set(a for a in one if 1e-4 < a < 1.0 - 1e-4))
+        self.assertEqual(soft, [], "the 1-sample alpha is hard-edged")
         err_one = sum(abs(one[i] - reference[i]) for i in outline) / len(outline)
         err_taa = sum(abs(filtered[i] - reference[i]) for i in outline) / len(outline)
         print("transparent still_life 64x36, frame 16, %d outline pixels: mean |alpha - EEVEE 64|: 1 sample %.4f, "
