@@ -41,9 +41,9 @@ void TemporalAlpha::reset() {
 void TemporalAlpha::run(const ImageView& color, bool alphaBelowOne, const ImageView& motion, const ImageView& depth,
                         const float* aliasedValue, const ImageView& output, const taa::Settings& base, bool reference,
                         int numThreads) {
-  if (color.channels() < 4 || output.channels() < 4) return;
+  const bool alphaIn = color.channels() >= 4, alphaOut = output.channels() >= 4;
   if (!active_) {
-    if (!alphaBelowOne) return;
+    if (!alphaIn || !alphaOut || !alphaBelowOne) return;
     if (!kernel_) kernel_ = std::make_unique<taa::Kernel>();
     kernel_->allocate(width_, height_, withDepth_);
     kernel_->reset();  // the first filtered frame bootstraps, whatever came before
@@ -57,7 +57,9 @@ void TemporalAlpha::run(const ImageView& color, bool alphaBelowOne, const ImageV
   parallelRows(w, height_, numThreads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       float* g = grey_.data.data() + std::size_t(y) * w * 3;
-      for (int x = 0; x < w; ++x) g[3 * x] = g[3 * x + 1] = g[3 * x + 2] = sanitizeColor(alphaAt(color, x, y));
+      // RGB colour: alpha 1, as the colour kernel writes it.
+      for (int x = 0; x < w; ++x)
+        g[3 * x] = g[3 * x + 1] = g[3 * x + 2] = alphaIn ? sanitizeColor(alphaAt(color, x, y)) : 1.0f;
     }
   });
   taa::Inputs in;
@@ -67,6 +69,7 @@ void TemporalAlpha::run(const ImageView& color, bool alphaBelowOne, const ImageV
   in.output = filtered_.view();
   in.aliasedValue = aliasedValue;
   kernel_->run(in, base, reference, numThreads);
+  if (!alphaOut) return;  // the history ran: it never skips a frame
   parallelRows(w, height_, numThreads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       const float* f = filtered_.data.data() + std::size_t(y) * w * 3;

@@ -37,13 +37,15 @@ class TemporalAlpha {
   // Keeps the size; the history starts over when the size changes.
   void allocate(int width, int height, bool withDepth);
   void reset();
-  // Filters this frame's alpha into output's fourth channel when the colour
-  // and the output both have one and alpha has been below 1 since the last
-  // reset (alphaBelowOne: this frame's, as the method's kernel saw it while
-  // reading the colour, so opaque frames are not read again); otherwise
-  // leaves the output alone (the method passed the input's alpha through).
-  // `base` is the method's taa settings (jitter, pixel filter, hold);
-  // aliasedValue as taa::Inputs.
+  // Filters this frame's alpha into output's fourth channel once alpha has
+  // been below 1 since the last reset (this frame included) in a colour and
+  // an output that both have one (alphaBelowOne: this frame's, as the
+  // method's kernel saw it while reading the colour, so opaque frames are not
+  // read again); otherwise leaves the output alone (the method passed the
+  // input's alpha through). Once started, the history runs every frame: an
+  // RGB colour counts as alpha 1 (as the colour kernel writes it), an RGB
+  // output gets nothing but the history still runs. `base` is the method's
+  // taa settings (jitter, pixel filter, hold); aliasedValue as taa::Inputs.
   void run(const ImageView& color, bool alphaBelowOne, const ImageView& motion, const ImageView& depth,
            const float* aliasedValue, const ImageView& output, const taa::Settings& base, bool reference,
            int numThreads);

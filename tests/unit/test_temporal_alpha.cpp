@@ -273,3 +273,53 @@ TEST(TemporalAlpha, KernelsNoteAnAlphaBelowOneOnEveryPath) {
     }
   EXPECT_EQ(checked, 5 * 24 * 2);
 }
+
+// Once alpha has shown up, its history runs every frame until a reset, also
+// through a frame whose colour has no alpha (read as 1, as the colour kernel
+// writes it) or whose output has none (nothing to write it to): the frames
+// after it are the same bits as a run where that frame had alpha 1, and as a
+// run that wrote every frame's alpha. (The alpha's history skipped such a
+// frame, so its reprojection missed that frame's motion.)
+TEST(TemporalAlpha, AFrameWithoutAlphaKeepsTheAlphasHistoryGoing) {
+  const int w = 40, h = 24, frames = 8, gap = 3;
+  const std::vector<synth::FrameData> input =
+      transparentFrames(synth::ghostingSequence(w, h, 6.0f, 1.3f, 0.0f), w, h, frames, eeveeJitter());
+  std::vector<synth::FrameData> opaqueAtGap = input;
+  for (std::size_t i = 3; i < opaqueAtGap[gap].color.data.size(); i += 4) opaqueAtGap[gap].color.data[i] = 1.0f;
+  for (const char* method : kMethods) {
+    Driver all(method), rgbColour(method), rgbOutput(method), opaque(method);
+    for (int t = 0; t < frames; ++t) {
+      const synth::FrameData& f = input[std::size_t(t)];
+      const Image& expected = all.run(f, true, true);
+      const Image& withOpaque = opaque.run(opaqueAtGap[std::size_t(t)], true, true);
+      if (t != gap) {
+        EXPECT_EQ(rgbColour.run(f, true, true).data, withOpaque.data) << method << " frame " << t;
+        EXPECT_EQ(rgbOutput.run(f, true, true).data, expected.data) << method << " frame " << t;
+        continue;
+      }
+      // This frame's colour as RGB: its RGBA buffer read through a 16-byte pixel stride.
+      Filter& c = *rgbColour.filter;
+      c.setImage("color", makeView(const_cast<float*>(f.color.data.data()), Format::Float3, w, h, 16));
+      c.setImage("motion", f.motion.view());
+      c.setImage("depth", f.depth.view());
+      if (std::string(method) == "taa-improved") c.setImage("id", f.id.view());
+      c.setImage("output", rgbColour.output.view());
+      c.params().setFloat("jitterX", f.jitter.x);
+      c.params().setFloat("jitterY", f.jitter.y);
+      c.commit();
+      c.execute();
+      EXPECT_EQ(rgbColour.output.data, withOpaque.data) << method << " frame " << t << ", RGB colour";
+      // This frame's output as RGB: no alpha written, the alpha's history still runs.
+      Filter& o = *rgbOutput.filter;
+      o.setImage("color", f.color.view());
+      o.setImage("motion", f.motion.view());
+      o.setImage("depth", f.depth.view());
+      if (std::string(method) == "taa-improved") o.setImage("id", f.id.view());
+      o.setImage("output", makeView(rgbOutput.output.data.data(), Format::Float3, w, h, 16));
+      o.params().setFloat("jitterX", f.jitter.x);
+      o.params().setFloat("jitterY", f.jitter.y);
+      o.commit();
+      o.execute();
+    }
+  }
+}
