@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <utility>
 
 #include "core/color.h"
 #include "core/parallel.h"
@@ -47,9 +48,11 @@ void TemporalAlpha::run(const ImageView& color, bool alphaBelowOne, const ImageV
     if (!kernel_) kernel_ = std::make_unique<taa::Kernel>();
     kernel_->allocate(width_, height_, withDepth_);
     kernel_->reset();  // the first filtered frame bootstraps, whatever came before
-    if (grey_.width != width_ || grey_.height != height_) {
-      grey_ = Image(width_, height_, 3);
-      filtered_ = Image(width_, height_, 3);
+    if (grey_.width != width_ || grey_.height != height_ || filtered_.width != width_ || filtered_.height != height_) {
+      // Both or neither: an allocation that throws part-way leaves them for the next frame to make.
+      Image grey(width_, height_, 3), filtered(width_, height_, 3);
+      grey_ = std::move(grey);
+      filtered_ = std::move(filtered);
     }
     active_ = true;
   }

@@ -647,3 +647,38 @@ TEST(CApi, ExecuteOutOfMemoryNamesTheFilter) {
   EXPECT_EQ(message, "filter 'taa': out of memory filtering a 2048x2048 frame");
   f.execute();
 }
+
+// taa, taa-improved and phlm allocate the alpha's history in the execute whose alpha first is
+// below 1 (temporal_alpha.h). Memory running short part-way through that (after the alpha as
+// RGB, before its filtered copy) failed that execute, and the next one, with memory back, wrote
+// the alpha through the copy that was never made (a crash). Every address-space limit between
+// the alpha's kernel fitting and all of it fitting is tried: each failed execute is followed by
+// one that runs and writes alphas in [0, 1]. Skipped where the limit cannot be lowered (ASan).
+TEST(CApi, ExecuteAfterTheAlphasAllocationRanShortRuns) {
+  auto ctx = crisp::ContextRef::create();
+  ctx.set("numThreads", 1);
+  ctx.commit();
+  const int side = 1536;  // the alpha's kernel ~85 MB, its RGB in and out 28 MB each
+  std::vector<float> color = noise(side, side, 4, 5), out(color.size());
+  for (std::size_t i = 3; i < color.size(); i += 4) color[i] = (i / 4) % 3 ? 1.0f : 0.0f;  // a transparent film
+  int failed = 0;
+  for (std::size_t mb = 64; mb <= 184; mb += 8) {
+    auto f = ctx.newFilter("taa");
+    f.setImage("color", color.data(), CRISP_FORMAT_FLOAT4, side, side);
+    f.setImage("output", out.data(), CRISP_FORMAT_FLOAT4, side, side);
+    f.commit();
+    CrispError code = CRISP_ERROR_NONE;
+    if (!withAddressSpaceHeadroom(mb << 20, [&] {
+          crispExecuteFilter(f.handle());
+          lastError(&code);
+        }))
+      GTEST_SKIP() << "the address-space limit cannot be lowered here";
+    if (code == CRISP_ERROR_NONE) continue;
+    ++failed;
+    f.execute();
+    bool inRange = true;
+    for (std::size_t i = 3; i < out.size(); i += 4) inRange &= out[i] >= 0.0f && out[i] <= 1.0f;
+    EXPECT_TRUE(inRange) << "after a failed execute with " << mb << " MB of headroom";
+  }
+  EXPECT_GT(failed, 0) << "no limit made the alpha's allocation fail";
+}
