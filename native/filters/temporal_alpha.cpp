@@ -60,9 +60,10 @@ void TemporalAlpha::run(const ImageView& color, bool alphaBelowOne, const ImageV
   parallelRows(w, height_, numThreads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       float* g = grey_.data.data() + std::size_t(y) * w * 3;
-      // RGB colour: alpha 1, as the colour kernel writes it.
+      // Coverage in [0, 1] (NaN 0, above 1 or +Inf 1); an RGB colour's: 1, as the colour kernel writes it.
       for (int x = 0; x < w; ++x)
-        g[3 * x] = g[3 * x + 1] = g[3 * x + 2] = alphaIn ? sanitizeColor(alphaAt(color, x, y)) : 1.0f;
+        g[3 * x] = g[3 * x + 1] = g[3 * x + 2] =
+            alphaIn ? std::clamp(sanitizeColor(alphaAt(color, x, y)), 0.0f, 1.0f) : 1.0f;
     }
   });
   taa::Inputs in;

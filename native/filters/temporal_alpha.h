@@ -14,8 +14,8 @@
 // converges to the same filtered coverage EEVEE's many-sample alpha shows.
 // taa-improved steers it by the colour's aliasedValue plane; phlm uses taa's
 // kernel too, not a second set of linear models (a coverage signal has no use
-// for them, and they would cost 250-500 MB more at 1080p). The result is
-// clamped to [0, 1].
+// for them, and they would cost 250-500 MB more at 1080p). The input alpha
+// is clamped to [0, 1] before (NaN counts as 0), the result after.
 //
 // Opaque renders cost nothing more (the methods' kernels note an alpha below
 // 1 as they read the colour) and keep nothing; a transparent one keeps taa's

@@ -323,3 +323,30 @@ TEST(TemporalAlpha, AFrameWithoutAlphaKeepsTheAlphasHistoryGoing) {
     }
   }
 }
+
+// Alpha is coverage: an input alpha above 1 (+Inf, or 1.5 from a careless
+// composite) is filtered as 1, not as a value up to 65504 whose pixel filter
+// made its 3x3 neighbours opaque over an empty background.
+TEST(TemporalAlpha, AlphaAboveOneIsFilteredAsOne) {
+  const int w = 40, h = 24, frames = 4;
+  const std::vector<synth::FrameData> input =
+      transparentFrames(synth::ghostingSequence(w, h, 6.0f, 1.3f, 0.0f), w, h, frames, eeveeJitter());
+  for (const float above : {1.5f, std::numeric_limits<float>::infinity()}) {
+    for (const char* method : kMethods) {
+      Driver one(method), high(method);
+      for (int t = 0; t < frames; ++t) {
+        synth::FrameData a = input[std::size_t(t)], b = a;
+        for (int y = 0; y < h; y += 5)
+          for (int x = 0; x < w; x += 7) {  // background pixels (alpha 0) and the disk's (1) alike
+            a.color.data[4 * std::size_t(y * w + x) + 3] = 1.0f;
+            b.color.data[4 * std::size_t(y * w + x) + 3] = above;
+          }
+        const Image& expected = one.run(a, true, true);
+        const Image& got = high.run(b, true, true);
+        bool same = true;
+        for (std::size_t i = 3; i < got.data.size(); i += 4) same &= got.data[i] == expected.data[i];
+        EXPECT_TRUE(same) << method << " alpha " << above << ", frame " << t;
+      }
+    }
+  }
+}
