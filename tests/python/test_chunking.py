@@ -14,6 +14,8 @@ read; its filtered/ is the sequential taa-improved result of the add-on's filter
   * `crisp render --frames A-B --preroll N --shot S-E`: chunks rendered out of order, two of them at
     the same time, into one output folder equal the sequential render; pre-roll frames never reach
     input/ or filtered/; a resumed chunk reads its pre-roll from input/ instead of rendering it again;
+  * with Film > Transparent (a .blend of spinning_cube), the temporal methods' filtered alpha too: full
+    pre-roll chunks of `crisp filter` and `crisp render` equal the sequential run, colour and alpha;
   * the Flamenco job type (flamenco/crisp-render.js, compiled under Node.js): its tasks' commands, run
     in reverse order, equal the sequential render.
 
@@ -385,6 +387,47 @@ def test_render_chunks_equal_sequential_and_resume(shot, lib, tmp_path):
     assert os.stat(out / "filtered" / frame(6)).st_mtime_ns == kept
     first = json.loads((out / "run_0001-0004.json").read_text())
     assert first["chunk"]["preroll_frames"] is None and [e["frame"] for e in first["frames"]] == [1, 2, 3, 4]
+
+
+@pytest.fixture(scope="module")
+def transparent_shot(tmp_path_factory):
+    """spinning_cube with Film > Transparent, saved as a .blend, rendered by `crisp render --method
+    taa-improved` (frames 1-8): a cube over an empty film, its outline in alpha."""
+    d = tmp_path_factory.mktemp("transparent")
+    blend = str(d / "spinning_cube_transparent.blend")
+    code = ("import sys; sys.path.insert(0, %r); import bpy, spinning_cube; s = spinning_cube.build(); "
+            "s.render.film_transparent = True; bpy.ops.wm.save_as_mainfile(filepath=%r)"
+            % (os.path.join(SOURCE, "test_scenes"), blend))
+    p = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr", code],
+                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=300)
+    assert p.returncode == 0 and os.path.isfile(blend), p.stderr[-3000:]
+    out = d / "sequential"
+    crisp("render", "--scene", blend, "--resolution", SIZE, "--frames", "1-8", "--method", "taa-improved",
+          "--quiet", "-o", out)
+    return blend, out, [str(out / "input" / frame(f)) for f in range(1, 9)]
+
+
+def test_a_transparent_films_chunks_equal_sequential(transparent_shot, lib, tmp_path):
+    """The temporal methods filter a transparent film's alpha (native/filters/temporal_alpha.h): their
+    chunks with a pre-roll back to frame 1, in `crisp filter` and `crisp render`, equal the sequential
+    run in colour and alpha bit for bit, as the add-on's filter path does."""
+    blend, seq, inputs = transparent_shot
+    frames = range(1, 9)
+    alphas = [lib.color(p)[..., 3] for p in inputs]
+    assert all(np.all((a == 0.0) | (a == 1.0)) for a in alphas) and min(a.min() for a in alphas) == 0.0
+    for method in TEMPORAL:
+        whole, chunked = tmp_path / method / "seq", tmp_path / method / "chunks"
+        crisp("filter", "--method", method, "--quiet", "-o", whole, *inputs)
+        filter_chunks(inputs, method, chunked, [(1, 3), (4, 6), (7, 8)], 6)
+        assert max_diff(lib, whole, chunked, frames) == 0.0, method
+        last = lib.color(str(whole / frame(8)))[..., 3]
+        assert np.any((last > 0.05) & (last < 0.95)), "%s anti-aliases the alpha" % method
+    # The add-on's path (crisp render's filtered/) is the CLI's, and so is a render chunk's.
+    assert max_diff(lib, seq / "filtered", tmp_path / "taa-improved" / "seq", frames) == 0.0
+    out = tmp_path / "render_chunk"
+    crisp("render", "--scene", blend, "--resolution", SIZE, "--frames", "5-8", "--shot", "1-8", "--preroll", "4",
+          "--method", "taa-improved", "--quiet", "-o", out)
+    assert max_diff(lib, seq / "filtered", out / "filtered", range(5, 9)) == 0.0
 
 
 # Compiles a job of the Flamenco job type flamenco/crisp-render.js under Node.js, with the stub of
