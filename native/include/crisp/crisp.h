@@ -147,10 +147,10 @@ CRISP_API const char* crispGetFilterInfo(CrispFilter filter);
 CRISP_API void crispCommitFilter(CrispFilter filter);
 // Runs one frame. Allocates no image-sized memory, except on the first in-place
 // run of a size (a copy of the inputs the output overwrites, kept for the next
-// frames) and, for "taa", "taa-improved" and "phlm", on the first frame since a
-// reset or a new size whose colour's alpha is below 1 (the alpha's history,
-// about 150 MB at 1920x1080, kept until the size changes); small blocks
-// (per-row scratch, the thread pool's tasks) may be.
+// frames) and, for "taa", "taa-improved" and "phlm", on the first frame of a
+// size whose colour's alpha is below 1 somewhere (the alpha's history, about
+// 150 MB at 1920x1080, kept until the size changes, a reset included); small
+// blocks (per-row scratch, the thread pool's tasks) may be.
 // Temporal filters keep history between calls (below).
 CRISP_API void crispExecuteFilter(CrispFilter filter);
 // Forgets temporal history: call it at a camera cut, a jump in time or a
