@@ -23,9 +23,8 @@
 // with depth, plus 4.5 MB of taa's scratch; made by the execute where alpha
 // first shows up, crisp.h) and runs that kernel once more each frame (at
 // 1080p on 2 threads 35 ms against 30 ms for taa's colour: taa's time more
-// than doubles). Once alpha
-// has shown up, it is filtered every frame until the filter resets, so its
-// history never skips a frame.
+// than doubles). Once alpha has shown up, it is filtered every frame until
+// the filter resets, so its history never skips a frame.
 #pragma once
 
 #include <cstddef>

@@ -293,8 +293,8 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
 
   std::unique_ptr<OIIO::ImageInput> in;
   try {
-    // Colour is taken as stored: no premultiplication of unassociated (PNG)
-    // alpha, matching writeImage, which writes RGB as given.
+    // Colour is read as stored, and premultiplied below where the file says
+    // its alpha is unassociated (PNG), as writeImage divides it out.
     OIIO::ImageSpec config;
     config.attribute("oiio:UnassociatedAlpha", 1);
     in = OIIO::ImageInput::open(path, &config);
@@ -357,14 +357,17 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
 
   // ---- colour ----
   const bool decode = needsSrgbDecode(spec);
-  auto colorConvert = [decode, &frame](const float* s, Image& im, int x, int y) {
+  // The filters take colour premultiplied by alpha, as Blender's EXRs hold it.
+  const bool straightAlpha = spec.get_int_attribute("oiio:UnassociatedAlpha", 0) != 0;
+  auto colorConvert = [decode, straightAlpha, &frame](const float* s, Image& im, int x, int y) {
     float* d = im.at(x, y);
     for (int k = 0; k < 4; ++k) {
       frame.nonFiniteColour += !std::isfinite(s[k]);
       frame.clampedColour += std::isfinite(s[k]) && std::fabs(s[k]) > kMaxColor;
     }
-    for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(decode ? srgbDecode(s[k]) : s[k]);
     d[3] = sanitizeColor(s[3]);
+    const float coverage = straightAlpha ? std::clamp(d[3], 0.0f, 1.0f) : 1.0f;
+    for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(decode ? srgbDecode(s[k]) : s[k]) * coverage;
   };
   if (hasCombined) {
     const RoleSpec& rs = roleSpecs()[0];

@@ -69,9 +69,15 @@ void writeImage(const std::string& path, const ImageView& image) {
       const float a = channels == 4 ? s[3] : 1.0f;
       const std::size_t o = (std::size_t(y) * w + std::size_t(x)) * 4;
       if (png) {
-        // Display encoding of core/color.h; alpha is linear coverage.
-        for (int k = 0; k < 3; ++k) rgba8[o + std::size_t(k)] = (unsigned char)std::lround(srgbEncode(s[k]) * 255.0f);
+        // Display encoding of core/color.h; alpha is linear coverage. A PNG's
+        // alpha is straight (unassociated), so the premultiplied colour is
+        // divided by a partial coverage first, as Blender writes a transparent
+        // film's PNG (viewers composite it as straight; an edge written
+        // premultiplied shows a dark fringe). Coverage 0 keeps the colour.
         const float ac = std::isnan(a) ? 0.0f : std::clamp(a, 0.0f, 1.0f);
+        const float unpremultiply = ac > 0.0f && ac < 1.0f ? 1.0f / ac : 1.0f;
+        for (int k = 0; k < 3; ++k)
+          rgba8[o + std::size_t(k)] = (unsigned char)std::lround(srgbEncode(s[k] * unpremultiply) * 255.0f);
         rgba8[o + 3] = (unsigned char)std::lround(ac * 255.0f);
       } else {
         for (int k = 0; k < 3; ++k) rgbaFloat[o + std::size_t(k)] = s[k];
@@ -92,8 +98,8 @@ void writeImage(const std::string& path, const ImageView& image) {
     spec.attribute("oiio:ColorSpace", "Linear");
     spec.attribute("compression", "zip");
   }
-  // Values are written as given: OIIO would otherwise un-premultiply colour for
-  // PNG. The reader reads PNG alpha unassociated too, so a round trip is exact.
+  // The values above are the file's: OIIO would otherwise un-premultiply
+  // colour for PNG again. The reader premultiplies a straight alpha's colour.
   spec.attribute("oiio:UnassociatedAlpha", 1);
   if (!out->open(tmp.path(), spec)) ioError("cannot write '" + path + "': " + oiioErrors(out.get()));
   const bool wrote = png ? out->write_image(OIIO::TypeDesc::UINT8, rgba8.data())

@@ -530,16 +530,49 @@ TEST_F(IoTest, PngRoundTripWithinOneCodeValue) {
   Frame f = readFrame(file("rgba.png"));
   ASSERT_EQ(f.width, w);
   ASSERT_EQ(f.height, h);
+  // Colour is premultiplied in the library and straight in the PNG: compared
+  // straight (divided by each side's alpha), where the file's code values are.
   for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < 4; ++c) {
-        const float want = c < 3 ? srgbEncode(im.at(x, y)[c]) : std::clamp(im.at(x, y)[c], 0.0f, 1.0f);
-        const float got = c < 3 ? srgbEncode(f.pass("color").at(x, y)[c]) : f.pass("color").at(x, y)[c];
-        ASSERT_NEAR(got, want, 1.0f / 255.0f) << x << "," << y << "," << c;
+    for (int x = 0; x < w; ++x) {
+      const float a = im.at(x, y)[3], readA = f.pass("color").at(x, y)[3];
+      ASSERT_NEAR(readA, a, 0.5f / 255.0f) << x << "," << y;
+      for (int c = 0; c < 3; ++c) {
+        const float want = srgbEncode(im.at(x, y)[c] / a), got = srgbEncode(f.pass("color").at(x, y)[c] / readA);
+        ASSERT_NEAR(got, want, 1.0f / 255.0f + 1e-6f) << x << "," << y << "," << c;
       }
+    }
   // The top row is the first one in the file: alpha 1 there, 0.2 at the bottom.
   EXPECT_NEAR(f.pass("color").at(3, 0)[3], 1.0f, 1e-6f);
   EXPECT_NEAR(f.pass("color").at(3, h - 1)[3], 0.2f, 0.5f / 255.0f);
+}
+
+// A PNG's alpha is straight: writeImage divides a partial coverage out of the
+// premultiplied colour (as Blender writes a transparent film's PNG, so a
+// viewer's composite has no dark fringe), and readFrame multiplies it back,
+// for its own PNGs and for straight-alpha PNGs written elsewhere.
+TEST_F(IoTest, PngAlphaIsStraightInTheFile) {
+  Image im(2, 1, 4);
+  const float half[4] = {0.25f, 0.1f, 0.0f, 0.5f}, none[4] = {0.3f, 0.0f, 0.0f, 0.0f};
+  std::copy(half, half + 4, im.at(0, 0));
+  std::copy(none, none + 4, im.at(1, 0));
+  writeImage(file("edge.png"), im);
+  OIIO::ImageSpec asStored;  // OIIO premultiplies a PNG's colour on read unless told not to
+  asStored.attribute("oiio:UnassociatedAlpha", 1);
+  auto in = OIIO::ImageInput::open(file("edge.png"), &asStored);
+  ASSERT_TRUE(in);
+  std::vector<unsigned char> codes(8);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 4, OIIO::TypeDesc::UINT8, codes.data()));
+  in->close();
+  EXPECT_EQ(codes[0], (unsigned char)std::lround(srgbEncode(0.5f) * 255.0f));  // 0.25 / 0.5
+  EXPECT_EQ(codes[1], (unsigned char)std::lround(srgbEncode(0.2f) * 255.0f));
+  EXPECT_EQ(codes[3], 128);
+  EXPECT_EQ(codes[4], (unsigned char)std::lround(srgbEncode(0.3f) * 255.0f));  // coverage 0: as given
+  EXPECT_EQ(codes[7], 0);
+  Frame f = readFrame(file("edge.png"));
+  const float* p = f.pass("color").at(0, 0);
+  EXPECT_NEAR(p[0], 0.25f * 128.0f / 255.0f / 0.5f, 0.004f);
+  EXPECT_NEAR(p[3], 128.0f / 255.0f, 1e-6f);
+  EXPECT_EQ(f.pass("color").at(1, 0)[0], 0.0f);  // premultiplied by coverage 0
 }
 
 TEST_F(IoTest, WriteReplacesAnExistingFileWhole) {
