@@ -240,7 +240,6 @@
 #include "core/parallel.h"
 #include "filters/phlm_feature.h"
 #include "filters/phlm_stage.h"
-#include "filters/taa.h"
 #include "filters/temporal_alpha.h"
 #include "temporal/history_fetch.h"
 #include "temporal/hold_release.h"
@@ -1784,22 +1783,6 @@ std::vector<ParamSpec> phlmParams() {
   return specs;
 }
 
-// taa's settings for phlm's alpha (temporal_alpha.h): phlm's jitter, pixel
-// filter, unjitter, hold and depth tolerance, taa's defaults for the rest.
-taa::Settings alphaSettings(const phlm::Settings& s) {
-  taa::Settings a;
-  a.jitterX = s.jitterX;
-  a.jitterY = s.jitterY;
-  a.weighting = s.weighting == phlm::JitterWeighting::BlackmanHarris ? taa::JitterWeighting::BlackmanHarris
-                                                                     : taa::JitterWeighting::None;
-  a.filterSize = s.filterSize;
-  a.unjitter = s.unjitter;
-  a.holdPeriod = s.holdPeriod;
-  a.holdRelease = s.holdRelease;
-  a.depthTolerance = s.depthTolerance;
-  return a;
-}
-
 class PhlmFilter final : public Filter {
  public:
   explicit PhlmFilter(Context& c)
@@ -1853,7 +1836,7 @@ class PhlmFilter final : public Filter {
     if (hasImage("depth")) in.depth = inputApartFromOutput("depth");
     in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
-    alpha_.run(in.color, kernel_.alphaBelowOneLastFrame(), in.motion, in.depth, nullptr, in.output, alphaSettings(settings_), reference_, numThreads());
+    alpha_.run(in.color, kernel_.alphaBelowOneLastFrame(), in.motion, in.depth, in.output, settings_, reference_, numThreads());
   }
 
  private:

@@ -8,6 +8,8 @@
 
 #include "core/color.h"
 #include "core/parallel.h"
+#include "filters/phlm.h"
+#include "filters/taa.h"
 
 namespace crisp {
 
@@ -20,6 +22,9 @@ float alphaAt(const ImageView& v, int x, int y) {
 }
 
 }  // namespace
+
+TemporalAlpha::TemporalAlpha() = default;
+TemporalAlpha::~TemporalAlpha() = default;
 
 void TemporalAlpha::allocate(int width, int height, bool withDepth) {
   if (width != width_ || height != height_) {  // a new size starts over, opaque until alpha shows up
@@ -80,6 +85,22 @@ void TemporalAlpha::run(const ImageView& color, bool alphaBelowOne, const ImageV
       for (int x = 0; x < w; ++x) output.pixel(x, y)[3] = std::clamp(f[3 * x], 0.0f, 1.0f);
     }
   });
+}
+
+void TemporalAlpha::run(const ImageView& color, bool alphaBelowOne, const ImageView& motion, const ImageView& depth,
+                        const ImageView& output, const phlm::Settings& s, bool reference, int numThreads) {
+  if (!active_ && !alphaBelowOne) return;
+  taa::Settings a;
+  a.jitterX = s.jitterX;
+  a.jitterY = s.jitterY;
+  a.weighting = s.weighting == phlm::JitterWeighting::BlackmanHarris ? taa::JitterWeighting::BlackmanHarris
+                                                                     : taa::JitterWeighting::None;
+  a.filterSize = s.filterSize;
+  a.unjitter = s.unjitter;
+  a.holdPeriod = s.holdPeriod;
+  a.holdRelease = s.holdRelease;
+  a.depthTolerance = s.depthTolerance;
+  run(color, alphaBelowOne, motion, depth, nullptr, output, a, reference, numThreads);
 }
 
 std::size_t TemporalAlpha::bytesKeptBetweenFrames() const {
