@@ -103,9 +103,8 @@ void TemporalAlpha::run(const ImageView& color, bool alphaBelowOne, const ImageV
   run(color, alphaBelowOne, motion, depth, nullptr, output, a, reference, numThreads);
 }
 
-std::size_t TemporalAlpha::bytesKeptBetweenFrames() const {
-  if (!active_) return 0;
-  return kernel_->bytesKeptBetweenFrames() + (grey_.data.size() + filtered_.data.size()) * sizeof(float);
+std::size_t TemporalAlpha::bytesKeptBetweenFrames() const {  // held from the first alpha until the size changes
+  return (kernel_ ? kernel_->bytesKeptBetweenFrames() : 0) + (grey_.data.size() + filtered_.data.size()) * sizeof(float);
 }
 
 }  // namespace crisp

@@ -69,6 +69,8 @@ class TemporalAlpha {
   void run(const ImageView& color, bool alphaBelowOne, const ImageView& motion, const ImageView& depth,
            const ImageView& output, const phlm::Settings& settings, bool reference, int numThreads);
   bool active() const { return active_; }
+  // What it holds: nothing until alpha first shows up, then taa's history and
+  // the two RGB images until the size changes (a reset keeps them).
   std::size_t bytesKeptBetweenFrames() const;
   // The alpha's kernel while active, else null (tests).
   const taa::Kernel* kernel() const { return active_ ? kernel_.get() : nullptr; }

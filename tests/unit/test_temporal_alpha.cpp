@@ -155,10 +155,14 @@ TEST(TemporalAlpha, OpaqueFramesKeepNothingAndAlphaStartsItsHistory) {
   EXPECT_EQ(alpha.kernel()->framesSinceReset(), 1);
   alpha.run(opaque.color.view(), false, {}, {}, nullptr, out.view(), s, false, 1);  // still filtered: no gap
   EXPECT_EQ(alpha.kernel()->framesSinceReset(), 2);
+  const std::size_t held = alpha.bytesKeptBetweenFrames();
   alpha.reset();
   EXPECT_FALSE(alpha.active());
   alpha.run(opaque.color.view(), false, {}, {}, nullptr, out.view(), s, false, 1);
   EXPECT_FALSE(alpha.active());
+  EXPECT_EQ(alpha.bytesKeptBetweenFrames(), held);  // a reset keeps the memory for the next alpha
+  alpha.allocate(w + 1, h, false);
+  EXPECT_EQ(alpha.bytesKeptBetweenFrames(), 0u);  // a new size frees it
 
   // Through the filters: the opaque chart's outputs keep alpha 1.
   for (const char* method : kMethods) {
