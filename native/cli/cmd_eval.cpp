@@ -160,43 +160,40 @@ int runEval(const ParsedArgs& args) {
                        " to measure");
   }
   const char* filterSize = std::getenv("CRISP_EVAL_FILTER_SIZE");  // batch_eval.py reads it too
+  std::optional<double> renderedSize;
   if (filterSize && *filterSize) {
     char* end = nullptr;
     const double v = std::strtod(filterSize, &end);
     if (*end || !(v >= 0.0 && v <= 100.0))
       throw UsageError(std::string("bad CRISP_EVAL_FILTER_SIZE '") + filterSize + "' (pixels, e.g. 0.5)");
-    // A temporal method filters with the renders' filter size (their sidecars, files.cpp bindJitter)
-    // unless its settings give one: a size it refuses is refused now, not after every render.
-    for (const std::string& m : methods) {
-      if (m == "none") continue;
-      const eval::MethodSpec spec = eval::parseMethodSpec(m);
-      Context context;
-      std::unique_ptr<Filter> probe = createFilter(context, spec.method);
-      const std::optional<float> size = filterSizeForFilm(*probe, v);
-      if (!size || !keepsHistory(*probe) || spec.gives("filterSize")) continue;
-      try {
-        probe->params().setFloat("filterSize", *size);
-      } catch (const Exception& e) {
-        throw UsageError("CRISP_EVAL_FILTER_SIZE " + std::string(filterSize) + " (the renders' Film > Filter Size, " +
-                         "which " + spec.method + " filters with): " + e.what() + "; give --methods '" +
-                         spec.method + ":filterSize=...' to filter with another");
-      }
-    }
+    renderedSize = v;
   }
-  std::vector<std::string> cmd = blenderDriverCommand(args, "batch_eval.py");
-  appendJitterOption(args, cmd);
-  // The scene's own Film > Filter Size is known only in Blender: batch_eval.py refuses one above what a
-  // temporal method filters with (unless its settings give filterSize) before the first render, not
-  // after all of them, as CRISP_EVAL_FILTER_SIZE is refused above.
+  // A temporal method filters with the renders' filter size (their sidecars, files.cpp bindJitter)
+  // unless its settings give one. CRISP_EVAL_FILTER_SIZE is checked here; the scene's own Film >
+  // Filter Size is known only in Blender, and batch_eval.py refuses one above what the method takes
+  // (--filter-size-max) before the first render: a size it refuses is refused now, not after every render.
+  std::vector<std::string> sizeLimits;
   for (const std::string& m : methods) {
     if (m == "none") continue;
     const eval::MethodSpec spec = eval::parseMethodSpec(m);
     Context context;
     std::unique_ptr<Filter> probe = createFilter(context, spec.method);
     const std::optional<double> largest = largestFilmFilterSize(*probe);
-    if (largest && keepsHistory(*probe) && !spec.gives("filterSize"))
-      cmd.push_back("--filter-size-max=" + m + "=" + jsonNumber(*largest));
+    if (!largest || !keepsHistory(*probe) || spec.gives("filterSize")) continue;
+    if (renderedSize) {
+      try {
+        probe->params().setFloat("filterSize", *filterSizeForFilm(*probe, *renderedSize));
+      } catch (const Exception& e) {
+        throw UsageError("CRISP_EVAL_FILTER_SIZE " + std::string(filterSize) + " (the renders' Film > Filter Size, " +
+                         "which " + spec.method + " filters with): " + e.what() + "; give --methods '" +
+                         spec.method + ":filterSize=...' to filter with another");
+      }
+    }
+    sizeLimits.push_back("--filter-size-max=" + m + "=" + jsonNumber(*largest));
   }
+  std::vector<std::string> cmd = blenderDriverCommand(args, "batch_eval.py");
+  appendJitterOption(args, cmd);
+  cmd.insert(cmd.end(), sizeLimits.begin(), sizeLimits.end());
   makeDirectories(outDir.string());
   const fs::path renders = outDir / "renders", logs = outDir / "logs";
   makeDirectories(renders.string());

@@ -297,7 +297,7 @@ void Kernel::run(const Inputs& in, const Settings& s, bool reference, int numThr
   tin.motion = in.motion;
   tin.depth = in.depth;
   tin.output = in.output;
-  tin.aliasedValue = (s.aliasedNeighbourhood || s.aliasedBoxSize) ? aliased_.data() : nullptr;
+  tin.aliasedValue = steering(s);
   taa_.run(tin, base, reference, numThreads);
   if (s.sobel) {
     current_ = next;
@@ -399,10 +399,8 @@ class TaaImprovedFilter final : public Filter {
     in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
     // The alpha, steered by the colour's aliasedValue plane (temporal_alpha.h).
-    const taa::Settings base = taa_improved::baselineSettings(settings_);
-    alpha_.run(in.color, kernel_.baseline().alphaBelowOneLastFrame(), in.motion, in.depth,
-               base.aliasedNeighbourhood || base.aliasedBoxSize ? kernel_.aliasedValue().data() : nullptr, in.output,
-               base, reference_, numThreads());
+    alpha_.run(in.color, kernel_.baseline().alphaBelowOneLastFrame(), in.motion, in.depth, kernel_.steering(settings_),
+               in.output, taa_improved::baselineSettings(settings_), reference_, numThreads());
   }
 
  private:

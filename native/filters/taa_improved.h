@@ -60,6 +60,11 @@ class Kernel {
   std::size_t bytesScratch() const;
   // This frame's aliasedValue plane and stabilised Sobel plane (width x height).
   const std::vector<float>& aliasedValue() const { return aliased_; }
+  // The plane the baseline is steered by under `s` (taa::Inputs::aliasedValue): this frame's
+  // aliasedValue plane, or null when neither steering is on.
+  const float* steering(const Settings& s) const {
+    return s.aliasedNeighbourhood || s.aliasedBoxSize ? aliased_.data() : nullptr;
+  }
   const std::vector<float>& sobel() const { return sobel_[current_]; }
   const taa::Kernel& baseline() const { return taa_; }
 
