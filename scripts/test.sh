@@ -44,15 +44,15 @@ done
 build-debug/bin/crisp_unit --gtest_brief=1 --gtest_filter="$fast"
 
 echo "== fuzzing (${CRISP_FUZZ_SECONDS:-30} s per target)"
-scripts/build.sh fuzz --target fuzz_frame_reader fuzz_c_api crisp_cli
+scripts/build.sh fuzz --target fuzz_frame_reader fuzz_c_api fuzz_filters crisp_cli
 corpus=$(mktemp -d)
 trap 'rm -rf "$corpus"' EXIT
-mkdir -p "$corpus/frames" "$corpus/api"
+mkdir -p "$corpus/frames" "$corpus/api" "$corpus/filters"
 build-fuzz/bin/crisp synth -o "$corpus/gen" --size 8x6 >/dev/null
 # Seed files: a real EXR and PNG, prefixed with the byte that picks the extension.
 { printf '\x00'; cat "$corpus/gen/chart_1spp.exr"; } >"$corpus/frames/exr"
 { printf '\x01'; cat "$corpus/gen/chart_1spp.png"; } >"$corpus/frames/png"
-for target in fuzz_frame_reader:frames fuzz_c_api:api; do
+for target in fuzz_frame_reader:frames fuzz_c_api:api fuzz_filters:filters; do
   bin=${target%%:*}
   dir=$corpus/${target##*:}
   log=$corpus/$bin.log

@@ -29,8 +29,8 @@ struct Reader {
   std::string pick(const std::vector<std::string>& names) { return names[byte() % names.size()]; }
 };
 
-// The filters made. Another one added here needs its sources instrumented in the
-// fuzz build again (native/CMakeLists.txt, CRISP_FUZZ).
+// The filters made: those the fuzz build instruments with ASan + UBSan
+// (native/CMakeLists.txt, CRISP_FUZZ); fuzz_filters.cpp runs the others.
 const std::vector<std::string> kTypes = {"none", "fxaa", "repair", "bogus", ""};
 const std::vector<std::string> kImages = {"color", "output", "depth", "normal", "motion", "id", "albedo", "x"};
 const std::vector<std::string> kParams = {"kappa", "patchSize", "mask", "edgeThreshold", "edgeThresholdMin",
