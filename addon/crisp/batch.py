@@ -19,8 +19,10 @@ Arguments (after Blender's `--`):
                            range): the pass plan is made over it and pre-roll stops at its start;
                            results go to run_AAAA-BBBB.json instead of run.json
   --resume                 start at the first frame whose input or outputs are missing
-  --method NAME            none, fxaa, repair, taa, taa-improved, phlm, rsaa (default fxaa)
-  --set K=V                a filter parameter, typed by the library's parameter table; repeatable
+  --method NAME            none, fxaa, repair, taa, taa-improved, phlm, rsaa (default: the scene's Crisp
+                           panel's Method when it was set in the .blend, else fxaa)
+  --set K=V                a filter parameter, typed by the library's parameter table; repeatable; each
+                           one replaces the panel's value of that parameter (panel_settings)
   --samples N              EEVEE samples of the input frames (default 1)
   --reference-samples N    also render OUTDIR/reference/ with N samples (default 0: none)
   --resolution WxH         override the render size (100 %)
@@ -31,10 +33,17 @@ Arguments (after Blender's `--`):
   --no-png                 do not write filtered PNGs next to the EXRs
   --threads N              library threads (0: all cores)
   --library PATH           libcrisp.so to use (else $CRISP_LIBRARY, else <repo>/build/lib/libcrisp.so)
-  --jitter DIST            sub-pixel jitter distribution of temporal methods (default blackman-harris)
+  --jitter DIST            sub-pixel jitter distribution of temporal methods (default: the panel's Jitter
+                           when it was set in the .blend, else blackman-harris)
   --engine eevee|cycles    renderer of the input frames (default eevee); cycles renders the same frames
                            cheaply (1 sample, 0.01 px box filter, no denoising) with its own Vector pass,
                            to check reconstructed motion against it
+
+The scene's Crisp panel (scene.crisp, properties.py), as saved in the .blend, gives what the command
+line leaves out: the method and the jitter when the file set them, and the panel's parameters of the
+method that runs (given or not) that differ from the library's defaults, under --set key by key. A
+scene whose panel was never touched runs fxaa with blackman-harris and the library's defaults. One
+line says what came from the panel.
 
 Writes OUTDIR/input/frame_NNNN.exr + .json, OUTDIR/filtered/frame_NNNN.exr (+ .png),
 OUTDIR/reference/frame_NNNN.exr when asked, and OUTDIR/run.json (see pipeline.py), each through a
@@ -67,7 +76,7 @@ def make_parser():
     p.add_argument("--preroll", type=int, default=None)  # None: not given (0 given still makes a chunk)
     p.add_argument("--shot", default="")
     p.add_argument("--resume", action="store_true")
-    p.add_argument("--method", default="fxaa")
+    p.add_argument("--method", default=None)  # None: the panel's (panel_settings), else DEFAULT_METHOD
     p.add_argument("--set", dest="params", action="append", default=[], metavar="K=V")
     p.add_argument("--samples", type=int, default=1)
     p.add_argument("--reference-samples", type=int, default=0)
@@ -78,9 +87,13 @@ def make_parser():
     p.add_argument("--no-png", action="store_true")
     p.add_argument("--threads", type=int, default=0)
     p.add_argument("--library", default="")
-    p.add_argument("--jitter", default="blackman-harris")
+    p.add_argument("--jitter", default=None)  # None: the panel's, else DEFAULT_JITTER
     p.add_argument("--engine", default="eevee")
     return p
+
+
+DEFAULT_METHOD = "fxaa"
+DEFAULT_JITTER = "blackman-harris"
 
 
 def fail(code, message):
@@ -177,6 +190,103 @@ def scene_key(script_path):
     return "sha256:" + h.hexdigest()[:16]
 
 
+class PanelError(Exception):
+    """A setting of the scene's Crisp panel that cannot run (bad input: exit 2)."""
+
+
+def panel_settings(scene, method, jitter, given):
+    """The run's method, jitter and parameters, with what the command line leaves out taken from the
+    scene's Crisp panel (scene.crisp, properties.py) as the opened .blend saved it: method and jitter
+    (None: not given) when the file set them (is_property_set: a panel never touched keeps fxaa and
+    blackman-harris, as before the panel was read), and the panel's parameters of the method that runs,
+    whichever gave it, that differ from the library's defaults (properties.changed_params, what the
+    panel's own render and the Flamenco job type send), each replaced by a --set of that name (given:
+    {name: text}). Returns (method, jitter, params, from_panel): from_panel names what the panel gave,
+    {"method": bool, "jitter": bool, "params": {name: text}}. The add-on's scene settings are registered
+    here (Blender started with --factory-startup has no add-on), so the file's values show."""
+    import bpy
+    from crisp import native, properties
+    if "crisp" not in bpy.types.Scene.bl_rna.properties:
+        properties.register()  # reads the library's tables, when it loads, for the methods' parameters
+    settings = scene.crisp
+    from_panel = {"method": False, "jitter": False, "params": {}}
+    if method is None and settings.is_property_set("method"):
+        method = settings.method
+        if not method:  # a number this add-on's list does not hold (a method of a newer library)
+            raise PanelError("the scene's Crisp panel (%s) has a method this library does not offer (saved as "
+                             "number %s): choose one in the panel, or give --method"
+                             % (panel_source(), settings.get("method")))
+        from_panel["method"] = True
+    if jitter is None and settings.is_property_set("jitter_distribution"):
+        jitter = settings.jitter_distribution
+        from_panel["jitter"] = True
+    method = method or DEFAULT_METHOD
+    jitter = jitter or DEFAULT_JITTER
+    panel = {k: native.param_text(v) for k, v in properties.changed_params(settings, method).items()}
+    from_panel["params"] = {k: v for k, v in panel.items() if k not in given}
+    return method, jitter, dict(panel, **given), from_panel
+
+
+def panel_source():
+    """The file a panel's settings come from, for messages: the .blend's name."""
+    import bpy
+    return os.path.basename(bpy.data.filepath) or "the unsaved scene"
+
+
+def check_panel_params(method, params, from_panel, given):
+    """The library's verdict on the run's parameters before anything renders, saying where the ones it
+    names came from: PanelError naming the scene's Crisp panel when they are the panel's, else --set's
+    (a --set crisp render could not check before Blender started, not knowing the method:
+    cmd_render.cpp checks the command line's own values when it names the method or the scene is a
+    bundled one, whose panel is never set), or both (a rule between parameters)."""
+    from crisp import native, properties
+    panel = from_panel["params"]
+    camera = sorted(set(given) & properties.RSAA_CAMERA_PARAMS) if method == "rsaa" else []
+    if camera:  # as cmd_render.cpp refuses them with --method rsaa
+        raise PanelError("--set %s: rsaa takes its camera from each frame's sidecar (the camera the frame was "
+                         "rendered with), which replaces any value set here" % camera[0])
+    bad = native.check_params(method, params) if params else None
+    if not bad:
+        return
+
+    prefix = "filter '%s': " % method  # the library's; the messages below name the method themselves
+    bad = bad[len(prefix):] if bad.startswith(prefix) else bad
+
+    def named(values):  # those the library's message names ('feedbackMin'), or all when it names none
+        return {k: v for k, v in values.items() if "'%s'" % k in bad}
+    from_set, from_file = named(given), named(panel)
+    if not from_set and not from_file:
+        from_set, from_file = given, panel
+    listed = lambda values: ", ".join("%s=%s" % kv for kv in values.items())  # noqa: E731
+    if from_file and not from_set:
+        raise PanelError("%s's parameters from the scene's Crisp panel (%s: %s) are refused: %s; change them in the "
+                         "panel (Render Properties > Crisp) or override them with --set"
+                         % (method, panel_source(), listed(from_file), bad))
+    sources = ["--set " + listed(from_set)]
+    if from_file:
+        sources.append("the scene's Crisp panel (%s: %s)" % (panel_source(), listed(from_file)))
+    raise PanelError("%s: %s (parameters from %s)" % (method, bad, " and ".join(sources)))
+
+
+def panel_line(method, jitter, from_panel):
+    """The line saying what came from the panel ("" when nothing did): the jitter only for a method that
+    jitters, the parameters by name."""
+    from crisp import plan as plan_mod
+    parts = []
+    if from_panel["method"]:
+        parts.append("method " + method)
+    if from_panel["jitter"] and method in plan_mod.TEMPORAL_METHODS:
+        parts.append("jitter " + jitter)
+    params = from_panel["params"]
+    if params:
+        parts.append("%d parameter%s (%s)" % (len(params), "s" * (len(params) != 1),
+                                              ", ".join("%s=%s" % kv for kv in params.items())))
+    if not parts:
+        return ""
+    listed = parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
+    return "render: %s from the scene's Crisp panel (%s)" % (listed, panel_source())
+
+
 def main(argv):
     import runpy
     import bpy
@@ -195,7 +305,7 @@ def main(argv):
         fail(2, "--samples must be >= 1 and --reference-samples >= 0")
     if args.preroll is not None and args.preroll < 0:
         fail(2, "--preroll must be >= 0 frames, got %d" % args.preroll)
-    if args.jitter not in render.JITTER_DISTRIBUTIONS:
+    if args.jitter is not None and args.jitter not in render.JITTER_DISTRIBUTIONS:
         fail(2, "unknown --jitter '%s' (known: %s)" % (args.jitter, ", ".join(render.JITTER_DISTRIBUTIONS)))
     if args.engine not in render.ENGINES:
         fail(2, "unknown --engine '%s' (known: %s)" % (args.engine, ", ".join(render.ENGINES)))
@@ -219,14 +329,27 @@ def main(argv):
             fail(2, str(e))
 
     try:
+        given = params
+        method, jitter, params, from_panel = panel_settings(scene, args.method, args.jitter, given)
+        if not args.no_filter:
+            check_panel_params(method, params, from_panel, given)
+    except PanelError as e:
+        fail(2, str(e))
+    except native.CrispError as e:
+        fail(3, str(e))
+    said = panel_line(method, jitter, from_panel)
+    if said:
+        print(said, flush=True)
+
+    try:
         out = pipeline.output_argument(args.output)
         frames = pipeline.parse_frames(args.frames, scene)
         # A chunk of a shot: the shot given, or the scene's range when only a pre-roll is asked for, also
         # --preroll 0 (a spatial method's chunk, or the first one): its record and plan are a chunk's.
         shot = pipeline.parse_frames(args.shot, scene) if args.shot or args.preroll is not None else None
-        pipeline.run(scene, args.method, frames, out, params=params,
+        pipeline.run(scene, method, frames, out, params=params,
                      samples=args.samples, reference_samples=args.reference_samples, plan_only=args.plan_only,
-                     filter_frames=not args.no_filter, threads=args.threads, jitter_distribution=args.jitter,
+                     filter_frames=not args.no_filter, threads=args.threads, jitter_distribution=jitter,
                      write_png=not args.no_png, log=lambda s: print(s, flush=True), engine_name=args.engine,
                      preroll=args.preroll or 0, shot=shot, resume=args.resume, scene_key=key,
                      should_cancel=stopped)
