@@ -3,7 +3,9 @@
 // add-on's batch driver (addon/crisp/batch.py), which renders 1-sample frames
 // with exactly the passes the method needs, filters them through libcrisp and
 // writes OUTDIR/{input,filtered,reference}/ and OUTDIR/run.json. A farm
-// chunk (--preroll, --shot, --resume) is handled by batch.py as well.
+// chunk (--preroll, --shot, --resume) is handled by batch.py as well. What the
+// command line leaves out (method, jitter, parameters) comes from the .blend's
+// Crisp panel when the file set it (batch.py panel_settings).
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -45,9 +47,15 @@ int runRender(const ParsedArgs& args) {
   if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
   {
     // The method and its --set values, checked here as crisp filter checks them: a mistake is
-    // said before Blender starts (and --plan, which filters nothing, says it too).
+    // said before Blender starts (and --plan, which filters nothing, says it too). Without --method a
+    // .blend's Crisp panel may name the method (batch.py panel_settings), which only Blender reads:
+    // --set is then checked there, against the method the run takes, before anything renders. A
+    // bundled scene's panel is never set: its method is fxaa, checked here.
     Context context;
-    configuredFilter(context, args.getOr("method", "fxaa"), args);
+    if (args.has("method") || fs::path(args.get("scene")).extension() != ".blend")
+      configuredFilter(context, args.getOr("method", "fxaa"), args);
+    else
+      settingsOf(args);  // KEY=VALUE
   }
   // So are the options batch.py would refuse once Blender has started (its limits).
   checkBlenderFrameRangeOption(args, "frames");
