@@ -853,3 +853,156 @@ def test_an_unreadable_input_is_named_with_the_reason(chart):
         assert not (d / "out").exists()
     finally:
         shutil.rmtree(d)
+
+
+# crisp render and the scene's Crisp panel (scene.crisp, addon/crisp/properties.py): what the command line
+# leaves out comes from the .blend's panel when the file set it (addon/crisp/batch.py panel_settings).
+SOURCE = pathlib.Path(os.environ.get("CRISP_SOURCE_DIR") or pathlib.Path(__file__).resolve().parents[2])
+PANEL_SCENE = """
+import sys
+sys.path[:0] = [%r, %r]
+import bpy, spinning_cube
+from crisp import properties
+spinning_cube.build()
+properties.register()  # the add-on's scene settings, as an artist's Blender has them
+s = bpy.context.scene.crisp
+%s
+bpy.ops.wm.save_as_mainfile(filepath=%r)
+"""
+
+
+def panel_blend(path, settings):
+    """spinning_cube saved as `path` by a Blender with the add-on's settings registered, after running
+    `settings` (Python, `s` being scene.crisp): "" leaves the panel untouched."""
+    code = PANEL_SCENE % (str(SOURCE / "addon"), str(SOURCE / "test_scenes"), settings or "pass", str(path))
+    p = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr", code],
+                       capture_output=True, text=True, timeout=300,
+                       env=dict(os.environ, CRISP_LIBRARY=str(BUILD / "lib" / "libcrisp.so")))
+    assert p.returncode == 0 and path.is_file(), p.stdout[-2000:] + p.stderr[-2000:]
+    return path
+
+
+def render_panel(blend, out, *args, ok=True):
+    p = subprocess.run([str(CRISP), "render", "--scene", str(blend), "--resolution", "64x36", "--frames", "1-2",
+                        "-o", str(out), *map(str, args)], capture_output=True, text=True, timeout=600)
+    if ok:
+        assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
+    return p
+
+
+def run_record(out, name="run.json"):
+    return json.loads((out / name).read_text())
+
+
+def frame_mse(a, b, tmp_path):
+    js = tmp_path / "mse.json"
+    run("compare", "--reference", a, "--test", b, "--json", js)
+    return json.loads(js.read_text())["frames"][0]["mse"]
+
+
+needs_blender = pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
+PANEL_TAA = 's.method = "taa"; s.taa.sharpen = 0.5; s.jitter_distribution = "uniform"; s.fxaa.subpix = 0.25'
+
+
+@pytest.fixture(scope="module")
+def panel_taa(tmp_path_factory):
+    """A .blend whose panel says taa with sharpen 0.5 and uniform jitter (and fxaa's subpix 0.25)."""
+    return panel_blend(tmp_path_factory.mktemp("panel") / "shot.blend", PANEL_TAA)
+
+
+@needs_blender
+def test_render_takes_the_method_jitter_and_parameters_from_the_scenes_panel(panel_taa, tmp_path):
+    """Without --method, --jitter or --set, crisp render runs what the .blend's Crisp panel says, records
+    it (run.json, each input's sidecar, which a resume compares) and says so in one line; it ran fxaa with
+    blackman-harris and the library's defaults."""
+    out = tmp_path / "out"
+    p = render_panel(panel_taa, out)
+    assert "render: method taa, jitter uniform and 1 parameter (sharpen=0.5) from the scene's Crisp panel " \
+           "(shot.blend)" in p.stdout, p.stdout[-3000:]
+    record = run_record(out)
+    assert (record["method"], record["params"], record["jitter_distribution"]) == ("taa", {"sharpen": "0.5"},
+                                                                                  "uniform")
+    made = json.loads((out / "input" / "frame_0002.json").read_text())["made_with"]
+    assert (made["method"], made["params"], made["jitter_distribution"]) == ("taa", {"sharpen": "0.5"}, "uniform")
+    # Not fxaa's frames: the command line's --method fxaa (below) filters the same scene otherwise.
+    fxaa = tmp_path / "fxaa"
+    p = render_panel(panel_taa, fxaa, "--method", "fxaa", "--quiet")
+    assert "Crisp panel" not in p.stdout + p.stderr  # --quiet: the line is not said
+    assert frame_mse(fxaa / "filtered" / "frame_0002.exr", out / "filtered" / "frame_0002.exr", tmp_path) > 0
+    # --plan reports the panel's method too.
+    p = render_panel(panel_taa, tmp_path / "plan", "--plan")
+    assert run_record(tmp_path / "plan")["method"] == "taa" and "taa" in p.stdout, p.stdout[-2000:]
+
+
+@needs_blender
+def test_the_command_line_overrides_the_panel_key_by_key(panel_taa, tmp_path):
+    """--method another method: it runs with that method's panel parameters (fxaa's subpix here); --set
+    replaces one panel parameter and adds others; --jitter replaces the panel's jitter."""
+    out = tmp_path / "fxaa"
+    p = render_panel(panel_taa, out, "--method", "fxaa")
+    record = run_record(out)
+    assert (record["method"], record["params"]) == ("fxaa", {"subpix": "0.25"}), record["params"]
+    assert "render: 1 parameter (subpix=0.25) from the scene's Crisp panel (shot.blend)" in p.stdout
+    out = tmp_path / "set"
+    p = render_panel(panel_taa, out, "--set", "sharpen=0.25", "--set", "feedbackMin=0.6", "--jitter",
+                     "blackman-harris")
+    record = run_record(out)
+    assert (record["method"], record["params"], record["jitter_distribution"]) == (
+        "taa", {"sharpen": "0.25", "feedbackMin": "0.6"}, "blackman-harris"), record
+    assert "render: method taa from the scene's Crisp panel (shot.blend)" in p.stdout, p.stdout[-2000:]
+    # --method naming the panel's method keeps its parameters under --set.
+    p = render_panel(panel_taa, tmp_path / "plan", "--method", "taa", "--set", "feedbackMin=0.6", "--plan")
+    assert run_record(tmp_path / "plan")["params"] == {"sharpen": "0.5", "feedbackMin": "0.6"}
+
+
+@needs_blender
+def test_an_untouched_panel_method_keeps_fxaa(tmp_path):
+    """A panel whose method was never set runs fxaa (as before the panel was read), with the panel's own
+    fxaa parameters; the jitter too stays blackman-harris."""
+    blend = panel_blend(tmp_path / "fxaa_only.blend", "s.fxaa.subpix = 0.5")
+    out = tmp_path / "out"
+    p = render_panel(blend, out, "--method", "taa", "--plan")
+    assert run_record(out)["jitter_distribution"] == "blackman-harris"
+    p = render_panel(blend, out)
+    record = run_record(out)
+    assert (record["method"], record["params"]) == ("fxaa", {"subpix": "0.5"}), record
+    assert "render: 1 parameter (subpix=0.5) from the scene's Crisp panel (fxaa_only.blend)" in p.stdout
+
+
+@needs_blender
+def test_a_panel_value_the_library_refuses_fails_before_rendering(tmp_path):
+    """taa's feedbackMin above its feedbackMax: each in its range (the panel takes it), refused by the
+    library's commit. The run stops with exit 2 naming the parameter and the panel, before any frame,
+    also under --quiet and --plan; a --set that makes them agree lets it run."""
+    blend = panel_blend(tmp_path / "bad.blend", 's.method = "taa"; s.taa.feedbackMin = 0.95')
+    for extra in ((), ("--quiet",), ("--plan",)):
+        out = tmp_path / "out"
+        p = render_panel(blend, out, *extra, ok=False)
+        assert p.returncode == 2, p.stdout[-2000:] + p.stderr[-2000:]
+        assert "taa's parameters from the scene's Crisp panel (bad.blend: feedbackMin=0.95) are refused" \
+               in p.stderr and "feedbackMax" in p.stderr, p.stderr[-2000:]
+        assert not (out / "input").exists() and not (out / "run.json").exists()
+    p = render_panel(blend, tmp_path / "plan", "--plan", "--set", "feedbackMax=0.99")
+    assert run_record(tmp_path / "plan")["params"] == {"feedbackMin": "0.95", "feedbackMax": "0.99"}
+    # Without --method crisp cannot check --set before Blender starts (the panel names the method): the
+    # driver checks it against the panel's method, naming where each value came from.
+    p = render_panel(blend, tmp_path / "out", "--plan", "--set", "bogus=1", ok=False)
+    assert p.returncode == 2 and "unknown parameter 'bogus'" in p.stderr and "from --set bogus=1" in p.stderr, \
+        p.stderr[-2000:]
+    assert not (tmp_path / "out" / "run.json").exists()
+
+
+@needs_blender
+def test_a_resume_sees_a_panel_edited_since(tmp_path):
+    """A chunk made before the panel's parameter was edited (and the .blend saved) is made again by a
+    resume, which names the parameter's change: the sidecars record the panel's values."""
+    blend = panel_blend(tmp_path / "shot.blend", 's.method = "taa"; s.taa.sharpen = 0.5')
+    out = tmp_path / "out"
+    chunk = ("--shot", "1-2", "--preroll", "1", "--resume")
+    render_panel(blend, out, *chunk)
+    assert run_record(out, "run_0001-0002.json")["params"] == {"sharpen": "0.5"}
+    panel_blend(blend, 's.method = "taa"; s.taa.sharpen = 0.25')
+    p = render_panel(blend, out, *chunk)
+    assert 'params {"sharpen": "0.5"} there, {"sharpen": "0.25"} here' in p.stdout, p.stdout[-3000:]
+    assert run_record(out, "run_0001-0002.json")["params"] == {"sharpen": "0.25"}
+    assert json.loads((out / "input" / "frame_0001.json").read_text())["made_with"]["params"] == {"sharpen": "0.25"}
