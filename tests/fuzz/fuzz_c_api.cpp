@@ -8,26 +8,11 @@
 #include <vector>
 
 #include "crisp/crisp.h"
+#include "fuzz_common.h"
 
 namespace {
 
-struct Reader {
-  const std::uint8_t* p;
-  std::size_t n;
-  std::uint8_t byte() {
-    if (!n) return 0;
-    --n;
-    return *p++;
-  }
-  float number() {
-    std::uint32_t bits = 0;
-    for (int i = 0; i < 4; ++i) bits = bits << 8 | byte();
-    float f;
-    std::memcpy(&f, &bits, 4);
-    return f;
-  }
-  std::string pick(const std::vector<std::string>& names) { return names[byte() % names.size()]; }
-};
+using crisp_fuzz::Reader;
 
 // The filters made: those the fuzz build instruments with ASan + UBSan
 // (native/CMakeLists.txt, CRISP_FUZZ); fuzz_filters.cpp runs the others.
@@ -71,10 +56,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
     crispGetError(nullptr);
   }
-  crispCommitFilter(f);
-  crispExecuteFilter(f);
-  crispGetError(nullptr);
-  crispReleaseFilter(f);
-  crispReleaseContext(ctx);
+  crisp_fuzz::finish(ctx, f);
   return 0;
 }

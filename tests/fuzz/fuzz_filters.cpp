@@ -22,25 +22,12 @@
 #include <vector>
 
 #include "crisp/crisp.h"
+#include "fuzz_common.h"
 
 namespace {
 
-struct Reader {
-  const std::uint8_t* p;
-  std::size_t n;
-  std::uint8_t byte() {
-    if (!n) return 0;
-    --n;
-    return *p++;
-  }
-  float number() {
-    std::uint32_t bits = 0;
-    for (int i = 0; i < 4; ++i) bits = bits << 8 | byte();
-    float f;
-    std::memcpy(&f, &bits, 4);
-    return f;
-  }
-  // A pixel value: ordinary mostly, an extreme one now and then.
+// A pixel value from the bytes: ordinary mostly, an extreme one now and then.
+struct Reader : crisp_fuzz::Reader {
   float value() {
     static const float kExtreme[] = {std::numeric_limits<float>::quiet_NaN(),
                                      std::numeric_limits<float>::infinity(),
@@ -101,7 +88,7 @@ struct Buffer {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  Reader r{data, size};
+  Reader r{{data, size}};
   CrispContext ctx = crispNewContext();
   crispSetContextInt(ctx, "numThreads", 1 + r.byte() % 2);
   CrispFilter f = crispNewFilter(ctx, kTypes[r.byte() % 4]);
@@ -253,10 +240,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
     crispGetError(nullptr);
   }
-  crispCommitFilter(f);
-  crispExecuteFilter(f);
-  crispGetError(nullptr);
-  crispReleaseFilter(f);
-  crispReleaseContext(ctx);
+  crisp_fuzz::finish(ctx, f);
   return 0;
 }
