@@ -122,6 +122,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 
   const int w = 16 - r.byte() % 16, h = 16 - r.byte() % 16;  // 16x16 once the bytes run out
   std::vector<Buffer> buffers;
+  const Buffer* output = nullptr;
   buffers.reserve(128);  // at most 13 roles + 48 steps: `output` stays valid
   // Pixel values from a few bytes, not one a value (so the bytes reach the steps): a pattern of
   // edges and ramps, then a few values anywhere, extreme ones among them.
@@ -164,8 +165,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       }
     buffers.push_back(std::move(buf));
     Buffer& b = buffers.back();
+    crispGetError(nullptr);
     crispSetFilterImage(f, role.name.c_str(), b.data.data(), format, std::size_t(b.w), std::size_t(b.h),
                         b.pixelFloats * 4, b.rowFloats * 4);
+    // The output the filter writes: a refused image (a format it does not take) leaves the one before.
+    if (b.isOutput && crispGetError(nullptr) == CRISP_ERROR_NONE) output = &b;
   };
   auto setParam = [&](const Param& p) {
     const std::uint8_t how = r.byte();
@@ -190,9 +194,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const bool all = r.byte() & 1;
   for (const ImageRole& role : images)
     if (all || role.required || (r.byte() & 1)) setImage(role);
-  const Buffer* output = nullptr;
-  for (const Buffer& b : buffers)
-    if (b.isOutput) output = &b;
   // Once the bytes run out, executes up to step 8: short inputs still run a history.
   for (int step = 0; step < 48 && (r.n || step < 8); ++step) {
     const std::uint8_t op = r.n ? r.byte() : 9;
@@ -204,7 +205,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           if (role.name == "output") output = nullptr;
         } else {
           setImage(role);
-          if (role.name == "output") output = &buffers.back();
         }
         break;
       }
