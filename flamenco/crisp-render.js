@@ -178,7 +178,10 @@ function compileJob(job) {
                   "--frames", chunk.first + "-" + chunk.last,
                   "--shot", shotText, "--preroll", String(chunk.first - chunk.prerollFirst),
                   // A task the Manager re-queues (worker lost, task failed) continues where it stopped.
-                  "--resume", "-o", outputDir];
+                  "--resume",
+                  // The job's method, jitter and filter_params took the panel when it was submitted (or
+                  // were typed): they alone say what runs, not the panel saved in the .blend.
+                  "--no-panel", "-o", outputDir];
     if (settings.blender_exe) args.push("--blender", String(settings.blender_exe));
     if (resolution !== "") args.push("--resolution", resolution);
     if (jitter !== "") args.push("--jitter", jitter);

@@ -35,6 +35,8 @@ Arguments (after Blender's `--`):
   --library PATH           libcrisp.so to use (else $CRISP_LIBRARY, else <repo>/build/lib/libcrisp.so)
   --jitter DIST            sub-pixel jitter distribution of temporal methods (default: the panel's Jitter
                            when it was set in the .blend, else blackman-harris)
+  --no-panel               ignore the scene's Crisp panel: the command line and the library's defaults only
+                           (the Flamenco job type passes it: its fields took the panel at submission)
   --engine eevee|cycles    renderer of the input frames (default eevee); cycles renders the same frames
                            cheaply (1 sample, 0.01 px box filter, no denoising) with its own Vector pass,
                            to check reconstructed motion against it
@@ -42,8 +44,8 @@ Arguments (after Blender's `--`):
 The scene's Crisp panel (scene.crisp, properties.py), as saved in the .blend, gives what the command
 line leaves out: the method and the jitter when the file set them, and the panel's parameters of the
 method that runs (given or not) that differ from the library's defaults, under --set key by key. A
-scene whose panel was never touched runs fxaa with blackman-harris and the library's defaults. One
-line says what came from the panel.
+scene whose panel was never touched, or a run with --no-panel, runs fxaa with blackman-harris and the
+library's defaults where the command line says nothing. One line says what came from the panel.
 
 Writes OUTDIR/input/frame_NNNN.exr + .json, OUTDIR/filtered/frame_NNNN.exr (+ .png),
 OUTDIR/reference/frame_NNNN.exr when asked, and OUTDIR/run.json (see pipeline.py), each through a
@@ -88,6 +90,7 @@ def make_parser():
     p.add_argument("--threads", type=int, default=0)
     p.add_argument("--library", default="")
     p.add_argument("--jitter", default=None)  # None: the panel's, else DEFAULT_JITTER
+    p.add_argument("--no-panel", action="store_true")
     p.add_argument("--engine", default="eevee")
     return p
 
@@ -194,7 +197,7 @@ class PanelError(Exception):
     """A setting of the scene's Crisp panel that cannot run (bad input: exit 2)."""
 
 
-def panel_settings(scene, method, jitter, given):
+def panel_settings(scene, method, jitter, given, use_panel=True):
     """The run's method, jitter and parameters, with what the command line leaves out taken from the
     scene's Crisp panel (scene.crisp, properties.py) as the opened .blend saved it: method and jitter
     (None: not given) when the file set them (is_property_set: a panel never touched keeps fxaa and
@@ -203,9 +206,13 @@ def panel_settings(scene, method, jitter, given):
     panel's own render and the Flamenco job type send), each replaced by a --set of that name (given:
     {name: text}). Returns (method, jitter, params, from_panel): from_panel names what the panel gave,
     {"method": bool, "jitter": bool, "params": {name: text}}. The add-on's scene settings are registered
-    here (Blender started with --factory-startup has no add-on), so the file's values show."""
+    here (Blender started with --factory-startup has no add-on), so the file's values show. use_panel
+    False (--no-panel): the command line and the defaults only."""
     import bpy
     from crisp import native, properties
+    if not use_panel:
+        return method or DEFAULT_METHOD, jitter or DEFAULT_JITTER, dict(given), \
+            {"method": False, "jitter": False, "params": {}}
     if "crisp" not in bpy.types.Scene.bl_rna.properties:
         properties.register()  # reads the library's tables, when it loads, for the methods' parameters
     settings = scene.crisp
@@ -330,7 +337,8 @@ def main(argv):
 
     try:
         given = params
-        method, jitter, params, from_panel = panel_settings(scene, args.method, args.jitter, given)
+        method, jitter, params, from_panel = panel_settings(scene, args.method, args.jitter, given,
+                                                            use_panel=not args.no_panel)
         if not args.no_filter:
             check_panel_params(method, params, from_panel, given)
     except PanelError as e:

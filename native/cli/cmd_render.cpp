@@ -50,9 +50,10 @@ int runRender(const ParsedArgs& args) {
     // said before Blender starts (and --plan, which filters nothing, says it too). Without --method a
     // .blend's Crisp panel may name the method (batch.py panel_settings), which only Blender reads:
     // --set is then checked there, against the method the run takes, before anything renders. A
-    // bundled scene's panel is never set: its method is fxaa, checked here.
+    // bundled scene's panel is never set, and --no-panel ignores it: the method is the command line's
+    // or fxaa, checked here.
     Context context;
-    if (args.has("method") || fs::path(args.get("scene")).extension() != ".blend")
+    if (args.has("method") || args.has("no-panel") || fs::path(args.get("scene")).extension() != ".blend")
       configuredFilter(context, args.getOr("method", "fxaa"), args);
     else
       settingsOf(args);  // KEY=VALUE
@@ -79,6 +80,7 @@ int runRender(const ParsedArgs& args) {
   appendJitterOption(args, cmd);
   if (args.has("plan")) cmd.push_back("--plan-only");
   if (args.has("resume")) cmd.push_back("--resume");
+  if (args.has("no-panel")) cmd.push_back("--no-panel");
   const fs::path library = fs::path(executableDir()) / ".." / "lib" / "libcrisp.so";
   if (fs::exists(library)) {
     cmd.push_back("--library");

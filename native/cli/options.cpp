@@ -49,6 +49,7 @@ const std::vector<OptionSpec>& options() {
       {"render", "resume", 0, nullptr, false, false, "start at the first frame whose input or filtered output is missing"},
       {"render", "method", 'm', "NAME", false, false, "filter to run on each frame (default: the .blend's Crisp panel's method if the file set it, else fxaa)"},
       {"render", "set", 's', "KEY=VALUE", false, false, "set a filter parameter (repeatable); over the .blend's Crisp panel's parameters of the method"},
+      {"render", "no-panel", 0, nullptr, false, false, "ignore the .blend's Crisp panel: the command line and the library's defaults only"},
       {"render", "samples", 0, "N", false, false, "EEVEE samples of the input frames (default 1)"},
       {"render", "reference-samples", 0, "N", false, false, "also render reference frames with N samples"},
       {"render", "resolution", 0, "WxH", false, false, "override the render size"},

@@ -98,6 +98,7 @@ test("chunks cover the shot once, in order, with pre-roll clamped at the shot's 
     assert.equal(flagValue(args, "-o"), base.output_dir);
     assert.equal(flagValue(args, "--blender"), "{blender}");  // the Manager's variable, expanded per worker
     assert.ok(args.includes("--resume"), "a re-queued task resumes");
+    assert.ok(args.includes("--no-panel"), "the job's settings, not the .blend's panel, say what runs");
     assert.deepEqual(t.dependencies, [], "chunks are independent: pre-roll replaces the previous chunk's history");
   }
   assert.equal(next, 101);

@@ -953,6 +953,15 @@ def test_the_command_line_overrides_the_panel_key_by_key(panel_taa, tmp_path):
     # --method naming the panel's method keeps its parameters under --set.
     p = render_panel(panel_taa, tmp_path / "plan", "--method", "taa", "--set", "feedbackMin=0.6", "--plan")
     assert run_record(tmp_path / "plan")["params"] == {"sharpen": "0.5", "feedbackMin": "0.6"}
+    # --no-panel (the Flamenco job's tasks): the command line and the library's defaults only.
+    p = render_panel(panel_taa, tmp_path / "taa", "--no-panel", "--method", "taa", "--set", "feedbackMin=0.6",
+                     "--plan")
+    record = run_record(tmp_path / "taa")
+    assert (record["method"], record["params"], record["jitter_distribution"]) == (
+        "taa", {"feedbackMin": "0.6"}, "blackman-harris"), record
+    assert "Crisp panel" not in p.stdout, p.stdout[-2000:]
+    render_panel(panel_taa, tmp_path / "none", "--no-panel", "--plan")
+    assert (run_record(tmp_path / "none")["method"], run_record(tmp_path / "none")["params"]) == ("fxaa", {})
 
 
 @needs_blender
