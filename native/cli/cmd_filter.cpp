@@ -321,7 +321,7 @@ int runFilter(const ParsedArgs& args) {
     const std::string base = joinPath(outDir, fileStem(in));
     const std::string pngRecord = stamps.pngRecordOf(int(i) + 1);
     stamps.removeStamp(int(i) + 1);
-    writeImage(base + ".exr", output);
+    writeImage(base + ".exr", output.view(), frame.windows);  // the input's display and data windows
     stamps.makeFolder();  // for the PNG's record
     if (png) {
       writeImage(base + ".png", output);

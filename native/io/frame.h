@@ -18,10 +18,19 @@ namespace crisp {
 //   motion 4  (Vector.XYZW, converted to y down)
 //   id     1  uint (CryptoObject00.r bits; the rank-0 object of each pixel)
 //   albedo 3  (DiffCol.RGB)
+// Where a frame sits in its file, in OpenEXR's terms (pixel coordinates, y down): the display
+// window, whose size is the frame's, and the data window of the colour pass, which may be offset
+// from it, smaller or larger. An image without windows (PNG) has both at origin 0, the frame's size.
+struct FrameWindows {
+  int displayX = 0, displayY = 0;  // display window origin; its size is the frame's
+  int dataX = 0, dataY = 0, dataWidth = 0, dataHeight = 0;
+};
+
 struct Frame {
   std::string path;
   int width = 0;
   int height = 0;
+  FrameWindows windows;  // the file's; writeImage(path, image, windows) writes the output back into them
   std::map<std::string, Image> passes;
   std::map<std::string, std::uint32_t> objectIds;  // Cryptomatte manifest: name -> hash
   std::vector<std::string> channelNames;           // every channel in the file, as named there
@@ -68,5 +77,11 @@ Image readMask(const std::string& path);
 // renamed into place: an existing file is replaced whole or not at all.
 void writeImage(const std::string& path, const ImageView& image);
 void writeImage(const std::string& path, const Image& image);
+// The same for an image that is a frame's display window (a filter's output),
+// placed where `windows` says: an EXR gets the display window's origin and the
+// colour's data window clipped to the display window (the pixels outside it,
+// which the reader filled, are left out; the whole display window if the two
+// do not overlap). A PNG, which has no windows, holds the whole image.
+void writeImage(const std::string& path, const ImageView& image, const FrameWindows& windows);
 
 }  // namespace crisp

@@ -320,6 +320,12 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   frame.path = path;
   frame.width = win.width;
   frame.height = win.height;
+  frame.windows.displayX = spec.full_width > 0 ? spec.full_x : spec.x;
+  frame.windows.displayY = spec.full_height > 0 ? spec.full_y : spec.y;
+  frame.windows.dataX = spec.x;
+  frame.windows.dataY = spec.y;
+  frame.windows.dataWidth = spec.width;
+  frame.windows.dataHeight = spec.height;
   // A multi-part EXR: only the first part is read (pixels are read from subimage 0 below); the
   // others are named, so that passes they hold are not lost without a word.
   {

@@ -41,6 +41,13 @@ std::function<void(const std::string&)>& faultHook() {
 void setWriteImageFaultForTesting(std::function<void(const std::string&)> hook) { faultHook() = std::move(hook); }
 
 void writeImage(const std::string& path, const ImageView& image) {
+  FrameWindows whole;
+  whole.dataWidth = image.width;
+  whole.dataHeight = image.height;
+  writeImage(path, image, whole);
+}
+
+void writeImage(const std::string& path, const ImageView& image, const FrameWindows& windows) {
   OiioErrorDrain drain;
   if (path.empty()) invalidArgument("cannot write an image: the file name is empty");
   if (!image.valid()) invalidArgument("image to write to '" + path + "' is NULL");
@@ -50,6 +57,13 @@ void writeImage(const std::string& path, const ImageView& image) {
   if (image.width <= 0 || image.height <= 0)
     invalidArgument("image to write to '" + path + "' has size " + std::to_string(image.width) + "x" +
                     std::to_string(image.height));
+  // The image is the display window; the data window written is the colour's, within it.
+  const OIIO::ROI display(windows.displayX, windows.displayX + image.width, windows.displayY,
+                          windows.displayY + image.height);
+  OIIO::ROI data = OIIO::roi_intersection(
+      display, OIIO::ROI(windows.dataX, windows.dataX + windows.dataWidth, windows.dataY,
+                         windows.dataY + windows.dataHeight));
+  if (windows.dataWidth <= 0 || windows.dataHeight <= 0 || data.width() <= 0 || data.height() <= 0) data = display;
   const std::string ext = lowerExtension(path);
   const bool png = ext == ".png";
   if (!png && ext != ".exr")
@@ -90,6 +104,10 @@ void writeImage(const std::string& path, const ImageView& image) {
   std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(tmp.path());
   if (!out) ioError("cannot write '" + path + "': " + oiioErrors(static_cast<OIIO::ImageOutput*>(nullptr)));
   OIIO::ImageSpec spec(image.width, image.height, 4, png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
+  if (!png) {  // a PNG holds the display window, at origin 0
+    spec.set_roi_full(display);
+    spec.set_roi(data);
+  }
   spec.channelnames = {"R", "G", "B", "A"};
   spec.alpha_channel = 3;
   if (png) {
@@ -102,8 +120,11 @@ void writeImage(const std::string& path, const ImageView& image) {
   // colour for PNG again. The reader premultiplies a straight alpha's colour.
   spec.attribute("oiio:UnassociatedAlpha", 1);
   if (!out->open(tmp.path(), spec)) ioError("cannot write '" + path + "': " + oiioErrors(out.get()));
+  // The data window's pixels, read in place from the display-window buffer by its row stride.
+  const std::size_t first = (std::size_t(data.ybegin - display.ybegin) * w + std::size_t(data.xbegin - display.xbegin)) * 4;
   const bool wrote = png ? out->write_image(OIIO::TypeDesc::UINT8, rgba8.data())
-                         : out->write_image(OIIO::TypeDesc::FLOAT, rgbaFloat.data());
+                         : out->write_image(OIIO::TypeDesc::FLOAT, rgbaFloat.data() + first, OIIO::AutoStride,
+                                            OIIO::stride_t(w * 4 * sizeof(float)));
   if (!wrote) {
     std::string msg = oiioErrors(out.get());
     out->close();

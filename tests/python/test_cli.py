@@ -471,6 +471,53 @@ def test_parts_of_a_multi_part_exr_that_are_not_read_are_named(chart, tmp_path):
     assert not (tmp_path / "later").exists()
 
 
+def exr_windows(path):
+    """(x, y, width, height) of the data window, then of the display window, as OpenImageIO reads them."""
+    fields = " ".join("{TOP.%s}" % f for f in ("x", "y", "width", "height", "full_x", "full_y", "full_width",
+                                                "full_height"))
+    p = subprocess.run(["oiiotool", str(path), "--echo", fields], capture_output=True, text=True, check=True)
+    return tuple(int(v) for v in p.stdout.split())
+
+
+def same_pixels(a, b):
+    """oiiotool --diff of two images, each a file and the oiiotool ops on it (over the data windows'
+    union, 0 outside each)."""
+    return subprocess.run(["oiiotool", *map(str, a), *map(str, b), "--diff"], capture_output=True).returncode == 0
+
+
+def test_filter_output_keeps_the_input_exr_windows(chart, tmp_path):
+    """An EXR whose data window is offset from its display window (oiiotool --crop, a compositor's
+    bounding box), or whose display window is not at origin 0, is filtered in its display window and
+    written back into the same windows: each output pixel lies where its input pixel lay, in viewers
+    that place the data window and in those that show it alone. Overscan is clipped to the display
+    window (the filters see no more); a PNG holds the display window."""
+    src = chart / "chart_1spp.exr"
+    run("filter", "-q", "--method", "fxaa", src, "-o", tmp_path / "whole")
+    whole = tmp_path / "whole" / "chart_1spp.exr"
+    cropped, shifted, overscan = tmp_path / "cropped.exr", tmp_path / "shifted.exr", tmp_path / "overscan.exr"
+    subprocess.run(["oiiotool", str(src), "--crop", "71x49+13+6", "-o", str(cropped)], check=True)
+    subprocess.run(["oiiotool", str(src), "--origin", "+30+20", "--fullsize", "97x61+30+20", "-o", str(shifted)],
+                   check=True)
+    subprocess.run(["oiiotool", str(src), "--crop", "101x65-2-2", "-o", str(overscan)], check=True)
+    out = tmp_path / "out"
+    run("filter", "-q", "--method", "fxaa", "--png", cropped, shifted, overscan, "-o", out)
+    assert exr_windows(cropped) == (13, 6, 71, 49, 0, 0, 97, 61)
+    assert exr_windows(out / "cropped.exr") == exr_windows(cropped)
+    assert exr_windows(shifted) == (30, 20, 97, 61, 30, 20, 97, 61)
+    assert exr_windows(out / "shifted.exr") == exr_windows(shifted)
+    assert exr_windows(out / "overscan.exr") == (0, 0, 97, 61, 0, 0, 97, 61)
+    # The same frame in a moved display window: the same output, moved with it.
+    assert same_pixels([out / "shifted.exr"], [whole, "--origin", "+30+20", "--fullsize", "97x61+30+20"])
+    assert not same_pixels([out / "shifted.exr"], [whole])
+    assert same_pixels([out / "overscan.exr"], [whole])
+    # Away from the crop's edges (which border the reader's transparent fill) the output is the
+    # whole frame's, pixel for pixel, at the same place.
+    assert same_pixels([out / "cropped.exr", "--crop", "41x19+28+21"], [whole, "--crop", "41x19+28+21"])
+    assert not same_pixels([out / "cropped.exr"], [whole])
+    for name in ("cropped", "shifted"):
+        assert exr_windows(out / (name + ".png")) == (0, 0, 97, 61, 0, 0, 97, 61)
+
+
 def test_rerun_without_png_leaves_no_stale_png(chart, tmp_path):
     out = tmp_path / "out"
     run("filter", "--method", "fxaa", "--png", chart / "chart_1spp.exr", "-o", out)

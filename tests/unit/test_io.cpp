@@ -47,6 +47,7 @@ struct ExrLayout {
   int width = 7, height = 5;           // data window size
   int x = 0, y = 0;                    // data window origin
   int fullWidth = 0, fullHeight = 0;   // display window (0 = same as data)
+  int fullX = 0, fullY = 0;            // display window origin
   std::vector<std::pair<std::string, std::string>> attributes;
 };
 
@@ -58,8 +59,8 @@ void writeExr(const std::string& path, const std::vector<Channel>& channels, con
   OIIO::ImageSpec spec(layout.width, layout.height, int(channels.size()), OIIO::TypeDesc::FLOAT);
   spec.x = layout.x;
   spec.y = layout.y;
-  spec.full_x = 0;
-  spec.full_y = 0;
+  spec.full_x = layout.fullX;
+  spec.full_y = layout.fullY;
   spec.full_width = layout.fullWidth ? layout.fullWidth : layout.width;
   spec.full_height = layout.fullHeight ? layout.fullHeight : layout.height;
   spec.channelnames.clear();
@@ -392,6 +393,89 @@ TEST_F(IoTest, DataWindowLargerThanDisplayIsCropped) {
   ASSERT_EQ(f.height, 5);
   EXPECT_EQ(f.pass("color").at(0, 0)[0], pixelValue(1, 1, 0));
   EXPECT_EQ(f.pass("color").at(6, 4)[2], pixelValue(7, 5, 2));
+}
+
+// Plain float R,G,B,A channels of pixelValue, for tests of windows.
+static std::vector<Channel> plainRgba() {
+  std::vector<Channel> ch;
+  for (int c = 0; c < 4; ++c)
+    ch.push_back({std::string(1, "RGBA"[c]), OIIO::TypeDesc::FLOAT, [c](int x, int y) { return pixelValue(x, y, c); }});
+  return ch;
+}
+
+// The data window (x, y, width, height), then the display window, of a file as OIIO reads it.
+static std::vector<int> windowsOf(const std::string& path) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) return {};
+  const OIIO::ImageSpec& s = in->spec();
+  return {s.x, s.y, s.width, s.height, s.full_x, s.full_y, s.full_width, s.full_height};
+}
+
+TEST_F(IoTest, WrittenExrKeepsTheInputsWindows) {
+  // Display 7x5 at (10,20); data 3x2 at (12,21): the frame read and written back lies where it was.
+  ExrLayout layout;
+  layout.width = 3;
+  layout.height = 2;
+  layout.x = 12;
+  layout.y = 21;
+  layout.fullX = 10;
+  layout.fullY = 20;
+  layout.fullWidth = 7;
+  layout.fullHeight = 5;
+  writeExr(file("in.exr"), plainRgba(), layout);
+  const Frame f = readFrame(file("in.exr"));
+  ASSERT_EQ(f.width, 7);
+  EXPECT_EQ(f.windows.displayX, 10);
+  EXPECT_EQ(f.windows.displayY, 20);
+  EXPECT_EQ(f.windows.dataX, 12);
+  EXPECT_EQ(f.windows.dataY, 21);
+  EXPECT_EQ(f.windows.dataWidth, 3);
+  EXPECT_EQ(f.windows.dataHeight, 2);
+  writeImage(file("out.exr"), f.pass("color").view(), f.windows);
+  EXPECT_EQ(windowsOf(file("out.exr")), windowsOf(file("in.exr")));
+  EXPECT_EQ(windowsOf(file("out.exr")), (std::vector<int>{12, 21, 3, 2, 10, 20, 7, 5}));
+  const Frame back = readFrame(file("out.exr"));
+  EXPECT_EQ(back.pass("color").data, f.pass("color").data);
+  EXPECT_EQ(back.pass("color").at(2, 1)[0], pixelValue(0, 0, 0));
+  EXPECT_EQ(back.pass("color").at(4, 2)[3], pixelValue(2, 1, 3));
+  // A PNG has no windows: it holds the display window.
+  writeImage(file("out.png"), f.pass("color").view(), f.windows);
+  EXPECT_EQ(windowsOf(file("out.png")), (std::vector<int>{0, 0, 7, 5, 0, 0, 7, 5}));
+  // Without windows: the display window at origin 0, all of it data.
+  writeImage(file("plain.exr"), f.pass("color"));
+  EXPECT_EQ(windowsOf(file("plain.exr")), (std::vector<int>{0, 0, 7, 5, 0, 0, 7, 5}));
+}
+
+TEST_F(IoTest, WrittenDataWindowIsClippedToTheDisplayWindow) {
+  // Overscan (data 9x7 at (-1,-1) around display 7x5) is read cropped: the output is the display window.
+  ExrLayout layout;
+  layout.width = 9;
+  layout.height = 7;
+  layout.x = -1;
+  layout.y = -1;
+  layout.fullWidth = 7;
+  layout.fullHeight = 5;
+  writeExr(file("overscan.exr"), plainRgba(), layout);
+  Frame f = readFrame(file("overscan.exr"));
+  writeImage(file("out.exr"), f.pass("color").view(), f.windows);
+  EXPECT_EQ(windowsOf(file("out.exr")), (std::vector<int>{0, 0, 7, 5, 0, 0, 7, 5}));
+  EXPECT_EQ(readFrame(file("out.exr")).pass("color").data, f.pass("color").data);
+  // Partly outside: the overlap. Wholly outside (nothing of the file in view): the display window.
+  layout.width = 4;
+  layout.height = 3;
+  layout.x = 5;
+  layout.y = -2;
+  writeExr(file("corner.exr"), plainRgba(), layout);
+  f = readFrame(file("corner.exr"));
+  writeImage(file("corner_out.exr"), f.pass("color").view(), f.windows);
+  EXPECT_EQ(windowsOf(file("corner_out.exr")), (std::vector<int>{5, 0, 2, 1, 0, 0, 7, 5}));
+  EXPECT_EQ(readFrame(file("corner_out.exr")).pass("color").data, f.pass("color").data);
+  layout.x = 20;
+  layout.y = 20;
+  writeExr(file("away.exr"), plainRgba(), layout);
+  f = readFrame(file("away.exr"));
+  writeImage(file("away_out.exr"), f.pass("color").view(), f.windows);
+  EXPECT_EQ(windowsOf(file("away_out.exr")), (std::vector<int>{0, 0, 7, 5, 0, 0, 7, 5}));
 }
 
 TEST_F(IoTest, PlainExrWithZChannel) {
