@@ -264,9 +264,6 @@ int runFilter(const ParsedArgs& args) {
     stamps.reading(int(i) + 1);
     Frame frame = readFrame(in);
     warnSanitisedColour(frame);
-    for (const std::string& part : frame.partsNotRead)
-      std::fprintf(stderr, "filter: warning: '%s': %s is not read (only an EXR's first part is)\n", in.c_str(),
-                   part.c_str());
     // A gap in the frame numbers or a cut to another camera: the history starts over, and the
     // frame gets zero motion as a first frame does. Said also under --quiet, which hides progress
     // and notes, not what changes the output (docs/farm.md tells farm users to look for this line).

@@ -33,7 +33,9 @@ struct Frame {
   FrameWindows windows;  // the file's; writeImage(path, image, windows) writes the output back into them
   std::map<std::string, Image> passes;
   std::map<std::string, std::uint32_t> objectIds;  // Cryptomatte manifest: name -> hash
-  std::vector<std::string> channelNames;           // every channel in the file, as named there
+  // Every channel in the file (in every part), by the name it is matched by: as named there, or
+  // completed by its part's name (frame_read.cpp, matchName).
+  std::vector<std::string> channelNames;
   // Colour values (RGBA) that were NaN or +-Inf in the file; the colour pass
   // holds them sanitised (NaN -> 0, +-Inf -> +-65504, conventions.h).
   long nonFiniteColour = 0;
@@ -42,7 +44,8 @@ struct Frame {
   // Passes the file holds in a form that cannot be used, and why (an ID pass
   // stored as half float): an error only for a method that reads them.
   std::map<std::string, std::string> unusable;
-  // The parts of a multi-part EXR after the first, which are not read: "part 2 of 2 (channels: Z)".
+  // The parts of a multi-part EXR no pass was read from, which hold nothing read here:
+  // "part 3 of 3 ('diffuse') (channels: diffuse.R, diffuse.G, diffuse.B)".
   std::vector<std::string> partsNotRead;
 
   bool has(const std::string& role) const { return passes.count(role) != 0; }
@@ -52,9 +55,11 @@ struct Frame {
   std::string passList() const;  // "color,depth,..."
 };
 
-// Reads a Blender multilayer EXR or a plain RGB(A) EXR/PNG. Throws
-// CRISP_ERROR_IO (unreadable, truncated, corrupt) or CRISP_ERROR_INVALID_DATA
-// (no colour, inconsistent layers), always naming the file.
+// Reads a Blender multilayer EXR or a plain RGB(A) EXR/PNG. Of a multi-part
+// EXR each pass is read from the part holding it (frame_read.cpp says how they
+// are found). Throws CRISP_ERROR_IO (unreadable, truncated, corrupt) or
+// CRISP_ERROR_INVALID_DATA (no colour, inconsistent layers, a pass in two
+// parts), always naming the file (and the part).
 Frame readFrame(const std::string& path);
 // CRISP_ERROR_IO naming the file unless `path` is a non-empty file this
 // process may read (readFrame's first check; commands run it on every input

@@ -9,6 +9,11 @@
 //   ViewLayer.CryptoObject00.r/g/b/a (lowercase), CryptoObject01.., and the
 //   manifest in the header attribute "cryptomatte/<7 hex>/manifest".
 // View layer names may contain dots, so names are split from the right.
+//
+// A multi-part EXR (Nuke and other compositors write passes as parts) is read
+// as one set of channels: a pass is found in whichever part holds it, by the
+// same names. A part's name can carry the layer and pass its channels leave
+// out (part "ViewLayer.Depth", channel "Z"); see matchName.
 #include <unistd.h>
 
 #include <algorithm>
@@ -46,7 +51,8 @@ struct ChannelName {
   std::string layer;    // "" for "R" or "Depth.Z"
   std::string pass;     // "" for "R"
   std::string channel;  // last component
-  int index = 0;        // in the file (OIIO order)
+  int index = 0;        // in its part (OIIO order)
+  int part = 0;         // the part (OIIO subimage) holding it
 };
 
 ChannelName splitChannelName(const std::string& name, int index) {
@@ -110,7 +116,8 @@ const ChannelName* findChannel(const std::vector<const ChannelName*>& chans, con
 
 // Checks a pass's channel set against its spec and returns the file indices of
 // required + optional channels (-1 where an optional one is absent).
-std::vector<int> matchPass(const std::string& path, const std::string& passLabel,
+// `where` names the file (and the part of a multi-part one) in the messages.
+std::vector<int> matchPass(const std::string& where, const std::string& passLabel,
                            const std::vector<const ChannelName*>& chans, const RoleSpec& spec) {
   auto expected = [&]() {
     std::string s;
@@ -122,7 +129,7 @@ std::vector<int> matchPass(const std::string& path, const std::string& passLabel
   for (const auto& r : spec.required) {
     const ChannelName* c = findChannel(chans, r);
     if (!c)
-      invalidData("pass '" + passLabel + "' in '" + path + "' has " + std::to_string(chans.size()) + " channel(s) (" +
+      invalidData("pass '" + passLabel + "' in " + where + " has " + std::to_string(chans.size()) + " channel(s) (" +
                   joinChannels(chans) + "); expected " + expected());
     indices.push_back(c->index);
   }
@@ -133,32 +140,32 @@ std::vector<int> matchPass(const std::string& path, const std::string& passLabel
   for (const ChannelName* c : chans) {
     bool known = std::any_of(indices.begin(), indices.end(), [&](int i) { return i == c->index; });
     if (!known)
-      invalidData("pass '" + passLabel + "' in '" + path + "' has " + std::to_string(chans.size()) + " channels (" +
+      invalidData("pass '" + passLabel + "' in " + where + " has " + std::to_string(chans.size()) + " channels (" +
                   joinChannels(chans) + "); expected " + expected());
   }
   return indices;
 }
 
-// Reads channels [chBegin, chEnd) of the data window as float, or throws
-// CRISP_ERROR_IO (truncated or corrupt file) naming the file and the pass.
-std::vector<float> readChannelRange(OIIO::ImageInput& in, const std::string& path, const std::string& passLabel,
-                                    int chBegin, int chEnd) {
-  const OIIO::ImageSpec& spec = in.spec();
-  const std::size_t n = std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(chEnd - chBegin);
-  std::vector<float> buffer(n);
-  if (!in.read_image(0, 0, chBegin, chEnd, OIIO::TypeFloat, buffer.data()))
-    ioError("cannot read pass '" + passLabel + "' of '" + path + "' (truncated or corrupt file?): " +
-            oiioErrors(&in));
-  return buffer;
-}
-
-// The geometry of a read: the frame is the display window; the file's pixels
-// cover the data window, possibly offset, smaller or larger.
+// The geometry of a read: the frame is the display window; a part's pixels
+// cover its data window, possibly offset, smaller or larger.
 struct Windows {
+  int part = 0;                      // the part (OIIO subimage) read
   int width = 0, height = 0;         // display window size = frame size
   int dataWidth = 0, dataHeight = 0;
   long long offsetX = 0, offsetY = 0;  // data window origin relative to the display window
 };
+
+// Reads channels [chBegin, chEnd) of a part's data window as float, or throws
+// CRISP_ERROR_IO (truncated or corrupt file) naming the file and the pass.
+std::vector<float> readChannelRange(OIIO::ImageInput& in, const std::string& path, const std::string& passLabel,
+                                    const Windows& win, int chBegin, int chEnd) {
+  const std::size_t n = std::size_t(win.dataWidth) * std::size_t(win.dataHeight) * std::size_t(chEnd - chBegin);
+  std::vector<float> buffer(n);
+  if (!in.read_image(win.part, 0, chBegin, chEnd, OIIO::TypeFloat, buffer.data()))
+    ioError("cannot read pass '" + passLabel + "' of '" + path + "' (truncated or corrupt file?): " +
+            oiioErrors(&in));
+  return buffer;
+}
 
 // Converts one pass into an Image of the frame's size. `convert(src, dst)`
 // gets the pass's file channels in `indices` order (relative to the read
@@ -169,7 +176,7 @@ Image convertPass(OIIO::ImageInput& in, const std::string& path, const std::stri
   int chBegin = 1 << 30, chEnd = -1;
   for (int i : indices)
     if (i >= 0) chBegin = std::min(chBegin, i), chEnd = std::max(chEnd, i + 1);
-  const std::vector<float> buffer = readChannelRange(in, path, passLabel, chBegin, chEnd);
+  const std::vector<float> buffer = readChannelRange(in, path, passLabel, win, chBegin, chEnd);
   const int runChannels = chEnd - chBegin;
   std::vector<int> rel;
   for (int i : indices) rel.push_back(i >= 0 ? i - chBegin : -1);
@@ -254,6 +261,57 @@ void checkFlatImage(const OIIO::ImageSpec& spec, const std::string& what) {
                   std::to_string(kMaxPixels) + " pixels)");
 }
 
+bool isBlenderPass(const std::string& pass) {
+  const auto& specs = roleSpecs();
+  return std::any_of(specs.begin(), specs.end(), [&](const RoleSpec& r) { return pass == r.blenderPass; });
+}
+
+// The name a channel of a multi-part file is matched by. OpenEXR 2's parts
+// have names, and some writers let a part's name carry the layer and pass its
+// channels leave out (part "ViewLayer.Depth", channel "Z"): a channel without
+// a layer of its own whose part name and name together name a pass read here
+// is read as "<part name>.<channel>". Any other keeps its own name, so a part
+// "rgba" holding R,G,B,A is plain colour, and "ViewLayer.Depth.Z" is the same
+// in any part.
+std::string matchName(const std::string& stored, const std::string& partName) {
+  if (partName.empty() || stored.rfind(partName + ".", 0) == 0 || !splitChannelName(stored, 0).layer.empty())
+    return stored;
+  const std::string qualified = partName + "." + stored;
+  return isBlenderPass(splitChannelName(qualified, 0).pass) ? qualified : stored;
+}
+
+// A part of the file (an OIIO subimage; a single-part file has one).
+struct Part {
+  OIIO::ImageSpec spec;
+  std::string name;   // an EXR part's name ("oiio:subimagename"), "" if none
+  bool read = false;  // a pass is read from it
+};
+
+std::string partLabel(const std::vector<Part>& parts, int p) {
+  const Part& part = parts[std::size_t(p)];
+  return "part " + std::to_string(p + 1) + " of " + std::to_string(parts.size()) +
+         (part.name.empty() ? std::string() : " ('" + part.name + "')");
+}
+
+// A display window (x, y, width, height); the data window where the file gives none.
+struct DisplayWindow {
+  long long x = 0, y = 0, width = 0, height = 0;
+  bool operator!=(const DisplayWindow& o) const { return x != o.x || y != o.y || width != o.width || height != o.height; }
+  std::string text() const {
+    return std::to_string(width) + "x" + std::to_string(height) + " at (" + std::to_string(x) + "," +
+           std::to_string(y) + ")";
+  }
+};
+
+DisplayWindow displayWindow(const OIIO::ImageSpec& spec) {
+  DisplayWindow d;
+  d.x = spec.full_width > 0 ? spec.full_x : spec.x;
+  d.y = spec.full_height > 0 ? spec.full_y : spec.y;
+  d.width = spec.full_width > 0 ? spec.full_width : spec.width;
+  d.height = spec.full_height > 0 ? spec.full_height : spec.height;
+  return d;
+}
+
 }  // namespace
 
 const Image& Frame::pass(const std::string& role) const {
@@ -303,50 +361,28 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   }
   if (!in) ioError("cannot read '" + path + "' as an image: " + oiioErrors(nullptr));
 
-  const OIIO::ImageSpec spec = in->spec();
-  checkFlatImage(spec, "'" + path + "'");
-  const long long fullW = spec.full_width > 0 ? spec.full_width : spec.width;
-  const long long fullH = spec.full_height > 0 ? spec.full_height : spec.height;
-
-  Windows win;
-  win.width = int(fullW);
-  win.height = int(fullH);
-  win.dataWidth = spec.width;
-  win.dataHeight = spec.height;
-  win.offsetX = (long long)spec.x - (spec.full_width > 0 ? spec.full_x : spec.x);
-  win.offsetY = (long long)spec.y - (spec.full_height > 0 ? spec.full_y : spec.y);
+  // Every part's header; a part's pixels are read only for the passes it holds.
+  std::vector<Part> parts;
+  parts.push_back({in->spec(), in->spec().get_string_attribute("oiio:subimagename"), false});
+  checkFlatImage(parts[0].spec, "'" + path + "'");
+  for (int s = 1; in->seek_subimage(s, 0); ++s)
+    parts.push_back({in->spec(), in->spec().get_string_attribute("oiio:subimagename"), false});
+  const bool multiPart = parts.size() > 1;
+  // Names the file in a message, and the part of a multi-part one.
+  auto where = [&](int p) { return "'" + path + "'" + (multiPart ? " (" + partLabel(parts, p) + ")" : ""); };
 
   Frame frame;
   frame.path = path;
-  frame.width = win.width;
-  frame.height = win.height;
-  frame.windows.displayX = spec.full_width > 0 ? spec.full_x : spec.x;
-  frame.windows.displayY = spec.full_height > 0 ? spec.full_y : spec.y;
-  frame.windows.dataX = spec.x;
-  frame.windows.dataY = spec.y;
-  frame.windows.dataWidth = spec.width;
-  frame.windows.dataHeight = spec.height;
-  // A multi-part EXR: only the first part is read (pixels are read from subimage 0 below); the
-  // others are named, so that passes they hold are not lost without a word.
-  {
-    std::vector<std::string> parts;
-    for (int s = 1; in->seek_subimage(s, 0); ++s) {
-      std::string list;
-      for (const std::string& n : in->spec().channelnames) list += (list.empty() ? "" : ", ") + n;
-      parts.push_back(list);
-    }
-    for (std::size_t k = 0; k < parts.size(); ++k)
-      frame.partsNotRead.push_back("part " + std::to_string(k + 2) + " of " + std::to_string(parts.size() + 1) +
-                                   " (channels: " + parts[k] + ")");
-    if (!parts.empty() && !in->seek_subimage(0, 0))
-      ioError("cannot read '" + path + "' (truncated or corrupt file?): " + oiioErrors(in.get()));
-  }
-
   std::vector<ChannelName> names;
-  for (int i = 0; i < spec.nchannels; ++i) {
-    const std::string n = i < int(spec.channelnames.size()) ? spec.channelnames[size_t(i)] : std::string();
-    frame.channelNames.push_back(n);
-    names.push_back(splitChannelName(n, i));
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    const OIIO::ImageSpec& spec = parts[p].spec;
+    for (int i = 0; i < spec.nchannels; ++i) {
+      const std::string stored = i < int(spec.channelnames.size()) ? spec.channelnames[size_t(i)] : std::string();
+      const std::string n = multiPart ? matchName(stored, parts[p].name) : stored;
+      frame.channelNames.push_back(n);
+      names.push_back(splitChannelName(n, i));
+      names.back().part = int(p);
+    }
   }
 
   const std::string layer = chooseLayer(path, names, viewLayer);
@@ -360,11 +396,100 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
     return out;
   };
   auto label = [&](const std::string& passName) { return layer.empty() ? passName : layer + "." + passName; };
+  // The part a pass is read from: all of its channels are in one.
+  auto partOf = [&](const std::string& passLabel, const std::vector<const ChannelName*>& chans) {
+    for (const ChannelName* c : chans)
+      if (c->part != chans.front()->part)
+        invalidData("pass '" + passLabel + "' of '" + path + "' is in more than one part (" +
+                    partLabel(parts, chans.front()->part) + ", " + partLabel(parts, c->part) +
+                    "); a pass must be in one part");
+    return chans.front()->part;
+  };
+
+  // The colour's part sets the frame: its display window. Every other part a
+  // pass is read from must have the same one; its data window may differ.
+  DisplayWindow display;
+  int colourPart = -1;
+  auto windowsOf = [&](int p) {
+    const OIIO::ImageSpec& spec = parts[std::size_t(p)].spec;
+    if (p != 0) checkFlatImage(spec, where(p));  // the first part was checked above
+    const DisplayWindow d = displayWindow(spec);
+    if (colourPart < 0) {
+      colourPart = p;
+      display = d;
+    } else if (d != display) {
+      invalidData("'" + path + "': " + partLabel(parts, p) + " has the display window " + d.text() + ", and " +
+                  partLabel(parts, colourPart) + ", which holds the colour, " + display.text() +
+                  "; the parts read must share one display window");
+    }
+    parts[std::size_t(p)].read = true;
+    Windows win;
+    win.part = p;
+    win.width = int(d.width);
+    win.height = int(d.height);
+    win.dataWidth = spec.width;
+    win.dataHeight = spec.height;
+    win.offsetX = (long long)spec.x - d.x;
+    win.offsetY = (long long)spec.y - d.y;
+    return win;
+  };
 
   // ---- colour ----
-  const bool decode = needsSrgbDecode(spec);
+  // Which part, and the indices of its R,G,B[,A] in it.
+  std::vector<int> colourIdx;
+  std::string colourLabel = "color";
+  Windows colourWin;
+  if (hasCombined) {
+    colourLabel = label("Combined");
+    const std::vector<const ChannelName*> chans = channelsOf("Combined");
+    const int p = partOf(colourLabel, chans);
+    colourWin = windowsOf(p);
+    colourIdx = matchPass(where(p), colourLabel, chans, roleSpecs()[0]);
+  } else {
+    // A plain image: R,G,B[,A] or grey Y[,A] without a layer or pass prefix,
+    // of one part: the first part's, else the one part that has them.
+    auto plainColour = [&](int p) {
+      std::vector<const ChannelName*> plain;
+      for (const ChannelName* c : channelsOf(""))
+        if (c->part == p) plain.push_back(c);
+      const ChannelName* r = findChannel(plain, "R");
+      const ChannelName* g = findChannel(plain, "G");
+      const ChannelName* b = findChannel(plain, "B");
+      const ChannelName* a = findChannel(plain, "A");
+      const ChannelName* grey = findChannel(plain, "Y");
+      if (r && g && b) return std::vector<int>{r->index, g->index, b->index, a ? a->index : -1};
+      if (grey && !r && !g && !b) return std::vector<int>{grey->index, grey->index, grey->index, a ? a->index : -1};
+      return std::vector<int>();
+    };
+    std::vector<int> withColour;
+    for (int p = 0; p < int(parts.size()); ++p)
+      if (!plainColour(p).empty()) withColour.push_back(p);
+    if (withColour.empty()) {
+      std::string list;
+      for (const auto& n : frame.channelNames) list += (list.empty() ? "" : ", ") + n;
+      invalidData("no colour in '" + path + "': expected a Combined pass or R,G,B channels (channels: " + list + ")" +
+                  (multiPart ? " in any of its " + std::to_string(parts.size()) + " parts" : std::string()));
+    }
+    if (withColour.size() > 1 && withColour.front() != 0)
+      invalidData("'" + path + "' has R,G,B colour in more than one part (" + partLabel(parts, withColour[0]) + ", " +
+                  partLabel(parts, withColour[1]) + ") and none in its first: which is the colour is unclear");
+    colourWin = windowsOf(withColour.front());
+    colourIdx = plainColour(withColour.front());
+  }
+  const OIIO::ImageSpec& colourSpec = parts[std::size_t(colourPart)].spec;
+  frame.width = colourWin.width;
+  frame.height = colourWin.height;
+  frame.windows.displayX = int(display.x);
+  frame.windows.displayY = int(display.y);
+  frame.windows.dataX = colourSpec.x;
+  frame.windows.dataY = colourSpec.y;
+  frame.windows.dataWidth = colourSpec.width;
+  frame.windows.dataHeight = colourSpec.height;
+  const int w = frame.width, h = frame.height;
+
+  const bool decode = needsSrgbDecode(colourSpec);
   // The filters take colour premultiplied by alpha, as Blender's EXRs hold it.
-  const bool straightAlpha = spec.get_int_attribute("oiio:UnassociatedAlpha", 0) != 0;
+  const bool straightAlpha = colourSpec.get_int_attribute("oiio:UnassociatedAlpha", 0) != 0;
   auto colorConvert = [decode, straightAlpha, &frame](const float* s, Image& im, int x, int y) {
     float* d = im.at(x, y);
     for (int k = 0; k < 4; ++k) {
@@ -375,61 +500,49 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
     const float coverage = straightAlpha ? std::clamp(d[3], 0.0f, 1.0f) : 1.0f;
     for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(decode ? srgbDecode(s[k]) : s[k]) * coverage;
   };
-  if (hasCombined) {
-    const RoleSpec& rs = roleSpecs()[0];
-    std::vector<int> idx = matchPass(path, label("Combined"), channelsOf("Combined"), rs);
-    frame.passes["color"] = convertPass(*in, path, label("Combined"), idx, win, Image(win.width, win.height, 4, 0.0f),
-                                        colorConvert);
-  } else {
-    // A plain image: R,G,B[,A] or grey Y[,A] without a layer or pass prefix.
-    std::vector<const ChannelName*> plain = channelsOf("");
-    const ChannelName* r = findChannel(plain, "R");
-    const ChannelName* g = findChannel(plain, "G");
-    const ChannelName* b = findChannel(plain, "B");
-    const ChannelName* a = findChannel(plain, "A");
-    const ChannelName* grey = findChannel(plain, "Y");
-    std::vector<int> idx;
-    if (r && g && b) {
-      idx = {r->index, g->index, b->index, a ? a->index : -1};
-    } else if (grey && !r && !g && !b) {
-      idx = {grey->index, grey->index, grey->index, a ? a->index : -1};
-    } else {
-      std::string list;
-      for (const auto& n : frame.channelNames) list += (list.empty() ? "" : ", ") + n;
-      invalidData("no colour in '" + path + "': expected a Combined pass or R,G,B channels (channels: " + list + ")" +
-                  (frame.partsNotRead.empty() ? std::string()
-                                              : "; it is a multi-part EXR, and only its first part is read"));
-    }
-    frame.passes["color"] = convertPass(*in, path, "color", idx, win, Image(win.width, win.height, 4, 0.0f), colorConvert);
-    // Blender's single-layer EXR can carry a top-level "Z" depth channel.
-    if (const ChannelName* z = findChannel(plain, "Z"))
-      frame.passes["depth"] = convertPass(*in, path, "Z", {z->index}, win, Image(win.width, win.height, 1, kBackgroundDepth),
+  frame.passes["color"] = convertPass(*in, path, colourLabel, colourIdx, colourWin, Image(w, h, 4, 0.0f), colorConvert);
+
+  if (!hasCombined) {
+    // Blender's single-layer EXR can carry a top-level "Z" depth channel: the
+    // colour's part's, else the one part that has one.
+    std::vector<const ChannelName*> zs;
+    for (const ChannelName* c : channelsOf(""))
+      if (iequals(c->channel, "Z")) zs.insert(c->part == colourPart ? zs.begin() : zs.end(), c);
+    if (zs.size() > 1 && zs.front()->part != colourPart)
+      invalidData("'" + path + "' has a Z channel in more than one part (" + partLabel(parts, zs[0]->part) + ", " +
+                  partLabel(parts, zs[1]->part) + ") and none beside the colour: which is the depth is unclear");
+    if (!zs.empty())
+      frame.passes["depth"] = convertPass(*in, path, "Z", {zs.front()->index}, windowsOf(zs.front()->part),
+                                          Image(w, h, 1, kBackgroundDepth),
                                           [](const float* s, Image& im, int x, int y) { *im.at(x, y) = s[0]; });
   }
 
   if (hasCombined) {
+    int idPart = -1;
     const auto& specs = roleSpecs();
     for (std::size_t r = 1; r < specs.size(); ++r) {
       const RoleSpec& rs = specs[r];
       std::vector<const ChannelName*> chans = channelsOf(rs.blenderPass);
       if (chans.empty()) continue;
       const std::string passLabel = label(rs.blenderPass);
-      std::vector<int> idx = matchPass(path, passLabel, chans, rs);
+      const int p = partOf(passLabel, chans);
+      const Windows win = windowsOf(p);
+      std::vector<int> idx = matchPass(where(p), passLabel, chans, rs);
       const std::string role = rs.role;
       if (role == "depth") {
         // Kept as stored: Blender 3.x's half-float background (65504) already
         // reads as background through isBackgroundDepth.
-        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(win.width, win.height, 1, kBackgroundDepth),
+        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(w, h, 1, kBackgroundDepth),
                                          [](const float* s, Image& im, int x, int y) { *im.at(x, y) = s[0]; });
       } else if (role == "normal") {
-        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(win.width, win.height, 3, 0.0f),
+        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(w, h, 3, 0.0f),
                                          [](const float* s, Image& im, int x, int y) {
                                            float* d = im.at(x, y);
                                            for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(s[k]);
                                          });
       } else if (role == "motion") {
         // Blender's Vector pass is y up; the convention is y down (rows).
-        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(win.width, win.height, 4, 0.0f),
+        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(w, h, 4, 0.0f),
                                          [](const float* s, Image& im, int x, int y) {
                                            float* d = im.at(x, y);
                                            d[0] = sanitizeColor(s[0]);
@@ -440,27 +553,31 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
       } else if (role == "id") {
         // The hash bits must survive: a half-float channel cannot hold them.
         // Only a method that reads IDs fails on it (Frame::unusable).
-        if (spec.channelformat(idx[0]).basetype != OIIO::TypeDesc::FLOAT) {
-          frame.unusable[role] = "pass '" + passLabel + "' in '" + path + "' is stored as " +
-                                 std::string(spec.channelformat(idx[0]).c_str()) +
-                                 ", not 32-bit float: object IDs would be lost";
+        idPart = p;
+        const OIIO::TypeDesc format = parts[std::size_t(p)].spec.channelformat(idx[0]);
+        if (format.basetype != OIIO::TypeDesc::FLOAT) {
+          frame.unusable[role] = "pass '" + passLabel + "' in " + where(p) + " is stored as " +
+                                 std::string(format.c_str()) + ", not 32-bit float: object IDs would be lost";
           continue;
         }
-        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image::uintImage(win.width, win.height),
+        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image::uintImage(w, h),
                                          [](const float* s, Image& im, int x, int y) {
                                            std::uint32_t bits;
                                            std::memcpy(&bits, &s[0], 4);
                                            im.setUint(x, y, s[1] > 0.0f ? bits : 0u);  // no coverage: background
                                          });
       } else if (role == "albedo") {
-        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(win.width, win.height, 3, 0.0f),
+        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(w, h, 3, 0.0f),
                                          [](const float* s, Image& im, int x, int y) {
                                            float* d = im.at(x, y);
                                            for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(s[k]);
                                          });
       }
     }
-    const std::string manifest = findManifest(spec, layer);
+    // The manifest is in the header of the ID pass's part, or of another part.
+    std::string manifest = idPart >= 0 ? findManifest(parts[std::size_t(idPart)].spec, layer) : std::string();
+    for (std::size_t p = 0; manifest.empty() && p < parts.size(); ++p)
+      if (int(p) != idPart) manifest = findManifest(parts[p].spec, layer);
     if (!manifest.empty()) {
       try {
         frame.objectIds = parseCryptomatteManifest(manifest);
@@ -468,6 +585,14 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
         invalidData("'" + path + "': " + e.what());
       }
     }
+  }
+
+  // The parts no pass was read from, named: what they hold is not lost without a word.
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    if (parts[p].read) continue;
+    std::string list;
+    for (const std::string& n : parts[p].spec.channelnames) list += (list.empty() ? "" : ", ") + n;
+    frame.partsNotRead.push_back(partLabel(parts, int(p)) + " (channels: " + list + ")");
   }
 
   in->close();

@@ -449,26 +449,41 @@ def test_a_pass_missing_mid_sequence_is_reported(chart, tmp_path):
     assert "warning" not in p.stderr
 
 
-def test_parts_of_a_multi_part_exr_that_are_not_read_are_named(chart, tmp_path):
-    """Only a multi-part EXR's first part is read: info lists the others, filter warns that they are
-    not read (a depth part would otherwise be dropped without a word), and a file whose colour is in
-    a later part is refused saying so."""
-    z = tmp_path / "z.exr"
-    subprocess.run(["oiiotool", str(chart / "chart_1spp.exr"), "--ch", "Z=0.5", "-o", str(z)], check=True)
-    colour_first, colour_later = tmp_path / "colour_first.exr", tmp_path / "colour_later.exr"
+def test_passes_in_any_part_of_a_multi_part_exr_are_read(chart, tmp_path):
+    """A multi-part EXR's passes are read from whichever part holds them (colour first or later, a
+    depth part): the frame and the output are those of the same channels in one part. A part
+    holding nothing read is listed by info; a pass in two parts is refused naming the file, the
+    pass and the parts, before anything is written."""
     colour = str(chart / "chart_1spp.exr")
+    z, one_part = tmp_path / "z.exr", tmp_path / "one_part.exr"
+    subprocess.run(["oiiotool", colour, "--ch", "Z=0.5", "--attrib", "oiio:subimagename", "depth", "-o", str(z)],
+                   check=True)
+    subprocess.run(["oiiotool", colour, "--ch", "R,G,B,A,Z=0.5", "-o", str(one_part)], check=True)
+    colour_first, colour_later = tmp_path / "colour_first.exr", tmp_path / "colour_later.exr"
     subprocess.run(["oiiotool", colour, str(z), "--siappend", "-o", str(colour_first)], check=True)
     subprocess.run(["oiiotool", str(z), colour, "--siappend", "-o", str(colour_later)], check=True)
-    info = run("info", colour_first).stdout
-    assert "not read: part 2 of 2 (channels: Z)" in info, info
-    p = run("filter", "-q", "--method", "taa", colour_first, "-o", tmp_path / "out")
-    assert "warning: '%s': part 2 of 2 (channels: Z) is not read" % colour_first in p.stderr, p.stderr
-    assert "not read" not in run("filter", "-q", "--method", "taa", chart / "chart_1spp.exr", "-o",
-                                 tmp_path / "single").stderr
-    p = run("filter", "-q", "--method", "taa", colour_later, "-o", tmp_path / "later", ok=False)
+    run("filter", "-q", "--method", "taa", one_part, "-o", tmp_path / "ref")
+    for f in (colour_first, colour_later):
+        info = run("info", f).stdout
+        assert "passes: color,depth\n" in info and "not read" not in info, info
+        p = run("filter", "-q", "--method", "taa", f, "-o", tmp_path / f.stem)
+        assert "warning" not in p.stderr, p.stderr
+        assert same_pixels([tmp_path / f.stem / (f.stem + ".exr")], [tmp_path / "ref" / "one_part.exr"]), f
+    # A part holding nothing read here.
+    extra = tmp_path / "extra.exr"
+    subprocess.run(["oiiotool", str(colour_first), "-i", colour, "--chnames", "diffuse.R,diffuse.G,diffuse.B,diffuse.A",
+                    "--attrib", "oiio:subimagename", "diffuse", "--siappendall", "-o", str(extra)], check=True)
+    assert "not read: part 3 of 3 ('diffuse') (channels: diffuse.R, diffuse.G, diffuse.B, diffuse.A)" in \
+        run("info", extra).stdout
+    # Z in two parts beside a colour part holding none: which is the depth is unclear.
+    twice = tmp_path / "twice.exr"
+    subprocess.run(["oiiotool", colour, str(z), str(z), "--attrib", "oiio:subimagename", "depth2", "--siappendall",
+                    "-o", str(twice)], check=True)
+    p = run("filter", "-q", "--method", "taa", twice, "-o", tmp_path / "twice", ok=False)
     assert p.returncode == 1
-    assert "no colour in '%s'" % colour_later in p.stderr and "multi-part EXR" in p.stderr, p.stderr
-    assert not (tmp_path / "later").exists()
+    assert "'%s' has a Z channel in more than one part (part 2 of 3 ('depth'), part 3 of 3 ('depth2'))" % twice \
+        in p.stderr, p.stderr
+    assert not (tmp_path / "twice").exists()
 
 
 def exr_windows(path):

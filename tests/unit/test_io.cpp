@@ -36,6 +36,7 @@ namespace {
 
 // A distinct, exactly representable (also in half) value per pixel and channel.
 float pixelValue(int x, int y, int c) { return float(100 * y + x) + 0.25f * float(c); }
+float pixelValue0(int x, int y) { return pixelValue(x, y, 0); }
 
 struct Channel {
   std::string name;
@@ -51,11 +52,8 @@ struct ExrLayout {
   std::vector<std::pair<std::string, std::string>> attributes;
 };
 
-// Writes an EXR through OIIO with the given channels (names used verbatim).
-void writeExr(const std::string& path, const std::vector<Channel>& channels, const ExrLayout& layout,
-              const char* compression = "none") {
-  auto out = OIIO::ImageOutput::create(path);
-  ASSERT_TRUE(out) << OIIO::geterror();
+// The header of an EXR (or of one part) with the given channels (names used verbatim).
+OIIO::ImageSpec exrSpec(const std::vector<Channel>& channels, const ExrLayout& layout, const char* compression) {
   OIIO::ImageSpec spec(layout.width, layout.height, int(channels.size()), OIIO::TypeDesc::FLOAT);
   spec.x = layout.x;
   spec.y = layout.y;
@@ -72,14 +70,64 @@ void writeExr(const std::string& path, const std::vector<Channel>& channels, con
   spec.alpha_channel = -1;
   spec.attribute("compression", compression);
   for (const auto& kv : layout.attributes) spec.attribute(kv.first, kv.second);
-  ASSERT_TRUE(out->open(path, spec)) << out->geterror();
+  return spec;
+}
+
+// The pixels of those channels, interleaved.
+std::vector<float> exrPixels(const std::vector<Channel>& channels, const ExrLayout& layout) {
   std::vector<float> data(std::size_t(layout.width) * std::size_t(layout.height) * channels.size());
   for (int y = 0; y < layout.height; ++y)
     for (int x = 0; x < layout.width; ++x)
       for (std::size_t c = 0; c < channels.size(); ++c)
         data[(std::size_t(y) * std::size_t(layout.width) + std::size_t(x)) * channels.size() + c] = channels[c].value(x, y);
-  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, data.data())) << out->geterror();
+  return data;
+}
+
+// Writes an EXR through OIIO with the given channels (names used verbatim).
+void writeExr(const std::string& path, const std::vector<Channel>& channels, const ExrLayout& layout,
+              const char* compression = "none") {
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out) << OIIO::geterror();
+  ASSERT_TRUE(out->open(path, exrSpec(channels, layout, compression))) << out->geterror();
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, exrPixels(channels, layout).data())) << out->geterror();
   ASSERT_TRUE(out->close()) << out->geterror();
+}
+
+// One part of a multi-part EXR: its name (OpenEXR's "name" attribute), channels and windows.
+struct ExrPart {
+  std::string name;
+  std::vector<Channel> channels;
+  ExrLayout layout;
+};
+
+// Writes a multi-part EXR through OIIO, a part per subimage.
+void writeMultiPartExr(const std::string& path, const std::vector<ExrPart>& parts) {
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out) << OIIO::geterror();
+  ASSERT_TRUE(out->supports("multiimage"));
+  std::vector<OIIO::ImageSpec> specs;
+  for (const ExrPart& p : parts) {
+    specs.push_back(exrSpec(p.channels, p.layout, "zip"));
+    specs.back().attribute("oiio:subimagename", p.name);
+  }
+  ASSERT_TRUE(out->open(path, int(specs.size()), specs.data())) << out->geterror();
+  for (std::size_t k = 0; k < parts.size(); ++k) {
+    if (k > 0) {
+      ASSERT_TRUE(out->open(path, specs[k], OIIO::ImageOutput::AppendSubimage)) << out->geterror();
+    }
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, exrPixels(parts[k].channels, parts[k].layout).data()))
+        << out->geterror();
+  }
+  ASSERT_TRUE(out->close()) << out->geterror();
+}
+
+// The channels of `all` whose names contain `part`, renamed by `rename` (the name as a part holds it).
+std::vector<Channel> channelsWith(const std::vector<Channel>& all, const std::string& part,
+                                  std::function<std::string(const std::string&)> rename = nullptr) {
+  std::vector<Channel> out;
+  for (const Channel& c : all)
+    if (c.name.find(part) != std::string::npos) out.push_back({rename ? rename(c.name) : c.name, c.type, c.value});
+  return out;
 }
 
 // Objects of the synthetic frame: left columns "Left", right columns "Right",
@@ -476,6 +524,121 @@ TEST_F(IoTest, WrittenDataWindowIsClippedToTheDisplayWindow) {
   f = readFrame(file("away.exr"));
   writeImage(file("away_out.exr"), f.pass("color").view(), f.windows);
   EXPECT_EQ(windowsOf(file("away_out.exr")), (std::vector<int>{0, 0, 7, 5, 0, 0, 7, 5}));
+}
+
+// ------------------------------------------------------- multi-part EXRs ----
+
+// The same pixels, bit for bit (IDs are uint bits in float storage).
+static bool sameImage(const Image& a, const Image& b) {
+  return a.width == b.width && a.height == b.height && a.channels == b.channels && a.data.size() == b.data.size() &&
+         std::memcmp(a.data.data(), b.data.data(), a.data.size() * sizeof(float)) == 0;
+}
+
+static std::function<std::string(const std::string&)> without(const std::string& prefix) {
+  return [prefix](const std::string& n) { return n.substr(prefix.size()); };
+}
+
+TEST_F(IoTest, MultiPartPassesAreReadFromAnyPart) {
+  // Blender's passes split into parts as a compositor writes them: full names, names the part's
+  // name completes ("ViewLayer.Depth" holding "Z", "ViewLayer" holding "Normal.X"), the manifest
+  // in the ID part's header, and a part holding nothing read here. The frame is the single-part one.
+  const std::vector<Channel> all = blenderChannels("ViewLayer", 7, 5);
+  ExrLayout single;
+  single.attributes = blenderManifest();
+  writeExr(file("single.exr"), all, single);
+  const Frame ref = readFrame(file("single.exr"));
+  ExrLayout plain, withManifest;
+  withManifest.attributes = blenderManifest();
+  writeMultiPartExr(file("parts.exr"),
+                    {{"ViewLayer.Combined", channelsWith(all, ".Combined."), plain},
+                     {"ViewLayer.Depth", channelsWith(all, ".Depth.", without("ViewLayer.Depth.")), plain},
+                     {"ViewLayer", channelsWith(all, ".Normal.", without("ViewLayer.")), plain},
+                     {"crypto", channelsWith(all, ".CryptoObject00."), withManifest},
+                     {"ViewLayer.DiffCol", channelsWith(all, ".DiffCol."), plain},
+                     {"motion", channelsWith(all, ".Vector."), plain},
+                     {"other", {{"diffuse.R", OIIO::TypeDesc::FLOAT, [](int, int) { return 1.0f; }}}, plain}});
+  const Frame f = readFrame(file("parts.exr"));
+  EXPECT_EQ(f.passList(), "color,depth,normal,motion,id,albedo");
+  EXPECT_EQ(f.passList(), ref.passList());
+  for (const auto& [role, image] : ref.passes) EXPECT_TRUE(f.has(role) && sameImage(f.pass(role), image)) << role;
+  EXPECT_EQ(f.objectIds, ref.objectIds);
+  EXPECT_EQ(f.objectIds.size(), 2u);
+  ASSERT_EQ(f.partsNotRead.size(), 1u);
+  EXPECT_EQ(f.partsNotRead[0], "part 7 of 7 ('other') (channels: diffuse.R)");
+  for (const char* name : {"ViewLayer.Depth.Z", "ViewLayer.Normal.X", "diffuse.R"})
+    EXPECT_NE(std::find(f.channelNames.begin(), f.channelNames.end(), name), f.channelNames.end()) << name;
+}
+
+TEST_F(IoTest, MultiPartPlainColourAndDepthInAnyPart) {
+  // A depth part first, the colour second (each named as a compositor names it): colour and depth.
+  ExrLayout layout;
+  writeMultiPartExr(file("later.exr"),
+                    {{"depth", {{"Z", OIIO::TypeDesc::FLOAT, [](int x, int) { return float(x) + 0.5f; }}}, layout},
+                     {"rgba", plainRgba(), layout}});
+  const Frame f = readFrame(file("later.exr"));
+  EXPECT_EQ(f.passList(), "color,depth");
+  EXPECT_TRUE(f.partsNotRead.empty());
+  EXPECT_EQ(f.pass("color").at(6, 4)[3], pixelValue(6, 4, 3));
+  EXPECT_EQ(*f.pass("depth").at(3, 2), 3.5f);
+  // The first part's colour is the colour when a later part has R,G,B too (an AOV of its own).
+  writeMultiPartExr(file("aov.exr"), {{"rgba", plainRgba(), layout},
+                                      {"diffuse", channelsWith(plainRgba(), "B", [](const std::string&) { return "R"; }),
+                                       layout}});
+  EXPECT_EQ(readFrame(file("aov.exr")).pass("color").at(1, 1)[0], pixelValue(1, 1, 0));
+}
+
+TEST_F(IoTest, MultiPartPartsKeepTheirOwnDataWindows) {
+  // Display 7x5 in both parts; the depth part's data window 3x2 at (2,1): placed as in one part.
+  ExrLayout colour, depth;
+  colour.fullWidth = depth.fullWidth = 7;
+  colour.fullHeight = depth.fullHeight = 5;
+  depth.width = 3;
+  depth.height = 2;
+  depth.x = 2;
+  depth.y = 1;
+  writeMultiPartExr(file("windows.exr"),
+                    {{"ViewLayer.Combined", channelsWith(blenderChannels("ViewLayer", 7, 5, false), ".Combined."), colour},
+                     {"ViewLayer.Depth", {{"Z", OIIO::TypeDesc::FLOAT, [](int x, int y) { return float(1 + x + 10 * y); }}},
+                      depth}});
+  const Frame f = readFrame(file("windows.exr"));
+  ASSERT_EQ(f.width, 7);
+  ASSERT_EQ(f.height, 5);
+  EXPECT_EQ(f.windows.dataWidth, 7);  // the colour's
+  EXPECT_TRUE(isBackgroundDepth(*f.pass("depth").at(1, 1)));
+  EXPECT_EQ(*f.pass("depth").at(2, 1), 1.0f);
+  EXPECT_EQ(*f.pass("depth").at(4, 2), 13.0f);
+  EXPECT_TRUE(isBackgroundDepth(*f.pass("depth").at(5, 2)));
+}
+
+TEST_F(IoTest, MultiPartDisagreementsAreErrorsNamingThem) {
+  const std::vector<Channel> all = blenderChannels("ViewLayer", 7, 5, false);
+  // (Parts of different display windows are no case: OpenEXR refuses to write them, the display
+  // window being an attribute its parts share; the reader still checks, for other formats.)
+  ExrLayout layout;
+  // A pass in two parts (or split over two).
+  writeMultiPartExr(file("twice.exr"), {{"ViewLayer.Combined", channelsWith(all, ".Combined."), layout},
+                                        {"a", channelsWith(all, ".Depth."), layout},
+                                        {"b", channelsWith(all, ".Depth."), layout}});
+  expectError([&] { readFrame(file("twice.exr")); }, CRISP_ERROR_INVALID_DATA,
+              "pass 'ViewLayer.Depth' of '" + file("twice.exr") + "' is in more than one part", "part 2 of 3 ('a'), part 3 of 3 ('b')");
+  writeMultiPartExr(file("split.exr"), {{"ViewLayer.Combined", channelsWith(all, "Combined.R"), layout},
+                                        {"gb", channelsWith(all, "Combined.", [](const std::string& n) {
+                                           return n.back() == 'R' ? "ViewLayer.Combined.X" : n; }), layout}});
+  expectError([&] { readFrame(file("split.exr")); }, CRISP_ERROR_INVALID_DATA, "pass 'ViewLayer.Combined' of", "more than one part");
+  // Plain colour in two later parts and none in the first; a Z in two parts, none beside the colour.
+  writeMultiPartExr(file("colours.exr"), {{"depth", {{"Z", OIIO::TypeDesc::FLOAT, pixelValue0}}, layout},
+                                          {"a", plainRgba(), layout}, {"b", plainRgba(), layout}});
+  expectError([&] { readFrame(file("colours.exr")); }, CRISP_ERROR_INVALID_DATA, "colours.exr' has R,G,B colour in more than one part",
+              "part 2 of 3 ('a'), part 3 of 3 ('b')");
+  writeMultiPartExr(file("depths.exr"), {{"rgba", plainRgba(), layout},
+                                         {"a", {{"Z", OIIO::TypeDesc::FLOAT, pixelValue0}}, layout},
+                                         {"b", {{"Z", OIIO::TypeDesc::FLOAT, pixelValue0}}, layout}});
+  expectError([&] { readFrame(file("depths.exr")); }, CRISP_ERROR_INVALID_DATA, "depths.exr' has a Z channel in more than one part");
+  // A channel of a wrong pass names its part.
+  writeMultiPartExr(file("wrong.exr"), {{"ViewLayer.Combined", channelsWith(all, ".Combined."), layout},
+                                        {"ViewLayer.Normal", {{"X", OIIO::TypeDesc::FLOAT, pixelValue0}}, layout}});
+  expectError([&] { readFrame(file("wrong.exr")); }, CRISP_ERROR_INVALID_DATA,
+              "pass 'ViewLayer.Normal' in '" + file("wrong.exr") + "' (part 2 of 2 ('ViewLayer.Normal')) has 1 channel(s)");
 }
 
 TEST_F(IoTest, PlainExrWithZChannel) {

@@ -169,8 +169,8 @@ CRISP_API void crispResetFilter(CrispFilter filter);
 // ---- frames: reading passes from files -----------------------------------
 // Reads a Blender multilayer EXR (Combined, Depth.Z, Normal, Vector, DiffCol,
 // CryptoObject00..) or a plain RGB(A) EXR/PNG into owned buffers converted to
-// the library's convention. Of a multi-part EXR only the first part is read
-// (crisp info lists the others; crisp filter warns of them).
+// the library's convention. Of a multi-part EXR each pass is read from the part
+// that holds it (the README says how); a pass in two parts is an error.
 CRISP_API CrispFrame crispLoadFrame(CrispContext context, const char* path);
 CRISP_API void crispReleaseFrame(CrispFrame frame);
 CRISP_API int crispGetFrameWidth(CrispFrame frame);
