@@ -51,10 +51,14 @@ int runRender(const ParsedArgs& args) {
     // .blend's Crisp panel may name the method (batch.py panel_settings), which only Blender reads:
     // --set is then checked there, against the method the run takes, before anything renders. A
     // bundled scene's panel is never set, and --no-panel ignores it: the method is the command line's
-    // or fxaa, checked here.
+    // or fxaa, checked here. With --method and a panel, each --set is checked alone (name, type,
+    // range): the panel's other parameters may make a pair valid that the library's defaults would not
+    // (--set feedbackMin=0.9 with the panel's feedbackMax 0.95), so the rules between parameters are
+    // batch.py's to check, with the values the run takes.
     Context context;
-    if (args.has("method") || args.has("no-panel") || fs::path(args.get("scene")).extension() != ".blend")
-      configuredFilter(context, args.getOr("method", "fxaa"), args);
+    const bool panel = !args.has("no-panel") && fs::path(args.get("scene")).extension() == ".blend";
+    if (!panel || args.has("method"))
+      configuredFilter(context, args.getOr("method", "fxaa"), args, /*betweenParams=*/!panel);
     else
       settingsOf(args);  // KEY=VALUE
   }

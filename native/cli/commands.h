@@ -50,8 +50,11 @@ struct ShotPosition {
 std::vector<std::pair<std::string, std::string>> settingsOf(const ParsedArgs& args);
 // The method's filter with the --set KEY=VALUE settings of args applied
 // (throws naming a bad one, checkSettingsByCommit): what crisp filter runs,
-// and what crisp render checks before it starts Blender.
-std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args);
+// and what crisp render checks before it starts Blender. betweenParams false:
+// each setting alone (name, type, range), not the rules between parameters
+// that a commit checks (other values, a .blend's Crisp panel's, may complete them).
+std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args,
+                                         bool betweenParams = true);
 // Throws, as a commit does, when the method refuses the settings, also for a
 // rule between parameters that only a commit checks (repair's odd patchSize,
 // taa's feedbackMin <= feedbackMax): a probe filter is committed on 1x1 images.

@@ -259,7 +259,8 @@ std::vector<std::pair<std::string, std::string>> settingsOf(const ParsedArgs& ar
   return out;
 }
 
-std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args) {
+std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args,
+                                         bool betweenParams) {
   if (!isFilterType(method))  // a mistyped option: a usage error, as in crisp eval
     throw UsageError("--method: unknown method '" + method + "' (known: " + filterTypesJoined() + ")");
   std::unique_ptr<Filter> filter = createFilter(context, method);
@@ -269,7 +270,7 @@ std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& me
                        "was rendered with), which replaces any value set here");
     filter->params().setFromText(key, value);
   }
-  checkSettingsByCommit(context, method, settingsOf(args));
+  if (betweenParams) checkSettingsByCommit(context, method, settingsOf(args));
   return filter;
 }
 

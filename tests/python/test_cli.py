@@ -1077,3 +1077,19 @@ def test_a_resume_sees_a_panel_edited_since(tmp_path):
     assert 'params {"sharpen": "0.5"} there, {"sharpen": "0.25"} here' in p.stdout, p.stdout[-3000:]
     assert run_record(out, "run_0001-0002.json")["params"] == {"sharpen": "0.25"}
     assert json.loads((out / "input" / "frame_0001.json").read_text())["made_with"]["params"] == {"sharpen": "0.25"}
+
+
+@needs_blender
+def test_a_set_the_panel_completes_is_not_refused_before_blender(tmp_path):
+    """--method with a --set that the library's defaults refuse (feedbackMin 0.9 above the default
+    feedbackMax 0.85) but the panel's feedbackMax 0.95 completes: the run takes both, so crisp does not
+    refuse it before Blender starts; a --set the panel's values refuse is still stopped (exit 2)."""
+    blend = panel_blend(tmp_path / "fmax.blend", 's.method = "taa"; s.taa.feedbackMax = 0.95')
+    render_panel(blend, tmp_path / "ok", "--method", "taa", "--set", "feedbackMin=0.9", "--plan")
+    assert run_record(tmp_path / "ok")["params"] == {"feedbackMax": "0.95", "feedbackMin": "0.9"}
+    p = render_panel(blend, tmp_path / "bad", "--method", "taa", "--set", "feedbackMin=0.97", "--plan", ok=False)
+    assert p.returncode == 2 and "feedbackMin" in p.stderr and "Crisp panel" in p.stderr, p.stderr[-2000:]
+    # --no-panel: the library's defaults complete it, and crisp refuses it before Blender starts.
+    p = render_panel(blend, tmp_path / "np", "--no-panel", "--method", "taa", "--set", "feedbackMin=0.9", "--plan",
+                     ok=False)
+    assert p.returncode != 0 and "must not exceed 'feedbackMax'" in p.stderr, p.stderr[-2000:]
