@@ -2,8 +2,10 @@
 // Fuzzes the filters fuzz_c_api leaves out (taa, taa-improved, phlm, rsaa)
 // over frame sequences: bytes pick the filter, one frame size, the images the
 // filter's own table offers (crispGetFilterInfo: names, channels, ID or not;
-// now and then another size or format), parameter values near and beyond
-// their limits, and a run of commits, executes, resets and new pixel values,
+// now and then another size or format; the output now and then in place, in
+// an input's buffer, as crisp.h allows), parameter values near and beyond
+// their limits, and a run of commits, executes, resets, new frame sizes (every
+// image set again) and new pixel values,
 // extreme ones (NaN, +-Inf, 1e30, denormals) included. A sequence must end in
 // results or recorded errors, never a crash; and an execute that reports no
 // error leaves every output value finite (the temporal methods' stability
@@ -17,7 +19,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <deque>
 #include <limits>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -80,6 +84,7 @@ const char* const kTypes[] = {"taa", "taa-improved", "phlm", "rsaa"};
 
 struct Buffer {
   std::vector<float> data;
+  CrispFormat format = CRISP_FORMAT_UNDEFINED;
   bool isOutput = false;
   int w = 0, h = 0, channels = 0;
   std::size_t pixelFloats = 0, rowFloats = 0;
@@ -120,10 +125,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   if (images.empty() || params.empty()) __builtin_trap();  // the table itself is broken
 
-  const int w = 16 - r.byte() % 16, h = 16 - r.byte() % 16;  // 16x16 once the bytes run out
-  std::vector<Buffer> buffers;
+  int w = 16 - r.byte() % 16, h = 16 - r.byte() % 16;  // 16x16 once the bytes run out
+  std::deque<Buffer> buffers;  // push_back keeps references valid: `output` and `current` stay valid
   const Buffer* output = nullptr;
-  buffers.reserve(128);  // at most 13 roles + 48 steps: `output` stays valid
+  std::map<std::string, Buffer*> current;  // the buffer each role's image is (the filter kept it)
   // Pixel values from a few bytes, not one a value (so the bytes reach the steps): a pattern of
   // edges and ramps, then a few values anywhere, extreme ones among them.
   auto fill = [&](Buffer& buf) {
@@ -136,6 +141,20 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       buf.data[(std::size_t(r.byte()) * 257u + r.byte()) % buf.data.size()] = r.value();
   };
   auto setImage = [&](const ImageRole& role) {
+    // The output in place now and then: the buffer of an input of this size that an output can be
+    // (crisp.h: the output may share an input's buffer; the result is the same).
+    if (role.name == "output" && r.byte() % 4 == 0) {
+      for (auto& [name, in] : current) {
+        if (name == "output" || in->w != w || in->h != h || in->format < CRISP_FORMAT_FLOAT3 ||
+            in->format > CRISP_FORMAT_FLOAT4)
+          continue;
+        crispGetError(nullptr);
+        crispSetFilterImage(f, "output", in->data.data(), in->format, std::size_t(in->w), std::size_t(in->h),
+                            in->pixelFloats * 4, in->rowFloats * 4);
+        if (crispGetError(nullptr) == CRISP_ERROR_NONE) current["output"] = in, output = in;
+        return;
+      }
+    }
     Buffer buf;
     buf.isOutput = role.name == "output";
     const std::uint8_t shape = r.byte();
@@ -150,6 +169,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const int span = std::max(1, std::min(role.maxChannels, 4) - role.minChannels + 1);
       format = CrispFormat(std::min(role.maxChannels, 4) - (shape >> 5) % span);  // all channels by default
     }
+    buf.format = format;
     buf.channels = format >= CRISP_FORMAT_FLOAT && format <= CRISP_FORMAT_FLOAT4 ? int(format) : 1;
     if (format == CRISP_FORMAT_RSAA_SUBSAMPLES) buf.channels = 20;
     buf.pixelFloats = std::size_t(buf.channels) + (shape & 64 ? 1 : 0);  // a padded pixel now and then
@@ -169,7 +189,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     crispSetFilterImage(f, role.name.c_str(), b.data.data(), format, std::size_t(b.w), std::size_t(b.h),
                         b.pixelFloats * 4, b.rowFloats * 4);
     // The output the filter writes: a refused image (a format it does not take) leaves the one before.
-    if (b.isOutput && crispGetError(nullptr) == CRISP_ERROR_NONE) output = &b;
+    if (crispGetError(nullptr) == CRISP_ERROR_NONE) {
+      current[role.name] = &b;
+      if (b.isOutput) output = &b;
+    }
   };
   auto setParam = [&](const Param& p) {
     const std::uint8_t how = r.byte();
@@ -202,6 +225,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         const ImageRole& role = images[r.byte() % images.size()];
         if (r.byte() % 8 == 0) {
           crispUnsetFilterImage(f, role.name.c_str());
+          current.erase(role.name);
           if (role.name == "output") output = nullptr;
         } else {
           setImage(role);
@@ -221,6 +245,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           for (int k = 0, count = 1 + r.byte() % 8; k < count && !b.data.empty(); ++k)
             b.data[(std::size_t(r.byte()) * 257u + r.byte()) % b.data.size()] = r.value();
         }
+        break;
+      }
+      case 6: {  // a new frame size: every image set again at it (the history is dropped)
+        w = 16 - r.byte() % 16, h = 16 - r.byte() % 16;
+        for (const ImageRole& role : images)
+          if (current.count(role.name)) setImage(role);
         break;
       }
       default: {
