@@ -163,6 +163,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     CrispFormat format;
     if (shape % 16 == 13) {
       format = CrispFormat(r.byte() % 8);  // any format, unknown ones included
+    } else if (role.minChannels > 4) {
+      format = CRISP_FORMAT_RSAA_SUBSAMPLES;  // the only role of more than 4 channels: rsaa's 80-byte records
     } else if (role.uint) {
       format = shape & 16 ? CRISP_FORMAT_FLOAT : CRISP_FORMAT_UINT;
     } else {
