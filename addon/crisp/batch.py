@@ -53,7 +53,8 @@ temporary name renamed into place. The opened .blend is never saved.
 
 Exit codes: 0 done; 2 bad input (no camera, empty frame range, unwritable output, unknown method,
 bad arguments); 3 library missing or failing; 4 render failed, a file could not be written, or
-stopped by Ctrl-C, SIGTERM or SIGHUP (after the frame it was on).
+stopped by Ctrl-C, SIGTERM or SIGHUP (after the frame it was on); 5 a filter parameter refused (the
+panel's or --set's; crisp render exits 1 for it, as for a --set it refuses before Blender starts).
 Messages start with "crisp: error:".
 """
 
@@ -194,7 +195,7 @@ def scene_key(script_path):
 
 
 class PanelError(Exception):
-    """A setting of the scene's Crisp panel that cannot run (bad input: exit 2)."""
+    """A setting of the scene's Crisp panel, or a --set over it, that cannot run (exit 5)."""
 
 
 def panel_settings(scene, method, jitter, given, use_panel=True):
@@ -342,7 +343,7 @@ def main(argv):
         if not args.no_filter:
             check_panel_params(method, params, from_panel, given)
     except PanelError as e:
-        fail(2, str(e))
+        fail(5, str(e))
     except native.CrispError as e:
         fail(3, str(e))
     said = panel_line(method, jitter, from_panel)

@@ -109,7 +109,8 @@ int runRender(const ParsedArgs& args) {
     std::fprintf(stderr, "crisp: error: Blender was killed by signal %d\n", run.signal);
     return 1;
   }
-  // batch.py: 2 bad input, 3 library, 4 render failure; Blender itself exits 1 on a Python error.
+  // batch.py: 2 bad input, 3 library, 4 render failure, 5 a parameter refused (1 here, as when this
+  // side refuses a --set); Blender itself exits 1 on a Python error.
   return run.exitCode == 0 ? 0 : (run.exitCode == 2 ? 2 : 1);
 }
 

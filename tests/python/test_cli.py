@@ -1043,13 +1043,14 @@ def test_an_untouched_panel_method_keeps_fxaa(tmp_path):
 @needs_blender
 def test_a_panel_value_the_library_refuses_fails_before_rendering(tmp_path):
     """taa's feedbackMin above its feedbackMax: each in its range (the panel takes it), refused by the
-    library's commit. The run stops with exit 2 naming the parameter and the panel, before any frame,
+    library's commit. The run stops with exit 1 (an error naming a parameter, as when crisp refuses a --set
+    before Blender starts) naming the parameter and the panel, before any frame,
     also under --quiet and --plan; a --set that makes them agree lets it run."""
     blend = panel_blend(tmp_path / "bad.blend", 's.method = "taa"; s.taa.feedbackMin = 0.95')
     for extra in ((), ("--quiet",), ("--plan",)):
         out = tmp_path / "out"
         p = render_panel(blend, out, *extra, ok=False)
-        assert p.returncode == 2, p.stdout[-2000:] + p.stderr[-2000:]
+        assert p.returncode == 1, p.stdout[-2000:] + p.stderr[-2000:]
         assert "taa's parameters from the scene's Crisp panel (bad.blend: feedbackMin=0.95) are refused" \
                in p.stderr and "feedbackMax" in p.stderr, p.stderr[-2000:]
         assert not (out / "input").exists() and not (out / "run.json").exists()
@@ -1058,7 +1059,7 @@ def test_a_panel_value_the_library_refuses_fails_before_rendering(tmp_path):
     # Without --method crisp cannot check --set before Blender starts (the panel names the method): the
     # driver checks it against the panel's method, naming where each value came from.
     p = render_panel(blend, tmp_path / "out", "--plan", "--set", "bogus=1", ok=False)
-    assert p.returncode == 2 and "unknown parameter 'bogus'" in p.stderr and "from --set bogus=1" in p.stderr, \
+    assert p.returncode == 1 and "unknown parameter 'bogus'" in p.stderr and "from --set bogus=1" in p.stderr, \
         p.stderr[-2000:]
     assert not (tmp_path / "out" / "run.json").exists()
 
@@ -1083,13 +1084,14 @@ def test_a_resume_sees_a_panel_edited_since(tmp_path):
 def test_a_set_the_panel_completes_is_not_refused_before_blender(tmp_path):
     """--method with a --set that the library's defaults refuse (feedbackMin 0.9 above the default
     feedbackMax 0.85) but the panel's feedbackMax 0.95 completes: the run takes both, so crisp does not
-    refuse it before Blender starts; a --set the panel's values refuse is still stopped (exit 2)."""
+    refuse it before Blender starts; a --set the panel's values refuse is still stopped (exit 1, as the
+    refusal before Blender starts exits)."""
     blend = panel_blend(tmp_path / "fmax.blend", 's.method = "taa"; s.taa.feedbackMax = 0.95')
     render_panel(blend, tmp_path / "ok", "--method", "taa", "--set", "feedbackMin=0.9", "--plan")
     assert run_record(tmp_path / "ok")["params"] == {"feedbackMax": "0.95", "feedbackMin": "0.9"}
     p = render_panel(blend, tmp_path / "bad", "--method", "taa", "--set", "feedbackMin=0.97", "--plan", ok=False)
-    assert p.returncode == 2 and "feedbackMin" in p.stderr and "Crisp panel" in p.stderr, p.stderr[-2000:]
+    assert p.returncode == 1 and "feedbackMin" in p.stderr and "Crisp panel" in p.stderr, p.stderr[-2000:]
     # --no-panel: the library's defaults complete it, and crisp refuses it before Blender starts.
     p = render_panel(blend, tmp_path / "np", "--no-panel", "--method", "taa", "--set", "feedbackMin=0.9", "--plan",
                      ok=False)
-    assert p.returncode != 0 and "must not exceed 'feedbackMax'" in p.stderr, p.stderr[-2000:]
+    assert p.returncode == 1 and "must not exceed 'feedbackMax'" in p.stderr, p.stderr[-2000:]
