@@ -52,6 +52,21 @@ struct ExrLayout {
   std::vector<std::pair<std::string, std::string>> attributes;
 };
 
+// A layout with a data window (width x height at x, y) in a display window (fullWidth x fullHeight at
+// fullX, fullY).
+ExrLayout windowed(int width, int height, int x, int y, int fullWidth, int fullHeight, int fullX = 0, int fullY = 0) {
+  ExrLayout layout;
+  layout.width = width;
+  layout.height = height;
+  layout.x = x;
+  layout.y = y;
+  layout.fullWidth = fullWidth;
+  layout.fullHeight = fullHeight;
+  layout.fullX = fullX;
+  layout.fullY = fullY;
+  return layout;
+}
+
 // The header of an EXR (or of one part) with the given channels (names used verbatim).
 OIIO::ImageSpec exrSpec(const std::vector<Channel>& channels, const ExrLayout& layout, const char* compression) {
   OIIO::ImageSpec spec(layout.width, layout.height, int(channels.size()), OIIO::TypeDesc::FLOAT);
@@ -402,13 +417,7 @@ TEST_F(IoTest, ManifestFoundByMatteNameWhenKeyDiffers) {
 TEST_F(IoTest, DataWindowInsideDisplayWindowIsPlaced) {
   // Display 7x5; data 3x2 at (2,1): pixels land at their display position and
   // the rest is background.
-  ExrLayout layout;
-  layout.width = 3;
-  layout.height = 2;
-  layout.x = 2;
-  layout.y = 1;
-  layout.fullWidth = 7;
-  layout.fullHeight = 5;
+  ExrLayout layout = windowed(3, 2, 2, 1, 7, 5);
   std::vector<Channel> ch = blenderChannels("ViewLayer", 3, 2, false);
   writeExr(file("window.exr"), ch, layout);
   Frame f = readFrame(file("window.exr"));
@@ -428,13 +437,7 @@ TEST_F(IoTest, DataWindowInsideDisplayWindowIsPlaced) {
 
 TEST_F(IoTest, DataWindowLargerThanDisplayIsCropped) {
   // Overscan: data 9x7 at (-1,-1) around a 7x5 display window.
-  ExrLayout layout;
-  layout.width = 9;
-  layout.height = 7;
-  layout.x = -1;
-  layout.y = -1;
-  layout.fullWidth = 7;
-  layout.fullHeight = 5;
+  ExrLayout layout = windowed(9, 7, -1, -1, 7, 5);
   writeExr(file("overscan.exr"), blenderChannels("ViewLayer", 9, 7, false), layout);
   Frame f = readFrame(file("overscan.exr"));
   ASSERT_EQ(f.width, 7);
@@ -461,15 +464,7 @@ static std::vector<int> windowsOf(const std::string& path) {
 
 TEST_F(IoTest, WrittenExrKeepsTheInputsWindows) {
   // Display 7x5 at (10,20); data 3x2 at (12,21): the frame read and written back lies where it was.
-  ExrLayout layout;
-  layout.width = 3;
-  layout.height = 2;
-  layout.x = 12;
-  layout.y = 21;
-  layout.fullX = 10;
-  layout.fullY = 20;
-  layout.fullWidth = 7;
-  layout.fullHeight = 5;
+  ExrLayout layout = windowed(3, 2, 12, 21, 7, 5, 10, 20);
   writeExr(file("in.exr"), plainRgba(), layout);
   const Frame f = readFrame(file("in.exr"));
   ASSERT_EQ(f.width, 7);
@@ -496,13 +491,7 @@ TEST_F(IoTest, WrittenExrKeepsTheInputsWindows) {
 
 TEST_F(IoTest, WrittenDataWindowIsClippedToTheDisplayWindow) {
   // Overscan (data 9x7 at (-1,-1) around display 7x5) is read cropped: the output is the display window.
-  ExrLayout layout;
-  layout.width = 9;
-  layout.height = 7;
-  layout.x = -1;
-  layout.y = -1;
-  layout.fullWidth = 7;
-  layout.fullHeight = 5;
+  ExrLayout layout = windowed(9, 7, -1, -1, 7, 5);
   writeExr(file("overscan.exr"), plainRgba(), layout);
   Frame f = readFrame(file("overscan.exr"));
   writeImage(file("out.exr"), f.pass("color").view(), f.windows);
