@@ -53,8 +53,9 @@ temporary name renamed into place. The opened .blend is never saved.
 
 Exit codes: 0 done; 2 bad input (no camera, empty frame range, unwritable output, unknown method,
 bad arguments); 3 library missing or failing; 4 render failed, a file could not be written, or
-stopped by Ctrl-C, SIGTERM or SIGHUP (after the frame it was on); 5 a filter parameter refused (the
-panel's or --set's; crisp render exits 1 for it, as for a --set it refuses before Blender starts).
+stopped by Ctrl-C, SIGTERM or SIGHUP (after the frame it was on); 5 a filter parameter's value
+refused by the library (the panel's or --set's; crisp render exits 1 for it, as for a --set it refuses
+before Blender starts).
 Messages start with "crisp: error:".
 """
 
@@ -195,7 +196,14 @@ def scene_key(script_path):
 
 
 class PanelError(Exception):
-    """A setting of the scene's Crisp panel, or a --set over it, that cannot run (exit 5)."""
+    """A setting of the scene's Crisp panel, or a --set over it, that cannot run. exit: 2 for what crisp
+    render would call a usage error (an unknown method, a camera parameter for rsaa), 5 for a value the
+    library refuses; crisp render exits 2 and 1 for them, as when it refuses the same on its command line
+    before Blender starts."""
+
+    def __init__(self, message, exit=2):
+        super().__init__(message)
+        self.exit = exit
 
 
 def panel_settings(scene, method, jitter, given, use_panel=True):
@@ -269,11 +277,11 @@ def check_panel_params(method, params, from_panel, given):
     if from_file and not from_set:
         raise PanelError("%s's parameters from the scene's Crisp panel (%s: %s) are refused: %s; change them in the "
                          "panel (Render Properties > Crisp) or override them with --set"
-                         % (method, panel_source(), listed(from_file), bad))
+                         % (method, panel_source(), listed(from_file), bad), exit=5)
     sources = ["--set " + listed(from_set)]
     if from_file:
         sources.append("the scene's Crisp panel (%s: %s)" % (panel_source(), listed(from_file)))
-    raise PanelError("%s: %s (parameters from %s)" % (method, bad, " and ".join(sources)))
+    raise PanelError("%s: %s (parameters from %s)" % (method, bad, " and ".join(sources)), exit=5)
 
 
 def panel_line(method, jitter, from_panel):
@@ -343,7 +351,7 @@ def main(argv):
         if not args.no_filter:
             check_panel_params(method, params, from_panel, given)
     except PanelError as e:
-        fail(5, str(e))
+        fail(e.exit, str(e))
     except native.CrispError as e:
         fail(3, str(e))
     said = panel_line(method, jitter, from_panel)

@@ -1091,6 +1091,13 @@ def test_a_set_the_panel_completes_is_not_refused_before_blender(tmp_path):
     assert run_record(tmp_path / "ok")["params"] == {"feedbackMax": "0.95", "feedbackMin": "0.9"}
     p = render_panel(blend, tmp_path / "bad", "--method", "taa", "--set", "feedbackMin=0.97", "--plan", ok=False)
     assert p.returncode == 1 and "feedbackMin" in p.stderr and "Crisp panel" in p.stderr, p.stderr[-2000:]
+    # rsaa's camera given on the command line for the panel's rsaa: a usage error (2), as crisp says
+    # before Blender starts when --method names rsaa.
+    rsaa = panel_blend(tmp_path / "rsaa.blend", 's.method = "rsaa"')
+    for extra in ((), ("--method", "rsaa")):
+        p = render_panel(rsaa, tmp_path / "cam", "--set", "view01=0.5", "--plan", *extra, ok=False)
+        assert p.returncode == 2 and "--set view01: rsaa takes its camera from each frame's sidecar" in p.stderr, \
+            (extra, p.stderr[-2000:])
     # --no-panel: the library's defaults complete it, and crisp refuses it before Blender starts.
     p = render_panel(blend, tmp_path / "np", "--no-panel", "--method", "taa", "--set", "feedbackMin=0.9", "--plan",
                      ok=False)
