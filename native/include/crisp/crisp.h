@@ -151,7 +151,10 @@ CRISP_API void crispCommitFilter(CrispFilter filter);
 // size whose colour's alpha is below 1 somewhere (the alpha's history, about
 // 150 MB at 1920x1080, kept until the size changes, a reset included); small
 // blocks (per-row scratch, the thread pool's tasks) may be.
-// Temporal filters keep history between calls (below).
+// Temporal filters keep history between calls (below). Every filter's output
+// is finite: a colour value that is NaN reads as 0, one beyond +-65504 (+-Inf
+// included) as +-65504 (tests/fuzz/fuzz_filters.cpp checks it for taa,
+// taa-improved, phlm and rsaa).
 CRISP_API void crispExecuteFilter(CrispFilter filter);
 // Forgets temporal history: call it at a camera cut, a jump in time or a
 // change of lighting; the next frame is filtered as a first frame.
