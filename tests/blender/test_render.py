@@ -192,13 +192,14 @@ class BatchTest(unittest.TestCase):
             (["--frames", "1-2", "--library", "/nonexistent/libcrisp.so", "-o", out], blend, 3,
              "/nonexistent/libcrisp.so: no such file"),
             (["--frames", "1-2", "--resolution", "big", "-o", out], blend, 2, "bad --resolution"),
-            (["--frames", "1-2", "--set", "subpix=abc", "-o", out], blend, 2,
+            # A parameter value the library refuses: 5 (crisp render says 1, as for its own check).
+            (["--frames", "1-2", "--set", "subpix=abc", "-o", out], blend, 5,
              "parameter 'subpix' takes a number, not 'abc'"),
-            (["--frames", "1-2", "--set", "reference=maybe", "-o", out], blend, 2, "takes true or false"),
+            (["--frames", "1-2", "--set", "reference=maybe", "-o", out], blend, 5, "takes true or false"),
             # A rule the library checks at commit: found before frame 1 is rendered, not after.
-            (["--frames", "1-2", "--method", "repair", "--set", "patchSize=4", "-o", out], blend, 2, "must be odd"),
+            (["--frames", "1-2", "--method", "repair", "--set", "patchSize=4", "-o", out], blend, 5, "must be odd"),
             (["--frames", "1-2", "--method", "taa", "--set", "feedbackMin=0.9", "--set", "feedbackMax=0.8",
-              "-o", out], blend, 2, "must not exceed 'feedbackMax'"),
+              "-o", out], blend, 5, "must not exceed 'feedbackMax'"),
         ]
         for args, opened, code, message in cases:
             with self.subTest(args=args):
