@@ -243,6 +243,25 @@ std::string findManifest(const OIIO::ImageSpec& spec, const std::string& layer) 
   return std::string();
 }
 
+// A display window (x, y, width, height); the data window where the file gives none.
+struct DisplayWindow {
+  long long x = 0, y = 0, width = 0, height = 0;
+  bool operator!=(const DisplayWindow& o) const { return x != o.x || y != o.y || width != o.width || height != o.height; }
+  std::string text() const {
+    return std::to_string(width) + "x" + std::to_string(height) + " at (" + std::to_string(x) + "," +
+           std::to_string(y) + ")";
+  }
+};
+
+DisplayWindow displayWindow(const OIIO::ImageSpec& spec) {
+  DisplayWindow d;
+  d.x = spec.full_width > 0 ? spec.full_x : spec.x;
+  d.y = spec.full_height > 0 ? spec.full_y : spec.y;
+  d.width = spec.full_width > 0 ? spec.full_width : spec.width;
+  d.height = spec.full_height > 0 ? spec.full_height : spec.height;
+  return d;
+}
+
 // What every read needs of a file: a flat 2D image of a size it can hold.
 // `what` names the file in the messages ("'a.exr'", "mask 'm.exr'").
 void checkFlatImage(const OIIO::ImageSpec& spec, const std::string& what) {
@@ -251,8 +270,8 @@ void checkFlatImage(const OIIO::ImageSpec& spec, const std::string& what) {
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
     invalidData(what + " has an empty image (" + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
                 ", " + std::to_string(spec.nchannels) + " channels)");
-  const long long fullW = spec.full_width > 0 ? spec.full_width : spec.width;
-  const long long fullH = spec.full_height > 0 ? spec.full_height : spec.height;
+  const DisplayWindow display = displayWindow(spec);
+  const long long fullW = display.width, fullH = display.height;
   for (long long d : {(long long)spec.width, (long long)spec.height, fullW, fullH})
     if (d > kMaxDimension || (long long)spec.width * spec.height > kMaxPixels || fullW * fullH > kMaxPixels)
       invalidData(what + " has an unsupported size: data window " + std::to_string(spec.width) + "x" +
@@ -291,25 +310,6 @@ std::string partLabel(const std::vector<Part>& parts, int p) {
   const Part& part = parts[std::size_t(p)];
   return "part " + std::to_string(p + 1) + " of " + std::to_string(parts.size()) +
          (part.name.empty() ? std::string() : " ('" + part.name + "')");
-}
-
-// A display window (x, y, width, height); the data window where the file gives none.
-struct DisplayWindow {
-  long long x = 0, y = 0, width = 0, height = 0;
-  bool operator!=(const DisplayWindow& o) const { return x != o.x || y != o.y || width != o.width || height != o.height; }
-  std::string text() const {
-    return std::to_string(width) + "x" + std::to_string(height) + " at (" + std::to_string(x) + "," +
-           std::to_string(y) + ")";
-  }
-};
-
-DisplayWindow displayWindow(const OIIO::ImageSpec& spec) {
-  DisplayWindow d;
-  d.x = spec.full_width > 0 ? spec.full_x : spec.x;
-  d.y = spec.full_height > 0 ? spec.full_y : spec.y;
-  d.width = spec.full_width > 0 ? spec.full_width : spec.width;
-  d.height = spec.full_height > 0 ? spec.full_height : spec.height;
-  return d;
 }
 
 }  // namespace
