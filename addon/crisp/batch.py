@@ -219,13 +219,12 @@ def panel_settings(scene, method, jitter, given, use_panel=True):
     False (--no-panel): the command line and the defaults only."""
     import bpy
     from crisp import native, properties
+    from_panel = {"method": False, "jitter": False, "params": {}}
     if not use_panel:
-        return method or DEFAULT_METHOD, jitter or DEFAULT_JITTER, dict(given), \
-            {"method": False, "jitter": False, "params": {}}
+        return method or DEFAULT_METHOD, jitter or DEFAULT_JITTER, dict(given), from_panel
     if "crisp" not in bpy.types.Scene.bl_rna.properties:
         properties.register()  # reads the library's tables, when it loads, for the methods' parameters
     settings = scene.crisp
-    from_panel = {"method": False, "jitter": False, "params": {}}
     if method is None and settings.is_property_set("method"):
         method = settings.method
         if not method:  # a number this add-on's list does not hold (a method of a newer library)
