@@ -240,7 +240,7 @@
 #include "core/parallel.h"
 #include "filters/phlm_feature.h"
 #include "filters/phlm_stage.h"
-#include "filters/temporal_alpha.h"
+#include "filters/temporal_filter.h"
 #include "temporal/history_fetch.h"
 #include "temporal/hold_release.h"
 #include "temporal/isa.h"
@@ -1783,20 +1783,10 @@ std::vector<ParamSpec> phlmParams() {
   return specs;
 }
 
-class PhlmFilter final : public Filter {
+class PhlmFilter final : public TemporalFilter<phlm::Kernel<float>> {
  public:
-  explicit PhlmFilter(Context& c)
-      : Filter(c, phlmParams(),
-               {{"color", true, 3, 4, false, "linear RGB(A) colour, 1 jittered sample per pixel"},
-                {"motion", false, 2, 4, false,
-                 "motion vectors in pixels, previous - current, y down (absent: static scene, no reprojection)"},
-                {"depth", false, 1, 4, false, "planar depth (channel 0): closest-depth velocity, disocclusion"},
-                {"output", true, 3, 4, false, "anti-aliased linear colour; alpha anti-aliased as well when below 1 (temporal_alpha.h)"}}) {}
+  explicit PhlmFilter(Context& c) : TemporalFilter(c, phlmParams(), temporalImageRoles(kTemporalDepthMeaning)) {}
   const char* type() const override { return "phlm"; }
-  void reset() override {
-    kernel_.reset();
-    alpha_.reset();
-  }
 
  protected:
   void onCommit() override {
@@ -1827,23 +1817,17 @@ class PhlmFilter final : public Filter {
     reference_ = p.getBool("reference");
     // Re-committing for a new jitter keeps the state; a new size starts over.
     kernel_.allocate(width(), height(), hasImage("motion"), hasImage("depth"));
-    alpha_.allocate(width(), height(), hasImage("depth"));
+    allocateAlpha();
   }
   void onExecute() override {
     phlm::Inputs in;
-    in.color = inputApartFromOutput("color");
-    if (hasImage("motion")) in.motion = inputApartFromOutput("motion");
-    if (hasImage("depth")) in.depth = inputApartFromOutput("depth");
-    in.output = image("output");
+    readCommonInputs(in);
     kernel_.run(in, settings_, reference_, numThreads());
     alpha_.run(in.color, kernel_.alphaBelowOneLastFrame(), in.motion, in.depth, in.output, settings_, reference_, numThreads());
   }
 
  private:
   phlm::Settings settings_;
-  bool reference_ = false;
-  phlm::Kernel<float> kernel_;
-  TemporalAlpha alpha_;
 };
 
 }  // namespace

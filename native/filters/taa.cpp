@@ -199,7 +199,7 @@
 #include "core/parallel.h"
 #include "core/row_stage.h"
 #include "filters/taa_rows.h"
-#include "filters/temporal_alpha.h"
+#include "filters/temporal_filter.h"
 #include "temporal/color_space.h"
 #include "temporal/history_fetch.h"
 #include "temporal/hold_release.h"
@@ -626,20 +626,10 @@ void readSettings(const ParamSet& p, const char* filterName, Settings& settings)
 
 namespace {
 
-class TaaFilter final : public Filter {
+class TaaFilter final : public TemporalFilter<taa::Kernel> {
  public:
-  explicit TaaFilter(Context& c)
-      : Filter(c, taa::parameterSpecs(),
-               {{"color", true, 3, 4, false, "linear RGB(A) colour, 1 jittered sample per pixel"},
-                {"motion", false, 2, 4, false,
-                 "motion vectors in pixels, previous - current, y down (absent: static scene, no reprojection)"},
-                {"depth", false, 1, 4, false, "planar depth (channel 0): closest-depth velocity, disocclusion"},
-                {"output", true, 3, 4, false, "anti-aliased linear colour; alpha anti-aliased as well when below 1 (temporal_alpha.h)"}}) {}
+  explicit TaaFilter(Context& c) : TemporalFilter(c, taa::parameterSpecs(), temporalImageRoles(kTemporalDepthMeaning)) {}
   const char* type() const override { return "taa"; }
-  void reset() override {
-    kernel_.reset();
-    alpha_.reset();
-  }
 
  protected:
   void onCommit() override {
@@ -648,23 +638,17 @@ class TaaFilter final : public Filter {
     reference_ = p.getBool("reference");
     // Re-committing for a new jitter keeps the history; a new size starts over.
     kernel_.allocate(width(), height(), hasImage("depth"));
-    alpha_.allocate(width(), height(), hasImage("depth"));
+    allocateAlpha();
   }
   void onExecute() override {
     taa::Inputs in;
-    in.color = inputApartFromOutput("color");
-    if (hasImage("motion")) in.motion = inputApartFromOutput("motion");
-    if (hasImage("depth")) in.depth = inputApartFromOutput("depth");
-    in.output = image("output");
+    readCommonInputs(in);
     kernel_.run(in, settings_, reference_, numThreads());
     alpha_.run(in.color, kernel_.alphaBelowOneLastFrame(), in.motion, in.depth, nullptr, in.output, settings_, reference_, numThreads());
   }
 
  private:
   taa::Settings settings_;
-  bool reference_ = false;
-  taa::Kernel kernel_;
-  TemporalAlpha alpha_;
 };
 
 }  // namespace

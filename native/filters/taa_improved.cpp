@@ -51,7 +51,7 @@
 #include "core/parallel.h"
 #include "core/row_stage.h"
 #include "filters/taa_improved_rows.h"
-#include "filters/temporal_alpha.h"
+#include "filters/temporal_filter.h"
 #include "temporal/isa.h"
 #include "temporal/lanes.h"
 
@@ -351,23 +351,15 @@ std::vector<ParamSpec> improvedParams() {
   return specs;
 }
 
-class TaaImprovedFilter final : public Filter {
+class TaaImprovedFilter final : public TemporalFilter<taa_improved::Kernel> {
  public:
   explicit TaaImprovedFilter(Context& c)
-      : Filter(c, improvedParams(),
-               {{"color", true, 3, 4, false, "linear RGB(A) colour, 1 jittered sample per pixel"},
-                {"motion", false, 2, 4, false,
-                 "motion vectors in pixels, previous - current, y down (absent: static scene, no reprojection)"},
-                {"depth", false, 1, 4, false,
-                 "planar depth (channel 0): closest-depth velocity, disocclusion, depth Sobel and pseudo-variances"},
-                {"id", false, 1, 1, true, "object ids (Cryptomatte hash): modelAverage (eq. 4.1)"},
-                {"albedo", false, 3, 4, false, "unlit colour (Blender's DiffCol): unlit luminance Sobel"},
-                {"output", true, 3, 4, false, "anti-aliased linear colour; alpha anti-aliased as well when below 1 (temporal_alpha.h)"}}) {}
+      : TemporalFilter(c, improvedParams(),
+                       temporalImageRoles(
+                           "planar depth (channel 0): closest-depth velocity, disocclusion, depth Sobel and pseudo-variances",
+                           {{"id", false, 1, 1, true, "object ids (Cryptomatte hash): modelAverage (eq. 4.1)"},
+                            {"albedo", false, 3, 4, false, "unlit colour (Blender's DiffCol): unlit luminance Sobel"}})) {}
   const char* type() const override { return "taa-improved"; }
-  void reset() override {
-    kernel_.reset();
-    alpha_.reset();
-  }
 
  protected:
   void onCommit() override {
@@ -387,16 +379,13 @@ class TaaImprovedFilter final : public Filter {
     settings_.normalizedSharpen = p.getBool("normalizedSharpen");
     reference_ = p.getBool("reference");
     kernel_.allocate(width(), height(), hasImage("depth"));
-    alpha_.allocate(width(), height(), hasImage("depth"));
+    allocateAlpha();
   }
   void onExecute() override {
     taa_improved::Inputs in;
-    in.color = inputApartFromOutput("color");
-    if (hasImage("motion")) in.motion = inputApartFromOutput("motion");
-    if (hasImage("depth")) in.depth = inputApartFromOutput("depth");
+    readCommonInputs(in);
     if (hasImage("id")) in.id = inputApartFromOutput("id");
     if (hasImage("albedo")) in.albedo = inputApartFromOutput("albedo");
-    in.output = image("output");
     kernel_.run(in, settings_, reference_, numThreads());
     // The alpha, steered by the colour's aliasedValue plane (temporal_alpha.h).
     alpha_.run(in.color, kernel_.baseline().alphaBelowOneLastFrame(), in.motion, in.depth, kernel_.steering(settings_),
@@ -405,9 +394,6 @@ class TaaImprovedFilter final : public Filter {
 
  private:
   taa_improved::Settings settings_;
-  bool reference_ = false;
-  taa_improved::Kernel kernel_;
-  TemporalAlpha alpha_;
 };
 
 }  // namespace
