@@ -164,12 +164,21 @@ def param_group(settings, method):
     return getattr(settings, group_name(method), None) if method in _param_classes else None
 
 
+def param_value(group, method, ident):
+    """The value of a method's parameter as the renders and the viewport preview send it. A choice a
+    saved file holds that this library no longer offers reads "" in Blender (its number matches no item;
+    the file keeps the number, so an add-on and library that offer it again show it again): it is given
+    by its name (saved_choice), which the library refuses by name ("'ycocg' is not one of: rgb") rather
+    than a filter taking another choice."""
+    value = getattr(group, ident)
+    if value == "" and group.bl_rna.properties[ident].type == "ENUM" and group.get(ident) is not None:
+        value = saved_choice(method, ident, group.get(ident)) or value
+    return value
+
+
 def changed_params(settings, method):
-    """{library name: value} of the parameters that differ from the library's defaults. A choice a saved
-    file holds that this library no longer offers reads "" in Blender (its number matches no item; the
-    file keeps the number, so an add-on and library that offer it again show it again): it is given by
-    its name (saved_choice), which the library refuses by name ("'ycocg' is not one of: rgb") before
-    a run, rather than a run taking another choice."""
+    """{library name: value} of the parameters that differ from the library's defaults (param_value:
+    a saved choice the library no longer offers by its name, refused before a run)."""
     group = param_group(settings, method)
     out = {}
     if group is None:
@@ -178,9 +187,7 @@ def changed_params(settings, method):
         ident = prop.identifier
         if ident in ("rna_type", "name"):
             continue
-        value = getattr(group, ident)
-        if prop.type == "ENUM" and value == "" and group.get(ident) is not None:
-            value = saved_choice(method, ident, group.get(ident)) or value
+        value = param_value(group, method, ident)
         default = prop.default
         if isinstance(value, float) and abs(value - default) < 1e-7:
             continue

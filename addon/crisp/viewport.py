@@ -108,8 +108,9 @@ def _settings(context):
 
 def _filter_params(context, method):
     """The scene's parameters for `method` (scene.crisp, built from the library's table) that the GPU
-    version has, and taa's filterSize from the scene's Film > Filter Size; defaults when the add-on's
-    settings are unavailable."""
+    version has, as the renders send them (properties.param_value: a saved choice the library no longer
+    offers by its name, so the panel's refusal names it), and taa's filterSize from the scene's Film >
+    Filter Size; defaults when the add-on's settings are unavailable."""
     from . import gpu_filters
     out = {}
     try:
@@ -120,7 +121,7 @@ def _filter_params(context, method):
     if group is not None:
         for name in gpu_filters.DEFAULTS[method]:
             if hasattr(group, name):
-                out[name] = getattr(group, name)
+                out[name] = properties.param_value(group, method, name)
     if "filterSize" in gpu_filters.DEFAULTS[method]:  # as the renders are filtered (pipeline.with_scene_filter_size)
         from . import pipeline
         out["filterSize"] = max(float(context.scene.render.filter_size), pipeline.MIN_FILTER_SIZE)

@@ -233,6 +233,24 @@ class SavedChoiceTest(unittest.TestCase):
             bad = native.check_params("taa", properties.changed_params(s, "taa"))
             self.assertIn("clipSpace", bad or "")
 
+    def test_the_viewport_preview_sends_a_dropped_choice_by_its_name(self):
+        """The viewport preview sends the scene's parameters as the renders do (properties.param_value): a
+        saved choice the library no longer offers by its name, so the library's refusal the panel shows
+        says which choice of which parameter is not offered ("parameter 'clipSpace' = 'ycocg' is not one
+        of: rgb"). It sent "", and the panel read "= '' is not one of". (The preview draws only with a
+        window; what it checks with the library is this.)"""
+        from crisp import viewport
+        s = bpy.context.scene.crisp
+        s.taa.clipSpace, s.taa.historyFilter = "ycocg", "bilinear"
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "shot.blend")
+            bpy.ops.wm.save_as_mainfile(filepath=path)
+            s = self.reopen(path, lambda m, p, c: [x for x in c if x != "ycocg"])
+        self.assertEqual(s.taa.clipSpace, "")
+        sent = viewport._filter_params(bpy.context, "taa")
+        self.assertEqual((sent["clipSpace"], sent["historyFilter"]), ("ycocg", "bilinear"))
+        self.assertEqual(sent["clipSpace"], properties.changed_params(s, "taa")["clipSpace"])
+
 
 if __name__ == "__main__":
     harness.run(SavedMethodTest, SavedChoiceTest)
