@@ -171,41 +171,54 @@ _PASS_THROUGH = {"CompositorNodeRLayers", "CompositorNodeComposite", "Compositor
                  "NodeFrame", "NodeGroupInput", "NodeGroupOutput"}
 
 
-def _changes(node):
-    if node.bl_idname in _PASS_THROUGH or node.mute or node.get(NODE_TAG):
+def _is_result(node):
+    """Whether a node shows Crisp's filtered frames as they are: Crisp's node, or a node of a Crisp result
+    group, the user's own too (add_to_compositor leaves that untagged), unless the group holds more than
+    result_group puts there (a copy the user edited, which keeps the tag)."""
+    if node.bl_idname != "CompositorNodeGroup" or node.mute:
         return False
-    # A node of a Crisp result group, the user's own too (add_to_compositor leaves that untagged), unless
-    # the group holds more than result_group puts there (a copy the user edited, which keeps the tag).
-    tree = node.node_tree if node.bl_idname == "CompositorNodeGroup" else None
-    return not (tree is not None and FOLDER_TAG in tree
-                and {n.bl_idname for n in tree.nodes} <= {"CompositorNodeImage", "NodeGroupOutput"})
+    tree = node.node_tree
+    return bool(node.get(NODE_TAG)) or (tree is not None and FOLDER_TAG in tree and {
+        n.bl_idname for n in tree.nodes} <= {"CompositorNodeImage", "NodeGroupOutput"})
+
+
+def _changes(node):
+    return not (node.bl_idname in _PASS_THROUGH or node.mute or _is_result(node))
+
+
+def _links(tree):
+    """The tree's links that carry an image (not muted, not invalid)."""
+    return [link for link in tree.links if link.is_valid and not getattr(link, "is_muted", False)]
+
+
+def _reached(start, step):
+    """The names of the nodes reached from `start` (nodes) through step(node) (nodes), start's own too."""
+    todo, seen = list(start), {n.name for n in start}
+    while todo:
+        for other in step(todo.pop()):
+            if other.name not in seen:
+                seen.add(other.name)
+                todo.append(other)
+    return seen
 
 
 def changes_the_image(scene):
     """Whether the scene's compositor would change its rendered frames: a node that feeds its Composite
-    output (every node where there is none) other than the pass-through ones, muted ones and Crisp's
-    result groups."""
+    output (every node where there is none) other than the pass-through ones, muted ones, Crisp's result
+    groups and the nodes those feed (the artist's grade of Crisp's frames, composited as the run's note
+    says to)."""
     tree = scene.node_tree if scene.use_nodes and scene.render.use_compositing else None
     if tree is None:
         return False
-    feeding = [n for n in tree.nodes if n.bl_idname == "CompositorNodeComposite"]
-    if not feeding:
-        return any(_changes(n) for n in tree.nodes)
-    upstream = {}
-    for link in tree.links:
-        if getattr(link, "is_muted", False) or not link.is_valid:
-            continue
+    links = _links(tree)
+    upstream, downstream = {}, {}
+    for link in links:
         upstream.setdefault(link.to_node.name, []).append(link.from_node)
-    seen = {n.name for n in feeding}
-    while feeding:
-        node = feeding.pop()
-        if _changes(node):
-            return True
-        for source in upstream.get(node.name, ()):
-            if source.name not in seen:
-                seen.add(source.name)
-                feeding.append(source)
-    return False
+        downstream.setdefault(link.from_node.name, []).append(link.to_node)
+    of_crisp = _reached([n for n in tree.nodes if _is_result(n)], lambda n: downstream.get(n.name, ()))
+    outputs = [n for n in tree.nodes if n.bl_idname == "CompositorNodeComposite"]
+    feeding = _reached(outputs, lambda n: upstream.get(n.name, ())) if outputs else {n.name for n in tree.nodes}
+    return any(_changes(tree.nodes[name]) for name in feeding - of_crisp)
 
 
 def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):

@@ -1364,6 +1364,38 @@ class AddonTest(unittest.TestCase):
             for s in (lower, copy, solo, original, namesake):
                 bpy.data.scenes.remove(s)
 
+    def test_no_compositor_note_for_nodes_after_crisps_result(self):
+        """The run's note that the compositor is not applied to Crisp's frames is for nodes that change the
+        render: the artist's nodes after Crisp's result node (a grade of the filtered frames, where the note
+        says to apply the compositor) do apply it to them, and are not noted (they were, on every run). A
+        node that changes the render before it is mixed with Crisp's frames still is."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        scene.use_nodes = scene.render.use_compositing = True
+        tree = scene.node_tree
+        tree.nodes.clear()
+        layers, composite = tree.nodes.new("CompositorNodeRLayers"), tree.nodes.new("CompositorNodeComposite")
+        tree.links.new(layers.outputs["Image"], composite.inputs["Image"])
+        with tempfile.TemporaryDirectory() as d:
+            img = bpy.data.images.new("stand_in", 8, 4)  # a stand-in filtered frame
+            img.filepath_raw, img.file_format = os.path.join(d, "frame_0001.png"), "PNG"
+            img.save()
+            node = compositor.load_result(scene, d, 1, 1, ext=".png")
+            grade = tree.nodes.new("CompositorNodeColorBalance")
+            tree.links.new(node.outputs["Image"], grade.inputs["Image"])
+            tree.links.new(grade.outputs["Image"], composite.inputs["Image"])
+            logged = []
+            pipeline.run(scene, "fxaa", [1], os.path.join(d, "run"), filter_frames=False, log=logged.append)
+            self.assertFalse(any("compositor is not applied" in line for line in logged), logged)
+            glare, mix = tree.nodes.new("CompositorNodeGlare"), tree.nodes.new("CompositorNodeMixRGB")
+            tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
+            tree.links.new(grade.outputs["Image"], mix.inputs[1])
+            tree.links.new(glare.outputs["Image"], mix.inputs[2])
+            tree.links.new(mix.outputs["Image"], composite.inputs["Image"])
+            pipeline.run(scene, "fxaa", [1], os.path.join(d, "run"), filter_frames=False, log=logged.append)
+            self.assertTrue(any("compositor is not applied" in line for line in logged), logged)
+            bpy.data.images.remove(img)
+
     def test_compositor_group_per_folder(self):
         scene = harness.build_scene("still_life")
         with tempfile.TemporaryDirectory() as d:
