@@ -13,6 +13,7 @@ GROUP_NAME = "Crisp Result"
 FOLDER_TAG = "crisp_folder"  # custom property of a result group: the folder whose frames it shows
 NAME_TAG = "crisp_name"  # custom property of a result group: the name Crisp gave it (another: the artist's)
 NODE_TAG = "crisp_result"  # custom property of the node Crisp put in a scene's compositor
+WIRED_TAG = "crisp_wired"  # custom property of that node: the Composite output took its image once
 
 
 def group_name(scene):
@@ -143,10 +144,10 @@ def result_group(scene, folder, image, frame_start, frame_end):
 
 
 def add_to_compositor(scene, group):
-    """Puts one group node in the scene's compositor (turning it on); leaves existing links alone. The
-    node Crisp put there before (tagged; it may show the group of the scene's earlier folder, or of
-    the scene it was copied from), or a node of the one group all scenes shared before, is switched
-    to the group; nodes the user added are left alone."""
+    """Puts one group node in the scene's compositor (turning it on); leaves existing links alone (the
+    Composite output's are load_result's, _wire_output). The node Crisp put there before (tagged; it may
+    show the group of the scene's earlier folder, or of the scene it was copied from), or a node of the
+    one group all scenes shared before, is switched to the group; nodes the user added are left alone."""
     scene.use_nodes = True
     tree = scene.node_tree
     groups = [n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup"]
@@ -186,9 +187,15 @@ def _changes(node):
     return not (node.bl_idname in _PASS_THROUGH or node.mute or _is_result(node))
 
 
-def _links(tree):
-    """The tree's links that carry an image (not muted, not invalid)."""
-    return [link for link in tree.links if link.is_valid and not getattr(link, "is_muted", False)]
+def _graph(tree):
+    """({node name: nodes feeding it}, {node name: nodes it feeds}) over the links that carry an image
+    (not muted, not invalid)."""
+    upstream, downstream = {}, {}
+    for link in tree.links:
+        if link.is_valid and not getattr(link, "is_muted", False):
+            upstream.setdefault(link.to_node.name, []).append(link.from_node)
+            downstream.setdefault(link.from_node.name, []).append(link.to_node)
+    return upstream, downstream
 
 
 def _reached(start, step):
@@ -202,6 +209,10 @@ def _reached(start, step):
     return seen
 
 
+def _outputs(tree):
+    return [n for n in tree.nodes if n.bl_idname == "CompositorNodeComposite"]
+
+
 def changes_the_image(scene):
     """Whether the scene's compositor would change its rendered frames: a node that feeds its Composite
     output (every node where there is none) other than the pass-through ones, muted ones, Crisp's result
@@ -210,15 +221,66 @@ def changes_the_image(scene):
     tree = scene.node_tree if scene.use_nodes and scene.render.use_compositing else None
     if tree is None:
         return False
-    links = _links(tree)
-    upstream, downstream = {}, {}
-    for link in links:
-        upstream.setdefault(link.to_node.name, []).append(link.from_node)
-        downstream.setdefault(link.from_node.name, []).append(link.to_node)
+    upstream, downstream = _graph(tree)
     of_crisp = _reached([n for n in tree.nodes if _is_result(n)], lambda n: downstream.get(n.name, ()))
-    outputs = [n for n in tree.nodes if n.bl_idname == "CompositorNodeComposite"]
+    outputs = _outputs(tree)
     feeding = _reached(outputs, lambda n: upstream.get(n.name, ())) if outputs else {n.name for n in tree.nodes}
     return any(_changes(tree.nodes[name]) for name in feeding - of_crisp)
+
+
+def _output_takes_result(tree):
+    """Whether a Composite output takes the image of a Crisp result node (through any nodes)."""
+    upstream, _ = _graph(tree)
+    feeding = _reached(_outputs(tree), lambda n: upstream.get(n.name, ()))
+    return any(_is_result(tree.nodes[name]) for name in feeding)
+
+
+def _straight_from_render(socket, output):
+    """Whether an input takes the `output` socket of a Render Layers node straight (Blender's default tree)."""
+    link = socket.links[0] if socket.is_linked else None
+    return (link is not None and link.is_valid and not getattr(link, "is_muted", False)
+            and link.from_node.bl_idname == "CompositorNodeRLayers" and link.from_socket.identifier == output)
+
+
+def _wire_output(tree, node):
+    """Links Crisp's node into the Composite output where that takes the render as Blender's default tree
+    does (its Image unlinked or straight from Render Layers; its Alpha too where linked straight from
+    them), so that the render (F12, an animation) is the filtered frames. Where the artist's nodes are
+    between (a grade), their tree is not rewired: output_note says how to connect it. Once for a node
+    (WIRED_TAG, also when the artist connected it): one who links the render back afterwards chose to,
+    and a later load or run leaves it so. A Viewer is left alone: it shows what the artist last looked
+    at (Ctrl+Shift+click), not what is rendered."""
+    if not node.get(NODE_TAG) or node.get(WIRED_TAG):
+        return
+    if not _output_takes_result(tree):
+        for out in _outputs(tree):
+            image, alpha = out.inputs["Image"], out.inputs.get("Alpha")  # (no Alpha input on later Blenders)
+            if image.is_linked and not _straight_from_render(image, "Image"):
+                continue
+            tree.links.new(node.outputs["Image"], image)
+            if alpha is not None and _straight_from_render(alpha, "Alpha"):
+                tree.links.new(node.outputs["Alpha"], alpha)
+    if _output_takes_result(tree):
+        node[WIRED_TAG] = True
+
+
+def output_note(scene):
+    """What to tell the artist when the scene's render does not take Crisp's frames from the compositor
+    (it is then the unfiltered render), else None."""
+    tree = scene.node_tree if scene.use_nodes else None
+    if tree is None:
+        return None
+    if not _outputs(tree):
+        return ("the compositor has no Composite node, so the render (F12) is not the filtered frames: add "
+                "one and link the 'Crisp Result' node's Image output into it")
+    if not _output_takes_result(tree):
+        return ("the compositor's Composite node does not take the filtered frames, so the render (F12) is the "
+                "unfiltered one: link the 'Crisp Result' node's Image output into Composite's Image, or into "
+                "your nodes where the Render Layers Image goes in")
+    if not scene.render.use_compositing:
+        return ("Post Processing > Compositing is off, so the render (F12) is not the filtered frames of the "
+                "'Crisp Result' node: turn it on to render them")
+    return None
 
 
 def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
@@ -234,7 +296,9 @@ def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
     image = load_sequence(path(first), "Crisp " + scene.name)
     group = result_group(scene, filtered_dir, image, first, frame_end)
     image.name = "Crisp " + scene.name  # the name of the image it replaced, if that held it
-    return add_to_compositor(scene, group)
+    node = add_to_compositor(scene, group)
+    _wire_output(scene.node_tree, node)
+    return node
 
 
 def preview(path, context=None):

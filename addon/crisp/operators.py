@@ -261,6 +261,9 @@ class CRISP_OT_render(_FrameByFrame, bpy.types.Operator):
             made = [e["frame"] for e in result["frames"]]
             if s.load_result and made:
                 compositor.load_result(scene, os.path.join(out, "filtered"), frames[0], made[-1])
+                unwired = compositor.output_note(scene)
+                if unwired and not compositor.changes_the_image(scene):  # (else the run's note said so)
+                    log("note: " + unwired)
         except self.ERRORS:
             _report_notes(self, notes)  # what the run said before it failed still holds
             raise
@@ -333,6 +336,9 @@ class CRISP_OT_load_result(bpy.types.Operator):
         warnings = pipeline.sequence_warnings(out, list(range(scene.frame_start, scene.frame_end + 1)))
         if warnings:  # loaded all the same: the user sees what they have, and why it may not be one run
             self.report({"WARNING"}, "Crisp: " + "; ".join(warnings))
+        unwired = compositor.output_note(scene)
+        if unwired:  # the artist's tree, not rewired: how to connect it
+            self.report({"WARNING"}, "Crisp: " + unwired)
         return {"FINISHED"}
 
 

@@ -284,9 +284,7 @@ class OperatorTest(unittest.TestCase):
         tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
         tree.links.new(glare.outputs["Image"], composite.inputs["Image"])
 
-        def links(t):
-            return sorted((l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier)
-                          for l in t.links)
+        links = self.links
 
         self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
         self.assertEqual(links(tree), [("Glare", "Image", "Composite", "Image"),
@@ -327,6 +325,84 @@ class OperatorTest(unittest.TestCase):
         self.assertEqual((links(tree), links(group)), wired)
         self.assertEqual({n.name: tuple(n.location) for t in (tree, group) for n in t.nodes}, placed)
         self.assertEqual((frames.frame_start, frames.frame_duration, frames.frame_offset), (1, 3, 0))
+
+    @staticmethod
+    def links(tree):
+        return sorted((l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier)
+                      for l in tree.links)
+
+    def test_the_render_takes_the_loaded_frames(self):
+        """Render with Crisp loading its frames into Blender's default compositor (Render Layers ->
+        Composite) links Crisp's node into Composite, so the render (F12) is the filtered frames; it left
+        them beside it, and the render was the unfiltered one unless the artist wired it. Linked once: the
+        artist who takes the render back into Composite afterwards keeps it, on later runs and loads too,
+        which say how to connect the frames again."""
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = self.small_scene(1, 1, load_result=True)
+        reports = io.StringIO()
+        with contextlib.redirect_stdout(reports):
+            self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        self.assertNotIn("Composite", reports.getvalue())
+        tree = scene.node_tree
+        node, = [n for n in tree.nodes if n.get(compositor.NODE_TAG)]
+        composite, layers = tree.nodes["Composite"], tree.nodes["Render Layers"]
+        self.assertEqual([l.from_node for l in composite.inputs["Image"].links], [node])
+        tree.links.new(layers.outputs["Image"], composite.inputs["Image"])  # the artist's choice
+        wired = self.links(tree)
+        for op in (bpy.ops.crisp.render, bpy.ops.crisp.load_result):
+            reports = io.StringIO()
+            with contextlib.redirect_stdout(reports):
+                self.assertEqual(op(), {"FINISHED"})
+            self.assertEqual(self.links(tree), wired, op)
+            self.assertIn("Warning: Crisp: the compositor's Composite node does not take the filtered frames",
+                          reports.getvalue())
+
+    def test_loading_leaves_the_artists_compositing_and_says_how_to_connect(self):
+        """Load into Compositor with the artist's nodes between Render Layers and Composite (a glare) does
+        not rewire their tree: it says how to connect Crisp's node. The Viewer is left showing what the
+        artist last looked at. Once their tree takes the render straight again, a load links Crisp's node
+        into Composite, its Alpha too where Composite takes the render's."""
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = self.small_scene(1, 1, load_result=False)
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        scene.use_nodes = True
+        tree = scene.node_tree
+        tree.nodes.clear()
+        layers, composite = tree.nodes.new("CompositorNodeRLayers"), tree.nodes.new("CompositorNodeComposite")
+        glare, viewer = tree.nodes.new("CompositorNodeGlare"), tree.nodes.new("CompositorNodeViewer")
+        tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
+        tree.links.new(glare.outputs["Image"], composite.inputs["Image"])
+        tree.links.new(layers.outputs["Alpha"], composite.inputs["Alpha"])
+        tree.links.new(layers.outputs["Image"], viewer.inputs["Image"])
+        theirs = self.links(tree)
+        reports = io.StringIO()
+        with contextlib.redirect_stdout(reports):
+            self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        self.assertEqual(self.links(tree), theirs)
+        self.assertIn("Warning: Crisp: the compositor's Composite node does not take the filtered frames, so the "
+                      "render (F12) is the unfiltered one: link the 'Crisp Result' node's Image output into",
+                      reports.getvalue())
+        tree.nodes.remove(glare)
+        tree.links.new(layers.outputs["Image"], composite.inputs["Image"])
+        reports = io.StringIO()
+        with contextlib.redirect_stdout(reports):
+            self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+        self.assertNotIn("Composite", reports.getvalue())
+        node, = [n for n in tree.nodes if n.get(compositor.NODE_TAG)]
+        image, alpha = (node.outputs[name].identifier for name in ("Image", "Alpha"))
+        self.assertEqual(self.links(tree), sorted([(node.name, image, "Composite", "Image"),
+                                                   (node.name, alpha, "Composite", "Alpha"),
+                                                   ("Render Layers", "Image", "Viewer", "Image")]))
+        # The render does not take them either with the compositor off, or without a Composite node.
+        scene.render.use_compositing = False
+        self.addCleanup(setattr, scene.render, "use_compositing", True)
+        for change, expected in ((lambda: None, "Post Processing > Compositing is off"),
+                                 (lambda: tree.nodes.remove(composite), "the compositor has no Composite node")):
+            change()
+            reports = io.StringIO()
+            with contextlib.redirect_stdout(reports):
+                self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+            self.assertIn("Warning: Crisp: " + expected, reports.getvalue())
 
     def test_a_deleted_result_group_is_made_again_in_the_same_node(self):
         """The artist deletes Crisp's group (Outliner, Blender File > Node Groups > Delete): Crisp's node
