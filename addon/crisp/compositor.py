@@ -3,7 +3,8 @@
 cannot run its own code as a compositor node, BLENDER.md), and a still-frame preview in the Image
 Editor. A group belongs to a folder of filtered frames (tagged with it), so scenes with their own
 output folders (output_folder.py) have their own groups, named "Crisp Result: <scene>" (after a renamed
-scene on its next load)."""
+scene on its next load). The group's node is linked into Composite where that takes the render straight
+(_wire_output), so the render is the filtered frames."""
 
 import os
 

@@ -324,7 +324,8 @@ class CRISP_OT_load_result(bpy.types.Operator):
     bl_idname = "crisp.load_result"
     bl_label = "Load into Compositor"
     bl_options = UNDOABLE
-    bl_description = "Load the filtered sequence into this scene's compositor node group 'Crisp Result: <scene>'"
+    bl_description = ("Load the filtered sequence into this scene's compositor node group 'Crisp Result: <scene>', "
+                      "linked into Composite where that takes the render straight (Blender's default compositor)")
 
     def execute(self, context):
         scene = context.scene
