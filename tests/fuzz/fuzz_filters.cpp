@@ -85,7 +85,6 @@ const char* const kTypes[] = {"taa", "taa-improved", "phlm", "rsaa"};
 struct Buffer {
   std::vector<float> data;
   CrispFormat format = CRISP_FORMAT_UNDEFINED;
-  bool isOutput = false;
   int w = 0, h = 0, channels = 0;
   std::size_t pixelFloats = 0, rowFloats = 0;
 };
@@ -126,8 +125,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (images.empty() || params.empty()) __builtin_trap();  // the table itself is broken
 
   int w = 16 - r.byte() % 16, h = 16 - r.byte() % 16;  // 16x16 once the bytes run out
-  std::deque<Buffer> buffers;  // push_back keeps references valid: `output` and `current` stay valid
-  const Buffer* output = nullptr;
+  std::deque<Buffer> buffers;  // push_back keeps references valid: `current` and `output` stay valid
+  crisp_fuzz::OutputView output;  // the output the filter writes, for the finite check
   std::map<std::string, Buffer*> current;  // the buffer each role's image is (the filter kept it)
   // Pixel values from a few bytes, not one a value (so the bytes reach the steps): a pattern of
   // edges and ramps, then a few values anywhere, extreme ones among them.
@@ -148,15 +147,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (name == "output" || in->w != w || in->h != h || in->format < CRISP_FORMAT_FLOAT3 ||
             in->format > CRISP_FORMAT_FLOAT4)
           continue;
-        crispGetError(nullptr);
-        crispSetFilterImage(f, "output", in->data.data(), in->format, std::size_t(in->w), std::size_t(in->h),
-                            in->pixelFloats * 4, in->rowFloats * 4);
-        if (crispGetError(nullptr) == CRISP_ERROR_NONE) current["output"] = in, output = in;
+        if (crisp_fuzz::setImage(f, "output", in->data.data(), in->format, std::size_t(in->w), std::size_t(in->h),
+                                 in->pixelFloats * 4, in->rowFloats * 4, &output))
+          current["output"] = in;
         return;
       }
     }
     Buffer buf;
-    buf.isOutput = role.name == "output";
     const std::uint8_t shape = r.byte();
     buf.w = shape % 16 == 15 ? 1 + r.byte() % 16 : w;  // another size now and then: refused at commit
     buf.h = shape % 16 == 14 ? 1 + r.byte() % 16 : h;
@@ -187,14 +184,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       }
     buffers.push_back(std::move(buf));
     Buffer& b = buffers.back();
-    crispGetError(nullptr);
-    crispSetFilterImage(f, role.name.c_str(), b.data.data(), format, std::size_t(b.w), std::size_t(b.h),
-                        b.pixelFloats * 4, b.rowFloats * 4);
-    // The output the filter writes: a refused image (a format it does not take) leaves the one before.
-    if (crispGetError(nullptr) == CRISP_ERROR_NONE) {
+    // A refused image (a format the role does not take) leaves the one before, the output's too.
+    if (crisp_fuzz::setImage(f, role.name.c_str(), b.data.data(), format, std::size_t(b.w), std::size_t(b.h),
+                             b.pixelFloats * 4, b.rowFloats * 4, &output))
       current[role.name] = &b;
-      if (b.isOutput) output = &b;
-    }
   };
   auto setParam = [&](const Param& p) {
     const std::uint8_t how = r.byte();
@@ -228,7 +221,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (r.byte() % 8 == 0) {
           crispUnsetFilterImage(f, role.name.c_str());
           current.erase(role.name);
-          if (role.name == "output") output = nullptr;
+          if (role.name == "output") output = {};
         } else {
           setImage(role);
         }
@@ -256,22 +249,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         break;
       }
       default: {
-        crispGetError(nullptr);  // this step's errors only
         crispCommitFilter(f);
-        const bool committed = crispGetError(nullptr) == CRISP_ERROR_NONE;
-        crispExecuteFilter(f);
-        if (committed && crispGetError(nullptr) == CRISP_ERROR_NONE && output && output->channels <= 4) {
-          for (int y = 0; y < output->h; ++y)
-            for (int x = 0; x < output->w; ++x)
-              for (int c = 0; c < output->channels; ++c)
-                if (!std::isfinite(output->data[y * output->rowFloats + x * output->pixelFloats + c]))
-                  __builtin_trap();  // a successful execute wrote a NaN or an infinity
-        }
+        crisp_fuzz::execute(f, output);  // its output finite if it reported no error
         break;
       }
     }
     crispGetError(nullptr);
   }
-  crisp_fuzz::finish(ctx, f);
+  crisp_fuzz::finish(ctx, f, output);
   return 0;
 }
