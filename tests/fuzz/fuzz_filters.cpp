@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
 // Fuzzes the filters fuzz_c_api leaves out (taa, taa-improved, phlm, rsaa)
 // over frame sequences: bytes pick the filter, one frame size, the images the
-// filter's own table offers (crispGetFilterInfo: names, channels, ID or not;
-// now and then another size or format; the output now and then in place, in
-// an input's buffer, as crisp.h allows), parameter values near and beyond
-// their limits, and a run of commits, executes, resets, new frame sizes (every
-// image set again) and new pixel values,
-// extreme ones (NaN, +-Inf, 1e30, denormals) included. A sequence must end in
+// filter's own table offers (crispGetFilterInfo, read once at start: names,
+// channels, ID or not; now and then another size or format; the output now
+// and then in place, in an input's buffer, as crisp.h allows), parameter
+// values near and beyond their limits, and a run of commits, executes, resets,
+// new frame sizes (every image set again) and new pixel values, extreme ones
+// (NaN, +-Inf, 1e30, denormals) included. A sequence must end in
 // results or recorded errors, never a crash; and an execute that reports no
 // error leaves every output value finite (the temporal methods' stability
 // contract, taa.h and phlm.h).
@@ -18,10 +18,14 @@
 // stage of scripts/test.sh runs the filters' unit tests under ASan + UBSan.
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <deque>
+#include <exception>
 #include <limits>
 #include <map>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -59,28 +63,209 @@ struct Param {
   std::vector<std::string> choices;
 };
 
-// The text of "key": "value" or "key": value after `from` (the library's own JSON, crisp.h).
-std::string field(const std::string& json, std::size_t from, std::size_t to, const std::string& key) {
-  const std::size_t k = json.find("\"" + key + "\": ", from);
-  if (k == std::string::npos || k >= to) return "";
-  std::size_t b = k + key.size() + 4;
-  if (json[b] == '"') return json.substr(b + 1, json.find('"', b + 1) - b - 1);
-  if (json[b] == '[') return json.substr(b + 1, json.find(']', b) - b - 1);
-  return json.substr(b, json.find_first_of(",}", b) - b);
-}
+// A JSON value, as crispGetFilterInfo's table holds them.
+struct Json {
+  enum Kind { Null, Bool, Number, String, Array, Object } kind = Null;
+  std::string text;                                   // a string's value; a number's or bool's literal
+  std::vector<Json> items;                            // an array's
+  std::vector<std::pair<std::string, Json>> members;  // an object's, in order
+};
 
-// Each {...} object of the array after "key" (objects hold no nested braces).
-std::vector<std::pair<std::size_t, std::size_t>> objects(const std::string& json, const std::string& key) {
-  std::vector<std::pair<std::size_t, std::size_t>> out;
-  std::size_t at = json.find("\"" + key + "\": [");
-  if (at == std::string::npos) return out;
-  const std::size_t end = json.find(']', json.find("}]", at));
-  for (std::size_t b = json.find('{', at); b != std::string::npos && b < end; b = json.find('{', b + 1))
-    out.emplace_back(b, json.find('}', b));
-  return out;
+// A strict reader of one JSON text (RFC 8259): objects, arrays, strings with their escapes, numbers,
+// true/false/null. Throws std::runtime_error naming the offset on anything else, so a table the
+// library ever writes differently fails at once rather than being misread.
+class JsonReader {
+ public:
+  explicit JsonReader(const std::string& text) : s_(text) {}
+  Json document() {
+    Json v = value(0);
+    space();
+    if (at_ != s_.size()) fail("text after the value");
+    return v;
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& what) const {
+    throw std::runtime_error(what + " at offset " + std::to_string(at_));
+  }
+  void space() {
+    while (at_ < s_.size() && (s_[at_] == ' ' || s_[at_] == '\t' || s_[at_] == '\n' || s_[at_] == '\r')) ++at_;
+  }
+  bool eat(char c) {
+    space();
+    if (at_ < s_.size() && s_[at_] == c) return ++at_, true;
+    return false;
+  }
+  void expect(char c) {
+    if (!eat(c)) fail(std::string("expected '") + c + "'");
+  }
+  bool digit() const { return at_ < s_.size() && s_[at_] >= '0' && s_[at_] <= '9'; }
+  Json value(int depth) {
+    if (depth > 64) fail("nesting too deep");
+    space();
+    if (at_ >= s_.size()) fail("a value expected, the end found");
+    Json v;
+    const char c = s_[at_];
+    if (c == '{') {
+      ++at_;
+      v.kind = Json::Object;
+      if (eat('}')) return v;
+      do {
+        space();
+        std::string key = string();
+        expect(':');
+        v.members.emplace_back(std::move(key), value(depth + 1));
+      } while (eat(','));
+      expect('}');
+    } else if (c == '[') {
+      ++at_;
+      v.kind = Json::Array;
+      if (eat(']')) return v;
+      do {
+        v.items.push_back(value(depth + 1));
+      } while (eat(','));
+      expect(']');
+    } else if (c == '"') {
+      v.kind = Json::String;
+      v.text = string();
+    } else if (s_.compare(at_, 4, "true") == 0 || s_.compare(at_, 5, "false") == 0) {
+      v.kind = Json::Bool;
+      v.text = c == 't' ? "true" : "false";
+      at_ += v.text.size();
+    } else if (s_.compare(at_, 4, "null") == 0) {
+      at_ += 4;
+    } else {  // -?(0|[1-9][0-9]*)(.[0-9]+)?([eE][+-]?[0-9]+)?
+      const std::size_t from = at_;
+      if (s_[at_] == '-') ++at_;
+      if (!digit()) fail("a value expected");
+      if (s_[at_] == '0') ++at_;
+      else
+        while (digit()) ++at_;
+      if (at_ < s_.size() && s_[at_] == '.') {
+        ++at_;
+        if (!digit()) fail("a digit expected after '.'");
+        while (digit()) ++at_;
+      }
+      if (at_ < s_.size() && (s_[at_] == 'e' || s_[at_] == 'E')) {
+        ++at_;
+        if (at_ < s_.size() && (s_[at_] == '+' || s_[at_] == '-')) ++at_;
+        if (!digit()) fail("a digit expected in the exponent");
+        while (digit()) ++at_;
+      }
+      v.kind = Json::Number;
+      v.text = s_.substr(from, at_ - from);
+    }
+    return v;
+  }
+  std::string string() {
+    if (at_ >= s_.size() || s_[at_] != '"') fail("a string expected");
+    ++at_;
+    std::string out;
+    for (;;) {
+      if (at_ >= s_.size()) fail("a string without its closing quote");
+      const char c = s_[at_++];
+      if (c == '"') return out;
+      if (static_cast<unsigned char>(c) < 0x20) fail("a control character in a string");
+      if (c != '\\') {
+        out += c;
+        continue;
+      }
+      if (at_ >= s_.size()) fail("an escape at the end");
+      switch (const char e = s_[at_++]) {
+        case '"': case '\\': case '/': out += e; break;
+        case 'b': out += '\b'; break;
+        case 'f': out += '\f'; break;
+        case 'n': out += '\n'; break;
+        case 'r': out += '\r'; break;
+        case 't': out += '\t'; break;
+        case 'u': {
+          unsigned code = 0;
+          for (int k = 0; k < 4; ++k, ++at_) {
+            const char h = at_ < s_.size() ? s_[at_] : 'x';
+            const int d = h >= '0' && h <= '9' ? h - '0' : h >= 'a' && h <= 'f' ? h - 'a' + 10
+                        : h >= 'A' && h <= 'F' ? h - 'A' + 10 : -1;
+            if (d < 0) fail("four hex digits expected after \\u");
+            code = code * 16 + unsigned(d);
+          }
+          // UTF-8 of the code unit (a surrogate pair's halves each alone: names never hold one).
+          if (code < 0x80) {
+            out += char(code);
+          } else if (code < 0x800) {
+            out += char(0xC0 | code >> 6), out += char(0x80 | (code & 0x3F));
+          } else {
+            out += char(0xE0 | code >> 12), out += char(0x80 | (code >> 6 & 0x3F)), out += char(0x80 | (code & 0x3F));
+          }
+          break;
+        }
+        default: fail(std::string("an unknown escape \\") + e);
+      }
+    }
+  }
+
+  const std::string& s_;
+  std::size_t at_ = 0;
+};
+
+// The member `key` of the object `o`, of the kind asked for; throws if it is missing or another kind.
+const Json& member(const Json& o, const char* key, Json::Kind kind) {
+  static const char* const kKinds[] = {"null", "a bool", "a number", "a string", "an array", "an object"};
+  if (o.kind != Json::Object) throw std::runtime_error(std::string("'") + key + "' looked up in " + kKinds[o.kind]);
+  for (const auto& [name, v] : o.members)
+    if (name == key) {
+      if (v.kind != kind)
+        throw std::runtime_error(std::string("'") + key + "' is " + kKinds[v.kind] + ", not " + kKinds[kind]);
+      return v;
+    }
+  throw std::runtime_error(std::string("no '") + key + "'");
+}
+double number(const Json& o, const char* key) { return std::strtod(member(o, key, Json::Number).text.c_str(), nullptr); }
+bool flag(const Json& o, const char* key) { return member(o, key, Json::Bool).text == "true"; }
+
+struct Table {
+  std::vector<ImageRole> images;
+  std::vector<Param> params;
+};
+
+// A filter's images and parameters from its crispGetFilterInfo JSON (crisp.h gives its shape); throws
+// if the text is not JSON of that shape.
+Table readTable(const std::string& info) {
+  const Json doc = JsonReader(info).document();
+  Table t;
+  for (const Json& image : member(doc, "images", Json::Array).items) {
+    ImageRole role;
+    role.name = member(image, "name", Json::String).text;
+    role.minChannels = int(number(image, "minChannels"));
+    role.maxChannels = int(number(image, "maxChannels"));
+    role.uint = flag(image, "uint");
+    role.required = flag(image, "required");
+    if (role.name.empty() || role.minChannels < 1 || role.maxChannels < role.minChannels)
+      throw std::runtime_error("image '" + role.name + "': no name, or a channel range that is empty");
+    t.images.push_back(role);
+  }
+  for (const Json& param : member(doc, "params", Json::Array).items) {
+    Param p;
+    p.name = member(param, "name", Json::String).text;
+    p.type = member(param, "type", Json::String).text;
+    if (p.type == "string") {
+      for (const Json& choice : member(param, "choices", Json::Array).items) {
+        if (choice.kind != Json::String) throw std::runtime_error("parameter '" + p.name + "': a choice not a string");
+        p.choices.push_back(choice.text);
+      }
+    } else if (p.type == "int" || p.type == "float") {
+      p.min = float(number(param, "min"));
+      p.max = float(number(param, "max"));
+      if (!(p.min <= p.max)) throw std::runtime_error("parameter '" + p.name + "': min above max");
+    } else if (p.type != "bool") {
+      throw std::runtime_error("parameter '" + p.name + "': unknown type '" + p.type + "'");
+    }
+    t.params.push_back(p);
+  }
+  if (t.images.empty() || t.params.empty()) throw std::runtime_error("no images or no parameters");
+  return t;
 }
 
 const char* const kTypes[] = {"taa", "taa-improved", "phlm", "rsaa"};
+std::vector<Table> gTables;  // kTypes' tables, read once (LLVMFuzzerInitialize)
 
 struct Buffer {
   std::vector<float> data;
@@ -91,38 +276,36 @@ struct Buffer {
 
 }  // namespace
 
+// Reads each filter's table once. One it cannot read stops the target here, with a message, before
+// any input: each input would fail on it, or misread it and fuzz something else.
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  for (const char* type : kTypes) {
+    CrispContext ctx = crispNewContext();
+    CrispFilter f = crispNewFilter(ctx, type);
+    const char* info = f ? crispGetFilterInfo(f) : nullptr;
+    try {
+      if (!info) throw std::runtime_error("no filter or no table");
+      gTables.push_back(readTable(info));
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "fuzz_filters: filter '%s': its crispGetFilterInfo table is unreadable: %s\n%s\n", type,
+                   e.what(), info ? info : "");
+      std::abort();
+    }
+    crispReleaseFilter(f);
+    crispReleaseContext(ctx);
+    crispGetError(nullptr);
+  }
+  return 0;
+}
+
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   Reader r{{data, size}};
   CrispContext ctx = crispNewContext();
   crispSetContextInt(ctx, "numThreads", 1 + r.byte() % 2);
-  CrispFilter f = crispNewFilter(ctx, kTypes[r.byte() % 4]);
-  const std::string info = crispGetFilterInfo(f);
-  std::vector<ImageRole> images;
-  for (auto [b, e] : objects(info, "images")) {
-    ImageRole role;
-    role.name = field(info, b, e, "name");
-    role.minChannels = std::stoi(field(info, b, e, "minChannels"));
-    role.maxChannels = std::stoi(field(info, b, e, "maxChannels"));
-    role.uint = field(info, b, e, "uint") == "true";
-    role.required = field(info, b, e, "required") == "true";
-    images.push_back(role);
-  }
-  std::vector<Param> params;
-  for (auto [b, e] : objects(info, "params")) {
-    Param p;
-    p.name = field(info, b, e, "name");
-    p.type = field(info, b, e, "type");
-    if (p.type == "string") {
-      const std::string list = field(info, b, e, "choices");
-      for (std::size_t q = list.find('"'); q != std::string::npos; q = list.find('"', list.find('"', q + 1) + 1))
-        p.choices.push_back(list.substr(q + 1, list.find('"', q + 1) - q - 1));
-    } else if (p.type != "bool") {
-      p.min = std::stof(field(info, b, e, "min"));
-      p.max = std::stof(field(info, b, e, "max"));
-    }
-    params.push_back(p);
-  }
-  if (images.empty() || params.empty()) __builtin_trap();  // the table itself is broken
+  const int type = r.byte() % 4;
+  CrispFilter f = crispNewFilter(ctx, kTypes[type]);
+  const std::vector<ImageRole>& images = gTables[type].images;
+  const std::vector<Param>& params = gTables[type].params;
 
   int w = 16 - r.byte() % 16, h = 16 - r.byte() % 16;  // 16x16 once the bytes run out
   std::deque<Buffer> buffers;  // push_back keeps references valid: `current` and `output` stay valid
