@@ -7,15 +7,18 @@
 // values near and beyond their limits, and a run of commits, executes, resets,
 // new frame sizes (every image set again) and new pixel values, extreme ones
 // (NaN, +-Inf, 1e30, denormals) included. A sequence must end in
-// results or recorded errors, never a crash; and an execute that reports no
+// results or recorded errors, never a crash; an execute that reports no
 // error leaves every output value finite (the temporal methods' stability
-// contract, taa.h and phlm.h).
+// contract, taa.h and phlm.h); and a sequence that ran with the output in an
+// input's buffer writes the same values when run again with the output in a
+// buffer of its own (crisp.h).
 //
 // These filters' sources are built with coverage but without ASan/UBSan in
 // the fuzz build (native/CMakeLists.txt: instrumenting phlm.cpp alone took
 // 20 min of one core), so a bad access inside them shows here only as a
 // crash; the C API layer and the buffers are instrumented, and the sanitizer
 // stage of scripts/test.sh runs the filters' unit tests under ASan + UBSan.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -274,6 +277,46 @@ struct Buffer {
   std::size_t pixelFloats = 0, rowFloats = 0;
 };
 
+// What a run of a sequence wrote, for the comparison of the output in place with the output apart.
+struct Trace {
+  bool inPlace = false;  // an execute without error wrote into the buffer of an image it read
+  std::vector<std::pair<bool, std::vector<float>>> executes;  // each one's "no error", and what it wrote
+  std::vector<std::vector<float>> buffers;  // every buffer at the end (before finish)
+};
+
+// Equal bit for bit, or both NaN (the payload may differ).
+bool same(float a, float b) {
+  std::uint32_t x, y;
+  std::memcpy(&x, &a, 4);
+  std::memcpy(&y, &b, 4);
+  return x == y || (std::isnan(a) && std::isnan(b));
+}
+
+// A trap after a message saying where the two runs differ.
+[[noreturn]] void differ(const char* what, std::size_t at, std::size_t value, float inPlace, float apart) {
+  std::fprintf(stderr, "fuzz_filters: the output in place differs from the output apart: %s %zu, value %zu: %a vs %a\n",
+               what, at, value, double(inPlace), double(apart));
+  __builtin_trap();
+}
+
+void compare(const Trace& inPlace, const Trace& apart) {
+  if (inPlace.executes.size() != apart.executes.size() || inPlace.buffers.size() != apart.buffers.size())
+    differ("the number of executes or buffers", 0, 0, 0, 0);  // the same bytes: a harness bug
+  for (std::size_t i = 0; i < inPlace.executes.size(); ++i) {
+    const auto& [ok, values] = inPlace.executes[i];
+    const auto& [okApart, valuesApart] = apart.executes[i];
+    if (ok != okApart || values.size() != valuesApart.size())
+      differ("execute (an error or the output's size in one run only)", i, 0, ok, okApart);
+    for (std::size_t k = 0; k < values.size(); ++k)
+      if (!same(values[k], valuesApart[k])) differ("execute", i, k, values[k], valuesApart[k]);
+  }
+  // Also what was written where it should not be (an image's padding): every buffer at the end.
+  for (std::size_t i = 0; i < inPlace.buffers.size(); ++i)
+    for (std::size_t k = 0; k < std::min(inPlace.buffers[i].size(), apart.buffers[i].size()); ++k)
+      if (!same(inPlace.buffers[i][k], apart.buffers[i][k]))
+        differ("buffer", i, k, inPlace.buffers[i][k], apart.buffers[i][k]);
+}
+
 }  // namespace
 
 // Reads each filter's table once. One it cannot read stops the target here, with a message, before
@@ -298,7 +341,12 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
   return 0;
 }
 
-extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+namespace {
+
+// One run of the sequence the bytes make. `apart`: an output the bytes put in an input's buffer
+// gets a buffer of its own instead, and after each execute the input's buffer gets what the execute
+// wrote, so that every buffer holds what it holds in the run in place.
+void run(const std::uint8_t* data, std::size_t size, bool apart, Trace& trace) {
   Reader r{{data, size}};
   CrispContext ctx = crispNewContext();
   crispSetContextInt(ctx, "numThreads", 1 + r.byte() % 2);
@@ -311,6 +359,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   std::deque<Buffer> buffers;  // push_back keeps references valid: `current` and `output` stay valid
   crisp_fuzz::OutputView output;  // the output the filter writes, for the finite check
   std::map<std::string, Buffer*> current;  // the buffer each role's image is (the filter kept it)
+  Buffer* shared = nullptr;  // the input's buffer the output is in (apart: would be in), or none
+  std::deque<Buffer> apartOutputs;  // apart: the outputs' own buffers (not in `buffers`, which case 5 indexes)
   // Pixel values from a few bytes, not one a value (so the bytes reach the steps): a pattern of
   // edges and ramps, then a few values anywhere, extreme ones among them.
   auto fill = [&](Buffer& buf) {
@@ -330,9 +380,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (name == "output" || in->w != w || in->h != h || in->format < CRISP_FORMAT_FLOAT3 ||
             in->format > CRISP_FORMAT_FLOAT4)
           continue;
-        if (crisp_fuzz::setImage(f, "output", in->data.data(), in->format, std::size_t(in->w), std::size_t(in->h),
-                                 in->pixelFloats * 4, in->rowFloats * 4, &output))
-          current["output"] = in;
+        Buffer* target = in;
+        if (apart) {  // the same layout, filled without reading a byte: both runs read the same bytes
+          apartOutputs.push_back(*in);
+          target = &apartOutputs.back();
+          std::fill(target->data.begin(), target->data.end(), -1234.5f);  // an unwritten value shows
+        }
+        if (crisp_fuzz::setImage(f, "output", target->data.data(), in->format, std::size_t(in->w),
+                                 std::size_t(in->h), in->pixelFloats * 4, in->rowFloats * 4, &output))
+          current["output"] = target, shared = in;
         return;
       }
     }
@@ -369,8 +425,26 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     Buffer& b = buffers.back();
     // A refused image (a format the role does not take) leaves the one before, the output's too.
     if (crisp_fuzz::setImage(f, role.name.c_str(), b.data.data(), format, std::size_t(b.w), std::size_t(b.h),
-                             b.pixelFloats * 4, b.rowFloats * 4, &output))
+                             b.pixelFloats * 4, b.rowFloats * 4, &output)) {
       current[role.name] = &b;
+      if (role.name == "output") shared = nullptr;
+    }
+  };
+  // After an execute: what it wrote, for the comparison; apart, a copy in the input's buffer the
+  // output would have been in (the run in place wrote there).
+  auto executed = [&](bool ok) {
+    trace.executes.emplace_back(ok, std::vector<float>());
+    if (!ok || !output) return;
+    std::vector<float>& values = trace.executes.back().second;
+    for (std::size_t y = 0; y < output.height; ++y)
+      for (std::size_t x = 0; x < output.width; ++x)
+        for (int c = 0; c < output.channels; ++c) {
+          values.push_back(output.at(x, y, c));
+          if (shared && apart)
+            shared->data[y * shared->rowFloats + x * shared->pixelFloats + std::size_t(c)] = values.back();
+        }
+    for (const auto& [name, in] : current)
+      if (shared && name != "output" && in == shared) trace.inPlace = true;
   };
   auto setParam = [&](const Param& p) {
     const std::uint8_t how = r.byte();
@@ -404,7 +478,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (r.byte() % 8 == 0) {
           crispUnsetFilterImage(f, role.name.c_str());
           current.erase(role.name);
-          if (role.name == "output") output = {};
+          if (role.name == "output") output = {}, shared = nullptr;
         } else {
           setImage(role);
         }
@@ -433,12 +507,28 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       }
       default: {
         crispCommitFilter(f);
-        crisp_fuzz::execute(f, output);  // its output finite if it reported no error
+        executed(crisp_fuzz::execute(f, output));  // its output finite if it reported no error
         break;
       }
     }
     crispGetError(nullptr);
   }
+  for (const Buffer& b : buffers) trace.buffers.push_back(b.data);
   crisp_fuzz::finish(ctx, f, output);
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  Trace inPlace;
+  run(data, size, false, inPlace);
+  // crisp.h: the output may share an input's buffer, and the result is the same as with separate
+  // buffers. A sequence that ran so runs again from a fresh filter with the output apart; both must
+  // write the same values (a temporal filter's history makes the whole sequence matter).
+  if (inPlace.inPlace) {
+    Trace apart;
+    run(data, size, true, apart);
+    compare(inPlace, apart);
+  }
   return 0;
 }
