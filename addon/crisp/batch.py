@@ -248,12 +248,13 @@ def panel_source():
     return os.path.basename(bpy.data.filepath) or "the unsaved scene"
 
 
-def check_panel_params(method, params, from_panel, given):
+def check_panel_params(method, params, from_panel, given, way_out="override them with --set"):
     """The library's verdict on the run's parameters before anything renders, saying where the ones it
     names came from: PanelError naming the scene's Crisp panel when they are the panel's, else --set's
     (a --set crisp render could not check before Blender started, not knowing the method:
     cmd_render.cpp checks the command line's own values when it names the method or the scene is a
-    bundled one, whose panel is never set), or both (a rule between parameters)."""
+    bundled one, whose panel is never set), or both (a rule between parameters). way_out: the other
+    way out of a refused panel value than the panel itself (crisp eval has no --set: --no-panel)."""
     from crisp import native, properties
     panel = from_panel["params"]
     camera = sorted(set(given) & properties.RSAA_CAMERA_PARAMS) if method == "rsaa" else []
@@ -275,22 +276,25 @@ def check_panel_params(method, params, from_panel, given):
     listed = lambda values: ", ".join("%s=%s" % kv for kv in values.items())  # noqa: E731
     if from_file and not from_set:
         raise PanelError("%s's parameters from the scene's Crisp panel (%s: %s) are refused: %s; change them in the "
-                         "panel (Render Properties > Crisp) or override them with --set"
-                         % (method, panel_source(), listed(from_file), bad), exit=5)
+                         "panel (Render Properties > Crisp) or %s"
+                         % (method, panel_source(), listed(from_file), bad, way_out), exit=5)
     sources = ["--set " + listed(from_set)]
     if from_file:
         sources.append("the scene's Crisp panel (%s: %s)" % (panel_source(), listed(from_file)))
     raise PanelError("%s: %s (parameters from %s)" % (method, bad, " and ".join(sources)), exit=5)
 
 
-def panel_line(method, jitter, from_panel):
-    """The line saying what came from the panel ("" when nothing did): the jitter only for a method that
-    jitters, the parameters by name."""
+def panel_line(method, jitter, from_panel, command="render", jitters=None):
+    """The line saying what came from the panel ("" when nothing did), starting with the command's name:
+    the jitter only when it is used (jitters; default: for a method that jitters, as crisp render runs
+    one method), the parameters by name."""
     from crisp import plan as plan_mod
+    if jitters is None:
+        jitters = method in plan_mod.TEMPORAL_METHODS
     parts = []
     if from_panel["method"]:
         parts.append("method " + method)
-    if from_panel["jitter"] and method in plan_mod.TEMPORAL_METHODS:
+    if from_panel["jitter"] and jitters:
         parts.append("jitter " + jitter)
     params = from_panel["params"]
     if params:
@@ -299,7 +303,7 @@ def panel_line(method, jitter, from_panel):
     if not parts:
         return ""
     listed = parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
-    return "render: %s from the scene's Crisp panel (%s)" % (listed, panel_source())
+    return "%s: %s from the scene's Crisp panel (%s)" % (command, listed, panel_source())
 
 
 def main(argv):

@@ -4,7 +4,9 @@
     blender -b [SCENE.blend] --factory-startup --python-exit-code 1 --python <repo>/addon/crisp/batch_eval.py -- \\
         -o RENDERDIR --methods none,fxaa,taa [--frames A-B] [--resolution WxH] [--scene-script NAME]
         [--reference-samples 64] [--curve 1,2,4,8] [--smaa-threshold 0.2] [--progress-fd N]
-        [--filter-size-max METHOD=PX]...
+        [--filter-size-max METHOD=PX]... [--jitter DIST]
+    blender -b SCENE.blend --factory-startup --python-exit-code 1 --python <repo>/addon/crisp/batch_eval.py -- \
+        --read-panel [--jitter DIST] [--library PATH]
 
 Renders (eval_renders.py has the layout): EEVEE's curve (each count in --curve, always including 1),
 the 1-sample inputs of the methods whose plans need more than colour (jittered for temporal methods),
@@ -18,8 +20,20 @@ Progress: one line per render on file descriptor --progress-fd (default: stderr)
     `progress DONE TOTAL COST_DONE COST_TOTAL SECONDS_LEFT ITEM`
 where COST counts EEVEE samples (an SMAA pass counts 1), so the time left follows the real cost.
 
-Exit codes: 0 done; 2 bad input; 4 render failed (as batch.py).
+--read-panel (crisp eval's first step, before anything is rendered): reads the opened .blend's Crisp
+panel as crisp render does (batch.py panel_settings: the method and the jitter when the file set them,
+the panel's changed parameters of that method), has the library check the panel's values
+(batch.py check_panel_params) and prints one line `crisp-panel: {JSON}` with them (method, params,
+jitter, from_panel, file, and line: what came from the panel, said as crisp eval says it), then exits.
+crisp eval measures the panel's method and parameters as a row of their own and renders with its jitter
+unless --jitter is given (given here too, so the line leaves the panel's out). --library: libcrisp.so
+(the panel's parameters are the library's).
+
+Exit codes: 0 done; 2 bad input; 4 render failed (as batch.py); 3 library missing or failing and 5 a
+panel value the library refuses (--read-panel, as batch.py).
 """
+
+import json
 
 import argparse
 import os
@@ -37,7 +51,7 @@ def _argv():
 
 def make_parser():
     p = argparse.ArgumentParser(prog="batch_eval.py", description="Crisp eval renders (inside Blender)")
-    p.add_argument("-o", "--output", required=True)
+    p.add_argument("-o", "--output", default="")  # required but with --read-panel
     p.add_argument("--methods", default="none")
     p.add_argument("--frames", default="")
     p.add_argument("--warmup", type=int, default=0)  # crisp eval --warmup: checked here against the range
@@ -46,7 +60,9 @@ def make_parser():
     p.add_argument("--reference-samples", type=int, default=64)
     p.add_argument("--curve", default="1,2,4,8,16")
     p.add_argument("--smaa-threshold", type=float, default=None)
-    p.add_argument("--jitter", default="blackman-harris")
+    p.add_argument("--jitter", default=None)  # None: not given (batch.DEFAULT_JITTER; --read-panel: the panel's)
+    p.add_argument("--read-panel", action="store_true")
+    p.add_argument("--library", default="")
     p.add_argument("--progress-fd", type=int, default=-1)
     p.add_argument("--filter-size-max", action="append", default=[], metavar="METHOD=PX")
     return p
@@ -89,6 +105,24 @@ def parse_curve(text):
     return counts
 
 
+def read_panel(jitter):
+    """--read-panel: the opened .blend's Crisp panel, checked, as one line `crisp-panel: {JSON}`."""
+    import bpy
+    from crisp import batch, native
+    try:
+        method, jitter, params, from_panel = batch.panel_settings(bpy.context.scene, None, jitter, {})
+        batch.check_panel_params(method, params, from_panel, {}, way_out="run crisp eval with --no-panel")
+    except batch.PanelError as e:
+        batch.fail(e.exit, str(e))
+    except native.CrispError as e:
+        batch.fail(3, str(e))
+    record = {"file": batch.panel_source(), "method": method, "params": params, "jitter": jitter,
+              "from_panel": from_panel,
+              # eval renders every temporal method's inputs with the panel's jitter, whichever method it names
+              "line": batch.panel_line(method, jitter, from_panel, command="eval", jitters=True)}
+    print("crisp-panel: " + json.dumps(record), flush=True)
+
+
 def main(argv):
     import runpy
     import bpy
@@ -101,6 +135,15 @@ def main(argv):
     parser = make_parser()
     parser.error = lambda msg: fail(2, msg)
     args = parser.parse_args(argv)
+    if args.library:
+        os.environ["CRISP_LIBRARY"] = os.path.abspath(args.library)
+    if args.jitter is not None and args.jitter not in render.JITTER_DISTRIBUTIONS:
+        fail(2, "unknown --jitter '%s' (known: %s)" % (args.jitter, ", ".join(render.JITTER_DISTRIBUTIONS)))
+    if args.read_panel:
+        return read_panel(args.jitter)
+    if not args.output:
+        fail(2, "-o RENDERDIR is required")
+    args.jitter = args.jitter or batch.DEFAULT_JITTER
     progress = os.fdopen(args.progress_fd, "w", buffering=1) if args.progress_fd >= 0 else sys.stderr
     try:
         curve = parse_curve(args.curve)
@@ -109,8 +152,6 @@ def main(argv):
         fail(2, str(e))
     if args.reference_samples < 1:
         fail(2, "--reference-samples must be >= 1")
-    if args.jitter not in render.JITTER_DISTRIBUTIONS:
-        fail(2, "unknown --jitter '%s' (known: %s)" % (args.jitter, ", ".join(render.JITTER_DISTRIBUTIONS)))
     methods = [m for m in args.methods.split(",") if m]
 
     if args.scene_script:
