@@ -132,6 +132,17 @@ std::string sceneFingerprint(const ParsedArgs& args) {
   return "fnv1a64:" + hex64(hash);
 }
 
+bool readsScenePanel(const ParsedArgs& args) {
+  return !args.has("no-panel") && fs::path(args.get("scene")).extension() == ".blend";
+}
+
+void appendLibraryOption(std::vector<std::string>& cmd) {
+  const fs::path library = fs::path(executableDir()) / ".." / "lib" / "libcrisp.so";
+  if (!fs::exists(library)) return;
+  cmd.push_back("--library");
+  cmd.push_back(fs::canonical(library).string());
+}
+
 void appendJitterOption(const ParsedArgs& args, std::vector<std::string>& cmd) {
   if (!args.has("jitter")) return;
   const std::string dist = args.get("jitter");

@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
-#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -17,8 +16,6 @@
 #include "core/error.h"
 
 namespace crisp::cli {
-
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -56,7 +53,7 @@ int runRender(const ParsedArgs& args) {
     // (--set feedbackMin=0.9 with the panel's feedbackMax 0.95), so the rules between parameters are
     // batch.py's to check, with the values the run takes.
     Context context;
-    const bool panel = !args.has("no-panel") && fs::path(args.get("scene")).extension() == ".blend";
+    const bool panel = readsScenePanel(args);
     if (!panel || args.has("method"))
       configuredFilter(context, args.getOr("method", "fxaa"), args, /*betweenParams=*/!panel);
     else
@@ -85,11 +82,7 @@ int runRender(const ParsedArgs& args) {
   if (args.has("plan")) cmd.push_back("--plan-only");
   if (args.has("resume")) cmd.push_back("--resume");
   if (args.has("no-panel")) cmd.push_back("--no-panel");
-  const fs::path library = fs::path(executableDir()) / ".." / "lib" / "libcrisp.so";
-  if (fs::exists(library)) {
-    cmd.push_back("--library");
-    cmd.push_back(fs::canonical(library).string());
-  }
+  appendLibraryOption(cmd);
 
   // --quiet: Blender's and the driver's output (progress, EGL's notes) is read here and dropped,
   // except where a temporal history starts over (historyLines, said once Blender has ended) and the

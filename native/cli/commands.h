@@ -127,6 +127,12 @@ std::filesystem::path blenderOutputFolder(const ParsedArgs& args);
 // imports and the other bundled scenes it imports (light_switch: still_life).
 // Files the scene links or loads (textures, libraries) are not in it.
 std::string sceneFingerprint(const ParsedArgs& args);
+// Whether the run reads the --scene's Crisp panel (addon/crisp/batch.py
+// panel_settings): a .blend's, unless --no-panel (a bundled scene's is never set).
+bool readsScenePanel(const ParsedArgs& args);
+// Appends "--library PATH" for the driver when this build's libcrisp.so lies
+// beside the executable (../lib), so Blender loads the library crisp was built with.
+void appendLibraryOption(std::vector<std::string>& cmd);
 // Appends "--jitter DIST" for the driver when args has --jitter; a distribution
 // the add-on does not know (render.JITTER_DISTRIBUTIONS) is a UsageError.
 void appendJitterOption(const ParsedArgs& args, std::vector<std::string>& cmd);
