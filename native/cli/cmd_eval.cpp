@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <vector>
 
@@ -86,6 +87,69 @@ std::string blenderErrors(const fs::path& log) {
   return blenderErrorLines(std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()));
 }
 
+// A method spec (--methods' METHOD[:KEY=VALUE...], or the scene's panel's) checked as the library
+// checks it, before anything renders; what names it in a message comes first ("--methods 'X'").
+// Returns the method and all its parameters' values once set: two spellings of one setting
+// ("taa:sharpen=0.50", "taa:sharpen=.5", a default given) give the same, another setting another.
+std::string checkedMethodSpec(const std::string& m, const std::string& where) {
+  eval::MethodSpec spec;
+  try {
+    spec = eval::parseMethodSpec(m);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(where + ": " + e.what());
+  }
+  if (spec.method == "blender-smaa")
+    throw UsageError(where + ": blender-smaa takes no settings (Blender's Anti-Aliasing node, always measured, at "
+                     "the threshold eval_renders.py sets)");
+  if (!isFilterType(spec.method))
+    throw UsageError(where + ": unknown method '" + spec.method + "' (known: " + filterTypesJoined() +
+                     ", blender-smaa)");
+  Context context;
+  std::unique_ptr<Filter> probe = createFilter(context, spec.method);
+  try {
+    for (const auto& [key, value] : spec.params) probe->params().setFromText(key, value);
+    checkSettingsByCommit(context, spec.method, spec.params);  // rules a commit checks (an odd patchSize)
+  } catch (const Exception& e) {
+    throw UsageError(where + ": " + e.what());
+  }
+  std::string setting = spec.method;
+  const ParamSet& values = probe->params();
+  for (const ParamSpec& p : values.specs()) {
+    char number[32];
+    if (p.type == ParamType::Float) std::snprintf(number, sizeof number, "%.9g", double(values.getFloat(p.name)));
+    setting += std::string(" ") + p.name + "=" +
+               (p.type == ParamType::Int      ? std::to_string(values.getInt(p.name))
+                : p.type == ParamType::Float  ? std::string(number)
+                : p.type == ParamType::Bool   ? std::string(values.getBool(p.name) ? "true" : "false")
+                                              : values.getString(p.name));
+  }
+  return setting;
+}
+
+// The --scene's Crisp panel as batch_eval.py --read-panel reads it in Blender and has the library check
+// it (batch.py panel_settings, check_panel_params), before anything renders: its record into panel.
+// Returns 0, or the exit code once said: a value the library refuses exits 1 (2 for an unknown
+// method), as crisp render does.
+int readScenePanel(const ParsedArgs& args, nlohmann::json& panel) {
+  std::vector<std::string> cmd = blenderDriverCommand(args, "batch_eval.py");
+  cmd.push_back("--read-panel");
+  appendJitterOption(args, cmd);  // a --jitter given leaves the panel's out of its record
+  appendLibraryOption(cmd);
+  const BlenderRun run = runBlender(cmd, BlenderOutput::Captured);
+  if (!run.started) return 1;  // said by runBlender
+  const std::string marker = "crisp-panel: ";
+  std::istringstream lines(run.output);
+  for (std::string line; std::getline(lines, line);)
+    if (line.rfind(marker, 0) == 0) panel = nlohmann::json::parse(line.substr(marker.size()), nullptr, false);
+  if (run.signal == 0 && run.exitCode == 0 && panel.is_object()) return 0;
+  std::string errors = blenderErrorLines(run.output);
+  if (errors.empty())  // none recognised: the end of what it printed
+    errors = run.output.substr(run.output.size() - std::min<std::size_t>(run.output.size(), 2000));
+  std::fprintf(stderr, "crisp: error: Blender failed reading the scene's Crisp panel (%s %d):\n%s",
+               run.signal ? "signal" : "exit", run.signal ? run.signal : run.exitCode, errors.c_str());
+  return run.signal == 0 && run.exitCode == 2 ? 2 : 1;  // batch_eval.py: 5 a refused value, 3 the library
+}
+
 }  // namespace
 
 int runEval(const ParsedArgs& args) {
@@ -104,31 +168,17 @@ int runEval(const ParsedArgs& args) {
                      "1-sample frames alone)");
   methods.push_back("none");
   std::vector<std::string> rendered = {"none"};  // library methods whose inputs Blender renders
+  std::map<std::string, std::string> settingOf;  // method spec -> checkedMethodSpec's
+  auto addRendered = [&](const std::string& m) {
+    const std::string method = eval::parseMethodSpec(m).method;
+    if (std::find(rendered.begin(), rendered.end(), method) == rendered.end()) rendered.push_back(method);
+  };
   for (const std::string& m : asked) {
     if (m == "blender-smaa") continue;  // always measured
-    eval::MethodSpec spec;
-    try {
-      spec = eval::parseMethodSpec(m);
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(std::string("--methods: ") + e.what());
-    }
-    if (spec.method == "blender-smaa")
-      throw UsageError("--methods '" + m + "': blender-smaa takes no settings (Blender's Anti-Aliasing node, "
-                       "always measured, at the threshold eval_renders.py sets)");
-    if (!isFilterType(spec.method))
-      throw UsageError("--methods: unknown method '" + spec.method + "' (known: " + filterTypesJoined() +
-                       ", blender-smaa)");
     // Bad parameters are refused now, before anything is rendered.
-    Context context;
-    std::unique_ptr<Filter> probe = createFilter(context, spec.method);
-    try {
-      for (const auto& [key, value] : spec.params) probe->params().setFromText(key, value);
-      checkSettingsByCommit(context, spec.method, spec.params);  // rules a commit checks (an odd patchSize)
-    } catch (const Exception& e) {
-      throw UsageError("--methods '" + m + "': " + e.what());
-    }
+    settingOf[m] = checkedMethodSpec(m, "--methods '" + m + "'");
     if (std::find(methods.begin(), methods.end(), m) == methods.end()) methods.push_back(m);
-    if (std::find(rendered.begin(), rendered.end(), spec.method) == rendered.end()) rendered.push_back(spec.method);
+    addRendered(m);
   }
   std::string curve = args.getOr("curve", "");
   if (curve.empty()) {  // 1, 2, 4, ... below the reference's count
@@ -168,6 +218,43 @@ int runEval(const ParsedArgs& args) {
       throw UsageError(std::string("bad CRISP_EVAL_FILTER_SIZE '") + filterSize + "' (pixels, e.g. 0.5)");
     renderedSize = v;
   }
+  // The .blend's Crisp panel (readScenePanel): the method and changed parameters it set are measured as
+  // a row of their own (also when --methods leaves the method out: the panel's setting is what the scene
+  // renders with, the row eval is run to compare), beside that method's defaults, or are the row
+  // --methods gives for the same setting; its jitter is the renders' unless --jitter is given.
+  nlohmann::json panel;  // null: nothing came from a panel
+  std::string panelRow;
+  if (readsScenePanel(args)) {
+    if (const int code = readScenePanel(args, panel)) return code;
+    const nlohmann::json from = panel.value("from_panel", nlohmann::json::object());
+    if (from.value("method", false) || !from.value("params", nlohmann::json::object()).empty()) {
+      std::string spec = panel.value("method", std::string());
+      const nlohmann::json params = panel.value("params", nlohmann::json::object());
+      for (const auto& [key, value] : params.items())
+        spec += ":" + key + "=" + (value.is_string() ? value.get<std::string>() : value.dump());
+      const std::string setting = checkedMethodSpec(
+          spec, "the scene's Crisp panel (" + panel.value("file", std::string()) + ") as '" + spec + "'");
+      for (const std::string& m : methods)
+        if (panelRow.empty() && (m == spec || (settingOf.count(m) && settingOf[m] == setting))) panelRow = m;
+      if (panelRow.empty()) {  // after the last row of its method, else last
+        const std::string method = eval::parseMethodSpec(spec).method;
+        auto at = methods.end();
+        for (auto it = methods.begin(); it != methods.end(); ++it)
+          if (eval::parseMethodSpec(*it).method == method) at = it + 1;
+        methods.insert(at, spec);
+        panelRow = spec;
+      }
+      addRendered(panelRow);
+    }
+    if (panel.value("line", std::string()).empty()) {
+      panel = nullptr;
+    } else {
+      panel["row"] = panelRow.empty() ? nlohmann::json() : nlohmann::json(panelRow);
+      if (!quiet)
+        std::fprintf(stderr, "%s%s\n", panel["line"].get<std::string>().c_str(),
+                     panelRow.empty() ? "" : ("; measured as '" + panelRow + "'").c_str());
+    }
+  }
   // A temporal method filters with the renders' filter size (their sidecars, files.cpp bindJitter)
   // unless its settings give one. CRISP_EVAL_FILTER_SIZE is checked here; the scene's own Film >
   // Filter Size is known only in Blender, and batch_eval.py refuses one above what the method takes
@@ -193,6 +280,8 @@ int runEval(const ParsedArgs& args) {
   }
   std::vector<std::string> cmd = blenderDriverCommand(args, "batch_eval.py");
   appendJitterOption(args, cmd);
+  if (!panel.is_null() && panel["from_panel"].value("jitter", false))  // not given: readScenePanel passed --jitter
+    cmd.insert(cmd.end(), {"--jitter", panel["jitter"].get<std::string>()});
   cmd.insert(cmd.end(), sizeLimits.begin(), sizeLimits.end());
   makeDirectories(outDir.string());
   const fs::path renders = outDir / "renders", logs = outDir / "logs";
@@ -275,6 +364,7 @@ int runEval(const ParsedArgs& args) {
   o.command = commandLine();
   o.blenderSeconds = blenderSeconds;
   o.warmup = warmup;
+  o.panel = panel;
   int rc = eval::run(o);
   if (rc == 0) std::printf("report: %s\n", (outDir / "report.html").c_str());
   return rc;

@@ -525,7 +525,7 @@ json figuresJson(const Entry& e, const EdgeFigures& x, int meanFrom) {
     if (kv.first >= meanFrom) edge.push_back(kv.second);
   for (const auto& kv : x.geometryS) geo.push_back(kv.second);
   json j = {{"name", e.name}, {"kind", e.kind}, {"samples", e.samples}, {"input", e.inputSet},
-            {"temporal", e.temporal}, {"error", e.error.empty() ? json(nullptr) : json(e.error)},
+            {"temporal", e.temporal}, {"panel", e.panel}, {"error", e.error.empty() ? json(nullptr) : json(e.error)},
             {"mean", {{"psnr", e.psnr}, {"ssim", e.ssim}, {"perceptual_error", e.flip},
                       {"temporal_error", e.temporalError}, {"time_s", e.timeS}, {"render_s", e.renderS},
                       {"filter_s", e.filterS}, {"psnr_geometric_edges", mean(edge)},
@@ -605,6 +605,7 @@ int run(const Options& o) {
     e.name = m;
     e.method = parseMethodSpec(m).method;
     e.kind = "method";
+    e.panel = o.panel.is_object() && o.panel.value("row", json()) == json(m);
     std::string set = scene["inputs"].value(e.method, std::string("eevee_1"));
     e.inputSet = set;
     const json& plan = scene["plans"].contains(e.method) ? scene["plans"][e.method] : json::object();
@@ -941,6 +942,8 @@ int run(const Options& o) {
       {"plans", scene.value("plans", json::object())},
       {"facts", facts},
       {"jitter_distribution", scene.value("jitter_distribution", std::string())},
+      // What came from the .blend's Crisp panel (its method and parameters: the row "row" names; its jitter).
+      {"panel", o.panel},
       // Film > Filter Size (px): the jitter's spread, EEVEE's pixel filter (the reference's, the
       // curve's) and the temporal methods' filterSize unless their settings give one (runMethod).
       {"filter_size", scene.value("filter_size", json())},

@@ -24,6 +24,8 @@ struct Options {
   std::string command;               // the exact command line, for the page
   double blenderSeconds = 0;         // wall time of the Blender stage in this run
   int warmup = 0;                    // the first frames: measured and listed, left out of the error means
+  nlohmann::json panel;              // what came from the .blend's Crisp panel (batch_eval.py --read-panel's
+                                     // record; "row": the method spec measuring its setting), null: nothing
 };
 
 struct FrameFigures {
@@ -58,6 +60,7 @@ struct Entry {
   std::string inputSet;  // renders/<set> its input came from
   bool temporal = false;
   bool subsamplesRendered = true;  // false: its plan renders no geometric sub-samples (rsaa, nothing visible)
+  bool panel = false;    // the setting of the scene's Crisp panel (Options::panel "row")
   std::string error;     // not empty: the method failed, this says why
   std::vector<FrameFigures> frames;
   double psnr = kNaN, ssim = kNaN, flip = kNaN, temporalError = kNaN;

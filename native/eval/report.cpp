@@ -175,7 +175,7 @@ Every method filters the 1-sample render; time per frame = that render + the fil
 let rows = "";
 const best = Math.max(...ok.map(m => m.mean.psnr));
 for (const m of S.methods) {
-  rows += `<tr class="${m.error ? "fail" : (m.mean.psnr === best ? "best" : "")}"><td class="l"><i style="display:inline-block;width:10px;height:10px;background:${colour[m.name]}"></i> ${esc(m.name)}${m.temporal ? " <small>(temporal)</small>" : ""}</td>
+  rows += `<tr class="${m.error ? "fail" : (m.mean.psnr === best ? "best" : "")}"><td class="l"><i style="display:inline-block;width:10px;height:10px;background:${colour[m.name]}"></i> ${esc(m.name)}${m.temporal ? " <small>(temporal)</small>" : ""}${m.panel ? " <small>(the scene's Crisp panel)</small>" : ""}</td>
 <td>${fmt(m.mean.psnr, 2)}</td><td>${fmt(m.mean.ssim, 4)}</td><td>${fmt(m.mean.perceptual_error, 4)}</td><td>${fmt(m.mean.temporal_error, 5)}</td>
 <td>${m.error ? "–" : ms(m.mean.render_s)}</td><td>${ms(m.mean.filter_s)}</td><td>${ms(m.mean.time_s)}</td><td>${eq(m)}</td><td>${m.pareto ? "&#9679;" : ""}</td>
 <td class="l">${m.error ? "<span class=err>FAILED: " + esc(m.error) + "</span>" : esc(m.input)}</td></tr>`;
@@ -274,7 +274,8 @@ h(`<h2>How this was made</h2><table>
 <tr><th class="l">run time</th><td class="l">Blender renders ${fmt(R.run_seconds.blender, 1)} s (this run; resumed frames not re-rendered), methods + measurements ${fmt(R.run_seconds.methods_and_measures, 1)} s</td></tr>
 <tr><th class="l">metrics</th><td class="l">${esc(R.metrics_note)}</td></tr>
 <tr><th class="l">blender-smaa</th><td class="l">Blender's compositor Anti-Aliasing node (SMAA 1×) on the 1-sample frames: node threshold ${short(smaa.threshold)} (= SMAA threshold ${short(smaa.smaa_threshold)}), contrast limit ${short(smaa.contrast_limit)}, corner rounding ${short(smaa.corner_rounding)}; its time includes loading and writing the image. ${esc(smaa.note || "")}</td></tr>
-<tr><th class="l">temporal inputs</th><td class="l">jitter ${esc(S.jitter_distribution)} (Halton 2,3); sidecar y up, passed to the library as jitterY = −y${fin(S.filter_size) ? `; Film &gt; Filter Size ${short(S.filter_size)} px (the Blackman-Harris jitter's spread, EEVEE's pixel filter and the temporal methods' filterSize, unless their settings give one)` : ""}</td></tr>
+${S.panel ? `<tr><th class="l">Crisp panel</th><td class="l">${esc(S.panel.line)}${S.panel.row ? ` (row <b>${esc(S.panel.row)}</b>)` : ""}</td></tr>` : ""}
+<tr><th class="l">temporal inputs</th><td class="l">jitter ${esc(S.jitter_distribution)}${S.panel && S.panel.from_panel.jitter ? " (the scene's Crisp panel's)" : ""} (Halton 2,3); sidecar y up, passed to the library as jitterY = −y${fin(S.filter_size) ? `; Film &gt; Filter Size ${short(S.filter_size)} px (the Blackman-Harris jitter's spread, EEVEE's pixel filter and the temporal methods' filterSize, unless their settings give one)` : ""}</td></tr>
 </table><details><summary>Pass plans</summary><pre>${esc(JSON.stringify(S.plans, null, 1))}</pre></details>`);
 
 // Self-check: every image decoded, every chart drawn.

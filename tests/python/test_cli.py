@@ -157,7 +157,9 @@ def test_eval_output_relative_to_the_blend_file_is_beside_it(tmp_path):
     blend.parent.mkdir()
     blend.write_bytes(b"BLENDER")  # never opened: no Blender is there to start
     name = "crisp_eval_%d" % os.getpid()
-    p = run("eval", "--scene", blend, "--frames", "1", "-o", "//" + name, "--blender", tmp_path / "none", ok=False)
+    # --no-panel: reading the panel needs Blender before the folder is made (test_eval_stops_before_...)
+    p = run("eval", "--scene", blend, "--frames", "1", "-o", "//" + name, "--blender", tmp_path / "none",
+            "--no-panel", ok=False)
     assert p.returncode != 0
     assert (blend.parent / name).is_dir(), p.stderr
     assert not os.path.exists("/" + name), "made at the root folder"
@@ -1102,3 +1104,88 @@ def test_a_set_the_panel_completes_is_not_refused_before_blender(tmp_path):
     p = render_panel(blend, tmp_path / "np", "--no-panel", "--method", "taa", "--set", "feedbackMin=0.9", "--plan",
                      ok=False)
     assert p.returncode == 1 and "must not exceed 'feedbackMax'" in p.stderr, p.stderr[-2000:]
+
+
+# crisp eval and the scene's Crisp panel: the panel's setting is measured as a row of its own beside the
+# library's defaults, with the panel's jitter (addon/crisp/batch_eval.py --read-panel, cli/cmd_eval.cpp).
+def eval_panel(blend, out, *args, ok=True):
+    p = subprocess.run([str(CRISP), "eval", "--scene", str(blend), "--resolution", "32x18", "--frames", "1-2",
+                        "--reference-samples", "4", "--curve", "1", "-o", str(out), *map(str, args)],
+                       capture_output=True, text=True, timeout=600)
+    if ok:
+        assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
+    return p
+
+
+def eval_results(out):
+    """(the rows' names, the panel's row names, the scene's record) of out/results.json."""
+    scene = json.loads((out / "results.json").read_text())["scenes"][0]
+    return [m["name"] for m in scene["methods"]], [m["name"] for m in scene["methods"] if m["panel"]], scene
+
+
+def input_jitter(out, scene, row):
+    """The jitter distribution the sidecar of the row's last input frame records."""
+    the_input = next(m["input"] for m in scene["methods"] if m["name"] == row)
+    return json.loads((out / "renders" / the_input / "frame_0002.json").read_text())["jitter"]["distribution"]
+
+
+@needs_blender
+def test_eval_measures_the_panels_setting_as_a_row_of_its_own(panel_taa, tmp_path):
+    """The panel's taa with sharpen 0.5 is measured as the row taa:sharpen=0.5, also when --methods leaves
+    taa out, with the panel's uniform jitter; said in one line and recorded. A --methods entry of the
+    same setting is its row, not a second one; --jitter replaces the panel's; --no-panel leaves the
+    panel out. Before, eval measured the library's defaults with blackman-harris alone. One folder
+    throughout: a resume takes each run's jitter and rows."""
+    out = tmp_path / "out"
+    p = eval_panel(panel_taa, out, "--methods", "fxaa")
+    assert "eval: method taa, jitter uniform and 1 parameter (sharpen=0.5) from the scene's Crisp panel " \
+           "(shot.blend); measured as 'taa:sharpen=0.5'" in p.stderr, p.stderr[-3000:]
+    names, panel_rows, scene = eval_results(out)
+    assert names == ["none", "fxaa", "taa:sharpen=0.5", "blender-smaa"] and panel_rows == ["taa:sharpen=0.5"]
+    assert (scene["panel"]["method"], scene["panel"]["params"], scene["panel"]["row"]) == (
+        "taa", {"sharpen": "0.5"}, "taa:sharpen=0.5"), scene["panel"]
+    assert scene["jitter_distribution"] == "uniform" and input_jitter(out, scene, "taa:sharpen=0.5") == "uniform"
+    assert (out / "methods" / "taa:sharpen=0.5" / "frame_0002.exr").is_file()
+
+    p = eval_panel(panel_taa, out, "--methods", "taa,taa:sharpen=0.50", "--jitter", "blackman-harris")
+    assert "eval: method taa and 1 parameter (sharpen=0.5) from the scene's Crisp panel (shot.blend); measured " \
+           "as 'taa:sharpen=0.50'" in p.stderr, p.stderr[-3000:]
+    names, panel_rows, scene = eval_results(out)
+    assert names == ["none", "taa", "taa:sharpen=0.50", "blender-smaa"] and panel_rows == ["taa:sharpen=0.50"]
+    assert scene["jitter_distribution"] == "blackman-harris" and not scene["panel"]["from_panel"]["jitter"]
+    assert input_jitter(out, scene, "taa") == "blackman-harris"
+
+    p = eval_panel(panel_taa, out, "--methods", "taa", "--no-panel")
+    assert "Crisp panel" not in p.stderr, p.stderr[-3000:]
+    names, panel_rows, scene = eval_results(out)
+    assert names == ["none", "taa", "blender-smaa"] and not panel_rows and scene["panel"] is None
+    assert scene["jitter_distribution"] == "blackman-harris"
+
+
+@needs_blender
+def test_eval_of_an_untouched_panel_adds_nothing(tmp_path):
+    """A panel never touched sets nothing: no row, no line, no record; a panel that changed only fxaa's
+    parameters (its method left at fxaa, as crisp render then runs) adds fxaa's setting."""
+    out = tmp_path / "out"
+    p = eval_panel(panel_blend(tmp_path / "plain.blend", ""), out, "--methods", "fxaa")
+    assert "Crisp panel" not in p.stderr, p.stderr[-3000:]
+    names, panel_rows, scene = eval_results(out)
+    assert names == ["none", "fxaa", "blender-smaa"] and not panel_rows and scene["panel"] is None
+    out = tmp_path / "fxaa"
+    p = eval_panel(panel_blend(tmp_path / "fxaa_only.blend", "s.fxaa.subpix = 0.5"), out, "--methods", "none")
+    assert "eval: 1 parameter (subpix=0.5) from the scene's Crisp panel (fxaa_only.blend); measured as " \
+           "'fxaa:subpix=0.5'" in p.stderr, p.stderr[-3000:]
+    assert eval_results(out)[:2] == (["none", "fxaa:subpix=0.5", "blender-smaa"], ["fxaa:subpix=0.5"])
+
+
+@needs_blender
+def test_eval_stops_before_rendering_at_a_panel_value_the_library_refuses(tmp_path):
+    """taa's feedbackMin above its feedbackMax in the panel: eval exits 1 (as crisp render) naming the
+    parameter and the panel, before anything renders or the output folder is made."""
+    blend = panel_blend(tmp_path / "bad.blend", 's.method = "taa"; s.taa.feedbackMin = 0.95')
+    out = tmp_path / "out"
+    p = eval_panel(blend, out, "--methods", "fxaa", ok=False)
+    assert p.returncode == 1, p.stderr[-3000:]
+    assert "taa's parameters from the scene's Crisp panel (bad.blend: feedbackMin=0.95) are refused" in p.stderr \
+           and "feedbackMax" in p.stderr and "--no-panel" in p.stderr, p.stderr[-3000:]
+    assert not out.exists()
