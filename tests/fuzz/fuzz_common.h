@@ -1,14 +1,18 @@
 // SPDX-License-Identifier: Apache-2.0
 // What the C API fuzz targets share: their view of libFuzzer's bytes (values
 // read in order, zeros once the bytes run out, so every input is a whole
-// sequence of calls), the check of an execute's output and the end of every
-// sequence.
+// sequence of calls), the check of an execute's output, the end of every
+// sequence, and the comparison of a sequence run with the output in place
+// against the same sequence run with the output apart.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "crisp/crisp.h"
@@ -91,6 +95,87 @@ inline void finish(CrispContext context, CrispFilter filter, const OutputView& o
   crispGetError(nullptr);
   crispReleaseFilter(filter);
   crispReleaseContext(context);
+}
+
+// ---- the output in place against the output apart ------------------------------------------------
+// crisp.h: the "output" image may share an input's buffer (in place), and the result is the same as
+// with separate buffers. A target runs the bytes' sequence once; if an execute without error wrote into
+// the buffer of an input still set (the output's view the input's own: pointer, format, strides, the
+// case crisp.h describes), it runs the sequence again from a fresh context and filter with the output
+// in a buffer of its own of the same layout, and the two runs must write the same.
+
+// What one run of a sequence wrote.
+struct Trace {
+  bool inPlace = false;  // an execute without error wrote into the buffer of an input still set
+  std::vector<std::pair<bool, std::vector<float>>> executes;  // each one's "no error", and what it wrote
+  std::vector<std::vector<float>> buffers;  // every buffer the bytes made, at the end (before finish)
+};
+
+// After an execute (`ok`: it reported no error): what it wrote into `output`, kept in `trace`. In the
+// run apart, `copyTo` is the input's buffer the output would have been in (laid out as the output's
+// view) and gets the values too, so that it holds what the run in place left there and both runs go
+// on reading the same images; otherwise nullptr.
+inline void recordExecute(Trace& trace, bool ok, const OutputView& output, void* copyTo) {
+  trace.executes.emplace_back(ok, std::vector<float>());
+  if (!ok || !output) return;
+  std::vector<float>& values = trace.executes.back().second;
+  for (std::size_t y = 0; y < output.height; ++y)
+    for (std::size_t x = 0; x < output.width; ++x)
+      for (int c = 0; c < output.channels; ++c) {
+        values.push_back(output.at(x, y, c));
+        if (copyTo)
+          std::memcpy(static_cast<unsigned char*>(copyTo) + y * output.rowBytes + x * output.pixelBytes +
+                          std::size_t(c) * 4,
+                      &values.back(), 4);
+      }
+}
+
+// Equal bit for bit, or both NaN (the payload may differ).
+inline bool same(float a, float b) {
+  std::uint32_t x, y;
+  std::memcpy(&x, &a, 4);
+  std::memcpy(&y, &b, 4);
+  return x == y || (std::isnan(a) && std::isnan(b));
+}
+
+// A trap after a message saying where the two runs differ.
+[[noreturn]] inline void differ(const char* target, const char* what, std::size_t at, std::size_t value,
+                                float inPlace, float apart) {
+  std::fprintf(stderr, "%s: the output in place differs from the output apart: %s %zu, value %zu: %a vs %a\n",
+               target, what, at, value, double(inPlace), double(apart));
+  __builtin_trap();
+}
+
+// Every execute's error or output and, at the end, every buffer (padding included: what was written
+// where it should not be) equal bit for bit, NaNs equal to NaNs; a trap naming the first difference.
+inline void compare(const char* target, const Trace& inPlace, const Trace& apart) {
+  if (inPlace.executes.size() != apart.executes.size() || inPlace.buffers.size() != apart.buffers.size())
+    differ(target, "the number of executes or buffers", 0, 0, 0, 0);  // the same bytes: a harness bug
+  for (std::size_t i = 0; i < inPlace.executes.size(); ++i) {
+    const auto& [ok, values] = inPlace.executes[i];
+    const auto& [okApart, valuesApart] = apart.executes[i];
+    if (ok != okApart || values.size() != valuesApart.size())
+      differ(target, "execute (an error or the output's size in one run only)", i, 0, ok, okApart);
+    for (std::size_t k = 0; k < values.size(); ++k)
+      if (!same(values[k], valuesApart[k])) differ(target, "execute", i, k, values[k], valuesApart[k]);
+  }
+  for (std::size_t i = 0; i < inPlace.buffers.size(); ++i)
+    for (std::size_t k = 0; k < std::min(inPlace.buffers[i].size(), apart.buffers[i].size()); ++k)
+      if (!same(inPlace.buffers[i][k], apart.buffers[i][k]))
+        differ(target, "buffer", i, k, inPlace.buffers[i][k], apart.buffers[i][k]);
+}
+
+// run(apart, trace) runs the bytes' sequence from a fresh context and filter, with the output where the
+// bytes put it (apart = false) or, apart, in a buffer of its own. The second run only when the first
+// ran in place (a temporal filter's history makes the whole sequence matter, so it is the whole run).
+template <class Run>
+void checkInPlace(const char* target, Run&& run) {
+  Trace inPlace;
+  run(false, inPlace);
+  if (!inPlace.inPlace) return;
+  Trace apart;
+  run(true, apart);
+  compare(target, inPlace, apart);
 }
 
 }  // namespace crisp_fuzz

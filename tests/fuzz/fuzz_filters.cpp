@@ -277,46 +277,6 @@ struct Buffer {
   std::size_t pixelFloats = 0, rowFloats = 0;
 };
 
-// What a run of a sequence wrote, for the comparison of the output in place with the output apart.
-struct Trace {
-  bool inPlace = false;  // an execute without error wrote into the buffer of an image it read
-  std::vector<std::pair<bool, std::vector<float>>> executes;  // each one's "no error", and what it wrote
-  std::vector<std::vector<float>> buffers;  // every buffer at the end (before finish)
-};
-
-// Equal bit for bit, or both NaN (the payload may differ).
-bool same(float a, float b) {
-  std::uint32_t x, y;
-  std::memcpy(&x, &a, 4);
-  std::memcpy(&y, &b, 4);
-  return x == y || (std::isnan(a) && std::isnan(b));
-}
-
-// A trap after a message saying where the two runs differ.
-[[noreturn]] void differ(const char* what, std::size_t at, std::size_t value, float inPlace, float apart) {
-  std::fprintf(stderr, "fuzz_filters: the output in place differs from the output apart: %s %zu, value %zu: %a vs %a\n",
-               what, at, value, double(inPlace), double(apart));
-  __builtin_trap();
-}
-
-void compare(const Trace& inPlace, const Trace& apart) {
-  if (inPlace.executes.size() != apart.executes.size() || inPlace.buffers.size() != apart.buffers.size())
-    differ("the number of executes or buffers", 0, 0, 0, 0);  // the same bytes: a harness bug
-  for (std::size_t i = 0; i < inPlace.executes.size(); ++i) {
-    const auto& [ok, values] = inPlace.executes[i];
-    const auto& [okApart, valuesApart] = apart.executes[i];
-    if (ok != okApart || values.size() != valuesApart.size())
-      differ("execute (an error or the output's size in one run only)", i, 0, ok, okApart);
-    for (std::size_t k = 0; k < values.size(); ++k)
-      if (!same(values[k], valuesApart[k])) differ("execute", i, k, values[k], valuesApart[k]);
-  }
-  // Also what was written where it should not be (an image's padding): every buffer at the end.
-  for (std::size_t i = 0; i < inPlace.buffers.size(); ++i)
-    for (std::size_t k = 0; k < std::min(inPlace.buffers[i].size(), apart.buffers[i].size()); ++k)
-      if (!same(inPlace.buffers[i][k], apart.buffers[i][k]))
-        differ("buffer", i, k, inPlace.buffers[i][k], apart.buffers[i][k]);
-}
-
 }  // namespace
 
 // Reads each filter's table once. One it cannot read stops the target here, with a message, before
@@ -346,7 +306,7 @@ namespace {
 // One run of the sequence the bytes make. `apart`: an output the bytes put in an input's buffer
 // gets a buffer of its own instead, and after each execute the input's buffer gets what the execute
 // wrote, so that every buffer holds what it holds in the run in place.
-void run(const std::uint8_t* data, std::size_t size, bool apart, Trace& trace) {
+void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Trace& trace) {
   Reader r{{data, size}};
   CrispContext ctx = crispNewContext();
   crispSetContextInt(ctx, "numThreads", 1 + r.byte() % 2);
@@ -433,16 +393,8 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, Trace& trace) {
   // After an execute: what it wrote, for the comparison; apart, a copy in the input's buffer the
   // output would have been in (the run in place wrote there).
   auto executed = [&](bool ok) {
-    trace.executes.emplace_back(ok, std::vector<float>());
+    crisp_fuzz::recordExecute(trace, ok, output, shared && apart ? shared->data.data() : nullptr);
     if (!ok || !output) return;
-    std::vector<float>& values = trace.executes.back().second;
-    for (std::size_t y = 0; y < output.height; ++y)
-      for (std::size_t x = 0; x < output.width; ++x)
-        for (int c = 0; c < output.channels; ++c) {
-          values.push_back(output.at(x, y, c));
-          if (shared && apart)
-            shared->data[y * shared->rowFloats + x * shared->pixelFloats + std::size_t(c)] = values.back();
-        }
     for (const auto& [name, in] : current)
       if (shared && name != "output" && in == shared) trace.inPlace = true;
   };
@@ -520,15 +472,8 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, Trace& trace) {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  Trace inPlace;
-  run(data, size, false, inPlace);
-  // crisp.h: the output may share an input's buffer, and the result is the same as with separate
-  // buffers. A sequence that ran so runs again from a fresh filter with the output apart; both must
-  // write the same values (a temporal filter's history makes the whole sequence matter).
-  if (inPlace.inPlace) {
-    Trace apart;
-    run(data, size, true, apart);
-    compare(inPlace, apart);
-  }
+  // A sequence with the output in place runs again apart (fuzz_common.h, crisp.h).
+  crisp_fuzz::checkInPlace("fuzz_filters",
+                           [&](bool apart, crisp_fuzz::Trace& trace) { run(data, size, apart, trace); });
   return 0;
 }
