@@ -49,6 +49,11 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Tra
   bool hasColor = false;
   Set color;  // the "color" the filter holds, if hasColor
   float* shared = nullptr;  // the colour's buffer the output is in (apart: would be in), or none
+  auto executed = [&](bool ok) {
+    crisp_fuzz::recordExecute(trace, ok, output, apart ? shared : nullptr);
+    // In place: the output's buffer is the colour the filter still holds (a later colour ends it).
+    if (ok && output && shared && hasColor && shared == buffers[color.buffer].data()) trace.inPlace = true;
+  };
   for (int step = 0; step < 24 && r.n; ++step) {
     switch (r.byte() % 9) {
       case 0:
@@ -76,13 +81,7 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Tra
       case 4: crispSetFilterString(f, r.pick(kParams).c_str(), r.pick(kStrings).c_str()); break;
       case 5: crispSetFilterBool(f, r.pick(kParams).c_str(), r.byte() & 1); break;
       case 6: crispCommitFilter(f); break;
-      case 7: {
-        const bool ok = crisp_fuzz::execute(f, output);
-        crisp_fuzz::recordExecute(trace, ok, output, apart ? shared : nullptr);
-        // In place: the output's buffer is the colour the filter still holds (a later colour ends it).
-        if (ok && output && shared && hasColor && shared == buffers[color.buffer].data()) trace.inPlace = true;
-        break;
-      }
+      case 7: executed(crisp_fuzz::execute(f, output)); break;
       case 8: {  // the output in place: the colour's own view (crisp.h: the result is the same)
         if (!hasColor) break;
         float* target = buffers[color.buffer].data();
@@ -98,8 +97,8 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Tra
     }
     crispGetError(nullptr);
   }
+  crisp_fuzz::finish(ctx, f, output, executed);  // its execute compared too: a set and the end suffice
   for (const auto& b : buffers) trace.buffers.push_back(b);
-  crisp_fuzz::finish(ctx, f, output);
 }
 
 }  // namespace

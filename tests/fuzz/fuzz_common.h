@@ -87,11 +87,13 @@ inline bool execute(CrispFilter filter, const OutputView& output) {
 }
 
 // The end of every sequence: one more commit and execute (whatever state the
-// calls left; its output checked as every execute's), every error read, the
-// handles released.
-inline void finish(CrispContext context, CrispFilter filter, const OutputView& output) {
+// calls left; its output checked as every execute's, and `executed` told
+// whether it reported no error, so that a target records it as its others),
+// every error read, the handles released.
+template <class Executed>
+void finish(CrispContext context, CrispFilter filter, const OutputView& output, Executed&& executed) {
   crispCommitFilter(filter);
-  execute(filter, output);
+  executed(execute(filter, output));
   crispGetError(nullptr);
   crispReleaseFilter(filter);
   crispReleaseContext(context);
@@ -108,7 +110,7 @@ inline void finish(CrispContext context, CrispFilter filter, const OutputView& o
 struct Trace {
   bool inPlace = false;  // an execute without error wrote into the buffer of an input still set
   std::vector<std::pair<bool, std::vector<float>>> executes;  // each one's "no error", and what it wrote
-  std::vector<std::vector<float>> buffers;  // every buffer the bytes made, at the end (before finish)
+  std::vector<std::vector<float>> buffers;  // every buffer the bytes made, at the end (after finish)
 };
 
 // After an execute (`ok`: it reported no error): what it wrote into `output`, kept in `trace`. In the

@@ -465,8 +465,8 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Tra
     }
     crispGetError(nullptr);
   }
+  crisp_fuzz::finish(ctx, f, output, executed);  // its execute compared too
   for (const Buffer& b : buffers) trace.buffers.push_back(b.data);
-  crisp_fuzz::finish(ctx, f, output);
 }
 
 }  // namespace
