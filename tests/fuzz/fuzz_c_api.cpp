@@ -44,7 +44,7 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Tra
   crispSetContextInt(ctx, "numThreads", 1 + r.byte() % 2);
   CrispFilter f = crispNewFilter(ctx, r.pick(kTypes).c_str());
   std::vector<std::vector<float>> buffers;  // a moved vector keeps its data: `output` stays valid
-  std::vector<std::vector<float>> apartOutputs;  // apart: the outputs' own (not in `buffers`, compared)
+  std::vector<std::vector<float>> apartOutputs;  // apart: the outputs' own (kept out of the compared `buffers`)
   crisp_fuzz::OutputView output;
   bool hasColor = false;
   Set color;  // the "color" the filter holds, if hasColor
