@@ -153,8 +153,8 @@ CRISP_API void crispCommitFilter(CrispFilter filter);
 // blocks (per-row scratch, the thread pool's tasks) may be.
 // Temporal filters keep history between calls (below). Every filter's output
 // is finite: a colour value that is NaN reads as 0, one beyond +-65504 (+-Inf
-// included) as +-65504 (tests/fuzz/fuzz_filters.cpp checks it for taa,
-// taa-improved, phlm and rsaa).
+// included) as +-65504 (the fuzz targets check it for every filter:
+// tests/fuzz/fuzz_filters.cpp and fuzz_c_api.cpp).
 CRISP_API void crispExecuteFilter(CrispFilter filter);
 // Forgets temporal history: call it at a camera cut, a jump in time or a
 // change of lighting; the next frame is filtered as a first frame.
