@@ -32,6 +32,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "crisp/crisp.h"
 #include "fuzz_common.h"
 
@@ -66,197 +68,43 @@ struct Param {
   std::vector<std::string> choices;
 };
 
-// A JSON value, as crispGetFilterInfo's table holds them.
-struct Json {
-  enum Kind { Null, Bool, Number, String, Array, Object } kind = Null;
-  std::string text;                                   // a string's value; a number's or bool's literal
-  std::vector<Json> items;                            // an array's
-  std::vector<std::pair<std::string, Json>> members;  // an object's, in order
-};
-
-// A strict reader of one JSON text (RFC 8259): objects, arrays, strings with their escapes, numbers,
-// true/false/null. Throws std::runtime_error naming the offset on anything else, so a table the
-// library ever writes differently fails at once rather than being misread.
-class JsonReader {
- public:
-  explicit JsonReader(const std::string& text) : s_(text) {}
-  Json document() {
-    Json v = value(0);
-    space();
-    if (at_ != s_.size()) fail("text after the value");
-    return v;
-  }
-
- private:
-  [[noreturn]] void fail(const std::string& what) const {
-    throw std::runtime_error(what + " at offset " + std::to_string(at_));
-  }
-  void space() {
-    while (at_ < s_.size() && (s_[at_] == ' ' || s_[at_] == '\t' || s_[at_] == '\n' || s_[at_] == '\r')) ++at_;
-  }
-  bool eat(char c) {
-    space();
-    if (at_ < s_.size() && s_[at_] == c) return ++at_, true;
-    return false;
-  }
-  void expect(char c) {
-    if (!eat(c)) fail(std::string("expected '") + c + "'");
-  }
-  bool digit() const { return at_ < s_.size() && s_[at_] >= '0' && s_[at_] <= '9'; }
-  Json value(int depth) {
-    if (depth > 64) fail("nesting too deep");
-    space();
-    if (at_ >= s_.size()) fail("a value expected, the end found");
-    Json v;
-    const char c = s_[at_];
-    if (c == '{') {
-      ++at_;
-      v.kind = Json::Object;
-      if (eat('}')) return v;
-      do {
-        space();
-        std::string key = string();
-        expect(':');
-        v.members.emplace_back(std::move(key), value(depth + 1));
-      } while (eat(','));
-      expect('}');
-    } else if (c == '[') {
-      ++at_;
-      v.kind = Json::Array;
-      if (eat(']')) return v;
-      do {
-        v.items.push_back(value(depth + 1));
-      } while (eat(','));
-      expect(']');
-    } else if (c == '"') {
-      v.kind = Json::String;
-      v.text = string();
-    } else if (s_.compare(at_, 4, "true") == 0 || s_.compare(at_, 5, "false") == 0) {
-      v.kind = Json::Bool;
-      v.text = c == 't' ? "true" : "false";
-      at_ += v.text.size();
-    } else if (s_.compare(at_, 4, "null") == 0) {
-      at_ += 4;
-    } else {  // -?(0|[1-9][0-9]*)(.[0-9]+)?([eE][+-]?[0-9]+)?
-      const std::size_t from = at_;
-      if (s_[at_] == '-') ++at_;
-      if (!digit()) fail("a value expected");
-      if (s_[at_] == '0') ++at_;
-      else
-        while (digit()) ++at_;
-      if (at_ < s_.size() && s_[at_] == '.') {
-        ++at_;
-        if (!digit()) fail("a digit expected after '.'");
-        while (digit()) ++at_;
-      }
-      if (at_ < s_.size() && (s_[at_] == 'e' || s_[at_] == 'E')) {
-        ++at_;
-        if (at_ < s_.size() && (s_[at_] == '+' || s_[at_] == '-')) ++at_;
-        if (!digit()) fail("a digit expected in the exponent");
-        while (digit()) ++at_;
-      }
-      v.kind = Json::Number;
-      v.text = s_.substr(from, at_ - from);
-    }
-    return v;
-  }
-  std::string string() {
-    if (at_ >= s_.size() || s_[at_] != '"') fail("a string expected");
-    ++at_;
-    std::string out;
-    for (;;) {
-      if (at_ >= s_.size()) fail("a string without its closing quote");
-      const char c = s_[at_++];
-      if (c == '"') return out;
-      if (static_cast<unsigned char>(c) < 0x20) fail("a control character in a string");
-      if (c != '\\') {
-        out += c;
-        continue;
-      }
-      if (at_ >= s_.size()) fail("an escape at the end");
-      switch (const char e = s_[at_++]) {
-        case '"': case '\\': case '/': out += e; break;
-        case 'b': out += '\b'; break;
-        case 'f': out += '\f'; break;
-        case 'n': out += '\n'; break;
-        case 'r': out += '\r'; break;
-        case 't': out += '\t'; break;
-        case 'u': {
-          unsigned code = 0;
-          for (int k = 0; k < 4; ++k, ++at_) {
-            const char h = at_ < s_.size() ? s_[at_] : 'x';
-            const int d = h >= '0' && h <= '9' ? h - '0' : h >= 'a' && h <= 'f' ? h - 'a' + 10
-                        : h >= 'A' && h <= 'F' ? h - 'A' + 10 : -1;
-            if (d < 0) fail("four hex digits expected after \\u");
-            code = code * 16 + unsigned(d);
-          }
-          // UTF-8 of the code unit (a surrogate pair's halves each alone: names never hold one).
-          if (code < 0x80) {
-            out += char(code);
-          } else if (code < 0x800) {
-            out += char(0xC0 | code >> 6), out += char(0x80 | (code & 0x3F));
-          } else {
-            out += char(0xE0 | code >> 12), out += char(0x80 | (code >> 6 & 0x3F)), out += char(0x80 | (code & 0x3F));
-          }
-          break;
-        }
-        default: fail(std::string("an unknown escape \\") + e);
-      }
-    }
-  }
-
-  const std::string& s_;
-  std::size_t at_ = 0;
-};
-
-// The member `key` of the object `o`, of the kind asked for; throws if it is missing or another kind.
-const Json& member(const Json& o, const char* key, Json::Kind kind) {
-  static const char* const kKinds[] = {"null", "a bool", "a number", "a string", "an array", "an object"};
-  if (o.kind != Json::Object) throw std::runtime_error(std::string("'") + key + "' looked up in " + kKinds[o.kind]);
-  for (const auto& [name, v] : o.members)
-    if (name == key) {
-      if (v.kind != kind)
-        throw std::runtime_error(std::string("'") + key + "' is " + kKinds[v.kind] + ", not " + kKinds[kind]);
-      return v;
-    }
-  throw std::runtime_error(std::string("no '") + key + "'");
-}
-double number(const Json& o, const char* key) { return std::strtod(member(o, key, Json::Number).text.c_str(), nullptr); }
-bool flag(const Json& o, const char* key) { return member(o, key, Json::Bool).text == "true"; }
-
 struct Table {
   std::vector<ImageRole> images;
   std::vector<Param> params;
 };
 
 // A filter's images and parameters from its crispGetFilterInfo JSON (crisp.h gives its shape); throws
-// if the text is not JSON of that shape.
+// if the text is not JSON of that shape (nlohmann's at() and get<>() refuse a missing member or a value
+// of another kind, so a table the library ever writes differently fails at once rather than being
+// misread).
 Table readTable(const std::string& info) {
-  const Json doc = JsonReader(info).document();
+  const nlohmann::json doc = nlohmann::json::parse(info);
+  auto arrayAt = [](const nlohmann::json& o, const char* key) -> const nlohmann::json& {
+    const nlohmann::json& a = o.at(key);
+    if (!a.is_array()) throw std::runtime_error(std::string("'") + key + "' is not an array");
+    return a;
+  };
   Table t;
-  for (const Json& image : member(doc, "images", Json::Array).items) {
+  for (const nlohmann::json& image : arrayAt(doc, "images")) {
     ImageRole role;
-    role.name = member(image, "name", Json::String).text;
-    role.minChannels = int(number(image, "minChannels"));
-    role.maxChannels = int(number(image, "maxChannels"));
-    role.uint = flag(image, "uint");
-    role.required = flag(image, "required");
+    role.name = image.at("name").get<std::string>();
+    role.minChannels = image.at("minChannels").get<int>();
+    role.maxChannels = image.at("maxChannels").get<int>();
+    role.uint = image.at("uint").get<bool>();
+    role.required = image.at("required").get<bool>();
     if (role.name.empty() || role.minChannels < 1 || role.maxChannels < role.minChannels)
       throw std::runtime_error("image '" + role.name + "': no name, or a channel range that is empty");
     t.images.push_back(role);
   }
-  for (const Json& param : member(doc, "params", Json::Array).items) {
+  for (const nlohmann::json& param : arrayAt(doc, "params")) {
     Param p;
-    p.name = member(param, "name", Json::String).text;
-    p.type = member(param, "type", Json::String).text;
+    p.name = param.at("name").get<std::string>();
+    p.type = param.at("type").get<std::string>();
     if (p.type == "string") {
-      for (const Json& choice : member(param, "choices", Json::Array).items) {
-        if (choice.kind != Json::String) throw std::runtime_error("parameter '" + p.name + "': a choice not a string");
-        p.choices.push_back(choice.text);
-      }
+      for (const nlohmann::json& choice : arrayAt(param, "choices")) p.choices.push_back(choice.get<std::string>());
     } else if (p.type == "int" || p.type == "float") {
-      p.min = float(number(param, "min"));
-      p.max = float(number(param, "max"));
+      p.min = param.at("min").get<float>();
+      p.max = param.at("max").get<float>();
       if (!(p.min <= p.max)) throw std::runtime_error("parameter '" + p.name + "': min above max");
     } else if (p.type != "bool") {
       throw std::runtime_error("parameter '" + p.name + "': unknown type '" + p.type + "'");
