@@ -105,6 +105,7 @@ int runCompare(const ParsedArgs& args) {
   const std::string mapsDir = args.getOr("maps", "");
   const std::vector<std::string> stems = mapStems(tests);
   refuseClobbering(args, mapsDir, stems);
+  if (args.has("json")) checkOutputFile(args.get("json"));  // written last: said now, not after every frame
   if (!mapsDir.empty()) makeDirectories(mapsDir);
 
   std::vector<Metrics> all;

@@ -87,6 +87,9 @@ std::string sizeAndTime(const std::string& path);
 // File helpers: text written through a temporary file renamed into place.
 void writeTextFile(const std::string& path, const std::string& text);
 void makeDirectories(const std::string& path);
+// CRISP_ERROR_IO naming `path` when a file could not be put there at the end of a run (a folder in
+// its place, or no folder to hold it): checked before the run does its work, not after it.
+void checkOutputFile(const std::string& path);
 // makeDirectories for one run: the folders it had to create are removed again
 // at the end of the run (deepest first) if they are still empty, so that a
 // run that fails before its first output leaves no empty output folder behind.

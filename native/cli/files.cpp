@@ -87,6 +87,15 @@ void makeDirectories(const std::string& path) {
   if (access(path.c_str(), W_OK) != 0) ioError("output folder '" + path + "' is not writable");
 }
 
+void checkOutputFile(const std::string& path) {
+  std::error_code ec;
+  if (path.empty()) ioError("cannot write a file of an empty name");
+  if (fs::is_directory(path, ec)) ioError("cannot write '" + path + "': it is a folder");
+  const fs::path parent = fs::path(path).parent_path();
+  if (!fs::is_directory(parent.empty() ? fs::path(".") : parent, ec))
+    ioError("cannot write '" + path + "': its folder '" + parent.string() + "' does not exist");
+}
+
 namespace {
 // Removes the folders in `dirs` (deepest first) while they are empty.
 void removeEmptyFolders(const std::vector<std::string>& dirs) {

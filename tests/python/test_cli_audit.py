@@ -1,0 +1,44 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Hostile and mistaken inputs to `crisp filter`, `info` and `compare` found by an audit of the CLI:
+each failure is said before any work is lost, naming the file, and nothing read is dropped without a
+word."""
+import os
+import subprocess
+
+import pytest
+
+from crisp_test_util import CRISP
+
+pytestmark = pytest.mark.skipif(not os.path.isfile(CRISP), reason="crisp CLI not built at %s" % CRISP)
+
+
+def run(*args, ok=True):
+    p = subprocess.run([CRISP, *map(str, args)], capture_output=True, text=True, timeout=120)
+    if ok:
+        assert p.returncode == 0, p.stderr
+    return p
+
+
+def oiiotool(*args):
+    subprocess.run(["oiiotool", *map(str, args)], check=True)
+
+
+@pytest.fixture(scope="module")
+def chart(tmp_path_factory):
+    d = tmp_path_factory.mktemp("chart")
+    run("synth", "-o", d, "--size", "37x23")
+    return d
+
+
+def test_compare_refuses_a_json_it_cannot_write_before_comparing(chart, tmp_path):
+    """A --json into a missing folder, or onto a folder, used to fail only after every frame was
+    compared (a long sequence's work lost); it is refused first, naming the path."""
+    ref, test = chart / "chart_reference.exr", chart / "chart_1spp.exr"
+    (tmp_path / "adir").mkdir()
+    for target, words in ((tmp_path / "nowhere" / "m.json", "does not exist"), (tmp_path / "adir", "is a folder")):
+        p = run("compare", "-q", "--reference", ref, "--test", test, "--json", target, ok=False)
+        assert p.returncode == 1 and str(target) in p.stderr and words in p.stderr, p.stderr
+        assert "chart_1spp" not in p.stdout, p.stdout  # nothing compared
+    assert not (tmp_path / "nowhere").exists()
+    p = run("compare", "-q", "--reference", ref, "--test", test, "--json", "", ok=False)
+    assert p.returncode == 1 and "empty name" in p.stderr and "chart_1spp" not in p.stdout, p.stderr
