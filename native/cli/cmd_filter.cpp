@@ -109,6 +109,18 @@ void warnSanitisedColour(const Frame& frame) {
                  frame.path.c_str(), clamped, clamped == 1 ? "" : "s");
 }
 
+// One view layer of a multilayer EXR is filtered; the others (a second view layer of the scene)
+// are in no output: said once per run, at the first input holding any, as a sequence's frames
+// hold the same layers.
+void warnLayersNotRead(const Frame& frame, bool& warned) {
+  if (warned || frame.layersNotRead.empty()) return;
+  warned = true;
+  std::string list;
+  for (const std::string& l : frame.layersNotRead) list += (list.empty() ? "" : ", ") + l;
+  std::fprintf(stderr, "filter: warning: '%s' holds other view layers than '%s', which is filtered: %s, in no output\n",
+               frame.path.c_str(), frame.layer.c_str(), list.c_str());
+}
+
 // An input without a motion pass gets motion reconstructed from its depth and
 // the sidecar of the previous input in the order given; index 0 gets zero
 // motion (the caller passes 0 at a cut or gap too). Only xy, the motion to the
@@ -250,6 +262,7 @@ int runFilter(const ParsedArgs& args) {
   ShotPosition shot;
   shot.filterSizeGiven = settings["params"].contains("filterSize");  // else each sidecar's Film > Filter Size
   std::set<std::string> optionalBound;  // the optional passes bound for the frame before
+  bool layersWarned = false;
   for (std::size_t i = std::size_t(run.start - 1); i < std::size_t(run.last); ++i) {
     const std::string& in = args.positional[i];
     const bool write = int(i) + 1 >= run.first;
@@ -264,6 +277,7 @@ int runFilter(const ParsedArgs& args) {
     stamps.reading(int(i) + 1);
     Frame frame = readFrame(in);
     warnSanitisedColour(frame);
+    warnLayersNotRead(frame, layersWarned);
     // A gap in the frame numbers or a cut to another camera: the history starts over, and the
     // frame gets zero motion as a first frame does. Said also under --quiet, which hides progress
     // and notes, not what changes the output (docs/farm.md tells farm users to look for this line).

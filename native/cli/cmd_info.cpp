@@ -28,6 +28,8 @@ int runInfo(const ParsedArgs& args) {
     std::printf("%s\n  size: %dx%d\n  channels:", path.c_str(), frame.width, frame.height);
     for (const std::string& c : frame.channelNames) std::printf(" %s", c.c_str());
     std::printf("\n  passes: %s\n", frame.passList().c_str());
+    if (!frame.layersNotRead.empty()) std::printf("  layer read: '%s'\n", frame.layer.c_str());
+    for (const std::string& layer : frame.layersNotRead) std::printf("  not read: layer %s\n", layer.c_str());
     for (const std::string& part : frame.partsNotRead) std::printf("  not read: %s\n", part.c_str());
     if (frame.nonFiniteColour > 0)  // as crisp filter warns and crisp compare refuses
       std::printf("  non-finite colour values: %ld, read as 0 (NaN) or +-65504 (Inf)\n", frame.nonFiniteColour);

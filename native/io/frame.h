@@ -47,6 +47,10 @@ struct Frame {
   // The parts of a multi-part EXR no pass was read from, which hold nothing read here:
   // "part 3 of 3 ('diffuse') (channels: diffuse.R, diffuse.G, diffuse.B)".
   std::vector<std::string> partsNotRead;
+  // The view layer read ("" for a plain image) and the other layers of a multilayer EXR, which
+  // nothing is read from (readFrame reads one): "'B' (4 channels)".
+  std::string layer;
+  std::vector<std::string> layersNotRead;
 
   bool has(const std::string& role) const { return passes.count(role) != 0; }
   // Throws CRISP_ERROR_INVALID_DATA naming the file and the pass if absent

@@ -21,6 +21,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <system_error>
@@ -386,6 +387,14 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   }
 
   const std::string layer = chooseLayer(path, names, viewLayer);
+  frame.layer = layer;
+  {
+    std::map<std::string, int> others;  // layer -> channels
+    for (const ChannelName& c : names)
+      if (!c.layer.empty() && c.layer != layer) ++others[c.layer];
+    for (const auto& [name, count] : others)
+      frame.layersNotRead.push_back("'" + name + "' (" + std::to_string(count) + " channel" + (count == 1 ? "" : "s") + ")");
+  }
   const bool hasCombined =
       std::any_of(names.begin(), names.end(), [&](const ChannelName& c) { return c.layer == layer && c.pass == "Combined"; });
 

@@ -42,3 +42,27 @@ def test_compare_refuses_a_json_it_cannot_write_before_comparing(chart, tmp_path
     assert not (tmp_path / "nowhere").exists()
     p = run("compare", "-q", "--reference", ref, "--test", test, "--json", "", ok=False)
     assert p.returncode == 1 and "empty name" in p.stderr and "chart_1spp" not in p.stdout, p.stderr
+
+
+def blender_layers(chart, path, layers):
+    """A multilayer EXR holding the chart's colour as each of `layers`' Combined pass."""
+    names = ",".join("%s.Combined.%s" % (layer, c) for layer in layers for c in "RGBA")
+    oiiotool(chart / "chart_1spp.exr", "--ch", ",".join(["R,G,B,A"] * len(layers)), "--chnames", names, "-o", path)
+
+
+def test_a_second_view_layer_is_not_dropped_without_a_word(chart, tmp_path):
+    """Of a multilayer EXR with two view layers (a scene with two), one is read: info names the
+    other as not read, and filter says once that it is in no output."""
+    a, b = tmp_path / "a.exr", tmp_path / "b.exr"
+    blender_layers(chart, a, ["ViewLayer", "Background"])
+    blender_layers(chart, b, ["ViewLayer", "Background"])
+    info = run("info", a).stdout
+    assert "layer read: 'ViewLayer'" in info and "not read: layer 'Background' (4 channels)" in info, info
+    p = run("filter", "-q", "--method", "fxaa", a, b, "-o", tmp_path / "out")
+    assert p.stderr.count("warning") == 1, p.stderr
+    assert "'%s' holds other view layers than 'ViewLayer'" % a in p.stderr and "'Background'" in p.stderr, p.stderr
+    # One layer: nothing to say.
+    single = tmp_path / "single.exr"
+    blender_layers(chart, single, ["ViewLayer"])
+    assert "not read" not in run("info", single).stdout
+    assert "warning" not in run("filter", "-q", "--method", "fxaa", single, "-o", tmp_path / "out1").stderr

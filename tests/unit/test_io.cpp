@@ -345,6 +345,11 @@ TEST_F(IoTest, PicksBlenderDefaultLayerOrTheNamedOne) {
   Frame second = readFrame(file("layers.exr"), "Second");
   EXPECT_EQ(second.pass("color").at(1, 1)[0], -7.0f);
   EXPECT_EQ(second.passList(), "color");
+  // The layer read and the others, which nothing is read from, are named (crisp info, crisp filter).
+  EXPECT_EQ(f.layer, "ViewLayer");
+  EXPECT_EQ(f.layersNotRead, std::vector<std::string>{"'Second' (4 channels)"});
+  EXPECT_EQ(second.layer, "Second");
+  EXPECT_EQ(second.layersNotRead, std::vector<std::string>{"'ViewLayer' (15 channels)"});
   expectError([&] { readFrame(file("layers.exr"), "Nope"); }, CRISP_ERROR_INVALID_DATA, "Nope", "layers.exr");
   // A pass that is absent is reported by name.
   expectError([&] { second.pass("depth"); }, CRISP_ERROR_INVALID_DATA, "depth", "layers.exr");
