@@ -535,9 +535,17 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
       if (chans.empty()) continue;
       const std::string passLabel = label(rs.blenderPass);
       const int p = partOf(passLabel, chans);
-      const Windows win = windowsOf(p);
-      std::vector<int> idx = matchPass(where(p), passLabel, chans, rs);
       const std::string role = rs.role;
+      std::vector<int> idx;
+      try {
+        idx = matchPass(where(p), passLabel, chans, rs);
+      } catch (const Exception& e) {
+        // Other channels than Blender writes (a 2-channel Vector): an error only for a method
+        // that reads the pass, as a half-float ID pass is (Frame::unusable), not for every method.
+        frame.unusable[role] = e.what();
+        continue;
+      }
+      const Windows win = windowsOf(p);
       if (role == "depth") {
         // Kept as stored: Blender 3.x's half-float background (65504) already
         // reads as background through isBackgroundDepth.

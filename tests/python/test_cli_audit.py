@@ -66,3 +66,21 @@ def test_a_second_view_layer_is_not_dropped_without_a_word(chart, tmp_path):
     blender_layers(chart, single, ["ViewLayer"])
     assert "not read" not in run("info", single).stdout
     assert "warning" not in run("filter", "-q", "--method", "fxaa", single, "-o", tmp_path / "out1").stderr
+
+
+def test_a_pass_of_wrong_channels_fails_only_the_methods_that_read_it(chart, tmp_path):
+    """A Vector pass of two channels (motion as some compositors write it) used to make the whole
+    file unreadable: info could not list it and fxaa, which reads no motion, refused it. It is
+    unusable, named by info and refused by the methods that read motion only."""
+    f = tmp_path / "vector2.exr"
+    oiiotool(chart / "chart_1spp.exr", "--ch", "R,G,B,A,X=1,Y=0", "--chnames",
+             "ViewLayer.Combined.R,ViewLayer.Combined.G,ViewLayer.Combined.B,ViewLayer.Combined.A,"
+             "ViewLayer.Vector.X,ViewLayer.Vector.Y", "-d", "float", "-o", f)
+    info = run("info", f).stdout
+    assert "passes: color\n" in info and "unusable: motion (pass 'ViewLayer.Vector'" in info, info
+    assert "expected X,Y,Z,W" in info and "motion (unusable)" in info, info
+    run("filter", "-q", "--method", "fxaa", f, "-o", tmp_path / "fxaa")
+    assert (tmp_path / "fxaa" / "vector2.exr").is_file()
+    p = run("filter", "-q", "--method", "taa", f, "-o", tmp_path / "taa", ok=False)
+    assert p.returncode == 1 and "vector2.exr" in p.stderr and "ViewLayer.Vector" in p.stderr, p.stderr
+    assert not (tmp_path / "taa").exists()

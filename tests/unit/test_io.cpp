@@ -364,19 +364,42 @@ TEST_F(IoTest, LayerNamesWithDotsSplitFromTheRight) {
   EXPECT_EQ(f.pass("color").at(4, 2)[2], pixelValue(4, 2, 2));
 }
 
+// A pass of other channels than Blender writes is unusable: the frame is read, and asking for the
+// pass is the error, naming it and the file (as for half-float IDs below), so only a method that
+// reads it fails. Colour of wrong channels fails the read.
 TEST_F(IoTest, PassWithWrongChannelsIsAnErrorNamingIt) {
   std::vector<Channel> ch = blenderChannels("ViewLayer", 7, 5, false);
   ch.erase(std::remove_if(ch.begin(), ch.end(), [](const Channel& c) { return c.name == "ViewLayer.Normal.Z"; }),
            ch.end());
   ExrLayout layout;
   writeExr(file("normal2.exr"), ch, layout);
-  expectError([&] { readFrame(file("normal2.exr")); }, CRISP_ERROR_INVALID_DATA, "ViewLayer.Normal", "normal2.exr");
+  const Frame normal2 = readFrame(file("normal2.exr"));
+  EXPECT_TRUE(normal2.has("color") && normal2.has("depth") && !normal2.has("normal"));
+  expectError([&] { normal2.pass("normal"); }, CRISP_ERROR_INVALID_DATA, "ViewLayer.Normal", "normal2.exr");
 
   // An extra channel is as wrong as a missing one.
   std::vector<Channel> ch2 = blenderChannels("ViewLayer", 7, 5, false);
   ch2.push_back({"ViewLayer.Depth.W", OIIO::TypeDesc::FLOAT, [](int, int) { return 0.0f; }});
   writeExr(file("depth2.exr"), ch2, layout);
-  expectError([&] { readFrame(file("depth2.exr")); }, CRISP_ERROR_INVALID_DATA, "ViewLayer.Depth", "depth2.exr");
+  expectError([&] { readFrame(file("depth2.exr")).pass("depth"); }, CRISP_ERROR_INVALID_DATA, "ViewLayer.Depth",
+              "depth2.exr");
+
+  // Motion of two channels, as some compositors write it.
+  std::vector<Channel> ch3 = blenderChannels("ViewLayer", 7, 5, false);
+  for (const char* c : {"X", "Y"})
+    ch3.push_back({std::string("ViewLayer.Vector.") + c, OIIO::TypeDesc::FLOAT, [](int, int) { return 1.0f; }});
+  writeExr(file("vector2.exr"), ch3, layout);
+  const Frame vector2 = readFrame(file("vector2.exr"));
+  EXPECT_EQ(vector2.passList(), "color,depth,normal,id,albedo");
+  expectError([&] { vector2.pass("motion"); }, CRISP_ERROR_INVALID_DATA, "pass 'ViewLayer.Vector' in '" + file("vector2.exr"),
+              "has 2 channel(s) (X,Y); expected X,Y,Z,W");
+
+  std::vector<Channel> ch4 = blenderChannels("ViewLayer", 7, 5, false);
+  ch4.erase(std::remove_if(ch4.begin(), ch4.end(), [](const Channel& c) { return c.name == "ViewLayer.Combined.G"; }),
+            ch4.end());
+  writeExr(file("combined2.exr"), ch4, layout);
+  expectError([&] { readFrame(file("combined2.exr")); }, CRISP_ERROR_INVALID_DATA, "pass 'ViewLayer.Combined'",
+              "combined2.exr");
 }
 
 TEST_F(IoTest, MissingColourIsAnErrorNamingTheFile) {
@@ -628,10 +651,10 @@ TEST_F(IoTest, MultiPartDisagreementsAreErrorsNamingThem) {
                                          {"a", {{"Z", OIIO::TypeDesc::FLOAT, pixelValue0}}, layout},
                                          {"b", {{"Z", OIIO::TypeDesc::FLOAT, pixelValue0}}, layout}});
   expectError([&] { readFrame(file("depths.exr")); }, CRISP_ERROR_INVALID_DATA, "depths.exr' has a Z channel in more than one part");
-  // A channel of a wrong pass names its part.
+  // A channel of a wrong pass names its part (when the pass is asked for: PassWithWrongChannels...).
   writeMultiPartExr(file("wrong.exr"), {{"ViewLayer.Combined", channelsWith(all, ".Combined."), layout},
                                         {"ViewLayer.Normal", {{"X", OIIO::TypeDesc::FLOAT, pixelValue0}}, layout}});
-  expectError([&] { readFrame(file("wrong.exr")); }, CRISP_ERROR_INVALID_DATA,
+  expectError([&] { readFrame(file("wrong.exr")).pass("normal"); }, CRISP_ERROR_INVALID_DATA,
               "pass 'ViewLayer.Normal' in '" + file("wrong.exr") + "' (part 2 of 2 ('ViewLayer.Normal')) has 1 channel(s)");
 }
 
