@@ -127,7 +127,9 @@ int runCompare(const ParsedArgs& args) {
     try {
       m = compareImages(ref.pass("color"), tst.pass("color"), args.has("mask") ? &mask : nullptr, maps, threads);
     } catch (const Exception& e) {
-      throw Exception(e.code(), "comparing '" + tests[i] + "' with '" + refs[i] + "': " + e.what());
+      // The mask can be what is wrong (its size, no pixel selected): named too.
+      const std::string with = args.has("mask") ? " under mask '" + args.get("mask") + "'" : "";
+      throw Exception(e.code(), "comparing '" + tests[i] + "' with '" + refs[i] + "'" + with + ": " + e.what());
     }
     all.push_back(m);
     std::printf("%-28.28s %-28.28s %10.3e %9.3f %9.3f %8.5f %8.5f\n", fileStem(refs[i]).c_str(),

@@ -44,6 +44,18 @@ def test_compare_refuses_a_json_it_cannot_write_before_comparing(chart, tmp_path
     assert p.returncode == 1 and "empty name" in p.stderr and "chart_1spp" not in p.stdout, p.stderr
 
 
+def test_compare_names_a_mask_that_does_not_fit(chart, tmp_path):
+    """A mask of another size than the images, or one selecting no pixel, is what is wrong: the
+    error names it, not only the reference and the test."""
+    ref, test = chart / "chart_reference.exr", chart / "chart_1spp.exr"
+    small, empty = tmp_path / "small_mask.exr", tmp_path / "empty_mask.exr"
+    oiiotool(chart / "chart_edges.exr", "--resize", "10x10", "-o", small)
+    oiiotool(chart / "chart_edges.exr", "--mulc", "0", "-o", empty)
+    for mask, words in ((small, "10x10"), (empty, "selects no pixel")):
+        p = run("compare", "-q", "--reference", ref, "--test", test, "--mask", mask, ok=False)
+        assert p.returncode == 1 and "mask '%s'" % mask in p.stderr and words in p.stderr, p.stderr
+
+
 def blender_layers(chart, path, layers):
     """A multilayer EXR holding the chart's colour as each of `layers`' Combined pass."""
     names = ",".join("%s.Combined.%s" % (layer, c) for layer in layers for c in "RGBA")
