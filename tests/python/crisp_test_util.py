@@ -18,6 +18,15 @@ CRISP = os.path.join(BUILD, "bin", "crisp")
 LIBRARY = os.path.join(BUILD, "lib", "libcrisp.so")
 
 
+def run_crisp(*args, ok=True):
+    """Runs the built CLI with args (paths and numbers as text); with ok, asserts it exits 0 (its stderr
+    as the message). Returns the CompletedProcess, output captured as text."""
+    p = subprocess.run([CRISP, *map(str, args)], capture_output=True, text=True, timeout=120)
+    if ok:
+        assert p.returncode == 0, p.stderr
+    return p
+
+
 def needs_cli_and_blender():
     """pytest marks of a module that runs the built CLI with Blender: skipped where either is missing."""
     import pytest

@@ -14,15 +14,10 @@ import time
 
 import pytest
 
+from crisp_test_util import run_crisp as run
+
 BUILD = pathlib.Path(os.environ.get("CRISP_BUILD_DIR", pathlib.Path(__file__).resolve().parents[2] / "build"))
 CRISP = BUILD / "bin" / "crisp"
-
-
-def run(*args, ok=True):
-    p = subprocess.run([str(CRISP), *map(str, args)], capture_output=True, text=True, timeout=120)
-    if ok:
-        assert p.returncode == 0, p.stderr
-    return p
 
 
 @pytest.fixture(scope="module")

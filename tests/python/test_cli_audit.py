@@ -7,16 +7,9 @@ import subprocess
 
 import pytest
 
-from crisp_test_util import CRISP
+from crisp_test_util import CRISP, run_crisp as run
 
 pytestmark = pytest.mark.skipif(not os.path.isfile(CRISP), reason="crisp CLI not built at %s" % CRISP)
-
-
-def run(*args, ok=True):
-    p = subprocess.run([CRISP, *map(str, args)], capture_output=True, text=True, timeout=120)
-    if ok:
-        assert p.returncode == 0, p.stderr
-    return p
 
 
 def oiiotool(*args):
