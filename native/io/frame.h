@@ -47,8 +47,9 @@ struct Frame {
   // The parts of a multi-part EXR no pass was read from, which hold nothing read here:
   // "part 3 of 3 ('diffuse') (channels: diffuse.R, diffuse.G, diffuse.B)".
   std::vector<std::string> partsNotRead;
-  // The view layer read ("" for a plain image) and the other layers of a multilayer EXR, which
-  // nothing is read from (readFrame reads one): "'B' (4 channels)".
+  // The view layer read ("" for a plain image) and the other view layers of a multilayer EXR, which
+  // nothing is read from (readFrame reads one): "'B' (4 channels)". Blender's "Composite" layer
+  // (the compositor's result, beside the view layer) is not listed.
   std::string layer;
   std::vector<std::string> layersNotRead;
 

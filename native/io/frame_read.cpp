@@ -389,9 +389,11 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   const std::string layer = chooseLayer(path, names, viewLayer);
   frame.layer = layer;
   {
+    // Blender writes the compositor's result beside the view layers, as layer "Composite" (whenever
+    // its compositor runs): that is no view layer left out, and the passes are the view layer's.
     std::map<std::string, int> others;  // layer -> channels
     for (const ChannelName& c : names)
-      if (!c.layer.empty() && c.layer != layer) ++others[c.layer];
+      if (!c.layer.empty() && c.layer != layer && c.layer != "Composite") ++others[c.layer];
     for (const auto& [name, count] : others)
       frame.layersNotRead.push_back("'" + name + "' (" + std::to_string(count) + " channel" + (count == 1 ? "" : "s") + ")");
   }

@@ -71,6 +71,12 @@ def test_a_second_view_layer_is_not_dropped_without_a_word(chart, tmp_path):
     blender_layers(chart, single, ["ViewLayer"])
     assert "not read" not in run("info", single).stdout
     assert "warning" not in run("filter", "-q", "--method", "fxaa", single, "-o", tmp_path / "out1").stderr
+    # Blender's own render with its compositor on: the compositor's result beside the view layer, as
+    # layer "Composite", which is no view layer left out (nothing to say; a real render's channels).
+    composited = tmp_path / "composited.exr"
+    blender_layers(chart, composited, ["Composite", "ViewLayer"])
+    assert "not read" not in run("info", composited).stdout
+    assert "warning" not in run("filter", "-q", "--method", "fxaa", composited, "-o", tmp_path / "out2").stderr
 
 
 def test_a_pass_of_wrong_channels_fails_only_the_methods_that_read_it(chart, tmp_path):
