@@ -213,22 +213,24 @@ CRISP_ROWS_INLINE T stabilisedSobel(const StabiliseParams& p, T c, T lo, T hi, T
   const auto x0 = temporal::truncOf(fx), y0 = temporal::truncOf(fy);
   const T tx = sx - fx, ty = sy - fy;
   T p00, p10, p01, p11;
-  bool loaded = false;
+  auto gatherClamped = [&]() CRISP_STAGE_LAMBDA {  // the taps clamped to the image
+    auto clampIndex = [](temporal::IntOf<T> v, int top) CRISP_STAGE_LAMBDA { return v < 0 ? 0 : (top < v ? top : v); };
+    const auto xa = clampIndex(x0, w - 1), xb = clampIndex(x0 + 1, w - 1);
+    const auto ya = clampIndex(y0, h - 1), yb = clampIndex(y0 + 1, h - 1);
+    p00 = temporal::gatherOf(p.previous, w, xa, ya), p10 = temporal::gatherOf(p.previous, w, xb, ya);
+    p01 = temporal::gatherOf(p.previous, w, xa, yb), p11 = temporal::gatherOf(p.previous, w, xb, yb);
+  };
   if constexpr (!std::is_same_v<T, float>) {
     if (temporal::sharedInteriorOffset<T>(x0, y0, valid, 0, 1, 0, 1, w, h)) {
       // Smooth motion: the lanes' taps are consecutive, the same values as the gathers.
       const float* upper = p.previous + std::size_t(y0[0]) * w + x0[0];
       p00 = temporal::loadLanes<T>(upper), p10 = temporal::loadLanes<T>(upper + 1);
       p01 = temporal::loadLanes<T>(upper + w), p11 = temporal::loadLanes<T>(upper + w + 1);
-      loaded = true;
+    } else {
+      gatherClamped();
     }
-  }
-  if (!loaded) {  // clamped to the image
-    auto clampIndex = [](temporal::IntOf<T> v, int top) CRISP_STAGE_LAMBDA { return v < 0 ? 0 : (top < v ? top : v); };
-    const auto xa = clampIndex(x0, w - 1), xb = clampIndex(x0 + 1, w - 1);
-    const auto ya = clampIndex(y0, h - 1), yb = clampIndex(y0 + 1, h - 1);
-    p00 = temporal::gatherOf(p.previous, w, xa, ya), p10 = temporal::gatherOf(p.previous, w, xb, ya);
-    p01 = temporal::gatherOf(p.previous, w, xa, yb), p11 = temporal::gatherOf(p.previous, w, xb, yb);
+  } else {
+    gatherClamped();
   }
   const T top = p00 + (p10 - p00) * tx;
   const T bottom = p01 + (p11 - p01) * tx;
