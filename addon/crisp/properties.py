@@ -169,10 +169,13 @@ def param_value(group, method, ident):
     saved file holds that this library no longer offers reads "" in Blender (its number matches no item;
     the file keeps the number, so an add-on and library that offer it again show it again): it is given
     by its name (saved_choice), which the library refuses by name ("'ycocg' is not one of: rgb") rather
-    than a filter taking another choice."""
+    than a filter taking another choice. One of a newer library, which this add-on cannot name, is sent
+    as "newer-crisp-choice-N" (no spaces: `--set` texts split on them), for the same refusal."""
     value = getattr(group, ident)
     if value == "" and group.bl_rna.properties[ident].type == "ENUM" and group.get(ident) is not None:
-        value = saved_choice(method, ident, group.get(ident)) or value
+        number = group.get(ident)
+        # A newer library's choice: this add-on cannot name it, so it says what it is rather than "".
+        value = saved_choice(method, ident, number) or "newer-crisp-choice-%d" % number
     return value
 
 

@@ -232,6 +232,11 @@ class SavedChoiceTest(unittest.TestCase):
             self.assertEqual(s.taa.clipSpace, "")
             bad = native.check_params("taa", properties.changed_params(s, "taa"))
             self.assertIn("clipSpace", bad or "")
+            # named as what it is: the refusal said "= '' is not one of"
+            self.assertIn("'newer-crisp-choice-%d' is not one of"
+                          % properties.name_number("future"), bad or "")
+            s.method = "taa"  # one word, so the Flamenco job's `--set` text keeps it whole
+            self.assertIn(" clipSpace=newer-crisp-choice-%d" % properties.name_number("future"), " " + s.set_params_text())
 
     def test_the_viewport_preview_sends_a_dropped_choice_by_its_name(self):
         """The viewport preview sends the scene's parameters as the renders do (properties.param_value): a
