@@ -192,19 +192,7 @@ __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const 
     // must hold the surface whose velocity we follow (depth is compared,
     // never interpolated).
     T d00, d10, d01, d11;  // the previous depth at the four taps
-    bool loaded = false;
-    if constexpr (!std::is_same_v<T, float>) {
-      if (temporal::sharedInteriorOffset<T>(r.x0, r.y0, valid, 0, 1, 0, 1, w, h)) {
-        // Smooth motion: the lanes' taps are consecutive, the same values as the gathers.
-        const float* upper = f.previousDepth + std::size_t(r.y0[0]) * w + r.x0[0];
-        d00 = temporal::loadLanes<T>(upper);
-        d10 = temporal::loadLanes<T>(upper + 1);
-        d01 = temporal::loadLanes<T>(upper + w);
-        d11 = temporal::loadLanes<T>(upper + w + 1);
-        loaded = true;
-      }
-    }
-    if (!loaded) {  // clamped to the image
+    auto gatherClamped = [&]() __attribute__((always_inline)) {  // the taps clamped to the image
       auto clampIndex = [](temporal::IntOf<T> v, int hi) __attribute__((always_inline)) {
         return v < 0 ? 0 : (hi < v ? hi : v);
       };
@@ -214,6 +202,20 @@ __attribute__((always_inline)) inline ReprojectionLanes<T> reprojectLanes(const 
       d10 = temporal::gatherOf(f.previousDepth, w, xb, ya);
       d01 = temporal::gatherOf(f.previousDepth, w, xa, yb);
       d11 = temporal::gatherOf(f.previousDepth, w, xb, yb);
+    };
+    if constexpr (!std::is_same_v<T, float>) {
+      if (temporal::sharedInteriorOffset<T>(r.x0, r.y0, valid, 0, 1, 0, 1, w, h)) {
+        // Smooth motion: the lanes' taps are consecutive, the same values as the gathers.
+        const float* upper = f.previousDepth + std::size_t(r.y0[0]) * w + r.x0[0];
+        d00 = temporal::loadLanes<T>(upper);
+        d10 = temporal::loadLanes<T>(upper + 1);
+        d01 = temporal::loadLanes<T>(upper + w);
+        d11 = temporal::loadLanes<T>(upper + w + 1);
+      } else {
+        gatherClamped();
+      }
+    } else {
+      gatherClamped();
     }
     const float tol = f.depthTolerance;
     const M x1 = r.tx != 0.0f, y1 = r.ty != 0.0f;

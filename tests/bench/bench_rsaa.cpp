@@ -242,18 +242,18 @@ void registerAll() {
 // The eval's 480x270, for instruction counts under callgrind (the 1080p
 // chart takes minutes to build there): the RSAA test alone from each layout.
 void registerProfileSize() {
-  const int w = 480, h = 270;
+  constexpr int w = 480, h = 270;  // constants: the lambdas need no capture
   const std::string tag = bench::sizeTag(w, h);
-  bench::registerTimed("rsaa.none.fast.st" + tag, [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none"); });
+  bench::registerTimed("rsaa.none.fast.st" + tag, [](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none"); });
   bench::registerTimed("rsaa.packed.none.fast.st" + tag,
-                       [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none", true); });
-  bench::registerTimed("rsaa.fast.st" + tag, [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false); });
+                       [](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none", true); });
+  bench::registerTimed("rsaa.fast.st" + tag, [](benchmark::State& st) { runRsaa(st, w, h, 1, false); });
   bench::registerTimed("rsaa.packed.fast.st" + tag,
-                       [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false, "fxaa", true); });
+                       [](benchmark::State& st) { runRsaa(st, w, h, 1, false, "fxaa", true); });
   bench::registerTimed("rsaa.sphere.none.fast.st" + tag,
-                       [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none", false, true); });
+                       [](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none", false, true); });
   bench::registerTimed("rsaa.sphere.packed.none.fast.st" + tag,
-                       [w, h](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none", true, true); });
+                       [](benchmark::State& st) { runRsaa(st, w, h, 1, false, "none", true, true); });
 }
 
 const bool registered = (registerAll(), registerProfileSize(), true);

@@ -144,8 +144,8 @@ TEST(Metrics, SnrOfFlatImages) {
 TEST(Metrics, SsimOfFlatImages) {
   // Flat luma a vs b: variances vanish, SSIM = (2ab + C1) / (a^2 + b^2 + C1) (Wang 2004 eq. 13).
   for (auto [a, b] : {std::pair{0.2f, 0.25f}, std::pair{0.5f, 0.9f}, std::pair{0.05f, 0.6f}}) {
-    const Image ref = fromEncoded(20, 14, [&](int, int, int) { return a; });
-    const Image test = fromEncoded(20, 14, [&](int, int, int) { return b; });
+    const Image ref = fromEncoded(20, 14, [a = a](int, int, int) { return a; });
+    const Image test = fromEncoded(20, 14, [b = b](int, int, int) { return b; });
     const double ea = srgbEncode(srgbDecode(a)), eb = srgbEncode(srgbDecode(b));
     const double expected = (2 * ea * eb + kC1) / (ea * ea + eb * eb + kC1);
     EXPECT_NEAR(compareImages(ref, test).ssim, expected, 1e-6) << a << " vs " << b;
