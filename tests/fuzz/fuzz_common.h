@@ -2,15 +2,18 @@
 // What the C API fuzz targets share: their view of libFuzzer's bytes (values
 // read in order, zeros once the bytes run out, so every input is a whole
 // sequence of calls), the check of an execute's output, the end of every
-// sequence, and the comparison of a sequence run with the output in place
-// against the same sequence run with the output apart.
+// sequence, the comparison of a sequence run with the output in place
+// against the same sequence run with the output apart, and the seeds each
+// target writes for its corpus (writeSeedsIfAsked).
 #pragma once
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -108,6 +111,7 @@ void finish(CrispContext context, CrispFilter filter, const OutputView& output, 
 
 // What one run of a sequence wrote.
 struct Trace {
+  std::string filter;    // the type the run asked crispNewFilter for
   bool inPlace = false;  // an execute without error wrote into the buffer of an input still set
   std::vector<std::pair<bool, std::vector<float>>> executes;  // each one's "no error", and what it wrote
   std::vector<std::vector<float>> buffers;  // every buffer the bytes made, at the end (after finish)
@@ -178,6 +182,88 @@ void checkInPlace(const char* target, Run&& run) {
   Trace apart;
   run(true, apart);
   compare(target, inPlace, apart);
+}
+
+// ---- seeds: inputs that reach the in-place check from the start ---------------------------------------
+// scripts/test.sh fuzzes each target for 30 s. From an empty corpus, fuzz_c_api took 58-75 s to trap a
+// filter made unsafe in place (fxaa without its staged copy of the input, repair's in-place path reading
+// what it had already written): the bytes must first make a valid colour image, put the output on its
+// buffer and execute. So each target writes seeds that do, beside the run() that reads them, in its own
+// code (no opaque binaries), and the fuzz stage starts from them:
+//   CRISP_FUZZ_WRITE_SEEDS=DIR build-fuzz/bin/fuzz_c_api
+// runs each seed once (the run in place), checks that it still reaches what it is for (the filter, the
+// output in an input's buffer or apart, at least so many executes without error that wrote an output),
+// writes it to DIR/<name> and exits 0. A seed that no longer reaches its state (the bytes a run() reads
+// changed under it) is not written: a message names it, and the exit status is 1.
+
+// The bytes a Reader reads back as the values written.
+struct Writer {
+  std::vector<std::uint8_t> bytes;
+  void byte(int b) { bytes.push_back(std::uint8_t(b)); }
+  void number(float f) {  // Reader::number: the bits, high byte first
+    std::uint32_t bits;
+    std::memcpy(&bits, &f, 4);
+    for (int i = 3; i >= 0; --i) byte(int(bits >> (8 * i) & 0xFF));
+  }
+  void pick(const std::vector<std::string>& names, const std::string& name) {  // Reader::pick
+    for (std::size_t i = 0; i < names.size(); ++i)
+      if (names[i] == name) return byte(int(i));
+    std::fprintf(stderr, "crisp_fuzz::Writer: '%s' is not one of the names a seed picks from\n", name.c_str());
+    std::abort();
+  }
+};
+
+struct Seed {
+  std::string name;  // its file name
+  std::vector<std::uint8_t> bytes;
+  // What its run in place must reach: the filter, the output in an input's buffer (Trace::inPlace) or
+  // not, and at least `executes` executes without error that wrote an output.
+  std::string filter;
+  bool inPlace = true;
+  int executes = 2;
+};
+
+// Executes without error that wrote an output.
+inline int writingExecutes(const Trace& trace) {
+  int n = 0;
+  for (const auto& [ok, values] : trace.executes) n += ok && !values.empty();
+  return n;
+}
+
+// With CRISP_FUZZ_WRITE_SEEDS=DIR set: run(data, size, apart, trace) once on each seed (in place), each
+// that reaches its state written to DIR/<name>; then the process exits, 0 if every seed did. Without it,
+// nothing. From LLVMFuzzerInitialize (libFuzzer calls it before it reads any flag or input).
+template <class Run>
+void writeSeedsIfAsked(const char* target, const std::vector<Seed>& seeds, Run&& run) {
+  const char* dir = std::getenv("CRISP_FUZZ_WRITE_SEEDS");
+  if (!dir) return;
+  bool all = true;
+  for (const Seed& seed : seeds) {
+    Trace trace;
+    run(seed.bytes.data(), seed.bytes.size(), false, trace);
+    const int executes = writingExecutes(trace);
+    if (trace.filter != seed.filter || trace.inPlace != seed.inPlace || executes < seed.executes) {
+      std::fprintf(stderr,
+                   "%s: seed '%s' no longer reaches its state (did the bytes the target reads change?): filter "
+                   "'%s', output %s, %d executes that wrote it; it is for '%s', %s, at least %d\n",
+                   target, seed.name.c_str(), trace.filter.c_str(), trace.inPlace ? "in place" : "apart", executes,
+                   seed.filter.c_str(), seed.inPlace ? "in place" : "apart", seed.executes);
+      all = false;
+      continue;
+    }
+    const std::string path = std::string(dir) + "/" + seed.name;
+    std::ofstream out(path, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(seed.bytes.data()), std::streamsize(seed.bytes.size()));
+    if (!out.flush()) {
+      std::fprintf(stderr, "%s: cannot write the seed %s\n", target, path.c_str());
+      all = false;
+      continue;
+    }
+    std::fprintf(stderr, "%s: seed %s: %zu bytes, %s, output %s, %d executes that wrote it\n", target,
+                 seed.name.c_str(), seed.bytes.size(), trace.filter.c_str(), trace.inPlace ? "in place" : "apart",
+                 executes);
+  }
+  std::exit(all ? 0 : 1);
 }
 
 }  // namespace crisp_fuzz
