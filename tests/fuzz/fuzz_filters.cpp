@@ -11,7 +11,9 @@
 // error leaves every output value finite (the temporal methods' stability
 // contract, taa.h and phlm.h); and a sequence that ran with the output in an
 // input's buffer writes the same values when run again with the output in a
-// buffer of its own (crisp.h).
+// buffer of its own (crisp.h). seeds() below writes inputs that reach a few
+// frames of each filter with the output in place at once (fuzz_common.h's
+// writeSeedsIfAsked; scripts/test.sh starts from them).
 //
 // These filters' sources are built with coverage but without ASan/UBSan in
 // the fuzz build (native/CMakeLists.txt: instrumenting phlm.cpp alone took
@@ -125,10 +127,14 @@ struct Buffer {
   std::size_t pixelFloats = 0, rowFloats = 0;
 };
 
+void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Trace& trace);
+std::vector<crisp_fuzz::Seed> seeds();
+
 }  // namespace
 
 // Reads each filter's table once. One it cannot read stops the target here, with a message, before
-// any input: each input would fail on it, or misread it and fuzz something else.
+// any input: each input would fail on it, or misread it and fuzz something else. Then, if asked, the
+// seeds are written (they read the tables) and the process exits.
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   for (const char* type : kTypes) {
     CrispContext ctx = crispNewContext();
@@ -146,10 +152,23 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
     crispReleaseContext(ctx);
     crispGetError(nullptr);
   }
+  crisp_fuzz::writeSeedsIfAsked("fuzz_filters", seeds(), run);
   return 0;
 }
 
 namespace {
+
+// What a step does: its byte modulo kOps (the seeds write these).
+enum Op : int {
+  kImage = 0,  // an image set again (another buffer, or the output in place) or unset
+  kParam = 1,  // and 2
+  kCommit = 3,
+  kReset,
+  kPixels,  // new pixel values in a buffer
+  kSize,    // a new frame size
+  kExecute,  // and 8, 9: a commit and an execute
+  kOps = 10
+};
 
 // One run of the sequence the bytes make. `apart`: an output the bytes put in an input's buffer
 // gets a buffer of its own instead, and after each execute the input's buffer gets what the execute
@@ -159,6 +178,7 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Tra
   CrispContext ctx = crispNewContext();
   crispSetContextInt(ctx, "numThreads", 1 + r.byte() % 2);
   const int type = r.byte() % 4;
+  trace.filter = kTypes[type];
   CrispFilter f = crispNewFilter(ctx, kTypes[type]);
   const std::vector<ImageRole>& images = gTables[type].images;
   const std::vector<Param>& params = gTables[type].params;
@@ -271,9 +291,9 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Tra
     if (all || role.required || (r.byte() & 1)) setImage(role);
   // Once the bytes run out, executes up to step 8: short inputs still run a history.
   for (int step = 0; step < 48 && (r.n || step < 8); ++step) {
-    const std::uint8_t op = r.n ? r.byte() : 9;
-    switch (op % 10) {
-      case 0: {
+    const std::uint8_t op = r.n ? r.byte() : kExecute;
+    switch (op % kOps) {
+      case kImage: {
         const ImageRole& role = images[r.byte() % images.size()];
         if (r.byte() % 8 == 0) {
           crispUnsetFilterImage(f, role.name.c_str());
@@ -284,11 +304,11 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Tra
         }
         break;
       }
-      case 1:
-      case 2: setParam(params[r.byte() % params.size()]); break;
-      case 3: crispCommitFilter(f); break;
-      case 4: crispResetFilter(f); break;
-      case 5: {  // the next frame's pixels in an image already set
+      case kParam:
+      case kParam + 1: setParam(params[r.byte() % params.size()]); break;
+      case kCommit: crispCommitFilter(f); break;
+      case kReset: crispResetFilter(f); break;
+      case kPixels: {  // the next frame's pixels in an image already set
         if (buffers.empty()) break;
         Buffer& b = buffers[r.byte() % buffers.size()];
         if (r.byte() & 1) {
@@ -299,7 +319,7 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Tra
         }
         break;
       }
-      case 6: {  // a new frame size: every image set again at it (the history is dropped)
+      case kSize: {  // a new frame size: every image set again at it (the history is dropped)
         w = 16 - r.byte() % 16, h = 16 - r.byte() % 16;
         for (const ImageRole& role : images)
           if (current.count(role.name)) setImage(role);
@@ -315,6 +335,117 @@ void run(const std::uint8_t* data, std::size_t size, bool apart, crisp_fuzz::Tra
   }
   crisp_fuzz::finish(ctx, f, output, executed);  // its execute compared too
   for (const Buffer& b : buffers) trace.buffers.push_back(b.data);
+}
+
+// ---- seeds (fuzz_common.h's writeSeedsIfAsked) ----------------------------------------------------------
+// For each filter: its images at one size (every role, or the required ones and a few), the output on the
+// colour's buffer, three frames (the colour's pixels new before each execute after the first, as a
+// renderer writes the next frame into the buffer the filter wrote), then executes with the same pixels
+// (run() executes up to step 8 once the bytes run out); on one thread and two, packed and padded RGBA or
+// RGB, fast and reference paths; and the same with the output apart. libFuzzer mutates them from the
+// start of the 30 s. The images are the filter's own table's (gTables), as run() reads them.
+
+struct FilterSeed {
+  std::string name;
+  int type = 0;  // in kTypes
+  int threads = 1, w = 8, h = 6;
+  bool all = true;                    // every role set; else the required ones and `optional`
+  std::vector<std::string> optional;  // the optional roles set when not `all`
+  std::uint8_t colorShape = 0;        // setImage's shape byte for the colour (0: packed, every channel)
+  bool reference = false;             // the "reference" parameter on
+  bool inPlace = true;                // the output on the colour's buffer, or one of its own
+};
+
+// fill(): a pattern of edges and ramps picked by `k`, and two values set apart.
+void writeFill(crisp_fuzz::Writer& out, int k) {
+  out.byte(1 + k % 6);  // a
+  out.byte(1 + k % 4);  // b
+  out.byte(k % 6);      // period 2 + k % 6
+  out.byte(2);          // two values anywhere: an index of two bytes and an ordinary value (a byte below 200)
+  // fill() reads the value before the index (C++17: the right of `=` first); with all three bytes below
+  // 200 either order reads three bytes and an ordinary value.
+  for (int i = 0; i < 2; ++i) {
+    out.byte((k * 59 + i * 97) % 200);
+    out.byte((k * 37 + i * 101) % 200);
+    out.byte((k * 11 + i * 53) % 200);
+  }
+}
+
+crisp_fuzz::Seed writeSeed(const FilterSeed& s) {
+  crisp_fuzz::Writer out;
+  out.byte(s.threads - 1);
+  out.byte(s.type);
+  out.byte(16 - s.w);
+  out.byte(16 - s.h);
+  out.byte(s.all ? 1 : 0);
+  int k = 0;
+  for (const ImageRole& role : gTables[std::size_t(s.type)].images) {
+    if (!s.all && !role.required) {
+      const bool set = std::find(s.optional.begin(), s.optional.end(), role.name) != s.optional.end();
+      out.byte(set ? 1 : 0);
+      if (!set) continue;
+    }
+    if (role.name == "output") {
+      out.byte(s.inPlace ? 0 : 1);  // in place when a multiple of 4
+      if (s.inPlace) continue;      // the colour's buffer: no more bytes
+    }
+    out.byte(role.name == "color" ? s.colorShape : 0);
+    writeFill(out, k++);
+  }
+  if (s.reference) {
+    const std::vector<Param>& params = gTables[std::size_t(s.type)].params;
+    std::size_t index = 0;
+    while (index < params.size() && params[index].name != "reference") ++index;
+    if (index == params.size()) {
+      std::fprintf(stderr, "fuzz_filters: seed '%s': filter '%s' has no parameter 'reference'\n", s.name.c_str(),
+                   kTypes[s.type]);
+      std::abort();
+    }
+    out.byte(kParam);
+    out.byte(int(index));
+    out.byte(1);           // a bool's value: its low bit
+  }
+  for (int frame = 1; frame < 3; ++frame) {
+    out.byte(kExecute);
+    out.byte(kPixels);
+    out.byte(0);  // the colour's buffer: the first one made
+    out.byte(1);  // a new fill
+    writeFill(out, 40 + frame);
+  }
+  out.byte(kExecute);
+  return {s.name, out.bytes, kTypes[s.type], s.inPlace, 3};
+}
+
+std::vector<crisp_fuzz::Seed> seeds() {
+  std::vector<crisp_fuzz::Seed> all;
+  for (int type = 0; type < 4; ++type) {
+    const std::string name = kTypes[type];
+    FilterSeed s;
+    s.type = type;
+    if (name == "taa-improved") {  // albedo sorts before color: the output would take its buffer
+      s.all = false;
+      s.optional = {"motion", "depth", "id"};
+    }
+    s.name = name + "-in-place";
+    all.push_back(writeSeed(s));
+    FilterSeed reference = s;
+    reference.name = name + "-in-place-reference", reference.reference = true;
+    all.push_back(writeSeed(reference));
+    FilterSeed apart = s;
+    apart.name = name + "-apart", apart.inPlace = false;
+    all.push_back(writeSeed(apart));
+    FilterSeed few = s;  // the required roles (and rsaa's sub-samples), RGB in padded pixels and rows
+    few.name = name + "-in-place-rgb-padded-2-threads", few.threads = 2, few.w = 7, few.h = 5, few.all = false;
+    few.optional = name == "rsaa" ? std::vector<std::string>{"subsamples"} : std::vector<std::string>{};
+    few.colorShape = 32 | 64 | 128;  // one channel fewer than 4, a float more a pixel, 3 more a row
+    all.push_back(writeSeed(few));
+    if (name == "taa-improved") {
+      FilterSeed albedo = s;
+      albedo.name = name + "-in-place-albedo", albedo.all = true;
+      all.push_back(writeSeed(albedo));
+    }
+  }
+  return all;
 }
 
 }  // namespace
