@@ -4,7 +4,8 @@
 # missing, builds, then runs
 #   1. the unit and API tests under AddressSanitizer + UBSan,
 #   2. the fast paths' equality tests in a Debug (-O0) build,
-#   3. the libFuzzer targets for a short fixed time,
+#   3. the libFuzzer targets for a short fixed time, fuzz_c_api's and
+#      fuzz_filters' from seeds that reach each filter's output in place,
 #   4. every CTest test of the release build (unit, API, Python/ctypes,
 #      headless Blender, benchmark smoke run).
 # Set CRISP_FUZZ_SECONDS (default 30 per target) to change step 3.
@@ -52,6 +53,22 @@ build-fuzz/bin/crisp synth -o "$corpus/gen" --size 8x6 >/dev/null
 # Seed files: a real EXR and PNG, prefixed with the byte that picks the extension.
 { printf '\x00'; cat "$corpus/gen/chart_1spp.exr"; } >"$corpus/frames/exr"
 { printf '\x01'; cat "$corpus/gen/chart_1spp.png"; } >"$corpus/frames/png"
+# Seeds that reach each filter's output in place at once (a valid colour, the output on its buffer,
+# executes), written by the targets' own code (fuzz_common.h, writeSeedsIfAsked): from an empty corpus
+# fuzz_c_api took 58-75 s to trap a filter made unsafe in place; from these it traps fxaa without its
+# staged copy, or repair's in-place path reading what it wrote, on a seed. Each seed is checked to still
+# reach its state; one that does not fails here. (-runs=0: a target that ignored the variable would run
+# no input and stop, rather than fuzz without end, and write no seed, which fails here too.)
+for target in fuzz_c_api:api fuzz_filters:filters; do
+  if ! CRISP_FUZZ_WRITE_SEEDS="$corpus/${target##*:}" ASAN_OPTIONS=detect_leaks=1:fast_unwind_on_malloc=0 \
+      "build-fuzz/bin/${target%%:*}" -runs=0 2>"$corpus/seeds.log" ||
+      [ -z "$(ls -A "$corpus/${target##*:}")" ]; then
+    cat "$corpus/seeds.log"
+    echo "crisp: ${target%%:*} did not write its seeds" >&2
+    exit 1
+  fi
+  echo "${target%%:*}: $(ls "$corpus/${target##*:}" | wc -l) seeds"
+done
 for target in fuzz_frame_reader:frames fuzz_c_api:api fuzz_filters:filters; do
   bin=${target%%:*}
   dir=$corpus/${target##*:}
