@@ -187,6 +187,11 @@ int runFilter(const ParsedArgs& args) {
     throw UsageError("--frames " + args.get("frames") + " reaches past the last input (" + std::to_string(count) +
                      " given; frames are 1-based positions among the inputs)");
   const int preroll = parseIntOption(args, "preroll", 0, 0, 1000000);
+  // Without a chunk every input is written from the first, before which there is nothing to warm
+  // (a resume re-reads a temporal history from there too): a --preroll would change nothing.
+  if (args.has("preroll") && !args.has("frames"))
+    throw UsageError("--preroll needs --frames A-B: it filters the N inputs before the chunk --frames picks, and "
+                     "without --frames every input is written from the first");
 
   // Refuse before writing anything: outputs that would collide or overwrite an input.
   std::set<std::string> stems;

@@ -35,7 +35,7 @@ const std::vector<OptionSpec>& options() {
       {"filter", "output", 'o', "OUTDIR", false, true, "output folder (created if missing)"},
       {"filter", "png", 0, nullptr, false, false, "also write a display-encoded PNG beside each EXR"},
       {"filter", "frames", 0, "A-B", false, false, "write only inputs A..B (1-based positions among the inputs); a farm chunk"},
-      {"filter", "preroll", 0, "N", false, false, "first filter the N inputs before A without writing them (a temporal method's history; a spatial one skips them)"},
+      {"filter", "preroll", 0, "N", false, false, "with --frames: first filter the N inputs before A without writing them (a temporal method's history; a spatial one skips them)"},
       {"filter", "resume", 0, nullptr, false, false, "start at the first input whose output is missing or stale (pre-roll before it; a temporal method re-reads from the chunk's first pre-roll frame)"},
       {"compare", "reference", 'r', "REF...", true, true, "reference images, paired in order with --test"},
       {"compare", "test", 't', "TEST...", true, true, "images to measure"},

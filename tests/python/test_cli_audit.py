@@ -95,3 +95,16 @@ def test_a_pass_of_wrong_channels_fails_only_the_methods_that_read_it(chart, tmp
     p = run("filter", "-q", "--method", "taa", f, "-o", tmp_path / "taa", ok=False)
     assert p.returncode == 1 and "vector2.exr" in p.stderr and "ViewLayer.Vector" in p.stderr, p.stderr
     assert not (tmp_path / "taa").exists()
+
+
+def test_a_preroll_without_frames_is_refused(chart, tmp_path):
+    """--preroll warms the history of the chunk --frames picks; without --frames every input is
+    written from the first, so it used to be ignored without a word (also with --resume, which
+    re-reads a temporal history from the first input). It is a usage error naming both options."""
+    src = chart / "chart_1spp.exr"
+    for extra in ((), ("--resume",)):
+        p = run("filter", "-q", "-m", "taa", "--preroll", "4", *extra, "-o", tmp_path / "out", src, ok=False)
+        assert p.returncode == 2 and "--preroll" in p.stderr and "--frames" in p.stderr, p.stderr
+        assert not (tmp_path / "out").exists()
+    run("filter", "-q", "-m", "taa", "--frames", "1-1", "--preroll", "4", "-o", tmp_path / "out", src)
+    assert (tmp_path / "out" / "chart_1spp.exr").is_file()
