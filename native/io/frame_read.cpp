@@ -341,7 +341,16 @@ void checkReadable(const std::string& path) {
   const auto status = std::filesystem::status(path, ec);
   if (!std::filesystem::exists(status)) ioError("cannot read '" + path + "': no such file");
   if (std::filesystem::is_directory(status)) ioError("cannot read '" + path + "': it is a directory");
-  if (std::filesystem::is_regular_file(status) && std::filesystem::file_size(path, ec) == 0 && !ec)
+  // Opening a FIFO waits for a writer (for ever); a device or socket holds no image file either.
+  if (!std::filesystem::is_regular_file(status)) {
+    const char* kind = std::filesystem::is_fifo(status)             ? "a named pipe (FIFO)"
+                       : std::filesystem::is_socket(status)         ? "a socket"
+                       : std::filesystem::is_character_file(status) ? "a character device"
+                       : std::filesystem::is_block_file(status)     ? "a block device"
+                                                                    : "a special file";
+    ioError("cannot read '" + path + "': it is " + std::string(kind) + ", not a regular file");
+  }
+  if (std::filesystem::file_size(path, ec) == 0 && !ec)
     ioError("cannot read '" + path + "': the file is empty");
   if (::access(path.c_str(), R_OK) != 0) ioError("cannot read '" + path + "': " + std::strerror(errno));
 }

@@ -108,3 +108,27 @@ def test_a_preroll_without_frames_is_refused(chart, tmp_path):
         assert not (tmp_path / "out").exists()
     run("filter", "-q", "-m", "taa", "--frames", "1-1", "--preroll", "4", "-o", tmp_path / "out", src)
     assert (tmp_path / "out" / "chart_1spp.exr").is_file()
+
+
+def test_inputs_that_are_not_regular_files_are_refused_before_they_are_opened(chart, tmp_path):
+    """A named pipe called x.exr among the inputs made info and filter wait for a writer for ever;
+    a socket, a device or a folder named so is no image either. Each is refused, naming the path and
+    what it is, before anything is opened or written."""
+    import socket
+    fifo, sock, folder = tmp_path / "fifo.exr", tmp_path / "sock.exr", tmp_path / "folder.exr"
+    os.mkfifo(fifo)
+    server = socket.socket(socket.AF_UNIX)
+    server.bind(str(sock))
+    folder.mkdir()
+    try:
+        for path, words in ((fifo, "named pipe"), (sock, "socket"), ("/dev/null", "character device"),
+                            (folder, "directory")):
+            p = subprocess.run([CRISP, "info", str(path)], capture_output=True, text=True, timeout=20)
+            assert p.returncode == 1 and "'%s'" % path in p.stdout and words in p.stdout, (p.stdout, p.stderr)
+            out = tmp_path / "out"
+            p = subprocess.run([CRISP, "filter", "-q", "-m", "fxaa", "-o", str(out), str(chart / "chart_1spp.exr"),
+                                str(path)], capture_output=True, text=True, timeout=20)
+            assert p.returncode == 1 and "'%s'" % path in p.stderr and words in p.stderr, p.stderr
+            assert not out.exists()
+    finally:
+        server.close()
