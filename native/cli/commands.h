@@ -92,7 +92,8 @@ void makeDirectories(const std::string& path);
 void checkOutputFile(const std::string& path);
 // makeDirectories for one run: the folders it had to create are removed again
 // at the end of the run (deepest first) if they are still empty, so that a
-// run that fails before its first output leaves no empty output folder behind.
+// run that fails before its first output, or is stopped by a signal
+// (removeFolderOnSignals), leaves no empty output folder behind.
 class RunFolder {
  public:
   explicit RunFolder(const std::string& path);
@@ -102,6 +103,7 @@ class RunFolder {
 
  private:
   std::vector<std::string> made_;  // deepest first
+  std::vector<int> signalSlots_;   // removeFolderOnSignals's, in the order made
 };
 std::string fileStem(const std::string& path);
 std::string joinPath(const std::string& dir, const std::string& name);

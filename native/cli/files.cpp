@@ -118,18 +118,29 @@ RunFolder::RunFolder(const std::string& path) {
       ec.clear();
       continue;
     }
-    if (!fs::create_directory(prefix, ec)) break;  // makeDirectories below names the failure
+    // Ctrl-C (or SIGTERM, SIGHUP) skips the destructor: the signal handler removes it instead,
+    // handed over before it is made so that no signal finds it made and not handed over.
+    const int slot = removeFolderOnSignals(prefix.string());
+    if (!fs::create_directory(prefix, ec)) {  // makeDirectories below names the failure
+      keepFolderOnSignals(slot);
+      break;
+    }
     made_.insert(made_.begin(), prefix.string());
+    signalSlots_.push_back(slot);
   }
   try {
     makeDirectories(path);
   } catch (...) {
     removeEmptyFolders(made_);
+    for (int slot : signalSlots_) keepFolderOnSignals(slot);
     throw;
   }
 }
 
-RunFolder::~RunFolder() { removeEmptyFolders(made_); }
+RunFolder::~RunFolder() {
+  removeEmptyFolders(made_);
+  for (int slot : signalSlots_) keepFolderOnSignals(slot);
+}
 
 std::string executableDir() {
   std::error_code ec;

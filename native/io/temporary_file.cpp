@@ -32,14 +32,16 @@ struct Slot {
   char path[kPathBytes];
 };
 Slot slots[kSlots];
+constexpr int kFolderSlots = 16;
+Slot folderSlots[kFolderSlots];  // removeFolderOnSignals's, in the order they were taken
 
-int registerPath(const std::string& path) {
+int registerPath(const std::string& path, Slot* slotList = slots, int count = kSlots) {
   if (path.size() >= kPathBytes) return -1;
-  for (int i = 0; i < kSlots; ++i) {
+  for (int i = 0; i < count; ++i) {
     int expected = kFree;
-    if (slots[i].state.compare_exchange_strong(expected, kFilling)) {
-      std::memcpy(slots[i].path, path.c_str(), path.size() + 1);
-      slots[i].state.store(kReady);
+    if (slotList[i].state.compare_exchange_strong(expected, kFilling)) {
+      std::memcpy(slotList[i].path, path.c_str(), path.size() + 1);
+      slotList[i].state.store(kReady);
       return i;
     }
   }
@@ -80,10 +82,13 @@ long pidOfOwnTemporary(const std::string& name) {
   return std::stol(pid);
 }
 
-// Only async-signal-safe calls: unlink, signal, raise.
+// Only async-signal-safe calls: unlink, rmdir, signal, raise. rmdir removes
+// only an empty folder: one that holds anything stays, and its parents too.
 extern "C" void removeAndReraise(int sig) {
   for (Slot& s : slots)
     if (s.state.load() == kReady) ::unlink(s.path);
+  for (int i = kFolderSlots - 1; i >= 0; --i)  // the last given first: a folder before its parent
+    if (folderSlots[i].state.load() == kReady) ::rmdir(folderSlots[i].path);
   ::signal(sig, SIG_DFL);
   ::raise(sig);
 }
@@ -121,6 +126,12 @@ void removeTemporaryFilesOnSignals() {
     if (::sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;
     ::sigaction(sig, &action, nullptr);
   }
+}
+
+int removeFolderOnSignals(const std::string& folder) { return registerPath(folder, folderSlots, kFolderSlots); }
+
+void keepFolderOnSignals(int slot) {
+  if (slot >= 0 && slot < kFolderSlots) folderSlots[slot].state.store(kFree);
 }
 
 std::vector<std::string> removeStaleTemporaryFiles(const std::string& folder) {

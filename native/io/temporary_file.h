@@ -35,9 +35,19 @@ class TemporaryFile {
 };
 
 // Installs handlers for SIGINT, SIGTERM and SIGHUP that remove the temporary
-// files being written, then end the process by the same signal. For programs
+// files being written, and then the folders given to removeFolderOnSignals
+// that are empty, then end the process by the same signal. For programs
 // (the crisp command); a library must not take a host's signals.
 void removeTemporaryFilesOnSignals();
+
+// A folder a run makes, which those handlers remove (rmdir(2), the last given
+// first: a folder before its parent) if it exists and is empty then, so that a
+// run stopped before its first output leaves no empty folder behind. Given
+// before the folder is made. Returns the slot to hand to keepFolderOnSignals
+// once the run is over (or the folder could not be made), or -1 (no slot
+// free: kept).
+int removeFolderOnSignals(const std::string& folder);
+void keepFolderOnSignals(int slot);
 
 // Removes from `folder` the temporary files (above) that a process of this
 // host left behind when it was killed without a chance to clean up (kill -9,

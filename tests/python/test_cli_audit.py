@@ -3,7 +3,9 @@
 each failure is said before any work is lost, naming the file, and nothing read is dropped without a
 word."""
 import os
+import signal
 import subprocess
+import time
 
 import pytest
 
@@ -132,3 +134,39 @@ def test_inputs_that_are_not_regular_files_are_refused_before_they_are_opened(ch
             assert not out.exists()
     finally:
         server.close()
+
+
+def interrupt_filter(src, out, started):
+    """Runs crisp filter on src into out, and Ctrl-C (SIGINT) once started() is true; returns the
+    exit status (-SIGINT: ended by the signal)."""
+    p = subprocess.Popen([CRISP, "filter", "-q", "-m", "taa", "-o", str(out), str(src)])
+    try:
+        deadline = time.monotonic() + 60
+        while not started() and p.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.001)
+        p.send_signal(signal.SIGINT)
+        return p.wait(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+
+
+def test_ctrl_c_before_the_first_output_leaves_no_empty_output_folder(chart, tmp_path):
+    """A run stopped by Ctrl-C (SIGINT) while it filtered its first frame left the output folders it
+    had made behind, empty (an error did not). They are removed; a folder that was there before, or
+    that holds anything, is kept."""
+    big = tmp_path / "big.exr"  # a frame that takes a while, so the signal comes before its output
+    oiiotool(chart / "chart_1spp.exr", "--resize", "3200x2000", "-o", big)
+    out = tmp_path / "new" / "out"
+    status = interrupt_filter(big, out, out.exists)
+    assert status == -signal.SIGINT, status
+    assert not (tmp_path / "new").exists(), os.listdir(tmp_path / "new")
+    # A folder that holds something when the signal comes is kept (here: a file put in it meanwhile).
+    status = interrupt_filter(big, out, lambda: out.exists() and (out / "mine.txt").write_text("mine") > 0)
+    assert status == -signal.SIGINT and os.listdir(out) == ["mine.txt"], status
+    # A folder that was there before is kept.
+    there = tmp_path / "there"
+    there.mkdir()
+    start = time.monotonic()
+    status = interrupt_filter(big, there, lambda: time.monotonic() - start > 0.3)
+    assert status == -signal.SIGINT and there.is_dir(), status
