@@ -83,6 +83,14 @@ const std::vector<std::string>& ParsedArgs::all(const std::string& name) const {
   return it == values.end() ? none : it->second;
 }
 
+// Whether the command's positional arguments are files (filter's INPUT..., info's FILE...), which
+// '--' lets begin with '-'.
+static bool takesFiles(const std::string& command) {
+  for (const CommandSpec& c : commands())
+    if (command == c.name) return c.usage[0] != '\0' && c.usage[0] != '[';
+  return false;
+}
+
 static const OptionSpec* findOption(const std::string& command, const std::string& arg) {
   for (const OptionSpec& o : options()) {
     if (std::string(o.command) != command && std::string(o.command) != "*") continue;
@@ -113,6 +121,10 @@ ParsedArgs parseArgs(const std::vector<std::string>& args) {
   }
   for (std::size_t i = 1; i < args.size(); ++i) {
     std::string arg = args[i];
+    if (arg == "--") {  // the end of the options: what follows is positional, "-name.exr" too
+      p.positional.insert(p.positional.end(), args.begin() + std::ptrdiff_t(i) + 1, args.end());
+      break;
+    }
     std::string inlineValue;
     bool hasInline = false;
     if (arg.rfind("--", 0) == 0 && arg.find('=') != std::string::npos) {
@@ -122,7 +134,10 @@ ParsedArgs parseArgs(const std::vector<std::string>& args) {
     }
     if (arg.size() > 1 && arg[0] == '-' && !(arg.size() > 1 && (std::isdigit(static_cast<unsigned char>(arg[1])) || arg[1] == '.'))) {
       const OptionSpec* o = findOption(p.command, arg);
-      if (!o) throw UsageError("unknown option '" + arg + "' for '" + p.command + "'");
+      if (!o) {
+        throw UsageError("unknown option '" + arg + "' for '" + p.command + "'" +
+                         (takesFiles(p.command) ? " (a file whose name begins with '-' goes after '--')" : ""));
+      }
       auto& vals = p.values[o->name];
       if (!o->valueName) {
         if (hasInline) throw UsageError("option '" + arg + "' takes no value");
@@ -133,7 +148,8 @@ ParsedArgs parseArgs(const std::vector<std::string>& args) {
         vals.push_back(inlineValue);
       } else if (o->multi) {
         std::size_t before = vals.size();
-        while (i + 1 < args.size() && !(args[i + 1].size() > 1 && args[i + 1][0] == '-' && findOption(p.command, args[i + 1].substr(0, args[i + 1].find('=')))))
+        while (i + 1 < args.size() && args[i + 1] != "--" &&
+               !(args[i + 1].size() > 1 && args[i + 1][0] == '-' && findOption(p.command, args[i + 1].substr(0, args[i + 1].find('=')))))
           vals.push_back(args[++i]);
         if (vals.size() == before) throw UsageError("option '" + arg + "' needs at least one " + o->valueName);
       } else {
@@ -172,6 +188,9 @@ std::string helpText(const std::string& command) {
       s << "  " << flag << std::string(flag.size() < 26 ? 26 - flag.size() : 1, ' ') << o.help
         << (o.required ? " (required)" : "") << "\n";
     }
+    if (takesFiles(command))
+      s << "      --" << std::string(20, ' ') << "the end of the options: what follows is " << c.usage
+        << ", also a name beginning with '-'\n";
     return s.str();
   }
   return "";

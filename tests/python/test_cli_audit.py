@@ -3,6 +3,7 @@
 each failure is said before any work is lost, naming the file, and nothing read is dropped without a
 word."""
 import os
+import shutil
 import signal
 import subprocess
 import time
@@ -170,3 +171,22 @@ def test_ctrl_c_before_the_first_output_leaves_no_empty_output_folder(chart, tmp
     start = time.monotonic()
     status = interrupt_filter(big, there, lambda: time.monotonic() - start > 0.3)
     assert status == -signal.SIGINT and there.is_dir(), status
+
+
+def test_files_whose_names_begin_with_a_dash_go_after_a_double_dash(chart, tmp_path, monkeypatch):
+    """A path beginning with '-' read as an option, and there was no way to give it: '--' ends the
+    options (what follows is a file, also '--png'), and the error for an unknown option says so."""
+    monkeypatch.chdir(tmp_path)  # the relative names below begin with '-'
+    shutil.copy(chart / "chart_1spp.exr", tmp_path / "-frame.exr")
+    shutil.copy(chart / "chart_1spp.exr", tmp_path / "--png")
+    p = run("filter", "-q", "-m", "fxaa", "-o", "out", "-frame.exr", ok=False)
+    assert p.returncode == 2 and "'-frame.exr'" in p.stderr and "'--'" in p.stderr, p.stderr
+    run("filter", "-q", "-m", "fxaa", "-o", "out", "--", "-frame.exr", "--png")
+    assert set(os.listdir(tmp_path / "out")) == {".crisp", "--png.exr", "-frame.exr"}
+    info = run("info", "--", "-frame.exr").stdout
+    assert info.startswith("-frame.exr\n") and "size: 37x23" in info, info
+    assert "--" in run("filter", "--help").stdout.split("Options:")[1]
+    # A command without positional arguments still refuses what follows '--'.
+    p = run("synth", "-o", "chart", "--", "extra", ok=False)
+    assert p.returncode == 2 and "unexpected argument 'extra'" in p.stderr, p.stderr
+    assert not (tmp_path / "chart").exists()
