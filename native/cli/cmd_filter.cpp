@@ -210,6 +210,12 @@ int runFilter(const ParsedArgs& args) {
         throw UsageError("output for '" + in + "' would overwrite an input file; choose another -o folder");
   }
   const RunFolder folder(outDir);
+  // A folder in an output's place (named like it) would fail the run only when it reaches that frame.
+  for (int position = chunk.first; position <= chunk.last; ++position) {
+    const std::string base = joinPath(outDir, fileStem(args.positional[std::size_t(position - 1)]));
+    checkOutputFile(base + ".exr");
+    if (png) checkOutputFile(base + ".png");
+  }
 
   // What each output was made from, which a resume compares (output_stamps.h).
   const bool rebuildMotion = rebuildsMotion(*filter, sidecars);

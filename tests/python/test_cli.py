@@ -672,18 +672,19 @@ def test_jitter_distributions_match_the_add_ons():
 
 def test_an_interrupted_rewrite_is_not_kept_by_resume(chart, tmp_path):
     """The settings record of an output goes before the output is replaced: a run stopped between
-    the two (here the PNG cannot be put in place) leaves no record, so --resume with the first
-    settings makes the frame again instead of keeping the second run's pixels."""
+    the two (here the PNG's record cannot be put in place, after the EXR and the PNG were; a folder
+    in the place of an output itself is refused before the run starts) leaves no record, so --resume
+    with the first settings makes the frame again instead of keeping the second run's pixels."""
     out = tmp_path / "out"
     src = chart / "chart_1spp.exr"
     run("filter", "-q", "-m", "fxaa", "-o", out, src)
     first = tmp_path / "first.exr"
     shutil.copy(out / "chart_1spp.exr", first)
-    (out / "chart_1spp.png").mkdir()  # the PNG's rename fails
+    (out / ".crisp" / "chart_1spp.png.stamp").mkdir()  # the PNG record's rename fails
     p = run("filter", "-q", "-m", "fxaa", "--set", "subpix=0", "--png", "-o", out, src, ok=False)
-    assert p.returncode == 1 and "chart_1spp.png" in p.stderr, p.stderr
+    assert p.returncode == 1 and "chart_1spp.png.stamp" in p.stderr, p.stderr
     assert not (out / ".crisp" / "chart_1spp.json").exists()
-    (out / "chart_1spp.png").rmdir()
+    (out / ".crisp" / "chart_1spp.png.stamp").rmdir()
     p = run("filter", "-m", "fxaa", "--resume", "-o", out, src)
     assert "nothing to do" not in p.stdout, p.stdout
     # the same pixels (not bytes: OpenEXR's threaded writer may order its chunks differently)

@@ -190,3 +190,20 @@ def test_files_whose_names_begin_with_a_dash_go_after_a_double_dash(chart, tmp_p
     p = run("synth", "-o", "chart", "--", "extra", ok=False)
     assert p.returncode == 2 and "unexpected argument 'extra'" in p.stderr, p.stderr
     assert not (tmp_path / "chart").exists()
+
+
+def test_a_folder_in_the_place_of_an_output_is_refused_before_the_run(chart, tmp_path):
+    """A folder named like an output (OUTDIR/b.exr, or b.png with --png) failed the run only when it
+    reached that frame, after the frames before it were filtered. It is refused first, naming it;
+    a chunk whose outputs are not in its way runs."""
+    a, b = tmp_path / "a.exr", tmp_path / "b.exr"
+    shutil.copy(chart / "chart_1spp.exr", a)
+    shutil.copy(chart / "chart_1spp.exr", b)
+    for name, extra in (("b.exr", ()), ("b.png", ("--png",))):
+        out = tmp_path / ("out_" + name.replace(".", "_"))
+        (out / name).mkdir(parents=True)
+        p = run("filter", "-q", "-m", "fxaa", *extra, "-o", out, a, b, ok=False)
+        assert p.returncode == 1 and "'%s'" % (out / name) in p.stderr and "is a folder" in p.stderr, p.stderr
+        assert os.listdir(out) == [name] and (out / name).is_dir(), os.listdir(out)  # a.exr not written
+        run("filter", "-q", "-m", "fxaa", *extra, "--frames", "1-1", "-o", out, a, b)
+        assert (out / "a.exr").is_file()
