@@ -87,8 +87,13 @@ long pidOfOwnTemporary(const std::string& name) {
 extern "C" void removeAndReraise(int sig) {
   for (Slot& s : slots)
     if (s.state.load() == kReady) ::unlink(s.path);
-  for (int i = kFolderSlots - 1; i >= 0; --i)  // the last given first: a folder before its parent
-    if (folderSlots[i].state.load() == kReady) ::rmdir(folderSlots[i].path);
+  // A folder before its parent: passes until one removes nothing (a slot's number need not follow
+  // the order the folders were given in once slots have been freed and taken again).
+  for (bool removed = true; removed;) {
+    removed = false;
+    for (int i = kFolderSlots - 1; i >= 0; --i)
+      if (folderSlots[i].state.load() == kReady && ::rmdir(folderSlots[i].path) == 0) removed = true;
+  }
   ::signal(sig, SIG_DFL);
   ::raise(sig);
 }

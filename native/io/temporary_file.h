@@ -40,8 +40,8 @@ class TemporaryFile {
 // (the crisp command); a library must not take a host's signals.
 void removeTemporaryFilesOnSignals();
 
-// A folder a run makes, which those handlers remove (rmdir(2), the last given
-// first: a folder before its parent) if it exists and is empty then, so that a
+// A folder a run makes, which those handlers remove (rmdir(2), a folder before
+// its parent) if it exists and is empty then, so that a
 // run stopped before its first output leaves no empty folder behind. Given
 // before the folder is made. Returns the slot to hand to keepFolderOnSignals
 // once the run is over (or the folder could not be made), or -1 (no slot
