@@ -207,3 +207,14 @@ def test_a_folder_in_the_place_of_an_output_is_refused_before_the_run(chart, tmp
         assert os.listdir(out) == [name] and (out / name).is_dir(), os.listdir(out)  # a.exr not written
         run("filter", "-q", "-m", "fxaa", *extra, "--frames", "1-1", "-o", out, a, b)
         assert (out / "a.exr").is_file()
+
+
+def test_help_and_version_refuse_arguments_they_would_drop():
+    """`crisp help taa phlm` printed taa's help and dropped 'phlm'; `crisp version x` dropped 'x'. Every
+    other command refuses an argument it does not take."""
+    p = run("help", "taa", "phlm", ok=False)
+    assert p.returncode == 2 and "unexpected argument 'phlm'" in p.stderr and not p.stdout, (p.stdout, p.stderr)
+    p = run("version", "x", ok=False)
+    assert p.returncode == 2 and "unexpected argument 'x'" in p.stderr and not p.stdout, (p.stdout, p.stderr)
+    assert "Filter 'taa'" in run("help", "taa").stdout
+    assert run("version").stdout.startswith("crisp ")
