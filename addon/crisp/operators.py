@@ -317,6 +317,15 @@ class CRISP_OT_compare(bpy.types.Operator):
         s.last_psnr, s.last_ssim = res["mean"]["psnr"], res["mean"]["ssim"]
         s.last_compare = "%d frames: PSNR %.2f dB, SSIM %.4f" % (len(res["frames"]), s.last_psnr, s.last_ssim)
         self.report({"INFO"}, "Crisp: " + s.last_compare)
+        # A mean over frames of several runs (another method, other settings) or with frames left out
+        # is not one run's figure: said as Load into Compositor says it.
+        warnings = pipeline.sequence_warnings(out, _frames(scene))
+        if res["no_reference"]:
+            warnings.append("%s no reference frame (Render Reference)"
+                            % pipeline.listed_frames(res["no_reference"], ("has", "have")))
+        if warnings:
+            s.last_compare += " (not one run: see the warning)"
+            self.report({"WARNING"}, "Crisp: " + "; ".join(warnings))
         return {"FINISHED"}
 
 

@@ -328,9 +328,13 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
     the chunk filtered but not written), resume (start at the first frame with a missing output); the
     result then goes to run_AAAA-BBBB.json so concurrent chunks never write the same file.
     scene_key: what the scene file holds (batch.py scene_key), or None when unknown (a scene edited in
-    this session); with it, frames of another scene file are never reused or resumed."""
+    this session); with it, frames of another scene file are never reused or resumed. out_dir: a folder;
+    one starting with // is relative to the saved .blend file, as Blender reads it (output_argument)."""
     frames = list(frames)
     given = params
+    # Before anything uses it: os.path reads "//x" as the root folder's x, where Blender renders beside
+    # the .blend, so the run made folders under / and then found no frame where it looked.
+    out_dir = output_argument(out_dir)
     if not frames:
         raise InputError("no frames to render (empty frame range)")
     if preroll < 0:
@@ -630,6 +634,20 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
     return record(ended())
 
 
+def listed_frames(fs, verb):
+    """"frame 3 is", "frames 3, 4 are" (verb: its singular and plural), at most six frames named."""
+    names = ", ".join(map(str, fs[:6])) + (" and %d more" % (len(fs) - 6) if len(fs) > 6 else "")
+    return ("frame %s %s" if len(fs) == 1 else "frames %s %s") % (names, verb[len(fs) > 1])
+
+
+def _same_making_both_ways(a, b):
+    """Two frames' made_with alike (same_making each way: a scene_key one of them lacks, a run from this
+    session's edited scene, matches); two frames of older builds (no record) alike too."""
+    if not isinstance(a, dict) or not isinstance(b, dict):
+        return a == b
+    return same_making(a, b)[0] and same_making(b, a)[0]
+
+
 def sequence_warnings(out_dir, frames):
     """Why out_dir/filtered/ does not hold one run's sequence of `frames`, as texts ([] when it does):
     frames missing, made otherwise than the first (another method or settings: each input sidecar's
@@ -646,33 +664,32 @@ def sequence_warnings(out_dir, frames):
         making = render.read_sidecar(input_dir, f).get("made_with")
         if first is None:
             first = (f, making)
-        elif making != first[1]:
+        elif not _same_making_both_ways(making, first[1]):
             other.append(f)
         if older_than_input(input_dir, f, [out]):
             older.append(f)
-
-    def listed(fs, verb):  # "frame 3 is", "frames 3, 4 are"
-        names = ", ".join(map(str, fs[:6])) + (" and %d more" % (len(fs) - 6) if len(fs) > 6 else "")
-        return ("frame %s %s" if len(fs) == 1 else "frames %s %s") % (names, verb[len(fs) > 1])
     out = []
     if missing:
-        out.append("%s no filtered image" % listed(missing, ("has", "have")))
+        out.append("%s no filtered image" % listed_frames(missing, ("has", "have")))
     if other:
-        out.append("%s made with other settings than frame %d" % (listed(other, ("was", "were")), first[0]))
+        out.append("%s made with other settings than frame %d" % (listed_frames(other, ("was", "were")), first[0]))
     if older:
         out.append("%s older than its input (a run stopped before writing it: render again, or resume)"
-                   % listed(older, ("is", "are")))
+                   % listed_frames(older, ("is", "are")))
     return out
 
 
 def compare_dirs(test_dir, reference_dir, frames, threads=0):
-    """Metrics of test_dir/frame_NNNN.exr against reference_dir/frame_NNNN.exr, per frame and mean."""
-    rows = []
+    """Metrics of test_dir/frame_NNNN.exr against reference_dir/frame_NNNN.exr, per frame and mean;
+    "no_reference": the frames with a test image and no reference image (not measured)."""
+    rows, no_reference = [], []
     with native.Context(threads) as ctx:
         for f in frames:
             t = os.path.join(test_dir, render.frame_name(f))
             r = os.path.join(reference_dir, render.frame_name(f))
             if not (os.path.isfile(t) and os.path.isfile(r)):
+                if os.path.isfile(t):
+                    no_reference.append(f)
                 continue
             m = native.compare_images(ctx, r, t)
             m["frame"] = f
@@ -680,4 +697,4 @@ def compare_dirs(test_dir, reference_dir, frames, threads=0):
     if not rows:
         raise InputError("nothing to compare: no frame has both %s and %s" % (test_dir, reference_dir))
     mean = {k: sum(r[k] for r in rows) / len(rows) for k in ("psnr", "ssim", "rmse", "flip")}
-    return {"frames": rows, "mean": mean}
+    return {"frames": rows, "mean": mean, "no_reference": no_reference}

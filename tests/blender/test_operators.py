@@ -612,6 +612,77 @@ class OperatorTest(unittest.TestCase):
             bpy.ops.crisp.compare()
         self.assertIn("reference", str(ctx.exception))
 
+    def test_compare_warns_when_the_frames_are_not_one_run(self):
+        """Compare averaged whatever filtered frames the folder held: frames of two methods, or frames
+        without a reference left out, gave one figure without a word (Load into Compositor warned about
+        the same folder). It now warns as Load into Compositor does, and names frames it could not
+        measure."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        scene.frame_start, scene.frame_end = 1, 3
+        s = scene.crisp
+        s.output_dir = self.tmp.name
+        s.reference_samples = 2
+        s.method = "fxaa"
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        scene.frame_end = 2
+        self.assertEqual(bpy.ops.crisp.render_reference(), {"FINISHED"})
+        self.assertEqual(bpy.ops.crisp.compare(), {"FINISHED"})
+        self.assertNotIn("not one run", s.last_compare)  # one run over frames 1-2
+        scene.frame_end = 3
+        self.assertEqual(bpy.ops.crisp.compare(), {"FINISHED"})
+        self.assertIn("2 frames", s.last_compare)
+        self.assertIn("not one run", s.last_compare)
+        self.assertEqual(pipeline.compare_dirs(os.path.join(self.tmp.name, "filtered"),
+                                               os.path.join(self.tmp.name, "reference"), [1, 2, 3])["no_reference"],
+                         [3])
+        scene.frame_start = scene.frame_end = 2
+        s.method = "repair"
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        scene.frame_start, scene.frame_end = 1, 2
+        self.assertEqual(pipeline.sequence_warnings(self.tmp.name, [1, 2]),
+                         ["frame 2 was made with other settings than frame 1"])
+        self.assertEqual(bpy.ops.crisp.compare(), {"FINISHED"})
+        self.assertIn("not one run", s.last_compare)
+
+    def test_sequence_warnings_match_a_frame_whose_scene_file_is_unknown(self):
+        """crisp render records the .blend's fingerprint (scene_key); the add-on, whose scene may be
+        edited, records none, which a resume takes as a match. Load into Compositor compared the two
+        records as they were, and warned of other settings over frames made alike."""
+        os.makedirs(os.path.join(self.tmp.name, "input"))
+        os.makedirs(os.path.join(self.tmp.name, "filtered"))
+        base = {"scene": "s", "method": "taa", "params": {}, "samples": 1, "library": "x"}
+        for f, key in ((1, "sha256:abc"), (2, None), (3, "sha256:abc")):
+            with open(os.path.join(self.tmp.name, "input", "frame_%04d.json" % f), "w") as fh:
+                json.dump({"made_with": dict(base, scene_key=key)}, fh)
+            with open(os.path.join(self.tmp.name, "filtered", "frame_%04d.exr" % f), "w") as fh:
+                fh.write("x")
+        self.assertEqual(pipeline.sequence_warnings(self.tmp.name, [1, 2, 3]), [])
+        with open(os.path.join(self.tmp.name, "input", "frame_0003.json"), "w") as fh:
+            json.dump({"made_with": dict(base, scene_key="sha256:abc", method="phlm")}, fh)
+        exr = os.path.join(self.tmp.name, "filtered", "frame_0003.exr")
+        os.utime(exr, ns=(os.stat(exr).st_atime_ns, os.stat(exr).st_mtime_ns + 10**9))  # written after its input
+        self.assertEqual(pipeline.sequence_warnings(self.tmp.name, [1, 2, 3]),
+                         ["frame 3 was made with other settings than frame 1"])
+
+    def test_a_run_into_a_folder_relative_to_the_blend_file_writes_beside_it(self):
+        """pipeline.run(..., "//out") made /out (os.path reads // as the root) while Blender rendered
+        beside the .blend, and the run failed finding no frame. It now reads // as Blender does, and
+        refuses it when no .blend file is saved."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        name = "crisp_test_%d" % os.getpid()
+        with self.assertRaises(pipeline.InputError) as ctx:
+            pipeline.run(scene, "fxaa", [1], "//" + name, log=lambda *a: None)
+        self.assertIn("no saved .blend file", str(ctx.exception))
+        self.assertFalse(os.path.exists("/" + name))
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(self.tmp.name, "shot.blend"))
+        scene = bpy.context.scene
+        result = pipeline.run(scene, "fxaa", [1], "//" + name, log=lambda *a: None)
+        self.assertEqual(result["status"], "complete")
+        self.assertTrue(os.path.isfile(os.path.join(self.tmp.name, name, "filtered", "frame_0001.exr")))
+        self.assertFalse(os.path.exists("/" + name))
+
 
 if __name__ == "__main__":
     harness.run(OperatorTest)
