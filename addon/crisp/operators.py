@@ -61,6 +61,15 @@ class CRISP_OT_plan(bpy.types.Operator):
         except (pipeline.InputError, render.RenderError, ValueError) as e:
             return _fail(self, e)
         s.plan_text = the_plan.describe()
+        # The plan holds without a camera or with non-square pixels, but the render would be refused:
+        # say so now rather than when the artist renders.
+        try:
+            problem = render.camera_problem(scene, list(_frames(scene)))
+            if problem:
+                raise pipeline.InputError(problem)
+            pipeline.check_camera_shifts(scene, [s.method])
+        except pipeline.InputError as e:
+            self.report({"WARNING"}, "Crisp: a render would be refused: %s" % e)
         return {"FINISHED"}
 
 

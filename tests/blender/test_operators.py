@@ -630,7 +630,10 @@ class OperatorTest(unittest.TestCase):
         self.assertEqual(bpy.ops.crisp.compare(), {"FINISHED"})
         self.assertNotIn("not one run", s.last_compare)  # one run over frames 1-2
         scene.frame_end = 3
-        self.assertEqual(bpy.ops.crisp.compare(), {"FINISHED"})
+        reports = io.StringIO()  # an operator's reports other than errors go to stdout
+        with contextlib.redirect_stdout(reports):
+            self.assertEqual(bpy.ops.crisp.compare(), {"FINISHED"})
+        self.assertIn("Warning: Crisp: frame 3 has no reference frame (Render Reference)", reports.getvalue())
         self.assertIn("2 frames", s.last_compare)
         self.assertIn("not one run", s.last_compare)
         self.assertEqual(pipeline.compare_dirs(os.path.join(self.tmp.name, "filtered"),
@@ -644,6 +647,25 @@ class OperatorTest(unittest.TestCase):
                          ["frame 2 was made with other settings than frame 1"])
         self.assertEqual(bpy.ops.crisp.compare(), {"FINISHED"})
         self.assertIn("not one run", s.last_compare)
+
+    def test_update_plan_says_when_a_render_would_be_refused(self):
+        """Update Plan wrote a full plan and said nothing on a scene the render refuses (no camera,
+        non-square pixels for a jittered method). It still writes the plan, and warns why."""
+        scene = harness.build_scene("still_life")
+        scene.crisp.method = "taa"
+        for spoil, why in ((lambda: setattr(scene.render, "pixel_aspect_x", 2.0), "jitter needs square pixels"),
+                           (lambda: setattr(scene, "camera", None), "camera")):
+            reports = io.StringIO()
+            with contextlib.redirect_stdout(reports):
+                self.assertEqual(bpy.ops.crisp.plan(), {"FINISHED"})
+            self.assertNotIn("would be refused", reports.getvalue())
+            spoil()
+            with contextlib.redirect_stdout(reports):
+                self.assertEqual(bpy.ops.crisp.plan(), {"FINISHED"})
+            self.assertIn("Warning: Crisp: a render would be refused:", reports.getvalue())
+            self.assertIn(why, reports.getvalue().split("would be refused:")[1])
+            self.assertTrue(scene.crisp.plan_text)
+            scene.render.pixel_aspect_x = 1.0
 
     def test_sequence_warnings_match_a_frame_whose_scene_file_is_unknown(self):
         """crisp render records the .blend's fingerprint (scene_key); the add-on, whose scene may be
