@@ -299,6 +299,9 @@ class CRISP_OT_render_reference(_FrameByFrame, bpy.types.Operator):
         out = os.path.join(output_folder.out_dir(scene, writing=True), "reference")
         pipeline.check_output_dir(out)
         frames = list(_frames(scene))
+        # What the reference leaves out of the scene's own render, as Render with Crisp says it.
+        _report_notes(self, pipeline.scene_notes(scene, frames, render.default_view_layer(scene, context.view_layer),
+                                                 made="rendered"))
         infos = yield from render.iter_render_reference(scene, frames, out, s.reference_samples,
                                                         view_layer=context.view_layer,
                                                         should_cancel=lambda: self.stop_asked)

@@ -316,6 +316,42 @@ def run(*args, **kwargs):
     return render.drain(iter_run(*args, **kwargs))
 
 
+def scene_notes(scene, frames, view_layer, made="rendered and filtered"):
+    """What Crisp's renders of `frames` (a run's, or with made="rendered" the reference's) leave out or
+    change of the scene's own render settings, as texts for the artist: the engine, the frame step, the
+    other view layers, motion blur, the render region, the sequencer."""
+    notes = []
+    user_engine = scene.render.engine
+    if user_engine not in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):
+        notes.append("the scene's engine is %s; Crisp renders with EEVEE and puts %s back afterwards"
+                     % (user_engine, user_engine))
+    if scene.frame_step != 1:
+        notes.append("the scene's frame step %d is not used: a temporal filter's history needs every frame, so "
+                     "each frame of %d-%d is %s" % (scene.frame_step, frames[0], frames[-1], made))
+    others = [layer.name for layer in scene.view_layers if layer.use and layer != view_layer]
+    # Blender's own render makes each of them (F12 only the window's with Render Single Layer; a command-line
+    # render, as crisp render's, all of them whatever that flag says)
+    if others and not (scene.render.use_single_layer and not bpy.app.background):
+        notes.append("only the view layer '%s' is %s, not %s: to filter another, make it the window's view "
+                     "layer and render again into another Output folder"
+                     % (view_layer.name, made, ", ".join("'%s'" % name for name in others)))
+    if scene.eevee.use_motion_blur or scene.render.use_motion_blur:
+        notes.append("the scene's motion blur is off in Crisp's renders (a blurred sample cannot be reprojected, "
+                     "and the reference would blur differently); it is back on afterwards")
+    if scene.render.use_border:
+        does = "renders" if made == "rendered" else "renders and filters"
+        notes.append("the render region is not used: Crisp %s the whole frame, %dx%d (a filter needs the pixels "
+                     "around the region's edges)%s" % ((does,) + render.render_size(scene) + (
+                         "; crop the filtered frames to the region afterwards" if scene.render.use_crop_to_border
+                         else "",)))
+    editor = scene.sequence_editor
+    strips = (editor.strips if hasattr(editor, "strips") else editor.sequences) if editor else ()  # 'strips': 4.4+
+    if scene.render.use_sequencer and any(strip.type != "SOUND" for strip in strips):  # Blender's rule for the edit
+        notes.append("the scene's sequencer strips are not applied to Crisp's frames: Crisp renders the scene "
+                     "through its camera, as with Post Processing > Sequencer off")
+    return notes
+
+
 def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_samples=0, plan_only=False,
              filter_frames=True, threads=0, jitter_distribution="blackman-harris", write_png=True, log=print,
              view_layer=None, should_cancel=None, engine_name="eevee", preroll=0, shot=None, resume=False,
@@ -363,30 +399,12 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
     writes = [] if plan_only else ["input"] + ["filtered"] * filter_frames + ["reference"] * bool(reference_samples)
     check_output_dir(out_dir, writes)
     user_engine = scene.render.engine
-    if user_engine not in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):
-        log("note: the scene's engine is %s; Crisp renders with EEVEE and puts %s back afterwards"
-            % (user_engine, user_engine))
-    if scene.frame_step != 1:
-        log("note: the scene's frame step %d is not used: a temporal filter's history needs every frame, so "
-            "each frame of %d-%d is rendered and filtered" % (scene.frame_step, frames[0], frames[-1]))
     engine = render.render_engine(scene, engine_name)
     view_layer = render.default_view_layer(scene, view_layer)  # one layer planned and rendered
-    others = [layer.name for layer in scene.view_layers if layer.use and layer != view_layer]
-    # Blender's own render makes each of them (F12 only the window's with Render Single Layer; a command-line
-    # render, as crisp render's, all of them whatever that flag says)
-    if others and not (scene.render.use_single_layer and not bpy.app.background):
-        log("note: only the view layer '%s' is rendered and filtered, not %s: to filter another, make it the "
-            "window's view layer and render again into another Output folder"
-            % (view_layer.name, ", ".join("'%s'" % name for name in others)))
+    for note in scene_notes(scene, frames, view_layer):
+        log("note: " + note)
     the_plan, facts = scene_plan(scene, method, shot or frames, view_layer, engine_name)
     log(the_plan.describe())
-    if scene.eevee.use_motion_blur or scene.render.use_motion_blur:
-        log("note: the scene's motion blur is off in Crisp's renders (a blurred sample cannot be reprojected, "
-            "and the reference would blur differently); it is back on afterwards")
-    if scene.render.use_border:
-        log("note: the render region is not used: Crisp renders and filters the whole frame, %dx%d (a filter needs "
-            "the pixels around the region's edges)%s" % (render.render_size(scene) + (
-                "; crop the filtered frames to the region afterwards" if scene.render.use_crop_to_border else "",)))
     legacy_eevee = engine == "BLENDER_EEVEE" and bpy.app.version < (4, 2, 0)  # the EEVEE whose probe this is
     if legacy_eevee and scene.eevee.gi_cubemap_resolution != render.CUBEMAP_RESOLUTION:
         # "info", not "note": Blender's default is 512, so nearly every scene would warn of it, and there is
@@ -395,11 +413,6 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
             "Size): it is rendered again for every frame, which at 512 px costs about 1.4 s on 2 cores; sharp "
             "reflections of a detailed world look blurrier than in Blender's own render (a baked light cache is used "
             "as baked)" % (render.CUBEMAP_RESOLUTION, scene.eevee.gi_cubemap_resolution))
-    editor = scene.sequence_editor
-    strips = (editor.strips if hasattr(editor, "strips") else editor.sequences) if editor else ()  # 'strips': 4.4+
-    if scene.render.use_sequencer and any(strip.type != "SOUND" for strip in strips):  # Blender's rule for the edit
-        log("note: the scene's sequencer strips are not applied to Crisp's frames: Crisp renders the scene through "
-            "its camera, as with Post Processing > Sequencer off")
     if scene.render.film_transparent and filter_frames and method == "rsaa":
         # rsaa's resampling fetches colour and alpha together (an outline against the film is a geometric edge).
         log("note: the film is transparent: rsaa anti-aliases colour and alpha together on geometric edges (an "

@@ -184,6 +184,26 @@ class OperatorTest(unittest.TestCase):
         self.assertRegex(reports.getvalue(),
                          "filtered with fxaa into %s; [1-9] notes? in the Info editor" % self.tmp.name)
 
+    def test_render_reference_says_what_it_leaves_out(self):
+        """Render Reference rendered a Cycles scene with EEVEE, without motion blur and the render region,
+        and said none of it, where Render with Crisp says each (pipeline.scene_notes)."""
+        scene = self.small_scene(1, 1, load_result=False)
+        scene.crisp.reference_samples = 2
+        scene.render.engine = "CYCLES"
+        scene.render.use_border = True
+        scene.render.use_motion_blur = True
+        self.addCleanup(setattr, scene.render, "use_border", False)
+        self.addCleanup(setattr, scene.render, "use_motion_blur", False)
+        self.addCleanup(setattr, scene.render, "engine", "BLENDER_EEVEE")
+        reports = io.StringIO()
+        with contextlib.redirect_stdout(reports):
+            self.assertEqual(bpy.ops.crisp.render_reference(), {"FINISHED"})
+        said = reports.getvalue()
+        self.assertIn("Warning: Crisp: the scene's engine is CYCLES; Crisp renders with EEVEE", said)
+        self.assertIn("Warning: Crisp: the render region is not used: Crisp renders the whole frame", said)
+        self.assertIn("Warning: Crisp: the scene's motion blur is off in Crisp's renders", said)
+        self.assertEqual((scene.render.engine, scene.render.use_motion_blur), ("CYCLES", True))
+
     def test_a_note_per_frame_does_not_fill_the_info_editor(self):
         """A note made for each frame (here: a filtered PNG the artist changed, kept by a run without
         PNGs) is reported for the first few frames and counted for the rest; the console has them all."""
