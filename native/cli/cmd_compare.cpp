@@ -94,7 +94,6 @@ void warnCrossedPairs(const std::vector<std::string>& refs, const std::vector<st
 int runCompare(const ParsedArgs& args) {
   const auto& refs = args.all("reference");
   const auto& tests = args.all("test");
-  if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
   if (refs.size() != tests.size())
     throw UsageError("--reference has " + std::to_string(refs.size()) + " files but --test has " +
                      std::to_string(tests.size()) + "; they are paired in order");

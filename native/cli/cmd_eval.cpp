@@ -153,7 +153,6 @@ int readScenePanel(const ParsedArgs& args, nlohmann::json& panel) {
 }  // namespace
 
 int runEval(const ParsedArgs& args) {
-  if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
   const std::string scene = args.get("scene");
   const fs::path outDir = blenderOutputFolder(args);
   const bool quiet = args.has("quiet");

@@ -41,7 +41,6 @@ std::string historyLines(const std::string& output) {
 }  // namespace
 
 int runRender(const ParsedArgs& args) {
-  if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
   {
     // The method and its --set values, checked here as crisp filter checks them: a mistake is
     // said before Blender starts (and --plan, which filters nothing, says it too). Without --method a

@@ -9,7 +9,6 @@
 namespace crisp::cli {
 
 int runSynth(const ParsedArgs& args) {
-  if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
   int w = 320, h = 180;
   if (args.has("size")) {
     const std::string& s = args.get("size");

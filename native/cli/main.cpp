@@ -18,7 +18,6 @@ static int runHelp(const ParsedArgs& args) {
     std::printf("\nMethods: %s\n", filterTypesJoined());
     return 0;
   }
-  if (args.positional.size() > 1) throw UsageError("help takes one topic; unexpected argument '" + args.positional[1] + "'");
   const std::string& topic = args.positional.front();
   std::string text = helpText(topic);
   if (text.empty()) {
@@ -44,9 +43,9 @@ int main(int argc, char** argv) {
       std::fputs(helpText(a.command).c_str(), stdout);
       return 0;
     }
+    checkPositionals(a);
     if (a.command == "help") return runHelp(a);
     if (a.command == "version") {
-      if (!a.positional.empty()) throw UsageError("unexpected argument '" + a.positional.front() + "'");
       std::printf("crisp %d.%d.%d\n", CRISP_VERSION_MAJOR, CRISP_VERSION_MINOR, CRISP_VERSION_PATCH);
       return 0;
     }

@@ -83,12 +83,29 @@ const std::vector<std::string>& ParsedArgs::all(const std::string& name) const {
   return it == values.end() ? none : it->second;
 }
 
+static const CommandSpec* findCommand(const std::string& command) {
+  for (const CommandSpec& c : commands())
+    if (command == c.name) return &c;
+  return nullptr;
+}
+
 // Whether the command's positional arguments are files (filter's INPUT..., info's FILE...), which
 // '--' lets begin with '-'.
 static bool takesFiles(const std::string& command) {
-  for (const CommandSpec& c : commands())
-    if (command == c.name) return c.usage[0] != '\0' && c.usage[0] != '[';
-  return false;
+  const CommandSpec* c = findCommand(command);
+  return c && c->usage[0] != '\0' && c->usage[0] != '[';
+}
+
+void checkPositionals(const ParsedArgs& args) {
+  const CommandSpec* c = findCommand(args.command);
+  if (!c) return;  // an unknown command: main says so
+  const std::string usage = c->usage;
+  if (usage.find("...") != std::string::npos) return;
+  if (usage.empty()) {
+    if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional.front() + "'");
+  } else if (args.positional.size() > 1) {
+    throw UsageError(std::string(c->name) + " takes one " + usage + "; unexpected argument '" + args.positional[1] + "'");
+  }
 }
 
 static const OptionSpec* findOption(const std::string& command, const std::string& arg) {
@@ -112,9 +129,7 @@ ParsedArgs parseArgs(const std::vector<std::string>& args) {
     p.command = "version";
     return p;
   }
-  bool known = false;
-  for (const CommandSpec& c : commands()) known |= p.command == c.name;
-  if (!known) throw UsageError("unknown command '" + p.command + "'");
+  if (!findCommand(p.command)) throw UsageError("unknown command '" + p.command + "'");
   if (p.command == "bench") {  // everything after is for the benchmark runner
     p.positional.assign(args.begin() + 1, args.end());
     return p;

@@ -49,6 +49,10 @@ struct UsageError : std::runtime_error {
   bool pointsToHelp;
 };
 ParsedArgs parseArgs(const std::vector<std::string>& args);
+// The positional arguments against the command's usage (CommandSpec::usage): none where it is
+// empty, at most one where it names one ("[COMMAND|METHOD]"), any number where it holds "...";
+// UsageError naming the first one too many.
+void checkPositionals(const ParsedArgs& args);
 std::string helpText(const std::string& command = "");
 
 int parseIntOption(const ParsedArgs& a, const std::string& name, int fallback, int lo, int hi);
