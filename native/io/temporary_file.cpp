@@ -33,7 +33,7 @@ struct Slot {
 };
 Slot slots[kSlots];
 constexpr int kFolderSlots = 16;
-Slot folderSlots[kFolderSlots];  // removeFolderOnSignals's, in the order they were taken
+Slot folderSlots[kFolderSlots];  // removeFolderOnSignals's
 
 int registerPath(const std::string& path, Slot* slotList = slots, int count = kSlots) {
   if (path.size() >= kPathBytes) return -1;
