@@ -439,6 +439,10 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
                                                    "camera_cuts": facts.camera_cuts},
               "jitter_distribution": jitter_distribution if the_plan.jitter else "none",
               "gi_cubemap_resolution": render.CUBEMAP_RESOLUTION, "frames": []}
+    if len(frames) > 2 and len({b - a for a, b in zip(frames, frames[1:])}) > 1:
+        # frames_requested is the first and last frame; a list out of order or with uneven gaps (the Python
+        # API takes any) is not that range, so it is recorded as given.
+        result["frame_list"] = frames
     if native._lib is not None or (filter_frames and not plan_only):
         ok, text = native.status()
         result["library"] = text

@@ -127,6 +127,20 @@ class HistoryBreakTest(unittest.TestCase):
         _, reasons = self.frame_filter("backwards_addon", [self.inputs[5], self.inputs[4]])
         self.assertEqual(reasons, [None, "frame 5 after frame 6"])
 
+    def test_frames_out_of_order_are_recorded_as_given(self):
+        """A frame list out of order (the Python API takes one) restarts the history where it goes back,
+        and run.json records the list, not a range it is not (it read [3, 2] for [3, 1, 2])."""
+        out = os.path.join(self.tmp.name, "out_of_order")
+        result = pipeline.run(self.scene, "taa", [3, 1, 2], out, threads=1, log=lambda s: None)
+        with open(os.path.join(out, "run.json")) as fh:
+            record = json.load(fh)
+        self.assertEqual(record["frame_list"], [3, 1, 2])
+        self.assertEqual([e["frame"] for e in record["frames"]], [3, 1, 2])
+        restarts = {e["frame"]: e.get("history_restarted") for e in result["frames"]}
+        self.assertEqual(restarts, {3: None, 1: "frame 1 after frame 3", 2: None})
+        # An evenly stepped range keeps the two-number record alone.
+        self.assertNotIn("frame_list", self.result)
+
     def test_frame_without_sidecar_is_no_gap(self):
         """A frame without a sidecar (its position unknown) between frames 4 and 6 is no gap: the
         history carries over to 6 (the run once compared 6 with 4, saw a gap and restarted, where a
