@@ -21,6 +21,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -113,6 +114,41 @@ std::map<int, double> renderTimes(const fs::path& dir) {
   json j = readJson(dir / "times.json", false);
   for (auto it = j.begin(); it != j.end(); ++it) t[std::stoi(it.key())] = it.value().get<double>();
   return t;
+}
+
+// What a render set's frames cost Blender: (samples, sorted passes) for a curve set eevee_N (colour
+// alone) and the 1-sample input sets scene.json lists; another set (the reference) has no key.
+std::optional<std::pair<int, std::vector<std::string>>> renderWork(const json& scene, const std::string& set) {
+  if (set.rfind("eevee_", 0) == 0) return std::make_pair(std::stoi(set.substr(6)), std::vector<std::string>{"color"});
+  const json sets = scene.value("sets", json::object());
+  if (!sets.contains(set) || !sets[set].contains("passes")) return std::nullopt;
+  auto passes = sets[set]["passes"].get<std::vector<std::string>>();
+  std::sort(passes.begin(), passes.end());
+  return std::make_pair(1, passes);
+}
+
+// Per-frame render seconds of `set`, each the mean over the sets that do the same work (renderWork):
+// a colour-only jittered set and eevee_1 differ only by the camera's sub-pixel shift, and both are
+// timed alike (render.py _render_to), so the gap between their medians is the machine's noise; taken
+// apart it once ranked taa (the jittered set) faster than the plain 1-sample render.
+std::map<int, double> sameWorkRenderTimes(const fs::path& renders, const json& scene, const std::string& set) {
+  const auto work = renderWork(scene, set);
+  if (!work) return renderTimes(renders / set);
+  std::vector<std::string> names;
+  const json sets = scene.value("sets", json::object());  // kept: items() of a temporary would dangle
+  for (const auto& [name, unused] : sets.items()) names.push_back(name);
+  for (int s : scene.value("curve", std::vector<int>{})) names.push_back("eevee_" + std::to_string(s));
+  std::map<int, std::pair<double, int>> sums;
+  for (const std::string& name : names) {
+    if (renderWork(scene, name) != work) continue;
+    for (const auto& [frame, seconds] : renderTimes(renders / name)) {
+      sums[frame].first += seconds;
+      ++sums[frame].second;
+    }
+  }
+  std::map<int, double> times;
+  for (const auto& [frame, sum] : sums) times[frame] = sum.first / sum.second;
+  return times;
 }
 
 // ---- the methods ---------------------------------------------------------------------------------
@@ -763,7 +799,7 @@ int run(const Options& o) {
     int total = int((methods.size() + curve.size()) * frames.size());
     cli::Progress progress("measure", total, o.quiet);
     auto measure = [&](Entry& e) {
-      std::map<int, double> renderS = renderTimes(renders / e.inputSet);
+      std::map<int, double> renderS = sameWorkRenderTimes(renders, scene, e.inputSet);
       std::map<int, double> filterS;
       fs::path dir;
       if (e.kind == "method") {
@@ -965,7 +1001,10 @@ int run(const Options& o) {
       {"metrics_note", "PSNR, SSIM, perceptual error (FLIP-style) and temporal error on display-encoded values "
                        "(linear RGB clamped to [0,1], sRGB-encoded), means over the frames means_over_frames gives (PSNR: the "
                        "mean of the per-frame dB); time per frame = 1-sample render + filter "
-                       "(+ rsaa's geometry renders, also given apart as geometry_render_s), each the median over frames"},
+                       "(+ rsaa's geometry renders, also given apart as geometry_render_s), each the median over frames; "
+                       "render sets of the same samples and passes (eevee_1 and a colour-only jittered set) are timed as "
+                       "one, each frame's render_s the mean of their times; SSIM: Wang et al. 2004 (11x11 Gaussian, "
+                       "sigma 1.5) of the luma, the image mirrored at its borders"},
       {"scenes", json::array({sceneJson})},
   };
   writeJson(out / "results.json", results);

@@ -163,13 +163,16 @@ function perSample() {
 const meansOver = S.means_over_frames || S.frames;
 const warmup = meansOver[0] - S.frames[0];
 const temporalListed = S.methods.some(m => m.temporal);
+// Every frame-to-frame figure of the entries that are not temporal is 0: a still scene's repeated frames.
+const stillFrames = temporalListed && S.frames[1] > S.frames[0] &&
+  S.methods.filter(m => !m.temporal && !m.error).concat(S.eevee_curve).every(m => (m.mean || m).temporal_error === 0);
 
 // ---- the page ----
 const failed = S.methods.filter(m => m.error);
 h(`<h1>Crisp: anti-aliasing error against run time</h1>
 <p class="sub">Scene <b>${esc(S.name)}</b>, ${S.resolution[0]}&times;${S.resolution[1]}, frames ${S.frames[0]}–${S.frames[1]},
-reference = EEVEE ${S.reference.samples} samples (${fmt(S.reference.time_s, 2)} s per frame).
-Every method filters the 1-sample render; time per frame = that render + the filter.${perSample()}</p>` +
+reference = EEVEE ${S.reference.samples} samples (${fmt(S.reference.time_s, 2)} s per frame)${S.reference.samples < 256 ? ", fewer than the 256 METHODS.md asks of final figures: read these as a quick run's" : ""}.
+Every method filters a 1-sample render (the temporal methods a jittered one, rsaa one with its geometry passes: column "input"); time per frame = that render + the filter.${perSample()}</p>` +
   (failed.length ? `<p class="err">Failed (details in the table): ${failed.map(m => esc(m.name) + " (" + esc(m.error.length > 90 ? m.error.slice(0, 90) + "…" : m.error) + ")").join("; ")}</p>` : ""));
 
 let rows = "";
@@ -186,7 +189,8 @@ for (const c of S.eevee_curve)
 const THEAD = `<tr><th class="l">method</th><th>PSNR dB</th><th>SSIM</th><th>perceptual error</th><th>temporal error</th><th>render ms</th><th>filter ms</th><th>time/frame ms</th><th>equivalent EEVEE samples</th><th>Pareto</th><th class="l">input / status</th></tr>`;
 h(`<h2>Headline</h2><table id="headline">${THEAD}${rows}${crow}</table>
 <p class="sub">Error figures: ${meansOver[0] === meansOver[1] ? `frame ${meansOver[0]} alone` : `means over frames ${meansOver[0]}–${meansOver[1]} (PSNR: the mean of the per-frame dB)`}${warmup > 0 ? `; ${warmup > 1 ? `the first ${warmup} frames` : "the first frame"}, the temporal methods' warm-up, ${warmup > 1 ? "are" : "is"} left out of them (--warmup) and shown per frame below` : temporalListed && S.frames[1] > S.frames[0] ? "; they include the temporal methods' first frames, where their history starts from one sample (--warmup leaves such frames out)" : ""}.
-Times: medians over every frame (per-frame values below and in results.json). Higher PSNR/SSIM is better; lower perceptual error (FLIP-style, 0–1) and temporal error are better.
+Times: medians over every frame (per-frame values below and in results.json); renders of the same samples and passes (EEVEE 1 spp and a colour-only jittered render) are timed as one, each frame's time the mean of theirs, so that the machine's noise does not rank the same work apart; blender-smaa's filter time includes Blender loading and writing the image, the library methods' does not.
+Higher PSNR/SSIM is better; lower perceptual error (FLIP-style, 0–1) and temporal error are better. SSIM: Wang et al. 2004 (11&times;11 Gaussian, &sigma; 1.5) of the luma, the image mirrored at its borders.${stillFrames ? " Here the spatial methods' and EEVEE's frames repeat (their temporal error is 0: nothing moves or changes), so that column ranks only the temporal methods, by how much they still change as they converge." : ""}
 "Equivalent EEVEE samples": the sample count at which EEVEE's own curve reaches the method's PSNR (log<sub>2</sub> samples interpolated linearly against PSNR).
 Pareto: no other point (method or EEVEE sample count) is as fast or faster and as high or higher in PSNR, and better in one of the two.</p>`);
 if (S.geometric_edges && S.geometric_edges.frames_with_edges > 0) {
@@ -224,7 +228,7 @@ S.crops.forEach((c, k) => {
   }
   cropHtml += "</div>";
 });
-h(`<h2>The most aliased places, as a flip-book</h2><p class="sub">Chosen automatically: the ${S.crops.length} non-overlapping windows with the largest 1-sample error summed over all frames. Playing the frames shows flicker and crawling.</p>` + cropHtml);
+h(`<h2>The most aliased places, as a flip-book</h2><p class="sub">Chosen automatically: the ${S.crops.length} non-overlapping windows with the largest 1-sample error (its mean over the frames). Playing the frames shows flicker and crawling.</p>` + cropHtml);
 
 let playing = true, idx = 0;
 function show(i) {

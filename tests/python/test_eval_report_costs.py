@@ -59,3 +59,38 @@ def test_eevee_cost_per_sample_is_never_negative():
         assert "per further sample" not in text and "do not grow with the sample count" in text, text
     finally:
         shutil.rmtree(out, ignore_errors=True)
+
+
+def test_renders_of_the_same_work_are_timed_as_one():
+    """taa reads a jittered colour-only render, the same work as EEVEE's 1-sample render (a camera shift
+    apart), but timed apart: the machine's noise once put taa's time per frame below the unfiltered
+    render's and pushed EEVEE 1 spp off the Pareto front. Both sets' times are now averaged per frame and
+    given to every entry that reads either; a set of other passes keeps its own."""
+    args = ARGS[:-1] + ["none,taa,taa-improved"]
+    out, _, _ = run_eval(args, "crisp_eval_same_work_", timeout=900)
+    try:
+        renders = os.path.join(out, "renders")
+        times = {"eevee_1": (0.050, 0.070), "jittered": (0.030, 0.010), "jittered-depth-id-albedo": (0.200, 0.300)}
+        for name, (a, b) in times.items():
+            with open(os.path.join(renders, name, "times.json"), "w") as f:
+                json.dump({"0001": a, "0002": b}, f)
+        p = subprocess.run([CRISP, "eval"] + args + ["-o", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           timeout=900)
+        assert p.returncode == 0, p.stderr.decode()[-3000:]
+        scene = json.load(open(os.path.join(out, "results.json")))["scenes"][0]
+        entries = {m["name"]: m for m in scene["methods"]}
+        entries.update({c["name"]: c for c in scene["eevee_curve"]})
+        assert entries["taa"]["input"] == "jittered" and entries["none"]["input"] == "eevee_1"
+        for name in ("none", "taa", "blender-smaa"):
+            assert [round(f["render_s"], 9) for f in entries[name]["frames"]] == [0.04, 0.04], name
+            assert entries[name]["mean"]["render_s"] == pytest.approx(0.04), name
+        assert entries["eevee-1"]["time_s"] == pytest.approx(0.04)
+        assert entries["eevee-2"]["time_s"] != pytest.approx(0.04)  # other samples: its own times
+        # Other passes (depth, IDs, albedo): its own times, not pooled with the colour-only renders.
+        assert [round(f["render_s"], 9) for f in entries["taa-improved"]["frames"]] == [0.2, 0.3]
+        # taa costs its filter more than the unfiltered render, never less.
+        assert entries["taa"]["mean"]["time_s"] > entries["eevee-1"]["time_s"]
+        text = subtitle(out)
+        assert "the temporal methods a jittered one" in text, text
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
