@@ -191,12 +191,13 @@ inline bool readsSubsamples(const Filter& filter) {
 
 // Sets the rsaa filter's camera parameters from the frame's sidecar (its
 // path with ".json"); marks the filter dirty only when a value changes, so a
-// sequence from one camera commits once.
+// sequence from one camera commits once. All or none: a value the filter
+// refuses leaves every parameter as it was (they are set on a copy first).
 inline void applyRsaaCamera(Filter& filter, const Frame& frame) {
   if (!readsSubsamples(filter))
     invalidArgument(std::string("filter '") + filter.type() + "' reads no geometric sub-samples (only rsaa does)");
   bool changed = false;
-  ParamSet& p = filter.params();
+  ParamSet p = filter.params();
   for (const auto& [name, value] : rsaaCameraParams(readSidecar(sidecarPathFor(frame.path)))) {
     if (name == "orthographic") {
       if (p.getBool(name) != (value != 0.0)) {
@@ -208,7 +209,9 @@ inline void applyRsaaCamera(Filter& filter, const Frame& frame) {
       changed = true;
     }
   }
-  if (changed) filter.markDirty("the camera parameters were set from sidecar '" + sidecarPathFor(frame.path) + "'");
+  if (!changed) return;
+  filter.params() = std::move(p);
+  filter.markDirty("the camera parameters were set from sidecar '" + sidecarPathFor(frame.path) + "'");
 }
 
 // Everything rsaa needs beyond the frame's own passes: the sub-samples (if

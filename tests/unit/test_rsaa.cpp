@@ -1266,6 +1266,33 @@ TEST_F(RsaaFiles, CameraParamsComeFromTheSidecar) {
   EXPECT_THROW(attachRsaaInputs(*fxaa, f), Exception);
 }
 
+// A sidecar camera the filter refuses (a view term beyond +-1000: a camera scaled to 1/2000) sets
+// none of the camera parameters. It set those before the refused one without asking for a new
+// commit, so a committed filter ran on with the old camera while its parameters said the new one.
+TEST_F(RsaaFiles, RefusedCameraChangesNoParameter) {
+  Context context;
+  auto filter = createFilter(context, "rsaa");
+  const int w = 6, h = 4;
+  std::vector<float> color(w * h * 4, 0.5f), depth(w * h, 10.0f), normal(w * h * 3, 0.0f), out(color.size());
+  std::vector<float> records(w * h * kRsaaSubsampleWords, 0.0f);
+  filter->setImage("color", makeView(color.data(), Format::Float4, w, h));
+  filter->setImage("depth", makeView(depth.data(), Format::Float, w, h));
+  filter->setImage("normal", makeView(normal.data(), Format::Float3, w, h));
+  filter->setImage("subsamples", makeView(records.data(), Format::RsaaSubsamples, w, h));
+  filter->setImage("output", makeView(out.data(), Format::Float4, w, h));
+  filter->commit();
+  filter->execute();
+  std::string text = sidecarText(subsampleList());
+  const std::string row = "[0,-0.8,0.6,-5]";
+  text.replace(text.find(row), row.size(), "[0,-0.8,2000,-5]");  // view22 out of range, after proj00..
+  writeSidecar(text);
+  crisp::Frame f = readFrame(frame);
+  EXPECT_THROW(attachRsaaInputs(*filter, f), Exception);
+  EXPECT_EQ(filter->params().getFloat("proj00"), 1.0f) << "set from the refused camera";
+  EXPECT_EQ(filter->params().getFloat("view11"), 1.0f) << "set from the refused camera";
+  EXPECT_TRUE(filter->committed());
+}
+
 TEST_F(RsaaFiles, MissingSubsampleFileIsAnIoErrorNamingIt) {
   fs::remove(dir / "frame_0001_sub6.exr");
   expectAttachError(CRISP_ERROR_IO, "frame_0001_sub6.exr");
