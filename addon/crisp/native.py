@@ -11,6 +11,7 @@ import ctypes
 import hashlib
 import json
 import math
+import numbers
 import os
 import struct
 import time
@@ -354,9 +355,10 @@ class Filter:
         """A value ctypes cannot pass as given is refused here, as typed: one that is not a number
         (None), a fraction for an int (int() truncated 5.7 to 5; NaN and Inf raised ValueError), and, in
         the library's words, an int beyond C int's range (ctypes wraps 2**32 + 5 to 5) or a float beyond
-        float32's (ctypes rounds it to infinity)."""
-        whole = isinstance(value, int) or (isinstance(value, float) and value.is_integer())
-        if not isinstance(value, (int, float)) or (kind == "int" and not whole):
+        float32's (ctypes rounds it to infinity). A number is any numbers.Real: numpy's scalars too."""
+        number = isinstance(value, numbers.Real)
+        whole = isinstance(value, numbers.Integral) or (number and float(value).is_integer())
+        if not number or (kind == "int" and not whole):
             wanted = "a whole number" if kind == "int" else "a number"
             detail = "parameter '%s' takes %s, not '%s'" % (name, wanted, value)
             raise CrispError("invalid argument: " + detail, detail)

@@ -160,3 +160,30 @@ def test_a_value_spelt_otherwise_is_recorded_as_the_same_setting(native):
     assert native.canonical_param_texts("taa", {"maxSamples": "064", "clipSpace": "rgb"}) == {
         "maxSamples": "64", "clipSpace": "rgb"}
     assert native.canonical_param_texts("taa", {"maxSamples": "many"}) == {"maxSamples": "many"}
+
+
+def test_a_numpy_number_is_taken_as_the_number_it_is(native):
+    """A numpy scalar (a compositor's or farm tool's values often are: np.float32 from an array, np.int64
+    from a frame range) is a number: it was refused as 'takes a number, not '0.5'' because only Python's
+    int and float were counted as numbers. Its value still goes through the same checks."""
+    np = pytest.importorskip("numpy")
+    assert native.check_params("taa", {"maxSamples": np.int64(64), "feedbackMin": np.float64(0.5),
+                                       "feedbackMax": np.float32(0.75), "jitterX": np.float32(0.25),
+                                       "staticClip": np.bool_(True)}) is None
+    assert native.check_params("taa", {"maxSamples": np.float32(64.0)}) is None  # whole, as 64.0 is
+    assert native.check_params("taa", {"maxSamples": np.float32(5.5)}) == (
+        "parameter 'maxSamples' takes a whole number, not '5.5'")
+    assert native.check_params("taa", {"maxSamples": np.int64(2 ** 32 + 5)}) == (
+        "filter 'taa': parameter 'maxSamples' = %d is out of range [1, 65536]" % (2 ** 32 + 5))
+    with native.Context() as ctx:
+        f = native.Filter(ctx, "taa")
+        try:
+            f.set_param("jitterX", np.float32(0.25))
+            f.set_param("maxSamples", np.uint16(32))
+            get_float = native.load().dll.crispGetFilterFloat
+            get_float.restype, get_float.argtypes = ctypes.c_float, [ctypes.c_void_p, ctypes.c_char_p]
+            get_int = native.load().dll.crispGetFilterInt
+            get_int.restype, get_int.argtypes = ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p]
+            assert (get_float(f.handle, b"jitterX"), get_int(f.handle, b"maxSamples")) == (0.25, 32)
+        finally:
+            f.close()
