@@ -300,9 +300,13 @@ def check_params(method, params):
 class Context:
     def __init__(self, threads=0):
         self.handle = call("crispNewContext")
-        if threads:
-            call("crispSetContextInt", self.handle, b"numThreads", int(threads))
-        call("crispCommitContext", self.handle)
+        try:
+            if threads:
+                call("crispSetContextInt", self.handle, b"numThreads", int(threads))
+            call("crispCommitContext", self.handle)
+        except BaseException:  # the caller gets no object to close: release the handle here
+            self.close()
+            raise
 
     def close(self):
         if self.handle:
@@ -548,6 +552,14 @@ class FrameFilter:
 
     def __init__(self, method, params=None, threads=0, passes=("color",)):
         self.context = Context(threads)
+        self.filter = None
+        try:
+            self._start(method, params, passes)
+        except BaseException:  # the caller gets no object to close: release the handles here
+            self.close()
+            raise
+
+    def _start(self, method, params, passes):
         if method == "rsaa" and "subsamples" not in passes:
             # The plan rendered no geometry (no visible object, no geometric edge): colour as is, and
             # rsaa's parameters (checked against rsaa, pipeline.run) have nothing to set.
@@ -663,5 +675,6 @@ class FrameFilter:
         return {"load_s": t1 - t0, "filter_s": t2 - t1, "write_s": time.perf_counter() - t2}
 
     def close(self):
-        self.filter.close()
+        if self.filter is not None:
+            self.filter.close()
         self.context.close()

@@ -187,3 +187,32 @@ def test_a_numpy_number_is_taken_as_the_number_it_is(native):
             assert (get_float(f.handle, b"jitterX"), get_int(f.handle, b"maxSamples")) == (0.25, 32)
         finally:
             f.close()
+
+
+@pytest.mark.parametrize("method, params, threads", [
+    ("taa", {"maxSamples": 0}, 0),       # a parameter the library refuses
+    ("taa", {"noSuchParameter": 1}, 0),  # a name it does not know
+    ("bogus", None, 0),                  # a method it does not have
+    ("taa", None, 5000),                 # a thread count it refuses (the context's own setting)
+])
+def test_a_frame_filter_that_fails_to_start_releases_its_handles(native, monkeypatch, method, params, threads):
+    """FrameFilter (and Context) raised from __init__ with the context and filter they had made still
+    held: nothing could release them (the caller never got the object), so a long-running tool leaked a
+    context and a filter for every job started with a setting the library refused."""
+    held = []
+    call = native.call
+
+    def counting(name, *args):
+        result = call(name, *args)
+        if name in ("crispNewContext", "crispNewFilter"):
+            held.append(result)
+        elif name in ("crispReleaseContext", "crispReleaseFilter"):
+            held.remove(args[0])
+        return result
+
+    monkeypatch.setattr(native, "call", counting)
+    with pytest.raises(native.CrispError):
+        native.FrameFilter(method, params, threads)
+    assert held == []
+    native.FrameFilter("taa", {"maxSamples": 8}).close()  # one that starts releases both on close
+    assert held == []
