@@ -602,7 +602,7 @@ class FrameFilter:
             return
         if shot[1] and last[1] and shot[1] != last[1]:  # sidecars of older builds name no camera
             self.restart_reason = "camera '%s' after '%s'" % (shot[1], last[1])
-        elif shot[0] != last[0] + 1:
+        elif last[0] is not None and shot[0] != last[0] + 1:  # the last frame's position may be unknown
             self.restart_reason = "frame %d after frame %d" % (shot[0], last[0])
         if self.restart_reason:
             self.filter.reset()

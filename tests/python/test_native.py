@@ -216,3 +216,25 @@ def test_a_frame_filter_that_fails_to_start_releases_its_handles(native, monkeyp
     assert held == []
     native.FrameFilter("taa", {"maxSamples": 8}).close()  # one that starts releases both on close
     assert held == []
+
+
+def test_a_sidecar_without_a_frame_number_says_nothing_of_the_next(native, tmp_path):
+    """FrameFilter reads each frame's position from its sidecar; one without "frame" says nothing, so
+    history carries over to the frame after it (as after a frame without a sidecar). The next frame's
+    check added 1 to the missing number: TypeError, the sequence stopped."""
+    import json
+    rgba = (ctypes.c_float * (4 * 3 * 4))(*([0.5] * 48))
+    sidecars = [{"camera": {"name": "Cam"}, "jitter": {"x": 0.1, "y": 0}},
+                {"frame": 2, "camera": {"name": "Cam"}, "jitter": {"x": -0.1, "y": 0}},
+                {"frame": 3, "camera": {"name": "Cam"}, "jitter": {"x": 0, "y": 0}}]
+    ff = native.FrameFilter("taa", None, 1)
+    try:
+        for i, side in enumerate(sidecars, 1):
+            exr = tmp_path / ("frame_%04d.exr" % i)
+            with native.Context() as ctx:
+                native.write_image(ctx, str(exr), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 4, 3)
+            (tmp_path / ("frame_%04d.json" % i)).write_text(json.dumps(side))
+            ff.run(str(exr), [str(tmp_path / ("out_%04d.exr" % i))])
+            assert ff.restart_reason is None, i
+    finally:
+        ff.close()
