@@ -227,8 +227,9 @@ CRISP_SETTER(Bool, int, setBool, bool)
 void crispSetFilterString(CrispFilter filter, const char* name, const char* value) {
   guardedVoid([&] {
     need(filter, "filter");
-    if (!value) crisp::invalidArgument("parameter value is NULL");
     const std::string key = nameOf(name, "parameter");
+    if (!value)
+      crisp::invalidArgument(std::string("filter '") + filter->filter->type() + "': parameter '" + key + "': value is NULL");
     filter->filter->params().setString(key, value);
     filter->filter->markDirty("parameter '" + key + "' was set");
   });

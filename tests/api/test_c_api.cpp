@@ -145,6 +145,19 @@ TEST(CApi, ErrorsNameWhatIsWrong) {
   EXPECT_THROW(f.set("kappa", std::numeric_limits<float>::quiet_NaN()), crisp::Error);
 }
 
+// A NULL string value is refused naming the filter and the parameter (it said only "parameter
+// value is NULL", which of a caller's many string settings it did not say), and sets nothing.
+TEST(CApi, NullStringValueNamesTheParameter) {
+  auto ctx = crisp::ContextRef::create();
+  auto f = ctx.newFilter("taa");
+  CrispError code;
+  crispSetFilterString(f.handle(), "clipSpace", nullptr);
+  const std::string msg = lastError(&code);
+  EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT) << msg;
+  EXPECT_EQ(msg, "filter 'taa': parameter 'clipSpace': value is NULL");
+  EXPECT_EQ(f.get<std::string>("clipSpace"), "rgb");
+}
+
 // Execute without a valid commit says why: never committed, the last commit
 // failed, or the first change since the last commit.
 TEST(CApi, ExecuteWithoutACommitNamesWhy) {
