@@ -103,7 +103,8 @@ def candidate_paths():
     if _preference_path:
         out.append(("preference", os.path.abspath(os.path.expanduser(_preference_path))))
     if os.environ.get("CRISP_LIBRARY"):
-        out.append(("$CRISP_LIBRARY", os.environ["CRISP_LIBRARY"]))
+        # abspath: dlopen reads a name without a slash as one to search for, not as the file checked here.
+        out.append(("$CRISP_LIBRARY", os.path.abspath(os.environ["CRISP_LIBRARY"])))
     out.append(("repository build", repo_library_path()))
     return out
 

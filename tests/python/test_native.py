@@ -238,3 +238,18 @@ def test_a_sidecar_without_a_frame_number_says_nothing_of_the_next(native, tmp_p
             assert ff.restart_reason is None, i
     finally:
         ff.close()
+
+
+def test_a_relative_crisp_library_path_loads_that_file(native, monkeypatch, tmp_path):
+    """$CRISP_LIBRARY=libcrisp.so (a file in the working folder) was checked as that file but handed to
+    dlopen as a bare name, which searches the system's library folders instead: the load failed with "no
+    such file" beside a file that is there (or would load another libcrisp than the one hashed)."""
+    import shutil
+    shutil.copy(BUILD / "lib" / "libcrisp.so", tmp_path / "libcrisp.so")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("CRISP_LIBRARY", "libcrisp.so")
+    monkeypatch.setattr(native, "_lib", None)
+    monkeypatch.setattr(native, "_load_error", None)
+    ok, text = native.status()
+    assert ok, text
+    assert native._lib.path == str(tmp_path / "libcrisp.so")
