@@ -300,6 +300,9 @@ def check_params(method, params):
 
 class Context:
     def __init__(self, threads=0):
+        if threads and not C_INT_MIN <= int(threads) <= C_INT_MAX:  # ctypes would wrap it (2**32 + 2 to 2)
+            detail = "context parameter 'numThreads' = %d is out of range (not a C int)" % int(threads)
+            raise CrispError("crispSetContextInt: invalid argument error: " + detail, detail)
         self.handle = call("crispNewContext")
         try:
             if threads:

@@ -253,3 +253,12 @@ def test_a_relative_crisp_library_path_loads_that_file(native, monkeypatch, tmp_
     ok, text = native.status()
     assert ok, text
     assert native._lib.path == str(tmp_path / "libcrisp.so")
+
+
+@pytest.mark.parametrize("threads", [2 ** 32 + 2, -(2 ** 32) + 4])
+def test_a_thread_count_beyond_c_int_is_refused_as_typed(native, threads):
+    """ctypes wraps an int beyond C int's range: Context(threads=2**32 + 2) ran on 2 threads, and the
+    library's own range check saw only the wrapped value. It is refused as given, in the library's words."""
+    with pytest.raises(native.CrispError) as e:
+        native.Context(threads=threads)
+    assert e.value.detail.startswith("context parameter 'numThreads' = %d is out of range" % threads), e.value.detail
