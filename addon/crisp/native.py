@@ -385,6 +385,9 @@ class Filter:
         raise CrispError("crispSetFilter%s: invalid argument error: %s" % (kind.capitalize(), detail), detail)
 
     def set_image(self, name, ptr, fmt, width, height):
+        if not (0 <= width < 2 ** 64 and 0 <= height < 2 ** 64):  # ctypes' size_t would wrap it (2**64 + 2 to 2)
+            detail = "image '%s': size %dx%d is out of range [1, 65536]" % (name, width, height)
+            raise CrispError("crispSetFilterImage: invalid argument error: " + detail, detail)
         call("crispSetFilterImage", self.handle, _b(name), ptr, fmt, width, height, 0, 0)
 
     def commit(self):

@@ -262,3 +262,21 @@ def test_a_thread_count_beyond_c_int_is_refused_as_typed(native, threads):
     with pytest.raises(native.CrispError) as e:
         native.Context(threads=threads)
     assert e.value.detail.startswith("context parameter 'numThreads' = %d is out of range" % threads), e.value.detail
+
+
+@pytest.mark.parametrize("width, height", [(2 ** 64 + 2, 2), (2, 2 ** 64 + 2), (-2, 2)])
+def test_an_image_size_ctypes_would_wrap_is_refused_as_typed(native, width, height):
+    """ctypes wraps an int beyond size_t: set_image with a width of 2**64 + 2 set a 2-pixel-wide image
+    (and -2 arrived as 18446744073709551614). The size is refused as given, naming the image."""
+    buf = (ctypes.c_float * 16)()
+    with native.Context() as ctx:
+        f = native.Filter(ctx, "none")
+        try:
+            with pytest.raises(native.CrispError) as e:
+                f.set_image("color", ctypes.addressof(buf), native.FORMAT_FLOAT4, width, height)
+            assert e.value.detail == "image 'color': size %dx%d is out of range [1, 65536]" % (width, height)
+            f.set_image("output", ctypes.addressof(buf), native.FORMAT_FLOAT4, 2, 2)
+            with pytest.raises(native.CrispError, match="required image 'color'"):
+                f.commit()  # nothing was set as the colour
+        finally:
+            f.close()
