@@ -238,7 +238,8 @@ def call(name, *args):
 
 
 def _b(s):
-    return s.encode("utf-8") if isinstance(s, str) else s
+    # As the file system encodes names (UTF-8, and a name that is not UTF-8 as the bytes it was read from).
+    return os.fsencode(s) if isinstance(s, str) else s
 
 
 def filter_types():

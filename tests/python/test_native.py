@@ -280,3 +280,17 @@ def test_an_image_size_ctypes_would_wrap_is_refused_as_typed(native, width, heig
                 f.commit()  # nothing was set as the colour
         finally:
             f.close()
+
+
+def test_a_path_that_is_not_utf8_reaches_the_library(native, tmp_path):
+    """A file name that is not UTF-8 (Latin-1 on an old share) comes from os.listdir as a str with
+    surrogate escapes; it was encoded as UTF-8 (UnicodeEncodeError: the frame could not be named). Paths
+    are encoded as the file system does (os.fsencode), so the library opens the file that is there."""
+    name = os.fsencode(str(tmp_path)) + b"/caf\xe9.exr"
+    rgba = (ctypes.c_float * (2 * 2 * 4))(*([0.25] * 16))
+    with native.Context() as ctx:
+        native.write_image(ctx, name, ctypes.addressof(rgba), native.FORMAT_FLOAT4, 2, 2)
+        listed = [p for p in os.listdir(str(tmp_path)) if p.endswith(".exr")]
+        assert listed == [os.fsdecode(b"caf\xe9.exr")]
+        with native.Frame(ctx, os.path.join(str(tmp_path), listed[0])) as frame:
+            assert (frame.width, frame.height) == (2, 2)
