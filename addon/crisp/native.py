@@ -239,7 +239,11 @@ def call(name, *args):
 
 def _b(s):
     # As the file system encodes names (UTF-8, and a name that is not UTF-8 as the bytes it was read from).
-    return os.fsencode(s) if isinstance(s, str) else s
+    b = os.fsencode(s) if isinstance(s, str) else s
+    if isinstance(b, bytes) and b"\0" in b:  # C would read it only up to the NUL: another name
+        detail = "%r contains a NUL character" % (s,)
+        raise CrispError("invalid argument: " + detail, detail)
+    return b
 
 
 def filter_types():

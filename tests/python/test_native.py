@@ -294,3 +294,22 @@ def test_a_path_that_is_not_utf8_reaches_the_library(native, tmp_path):
         assert listed == [os.fsdecode(b"caf\xe9.exr")]
         with native.Frame(ctx, os.path.join(str(tmp_path), listed[0])) as frame:
             assert (frame.width, frame.height) == (2, 2)
+
+
+def test_a_name_with_a_nul_is_refused_not_cut_short(native, tmp_path):
+    """ctypes passes a str with an embedded NUL as a C string that ends there: "maxSamples\\0junk" set
+    maxSamples, and "out.exr\\0.png" wrote out.exr. Such a name is refused (as Python's open() does)."""
+    rgba = (ctypes.c_float * 4)(0.5, 0.5, 0.5, 1.0)
+    with native.Context() as ctx:
+        f = native.Filter(ctx, "taa")
+        try:
+            with pytest.raises(native.CrispError, match="NUL"):
+                f.set_param("maxSamples\0junk", 5)
+            get = native.load().dll.crispGetFilterInt
+            get.restype, get.argtypes = ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p]
+            assert get(f.handle, b"maxSamples") == 128
+        finally:
+            f.close()
+        with pytest.raises(native.CrispError, match="NUL"):
+            native.write_image(ctx, str(tmp_path / "out.exr\0.png"), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 1, 1)
+    assert os.listdir(str(tmp_path)) == []
