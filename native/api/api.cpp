@@ -376,10 +376,15 @@ void crispAttachFrameSubsamples(CrispContext context, CrispFrame frame, CrispFil
   guardedVoid([&] {
     need(context, "context");
     need(frame, "frame");
-    if (filter) {
-      crisp::attachRsaaInputs(*filter->filter, frame->frame);
-    } else if (!frame->frame.has(crisp::subsamplePass(0))) {
-      crisp::attachSubsamples(frame->frame, crisp::sidecarPathFor(frame->frame.path));
+    try {
+      if (filter) {
+        crisp::attachRsaaInputs(*filter->filter, frame->frame);
+      } else if (!frame->frame.has(crisp::subsamplePass(0))) {
+        crisp::attachSubsamples(frame->frame, crisp::sidecarPathFor(frame->frame.path));
+      }
+    } catch (...) {  // the filter refused the camera after the passes were added: list them still
+      frame->passes = frame->frame.passList();
+      throw;
     }
     frame->passes = frame->frame.passList();
   });

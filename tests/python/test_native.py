@@ -313,3 +313,41 @@ def test_a_name_with_a_nul_is_refused_not_cut_short(native, tmp_path):
         with pytest.raises(native.CrispError, match="NUL"):
             native.write_image(ctx, str(tmp_path / "out.exr\0.png"), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 1, 1)
     assert os.listdir(str(tmp_path)) == []
+
+
+def test_a_frame_lists_the_sub_samples_it_holds_after_a_refused_camera(native, tmp_path):
+    """crispAttachFrameSubsamples with a filter reads the sub-sample files into the frame, then sets the
+    filter's camera from the sidecar. A camera the filter refuses (a view term beyond +-1000) failed the
+    call after the passes were added, and crispGetFramePasses went on listing the passes from before:
+    "subsamples" was in the frame (crispGetFramePass returned it) but not in its list."""
+    import json
+    oiio = pytest.importorskip("OpenImageIO")
+    np = pytest.importorskip("numpy")
+    w, h = 6, 4
+    names = ["ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B", "ViewLayer.Combined.A",
+             "ViewLayer.Depth.Z", "ViewLayer.Normal.X", "ViewLayer.Normal.Y", "ViewLayer.Normal.Z"]
+    pixel = np.array([0.5, 0.5, 0.5, 1.0, 10.0, 0.0, 0.0, 1.0], dtype=np.float32)
+    for stem in ["frame_0001"] + ["frame_0001_sub%d" % k for k in range(8)]:
+        spec = oiio.ImageSpec(w, h, len(names), oiio.FLOAT)
+        spec.channelnames = names
+        out = oiio.ImageOutput.create(str(tmp_path / (stem + ".exr")))
+        assert out.open(str(tmp_path / (stem + ".exr")), spec), oiio.geterror()
+        assert out.write_image(np.tile(pixel, (h, w, 1)))
+        out.close()
+    xs = [-0.375, 0.125, 0.375, -0.125, -0.25, 0.25, 0.25, -0.25]
+    ys = [-0.125, -0.375, 0.125, 0.375, 0.25, 0.25, -0.25, -0.25]  # y up, as the add-on writes them
+    (tmp_path / "frame_0001.json").write_text(json.dumps({
+        "frame": 1, "render_settings": {"resolution": [w, h]}, "jitter": {"x": 0, "y": 0}, "objects": {},
+        "camera": {"view": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 2000, 0], [0, 0, 0, 1]],
+                   "projection": [[2, 0, 0, 0], [0, 3, 0, 0], [0, 0, -1, -0.2], [0, 0, -1, 0]],
+                   "projection_unjittered": [[2, 0, 0, 0], [0, 3, 0, 0], [0, 0, -1, -0.2], [0, 0, -1, 0]]},
+        "subsamples": [{"offset": [x, y], "file": "frame_0001_sub%d.exr" % k} for k, (x, y) in enumerate(zip(xs, ys))]}))
+    with native.Context() as ctx, native.Frame(ctx, str(tmp_path / "frame_0001.exr")) as frame:
+        f = native.Filter(ctx, "rsaa")
+        try:
+            with pytest.raises(native.CrispError, match="view22"):
+                frame.attach_subsamples(ctx, f)
+        finally:
+            f.close()
+        assert frame.pass_pointer("subsamples")[1] == native.FORMAT_RSAA_SUBSAMPLES  # it holds them...
+        assert "subsamples" in frame.passes()  # ...and lists them
