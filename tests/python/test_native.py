@@ -347,6 +347,10 @@ def test_a_frame_lists_the_sub_samples_it_holds_after_a_refused_camera(native, t
         try:
             with pytest.raises(native.CrispError, match="view22"):
                 frame.attach_subsamples(ctx, f)
+            # Nor did the filter take the rest of that camera (RsaaFiles.RefusedCameraChangesNoParameter).
+            get = native.load().dll.crispGetFilterFloat
+            get.restype, get.argtypes = ctypes.c_float, [ctypes.c_void_p, ctypes.c_char_p]
+            assert (get(f.handle, b"proj00"), get(f.handle, b"proj11")) == (1.0, 1.0)
         finally:
             f.close()
         assert frame.pass_pointer("subsamples")[1] == native.FORMAT_RSAA_SUBSAMPLES  # it holds them...
