@@ -147,14 +147,17 @@ class _Library:
                 continue
             fn.restype, fn.argtypes = res, args
             self.fns[name] = fn
+        # The version first: a library of another major version may lack or rename calls, and its version
+        # says more of what to do than the list of names it lacks.
+        if "crispGetVersion" in self.fns and "crispGetVersionString" in self.fns:
+            version = self.fns["crispGetVersion"]()
+            have = (version // 10000, version // 100 % 100)
+            if have[0] != API_VERSION[0] or have[1] < API_VERSION[1]:
+                raise OSError("it is libcrisp %s; this add-on needs %d.x, at least %d.%d (build the library of the "
+                              "add-on's own checkout)" % (self.fns["crispGetVersionString"]().decode("utf-8", "replace"),
+                                                          API_VERSION[0], API_VERSION[0], API_VERSION[1]))
         if missing:
             raise OSError("%s lacks %s (an older libcrisp?)" % (path, ", ".join(missing)))
-        version = self.fns["crispGetVersion"]()
-        have = (version // 10000, version // 100 % 100)
-        if have[0] != API_VERSION[0] or have[1] < API_VERSION[1]:
-            raise OSError("it is libcrisp %s; this add-on needs %d.x, at least %d.%d (build the library of the add-on's "
-                          "own checkout)" % (self.fns["crispGetVersionString"]().decode("utf-8", "replace"),
-                                             API_VERSION[0], API_VERSION[0], API_VERSION[1]))
 
     def call(self, name, *args):
         result = self.fns[name](*args)
@@ -277,7 +280,10 @@ def check_params(method, params):
     run by setting them on a filter and committing it on 1x1 images of zeros bound to every image it
     requires (and rsaa's sub-samples record), about 0.1 ms."""
     with Context(threads=1) as ctx:
-        f = Filter(ctx, method)
+        try:
+            f = Filter(ctx, method)
+        except CrispError as e:  # a method this library does not have: its message, as for a parameter
+            return e.detail
         try:
             for k, v in params.items():
                 f.set_param(k, v)

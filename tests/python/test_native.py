@@ -84,6 +84,13 @@ def test_an_unknown_parameter_is_named_by_the_library_whatever_its_value(native)
         assert "unknown parameter 'bogus'" in message and "out of range" not in message, message
 
 
+def test_check_params_names_a_method_the_library_lacks(native):
+    """check_params returns the library's message for a method it does not have, as its docstring says
+    for any refusal (it raised)."""
+    message = native.check_params("no-such-method", {"feedbackMin": 0.5})
+    assert message and "no-such-method" in message, message
+
+
 def test_a_library_of_another_version_is_refused_saying_which(native, monkeypatch):
     """A library of another major version (crisp.h: what a call means may change with it) or of an older
     minor one than the add-on needs is not loaded, and the status says which it is and what is needed;
@@ -100,6 +107,15 @@ def test_a_library_of_another_version_is_refused_saying_which(native, monkeypatc
                 in text), text
         assert text.startswith("libcrisp not loaded; $CRISP_LIBRARY %s" % os.environ["CRISP_LIBRARY"]), text
         assert native._lib is None
+    # One of another major version that also lacks a call is named by its version, not by the call.
+    monkeypatch.setattr(native, "SIGNATURES", dict(native.SIGNATURES, crispCallOfAnotherVersion=(None, [])))
+    monkeypatch.setattr(native, "API_VERSION", (major + 1, 0))
+    monkeypatch.setattr(native, "_load_error", None)
+    ok, text = native.status()
+    assert not ok and "it is libcrisp %s; this add-on needs %d.x" % (have, major + 1) in text, text
+    assert "lacks" not in text, text
+    monkeypatch.setattr(native, "SIGNATURES", {k: v for k, v in native.SIGNATURES.items()
+                                               if k != "crispCallOfAnotherVersion"})
     monkeypatch.setattr(native, "API_VERSION", (major, 0))
     monkeypatch.setattr(native, "_load_error", None)
     assert native.status()[0]

@@ -178,7 +178,9 @@ CRISP_API CrispFrame crispLoadFrame(CrispContext context, const char* path);
 CRISP_API void crispReleaseFrame(CrispFrame frame);
 CRISP_API int crispGetFrameWidth(CrispFrame frame);
 CRISP_API int crispGetFrameHeight(CrispFrame frame);
-// Comma-separated list of roles present: "color,depth,normal,...".
+// Comma-separated list of roles present: "color,depth,normal,...". Owned by
+// the frame, valid until the frame changes (crispReconstructFrameMotion,
+// crispAttachFrameSubsamples) or is released.
 CRISP_API const char* crispGetFramePasses(CrispFrame frame);
 // How many colour values (channels) the file held as NaN or +-Inf; the
 // "color" pass holds them sanitised (0 for NaN, clamped for Inf). An image
@@ -186,7 +188,9 @@ CRISP_API const char* crispGetFramePasses(CrispFrame frame);
 // (crispCompareImages measures the sanitised values).
 CRISP_API long long crispGetFrameNonFiniteColour(CrispFrame frame);
 // Pointer to the pass's packed pixels (owned by the frame), or NULL with an
-// error if absent. *outFormat receives its format.
+// error if absent. *outFormat receives its format. Valid until the frame is
+// released or the pass replaced (crispReconstructFrameMotion replaces
+// "motion" and "motion_flags").
 CRISP_API void* crispGetFramePass(CrispFrame frame, const char* role, CrispFormat* outFormat);
 // Motion vectors for a frame rendered without a Vector pass (EEVEE 3.x), from
 // its "depth" pass, its "id" pass if present, and the JSON sidecars the Blender
