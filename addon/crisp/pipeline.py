@@ -472,7 +472,6 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
                 os.makedirs(_png_records_dir(filtered_dir), exist_ok=True)
             except OSError as e:
                 raise InputError("cannot make the folder %s: %s" % (_png_records_dir(filtered_dir), e.strerror or e))
-        frame_filter = native.FrameFilter(method, params, threads, the_plan.passes)
 
     def on_frame(f, info):
         entry = {"frame": f, "render_s": round(info["render_s"], 4), "jitter": info["jitter"]}
@@ -504,7 +503,7 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
 
     def is_complete(f):
         outs = [os.path.join(reference_dir, render.frame_name(f))] if reference_samples else []
-        if frame_filter is not None:
+        if filter_frames:
             outs += [os.path.join(filtered_dir, render.frame_name(f, ext)) for ext in ((".exr", ".png") if write_png
                                                                                      else (".exr",))]
         if not (render.input_complete(input_dir, f) and all(os.path.isfile(p) for p in outs)):
@@ -525,7 +524,7 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
         return same
 
     # Pre-roll warms temporal history: nothing to warm without a filter or for a spatial method.
-    warms = frame_filter is not None and method in plan_mod.TEMPORAL_METHODS
+    warms = filter_frames and method in plan_mod.TEMPORAL_METHODS
     preroll_frames, todo = chunk_run(frames, (shot or frames)[0], preroll if warms else 0,
                                      is_complete if resume else None)
     if resume and not warms and todo:
@@ -602,6 +601,8 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
         remove_stale_preroll_dirs(log)
     try:
         try:
+            if filter_frames:  # made here, so that whatever stops the run before its end releases it (finally)
+                frame_filter = native.FrameFilter(method, params, threads, the_plan.passes)
             # Contiguous and in order, so the history sees them as a sequential run would.
             for from_input, group in itertools.groupby(preroll_frames, key=lambda f: f in reused):
                 group = list(group)

@@ -1,17 +1,19 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 """What a run leaves behind in a long Blender session (a studio renders shot after shot in one): the
-library's handles (every crispNew* released, counted at native.call), also of what fails part-way."""
+library's handles (every crispNew* released, counted at native.call), also of what fails part-way (a run
+that fails before its first frame)."""
 
 import collections
 import os
 import sys
+import tempfile
 import unittest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import harness  # noqa: E402
 
 import crisp  # noqa: E402
-from crisp import native  # noqa: E402
+from crisp import native, pipeline, render  # noqa: E402
 
 LIB_OK, LIB_WHY = harness.library_usable()
 PAIRS = (("crispNewContext", "crispReleaseContext"), ("crispNewFilter", "crispReleaseFilter"),
@@ -36,6 +38,19 @@ class LeftoverTest(unittest.TestCase):
         """{what: made and not released} of the library's contexts, filters and frames."""
         return {new: self.calls[new] - self.calls[release] for new, release in PAIRS
                 if self.calls[new] != self.calls[release]}
+
+    def test_a_run_that_fails_before_its_first_frame_releases_its_filter(self):
+        """run.json cannot be written (a folder in its place here; a full disk on a farm): the run fails
+        before any frame, and its filter and context go with it, not one more of each per retry."""
+        scene = harness.build_scene("spinning_cube")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        with tempfile.TemporaryDirectory() as d:
+            os.makedirs(os.path.join(d, "run.json", "in the way"))
+            for _ in range(2):
+                with self.assertRaises(render.WriteFailed) as ctx:
+                    pipeline.run(scene, "taa", [1, 2], d, log=lambda *a: None)
+                self.assertIn("run.json", str(ctx.exception))
+        self.assertEqual(self.live_handles(), {})
 
     def test_a_frame_filter_refusing_its_parameters_releases_what_it_made(self):
         """FrameFilter with a value the library refuses raises, and leaves no context or filter behind."""
