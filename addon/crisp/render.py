@@ -13,6 +13,7 @@ Facts used (../../../shared/BLENDER.md, checked on Blender 3.4.1):
 """
 
 import bisect
+import functools
 import itertools
 import json
 import math
@@ -243,7 +244,12 @@ def _blackman_harris_inverse_cdf(width, n=1024):
     return [x * width for x in xs], cdf
 
 
-_BH_CACHE = {}
+@functools.lru_cache(maxsize=16)
+def _blackman_harris_table(width):
+    """_blackman_harris_inverse_cdf(width), kept for the widths asked last: taa's viewport preview asks at
+    every redraw with the scene's filter size, which a dragged Filter Size slider changes at each step
+    (kept for every width, the tables grew the session by ~80 kB per value)."""
+    return _blackman_harris_inverse_cdf(width)
 
 
 def jitter_offset(frame, distribution="blackman-harris", filter_size=1.5, period=HALTON_PERIOD):
@@ -263,10 +269,7 @@ def jitter_offset(frame, distribution="blackman-harris", filter_size=1.5, period
         raise RenderError("unknown jitter distribution '%s' (known: %s)" % (distribution, ", ".join(JITTER_DISTRIBUTIONS)))
     if filter_size <= 1e-6:
         return 0.0, 0.0, index
-    width = 2.0 * filter_size
-    if width not in _BH_CACHE:
-        _BH_CACHE[width] = _blackman_harris_inverse_cdf(width)
-    xs, cdf = _BH_CACHE[width]
+    xs, cdf = _blackman_harris_table(2.0 * filter_size)
 
     def inv(p):
         i = min(max(bisect.bisect_right(cdf, p) - 1, 0), len(cdf) - 2)

@@ -1,12 +1,13 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 """What a run leaves behind in a long Blender session (a studio renders shot after shot in one): the
 library's handles (every crispNew* released, counted at native.call), also of what fails part-way (a run
-that fails before its first frame)."""
+that fails before its first frame), and what the add-on keeps per value a setting takes."""
 
 import collections
 import os
 import sys
 import tempfile
+import tracemalloc
 import unittest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -60,5 +61,19 @@ class LeftoverTest(unittest.TestCase):
         self.assertEqual(self.live_handles(), {})
 
 
+class JitterTableTest(unittest.TestCase):
+    def test_jitter_over_many_filter_sizes_keeps_no_table_for_each(self):
+        """taa's viewport preview jitters each redraw over the scene's Film > Filter Size: a slider dragged
+        over 200 values must not keep a 1025-point table of each (~80 kB) for the rest of the session."""
+        render.jitter_offset(1, "blackman-harris", 1.5)
+        tracemalloc.start()
+        self.addCleanup(tracemalloc.stop)
+        before = tracemalloc.get_traced_memory()[0]
+        for n in range(200):
+            render.jitter_offset(3, "blackman-harris", 1.0 + n * 0.001)
+        kept = tracemalloc.get_traced_memory()[0] - before
+        self.assertLess(kept, 2 * 1024 * 1024, "%d kB kept" % (kept // 1024))
+
+
 if __name__ == "__main__":
-    harness.run(LeftoverTest)
+    harness.run(LeftoverTest, JitterTableTest)
