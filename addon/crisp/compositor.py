@@ -15,6 +15,7 @@ FOLDER_TAG = "crisp_folder"  # custom property of a result group: the folder who
 NAME_TAG = "crisp_name"  # custom property of a result group: the name Crisp gave it (another: the artist's)
 NODE_TAG = "crisp_result"  # custom property of the node Crisp put in a scene's compositor
 WIRED_TAG = "crisp_wired"  # custom property of that node: the Composite output took its image once
+PREVIEW_TAG = "crisp_preview"  # custom property of an image Preview Frame loaded (removed once unused)
 
 
 def group_name(scene):
@@ -303,17 +304,33 @@ def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
 
 
 def preview(path, context=None):
-    """Shows one filtered frame in every open Image Editor (none in background mode); returns the image."""
+    """Shows one filtered frame in every open Image Editor (none in background mode); returns the image.
+    The image of the frame previewed before, when Preview Frame loaded it and nothing else uses or shows it
+    now, goes: stepping through a shot kept one image, with its pixels, per frame (2 MB a frame at 960x540)."""
     if not os.path.isfile(path):
         raise FileNotFoundError("no frame at %s" % path)
+    before = set(bpy.data.images)
     image = _image_of(path, "FILE")
+    if image not in before:
+        image[PREVIEW_TAG] = True
     image.reload()
     wm = (context or bpy.context).window_manager
     for window in wm.windows:
         for area in window.screen.areas:
             if area.type == "IMAGE_EDITOR":
                 area.spaces.active.image = image
+    _remove_unused_previews(keep=image)
     return image
+
+
+def _remove_unused_previews(keep):
+    """Removes the images Preview Frame loaded (PREVIEW_TAG) that no Image Editor of any screen shows and
+    nothing uses (a node, a texture, a fake user); an editor's own user (use_extra_user) is not a use."""
+    shown = {space.image for screen in bpy.data.screens for area in screen.areas for space in area.spaces
+             if space.type == "IMAGE_EDITOR" and space.image is not None}
+    for image in [i for i in bpy.data.images if i.get(PREVIEW_TAG) and i != keep and i not in shown]:
+        if image.library is None and not image.use_fake_user and image.users == int(image.use_extra_user):
+            bpy.data.images.remove(image)
 
 
 def register():

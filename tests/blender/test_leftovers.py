@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 """What a run leaves behind in a long Blender session (a studio renders shot after shot in one): the
 library's handles (every crispNew* released, counted at native.call), also of what fails part-way (a run
-that fails before its first frame), and what the add-on keeps per value a setting takes."""
+that fails before its first frame), the images Preview Frame loads, and what the add-on keeps per value
+a setting takes."""
 
 import collections
 import os
@@ -13,6 +14,7 @@ import unittest
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import harness  # noqa: E402
 
+import bpy  # noqa: E402
 import crisp  # noqa: E402
 from crisp import native, pipeline, render  # noqa: E402
 
@@ -52,6 +54,22 @@ class LeftoverTest(unittest.TestCase):
                     pipeline.run(scene, "taa", [1, 2], d, log=lambda *a: None)
                 self.assertIn("run.json", str(ctx.exception))
         self.assertEqual(self.live_handles(), {})
+
+    def test_preview_frame_keeps_no_image_per_frame_previewed(self):
+        """Preview Frame stepped through a shot (an artist checking each filtered frame) shows each frame, and
+        keeps the image of the one shown, not one more image with its pixels per frame previewed."""
+        scene = harness.build_scene("spinning_cube")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        scene.frame_start, scene.frame_end = 1, 3
+        with tempfile.TemporaryDirectory() as d:
+            scene.crisp.method, scene.crisp.output_dir, scene.crisp.load_result = "fxaa", d, False
+            self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+            for _ in range(2):
+                for f in (1, 2, 3):
+                    scene.frame_set(f)
+                    self.assertEqual(bpy.ops.crisp.preview(), {"FINISHED"})
+            previews = [os.path.basename(i.filepath) for i in bpy.data.images if i.filepath.startswith(d)]
+            self.assertEqual(previews, ["frame_0003.png"])
 
     def test_a_frame_filter_refusing_its_parameters_releases_what_it_made(self):
         """FrameFilter with a value the library refuses raises, and leaves no context or filter behind."""
