@@ -355,7 +355,20 @@ void checkReadable(const std::string& path) {
   if (::access(path.c_str(), R_OK) != 0) ioError("cannot read '" + path + "': " + std::strerror(errno));
 }
 
+namespace {
+Frame readFrameReading(const std::string& path, const std::string& viewLayer, bool colourPixels);
+}  // namespace
+
 Frame readFrame(const std::string& path, const std::string& viewLayer) {
+  return readFrameReading(path, viewLayer, true);
+}
+
+Frame readGeometryFrame(const std::string& path) { return readFrameReading(path, std::string(), false); }
+
+namespace {
+// readFrame, and readGeometryFrame where colourPixels is false: the colour's
+// part still sets the frame's size and windows, but its pixels are not read.
+Frame readFrameReading(const std::string& path, const std::string& viewLayer, bool colourPixels) {
   OiioErrorDrain drain;  // whatever happens, leave no message in OIIO's global queue
   checkReadable(path);
 
@@ -520,7 +533,8 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
     const float coverage = straightAlpha ? std::clamp(d[3], 0.0f, 1.0f) : 1.0f;
     for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(decode ? srgbDecode(s[k]) : s[k]) * coverage;
   };
-  frame.passes["color"] = convertPass(*in, path, colourLabel, colourIdx, colourWin, Image(w, h, 4, 0.0f), colorConvert);
+  if (colourPixels)
+    frame.passes["color"] = convertPass(*in, path, colourLabel, colourIdx, colourWin, Image(w, h, 4, 0.0f), colorConvert);
 
   if (!hasCombined) {
     // Blender's single-layer EXR can carry a top-level "Z" depth channel: the
@@ -626,6 +640,7 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   in->close();
   return frame;
 }
+}  // namespace
 
 Image readMask(const std::string& path) {
   OiioErrorDrain drain;

@@ -123,7 +123,7 @@ inline void attachSubsamples(Frame& frame, const std::string& sidecarPath) {
     if (!probe)
       ioError("sub-sample " + std::to_string(k) + " '" + file + "' (listed in '" + sidecarPath +
               "') does not exist or cannot be read; render the frame again with crisp render --method rsaa");
-    const Frame sub = readFrame(file);
+    const Frame sub = readGeometryFrame(file);  // its colour is not used
     if (sub.width != frame.width || sub.height != frame.height)
       invalidData("sub-sample " + std::to_string(k) + " '" + file + "' is " + std::to_string(sub.width) + "x" +
                   std::to_string(sub.height) + " but frame '" + frame.path + "' is " + std::to_string(frame.width) + "x" +

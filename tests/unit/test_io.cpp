@@ -555,6 +555,32 @@ static std::function<std::string(const std::string&)> without(const std::string&
   return [prefix](const std::string& n) { return n.substr(prefix.size()); };
 }
 
+// rsaa's sub-samples read their geometry alone (io/subsamples.h): every pass as
+// readFrame reads it, the same size and windows, and no colour pixels.
+TEST_F(IoTest, GeometryFrameIsTheFrameWithoutItsColour) {
+  const int w = 7, h = 5;
+  ExrLayout layout;
+  layout.attributes = blenderManifest();
+  const std::string path = file("geometry.exr");
+  writeExr(path, blenderChannels("ViewLayer", w, h), layout);
+  const Frame full = readFrame(path);
+  const Frame geometry = readGeometryFrame(path);
+  EXPECT_EQ(geometry.passList(), "depth,normal,motion,id,albedo");
+  EXPECT_EQ(geometry.width, full.width);
+  EXPECT_EQ(geometry.height, full.height);
+  EXPECT_EQ(geometry.windows.dataWidth, full.windows.dataWidth);
+  EXPECT_EQ(geometry.layer, full.layer);
+  for (const char* role : {"depth", "normal", "motion", "id", "albedo"})
+    EXPECT_TRUE(sameImage(geometry.pass(role), full.pass(role))) << role;
+  // The colour's part still sets the frame: a file without colour is refused as readFrame refuses it.
+  const std::string noColour = file("geometry_no_colour.exr");
+  std::vector<Channel> channels;
+  for (const Channel& c : blenderChannels("ViewLayer", w, h))
+    if (c.name.find(".Combined.") == std::string::npos) channels.push_back(c);
+  writeExr(noColour, channels, layout);
+  expectError([&] { readGeometryFrame(noColour); }, CRISP_ERROR_INVALID_DATA, noColour, "no colour");
+}
+
 TEST_F(IoTest, MultiPartPassesAreReadFromAnyPart) {
   // Blender's passes split into parts as a compositor writes them: full names, names the part's
   // name completes ("ViewLayer.Depth" holding "Z", "ViewLayer" holding "Normal.X"), the manifest
