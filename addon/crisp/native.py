@@ -39,6 +39,13 @@ class CrispError(RuntimeError):
         self.detail = detail or text
 
 
+def _refused(detail, call=None):
+    """The CrispError of a value refused here before it reaches the library, worded as the library's own
+    (call(): "crispX: invalid argument error: ...") where it stands for a call's refusal."""
+    return CrispError(("%s: invalid argument error: %s" % (call, detail)) if call else "invalid argument: " + detail,
+                      detail)
+
+
 class Metrics(ctypes.Structure):
     _fields_ = [(n, ctypes.c_double) for n in ("mse", "rmse", "psnr", "snr", "ssim", "flip")]
 
@@ -245,7 +252,7 @@ def _b(s):
     b = os.fsencode(s) if isinstance(s, str) else s
     if isinstance(b, bytes) and b"\0" in b:  # C would read it only up to the NUL: another name
         detail = "%r contains a NUL character" % (s,)
-        raise CrispError("invalid argument: " + detail, detail)
+        raise _refused(detail)
     return b
 
 
@@ -313,7 +320,7 @@ class Context:
     def __init__(self, threads=0):
         if threads and not C_INT_MIN <= int(threads) <= C_INT_MAX:  # ctypes would wrap it (2**32 + 2 to 2)
             detail = "context parameter 'numThreads' = %d is out of range (not a C int)" % int(threads)
-            raise CrispError("crispSetContextInt: invalid argument error: " + detail, detail)
+            raise _refused(detail, "crispSetContextInt")
         self.handle = call("crispNewContext")
         try:
             if threads:
@@ -380,7 +387,7 @@ class Filter:
         if not number or (kind == "int" and not whole):
             wanted = "a whole number" if kind == "int" else "a number"
             detail = "parameter '%s' takes %s, not '%s'" % (name, wanted, value)
-            raise CrispError("invalid argument: " + detail, detail)
+            raise _refused(detail)
         if kind == "int":
             fits = C_INT_MIN <= int(value) <= C_INT_MAX
         else:
@@ -393,12 +400,12 @@ class Filter:
         spec = next((p for p in self.info()["params"] if p["name"] == name), {})
         detail = "filter '%s': parameter '%s' = %s is out of range [%s, %s]" % (
             self.method, name, value, spec.get("min"), spec.get("max"))
-        raise CrispError("crispSetFilter%s: invalid argument error: %s" % (kind.capitalize(), detail), detail)
+        raise _refused(detail, "crispSetFilter" + kind.capitalize())
 
     def set_image(self, name, ptr, fmt, width, height):
         if not (0 <= width < 2 ** 64 and 0 <= height < 2 ** 64):  # ctypes' size_t would wrap it (2**64 + 2 to 2)
             detail = "image '%s': size %dx%d is out of range [1, 65536]" % (name, width, height)
-            raise CrispError("crispSetFilterImage: invalid argument error: " + detail, detail)
+            raise _refused(detail, "crispSetFilterImage")
         call("crispSetFilterImage", self.handle, _b(name), ptr, fmt, width, height, 0, 0)
 
     def commit(self):
@@ -468,7 +475,7 @@ def _parsed_text(name, kind, text):
     except ValueError:
         detail = "parameter '%s' takes %s, not '%s'" % (
             name, {"bool": "true or false", "int": "a whole number", "float": "a number"}[kind], text)
-        raise CrispError("invalid argument: " + detail, detail) from None
+        raise _refused(detail) from None
 
 
 def _infer_kind(text):
