@@ -316,7 +316,19 @@ def check_params(method, params):
 
 # ---- objects with owned handles ----------------------------------------------------------------
 
-class Context:
+class _Owner:
+    """An object that owns a library handle and releases it in close(). Collected without close() (a
+    script that drops it, or an exception between making and closing it), it releases the handle
+    then, as a Python file closes itself; close() or `with` release it on time."""
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:  # a constructor that failed before the handle existed; interpreter exit
+            pass
+
+
+class Context(_Owner):
     def __init__(self, threads=0):
         if threads and not C_INT_MIN <= int(threads) <= C_INT_MAX:  # ctypes would wrap it (2**32 + 2 to 2)
             detail = "context parameter 'numThreads' = %d is out of range (not a C int)" % int(threads)
@@ -342,7 +354,7 @@ class Context:
         self.close()
 
 
-class Filter:
+class Filter(_Owner):
     def __init__(self, context, method):
         self.method = method
         self.handle = call("crispNewFilter", context.handle, _b(method))
@@ -494,7 +506,7 @@ def _infer_kind(text):
         return "string"
 
 
-class Frame:
+class Frame(_Owner):
     """A multilayer EXR (or plain image) read by the library; passes stay owned by the frame."""
 
     def __init__(self, context, path):

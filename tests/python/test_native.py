@@ -234,6 +234,49 @@ def test_a_frame_filter_that_fails_to_start_releases_its_handles(native, monkeyp
     assert held == []
 
 
+def test_handles_dropped_without_close_are_released_once_when_collected(native, monkeypatch, tmp_path):
+    """A script that drops a Context, Filter, Frame or FrameFilter without close() (or loses it to an
+    exception between making and closing it) kept its handle open for the life of the process. Python
+    now releases it when it collects the object, as it closes a dropped file; an object closed first is
+    not released a second time."""
+    import gc
+    made, released = [], []
+    call = native.call
+
+    def counting(name, *args):
+        result = call(name, *args)
+        if name in ("crispNewContext", "crispNewFilter", "crispLoadFrame"):
+            made.append(result)
+        elif name in ("crispReleaseContext", "crispReleaseFilter", "crispReleaseFrame"):
+            released.append(args[0])
+        return result
+
+    monkeypatch.setattr(native, "call", counting)
+    path = str(tmp_path / "frame.exr")
+    rgba = (ctypes.c_float * 4)(0.5, 0.5, 0.5, 1.0)
+    with native.Context() as ctx:
+        native.write_image(ctx, path, ctypes.addressof(rgba), native.FORMAT_FLOAT4, 1, 1)
+    made.clear(), released.clear()
+
+    def drop():  # every object made and dropped unclosed; the filter's context released first
+        context = native.Context()
+        native.Filter(context, "taa")
+        native.Frame(context, path)
+        native.FrameFilter("fxaa")
+        del context
+    drop()
+    gc.collect()
+    assert len(made) == 5 and sorted(released) == sorted(made)
+
+    made.clear(), released.clear()
+    with native.Context() as context:  # closed on time: released there, and not again when collected
+        native.Filter(context, "taa").close()
+        native.FrameFilter("fxaa").close()
+    del context
+    gc.collect()
+    assert len(made) == 4 and sorted(released) == sorted(made)
+
+
 def test_a_sidecar_without_a_frame_number_says_nothing_of_the_next(native, tmp_path):
     """FrameFilter reads each frame's position from its sidecar; one without "frame" says nothing, so
     history carries over to the frame after it (as after a frame without a sidecar). The next frame's
