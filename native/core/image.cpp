@@ -31,9 +31,16 @@ void checkViewLayout(const std::string& what, const ImageView& v) {
   if (v.width <= 0 || v.height <= 0 || v.width > kMaxDimension || v.height > kMaxDimension)
     invalidArgument(what + ": size " + std::to_string(v.width) + "x" + std::to_string(v.height) +
                     " is out of range [1, " + std::to_string(kMaxDimension) + "]");
+  // A stride above PTRDIFF_MAX is a negative one passed as size_t (a bottom-up image's row stride):
+  // said as the caller wrote it, not as the 2^64 - n bytes it became.
+  const std::size_t kMaxStride = std::size_t(PTRDIFF_MAX);
+  if (v.pixelStride > kMaxStride || v.rowStride > kMaxStride)
+    invalidArgument(what + ": negative strides (pixel " + std::to_string(std::ptrdiff_t(v.pixelStride)) + ", row " +
+                    std::to_string(std::ptrdiff_t(v.rowStride)) +
+                    " bytes) are not supported: pass the image top row first, with positive strides");
   const std::string strides =
       "strides (pixel " + std::to_string(v.pixelStride) + ", row " + std::to_string(v.rowStride) + " bytes)";
-  // Checked: a stride near SIZE_MAX would wrap the span and let pixel addresses run wild.
+  // Checked: a large stride would wrap the span and let pixel addresses run wild.
   std::size_t rowSpan = 0, span = 0;
   if (!viewSpan(v, rowSpan, span)) invalidArgument(what + ": " + strides + " span more memory than a process can address");
   if (v.pixelStride < formatBytes(v.format) || v.rowStride < rowSpan)

@@ -406,18 +406,24 @@ TEST(CApi, ReturnedStringsSurviveOtherGetters) {
   EXPECT_NE(maskWas, estimatorWas);
 }
 
-// Strides whose span wraps around size_t are refused at once, not left to crash execute.
+// Strides whose span wraps around size_t, or passes what a process can address, are refused at
+// once, not left to crash execute; so is a negative stride cast to size_t, named as negative.
 TEST(CApi, StridesThatWrapAreRefused) {
   auto ctx = crisp::ContextRef::create();
   auto f = ctx.newFilter("fxaa");
   std::vector<float> img(3 * 4);
-  const std::size_t huge = std::size_t(1) << 63;
+  const std::size_t huge = std::size_t(1) << 62;  // 2 of them pass PTRDIFF_MAX
   crispSetFilterImage(f.handle(), "color", img.data(), CRISP_FORMAT_FLOAT4, 3, 1, huge, 16);
   CrispError code;
   EXPECT_NE(lastError(&code).find("span more memory"), std::string::npos);
   EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT);
   crispSetFilterImage(f.handle(), "color", img.data(), CRISP_FORMAT_FLOAT4, 1, 3, 16, huge);
   EXPECT_NE(lastError(&code).find("span more memory"), std::string::npos);
+  // A bottom-up image: the last row's address and a row stride of -48 bytes.
+  crispSetFilterImage(f.handle(), "color", img.data() + 8, CRISP_FORMAT_FLOAT4, 1, 3, 16, std::size_t(-48));
+  EXPECT_EQ(lastError(&code), "image 'color': negative strides (pixel 16, row -48 bytes) are not "
+                              "supported: pass the image top row first, with positive strides");
+  EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT);
   crispSetFilterImage(f.handle(), "color", img.data(), CRISP_FORMAT_FLOAT4, 3, 1, 0, 0);
   EXPECT_EQ(crispGetError(nullptr), CRISP_ERROR_NONE);
 }
@@ -438,7 +444,8 @@ TEST(CApi, BadViewsAreRefusedByWriteImageAndSetImage) {
     const char* words;
   };
   const Case cases[] = {
-      {img.data(), std::size_t(-16), 0, "span more memory"},
+      {img.data(), std::size_t(-16), 0, "negative strides (pixel -16, row -64 bytes)"},
+      {img.data(), std::size_t(1) << 62, 0, "span more memory"},
       {img.data(), 4, 0, "smaller than the pixels"},
       {img.data(), 16, 7, "smaller than the pixels"},
       {bytes + 1, 0, 0, "multiples of 4 bytes"},
