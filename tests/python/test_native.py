@@ -258,12 +258,14 @@ def test_handles_dropped_without_close_are_released_once_when_collected(native, 
         native.write_image(ctx, path, ctypes.addressof(rgba), native.FORMAT_FLOAT4, 1, 1)
     made.clear(), released.clear()
 
-    def drop():  # every object made and dropped unclosed; the filter's context released first
+    def drop():  # every object made and dropped unclosed
         context = native.Context()
-        native.Filter(context, "taa")
+        taa = native.Filter(context, "taa")
         native.Frame(context, path)
         native.FrameFilter("fxaa")
-        del context
+        del context  # before its filter, which keeps it alive in the library
+        taa.set_param("maxSamples", 8)
+        del taa
     drop()
     gc.collect()
     assert len(made) == 5 and sorted(released) == sorted(made)
