@@ -356,16 +356,6 @@ void checkReadable(const std::string& path) {
 }
 
 namespace {
-Frame readFrameReading(const std::string& path, const std::string& viewLayer, bool colourPixels);
-}  // namespace
-
-Frame readFrame(const std::string& path, const std::string& viewLayer) {
-  return readFrameReading(path, viewLayer, true);
-}
-
-Frame readGeometryFrame(const std::string& path) { return readFrameReading(path, std::string(), false); }
-
-namespace {
 // readFrame, and readGeometryFrame where colourPixels is false: the colour's
 // part still sets the frame's size and windows, but its pixels are not read.
 Frame readFrameReading(const std::string& path, const std::string& viewLayer, bool colourPixels) {
@@ -641,6 +631,12 @@ Frame readFrameReading(const std::string& path, const std::string& viewLayer, bo
   return frame;
 }
 }  // namespace
+
+Frame readFrame(const std::string& path, const std::string& viewLayer) {
+  return readFrameReading(path, viewLayer, true);
+}
+
+Frame readGeometryFrame(const std::string& path) { return readFrameReading(path, std::string(), false); }
 
 Image readMask(const std::string& path) {
   OiioErrorDrain drain;
