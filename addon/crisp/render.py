@@ -230,9 +230,13 @@ def halton(index, base):
     return r
 
 
-def _blackman_harris_inverse_cdf(width, n=1024):
+@functools.lru_cache(maxsize=16)
+def _blackman_harris_table(width, n=1024):
     """Table of the inverse CDF of a Blackman-Harris window spanning [-width/2, width/2] pixels
-    (Harris 1978, 4-term window a0..a3 = 0.35875, 0.48829, 0.14128, 0.01168)."""
+    (Harris 1978, 4-term window a0..a3 = 0.35875, 0.48829, 0.14128, 0.01168), kept for the widths asked
+    last: taa's viewport preview asks at every redraw with the scene's filter size, which a dragged
+    Filter Size slider changes at each step (kept for every width, the tables grew the session by
+    ~80 kB per value)."""
     xs = [-0.5 + i / n for i in range(n + 1)]
     w = [0.35875 - 0.48829 * math.cos(2 * math.pi * (x + 0.5)) + 0.14128 * math.cos(4 * math.pi * (x + 0.5))
          - 0.01168 * math.cos(6 * math.pi * (x + 0.5)) for x in xs]
@@ -242,14 +246,6 @@ def _blackman_harris_inverse_cdf(width, n=1024):
     total = cdf[-1]
     cdf = [c / total for c in cdf]
     return [x * width for x in xs], cdf
-
-
-@functools.lru_cache(maxsize=16)
-def _blackman_harris_table(width):
-    """_blackman_harris_inverse_cdf(width), kept for the widths asked last: taa's viewport preview asks at
-    every redraw with the scene's filter size, which a dragged Filter Size slider changes at each step
-    (kept for every width, the tables grew the session by ~80 kB per value)."""
-    return _blackman_harris_inverse_cdf(width)
 
 
 def jitter_offset(frame, distribution="blackman-harris", filter_size=1.5, period=HALTON_PERIOD):
