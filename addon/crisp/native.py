@@ -317,9 +317,22 @@ def check_params(method, params):
 # ---- objects with owned handles ----------------------------------------------------------------
 
 class _Owner:
-    """An object that owns a library handle and releases it in close(). Collected without close() (a
-    script that drops it, or an exception between making and closing it), it releases the handle
-    then, as a Python file closes itself; close() or `with` release it on time."""
+    """An object that owns a library handle (self.handle) and releases it by the library function named
+    _RELEASE in close(), at the end of a `with`, or when collected without close() (a script that drops
+    it, or an exception between making and closing it), as a Python file closes itself."""
+
+    _RELEASE = None  # "crispRelease...", set by each subclass
+
+    def close(self):
+        if self.handle:
+            call(self._RELEASE, self.handle)
+            self.handle = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
     def __del__(self):
         try:
@@ -329,6 +342,8 @@ class _Owner:
 
 
 class Context(_Owner):
+    _RELEASE = "crispReleaseContext"
+
     def __init__(self, threads=0):
         if threads and not C_INT_MIN <= int(threads) <= C_INT_MAX:  # ctypes would wrap it (2**32 + 2 to 2)
             detail = "context parameter 'numThreads' = %d is out of range (not a C int)" % int(threads)
@@ -342,19 +357,10 @@ class Context(_Owner):
             self.close()
             raise
 
-    def close(self):
-        if self.handle:
-            call("crispReleaseContext", self.handle)
-            self.handle = None
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
 
 class Filter(_Owner):
+    _RELEASE = "crispReleaseFilter"
+
     def __init__(self, context, method):
         self.method = method
         self.handle = call("crispNewFilter", context.handle, _b(method))
@@ -428,11 +434,6 @@ class Filter(_Owner):
 
     def reset(self):
         call("crispResetFilter", self.handle)
-
-    def close(self):
-        if self.handle:
-            call("crispReleaseFilter", self.handle)
-            self.handle = None
 
 
 def param_text(value):
@@ -509,6 +510,8 @@ def _infer_kind(text):
 class Frame(_Owner):
     """A multilayer EXR (or plain image) read by the library; passes stay owned by the frame."""
 
+    _RELEASE = "crispReleaseFrame"
+
     def __init__(self, context, path):
         self.path = path
         self.handle = call("crispLoadFrame", context.handle, _b(path))
@@ -542,17 +545,6 @@ class Frame(_Owner):
         n = self.width * self.height * FORMAT_CHANNELS[fmt]
         ctype = ctypes.c_uint32 if fmt == FORMAT_UINT else ctypes.c_float
         return list((ctype * n).from_address(ptr)), FORMAT_CHANNELS[fmt]
-
-    def close(self):
-        if self.handle:
-            call("crispReleaseFrame", self.handle)
-            self.handle = None
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
 
 
 def write_image(context, path, ptr, fmt, width, height):
