@@ -305,6 +305,15 @@ TEST(CApi, ReleaseOrderDoesNotMatter) {
   crispReleaseFilter(f);
 }
 
+TEST(CApi, ReleasingNullDoesNothing) {  // crisp.h: as free(NULL), so cleanup need not test its handles
+  crispReleaseContext(nullptr);
+  crispReleaseFilter(nullptr);
+  crispReleaseFrame(nullptr);
+  EXPECT_EQ(crispGetError(nullptr), CRISP_ERROR_NONE);
+  crispRetainContext(nullptr);  // retaining nothing is a mistake, and is named
+  EXPECT_NE(lastError().find("context"), std::string::npos);
+}
+
 TEST(CApi, DocListsParametersAndImages) {
   auto ctx = crisp::ContextRef::create();
   for (const char* type : {"fxaa", "repair"}) {

@@ -85,7 +85,8 @@ CRISP_API CrispError crispGetError(const char** outMessage);
 // before its filters run: a change while one executes is a data race. A filter
 // keeps its context alive, so the two may be released in either order.
 // Releasing a handle more often than it was made and retained, or using it
-// after its last release, is undefined.
+// after its last release, is undefined. Releasing NULL does nothing and
+// records no error, as free(NULL): cleanup code need not test its handles.
 
 // ---- context --------------------------------------------------------------
 // Parameters: "numThreads" (int, 0 = all cores; used from the next execute of
