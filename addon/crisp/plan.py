@@ -88,6 +88,8 @@ class SceneFacts:
     visible_objects: list = field(default_factory=list)     # renderable, visible object names (on any frame)
     renderer_motion_pass: bool = False                      # the renderer writes a Vector pass
     camera_cuts: list = field(default_factory=list)         # frames whose camera is another than the frame before's
+    # moving objects whose ID several rendered instances share (render.object_table leaves them out)
+    shared_id_movers: list = field(default_factory=list)
 
 
 @dataclass
@@ -606,6 +608,7 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
     first_cam = {}  # camera object name -> its matrix and projection at the first frame it is the scene's camera
     first, moving, names, named, cuts = {}, set(), [], set(), []
     first_geometry, deforming = {}, set()  # object name -> _geometry_fingerprint at the first frame; deforming
+    shared = set()  # sources that render more than once on a frame (instances, or instanced and visible itself)
     instances = []  # the last frame's (rendered_instances)
     camera_moves = False
     previous_cam = None
@@ -663,6 +666,11 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                     first_geometry[o.name] = fp
                 elif fp != first_geometry[o.name]:
                     deforming.add(o.name)
+            # Cryptomatte names an instance by its source: how often each such ID renders on this frame.
+            renders, visible_now = {}, {o.name for o in obs}
+            for source, _, _ in instances:
+                renders[source.name] = renders.get(source.name, int(source.name in visible_now)) + 1
+            shared.update(name for name, n in renders.items() if n > 1)
             seen = {}  # an instance is told from the others of its source and instancer by its order
             for source, parent, m in instances:
                 key = (source.name, parent, seen.setdefault((source.name, parent), 0))
@@ -678,4 +686,5 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
         scene.camera = saved[2]
     return SceneFacts(frame_start=frame_start, frame_end=frame_end, camera_moves=camera_moves,
                       moving_objects=sorted(moving), deforming_objects=sorted(deforming),
-                      visible_objects=names, renderer_motion_pass=renderer_motion_pass, camera_cuts=cuts)
+                      visible_objects=names, renderer_motion_pass=renderer_motion_pass, camera_cuts=cuts,
+                      shared_id_movers=sorted(shared & (moving | deforming)))

@@ -390,6 +390,7 @@ class AddonTest(unittest.TestCase):
         self.assertTrue(sphere.hide_viewport)
         self.assertIn("Sphere", facts.visible_objects)
         self.assertEqual(facts.moving_objects, ["Sphere"])
+        self.assertEqual(facts.shared_id_movers, [])  # instanced once: its ID tells its pixels apart
         self.assertIn("motion", p.passes)
         self.assertIn("id", p.passes)
         self.assertIn("subsamples", pipeline.scene_plan(scene, "rsaa", [1, 2, 3])[0].passes)
@@ -406,6 +407,19 @@ class AddonTest(unittest.TestCase):
         with tempfile.TemporaryDirectory() as d:
             render.render_frames(scene, p, [1], d)
             self.assertNotIn(key, json.load(open(os.path.join(d, "frame_0001.json")))["objects"])
+        # Its pixels are then reconstructed as still: the run says so, naming the source and the method,
+        # rather than planning motion that the moving copy will not get.
+        self.assertEqual(pipeline.scene_plan(scene, "taa", [1, 2, 3])[1].shared_id_movers, ["Sphere"])
+        lines = []
+        with tempfile.TemporaryDirectory() as d:
+            pipeline.run(scene, "taa", [1, 2, 3], d, plan_only=True, log=lines.append)
+        notes = [line for line in lines if line.startswith("note: 'Sphere' moves but renders more than once")]
+        self.assertEqual(len(notes), 1, lines)
+        self.assertIn("taa may leave a trail", notes[0])
+        twin.location.x = 5.0  # a still twin shares the ID just the same
+        self.assertEqual(pipeline.scene_plan(scene, "taa", [1, 2, 3])[1].shared_id_movers, ["Sphere"])
+        bpy.data.objects.remove(twin)
+        self.assertEqual(pipeline.scene_plan(scene, "taa", [1, 2, 3])[1].shared_id_movers, [])
 
     def test_background_set_objects_count(self):
         """Objects of the scene's background set render behind it, at its frames: the plan sees them and
