@@ -3,11 +3,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <vector>
 
 #include "core/conventions.h"
 #include "core/error.h"
 #include "core/parallel.h"
+#include "temporal/isa.h"
 
 namespace crisp {
 
@@ -87,10 +90,348 @@ void checkSameSize(const Sidecar& current, const Sidecar& other, const char* whi
                 "x" + std::to_string(current.height) + ": motion in pixels needs one resolution");
 }
 
+// Everything a pixel's reconstruction reads, set up once per frame.
+struct Setup {
+  int W, H;
+  Mat4 P;            // jittered: the sample sat on this projection's pixel centre
+  Mat4 currentClip;  // this frame's unjittered projection
+  Chain staticPrevious, staticNext;
+  bool hasNext;
+  std::vector<ObjectChains> objects;  // sorted by hash (map order)
+  const Image* ids;
+  std::uint32_t loneObject;
+  std::vector<double> ndcX;  // per column, as motionOfPixel computes it
+
+  const ObjectChains* findObject(std::uint32_t hash) const {
+    auto it = std::lower_bound(objects.begin(), objects.end(), hash,
+                               [](const ObjectChains& o, std::uint32_t h) { return o.hash < h; });
+    return it != objects.end() && it->hash == hash ? &*it : nullptr;
+  }
+
+  // The chains of the object of pixel (x, y) (toNext null without a next frame), and
+  // kMotionUnknownObject where its ID is not in the sidecar (moved as the static world).
+  std::uint32_t chainsAt(int x, int y, const Chain*& toPrevious, const Chain*& toNext) const {
+    toPrevious = &staticPrevious;
+    toNext = hasNext ? &staticNext : nullptr;
+    const std::uint32_t id = ids ? ids->uintAt(x, y) : loneObject;
+    if (id == 0) return 0;
+    const ObjectChains* oc = findObject(id);
+    if (!oc) return kMotionUnknownObject;
+    toPrevious = &oc->previous;
+    if (hasNext) toNext = &oc->next;
+    return 0;
+  }
+};
+
+// The reference: one pixel's motion and flags (motion starts at 0, written
+// only where a pair is valid).
+void motionOfPixel(const Setup& s, const Image& depth, int x, int y, FrameMotion& out) {
+  const int W = s.W, H = s.H;
+  const Mat4& P = s.P;
+  const double ndcY = 1.0 - 2.0 * (y + 0.5) / H;
+  float* m = out.motion.at(x, y);
+  // Blender 3.4 EEVEE computes Depth.Z in half float (the EXR holds it as
+  // float32, every value exactly a half; background 65504): 11 significant
+  // bits, so d is off by up to 2^-11 relative (<= 0.002 units at 4-8 units
+  // away). That slides the point by that much along its own ray: its current
+  // pixel is unchanged, and the vector errs by the motion of that small
+  // displacement: ~(dd / d) * parallax for a camera translation, ~theta * dd *
+  // f / d pixels for a rotation by theta (object, or camera about another
+  // point; f = focal length in pixels), nothing for a camera turning about its
+  // own centre. Measured on the spinning cube (theta 0.07 rad/frame, d ~5.5, f
+  // 133 px): median 0.003 px, max 0.011 px against Cycles' Vector
+  // (tests/blender/test_motion_vectors.py). Depths at or beyond 65504 read as
+  // background.
+  const float d = *depth.at(x, y);
+  if (isBackgroundDepth(d)) {
+    out.flags.setUint(x, y, kMotionBackground);
+    return;
+  }
+  if (!(d > 0.0f) || !std::isfinite(d)) {
+    out.flags.setUint(x, y, kMotionInvalidPoint);
+    return;
+  }
+  // Camera-space point on pixel (x, y)'s ray of the jittered projection at
+  // planar depth d (camera looks down -Z): solve the two rows of clip = P *
+  // (X, Y, Z, 1) with ndc = clip.xy / clip.w for X and Y. Works for
+  // perspective and orthographic projections alike.
+  const double ndcX = 2.0 * (x + 0.5) / W - 1.0;
+  const double Z = -double(d);
+  const double a00 = P.m[0][0] - ndcX * P.m[3][0], a01 = P.m[0][1] - ndcX * P.m[3][1];
+  const double a10 = P.m[1][0] - ndcY * P.m[3][0], a11 = P.m[1][1] - ndcY * P.m[3][1];
+  const double b0 = ndcX * (P.m[3][2] * Z + P.m[3][3]) - P.m[0][2] * Z - P.m[0][3];
+  const double b1 = ndcY * (P.m[3][2] * Z + P.m[3][3]) - P.m[1][2] * Z - P.m[1][3];
+  const double det = a00 * a11 - a01 * a10;
+  const Vec4d point{(b0 * a11 - a01 * b1) / det, (a00 * b1 - b0 * a10) / det, Z, 1.0};
+  double cx, cy;
+  if (det == 0.0 || !toPixel(s.currentClip * point, W, H, cx, cy)) {
+    out.flags.setUint(x, y, kMotionInvalidPoint);
+    return;
+  }
+  const Chain *toPrevious, *toNext;
+  std::uint32_t flags = s.chainsAt(x, y, toPrevious, toNext);
+  double px, py;
+  if (!toPrevious->valid) {
+    flags |= kMotionUnmatchedObject;
+  } else if (toPixel(toPrevious->toClip * point, W, H, px, py)) {
+    m[0] = float(snapStill(px - cx));
+    m[1] = float(snapStill(py - cy));
+    flags |= kMotionPreviousValid;
+  } else {
+    flags |= kMotionInvalidPoint;
+  }
+  if (toNext) {
+    if (!toNext->valid) {
+      flags |= kMotionUnmatchedObject;
+    } else if (toPixel(toNext->toClip * point, W, H, px, py)) {
+      m[2] = float(snapStill(cx - px));
+      m[3] = float(snapStill(cy - py));
+      flags |= kMotionNextValid;
+    } else {
+      flags |= kMotionInvalidPoint;
+    }
+  }
+  out.flags.setUint(x, y, flags);
+}
+
+// ---- eight pixels at a time ------------------------------------------------
+// The same IEEE operations in the same order as motionOfPixel on eight lanes
+// of doubles (the build has no FMA contraction), so the same bits: the
+// divisions, whose latency bounds the scalar loop, run four at once, and two
+// groups' chains of them overlap. GCC vector types: four SSE2 operations per
+// step in the baseline copy, two AVX ones in the AVX2 copy.
+// Every lane helper is always inlined into the two row copies: no vector value
+// crosses a call, so GCC's -Wpsabi note on AVX-sized arguments says nothing here.
+#pragma GCC diagnostic ignored "-Wpsabi"
+#define CRISP_MOTION_INLINE inline __attribute__((always_inline))
+constexpr int kLanes = 4;
+using DL = double __attribute__((vector_size(8 * kLanes)));
+using ML = long long __attribute__((vector_size(8 * kLanes)));  // lane masks: -1 true, 0 false
+
+CRISP_MOTION_INLINE DL splat(double v) {
+  DL r;
+  for (int l = 0; l < kLanes; ++l) r[l] = v;  // (not DL{} + v, which turns -0 into +0)
+  return r;
+}
+
+struct PixelLanes {  // toPixel on the lanes
+  DL x, y;
+  ML ok;
+};
+
+CRISP_MOTION_INLINE PixelLanes toPixelLanes(const DL clip[3], double width, double height) {
+  // clip: x, y, w (the z row is not read)
+  PixelLanes r;
+  r.x = (clip[0] / clip[2] + 1.0) * 0.5 * width;
+  r.y = (1.0 - clip[1] / clip[2]) * 0.5 * height;
+  const double big = std::numeric_limits<double>::max();  // |v| <= max: finite (NaN fails)
+  const DL ax = r.x < 0.0 ? -r.x : r.x, ay = r.y < 0.0 ? -r.y : r.y;
+  r.ok = (clip[2] > kMinCameraDepth) & (ax <= big) & (ay <= big);
+  return r;
+}
+
+// Rows 0, 1 and 3 of a chain's matrix (x, y, w of the clip point) times the point
+// (X, Y, Z, 1), each lane with its own chain, as Mat4 * Vec4d sums them.
+CRISP_MOTION_INLINE void clipLanes(const Chain* const c[kLanes], DL X, DL Y, DL Z, DL clip[3]) {
+  const int rows[3] = {0, 1, 3};
+  bool shared = true;
+  for (int l = 1; l < kLanes; ++l) shared &= c[l] == c[0];
+  for (int r = 0; r < 3; ++r) {
+    DL m[4];
+    for (int k = 0; k < 4; ++k) {
+      m[k] = splat(c[0]->toClip.m[rows[r]][k]);
+      if (!shared)
+        for (int l = 1; l < kLanes; ++l) m[k][l] = c[l]->toClip.m[rows[r]][k];
+    }
+    clip[r] = m[0] * X + m[1] * Y + m[2] * Z + m[3] * 1.0;
+  }
+}
+
+CRISP_MOTION_INLINE DL snapStillLanes(DL v) {
+  const DL a = v < 0.0 ? -v : v;
+  return a < 1e-6 ? splat(0.0) : v;
+}
+
+// One lane group of a row: its inputs, and what the vector steps leave for
+// the per-pixel epilogue.
+struct Group {
+  int x;
+  float depth[kLanes];
+  bool background[kLanes];
+  bool anyPoint;
+  const Chain* toPrevious[kLanes];
+  const Chain* toNext[kLanes];
+  std::uint32_t flags[kLanes];
+  ML pointOk;
+  PixelLanes previous, next;
+  DL mx, my, nx, ny;
+};
+
+// The per-row state of the object lookups: IDs come in runs, and the last
+// pixel's lookup serves the next of the same ID.
+struct ObjectRun {
+  std::uint32_t id = 0, flags = 0;
+  const Chain* toPrevious;  // id 0: the static world
+  const Chain* toNext;
+};
+
+CRISP_MOTION_INLINE void loadGroup(const Image& depth, int x, int y, Group& g) {
+  g.x = x;
+  g.anyPoint = false;
+  for (int l = 0; l < kLanes; ++l) {
+    g.depth[l] = *depth.at(x + l, y);
+    g.background[l] = isBackgroundDepth(g.depth[l]);
+    g.anyPoint |= !g.background[l];
+  }
+}
+
+CRISP_MOTION_INLINE void groupObjects(const Setup& s, int y, ObjectRun& run, Group& g) {
+  for (int l = 0; l < kLanes; ++l) {
+    const std::uint32_t id = s.ids ? s.ids->uintAt(g.x + l, y) : s.loneObject;
+    if (id != run.id) {
+      run.id = id;
+      run.flags = s.chainsAt(g.x + l, y, run.toPrevious, run.toNext);
+    }
+    g.toPrevious[l] = run.toPrevious;
+    g.toNext[l] = run.toNext;
+    g.flags[l] = run.flags;
+  }
+}
+
+// motionOfPixel's arithmetic on the group's lanes.
+template <bool HasNext>
+CRISP_MOTION_INLINE void groupMath(const Setup& s, double ndcY, double a10, double a11,
+                                   const Chain* const current[kLanes], Group& g) {
+  const Mat4& P = s.P;
+  using FL = float __attribute__((vector_size(4 * kLanes)));
+  FL depth;
+  DL ndcX;
+  std::memcpy(&depth, g.depth, sizeof depth);
+  std::memcpy(&ndcX, &s.ndcX[std::size_t(g.x)], sizeof ndcX);
+  const DL Z = -__builtin_convertvector(depth, DL);
+  const DL a00 = P.m[0][0] - ndcX * P.m[3][0], a01 = P.m[0][1] - ndcX * P.m[3][1];
+  const DL b0 = ndcX * (P.m[3][2] * Z + P.m[3][3]) - P.m[0][2] * Z - P.m[0][3];
+  const DL b1 = ndcY * (P.m[3][2] * Z + P.m[3][3]) - P.m[1][2] * Z - P.m[1][3];
+  const DL det = a00 * a11 - a01 * a10;
+  const DL X = (b0 * a11 - a01 * b1) / det, Y = (a00 * b1 - b0 * a10) / det;
+  DL clip[3];
+  clipLanes(current, X, Y, Z, clip);
+  const PixelLanes c = toPixelLanes(clip, s.W, s.H);
+  g.pointOk = (det != 0.0) & c.ok;
+  clipLanes(g.toPrevious, X, Y, Z, clip);
+  g.previous = toPixelLanes(clip, s.W, s.H);
+  g.mx = snapStillLanes(g.previous.x - c.x);
+  g.my = snapStillLanes(g.previous.y - c.y);
+  if constexpr (HasNext) {
+    clipLanes(g.toNext, X, Y, Z, clip);
+    g.next = toPixelLanes(clip, s.W, s.H);
+    g.nx = snapStillLanes(c.x - g.next.x);
+    g.ny = snapStillLanes(c.y - g.next.y);
+  }
+}
+
+// motionOfPixel's decisions on each lane, and the stores.
+template <bool HasNext>
+CRISP_MOTION_INLINE void groupFinish(const Group& g, int y, FrameMotion& out) {
+  for (int l = 0; l < kLanes; ++l) {
+    const int x = g.x + l;
+    const float d = g.depth[l];
+    if (g.background[l]) {
+      out.flags.setUint(x, y, kMotionBackground);
+      continue;
+    }
+    if (!(d > 0.0f) || !std::isfinite(d) || !g.pointOk[l]) {
+      out.flags.setUint(x, y, kMotionInvalidPoint);
+      continue;
+    }
+    float* m = out.motion.at(x, y);
+    std::uint32_t f = g.flags[l];
+    if (!g.toPrevious[l]->valid) {
+      f |= kMotionUnmatchedObject;
+    } else if (g.previous.ok[l]) {
+      m[0] = float(g.mx[l]);
+      m[1] = float(g.my[l]);
+      f |= kMotionPreviousValid;
+    } else {
+      f |= kMotionInvalidPoint;
+    }
+    if constexpr (HasNext) {
+      if (!g.toNext[l]->valid) {
+        f |= kMotionUnmatchedObject;
+      } else if (g.next.ok[l]) {
+        m[2] = float(g.nx[l]);
+        m[3] = float(g.ny[l]);
+        f |= kMotionNextValid;
+      } else {
+        f |= kMotionInvalidPoint;
+      }
+    }
+    out.flags.setUint(x, y, f);
+  }
+}
+
+// Row y: two lane groups a step, their arithmetic side by side so that the
+// two chains of divisions overlap (one group's latency, not its throughput,
+// bounds it), then a last group, then the tail pixel by pixel.
+template <bool HasNext>
+CRISP_MOTION_INLINE void motionRowLanes(const Setup& s, const Image& depth, int y, FrameMotion& out) {
+  const Mat4& P = s.P;
+  const double ndcY = 1.0 - 2.0 * (y + 0.5) / s.H;
+  const double a10 = P.m[1][0] - ndcY * P.m[3][0], a11 = P.m[1][1] - ndcY * P.m[3][1];
+  const Chain staticChain{s.currentClip, true};
+  const Chain* current[kLanes];
+  for (int l = 0; l < kLanes; ++l) current[l] = &staticChain;
+  ObjectRun run;
+  run.toPrevious = &s.staticPrevious;
+  run.toNext = s.hasNext ? &s.staticNext : nullptr;
+  Group a, b;
+  int x = 0;
+  for (; x + 2 * kLanes <= s.W; x += 2 * kLanes) {
+    loadGroup(depth, x, y, a);
+    loadGroup(depth, x + kLanes, y, b);
+    if (!a.anyPoint && !b.anyPoint) {  // the sky: no arithmetic
+      for (int l = 0; l < 2 * kLanes; ++l) out.flags.setUint(x + l, y, kMotionBackground);
+      continue;
+    }
+    groupObjects(s, y, run, a);
+    groupObjects(s, y, run, b);
+    groupMath<HasNext>(s, ndcY, a10, a11, current, a);
+    groupMath<HasNext>(s, ndcY, a10, a11, current, b);
+    groupFinish<HasNext>(a, y, out);
+    groupFinish<HasNext>(b, y, out);
+  }
+  if (x + kLanes <= s.W) {
+    loadGroup(depth, x, y, a);
+    groupObjects(s, y, run, a);
+    groupMath<HasNext>(s, ndcY, a10, a11, current, a);
+    groupFinish<HasNext>(a, y, out);
+    x += kLanes;
+  }
+  for (; x < s.W; ++x) motionOfPixel(s, depth, x, y, out);
+}
+
+void motionRowBaseline(const Setup& s, const Image& depth, int y, FrameMotion& out) {
+  if (s.hasNext)
+    motionRowLanes<true>(s, depth, y, out);
+  else
+    motionRowLanes<false>(s, depth, y, out);
+}
+
+#ifdef CRISP_TEMPORAL_HAS_AVX2
+CRISP_TEMPORAL_AVX2 void motionRowAvx2(const Setup& s, const Image& depth, int y, FrameMotion& out) {
+  if (s.hasNext)
+    motionRowLanes<true>(s, depth, y, out);
+  else
+    motionRowLanes<false>(s, depth, y, out);
+}
+#else
+void motionRowAvx2(const Setup& s, const Image& depth, int y, FrameMotion& out) { motionRowBaseline(s, depth, y, out); }
+#endif
+
 }  // namespace
 
 FrameMotion reconstructMotion(const Image& depth, const Image* ids, const Sidecar& current, const Sidecar& previous,
-                              const Sidecar* next, const std::string& frameLabel, int numThreads) {
+                              const Sidecar* next, const std::string& frameLabel, int numThreads, MotionPath path) {
   const int W = current.width, H = current.height;
   if (depth.channels != 1 || depth.format == Format::UInt)
     invalidData("'" + frameLabel + "': the depth pass must be 1 float channel");
@@ -134,98 +475,22 @@ FrameMotion reconstructMotion(const Image& depth, const Image* ids, const Sideca
     if (next && objectChange(kv.second, *next, kv.first, change)) oc.next = makeChain(*next, cameraToWorld, &change);
     objects.push_back(oc);
   }
-  auto findObject = [&](std::uint32_t hash) -> const ObjectChains* {
-    auto it = std::lower_bound(objects.begin(), objects.end(), hash,
-                               [](const ObjectChains& o, std::uint32_t h) { return o.hash < h; });
-    return it != objects.end() && it->hash == hash ? &*it : nullptr;
-  };
-
-  const Mat4& P = current.projection;  // jittered: the sample sat on this projection's pixel centre
-  const Mat4& currentClip = current.projectionUnjittered;
-
+  Setup setup{W, H, current.projection, current.projectionUnjittered, staticPrevious, staticNext, next != nullptr,
+              std::move(objects), ids, loneObject, std::vector<double>(std::size_t(W))};
+  for (int x = 0; x < W; ++x) setup.ndcX[std::size_t(x)] = 2.0 * (x + 0.5) / W - 1.0;
   FrameMotion out;
   out.motion = Image(W, H, 4, 0.0f);
   out.flags = Image::uintImage(W, H);
+  const bool lanes = path == MotionPath::Fast;
+  const bool avx2 = lanes && temporal::useAvx2();
   parallelRows(W, H, numThreads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
-      const double ndcY = 1.0 - 2.0 * (y + 0.5) / H;
-      for (int x = 0; x < W; ++x) {
-        float* m = out.motion.at(x, y);
-        std::uint32_t flags = 0;
-        // Blender 3.4 EEVEE computes Depth.Z in half float (the EXR holds it
-        // as float32, every value exactly a half; background 65504): 11
-        // significant bits, so d is off by up to 2^-11 relative (<= 0.002
-        // units at 4-8 units away). That slides the
-        // point by that much along its own ray: its current pixel is
-        // unchanged, and the vector errs by the motion of that small
-        // displacement: ~(dd / d) * parallax for a camera translation, ~theta
-        // * dd * f / d pixels for a rotation by theta (object, or camera about
-        // another point; f = focal length in pixels), nothing for a camera
-        // turning about its own centre. Measured on the spinning cube (theta
-        // 0.07 rad/frame, d ~5.5, f 133 px): median 0.003 px, max 0.011 px
-        // against Cycles' Vector (tests/blender/test_motion_vectors.py).
-        // Depths at or beyond 65504 read as background.
-        const float d = *depth.at(x, y);
-        if (isBackgroundDepth(d)) {
-          out.flags.setUint(x, y, kMotionBackground);
-          continue;
-        }
-        if (!(d > 0.0f) || !std::isfinite(d)) {
-          out.flags.setUint(x, y, kMotionInvalidPoint);
-          continue;
-        }
-        // Camera-space point on pixel (x, y)'s ray of the jittered projection
-        // at planar depth d (camera looks down -Z): solve the two rows of
-        // clip = P * (X, Y, Z, 1) with ndc = clip.xy / clip.w for X and Y.
-        // Works for perspective and orthographic projections alike.
-        const double ndcX = 2.0 * (x + 0.5) / W - 1.0;
-        const double Z = -double(d);
-        const double a00 = P.m[0][0] - ndcX * P.m[3][0], a01 = P.m[0][1] - ndcX * P.m[3][1];
-        const double a10 = P.m[1][0] - ndcY * P.m[3][0], a11 = P.m[1][1] - ndcY * P.m[3][1];
-        const double b0 = ndcX * (P.m[3][2] * Z + P.m[3][3]) - P.m[0][2] * Z - P.m[0][3];
-        const double b1 = ndcY * (P.m[3][2] * Z + P.m[3][3]) - P.m[1][2] * Z - P.m[1][3];
-        const double det = a00 * a11 - a01 * a10;
-        const Vec4d point{(b0 * a11 - a01 * b1) / det, (a00 * b1 - b0 * a10) / det, Z, 1.0};
-        double cx, cy;
-        if (det == 0.0 || !toPixel(currentClip * point, W, H, cx, cy)) {
-          out.flags.setUint(x, y, kMotionInvalidPoint);
-          continue;
-        }
-
-        const Chain* toPrevious = &staticPrevious;
-        const Chain* toNext = next ? &staticNext : nullptr;
-        const std::uint32_t id = ids ? ids->uintAt(x, y) : loneObject;
-        if (id != 0) {
-          if (const ObjectChains* oc = findObject(id)) {
-            toPrevious = &oc->previous;
-            if (next) toNext = &oc->next;
-          } else {
-            flags |= kMotionUnknownObject;
-          }
-        }
-        double px, py;
-        if (!toPrevious->valid) {
-          flags |= kMotionUnmatchedObject;
-        } else if (toPixel(toPrevious->toClip * point, W, H, px, py)) {
-          m[0] = float(snapStill(px - cx));
-          m[1] = float(snapStill(py - cy));
-          flags |= kMotionPreviousValid;
-        } else {
-          flags |= kMotionInvalidPoint;
-        }
-        if (toNext) {
-          if (!toNext->valid) {
-            flags |= kMotionUnmatchedObject;
-          } else if (toPixel(toNext->toClip * point, W, H, px, py)) {
-            m[2] = float(snapStill(cx - px));
-            m[3] = float(snapStill(cy - py));
-            flags |= kMotionNextValid;
-          } else {
-            flags |= kMotionInvalidPoint;
-          }
-        }
-        out.flags.setUint(x, y, flags);
-      }
+      if (avx2)
+        motionRowAvx2(setup, depth, y, out);
+      else if (lanes)
+        motionRowBaseline(setup, depth, y, out);
+      else
+        for (int x = 0; x < W; ++x) motionOfPixel(setup, depth, x, y, out);
     }
   });
   return out;

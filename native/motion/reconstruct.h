@@ -53,9 +53,13 @@ struct FrameMotion {
 // otherwise to none (static) - refused with CRISP_ERROR_INVALID_DATA if any
 // object of the sidecars moves, since pixels cannot be matched to it. next may
 // be nullptr (zw = 0, kMotionNextValid clear). frameLabel names the frame in
-// messages. Threads via parallelRows (0 = all cores).
+// messages. Threads via parallelRows (0 = all cores). path: Fast (four pixels
+// at a time, the AVX2 copy where the CPU has it, temporal::useAvx2) or the
+// scalar Reference, one pixel at a time; both give the same bits.
+enum class MotionPath { Fast, Reference };
 FrameMotion reconstructMotion(const Image& depth, const Image* ids, const Sidecar& current, const Sidecar& previous,
-                              const Sidecar* next, const std::string& frameLabel, int numThreads);
+                              const Sidecar* next, const std::string& frameLabel, int numThreads,
+                              MotionPath path = MotionPath::Fast);
 
 // Reads frame.path's own sidecar (sidecarPathFor), the previous one and, if
 // nextSidecarPath is not empty, the next one; adds or replaces the frame's

@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -17,6 +18,7 @@
 #include "core/error.h"
 #include "io/frame.h"
 #include "motion/reconstruct.h"
+#include "temporal/isa.h"
 
 using namespace crisp;
 namespace fs = std::filesystem;
@@ -439,4 +441,86 @@ TEST(Motion, StillPointsGetExactlyZero) {
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x)
       for (int c = 0; c < 4; ++c) ASSERT_EQ(fm.motion.at(x, y)[c], 0.0f) << x << "," << y << " c" << c;
+}
+
+// The fast path (four pixels at a time, reconstruct.cpp) gives the reference's
+// bits on every copy the CPU runs: widths that leave a tail of 1-3 pixels, a
+// sky of whole background groups, groups that mix background, bad depths
+// (0, negative, -inf, NaN, +inf, denormal), points behind the previous
+// camera, ids of a moving object, of an object missing from the previous
+// frame, unknown ids and id 0, with and without the next frame and the ids.
+TEST(Motion, FastPathEqualsReference) {
+  const double s = 1.7;
+  for (const bool cameraMoves : {true, false})  // a still camera: static points snap to exactly 0
+  for (const int w : {43, 4, 3, 17})
+    for (const int h : {9, 2}) {
+      auto sized = [&](Sidecar sc) {
+        sc.width = w;
+        sc.height = h;
+        return sc;
+      };
+      // The camera moves forward past some points (behind it in the previous frame) and turns.
+      // A still camera away from the origin: its chains multiply out to the identity only up to
+      // rounding, so still points take the snap to 0.
+      const Mat4 pose = translation(0.31, -0.17, 0.7) * rotationZ(0.23);
+      Sidecar prev = sized(sidecar(cameraMoves ? translation(0.3, -0.2, 2.5) * rotationZ(0.2) : pose,
+                                   perspective(s, 0.2, -0.3), perspective(s), 0.2, -0.3));
+      Sidecar cur = sized(sidecar(cameraMoves ? Mat4::identity() : pose, perspective(s, -0.37, 0.41), perspective(s),
+                                  -0.37, 0.41));
+      Sidecar next = sized(sidecar(translation(-0.1, 0.05, -0.4), perspective(s, 0.11, 0.07), perspective(s),
+                                   0.11, 0.07));
+      cur.objects[kCube] = {"Cube", rotationZ(0.4) * translation(0.5, 0, -3), "", false};
+      prev.objects[kCube] = {"Cube", rotationZ(0.3) * translation(0.45, 0, -3), "", false};
+      next.objects[kCube] = {"Cube", rotationZ(0.5) * translation(0.55, 0, -3), "", false};
+      cur.objects[kBall] = {"Ball", translation(-1, 0, -4), "", false};  // absent before and after: unmatched
+      Image depth(w, h, 1), ids = Image::uintImage(w, h);
+      const float odd[] = {0.0f, -1.0f, -INFINITY, NAN, INFINITY, kFarDepth, 1e-40f, 0.5f, 1e-3f, 2.4f};
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const int i = y * w + x;
+          float d = 1.0f + 0.37f * float((i * 7919) % 23);  // 1 .. 9: some behind the previous camera
+          if (y == 0 && x < 8) d = kFarDepth;               // whole background groups
+          if (i % 5 == 3) d = odd[(i / 5) % 10];
+          *depth.at(x, y) = d;
+          const std::uint32_t choice[] = {0u, kCube, kBall, kStranger, kCube};
+          ids.setUint(x, y, choice[(i * 31) % 5]);
+        }
+      for (const bool withNext : {false, true})
+        for (const bool withIds : {false, true}) {
+          const Image* idp = withIds ? &ids : nullptr;
+          const Sidecar* np = withNext ? &next : nullptr;
+          // Without ids only a lone object, or a scene where no object moves, is allowed.
+          Sidecar c = cur, p = prev, n = next;
+          if (!withIds) {
+            c.objects.erase(kBall);
+            p.objects.erase(kBall);
+            n.objects.erase(kBall);
+          }
+          const FrameMotion ref =
+              reconstructMotion(depth, idp, c, p, withNext ? &n : np, "ref", 1, MotionPath::Reference);
+          int valid = 0;
+          for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) valid += (flagsAt(ref, x, y) & kMotionPreviousValid) != 0;
+          int still = 0;
+          for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) still += (flagsAt(ref, x, y) & kMotionPreviousValid) && ref.motion.at(x, y)[0] == 0.0f;
+          if (w * h > 20) {
+            EXPECT_GT(valid, w * h / 4) << "the inputs should give mostly real motion";
+            if (!cameraMoves && withIds) EXPECT_GT(still, w * h / 8) << "a still camera should leave still points";
+          }
+          for (const auto isa : {temporal::Isa::Auto, temporal::Isa::Baseline}) {
+            temporal::setFastPathIsa(isa);
+            for (const int threads : {1, 2}) {
+              const FrameMotion fast = reconstructMotion(depth, idp, c, p, withNext ? &n : np, "fast", threads);
+              const std::string where = std::to_string(w) + "x" + std::to_string(h) + (withNext ? " next" : "") +
+                                        (withIds ? " ids" : "") + " isa " + std::to_string(int(isa));
+              ASSERT_EQ(0, std::memcmp(ref.motion.data.data(), fast.motion.data.data(),
+                                       ref.motion.data.size() * sizeof(float))) << where;
+              ASSERT_EQ(0, std::memcmp(ref.flags.data.data(), fast.flags.data.data(),
+                                       ref.flags.data.size() * sizeof(float))) << where;
+            }
+          }
+          temporal::setFastPathIsa(temporal::Isa::Auto);
+        }
+    }
 }
