@@ -327,6 +327,8 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   if (readsSubsamples(*filter) && !e.subsamplesRendered) filter = createFilter(context, "none");
   Image output;
   cli::ShotPosition shot;
+  const bool readsMotion = std::any_of(filter->roles().begin(), filter->roles().end(),
+                                       [](const ImageRole& r) { return std::string(r.name) == "motion"; });
   // The renders' Film > Filter Size (their sidecars; CRISP_EVAL_FILTER_SIZE sets it) unless the method's settings give one.
   shot.filterSizeGiven = spec.gives("filterSize");
   for (int f : frames) {
@@ -343,7 +345,11 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
       filter->reset();
       std::fprintf(stderr, "crisp eval: %s frame %d: history starts over (%s)\n", e.name.c_str(), f, cut.c_str());
     }
-    addMotion(frame, inputDir, f, cut.empty() ? frames.front() : f, sceneMoves, o.threads);
+    // The motion a temporal method reads is rebuilt from depth and the sidecars (EEVEE 3.4 writes no
+    // Vector pass): work the method costs every frame, timed with its filter.
+    const auto motionStart = Clock::now();
+    if (readsMotion) addMotion(frame, inputDir, f, cut.empty() ? frames.front() : f, sceneMoves, o.threads);
+    const double motionSeconds = std::chrono::duration<double>(Clock::now() - motionStart).count();
     cli::bindFrame(*filter, frame, shot);
     if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
     filter->setImage("output", output.view());
@@ -354,7 +360,7 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
     } catch (const Exception& ex) {
       throw Exception(ex.code(), "'" + in.string() + "': " + ex.what());
     }
-    double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    double seconds = std::chrono::duration<double>(Clock::now() - t0).count() + motionSeconds;
     writeImage((dir / frameName(f)).string(), output);
     writeImage((dir / frameName(f, ".png")).string(), output);
     times[frameKey(f)] = seconds;
