@@ -957,8 +957,16 @@ class AddonTest(unittest.TestCase):
             cam = scene.camera
             scene.camera = None
             try:
-                with self.assertRaisesRegex(pipeline.InputError, "no camera"):
+                # The scene has a camera object, which is not its camera: named, not "add one".
+                with self.assertRaisesRegex(pipeline.InputError,
+                                            "no scene camera, though it has the camera object 'Camera'"):
                     pipeline.run(scene, "fxaa", range(1, 3), out, filter_frames=False)
+                cam.name = "Lens"  # ... and with no camera object at all: add one
+                scene.collection.objects.unlink(cam)
+                with self.assertRaisesRegex(pipeline.InputError, "has no camera: add one"):
+                    pipeline.run(scene, "fxaa", range(1, 3), out, filter_frames=False)
+                scene.collection.objects.link(cam)
+                cam.name = "Camera"
             finally:
                 scene.camera = cam
             # No scene camera, but a timeline marker binds one: Blender renders through it (the marker makes it
