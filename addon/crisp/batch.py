@@ -360,6 +360,12 @@ def main(argv):
     said = panel_line(method, jitter, from_panel)
     if said:
         print(said, flush=True)
+    others = sorted(s.name for s in bpy.data.scenes if s != scene and s.library is None)
+    if others:  # Blender opens a .blend at the scene it was saved with: say which one this is
+        print("crisp: scene '%s', the file's active scene (others: %s; save the file with another scene "
+              "active to render that one)" % (scene.name, ", ".join("'%s'" % n for n in others[:4])
+                                              + (" and %d more" % (len(others) - 4) if len(others) > 4 else "")),
+              flush=True)
 
     try:
         out = pipeline.output_argument(args.output)

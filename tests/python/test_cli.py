@@ -1185,3 +1185,16 @@ def test_eval_stops_before_rendering_at_a_panel_value_the_library_refuses(tmp_pa
     assert "taa's parameters from the scene's Crisp panel (bad.blend: feedbackMin=0.95) are refused" in p.stderr \
            and "feedbackMax" in p.stderr and "--no-panel" in p.stderr, p.stderr[-3000:]
     assert not out.exists()
+
+
+@needs_blender
+def test_render_of_a_file_with_several_scenes_says_which_it_renders(tmp_path):
+    """crisp render renders the .blend's active scene, as Blender opens it: with other scenes in the file it
+    names the one it renders and the others, so an artist who meant another learns it from the first line."""
+    blend = panel_blend(tmp_path / "two.blend", 'bpy.data.scenes.new("Other Shot"); s.method = "none"')
+    p = render_panel(blend, tmp_path / "out", "--plan")
+    scene = run_record(tmp_path / "out")["scene"]
+    assert scene != "Other Shot"
+    assert "crisp: scene '%s', the file's active scene (others: 'Other Shot';" % scene in p.stdout, p.stdout[-2000:]
+    one = panel_blend(tmp_path / "one.blend", 's.method = "none"')
+    assert "the file's active scene" not in render_panel(one, tmp_path / "one", "--plan").stdout
