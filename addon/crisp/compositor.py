@@ -291,6 +291,12 @@ def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
     the missing ones (pipeline.sequence_warnings)."""
     def path(f):
         return os.path.join(filtered_dir, "frame_%04d%s" % (f, ext))
+    if frame_start < 0:
+        # Blender reads the "-" of frame_-002 as part of the name: its sequence would show frame -1 at
+        # frame 1 and nothing at frames -2..0.
+        raise ValueError("frames %d-%d: Blender's image sequences cannot show negative frame numbers; load "
+                         "frames from 0 on (the filtered files of the others are in %s)"
+                         % (frame_start, frame_end, filtered_dir))
     first = next((f for f in range(frame_start, frame_end + 1) if os.path.isfile(path(f))), None)
     if first is None:
         raise FileNotFoundError("no filtered frame of frames %d-%d in %s: render with Crisp first"

@@ -1491,6 +1491,9 @@ class AddonTest(unittest.TestCase):
             self.assertEqual(bpy.path.abspath(frames.image.filepath), os.path.join(d, "frame_0003.png"))
             out = group.nodes["Group Output"]
             self.assertTrue(out.inputs["Image"].is_linked)
+            # negative frames cannot be a Blender image sequence: refused, not shown at the wrong frames
+            with self.assertRaisesRegex(ValueError, "cannot show negative frame numbers"):
+                crisp.compositor.load_result(scene, d, -2, 4, ext=".png")
             # loading again reuses the group and the node
             crisp.compositor.load_result(scene, d, 3, 4, ext=".png")
             self.assertEqual(len([n for n in scene.node_tree.nodes if n.bl_idname == "CompositorNodeGroup"]), 1)
