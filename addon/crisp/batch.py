@@ -4,6 +4,7 @@
     blender -b [SCENE.blend] --factory-startup --python-exit-code 1 --python <repo>/addon/crisp/batch.py -- \\
         -o OUTDIR [--frames A-B] [--preroll N] [--shot A-B] [--resume] [--method NAME] [--set K=V ...]
         [--samples 1] [--reference-samples N] [--resolution WxH] [--scene-script test_scenes/NAME.py | NAME]
+        [--scene-name NAME]
         [--plan-only] [--no-filter] [--no-png] [--threads N] [--library PATH] [--jitter blackman-harris|uniform]
         [--engine eevee|cycles]
 
@@ -28,6 +29,8 @@ Arguments (after Blender's `--`):
   --resolution WxH         override the render size (100 %)
   --scene-script PATH|NAME build the scene with a Python script first (NAME: test_scenes/NAME.py);
                            without it the .blend opened by Blender is used as is
+  --scene-name NAME        the scene Blender was told to open (-S NAME before --python): checked to be
+                           the open one, else exit 2 listing the file's scenes
   --plan-only              print the pass plan, write run.json, render nothing
   --no-filter              render the inputs only (no library needed)
   --no-png                 do not write filtered PNGs next to the EXRs
@@ -86,6 +89,7 @@ def make_parser():
     p.add_argument("--reference-samples", type=int, default=0)
     p.add_argument("--resolution", default="")
     p.add_argument("--scene-script", default="")
+    p.add_argument("--scene-name", default="")  # crisp render --scene-name: Blender's -S made it active
     p.add_argument("--plan-only", action="store_true")
     p.add_argument("--no-filter", action="store_true")
     p.add_argument("--no-png", action="store_true")
@@ -138,6 +142,18 @@ def stop_on_signals():
         if signal.getsignal(sig) != signal.SIG_IGN:
             signal.signal(sig, stop)
     return should_cancel
+
+
+def named_scene(name):
+    """The scene to run: the one Blender opened the file at, which `crisp render --scene-name` chose with
+    Blender's -S; that option only warns of a name the file lacks and opens the saved scene, so a name that
+    is not the open scene's fails here, listing the file's scenes."""
+    import bpy
+    scene = bpy.context.scene
+    if name and scene.name != name:
+        fail(2, "no scene '%s' in %s (its scenes: %s)" % (name, bpy.data.filepath or "this file",
+                                                         ", ".join("'%s'" % s.name for s in bpy.data.scenes)))
+    return scene
 
 
 def scene_script_path(text):
@@ -340,7 +356,7 @@ def main(argv):
         path = scene_script_path(args.scene_script)
         sys.path.insert(0, os.path.dirname(path))
         runpy.run_path(path, run_name="__main__")
-    scene = bpy.context.scene
+    scene = named_scene(args.scene_name)
     if args.resolution:
         try:
             pipeline.apply_resolution(scene, args.resolution)
@@ -361,11 +377,11 @@ def main(argv):
     if said:
         print(said, flush=True)
     others = sorted(s.name for s in bpy.data.scenes if s != scene and s.library is None)
-    if others:  # Blender opens a .blend at the scene it was saved with: say which one this is
-        print("crisp: scene '%s', the file's active scene (others: %s; save the file with another scene "
-              "active to render that one)" % (scene.name, ", ".join("'%s'" % n for n in others[:4])
-                                              + (" and %d more" % (len(others) - 4) if len(others) > 4 else "")),
-              flush=True)
+    if others and not args.scene_name:  # Blender opens a .blend at the scene it was saved with: say which
+        listed = ", ".join("'%s'" % n for n in others[:4]) + (" and %d more" % (len(others) - 4)
+                                                              if len(others) > 4 else "")
+        print("crisp: scene '%s', the file's active scene (others: %s; --scene-name NAME renders another)"
+              % (scene.name, listed), flush=True)
 
     try:
         out = pipeline.output_argument(args.output)

@@ -57,6 +57,7 @@ def make_parser():
     p.add_argument("--warmup", type=int, default=0)  # crisp eval --warmup: checked here against the range
     p.add_argument("--resolution", default="")
     p.add_argument("--scene-script", default="")
+    p.add_argument("--scene-name", default="")  # crisp eval --scene-name (batch.named_scene)
     p.add_argument("--reference-samples", type=int, default=64)
     p.add_argument("--curve", default="1,2,4,8,16")
     p.add_argument("--smaa-threshold", type=float, default=None)
@@ -105,12 +106,12 @@ def parse_curve(text):
     return counts
 
 
-def read_panel(jitter):
+def read_panel(jitter, scene_name=""):
     """--read-panel: the opened .blend's Crisp panel, checked, as one line `crisp-panel: {JSON}`."""
-    import bpy
     from crisp import batch, native
+    scene = batch.named_scene(scene_name)
     try:
-        method, jitter, params, from_panel = batch.panel_settings(bpy.context.scene, None, jitter, {})
+        method, jitter, params, from_panel = batch.panel_settings(scene, None, jitter, {})
         batch.check_panel_params(method, params, from_panel, {}, way_out="run crisp eval with --no-panel")
     except batch.PanelError as e:
         batch.fail(e.exit, str(e))
@@ -140,7 +141,7 @@ def main(argv):
     if args.jitter is not None and args.jitter not in render.JITTER_DISTRIBUTIONS:
         fail(2, "unknown --jitter '%s' (known: %s)" % (args.jitter, ", ".join(render.JITTER_DISTRIBUTIONS)))
     if args.read_panel:
-        return read_panel(args.jitter)
+        return read_panel(args.jitter, args.scene_name)
     if not args.output:
         fail(2, "-o RENDERDIR is required")
     args.jitter = args.jitter or batch.DEFAULT_JITTER
@@ -158,7 +159,7 @@ def main(argv):
         path = batch.scene_script_path(args.scene_script)
         sys.path.insert(0, os.path.dirname(path))
         runpy.run_path(path, run_name="__main__")
-    scene = bpy.context.scene
+    scene = batch.named_scene(args.scene_name)
     # An experiment knob (issue 5): EEVEE's pixel filter (render.filter_size, px) for every render of
     # the run. The 1-sample frames do not depend on it (their one sample sits on the pixel centre);
     # the reference and the curve do: EEVEE spreads its samples over +-filter_size px with

@@ -194,12 +194,13 @@ void motionOfPixel(const Setup& s, const Image& depth, int x, int y, FrameMotion
   out.flags.setUint(x, y, flags);
 }
 
-// ---- eight pixels at a time ------------------------------------------------
-// The same IEEE operations in the same order as motionOfPixel on eight lanes
-// of doubles (the build has no FMA contraction), so the same bits: the
+// ---- four pixels a group, two groups a step --------------------------------
+// The same IEEE operations in the same order as motionOfPixel on four lanes of
+// doubles (the build has no FMA contraction), so the same bits: the
 // divisions, whose latency bounds the scalar loop, run four at once, and two
-// groups' chains of them overlap. GCC vector types: four SSE2 operations per
-// step in the baseline copy, two AVX ones in the AVX2 copy.
+// groups' chains of them overlap. GCC vector types: two SSE2 operations per
+// step in the baseline copy, one AVX one in the AVX2 copy. (Eight lanes in
+// one 64-byte GCC vector ran 3 times slower: GCC 12 lowers it lane by lane.)
 // Every lane helper is always inlined into the two row copies: no vector value
 // crosses a call, so GCC's -Wpsabi note on AVX-sized arguments says nothing here.
 #pragma GCC diagnostic ignored "-Wpsabi"

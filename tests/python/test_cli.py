@@ -1191,10 +1191,25 @@ def test_eval_stops_before_rendering_at_a_panel_value_the_library_refuses(tmp_pa
 def test_render_of_a_file_with_several_scenes_says_which_it_renders(tmp_path):
     """crisp render renders the .blend's active scene, as Blender opens it: with other scenes in the file it
     names the one it renders and the others, so an artist who meant another learns it from the first line."""
-    blend = panel_blend(tmp_path / "two.blend", 'bpy.data.scenes.new("Other Shot"); s.method = "none"')
+    blend = panel_blend(tmp_path / "two.blend", 'o = bpy.data.scenes.new("Other Shot"); '
+                        'o.collection.objects.link(bpy.context.scene.camera); o.camera = bpy.context.scene.camera; '
+                        's.method = "none"')
     p = render_panel(blend, tmp_path / "out", "--plan")
     scene = run_record(tmp_path / "out")["scene"]
     assert scene != "Other Shot"
     assert "crisp: scene '%s', the file's active scene (others: 'Other Shot';" % scene in p.stdout, p.stdout[-2000:]
     one = panel_blend(tmp_path / "one.blend", 's.method = "none"')
     assert "the file's active scene" not in render_panel(one, tmp_path / "one", "--plan").stdout
+    # --scene-name renders another (Blender's -S), or refuses a name the file lacks, naming its scenes.
+    p = render_panel(blend, tmp_path / "other", "--plan", "--scene-name", "Other Shot")
+    assert run_record(tmp_path / "other")["scene"] == "Other Shot"
+    assert "the file's active scene" not in p.stdout
+    p = render_panel(blend, tmp_path / "nope", "--plan", "--scene-name", "Nope", ok=False)
+    assert p.returncode == 2 and "no scene 'Nope' in" in p.stderr and "'Other Shot'" in p.stderr, p.stderr[-2000:]
+    assert not (tmp_path / "nope").exists()
+    p = subprocess.run([str(CRISP), "eval", "--scene", str(blend), "--scene-name", "Nope", "-o", str(tmp_path / "ev")],
+                       capture_output=True, text=True, timeout=120)  # eval checks it before rendering
+    assert p.returncode == 2 and "no scene 'Nope' in" in p.stdout + p.stderr, p.stdout[-2000:] + p.stderr[-2000:]
+    p = subprocess.run([str(CRISP), "render", "--scene", "still_life", "--scene-name", "Scene", "--plan", "-o",
+                        str(tmp_path / "bundled")], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2 and "--scene-name picks a scene of a .blend file" in p.stderr, p.stderr
