@@ -10,6 +10,7 @@
 #include <cstdint>
 
 #include "bench_common.h"
+#include "camera_matrices.h"  // tests/unit
 #include "motion/matrix.h"
 #include "motion/reconstruct.h"
 
@@ -20,30 +21,8 @@ using crisp::Image;
 using crisp::Mat4;
 using crisp::Sidecar;
 
-constexpr double kNear = 0.1, kFar = 100.0;
 constexpr std::uint32_t kIds[3] = {0x4a8fce86u, 0x3f123456u, 0x40abcdefu};
-
-Mat4 translation(double x, double y, double z) {
-  Mat4 m = Mat4::identity();
-  m.m[0][3] = x;
-  m.m[1][3] = y;
-  m.m[2][3] = z;
-  return m;
-}
-
-// Blender's perspective projection (sensor fit on the wider axis), jitter as lens shift.
-Mat4 perspective(int width, int height, double jx, double jy) {
-  const double s = 1.8;
-  Mat4 p;
-  p.m[0][0] = s;
-  p.m[1][1] = s * width / height;
-  p.m[0][2] = 2.0 * jx / width;
-  p.m[1][2] = 2.0 * jy / height;
-  p.m[2][2] = -(kFar + kNear) / (kFar - kNear);
-  p.m[2][3] = -2.0 * kFar * kNear / (kFar - kNear);
-  p.m[3][2] = -1.0;
-  return p;
-}
+using crisp::test::translation;
 
 // Frame `frame` of the dolly: the camera 0.1 closer each frame, object 1 moving sideways.
 Sidecar dollyFrame(int width, int height, int frame, double jx, double jy) {
@@ -55,8 +34,8 @@ Sidecar dollyFrame(int width, int height, int frame, double jx, double jy) {
   s.jitterX = jx;
   s.jitterY = jy;
   crisp::invert(translation(0.0, 0.0, 10.0 - 0.1 * frame), s.view);
-  s.projection = perspective(width, height, jx, jy);
-  s.projectionUnjittered = perspective(width, height, 0.0, 0.0);
+  s.projection = crisp::test::perspective(1.8, width, height, jx, jy);
+  s.projectionUnjittered = crisp::test::perspective(1.8, width, height);
   for (int k = 0; k < 3; ++k) {
     crisp::SidecarObject o;
     o.name = "object" + std::to_string(k);

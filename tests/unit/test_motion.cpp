@@ -17,6 +17,7 @@
 #include "core/conventions.h"
 #include "core/error.h"
 #include "io/frame.h"
+#include "camera_matrices.h"
 #include "motion/reconstruct.h"
 #include "temporal/isa.h"
 
@@ -26,40 +27,13 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr int W = 40, H = 24;
-constexpr double kNear = 0.1, kFar = 100.0;
+constexpr double kNear = test::kCameraNear, kFar = test::kCameraFar;
 constexpr std::uint32_t kCube = 0x4a8fce86u, kBall = 0x3f123456u, kStranger = 0x40abcdefu;
+using test::rotationZ;
+using test::translation;
 
-Mat4 translation(double x, double y, double z) {
-  Mat4 m = Mat4::identity();
-  m.m[0][3] = x;
-  m.m[1][3] = y;
-  m.m[2][3] = z;
-  return m;
-}
-
-Mat4 rotationZ(double a) {
-  Mat4 m = Mat4::identity();
-  m.m[0][0] = std::cos(a);
-  m.m[0][1] = -std::sin(a);
-  m.m[1][0] = std::sin(a);
-  m.m[1][1] = std::cos(a);
-  return m;
-}
-
-// Blender's camera projection (sensor fit AUTO, square pixels) with focal
-// scale s = 2 * lens / sensor on the wider axis; jitter (dx, dy) in pixels,
-// x right, y up, as the add-on's lens shift: P[0][2] = 2 dx / W, P[1][2] = 2 dy / H.
-Mat4 perspective(double s, double dx = 0, double dy = 0) {
-  Mat4 p;
-  p.m[0][0] = s;
-  p.m[1][1] = s * W / H;
-  p.m[0][2] = 2.0 * dx / W;
-  p.m[1][2] = 2.0 * dy / H;
-  p.m[2][2] = -(kFar + kNear) / (kFar - kNear);
-  p.m[2][3] = -2.0 * kFar * kNear / (kFar - kNear);
-  p.m[3][2] = -1.0;
-  return p;
-}
+// camera_matrices.h's perspective at this file's W x H.
+Mat4 perspective(double s, double dx = 0, double dy = 0) { return test::perspective(s, W, H, dx, dy); }
 
 Mat4 orthographic(double scale, double dx = 0, double dy = 0) {
   Mat4 p;
@@ -452,75 +426,77 @@ TEST(Motion, StillPointsGetExactlyZero) {
 TEST(Motion, FastPathEqualsReference) {
   const double s = 1.7;
   for (const bool cameraMoves : {true, false})  // a still camera: static points snap to exactly 0
-  for (const int w : {43, 4, 3, 17})
-    for (const int h : {9, 2}) {
-      auto sized = [&](Sidecar sc) {
-        sc.width = w;
-        sc.height = h;
-        return sc;
-      };
-      // The camera moves forward past some points (behind it in the previous frame) and turns.
-      // A still camera away from the origin: its chains multiply out to the identity only up to
-      // rounding, so still points take the snap to 0.
-      const Mat4 pose = translation(0.31, -0.17, 0.7) * rotationZ(0.23);
-      Sidecar prev = sized(sidecar(cameraMoves ? translation(0.3, -0.2, 2.5) * rotationZ(0.2) : pose,
-                                   perspective(s, 0.2, -0.3), perspective(s), 0.2, -0.3));
-      Sidecar cur = sized(sidecar(cameraMoves ? Mat4::identity() : pose, perspective(s, -0.37, 0.41), perspective(s),
-                                  -0.37, 0.41));
-      Sidecar next = sized(sidecar(translation(-0.1, 0.05, -0.4), perspective(s, 0.11, 0.07), perspective(s),
-                                   0.11, 0.07));
-      cur.objects[kCube] = {"Cube", rotationZ(0.4) * translation(0.5, 0, -3), "", false};
-      prev.objects[kCube] = {"Cube", rotationZ(0.3) * translation(0.45, 0, -3), "", false};
-      next.objects[kCube] = {"Cube", rotationZ(0.5) * translation(0.55, 0, -3), "", false};
-      cur.objects[kBall] = {"Ball", translation(-1, 0, -4), "", false};  // absent before and after: unmatched
-      Image depth(w, h, 1), ids = Image::uintImage(w, h);
-      const float odd[] = {0.0f, -1.0f, -INFINITY, NAN, INFINITY, kFarDepth, 1e-40f, 0.5f, 1e-3f, 2.4f};
-      for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-          const int i = y * w + x;
-          float d = 1.0f + 0.37f * float((i * 7919) % 23);  // 1 .. 9: some behind the previous camera
-          if (y == 0 && x < 8) d = kFarDepth;               // whole background groups
-          if (i % 5 == 3) d = odd[(i / 5) % 10];
-          *depth.at(x, y) = d;
-          const std::uint32_t choice[] = {0u, kCube, kBall, kStranger, kCube};
-          ids.setUint(x, y, choice[(i * 31) % 5]);
-        }
-      for (const bool withNext : {false, true})
-        for (const bool withIds : {false, true}) {
-          const Image* idp = withIds ? &ids : nullptr;
-          const Sidecar* np = withNext ? &next : nullptr;
-          // Without ids only a lone object, or a scene where no object moves, is allowed.
-          Sidecar c = cur, p = prev, n = next;
-          if (!withIds) {
-            c.objects.erase(kBall);
-            p.objects.erase(kBall);
-            n.objects.erase(kBall);
+    for (const int w : {43, 4, 3, 17})
+      for (const int h : {9, 2}) {
+        auto sized = [&](Sidecar sc) {
+          sc.width = w;
+          sc.height = h;
+          return sc;
+        };
+        // The camera moves forward past some points (behind it in the previous frame) and turns.
+        // A still camera away from the origin: its chains multiply out to the identity only up to
+        // rounding, so still points take the snap to 0.
+        const Mat4 pose = translation(0.31, -0.17, 0.7) * rotationZ(0.23);
+        Sidecar prev = sized(sidecar(cameraMoves ? translation(0.3, -0.2, 2.5) * rotationZ(0.2) : pose,
+                                     perspective(s, 0.2, -0.3), perspective(s), 0.2, -0.3));
+        Sidecar cur = sized(sidecar(cameraMoves ? Mat4::identity() : pose, perspective(s, -0.37, 0.41), perspective(s),
+                                    -0.37, 0.41));
+        Sidecar next = sized(sidecar(translation(-0.1, 0.05, -0.4), perspective(s, 0.11, 0.07), perspective(s),
+                                     0.11, 0.07));
+        cur.objects[kCube] = {"Cube", rotationZ(0.4) * translation(0.5, 0, -3), "", false};
+        prev.objects[kCube] = {"Cube", rotationZ(0.3) * translation(0.45, 0, -3), "", false};
+        next.objects[kCube] = {"Cube", rotationZ(0.5) * translation(0.55, 0, -3), "", false};
+        cur.objects[kBall] = {"Ball", translation(-1, 0, -4), "", false};  // absent before and after: unmatched
+        Image depth(w, h, 1), ids = Image::uintImage(w, h);
+        const float odd[] = {0.0f, -1.0f, -INFINITY, NAN, INFINITY, kFarDepth, 1e-40f, 0.5f, 1e-3f, 2.4f};
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) {
+            const int i = y * w + x;
+            float d = 1.0f + 0.37f * float((i * 7919) % 23);  // 1 .. 9: some behind the previous camera
+            if (y == 0 && x < 8) d = kFarDepth;               // whole background groups
+            if (i % 5 == 3) d = odd[(i / 5) % 10];
+            *depth.at(x, y) = d;
+            const std::uint32_t choice[] = {0u, kCube, kBall, kStranger, kCube};
+            ids.setUint(x, y, choice[(i * 31) % 5]);
           }
-          const FrameMotion ref =
-              reconstructMotion(depth, idp, c, p, withNext ? &n : np, "ref", 1, MotionPath::Reference);
-          int valid = 0;
-          for (int y = 0; y < h; ++y)
-            for (int x = 0; x < w; ++x) valid += (flagsAt(ref, x, y) & kMotionPreviousValid) != 0;
-          int still = 0;
-          for (int y = 0; y < h; ++y)
-            for (int x = 0; x < w; ++x) still += (flagsAt(ref, x, y) & kMotionPreviousValid) && ref.motion.at(x, y)[0] == 0.0f;
-          if (w * h > 20) {
-            EXPECT_GT(valid, w * h / 4) << "the inputs should give mostly real motion";
-            if (!cameraMoves && withIds) EXPECT_GT(still, w * h / 8) << "a still camera should leave still points";
-          }
-          for (const auto isa : {temporal::Isa::Auto, temporal::Isa::Baseline}) {
-            temporal::setFastPathIsa(isa);
-            for (const int threads : {1, 2}) {
-              const FrameMotion fast = reconstructMotion(depth, idp, c, p, withNext ? &n : np, "fast", threads);
-              const std::string where = std::to_string(w) + "x" + std::to_string(h) + (withNext ? " next" : "") +
-                                        (withIds ? " ids" : "") + " isa " + std::to_string(int(isa));
-              ASSERT_EQ(0, std::memcmp(ref.motion.data.data(), fast.motion.data.data(),
-                                       ref.motion.data.size() * sizeof(float))) << where;
-              ASSERT_EQ(0, std::memcmp(ref.flags.data.data(), fast.flags.data.data(),
-                                       ref.flags.data.size() * sizeof(float))) << where;
+        for (const bool withNext : {false, true})
+          for (const bool withIds : {false, true}) {
+            const Image* idp = withIds ? &ids : nullptr;
+            // Without ids only a lone object, or a scene where no object moves, is allowed.
+            Sidecar c = cur, p = prev, n = next;
+            if (!withIds) {
+              c.objects.erase(kBall);
+              p.objects.erase(kBall);
+              n.objects.erase(kBall);
             }
+            const FrameMotion ref =
+                reconstructMotion(depth, idp, c, p, withNext ? &n : nullptr, "ref", 1, MotionPath::Reference);
+            int valid = 0, still = 0;
+            for (int y = 0; y < h; ++y)
+              for (int x = 0; x < w; ++x) {
+                const bool moved = (flagsAt(ref, x, y) & kMotionPreviousValid) != 0;
+                valid += moved;
+                still += moved && ref.motion.at(x, y)[0] == 0.0f;
+              }
+            if (w * h > 20) {
+              EXPECT_GT(valid, w * h / 4) << "the inputs should give mostly real motion";
+              if (!cameraMoves && withIds) {
+                EXPECT_GT(still, w * h / 8) << "a still camera should leave still points";
+              }
+            }
+            for (const auto isa : {temporal::Isa::Auto, temporal::Isa::Baseline}) {
+              temporal::setFastPathIsa(isa);
+              for (const int threads : {1, 2}) {
+                const FrameMotion fast = reconstructMotion(depth, idp, c, p, withNext ? &n : nullptr, "fast", threads);
+                const std::string where = std::to_string(w) + "x" + std::to_string(h) + (withNext ? " next" : "") +
+                                          (withIds ? " ids" : "") + " isa " + std::to_string(int(isa));
+                ASSERT_EQ(0, std::memcmp(ref.motion.data.data(), fast.motion.data.data(),
+                                         ref.motion.data.size() * sizeof(float))) << where;
+                ASSERT_EQ(0, std::memcmp(ref.flags.data.data(), fast.flags.data.data(),
+                                         ref.flags.data.size() * sizeof(float))) << where;
+              }
+            }
+            temporal::setFastPathIsa(temporal::Isa::Auto);
           }
-          temporal::setFastPathIsa(temporal::Isa::Auto);
-        }
-    }
+      }
 }
