@@ -474,9 +474,9 @@ TEST(Motion, FastPathEqualsReference) {
             int valid = 0, still = 0;
             for (int y = 0; y < h; ++y)
               for (int x = 0; x < w; ++x) {
-                const bool moved = (flagsAt(ref, x, y) & kMotionPreviousValid) != 0;
-                valid += moved;
-                still += moved && ref.motion.at(x, y)[0] == 0.0f;
+                const bool reconstructed = (flagsAt(ref, x, y) & kMotionPreviousValid) != 0;
+                valid += reconstructed;
+                still += reconstructed && ref.motion.at(x, y)[0] == 0.0f;
               }
             if (w * h > 20) {
               EXPECT_GT(valid, w * h / 4) << "the inputs should give mostly real motion";
