@@ -27,6 +27,12 @@ const JOB_TYPE = {
     // Filled in by the Flamenco add-on with the path of the submitted .blend file.
     { key: "blendfile", type: "string", required: true, visible: "web",
       description: "Path of the .blend file to render (as the workers see it)" },
+    // The scene whose frames, method and panel the job takes (C.scene at submission): a .blend of several
+    // scenes is rendered at that one, not at whichever it was saved with active (crisp render --scene-name).
+    { key: "scene", type: "string", default: "",
+      eval: "C.scene.name",
+      evalInfo: { showLinkButton: true, description: "The submitting scene" },
+      description: "Scene of the .blend to render (empty: the one the file was saved with active)" },
     { key: "frames", type: "string", required: true,
       eval: "f'{C.scene.frame_start}-{C.scene.frame_end}'",
       evalInfo: { showLinkButton: true, description: "Scene frame range" },
@@ -182,6 +188,7 @@ function compileJob(job) {
                   // The job's method, jitter and filter_params took the panel when it was submitted (or
                   // were typed): they alone say what runs, not the panel saved in the .blend.
                   "--no-panel", "-o", outputDir];
+    if (settings.scene) args.push("--scene-name", String(settings.scene));  // absent: a job of an older job type
     if (settings.blender_exe) args.push("--blender", String(settings.blender_exe));
     if (resolution !== "") args.push("--resolution", resolution);
     if (jitter !== "") args.push("--jitter", jitter);

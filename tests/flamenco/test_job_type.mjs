@@ -193,6 +193,20 @@ test("method, jitter and filter_params follow the scene's Crisp panel at submiss
   assert.ok(/jitter_distribution: bpy\.props\.EnumProperty/.test(settingsClass[0]), "properties.py: jitter_distribution");
 });
 
+test("the submitting scene is the one rendered", () => {
+  const context = vm.createContext(flamencoStub());
+  vm.runInContext(source + "\n;globalThis.__jobType = JOB_TYPE;", context);
+  const setting = context.__jobType.settings.find((s) => s.key === "scene");
+  assert.ok(setting, "no scene setting");
+  assert.equal(setting.eval, "C.scene.name");
+  assert.equal(setting.evalInfo && setting.evalInfo.showLinkButton, true);
+  for (const t of compile({ ...base, scene: "Shot 2" }))
+    assert.equal(flagValue(t.commands[0].parameters.args, "--scene-name"), "Shot 2");
+  // Empty, or a job submitted before the setting existed: the file's active scene, as before.
+  for (const scene of ["", undefined])
+    assert.equal(flagValue(compile({ ...base, scene })[0].commands[0].parameters.args, "--scene-name"), undefined);
+});
+
 test("spatial methods get no pre-roll (no history to warm)", () => {
   for (const method of ["fxaa", "repair", "rsaa", "none"])
     for (const t of compile({ ...base, method }))
