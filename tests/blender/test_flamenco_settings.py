@@ -100,6 +100,17 @@ class FlamencoSettingsTest(unittest.TestCase):
         finally:
             crisp.unregister()
 
+    def test_the_scene_setting_names_the_submitting_scene(self):
+        """The job renders the scene it was submitted from (crisp render --scene-name), also when the
+        window shows another scene than the one the file opened at."""
+        other = bpy.data.scenes.new("Shot B")
+        try:
+            self.assertEqual(flamenco_eval(self.settings["scene"]["eval"]), bpy.context.scene.name)
+            with bpy.context.temp_override(scene=other):
+                self.assertEqual(flamenco_eval(self.settings["scene"]["eval"]), "Shot B")
+        finally:
+            bpy.data.scenes.remove(other)
+
     def test_without_the_addon_the_job_types_defaults(self):
         """The Crisp add-on not enabled in the submitting Blender: no scene.crisp. An expression that
         raised would stop Flamenco's submission with a Python error; each gives the setting's default."""
