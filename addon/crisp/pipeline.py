@@ -405,14 +405,14 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
         log("note: " + note)
     the_plan, facts = scene_plan(scene, method, shot or frames, view_layer, engine_name)
     log(the_plan.describe())
-    if the_plan.motion_source == "reconstruct" and facts.shared_id_movers and filter_frames:
-        names = ", ".join("'%s'" % n for n in facts.shared_id_movers[:4])
-        log("note: %s move%s but render%s more than once (instances of one source share its object ID), so the "
-            "sidecars cannot tell the copies' transforms apart and motion reconstruction treats their pixels as "
-            "still: %s may leave a trail behind them; for exact motion make the moving copies real objects "
-            "(Object > Apply > Make Instances Real)"
-            % (names + (" and %d more" % (len(facts.shared_id_movers) - 4) if len(facts.shared_id_movers) > 4 else ""),
-               "" if len(facts.shared_id_movers) > 1 else "s", "" if len(facts.shared_id_movers) > 1 else "s", method))
+    shared = facts.shared_id_movers
+    if the_plan.motion_source == "reconstruct" and shared and filter_frames:
+        names = ", ".join("'%s'" % n for n in shared[:4]) + (" and %d more" % (len(shared) - 4) if len(shared) > 4 else "")
+        verbs = ("move", "render") if len(shared) > 1 else ("moves", "renders")
+        log("note: %s %s but %s more than once (instances of one source share its object ID), so the sidecars "
+            "cannot tell the copies' transforms apart and motion reconstruction treats their pixels as still: %s "
+            "may leave a trail behind them; for exact motion make the moving copies real objects (Object > Apply "
+            "> Make Instances Real)" % (names, verbs[0], verbs[1], method))
     legacy_eevee = engine == "BLENDER_EEVEE" and bpy.app.version < (4, 2, 0)  # the EEVEE whose probe this is
     if legacy_eevee and scene.eevee.gi_cubemap_resolution != render.CUBEMAP_RESOLUTION:
         # "info", not "note": Blender's default is 512, so nearly every scene would warn of it, and there is
