@@ -36,11 +36,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-bool readsMotion(const Filter& filter) {
-  const auto& roles = filter.roles();
-  return std::any_of(roles.begin(), roles.end(), [](const ImageRole& r) { return std::strcmp(r.name, "motion") == 0; });
-}
-
 // Which inputs have an add-on sidecar (frame_NNNN.json beside them), looked
 // at once per run.
 struct Sidecars {

@@ -64,6 +64,8 @@ void checkSettingsByCommit(Context& context, const std::string& method,
 // saved in shot when it has none). shot: the position historyBreak just
 // updated for this frame, whose sidecar is then not parsed again.
 void bindFrame(Filter& filter, Frame& frame, ShotPosition& shot);
+// Whether the filter has a "motion" image (the temporal methods): its frames need motion.
+bool readsMotion(const Filter& filter);
 // A temporal filter's history carries over only to the next frame of the same
 // camera: for the frame at framePath, "" if it does (or it has no sidecar, or
 // the filter keeps no history), else why not (io/sidecar.h shotBreak), and the

@@ -311,6 +311,11 @@ void checkSettingsByCommit(Context& context, const std::string& method,
   probe->commit();
 }
 
+bool readsMotion(const Filter& filter) {
+  const auto& roles = filter.roles();
+  return std::any_of(roles.begin(), roles.end(), [](const ImageRole& r) { return std::strcmp(r.name, "motion") == 0; });
+}
+
 void bindFrame(Filter& filter, Frame& frame, ShotPosition& shot) {
   if (readsSubsamples(filter)) attachRsaaInputs(filter, frame);
   bindJitter(filter, frame, shot);

@@ -327,8 +327,7 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   if (readsSubsamples(*filter) && !e.subsamplesRendered) filter = createFilter(context, "none");
   Image output;
   cli::ShotPosition shot;
-  const bool readsMotion = std::any_of(filter->roles().begin(), filter->roles().end(),
-                                       [](const ImageRole& r) { return std::string(r.name) == "motion"; });
+  const bool needsMotion = cli::readsMotion(*filter);
   // The renders' Film > Filter Size (their sidecars; CRISP_EVAL_FILTER_SIZE sets it) unless the method's settings give one.
   shot.filterSizeGiven = spec.gives("filterSize");
   for (int f : frames) {
@@ -348,7 +347,7 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
     // The motion a temporal method reads is rebuilt from depth and the sidecars (EEVEE 3.4 writes no
     // Vector pass): work the method costs every frame, timed with its filter.
     const auto motionStart = Clock::now();
-    if (readsMotion) addMotion(frame, inputDir, f, cut.empty() ? frames.front() : f, sceneMoves, o.threads);
+    if (needsMotion) addMotion(frame, inputDir, f, cut.empty() ? frames.front() : f, sceneMoves, o.threads);
     const double motionSeconds = std::chrono::duration<double>(Clock::now() - motionStart).count();
     cli::bindFrame(*filter, frame, shot);
     if (output.width != frame.width || output.height != frame.height) output = Image(frame.width, frame.height, 4);
