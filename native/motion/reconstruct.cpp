@@ -108,12 +108,14 @@ struct Setup {
     return it != objects.end() && it->hash == hash ? &*it : nullptr;
   }
 
-  // The chains of the object of pixel (x, y) (toNext null without a next frame), and
-  // kMotionUnknownObject where its ID is not in the sidecar (moved as the static world).
-  std::uint32_t chainsAt(int x, int y, const Chain*& toPrevious, const Chain*& toNext) const {
+  // The object ID of pixel (x, y): its ID pass's, else the lone object's (0: none).
+  std::uint32_t idAt(int x, int y) const { return ids ? ids->uintAt(x, y) : loneObject; }
+
+  // The chains of object `id` (toNext null without a next frame), and
+  // kMotionUnknownObject where the ID is not in the sidecar (moved as the static world).
+  std::uint32_t chainsOf(std::uint32_t id, const Chain*& toPrevious, const Chain*& toNext) const {
     toPrevious = &staticPrevious;
     toNext = hasNext ? &staticNext : nullptr;
-    const std::uint32_t id = ids ? ids->uintAt(x, y) : loneObject;
     if (id == 0) return 0;
     const ObjectChains* oc = findObject(id);
     if (!oc) return kMotionUnknownObject;
@@ -122,6 +124,17 @@ struct Setup {
     return 0;
   }
 };
+
+// One pair's outcome, previous (m: motion[0..1]) or next (motion[2..3]): the
+// object has no match in that frame, or the point projects there (the two
+// values stored) or does not.
+std::uint32_t pairOutcome(bool matched, bool projects, double dx, double dy, float* m, std::uint32_t validFlag) {
+  if (!matched) return kMotionUnmatchedObject;
+  if (!projects) return kMotionInvalidPoint;
+  m[0] = float(dx);
+  m[1] = float(dy);
+  return validFlag;
+}
 
 // The reference: one pixel's motion and flags (motion starts at 0, written
 // only where a pair is valid).
@@ -169,27 +182,13 @@ void motionOfPixel(const Setup& s, const Image& depth, int x, int y, FrameMotion
     return;
   }
   const Chain *toPrevious, *toNext;
-  std::uint32_t flags = s.chainsAt(x, y, toPrevious, toNext);
-  double px, py;
-  if (!toPrevious->valid) {
-    flags |= kMotionUnmatchedObject;
-  } else if (toPixel(toPrevious->toClip * point, W, H, px, py)) {
-    m[0] = float(snapStill(px - cx));
-    m[1] = float(snapStill(py - cy));
-    flags |= kMotionPreviousValid;
-  } else {
-    flags |= kMotionInvalidPoint;
-  }
+  std::uint32_t flags = s.chainsOf(s.idAt(x, y), toPrevious, toNext);
+  double px = 0.0, py = 0.0;
+  bool projects = toPrevious->valid && toPixel(toPrevious->toClip * point, W, H, px, py);
+  flags |= pairOutcome(toPrevious->valid, projects, snapStill(px - cx), snapStill(py - cy), m, kMotionPreviousValid);
   if (toNext) {
-    if (!toNext->valid) {
-      flags |= kMotionUnmatchedObject;
-    } else if (toPixel(toNext->toClip * point, W, H, px, py)) {
-      m[2] = float(snapStill(cx - px));
-      m[3] = float(snapStill(cy - py));
-      flags |= kMotionNextValid;
-    } else {
-      flags |= kMotionInvalidPoint;
-    }
+    projects = toNext->valid && toPixel(toNext->toClip * point, W, H, px, py);
+    flags |= pairOutcome(toNext->valid, projects, snapStill(cx - px), snapStill(cy - py), m + 2, kMotionNextValid);
   }
   out.flags.setUint(x, y, flags);
 }
@@ -288,10 +287,10 @@ CRISP_MOTION_INLINE void loadGroup(const Image& depth, int x, int y, Group& g) {
 
 CRISP_MOTION_INLINE void groupObjects(const Setup& s, int y, ObjectRun& run, Group& g) {
   for (int l = 0; l < kLanes; ++l) {
-    const std::uint32_t id = s.ids ? s.ids->uintAt(g.x + l, y) : s.loneObject;
+    const std::uint32_t id = s.idAt(g.x + l, y);
     if (id != run.id) {
       run.id = id;
-      run.flags = s.chainsAt(g.x + l, y, run.toPrevious, run.toNext);
+      run.flags = s.chainsOf(id, run.toPrevious, run.toNext);
     }
     g.toPrevious[l] = run.toPrevious;
     g.toNext[l] = run.toNext;
@@ -347,26 +346,9 @@ CRISP_MOTION_INLINE void groupFinish(const Group& g, int y, FrameMotion& out) {
     }
     float* m = out.motion.at(x, y);
     std::uint32_t f = g.flags[l];
-    if (!g.toPrevious[l]->valid) {
-      f |= kMotionUnmatchedObject;
-    } else if (g.previous.ok[l]) {
-      m[0] = float(g.mx[l]);
-      m[1] = float(g.my[l]);
-      f |= kMotionPreviousValid;
-    } else {
-      f |= kMotionInvalidPoint;
-    }
-    if constexpr (HasNext) {
-      if (!g.toNext[l]->valid) {
-        f |= kMotionUnmatchedObject;
-      } else if (g.next.ok[l]) {
-        m[2] = float(g.nx[l]);
-        m[3] = float(g.ny[l]);
-        f |= kMotionNextValid;
-      } else {
-        f |= kMotionInvalidPoint;
-      }
-    }
+    f |= pairOutcome(g.toPrevious[l]->valid, g.previous.ok[l], g.mx[l], g.my[l], m, kMotionPreviousValid);
+    if constexpr (HasNext)
+      f |= pairOutcome(g.toNext[l]->valid, g.next.ok[l], g.nx[l], g.ny[l], m + 2, kMotionNextValid);
     out.flags.setUint(x, y, f);
   }
 }
