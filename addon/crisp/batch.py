@@ -325,7 +325,7 @@ def panel_line(method, jitter, from_panel, command="render", jitters=None):
 def main(argv):
     import runpy
     import bpy
-    from crisp import native, pipeline, render
+    from crisp import native, pipeline, plan, render
 
     class ArgError(Exception):
         pass
@@ -378,10 +378,8 @@ def main(argv):
         print(said, flush=True)
     others = sorted(s.name for s in bpy.data.scenes if s != scene and s.library is None)
     if others and not args.scene_name:  # Blender opens a .blend at the scene it was saved with: say which
-        listed = ", ".join("'%s'" % n for n in others[:4]) + (" and %d more" % (len(others) - 4)
-                                                              if len(others) > 4 else "")
         print("crisp: scene '%s', the file's active scene (others: %s; --scene-name NAME renders another)"
-              % (scene.name, listed), flush=True)
+              % (scene.name, plan.some_names(others, quote=True)), flush=True)
 
     try:
         out = pipeline.output_argument(args.output)

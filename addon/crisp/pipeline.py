@@ -407,8 +407,7 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
     log(the_plan.describe())
     shared = facts.shared_id_movers
     if the_plan.motion_source == "reconstruct" and shared and filter_frames:
-        names = ", ".join("'%s'" % n for n in shared[:4])
-        names += " and %d more" % (len(shared) - 4) if len(shared) > 4 else ""
+        names = plan_mod.some_names(shared, quote=True)
         verbs = ("move", "render") if len(shared) > 1 else ("moves", "renders")
         log("note: %s %s but %s more than once (instances of one source share its object ID), so the sidecars "
             "cannot tell the copies' transforms apart and motion reconstruction treats their pixels as still: %s "

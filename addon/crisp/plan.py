@@ -123,6 +123,12 @@ class Plan:
         return "\n".join(lines)
 
 
+def some_names(names, most=4, quote=False):
+    """At most `most` names joined by commas (quoted with quote), and how many more there are."""
+    shown = ["'%s'" % n if quote else n for n in names[:most]]
+    return ", ".join(shown) + (" and %d more" % (len(names) - most) if len(names) > most else "")
+
+
 def make_plan(method, facts):
     """The passes `method` reads on a scene described by `facts`, each with a reason. `method` may also
     be TEMPORAL_ERROR: the passes of eval's temporal error (unjittered)."""
@@ -139,7 +145,7 @@ def make_plan(method, facts):
         if facts.camera_moves:
             what.append("the camera")
         what += facts.moving_objects + facts.deforming_objects
-        return ", ".join(what[:4]) + (" and %d more" % (len(what) - 4) if len(what) > 4 else "")
+        return some_names(what)
 
     for p in wanted:
         use = USE.get((method, p), "")

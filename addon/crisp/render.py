@@ -101,7 +101,7 @@ def camera_problem(scene, frames=None):
         if cameras:  # there is one, it is just not the scene's camera
             return ("scene '%s' has no scene camera, though it has the camera object%s %s: set one as the scene "
                     "camera (Scene properties > Camera)" % (scene.name, "s" if len(cameras) > 1 else "",
-                                                             ", ".join("'%s'" % n for n in cameras[:4])))
+                                                             plan_mod.some_names(cameras, quote=True)))
         return "scene '%s' has no camera: add one and set it as the scene camera" % scene.name
     if cam.type != "CAMERA":
         return ("the scene camera '%s' is %s object, not a camera: Crisp jitters a camera's shift and records "
