@@ -21,6 +21,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -156,44 +157,44 @@ struct Windows {
   long long offsetX = 0, offsetY = 0;  // data window origin relative to the display window
 };
 
-// Reads channels [chBegin, chEnd) of a part's data window as float, or throws
-// CRISP_ERROR_IO (truncated or corrupt file) naming the file and the pass.
-std::vector<float> readChannelRange(OIIO::ImageInput& in, const std::string& path, const std::string& passLabel,
-                                    const Windows& win, int chBegin, int chEnd) {
-  const std::size_t n = std::size_t(win.dataWidth) * std::size_t(win.dataHeight) * std::size_t(chEnd - chBegin);
-  std::vector<float> buffer(n);
-  if (!in.read_image(win.part, 0, chBegin, chEnd, OIIO::TypeFloat, buffer.data()))
-    ioError("cannot read pass '" + passLabel + "' of '" + path + "' (truncated or corrupt file?): " +
-            oiioErrors(&in));
-  return buffer;
-}
+// One pass to read: its channels in a part, and how a pixel of them becomes a pixel of its image.
+struct PassRead {
+  std::string role;
+  std::string label;         // as messages name it: "ViewLayer.Depth"
+  Windows win;
+  std::vector<int> indices;  // its channels in the part, required then optional (-1: absent)
+  Image image;               // the frame's size, holding the value for outside the data window
+  // Converts rows [y0, y1) of the part's data window, `rows` holding them as float with `channels`
+  // channels per pixel, the first being the part's channel `chBegin`.
+  std::function<void(PassRead&, const float* rows, int y0, int y1, int chBegin, int channels)> convertRows;
+};
 
-// Converts one pass into an Image of the frame's size. `convert(src, dst)`
-// gets the pass's file channels in `indices` order (relative to the read
-// range); pixels outside the data window get `outside`.
+// A PassRead whose `convert(src, image, x, y)` gets the pass's channels in `indices` order (1 for an
+// absent optional one) and writes pixel (x, y) of the image.
 template <class Convert>
-Image convertPass(OIIO::ImageInput& in, const std::string& path, const std::string& passLabel,
-                  const std::vector<int>& indices, const Windows& win, Image out, Convert convert) {
-  int chBegin = 1 << 30, chEnd = -1;
-  for (int i : indices)
-    if (i >= 0) chBegin = std::min(chBegin, i), chEnd = std::max(chEnd, i + 1);
-  const std::vector<float> buffer = readChannelRange(in, path, passLabel, win, chBegin, chEnd);
-  const int runChannels = chEnd - chBegin;
-  std::vector<int> rel;
-  for (int i : indices) rel.push_back(i >= 0 ? i - chBegin : -1);
-  float src[4] = {0.0f, 0.0f, 0.0f, 1.0f};
-  for (int y = 0; y < win.height; ++y) {
-    const long long dy = y - win.offsetY;
-    if (dy < 0 || dy >= win.dataHeight) continue;
-    for (int x = 0; x < win.width; ++x) {
-      const long long dx = x - win.offsetX;
-      if (dx < 0 || dx >= win.dataWidth) continue;
-      const float* p = buffer.data() + (std::size_t(dy) * std::size_t(win.dataWidth) + std::size_t(dx)) * std::size_t(runChannels);
-      for (std::size_t k = 0; k < rel.size() && k < 4; ++k) src[k] = rel[k] >= 0 ? p[rel[k]] : 1.0f;
-      convert(src, out, x, y);
+PassRead passRead(const std::string& role, const std::string& label, std::vector<int> indices, const Windows& win,
+                  Image image, Convert convert) {
+  PassRead read{role, label, win, std::move(indices), std::move(image), {}};
+  read.convertRows = [convert](PassRead& p, const float* rows, int y0, int y1, int chBegin, int channels) mutable {
+    const Windows& w = p.win;
+    const std::size_t n = std::min<std::size_t>(p.indices.size(), 4);
+    int rel[4] = {-1, -1, -1, -1};
+    for (std::size_t k = 0; k < n; ++k) rel[k] = p.indices[k] >= 0 ? p.indices[k] - chBegin : -1;
+    // The frame's columns the data window covers.
+    const long long x0 = std::max(0ll, w.offsetX), x1 = std::min<long long>(w.width, w.offsetX + w.dataWidth);
+    float src[4] = {0.0f, 0.0f, 0.0f, 1.0f};
+    for (int dy = y0; dy < y1; ++dy) {
+      const long long y = dy + w.offsetY;
+      if (y < 0 || y >= w.height) continue;
+      const float* row = rows + std::size_t(dy - y0) * std::size_t(w.dataWidth) * std::size_t(channels);
+      for (long long x = x0; x < x1; ++x) {
+        const float* s = row + std::size_t(x - w.offsetX) * std::size_t(channels);
+        for (std::size_t k = 0; k < n; ++k) src[k] = rel[k] >= 0 ? s[rel[k]] : 1.0f;
+        convert(src, p.image, int(x), int(y));
+      }
     }
-  }
-  return out;
+  };
+  return read;
 }
 
 bool isIntegerFormat(const OIIO::TypeDesc& t) { return !t.is_floating_point(); }
@@ -311,6 +312,57 @@ std::string partLabel(const std::vector<Part>& parts, int p) {
   const Part& part = parts[std::size_t(p)];
   return "part " + std::to_string(p + 1) + " of " + std::to_string(parts.size()) +
          (part.name.empty() ? std::string() : " ('" + part.name + "')");
+}
+
+// Rows of a part read at once: 256, a multiple of every OpenEXR chunk's height (1 to 256 lines), so no
+// chunk is decoded twice; fewer for a very wide part, so that a strip stays near 64 MB; a multiple of
+// a tiled part's tile height.
+int stripRows(const OIIO::ImageSpec& spec, int channels) {
+  const long long rowFloats = std::max(1ll, (long long)spec.width * channels);
+  long long rows = std::clamp((16ll << 20) / rowFloats, 16ll, 256ll);
+  if (spec.tile_height > 0) rows = std::max(1ll, rows / spec.tile_height) * spec.tile_height;
+  return int(std::min<long long>(rows, spec.height));
+}
+
+// Reads the passes: each part once, in strips of rows holding every channel its passes read, so a
+// file is decoded once however many passes come from it (a read per pass decoded the whole file
+// each time). Throws CRISP_ERROR_IO (truncated or corrupt file) naming the file, the part, the
+// passes and the rows.
+void readPasses(OIIO::ImageInput& in, const std::string& path, const std::vector<Part>& parts,
+                std::vector<PassRead>& reads) {
+  std::vector<int> partsRead;
+  for (const PassRead& r : reads)
+    if (std::find(partsRead.begin(), partsRead.end(), r.win.part) == partsRead.end()) partsRead.push_back(r.win.part);
+  for (int part : partsRead) {
+    std::vector<PassRead*> mine;
+    int chBegin = 1 << 30, chEnd = -1;
+    std::string labels;
+    for (PassRead& r : reads) {
+      if (r.win.part != part) continue;
+      mine.push_back(&r);
+      labels += (labels.empty() ? "'" : ", '") + r.label + "'";
+      for (int i : r.indices)
+        if (i >= 0) chBegin = std::min(chBegin, i), chEnd = std::max(chEnd, i + 1);
+    }
+    const OIIO::ImageSpec& spec = parts[std::size_t(part)].spec;
+    const int channels = chEnd - chBegin;
+    const int rows = stripRows(spec, channels);
+    std::vector<float> strip(std::size_t(rows) * std::size_t(spec.width) * std::size_t(channels));
+    for (int y0 = 0; y0 < spec.height; y0 += rows) {
+      const int y1 = std::min(spec.height, y0 + rows);
+      const bool read = spec.tile_width > 0
+                            ? in.read_tiles(part, 0, spec.x, spec.x + spec.width, spec.y + y0, spec.y + y1, spec.z,
+                                            spec.z + 1, chBegin, chEnd, OIIO::TypeFloat, strip.data())
+                            : in.read_scanlines(part, 0, spec.y + y0, spec.y + y1, spec.z, chBegin, chEnd,
+                                                OIIO::TypeFloat, strip.data());
+      if (!read)
+        ioError("cannot read " + std::string(mine.size() > 1 ? "passes " : "pass ") + labels + " of '" + path + "'" +
+                (parts.size() > 1 ? " (" + partLabel(parts, part) + ")" : std::string()) + ", rows " +
+                std::to_string(spec.y + y0) + "-" + std::to_string(spec.y + y1 - 1) +
+                " (truncated or corrupt file?): " + oiioErrors(&in));
+      for (PassRead* r : mine) r->convertRows(*r, strip.data(), y0, y1, chBegin, channels);
+    }
+  }
 }
 
 }  // namespace
@@ -523,8 +575,10 @@ Frame readFrameReading(const std::string& path, const std::string& viewLayer, bo
     const float coverage = straightAlpha ? std::clamp(d[3], 0.0f, 1.0f) : 1.0f;
     for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(decode ? srgbDecode(s[k]) : s[k]) * coverage;
   };
+  std::vector<PassRead> reads;  // planned here, read together at the end
+  auto asStored1 = [](const float* s, Image& im, int x, int y) { *im.at(x, y) = s[0]; };
   if (colourPixels)
-    frame.passes["color"] = convertPass(*in, path, colourLabel, colourIdx, colourWin, Image(w, h, 4, 0.0f), colorConvert);
+    reads.push_back(passRead("color", colourLabel, colourIdx, colourWin, Image(w, h, 4, 0.0f), colorConvert));
 
   if (!hasCombined) {
     // Blender's single-layer EXR can carry a top-level "Z" depth channel: the
@@ -536,12 +590,16 @@ Frame readFrameReading(const std::string& path, const std::string& viewLayer, bo
       invalidData("'" + path + "' has a Z channel in more than one part (" + partLabel(parts, zs[0]->part) + ", " +
                   partLabel(parts, zs[1]->part) + ") and none beside the colour: which is the depth is unclear");
     if (!zs.empty())
-      frame.passes["depth"] = convertPass(*in, path, "Z", {zs.front()->index}, windowsOf(zs.front()->part),
-                                          Image(w, h, 1, kBackgroundDepth),
-                                          [](const float* s, Image& im, int x, int y) { *im.at(x, y) = s[0]; });
+      reads.push_back(passRead("depth", "Z", {zs.front()->index}, windowsOf(zs.front()->part),
+                               Image(w, h, 1, kBackgroundDepth), asStored1));
   }
 
   if (hasCombined) {
+    // Normals and albedo: three channels, sanitised as colour is.
+    auto sanitized3 = [](const float* s, Image& im, int x, int y) {
+      float* d = im.at(x, y);
+      for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(s[k]);
+    };
     int idPart = -1;
     const auto& specs = roleSpecs();
     for (std::size_t r = 1; r < specs.size(); ++r) {
@@ -564,24 +622,19 @@ Frame readFrameReading(const std::string& path, const std::string& viewLayer, bo
       if (role == "depth") {
         // Kept as stored: Blender 3.x's half-float background (65504) already
         // reads as background through isBackgroundDepth.
-        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(w, h, 1, kBackgroundDepth),
-                                         [](const float* s, Image& im, int x, int y) { *im.at(x, y) = s[0]; });
+        reads.push_back(passRead(role, passLabel, idx, win, Image(w, h, 1, kBackgroundDepth), asStored1));
       } else if (role == "normal") {
-        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(w, h, 3, 0.0f),
-                                         [](const float* s, Image& im, int x, int y) {
-                                           float* d = im.at(x, y);
-                                           for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(s[k]);
-                                         });
+        reads.push_back(passRead(role, passLabel, idx, win, Image(w, h, 3, 0.0f), sanitized3));
       } else if (role == "motion") {
         // Blender's Vector pass is y up; the convention is y down (rows).
-        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(w, h, 4, 0.0f),
-                                         [](const float* s, Image& im, int x, int y) {
-                                           float* d = im.at(x, y);
-                                           d[0] = sanitizeColor(s[0]);
-                                           d[1] = sanitizeColor(-s[1]);
-                                           d[2] = sanitizeColor(s[2]);
-                                           d[3] = sanitizeColor(-s[3]);
-                                         });
+        reads.push_back(passRead(role, passLabel, idx, win, Image(w, h, 4, 0.0f),
+                                 [](const float* s, Image& im, int x, int y) {
+                                   float* d = im.at(x, y);
+                                   d[0] = sanitizeColor(s[0]);
+                                   d[1] = sanitizeColor(-s[1]);
+                                   d[2] = sanitizeColor(s[2]);
+                                   d[3] = sanitizeColor(-s[3]);
+                                 }));
       } else if (role == "id") {
         // The hash bits must survive: a half-float channel cannot hold them.
         // Only a method that reads IDs fails on it (Frame::unusable).
@@ -592,18 +645,14 @@ Frame readFrameReading(const std::string& path, const std::string& viewLayer, bo
                                  std::string(format.c_str()) + ", not 32-bit float: object IDs would be lost";
           continue;
         }
-        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image::uintImage(w, h),
-                                         [](const float* s, Image& im, int x, int y) {
-                                           std::uint32_t bits;
-                                           std::memcpy(&bits, &s[0], 4);
-                                           im.setUint(x, y, s[1] > 0.0f ? bits : 0u);  // no coverage: background
-                                         });
+        reads.push_back(passRead(role, passLabel, idx, win, Image::uintImage(w, h),
+                                 [](const float* s, Image& im, int x, int y) {
+                                   std::uint32_t bits;
+                                   std::memcpy(&bits, &s[0], 4);
+                                   im.setUint(x, y, s[1] > 0.0f ? bits : 0u);  // no coverage: background
+                                 }));
       } else if (role == "albedo") {
-        frame.passes[role] = convertPass(*in, path, passLabel, idx, win, Image(w, h, 3, 0.0f),
-                                         [](const float* s, Image& im, int x, int y) {
-                                           float* d = im.at(x, y);
-                                           for (int k = 0; k < 3; ++k) d[k] = sanitizeColor(s[k]);
-                                         });
+        reads.push_back(passRead(role, passLabel, idx, win, Image(w, h, 3, 0.0f), sanitized3));
       }
     }
     // The manifest is in the header of the ID pass's part, or of another part.
@@ -618,6 +667,9 @@ Frame readFrameReading(const std::string& path, const std::string& viewLayer, bo
       }
     }
   }
+
+  readPasses(*in, path, parts, reads);
+  for (PassRead& r : reads) frame.passes[r.role] = std::move(r.image);
 
   // The parts no pass was read from, named: what they hold is not lost without a word.
   for (std::size_t p = 0; p < parts.size(); ++p) {

@@ -49,6 +49,7 @@ struct ExrLayout {
   int x = 0, y = 0;                    // data window origin
   int fullWidth = 0, fullHeight = 0;   // display window (0 = same as data)
   int fullX = 0, fullY = 0;            // display window origin
+  int tileWidth = 0, tileHeight = 0;   // tiled if set, else scanlines
   std::vector<std::pair<std::string, std::string>> attributes;
 };
 
@@ -83,6 +84,8 @@ OIIO::ImageSpec exrSpec(const std::vector<Channel>& channels, const ExrLayout& l
     spec.channelformats.push_back(c.type);
   }
   spec.alpha_channel = -1;
+  spec.tile_width = layout.tileWidth;
+  spec.tile_height = layout.tileHeight;
   spec.attribute("compression", compression);
   for (const auto& kv : layout.attributes) spec.attribute(kv.first, kv.second);
   return spec;
@@ -472,6 +475,80 @@ TEST_F(IoTest, DataWindowLargerThanDisplayIsCropped) {
   ASSERT_EQ(f.height, 5);
   EXPECT_EQ(f.pass("color").at(0, 0)[0], pixelValue(1, 1, 0));
   EXPECT_EQ(f.pass("color").at(6, 4)[2], pixelValue(7, 5, 2));
+}
+
+TEST_F(IoTest, TallFramesReadInStripsWhateverTheLayout) {
+  // A file is read a strip of rows at a time (256 rows, every channel its passes read): frames of
+  // several strips, in every lossless compression, as scanlines and as tiles whose height does not
+  // divide 256, with a data window cut at the top and short of the bottom and sides of the display
+  // window. Every pixel of every pass must be the file's (through half where it is stored so).
+  const int w = 23, h = 600, fullW = 27, fullH = 620, x0 = 2, y0 = -30;
+  auto asHalf = [](float v) {  // v stored as half and read back
+    std::uint16_t bits;
+    float back;
+    OIIO::convert_pixel_values(OIIO::TypeFloat, &v, OIIO::TypeHalf, &bits);
+    OIIO::convert_pixel_values(OIIO::TypeHalf, &bits, OIIO::TypeFloat, &back);
+    return back;
+  };
+  for (const char* compression : {"none", "rle", "zips", "zip", "piz"}) {
+    for (const int tile : {0, 48}) {
+      SCOPED_TRACE(std::string(compression) + (tile ? ", tiled" : ", scanlines"));
+      ExrLayout layout = windowed(w, h, x0, y0, fullW, fullH);
+      layout.tileWidth = tile ? 40 : 0;
+      layout.tileHeight = tile;
+      layout.attributes = blenderManifest();
+      const std::string path = file(std::string("tall_") + compression + (tile ? "_tiled" : "") + ".exr");
+      writeExr(path, blenderChannels("ViewLayer", w, h), layout, compression);
+      const Frame f = readFrame(path);
+      ASSERT_EQ(f.width, fullW);
+      ASSERT_EQ(f.height, fullH);
+      ASSERT_EQ(f.passList(), "color,depth,normal,motion,id,albedo");
+      long wrong = 0;
+      for (int Y = 0; Y < fullH; ++Y)
+        for (int X = 0; X < fullW; ++X) {
+          const int x = X - x0, y = Y - y0;
+          const bool inside = x >= 0 && x < w && y >= 0 && y < h;
+          const float* c = f.pass("color").at(X, Y);
+          const float* n = f.pass("normal").at(X, Y);
+          const float* m = f.pass("motion").at(X, Y);
+          const float* a = f.pass("albedo").at(X, Y);
+          const float depth = *f.pass("depth").at(X, Y);
+          const std::uint32_t id = f.pass("id").uintAt(X, Y);
+          if (!inside) {
+            wrong += c[0] != 0.0f || c[3] != 0.0f || n[0] != 0.0f || m[1] != 0.0f || a[2] != 0.0f ||
+                     !isBackgroundDepth(depth) || id != 0u;
+            continue;
+          }
+          for (int k = 0; k < 4; ++k) wrong += c[k] != pixelValue(x, y, k);
+          for (int k = 0; k < 3; ++k) wrong += n[k] != asHalf(pixelValue(x, y, k) / 1024.0f);
+          for (int k = 0; k < 3; ++k) wrong += a[k] != pixelValue(x, y, k) / 1000.0f;
+          wrong += m[0] != 0.5f + float(x) || m[1] != -(1.5f + float(y)) || m[3] != 3.0f + float(y);
+          wrong += depth != asHalf(bgDepth(x, y, w, h)) || id != objectAt(x, y, w, h);
+          if (wrong && (X + Y) % 97 == 0) ADD_FAILURE() << "first wrong pixel near " << X << "," << Y;
+        }
+      EXPECT_EQ(wrong, 0);
+    }
+  }
+  // Two parts of several strips each, the depth's data window (10x300 at (5,200)) inside the display
+  // window and across a strip's edge.
+  ExrLayout colour, depth;
+  colour.width = colour.fullWidth = fullW;
+  colour.height = colour.fullHeight = fullH;
+  depth = windowed(10, 300, 5, 200, fullW, fullH);
+  writeMultiPartExr(file("tall_parts.exr"),
+                    {{"ViewLayer.Combined", channelsWith(blenderChannels("ViewLayer", fullW, fullH), ".Combined."), colour},
+                     {"ViewLayer.Depth", {{"Z", OIIO::TypeDesc::FLOAT, [](int x, int y) { return float(1 + x + 10 * y); }}},
+                      depth}});
+  const Frame f = readFrame(file("tall_parts.exr"));
+  long wrong = 0;
+  for (int Y = 0; Y < fullH; ++Y)
+    for (int X = 0; X < fullW; ++X) {
+      for (int k = 0; k < 4; ++k) wrong += f.pass("color").at(X, Y)[k] != pixelValue(X, Y, k);
+      const bool inside = X >= 5 && X < 15 && Y >= 200 && Y < 500;
+      const float z = *f.pass("depth").at(X, Y);
+      wrong += inside ? z != float(1 + (X - 5) + 10 * (Y - 200)) : !isBackgroundDepth(z);
+    }
+  EXPECT_EQ(wrong, 0);
 }
 
 // Plain float R,G,B,A channels of pixelValue, for tests of windows.
