@@ -703,6 +703,14 @@ class FrameFilter:
             write_image(self.context, p, ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)
         return {"load_s": t1 - t0, "filter_s": t2 - t1, "write_s": time.perf_counter() - t2}
 
+    def output_bottom_up(self):
+        """The last frame's output as a flat float32 numpy array of RGBA rows from the bottom, as Blender's
+        images hold pixels, and its (width, height). Image.pixels.foreach_set copies such an array in 3 ms
+        at 1920x1080; a memoryview of the same floats took 121 ms, element by element."""
+        import numpy  # Blender's Python has it; the library's other callers need not
+        w, h = self._shape
+        return numpy.frombuffer(self._out, dtype=numpy.float32).reshape(h, w * 4)[::-1].ravel(), (w, h)
+
     def close(self):
         if self.filter is not None:
             self.filter.close()

@@ -492,7 +492,7 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
             times = frame_filter.run(info["exr"], [exr])
             if write_png:  # through the scene's colour management, as its own PNGs
                 t0 = time.perf_counter()
-                render.write_display_png(scene, exr, png)
+                render.write_display_png(scene, *frame_filter.output_bottom_up(), png)
                 times["write_s"] += time.perf_counter() - t0
                 _write_json(_png_record_path(png), _png_record(png))
             elif os.path.isfile(png):

@@ -1076,6 +1076,39 @@ class AddonTest(unittest.TestCase):
         self.assertLessEqual(max(diff), 3.5 / 255)
         self.assertLess(sum(diff) / len(diff), 0.005)
 
+    @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
+    def test_png_of_the_output_equals_the_png_of_its_exr(self):
+        """The run makes each PNG from the filter's output in memory (render.write_display_png), not from
+        the EXR it wrote loaded back: the PNG must be what Blender makes of that EXR, byte for byte in
+        every pixel, under Filmic with a look and an exposure and with a transparent film (taa filters the
+        alpha, so the outlines are partly covered)."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 64, 36
+        scene.render.film_transparent = True
+        view = scene.view_settings
+        view.view_transform, view.look, view.exposure = "Filmic", "High Contrast", 0.7
+        try:
+            with tempfile.TemporaryDirectory() as d:
+                pipeline.run(scene, "taa", [1, 2], d, log=lambda *a: None)
+                for f in (1, 2):
+                    exr = os.path.join(d, "filtered", render.frame_name(f))
+                    image = bpy.data.images.load(exr, check_existing=False)
+                    settings = scene.render.image_settings
+                    settings.file_format, settings.color_mode, settings.color_depth = "PNG", "RGBA", "8"
+                    image.save_render(os.path.join(d, "from_exr.png"), scene=scene)
+                    bpy.data.images.remove(image)
+                    ours = bpy.data.images.load(os.path.join(d, "filtered", render.frame_name(f, ".png")))
+                    theirs = bpy.data.images.load(os.path.join(d, "from_exr.png"))
+                    a, b = list(ours.pixels), list(theirs.pixels)
+                    bpy.data.images.remove(ours)
+                    bpy.data.images.remove(theirs)
+                    self.assertEqual(len(a), 64 * 36 * 4)
+                    alphas = a[3::4]
+                    self.assertTrue(any(0.0 < x < 1.0 for x in alphas), "no partly covered pixel to compare")
+                    self.assertTrue(a == b, "frame %d: %d values differ" % (f, sum(x != y for x, y in zip(a, b))))
+        finally:
+            scene.render.film_transparent = False
+
     def test_settings_crisp_leaves_out_are_said(self):
         """The scene's motion blur and its compositor are not applied to Crisp's frames: the log says so
         (and what the run does instead) rather than dropping them silently."""
