@@ -14,6 +14,7 @@ import math
 import numbers
 import os
 import struct
+import threading
 import time
 
 # Mirrors of the C enums in native/include/crisp/crisp.h.
@@ -576,6 +577,26 @@ def compare_images(context, reference_path, test_path):
 SUBSAMPLE_PASSES = ("subsamples",)
 
 
+def _alongside(background, foreground):
+    """Runs background() on a thread of its own and foreground() on this one; returns when both have
+    ended, raising background's error, if any, else foreground's."""
+    errors = []
+
+    def work():
+        try:
+            background()
+        except BaseException as e:  # handed to the caller below
+            errors.append(e)
+    worker = threading.Thread(target=work, name="crisp-write")
+    worker.start()
+    try:
+        foreground()
+    finally:
+        worker.join()
+        if errors:
+            raise errors[0]
+
+
 class FrameFilter:
     """Filters a sequence of frames with one filter object (so temporal history carries over)."""
 
@@ -662,8 +683,11 @@ class FrameFilter:
         self.filter.set_param("jitterX", float(jitter.get("x", 0.0)))
         self.filter.set_param("jitterY", -float(jitter.get("y", 0.0)))
 
-    def run(self, input_path, output_paths):
-        """Loads one frame, filters it, writes it to each path (.exr and/or .png).
+    def run(self, input_path, output_paths, while_writing=None):
+        """Loads one frame, filters it, writes it to each path (.exr and/or .png). while_writing(), if
+        given, is called on this thread while another writes the files (the library's call releases
+        Python's lock), and may read the output (output_bottom_up); both have ended when run returns,
+        which raises the writer's error, if any, else while_writing's.
         Returns seconds spent {"load_s", "filter_s" (commit + execute), "write_s"}."""
         t0 = time.perf_counter()
         with Frame(self.context, input_path) as frame:
@@ -699,8 +723,13 @@ class FrameFilter:
             self.filter.commit()
             self.filter.execute()
             t2 = time.perf_counter()
-        for p in output_paths:
-            write_image(self.context, p, ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)
+        def write():
+            for p in output_paths:
+                write_image(self.context, p, ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)
+        if while_writing is None:
+            write()
+        else:
+            _alongside(write, while_writing)
         return {"load_s": t1 - t0, "filter_s": t2 - t1, "write_s": time.perf_counter() - t2}
 
     def output_bottom_up(self):

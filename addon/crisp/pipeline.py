@@ -489,11 +489,11 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
         if frame_filter is not None:
             exr = os.path.join(filtered_dir, render.frame_name(f))
             png = os.path.join(filtered_dir, render.frame_name(f, ".png"))
-            times = frame_filter.run(info["exr"], [exr])
-            if write_png:  # through the scene's colour management, as its own PNGs
-                t0 = time.perf_counter()
-                render.write_display_png(scene, *frame_filter.output_bottom_up(), png)
-                times["write_s"] += time.perf_counter() - t0
+            # The PNG, through the scene's colour management as its own PNGs, is made while the library
+            # writes the EXR.
+            times = frame_filter.run(info["exr"], [exr], while_writing=(lambda: render.write_display_png(
+                scene, *frame_filter.output_bottom_up(), png)) if write_png else None)
+            if write_png:
                 _write_json(_png_record_path(png), _png_record(png))
             elif os.path.isfile(png):
                 _drop_stale_png(png, log)

@@ -416,3 +416,47 @@ def test_a_frame_lists_the_sub_samples_it_holds_after_a_refused_camera(native, t
             f.close()
         assert frame.pass_pointer("subsamples")[1] == native.FORMAT_RSAA_SUBSAMPLES  # it holds them...
         assert "subsamples" in frame.passes()  # ...and lists them
+
+
+def test_a_frame_filter_writes_while_its_caller_works_and_says_what_failed(native, monkeypatch, tmp_path):
+    """FrameFilter.run(..., while_writing=f) writes the outputs on a thread of its own while f runs (the
+    add-on makes the PNG then): each waits for the other to have started, which fails if they run one
+    after the other; f sees the frame's output; run returns only when both have ended, raising the
+    writer's error first, else f's."""
+    import threading
+    rgba = (ctypes.c_float * (4 * 3 * 4))(*([0.25] * 48))
+    exr = tmp_path / "frame_0001.exr"
+    with native.Context() as ctx:
+        native.write_image(ctx, str(exr), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 4, 3)
+    writing, working = threading.Event(), threading.Event()
+    real_write = native.write_image
+
+    def write_image(*args):
+        writing.set()
+        assert working.wait(10), "the caller's work did not run while the outputs were written"
+        real_write(*args)
+    monkeypatch.setattr(native, "write_image", write_image)
+    seen = []
+
+    def foreground():
+        working.set()
+        assert writing.wait(10), "the outputs were not written while the caller worked"
+        pixels, size = ff.output_bottom_up()
+        seen.append((size, float(pixels[0])))
+
+    def fails():
+        raise ValueError("png failed")
+    ff = native.FrameFilter("none", None, 1)
+    try:
+        ff.run(str(exr), [str(tmp_path / "out.exr")], while_writing=foreground)
+        assert seen == [((4, 3), 0.25)]
+        assert (tmp_path / "out.exr").is_file()
+        with pytest.raises(ValueError, match="png failed"):
+            ff.run(str(exr), [str(tmp_path / "out2.exr")], while_writing=fails)
+        assert (tmp_path / "out2.exr").is_file(), "the write ran to its end"
+        # A folder where the output goes: the writer fails, and its error wins over the caller's.
+        (tmp_path / "taken.exr").mkdir()
+        with pytest.raises(native.CrispError, match="taken.exr"):
+            ff.run(str(exr), [str(tmp_path / "taken.exr")], while_writing=fails)
+    finally:
+        ff.close()
