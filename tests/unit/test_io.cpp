@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -17,6 +18,7 @@
 #include <functional>
 #include <iterator>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <OpenImageIO/imageio.h>
@@ -596,6 +598,44 @@ TEST_F(IoTest, BothExrReadersReadTheSame) {
         EXPECT_EQ(core.pass("color").at(5, 40)[2], pixelValue(3, 70, 2));
     }
   }
+}
+
+TEST_F(IoTest, ThreadsReadingAtOnceEachGetTheirFilesReader) {
+  // readFrame picks OpenEXR's reader by setting OIIO's process-wide attribute around its open: threads
+  // reading files at once, some of which the core reader cannot read (DWAA), must each get the pixels
+  // a read alone gets, and leave the attribute as it was.
+  const int w = 16, h = 300;
+  std::vector<std::string> paths;
+  std::vector<Frame> alone;
+  for (const char* compression : {"dwaa", "zip", "none", "dwab"}) {
+    ExrLayout layout;
+    layout.width = w;
+    layout.height = h;
+    layout.attributes = blenderManifest();
+    paths.push_back(file(std::string("threads_") + compression + ".exr"));
+    writeExr(paths.back(), blenderChannels("ViewLayer", w, h), layout, compression);
+    alone.push_back(readFrame(paths.back()));
+  }
+  const int before = OIIO::get_int_attribute("openexr:core", 0);
+  std::atomic<int> wrong{0}, failed{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      for (int k = 0; k < 24; ++k) {
+        const std::size_t f = std::size_t(t + k) % paths.size();
+        try {
+          const Frame frame = readFrame(paths[f]);
+          for (const auto& [role, image] : alone[f].passes)
+            wrong += image.data != frame.pass(role).data;
+        } catch (const Exception&) {
+          ++failed;
+        }
+      }
+    });
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(failed, 0);
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(OIIO::get_int_attribute("openexr:core", -1), before);
 }
 
 // Plain float R,G,B,A channels of pixelValue, for tests of windows.
