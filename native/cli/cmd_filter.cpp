@@ -14,10 +14,12 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <future>
 #include <set>
 #include <vector>
 
 #include <nlohmann/json.hpp>
+#include <OpenImageIO/thread.h>
 
 #include "cli/commands.h"
 #include "cli/frame_range.h"
@@ -158,6 +160,27 @@ struct StalePngs {
                    "show this run's result\n", p.c_str());
   }
 };
+
+// Writes a frame's EXR (in the input's windows) and, with `png`, its PNG. With more than one thread
+// the PNG (a single zlib stream) is written on a thread of OIIO's pool while OpenEXR's threads write
+// the EXR (1920x1080 taa with --png, 8 frames: 515 -> 435 ms a frame). Both have ended when it returns or
+// throws, the EXR's error first.
+void writeOutputs(const std::string& base, const Image& output, const FrameWindows& windows, bool png,
+                  int numThreads) {
+  if (!png || numThreads == 1 || OIIO::default_thread_pool()->size() < 1) {
+    writeImage(base + ".exr", output.view(), windows);
+    if (png) writeImage(base + ".png", output);
+    return;
+  }
+  std::future<void> pngWritten = OIIO::default_thread_pool()->push([&](int) { writeImage(base + ".png", output); });
+  try {
+    writeImage(base + ".exr", output.view(), windows);
+  } catch (...) {
+    pngWritten.wait();  // it reads `output`
+    throw;
+  }
+  pngWritten.get();  // the PNG's error, if any
+}
 
 }  // namespace
 
@@ -338,10 +361,9 @@ int runFilter(const ParsedArgs& args) {
     const std::string base = joinPath(outDir, fileStem(in));
     const std::string pngRecord = stamps.pngRecordOf(int(i) + 1);
     stamps.removeStamp(int(i) + 1);
-    writeImage(base + ".exr", output.view(), frame.windows);  // the input's display and data windows
+    writeOutputs(base, output, frame.windows, png, context.numThreads());
     stamps.makeFolder();  // for the PNG's record
     if (png) {
-      writeImage(base + ".png", output);
       writeTextFile(pngRecord, pngStampOf(base + ".png"));
     } else {
       stalePngs.check(base + ".png", pngRecord);
