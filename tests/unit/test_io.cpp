@@ -219,6 +219,16 @@ class IoTest : public ::testing::Test {
     fs::remove_all(dir, ec);
   }
   std::string file(const std::string& name) const { return (dir / name).string(); }
+  // A Blender-like EXR (blenderChannels of the layout's data window, with the manifest) in
+  // `compression`, of scanlines, or of 40 x tileHeight tiles if tileHeight is set; returns its path.
+  std::string blenderExr(const std::string& stem, ExrLayout layout, const char* compression, int tileHeight = 0) const {
+    layout.tileWidth = tileHeight ? 40 : 0;
+    layout.tileHeight = tileHeight;
+    layout.attributes = blenderManifest();
+    const std::string path = file(stem + "_" + compression + (tileHeight ? "_tiled" : "") + ".exr");
+    writeExr(path, blenderChannels("ViewLayer", layout.width, layout.height), layout, compression);
+    return path;
+  }
   std::vector<std::string> temporaries() const {
     std::vector<std::string> found;
     for (const auto& e : fs::directory_iterator(dir))
@@ -496,13 +506,7 @@ TEST_F(IoTest, TallFramesReadInStripsWhateverTheLayout) {
   for (const char* compression : {"none", "rle", "zips", "zip", "piz"}) {
     for (const int tile : {0, 48}) {
       SCOPED_TRACE(std::string(compression) + (tile ? ", tiled" : ", scanlines"));
-      ExrLayout layout = windowed(w, h, x0, y0, fullW, fullH);
-      layout.tileWidth = tile ? 40 : 0;
-      layout.tileHeight = tile;
-      layout.attributes = blenderManifest();
-      const std::string path = file(std::string("tall_") + compression + (tile ? "_tiled" : "") + ".exr");
-      writeExr(path, blenderChannels("ViewLayer", w, h), layout, compression);
-      const Frame f = readFrame(path);
+      const Frame f = readFrame(blenderExr("tall", windowed(w, h, x0, y0, fullW, fullH), compression, tile));
       ASSERT_EQ(f.width, fullW);
       ASSERT_EQ(f.height, fullH);
       ASSERT_EQ(f.passList(), "color,depth,normal,motion,id,albedo");
@@ -563,12 +567,7 @@ TEST_F(IoTest, BothExrReadersReadTheSame) {
   for (const char* compression : {"none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab"}) {
     for (const int tile : {0, 48}) {
       SCOPED_TRACE(std::string(compression) + (tile ? ", tiled" : ", scanlines"));
-      ExrLayout layout = windowed(w, h, 2, -30, 27, 320);
-      layout.tileWidth = tile ? 40 : 0;
-      layout.tileHeight = tile;
-      layout.attributes = blenderManifest();
-      const std::string path = file(std::string("readers_") + compression + (tile ? "_tiled" : "") + ".exr");
-      writeExr(path, blenderChannels("ViewLayer", w, h), layout, compression);
+      const std::string path = blenderExr("readers", windowed(w, h, 2, -30, 27, 320), compression, tile);
       const Frame core = readFrame(path);
       allowExrCoreReaderForTesting(false);
       Frame classic;
@@ -608,12 +607,7 @@ TEST_F(IoTest, ThreadsReadingAtOnceEachGetTheirFilesReader) {
   std::vector<std::string> paths;
   std::vector<Frame> alone;
   for (const char* compression : {"dwaa", "zip", "none", "dwab"}) {
-    ExrLayout layout;
-    layout.width = w;
-    layout.height = h;
-    layout.attributes = blenderManifest();
-    paths.push_back(file(std::string("threads_") + compression + ".exr"));
-    writeExr(paths.back(), blenderChannels("ViewLayer", w, h), layout, compression);
+    paths.push_back(blenderExr("threads", windowed(w, h, 0, 0, w, h), compression));
     alone.push_back(readFrame(paths.back()));
   }
   const int before = OIIO::get_int_attribute("openexr:core", 0);
