@@ -32,6 +32,7 @@
 
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imageio.h>
+#include <OpenEXR/openexr.h>
 
 #include "core/color.h"
 #include "core/conventions.h"
@@ -458,6 +459,62 @@ bool coreReaderDecodesAll(OIIO::ImageInput& in) {
   return all;
 }
 
+// OpenEXR 3.1.5's core reader reads an uncompressed chunk shorter than its lines (a file cut short
+// inside it, or a chunk whose size field is too small) with the missing bytes as zeros, and no error,
+// where the C++ library fails (and the C++ library itself took a tile whose size field was too small).
+// So before an uncompressed part is read, each chunk of it (of its full-resolution level, the one read)
+// is checked through OpenEXR's C library: the size it stores must be its lines' size, and it must end
+// within the file.
+void checkUncompressedChunks(const std::string& path, const std::vector<Part>& parts) {
+  std::vector<int> uncompressed;
+  for (std::size_t p = 0; p < parts.size(); ++p)
+    if (parts[p].read && parts[p].spec.get_string_attribute("compression", "none") == "none") uncompressed.push_back(int(p));
+  if (uncompressed.empty()) return;
+  struct Context {
+    exr_context_t exr = nullptr;
+    ~Context() {
+      if (exr) exr_finish(&exr);
+    }
+  } context;
+  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+  init.error_handler_fn = [](exr_const_context_t, exr_result_t, const char*) {};  // said below, naming the file
+  std::error_code ec;
+  const std::uint64_t fileSize = std::filesystem::file_size(path, ec);
+  if (ec || exr_start_read(&context.exr, path.c_str(), &init) != EXR_ERR_SUCCESS)
+    ioError("cannot read '" + path + "': its header could not be read again to check its chunks");
+  for (int p : uncompressed) {
+    auto check = [&](exr_result_t result, const exr_chunk_info_t& chunk, const std::string& which) {
+      if (result == EXR_ERR_SUCCESS && chunk.packed_size == chunk.unpacked_size &&
+          chunk.data_offset <= fileSize && chunk.packed_size <= fileSize - chunk.data_offset)
+        return;
+      ioError("cannot read '" + path + "'" + (parts.size() > 1 ? " (" + partLabel(parts, p) + ")" : std::string()) +
+              ": its uncompressed " + which + " is truncated or corrupt" +
+              (result == EXR_ERR_SUCCESS ? " (" + std::to_string(chunk.packed_size) + " bytes stored at byte " +
+                                                std::to_string(chunk.data_offset) + " of " + std::to_string(fileSize) +
+                                                ", " + std::to_string(chunk.unpacked_size) + " expected)"
+                                         : " (" + std::string(exr_get_error_code_as_string(result)) + ")"));
+    };
+    exr_attr_box2i_t dw;
+    exr_chunk_info_t chunk{};
+    if (exr_get_data_window(context.exr, p, &dw) != EXR_ERR_SUCCESS) check(EXR_ERR_INVALID_ATTR, chunk, "data window");
+    std::int32_t tileWidth = 0, tileHeight = 0;
+    if (exr_get_tile_sizes(context.exr, p, 0, 0, &tileWidth, &tileHeight) == EXR_ERR_SUCCESS && tileWidth > 0 &&
+        tileHeight > 0) {
+      const long long tilesX = ((long long)dw.max.x - dw.min.x + tileWidth) / tileWidth;
+      const long long tilesY = ((long long)dw.max.y - dw.min.y + tileHeight) / tileHeight;
+      for (long long ty = 0; ty < tilesY; ++ty)
+        for (long long tx = 0; tx < tilesX; ++tx)
+          check(exr_read_tile_chunk_info(context.exr, p, int(tx), int(ty), 0, 0, &chunk), chunk,
+                "tile " + std::to_string(tx) + "," + std::to_string(ty));
+    } else {
+      std::int32_t lines = 1;
+      if (exr_get_scanlines_per_chunk(context.exr, p, &lines) != EXR_ERR_SUCCESS || lines < 1) lines = 1;
+      for (long long y = dw.min.y; y <= dw.max.y; y += lines)
+        check(exr_read_scanline_chunk_info(context.exr, p, int(y), &chunk), chunk, "row " + std::to_string(y));
+    }
+  }
+}
+
 // readFrame, and readGeometryFrame where colourPixels is false: the colour's
 // part still sets the frame's size and windows, but its pixels are not read.
 Frame readFrameReading(const std::string& path, const std::string& viewLayer, bool colourPixels) {
@@ -469,7 +526,8 @@ Frame readFrameReading(const std::string& path, const std::string& viewLayer, bo
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
   std::unique_ptr<OIIO::ImageInput> in = openImage(path, config, true);
-  if (in->format_name() == std::string("openexr") && !coreReaderDecodesAll(*in)) in = openImage(path, config, false);
+  const bool exr = in->format_name() == std::string("openexr");
+  if (exr && exrCoreAllowed && !coreReaderDecodesAll(*in)) in = openImage(path, config, false);
 
   // Every part's header; a part's pixels are read only for the passes it holds.
   std::vector<Part> parts;
@@ -713,6 +771,7 @@ Frame readFrameReading(const std::string& path, const std::string& viewLayer, bo
     }
   }
 
+  if (exr) checkUncompressedChunks(path, parts);
   readPasses(*in, path, parts, reads);
   for (PassRead& r : reads) frame.passes[r.role] = std::move(r.image);
 

@@ -1185,6 +1185,49 @@ TEST_F(IoTest, TruncatedExrIsAnIoError) {
   }
 }
 
+TEST_F(IoTest, ShortUncompressedChunksAreAnIoErrorWithEitherReader) {
+  // OpenEXR 3.1.5's core reader read an uncompressed file cut inside its last chunk, or one whose chunk
+  // says it holds fewer bytes than its row, with zeros for what is missing and no error (found by an
+  // independent review; the C++ reader took such a tile too): readFrame checks such a file's chunks
+  // first. Scanlines and tiles, both readers.
+  const int w = 16, h = 300;
+  for (const int tile : {0, 48}) {
+    SCOPED_TRACE(tile ? "tiled" : "scanlines");
+    const std::string whole = blenderExr("short", windowed(w, h, 0, 0, w, h), "none", tile);
+    const std::vector<char> bytes = readBytes(whole);
+    const std::string cut = file("cut.exr"), lying = file("lying.exr");
+    writeBytes(cut, std::vector<char>(bytes.begin(), bytes.end() - 100));
+    // The first chunk's size field one less. Its offset is the first entry of the offset table, which
+    // follows the header (attributes "name\0type\0" int32 size, value; then a 0 byte); its leader is
+    // int32 y, int32 size (scanlines) or int32 tx, ty, lx, ly, size (tiles).
+    std::size_t at = 8;
+    while (bytes.at(at) != 0) {
+      at += std::strlen(bytes.data() + at) + 1;
+      at += std::strlen(bytes.data() + at) + 1;
+      std::int32_t attributeSize;
+      std::memcpy(&attributeSize, bytes.data() + at, 4);
+      at += 4 + std::size_t(attributeSize);
+    }
+    std::uint64_t first;
+    std::memcpy(&first, bytes.data() + at + 1, 8);
+    std::vector<char> lied = bytes;
+    const std::size_t sizeField = std::size_t(first) + (tile ? 16 : 4);
+    std::int32_t size;
+    std::memcpy(&size, lied.data() + sizeField, 4);
+    size -= 1;
+    std::memcpy(lied.data() + sizeField, &size, 4);
+    writeBytes(lying, lied);
+    for (const bool core : {true, false}) {
+      SCOPED_TRACE(core ? "core reader" : "C++ reader");
+      allowExrCoreReaderForTesting(core);
+      EXPECT_NO_THROW(readFrame(whole));
+      expectError([&] { readFrame(cut); }, CRISP_ERROR_IO, "cut.exr");
+      expectError([&] { readFrame(lying); }, CRISP_ERROR_IO, "lying.exr");
+    }
+    allowExrCoreReaderForTesting(true);
+  }
+}
+
 TEST_F(IoTest, CorruptBytesAreAnError) {
   ExrLayout layout;
   layout.width = 64;
