@@ -53,6 +53,9 @@ build-fuzz/bin/crisp synth -o "$corpus/gen" --size 8x6 >/dev/null
 # Seed files: a real EXR and PNG, prefixed with the byte that picks the extension.
 { printf '\x00'; cat "$corpus/gen/chart_1spp.exr"; } >"$corpus/frames/exr"
 { printf '\x01'; cat "$corpus/gen/chart_1spp.png"; } >"$corpus/frames/png"
+# Inputs that crashed a reader once (tests/fuzz/regressions: the target's own input format), run first
+# as seeds, so that one crashing again fails here at once rather than by chance.
+cp tests/fuzz/regressions/frame_reader_* "$corpus/frames/"
 # Seeds that reach each filter's output in place at once (a valid colour, the output on its buffer,
 # executes), written by the targets' own code (fuzz_common.h, writeSeedsIfAsked): from an empty corpus
 # fuzz_c_api took 58-75 s to trap a filter made unsafe in place; from these it traps fxaa without its

@@ -17,7 +17,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -25,7 +24,6 @@
 #include <functional>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -39,7 +37,6 @@
 #include "core/error.h"
 #include "io/cryptomatte.h"
 #include "io/frame.h"
-#include "io/frame_read_testing.h"
 #include "io/oiio_util.h"
 
 namespace crisp {
@@ -413,74 +410,36 @@ void checkReadable(const std::string& path) {
 
 namespace {
 
-std::atomic<bool> exrCoreAllowed{true};
-
-// OIIO reads EXRs through OpenEXR's C++ library, or through its C library ("core") when the
-// process-wide attribute "openexr:core" is set as the reader is made. The core is the faster: the
-// C++ library converts an uncompressed file's values byte by byte (crisp_bench io.read_frame, a
-// 1920x1080 frame: colour and depth 138-151 -> 42-44 ms; with IDs and albedo 258-274 -> 141-144 ms).
-// OIIO has no per-file choice, so the attribute is set for the open and then restored, under a lock
-// so that this library's threads agree; another thread of the process opening an EXR through OIIO
-// in that instant (Blender's, say) would get the core reader too.
-std::unique_ptr<OIIO::ImageInput> openImage(const std::string& path, const OIIO::ImageSpec& config, bool core) {
-  static std::mutex lock;
-  std::unique_ptr<OIIO::ImageInput> in;
-  {
-    std::lock_guard<std::mutex> guard(lock);
-    const int before = OIIO::get_int_attribute("openexr:core", 0);
-    OIIO::attribute("openexr:core", core && exrCoreAllowed ? 1 : 0);
-    try {
-      in = OIIO::ImageInput::open(path, &config);
-    } catch (const std::exception& e) {  // OIIO plugins should not throw; be safe anyway
-      OIIO::attribute("openexr:core", before);
-      ioError("cannot read '" + path + "': " + e.what());
-    }
-    OIIO::attribute("openexr:core", before);
+// A file opened by OpenEXR's C library, closed when it goes. Its errors are not printed: the callers
+// say what is wrong, naming the file.
+struct ExrCoreFile {
+  exr_context_t exr = nullptr;
+  bool open(const std::string& path) {
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = [](exr_const_context_t, exr_result_t, const char*) {};
+    init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
+    return exr_start_read(&exr, path.c_str(), &init) == EXR_ERR_SUCCESS;
   }
-  if (!in) ioError("cannot read '" + path + "' as an image: " + oiioErrors(nullptr));
-  return in;
-}
-
-// Whether every part of an open EXR is in a compression the core reader of OpenEXR 3.1 (Debian 12
-// has 3.1.5) decodes as the C++ library does: none, RLE, ZIPS, ZIP, PIZ, PXR24, checked on float,
-// half and ID channels, scanlines and tiles (IoTest.BothExrReadersReadTheSame). Its DWAA and DWAB
-// decoders fail (fixed in OpenEXR 3.1.10), and its B44 gave other values for float channels when a
-// whole image was read at once (not in readFrame's strips, but it is not trusted): a file with a
-// part in any other compression is read by the C++ library. Leaves `in` at its first part.
-bool coreReaderDecodesAll(OIIO::ImageInput& in) {
-  static const char* const kDecoded[] = {"none", "rle", "zips", "zip", "piz", "pxr24"};
-  bool all = true;
-  for (int s = 0; all && in.seek_subimage(s, 0); ++s) {
-    std::string compression = in.spec().get_string_attribute("compression", "none");
-    compression = compression.substr(0, compression.find(':'));  // "zip:4" (a level) is zip
-    all = std::any_of(std::begin(kDecoded), std::end(kDecoded), [&](const char* c) { return compression == c; });
+  ~ExrCoreFile() {
+    if (exr) exr_finish(&exr);
   }
-  in.seek_subimage(0, 0);
-  return all;
-}
+};
 
-// OpenEXR 3.1.5's core reader reads an uncompressed chunk shorter than its lines (a file cut short
-// inside it, or a chunk whose size field is too small) with the missing bytes as zeros, and no error,
-// where the C++ library fails (and the C++ library itself took a tile whose size field was too small).
-// So before an uncompressed part is read, each chunk of it (of its full-resolution level, the one read)
-// is checked through OpenEXR's C library: the size it stores must be its lines' size, and it must end
-// within the file.
+// OpenEXR's C++ library, which OIIO reads EXRs through, took an uncompressed tile whose size field
+// was too small without an error, and OIIO's reader over its C library (not used here) read a file cut
+// short inside an uncompressed chunk with zeros (both found by an independent review). So before an
+// uncompressed part is read, each chunk of it (of its full-resolution level, the one read) is checked
+// through OpenEXR's C library: the size it stores must be its lines' size, and it must end within the
+// file. About 1 ms for a 1920x1080 frame's 1080 chunks.
 void checkUncompressedChunks(const std::string& path, const std::vector<Part>& parts) {
   std::vector<int> uncompressed;
   for (std::size_t p = 0; p < parts.size(); ++p)
     if (parts[p].read && parts[p].spec.get_string_attribute("compression", "none") == "none") uncompressed.push_back(int(p));
   if (uncompressed.empty()) return;
-  struct Context {
-    exr_context_t exr = nullptr;
-    ~Context() {
-      if (exr) exr_finish(&exr);
-    }
-  } context;
-  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-  init.error_handler_fn = [](exr_const_context_t, exr_result_t, const char*) {};  // said below, naming the file
+  ExrCoreFile context;
   std::error_code ec;
   const std::uint64_t fileSize = std::filesystem::file_size(path, ec);
-  if (ec || exr_start_read(&context.exr, path.c_str(), &init) != EXR_ERR_SUCCESS)
+  if (ec || !context.open(path))
     ioError("cannot read '" + path + "': its header could not be read again to check its chunks");
   for (int p : uncompressed) {
     auto check = [&](exr_result_t result, const exr_chunk_info_t& chunk, const std::string& which) {
@@ -525,9 +484,14 @@ Frame readFrameReading(const std::string& path, const std::string& viewLayer, bo
   // its alpha is unassociated (PNG), as writeImage divides it out.
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
-  std::unique_ptr<OIIO::ImageInput> in = openImage(path, config, true);
+  std::unique_ptr<OIIO::ImageInput> in;
+  try {
+    in = OIIO::ImageInput::open(path, &config);
+  } catch (const std::exception& e) {  // OIIO plugins should not throw; be safe anyway
+    ioError("cannot read '" + path + "': " + e.what());
+  }
+  if (!in) ioError("cannot read '" + path + "' as an image: " + oiioErrors(nullptr));
   const bool exr = in->format_name() == std::string("openexr");
-  if (exr && exrCoreAllowed && !coreReaderDecodesAll(*in)) in = openImage(path, config, false);
 
   // Every part's header; a part's pixels are read only for the passes it holds.
   std::vector<Part> parts;
@@ -792,7 +756,6 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   return readFrameReading(path, viewLayer, true);
 }
 
-void allowExrCoreReaderForTesting(bool allowed) { exrCoreAllowed = allowed; }
 
 Frame readGeometryFrame(const std::string& path) { return readFrameReading(path, std::string(), false); }
 

@@ -1,10 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // Reading a frame (io/frame.h readFrame, what crispLoadFrame and `crisp filter` do per frame): an
 // uncompressed multilayer EXR as the add-on's renders are, with colour and depth (taa) or also
-// object IDs and albedo (taa-improved), read by OpenEXR's C library ("core", the product) and by
-// its C++ library (the baseline, used for files in compressions the core misreads). The files are
-// written once per size to the temporary folder, so the page cache holds them: the time is
-// decoding and conversion, not the disk.
+// object IDs and albedo (taa-improved). The files are written once per size to the temporary folder,
+// so the page cache holds them: the time is decoding and conversion, not the disk.
 #include <benchmark/benchmark.h>
 #include <unistd.h>
 
@@ -19,7 +17,6 @@
 
 #include "bench_common.h"
 #include "io/frame.h"
-#include "io/frame_read_testing.h"
 
 namespace {
 
@@ -61,26 +58,23 @@ const std::string& blenderExr(int width, int height, bool allPasses) {
   return files.paths[key] = path;
 }
 
-void readFrame(benchmark::State& state, int width, int height, bool allPasses, bool core) {
+void readFrame(benchmark::State& state, int width, int height, bool allPasses) {
   const std::string& path = blenderExr(width, height, allPasses);
-  crisp::allowExrCoreReaderForTesting(core);
   for (auto _ : state) {
     crisp::Frame frame = crisp::readFrame(path);
     benchmark::DoNotOptimize(frame.passes.begin()->second.data.data());
   }
-  crisp::allowExrCoreReaderForTesting(true);
   bench::setPixelRate(state, width, height);
 }
 
 void registerAll() {
   for (const auto& s : bench::kSizes) {
     const int w = s[0], h = s[1];
-    for (const bool all : {false, true})
-      for (const bool core : {true, false}) {
-        const std::string name = std::string("io.read_frame.") + (all ? "color_depth_id_albedo" : "color_depth") +
-                                 (core ? "" : ".classic") + bench::sizeTag(w, h);
-        bench::registerTimed(name, [w, h, all, core](benchmark::State& st) { readFrame(st, w, h, all, core); });
-      }
+    for (const bool all : {false, true}) {
+      const std::string name =
+          std::string("io.read_frame.") + (all ? "color_depth_id_albedo" : "color_depth") + bench::sizeTag(w, h);
+      bench::registerTimed(name, [w, h, all](benchmark::State& st) { readFrame(st, w, h, all); });
+    }
   }
 }
 
