@@ -22,6 +22,7 @@
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <future>
 #include <map>
 #include <memory>
 #include <string>
@@ -30,6 +31,7 @@
 
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imageio.h>
+#include <OpenImageIO/thread.h>
 #include <OpenEXR/openexr.h>
 
 #include "core/color.h"
@@ -348,9 +350,22 @@ void readPasses(OIIO::ImageInput& in, const std::string& path, const std::vector
     const OIIO::ImageSpec& spec = parts[std::size_t(part)].spec;
     const int channels = chEnd - chBegin;
     const int rows = stripRows(spec, channels);
-    std::vector<float> strip(std::size_t(rows) * std::size_t(spec.width) * std::size_t(channels));
-    for (int y0 = 0; y0 < spec.height; y0 += rows) {
+    // Two strips: one is read (decoded on OpenEXR's threads) while the one before is converted on a
+    // thread of OIIO's pool, so that the two overlap. Conversions run one at a time, in order;
+    // whatever is thrown, the one under way ends before its strip is freed.
+    std::vector<float> strips[2];
+    for (std::vector<float>& strip : strips)
+      strip.resize(std::size_t(rows) * std::size_t(spec.width) * std::size_t(channels));
+    std::future<void> converting;
+    struct Finish {
+      std::future<void>& converting;
+      ~Finish() {
+        if (converting.valid()) converting.wait();
+      }
+    } finish{converting};
+    for (int y0 = 0, k = 0; y0 < spec.height; y0 += rows, ++k) {
       const int y1 = std::min(spec.height, y0 + rows);
+      std::vector<float>& strip = strips[k & 1];
       const bool read = spec.tile_width > 0
                             ? in.read_tiles(part, 0, spec.x, spec.x + spec.width, spec.y + y0, spec.y + y1, spec.z,
                                             spec.z + 1, chBegin, chEnd, OIIO::TypeFloat, strip.data())
@@ -361,8 +376,12 @@ void readPasses(OIIO::ImageInput& in, const std::string& path, const std::vector
                 (parts.size() > 1 ? " (" + partLabel(parts, part) + ")" : std::string()) + ", rows " +
                 std::to_string(spec.y + y0) + "-" + std::to_string(spec.y + y1 - 1) +
                 " (truncated or corrupt file?): " + oiioErrors(&in));
-      for (PassRead* r : mine) r->convertRows(*r, strip.data(), y0, y1, chBegin, channels);
+      if (converting.valid()) converting.get();
+      converting = OIIO::default_thread_pool()->push([&mine, &strip, y0, y1, chBegin, channels](int) {
+        for (PassRead* r : mine) r->convertRows(*r, strip.data(), y0, y1, chBegin, channels);
+      });
     }
+    converting.get();
   }
 }
 
