@@ -480,6 +480,9 @@ void checkUncompressedChunks(const std::string& path, const std::vector<Part>& p
         tileHeight > 0) {
       const long long tilesX = ((long long)dw.max.x - dw.min.x + tileWidth) / tileWidth;
       const long long tilesY = ((long long)dw.max.y - dw.min.y + tileHeight) / tileHeight;
+      // Each chunk has an 8-byte entry in the file's offset table: more tiles than that can hold is
+      // a corrupt header, said now rather than after millions of reads.
+      if (tilesX * tilesY > (long long)(fileSize / 8)) check(EXR_ERR_INVALID_ATTR, chunk, "tile table");
       for (long long ty = 0; ty < tilesY; ++ty)
         for (long long tx = 0; tx < tilesX; ++tx)
           check(exr_read_tile_chunk_info(context.exr, p, int(tx), int(ty), 0, 0, &chunk), chunk,
