@@ -427,6 +427,9 @@ class Filter(_Owner):
             raise _refused(detail, "crispSetFilterImage")
         call("crispSetFilterImage", self.handle, _b(name), ptr, fmt, width, height, 0, 0)
 
+    def unset_image(self, name):
+        call("crispUnsetFilterImage", self.handle, _b(name))
+
     def commit(self):
         call("crispCommitFilter", self.handle)
 
@@ -691,38 +694,45 @@ class FrameFilter:
         Returns seconds spent {"load_s", "filter_s" (commit + execute), "write_s"}."""
         t0 = time.perf_counter()
         with Frame(self.context, input_path) as frame:
-            w, h = frame.width, frame.height
-            if self._shape != (w, h):
-                self._out = (ctypes.c_float * (w * h * 4))()
-                self._shape = (w, h)
-            if self.subsamples:
-                frame.attach_subsamples(self.context, self.filter)
-                self.passes += [p for p in SUBSAMPLE_PASSES if p not in self.passes]
-            present = set(frame.passes())
-            sidecar = os.path.splitext(input_path)[0] + ".json"
-            side = None  # the sidecar, read once, for the filters that keep history
-            if self._takes_jitter and os.path.exists(sidecar):
-                with open(sidecar) as fh:
-                    side = json.load(fh)
-            if self._takes_jitter:
-                self._continue_or_restart(side)
-            for role in self.passes:
-                if role not in self._roles:
-                    continue
-                if role == "motion":
-                    self._bind_motion(frame, sidecar, present)
-                    continue
-                # A pass the frame lacks raises here, with the library's reason: absent (naming the
-                # passes found) or held unusable (an ID pass stored as half float).
-                ptr, fmt = frame.pass_pointer(role)
-                self.filter.set_image(role, ptr, fmt, w, h)
-            self.filter.set_image("output", ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)
-            if self._takes_jitter:
-                self._bind_jitter(side)
-            t1 = time.perf_counter()
-            self.filter.commit()
-            self.filter.execute()
-            t2 = time.perf_counter()
+            try:
+                w, h = frame.width, frame.height
+                if self._shape != (w, h):
+                    self._out = (ctypes.c_float * (w * h * 4))()
+                    self._shape = (w, h)
+                if self.subsamples:
+                    frame.attach_subsamples(self.context, self.filter)
+                    self.passes += [p for p in SUBSAMPLE_PASSES if p not in self.passes]
+                present = set(frame.passes())
+                sidecar = os.path.splitext(input_path)[0] + ".json"
+                side = None  # the sidecar, read once, for the filters that keep history
+                if self._takes_jitter and os.path.exists(sidecar):
+                    with open(sidecar) as fh:
+                        side = json.load(fh)
+                if self._takes_jitter:
+                    self._continue_or_restart(side)
+                for role in self.passes:
+                    if role not in self._roles:
+                        continue
+                    if role == "motion":
+                        self._bind_motion(frame, sidecar, present)
+                        continue
+                    # A pass the frame lacks raises here, with the library's reason: absent (naming the
+                    # passes found) or held unusable (an ID pass stored as half float).
+                    ptr, fmt = frame.pass_pointer(role)
+                    self.filter.set_image(role, ptr, fmt, w, h)
+                self.filter.set_image("output", ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)
+                if self._takes_jitter:
+                    self._bind_jitter(side)
+                t1 = time.perf_counter()
+                self.filter.commit()
+                self.filter.execute()
+                t2 = time.perf_counter()
+            finally:
+                # Between frames the filter holds no image: none points into the frame freed here
+                # (its passes, the sub-samples attach_subsamples bound) or into an output replaced
+                # at a new size. Whatever runs it next binds a frame first.
+                for role in self._roles:
+                    self.filter.unset_image(role)
         def write():
             for p in output_paths:
                 write_image(self.context, p, ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)

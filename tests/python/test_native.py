@@ -301,6 +301,35 @@ def test_a_sidecar_without_a_frame_number_says_nothing_of_the_next(native, tmp_p
         ff.close()
 
 
+@pytest.mark.parametrize("method", ["taa", "fxaa"])
+def test_a_frame_filter_holds_no_image_of_a_frame_it_freed(native, tmp_path, method):
+    """FrameFilter.run frees each frame when it is done with it. The filter kept the frame's passes bound
+    after that, so a commit and execute between frames (a caller's, or a run that failed before binding
+    them all) read freed memory. Now every image is unbound when a run ends, however it ends: the next
+    commit names the missing colour, and the next frame filters as if nothing had happened."""
+    rgba = (ctypes.c_float * (4 * 3 * 4))(*([0.5] * 48))
+    exr = tmp_path / "frame_0001.exr"
+    with native.Context() as ctx:
+        native.write_image(ctx, str(exr), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 4, 3)
+    ff = native.FrameFilter(method, None, 1, ("color",))
+    try:
+        ff.run(str(exr), [str(tmp_path / "out.exr")])
+        with pytest.raises(native.CrispError, match="required image 'color' .* is not set"):
+            ff.filter.commit()
+        if method == "taa":  # a frame without the depth pass the plan lists: refused, and nothing stays bound
+            ff.passes = ["color", "depth"]
+            with pytest.raises(native.CrispError, match="depth"):
+                ff.run(str(exr), [str(tmp_path / "out2.exr")])
+            with pytest.raises(native.CrispError, match="required image 'color' .* is not set"):
+                ff.filter.commit()
+            ff.passes = ["color"]
+        ff.run(str(exr), [str(tmp_path / "out3.exr")])
+        pixels, size = ff.output_bottom_up()
+        assert size == (4, 3) and float(pixels[0]) == pytest.approx(0.5, rel=1e-6)
+    finally:
+        ff.close()
+
+
 def test_a_relative_crisp_library_path_loads_that_file(native, monkeypatch, tmp_path):
     """$CRISP_LIBRARY=libcrisp.so (a file in the working folder) was checked as that file but handed to
     dlopen as a bare name, which searches the system's library folders instead: the load failed with "no
