@@ -4,7 +4,8 @@
 # missing, builds, then runs
 #   1. the unit and API tests under AddressSanitizer + UBSan,
 #   2. the fast paths' equality tests in a Debug (-O0) build,
-#   3. the libFuzzer targets for a short fixed time, fuzz_c_api's and
+#   3. the libFuzzer targets (EXR reader, C API, filters, sidecars) for a
+#      short fixed time, fuzz_c_api's and
 #      fuzz_filters' from seeds that reach each filter's output in place,
 #   4. every CTest test of the release build (unit, API, Python/ctypes,
 #      headless Blender, benchmark smoke run).
@@ -45,10 +46,10 @@ done
 build-debug/bin/crisp_unit --gtest_brief=1 --gtest_filter="$fast"
 
 echo "== fuzzing (${CRISP_FUZZ_SECONDS:-30} s per target)"
-scripts/build.sh fuzz --target fuzz_frame_reader fuzz_c_api fuzz_filters crisp_cli
+scripts/build.sh fuzz --target fuzz_frame_reader fuzz_c_api fuzz_filters fuzz_sidecar crisp_cli
 corpus=$(mktemp -d)
 trap 'rm -rf "$corpus"' EXIT
-mkdir -p "$corpus/frames" "$corpus/api" "$corpus/filters"
+mkdir -p "$corpus/frames" "$corpus/api" "$corpus/filters" "$corpus/sidecars"
 build-fuzz/bin/crisp synth -o "$corpus/gen" --size 8x6 >/dev/null
 # Seed files: a real EXR and PNG, prefixed with the byte that picks the extension.
 { printf '\x00'; cat "$corpus/gen/chart_1spp.exr"; } >"$corpus/frames/exr"
@@ -56,6 +57,9 @@ build-fuzz/bin/crisp synth -o "$corpus/gen" --size 8x6 >/dev/null
 # Inputs that crashed a reader once (tests/fuzz/regressions: the target's own input format), run first
 # as seeds, so that one crashing again fails here at once rather than by chance.
 cp tests/fuzz/regressions/frame_reader_* "$corpus/frames/"
+# Sidecar texts of real renders (NUL between this frame's, the previous one's and the next one's;
+# resolutions cut to 16x9 and 12x7 so that motion is rebuilt over the whole image on every run).
+cp tests/fuzz/seeds/sidecar_* "$corpus/sidecars/"
 # Seeds that reach each filter's output in place at once (a valid colour, the output on its buffer,
 # executes), written by the targets' own code (fuzz_common.h, writeSeedsIfAsked): from an empty corpus
 # fuzz_c_api took 58-75 s to trap a filter made unsafe in place; from these it traps fxaa without its
@@ -72,7 +76,7 @@ for target in fuzz_c_api:api fuzz_filters:filters; do
   fi
   echo "${target%%:*}: $(ls "$corpus/${target##*:}" | wc -l) seeds"
 done
-for target in fuzz_frame_reader:frames fuzz_c_api:api fuzz_filters:filters; do
+for target in fuzz_frame_reader:frames fuzz_c_api:api fuzz_filters:filters fuzz_sidecar:sidecars; do
   bin=${target%%:*}
   dir=$corpus/${target##*:}
   log=$corpus/$bin.log
@@ -80,6 +84,7 @@ for target in fuzz_frame_reader:frames fuzz_c_api:api fuzz_filters:filters; do
   # slowly growing default length its 30 s reached 3 257 coverage points, at full length 5 072.
   extra=()
   if [ "$bin" = fuzz_filters ]; then extra=(-max_len=1024 -len_control=0); fi
+  if [ "$bin" = fuzz_sidecar ]; then extra=(-max_len=8192); fi  # three sidecars of 1-1.5 KB
   # Full unwinding so leak stacks reach past libstdc++ (the suppressions match on them).
   if ! ASAN_OPTIONS=detect_leaks=1:fast_unwind_on_malloc=0 "build-fuzz/bin/$bin" \
       -max_total_time="${CRISP_FUZZ_SECONDS:-30}" -timeout=10 -rss_limit_mb=4096 -print_final_stats=1 \

@@ -3,6 +3,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -41,8 +42,14 @@ struct Reader {
 
   int integer(const Json& v, const std::string& key) const {
     if (!v.is_number_integer()) bad(key, "is not an integer");
-    return v.get<int>();
+    // get<int> would wrap a larger one (2^32 + 1 read as 1).
+    const bool fits = v.is_number_unsigned() ? v.get<std::uint64_t>() <= std::uint64_t(kMaxInteger)
+                                             : v.get<std::int64_t>() >= -kMaxInteger && v.get<std::int64_t>() <= kMaxInteger;
+    if (!fits) bad(key, "is out of range (" + v.dump() + ")");
+    return int(v.get<std::int64_t>());
   }
+  // Frame numbers and sizes: far inside int, so that frame + 1 cannot overflow.
+  static constexpr std::int64_t kMaxInteger = 1 << 30;
 
   Mat4 matrix(const Json& v, const std::string& key) const {
     if (!v.is_array() || v.size() != 4) bad(key, "is not a 4x4 matrix (a list of 4 rows)");
@@ -79,7 +86,7 @@ Sidecar parseSidecar(const std::string& text, const std::string& path) {
   Json root;
   try {
     root = Json::parse(text);
-  } catch (const Json::parse_error& e) {
+  } catch (const Json::exception& e) {  // parse_error, and out_of_range for a number beyond double (1e999)
     rd.bad("", std::string("is not valid JSON (") + e.what() + ")");
   }
   if (!root.is_object()) rd.bad("", "is not a JSON object");

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -165,6 +166,39 @@ TEST(Sidecar, BrokenJsonAndMissingFiles) {
     EXPECT_EQ(e.code(), CRISP_ERROR_IO);
     EXPECT_NE(std::string(e.what()).find("/nonexistent/frame_0007.json"), std::string::npos);
   }
+}
+
+// Numbers JSON can hold but the reader's types cannot (found by fuzz_sidecar): a number beyond
+// double threw nlohmann's out_of_range past the reader (the CLI said "[json.exception...]"
+// without naming the file), and an integer beyond int wrapped (a width of 2^32 + 96 read as 96).
+TEST(Sidecar, NumbersBeyondTheirTypesAreNamed) {
+  std::string huge = addonSidecar().dump();
+  huge.replace(huge.find("-6.5"), 4, "-6e999");
+  try {
+    parseSidecar(huge, "/x/frame_0002.json");
+    ADD_FAILURE() << "a number beyond double was read";
+  } catch (const Exception& e) {
+    EXPECT_EQ(e.code(), CRISP_ERROR_INVALID_DATA);
+    EXPECT_NE(std::string(e.what()).find("/x/frame_0002.json"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("not valid JSON"), std::string::npos) << e.what();
+  }
+  Json j = addonSidecar();
+  j["render_settings"]["resolution"][0] = (std::int64_t(1) << 32) + 96;
+  expectInvalid(j, "'render_settings.resolution[0]' is out of range (4294967392)");
+  j = addonSidecar();
+  j["frame"] = 2147483647;  // frame + 1, the next frame's number, would overflow
+  expectInvalid(j, "'frame' is out of range");
+  j = addonSidecar();
+  j["frame"] = std::uint64_t(1) << 63;
+  expectInvalid(j, "'frame' is out of range");
+  j = addonSidecar();
+  j["frame"] = -(std::int64_t(1) << 62);
+  expectInvalid(j, "'frame' is out of range");
+  j = addonSidecar();
+  j["frame"] = -20;  // Blender's frames may be negative
+  EXPECT_EQ(parseSidecar(j.dump(), "f.json").frame, -20);
+  j["frame"] = 1 << 30;
+  EXPECT_EQ(parseSidecar(j.dump(), "f.json").frame, 1 << 30);
 }
 
 TEST(Sidecar, ReadsAFileFromDisk) {
