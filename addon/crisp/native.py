@@ -600,6 +600,30 @@ def _alongside(background, foreground):
             raise errors[0]
 
 
+class _Sidecar(dict):
+    """A frame's sidecar as read, and its path for messages."""
+    path = ""
+
+
+def _bad_sidecar(side, what):
+    return CrispError("sidecar '%s': %s" % (side.path, what))
+
+
+def _read_sidecar(path):
+    """A frame's JSON sidecar, or a CrispError naming the file and what is wrong with it (in the library's
+    words: "sidecar 'P': ...") for one cut short, not JSON, or not a JSON object."""
+    try:
+        with open(path, "rb") as fh:
+            side = json.loads(fh.read().decode("utf-8"))
+    except (OSError, ValueError) as e:  # UnicodeDecodeError and json's JSONDecodeError are ValueErrors
+        raise CrispError("sidecar '%s': cannot be read (%s)" % (path, e)) from None
+    if not isinstance(side, dict):
+        raise CrispError("sidecar '%s': is not a JSON object" % path)
+    side = _Sidecar(side)
+    side.path = path
+    return side
+
+
 class FrameFilter:
     """Filters a sequence of frames with one filter object (so temporal history carries over)."""
 
@@ -649,7 +673,12 @@ class FrameFilter:
         if side is None:  # its position unknown: the next frame is not compared with an older one (as the CLI)
             self._last_shot = None
             return
-        shot = (side.get("frame"), (side.get("camera") or {}).get("name"))
+        frame, camera = side.get("frame"), side.get("camera")
+        name = camera.get("name") if isinstance(camera, dict) else None
+        # What is not a frame number or a camera name says nothing, as the key left out (the library's
+        # reader names it where it needs it: motion rebuilt from the sidecar).
+        shot = (frame if isinstance(frame, int) and not isinstance(frame, bool) else None,
+                name if isinstance(name, str) else None)
         last, self._last_shot = self._last_shot, shot
         if last is None or shot[0] is None:
             return
@@ -683,8 +712,13 @@ class FrameFilter:
             self.filter.set_param("jitterY", self._base_jitter[1])
             return
         jitter = side.get("jitter") or {}
-        self.filter.set_param("jitterX", float(jitter.get("x", 0.0)))
-        self.filter.set_param("jitterY", -float(jitter.get("y", 0.0)))
+        if not isinstance(jitter, dict):
+            raise _bad_sidecar(side, "key 'jitter' is not a JSON object")
+        for key, name, sign in (("x", "jitterX", 1.0), ("y", "jitterY", -1.0)):
+            value = jitter.get(key, 0.0)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise _bad_sidecar(side, "key 'jitter.%s' is not a finite number (%r)" % (key, value))
+            self.filter.set_param(name, sign * float(value))
 
     def run(self, input_path, output_paths, while_writing=None):
         """Loads one frame, filters it, writes it to each path (.exr and/or .png). while_writing(), if
@@ -706,8 +740,7 @@ class FrameFilter:
                 sidecar = os.path.splitext(input_path)[0] + ".json"
                 side = None  # the sidecar, read once, for the filters that keep history
                 if self._takes_jitter and os.path.exists(sidecar):
-                    with open(sidecar) as fh:
-                        side = json.load(fh)
+                    side = _read_sidecar(sidecar)
                 if self._takes_jitter:
                     self._continue_or_restart(side)
                 for role in self.passes:

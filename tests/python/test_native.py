@@ -330,6 +330,57 @@ def test_a_frame_filter_holds_no_image_of_a_frame_it_freed(native, tmp_path, met
         ff.close()
 
 
+@pytest.mark.parametrize("text, says", [
+    ('{"frame": 1, "jitter": {"x": 0.1', "cannot be read"),                     # cut short
+    ('[1, 2]', "is not a JSON object"),
+    (b'{"frame": 1, "jitter": {"x": 0.1, "y": 0}, "camera": {"name": "\xff"}}', "cannot be read"),  # not UTF-8
+    ('{"frame": 1, "jitter": [0.1, 0]}', "key 'jitter' is not a JSON object"),
+    ('{"frame": 1, "jitter": {"x": "0.1", "y": 0}}', "key 'jitter.x' is not a finite number ('0.1')"),
+    ('{"frame": 1, "jitter": {"x": 0.1, "y": 1e999}}', "key 'jitter.y' is not a finite number (inf)"),
+    ('{"frame": 1, "jitter": {"x": true, "y": 0}}', "key 'jitter.x' is not a finite number (True)"),
+])
+def test_a_broken_sidecar_is_named_with_what_is_wrong(native, tmp_path, text, says):
+    """A temporal filter reads each frame's jitter from its sidecar. A broken one raised Python's own
+    error (JSONDecodeError, "could not convert string to float", AttributeError of a list), naming
+    neither the file nor the key; now a CrispError names both, as the library's reader does."""
+    rgba = (ctypes.c_float * (4 * 3 * 4))(*([0.5] * 48))
+    exr = tmp_path / "frame_0001.exr"
+    with native.Context() as ctx:
+        native.write_image(ctx, str(exr), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 4, 3)
+    sidecar = tmp_path / "frame_0001.json"
+    sidecar.write_bytes(text if isinstance(text, bytes) else text.encode())
+    ff = native.FrameFilter("taa", None, 1)
+    try:
+        with pytest.raises(native.CrispError) as e:
+            ff.run(str(exr), [str(tmp_path / "out.exr")])
+        assert str(e.value).startswith("sidecar '%s': " % sidecar), str(e.value)
+        assert says in str(e.value), str(e.value)
+        assert not (tmp_path / "out.exr").exists()
+    finally:
+        ff.close()
+
+
+def test_a_sidecar_frame_or_camera_of_another_type_says_nothing(native, tmp_path):
+    """A frame number or camera name of another type (a string, a list) is not compared: the history
+    carries over, as where the key is left out, rather than a TypeError stopping the sequence."""
+    import json
+    rgba = (ctypes.c_float * (4 * 3 * 4))(*([0.5] * 48))
+    sidecars = [{"frame": "1", "camera": ["Cam"], "jitter": {"x": 0.1, "y": 0}},
+                {"frame": 2, "camera": {"name": 7}, "jitter": {"x": -0.1, "y": 0}},
+                {"frame": True, "camera": {"name": "Cam"}, "jitter": {"x": 0, "y": 0}}]
+    ff = native.FrameFilter("taa", None, 1)
+    try:
+        for i, side in enumerate(sidecars, 1):
+            exr = tmp_path / ("frame_%04d.exr" % i)
+            with native.Context() as ctx:
+                native.write_image(ctx, str(exr), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 4, 3)
+            (tmp_path / ("frame_%04d.json" % i)).write_text(json.dumps(side))
+            ff.run(str(exr), [str(tmp_path / ("out_%04d.exr" % i))])
+            assert ff.restart_reason is None, i
+    finally:
+        ff.close()
+
+
 def test_a_relative_crisp_library_path_loads_that_file(native, monkeypatch, tmp_path):
     """$CRISP_LIBRARY=libcrisp.so (a file in the working folder) was checked as that file but handed to
     dlopen as a bare name, which searches the system's library folders instead: the load failed with "no
