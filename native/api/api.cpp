@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // The C boundary: every extern "C" function of crisp.h lives here. Nothing
 // thrown inside the library crosses it; errors go to the per-thread state.
+#include <cctype>
 #include <cstring>
 #include <exception>
 #include <map>
@@ -390,21 +391,49 @@ void crispAttachFrameSubsamples(CrispContext context, CrispFrame frame, CrispFil
   });
 }
 
+namespace {
+
+void writeViewChecked(CrispContext context, const char* path, const void* ptr, CrispFormat format, size_t width,
+                      size_t height, size_t pixelByteStride, size_t rowByteStride, const crisp::ExrStorage& storage) {
+  need(context, "context");
+  std::string p = nameOf(path, "file");
+  if (!ptr) crisp::invalidArgument("image to write to '" + p + "' is NULL");
+  if (format != CRISP_FORMAT_FLOAT3 && format != CRISP_FORMAT_FLOAT4)
+    crisp::invalidArgument("image to write to '" + p + "' must be float3 or float4");
+  if (width == 0 || height == 0 || width > (1u << 16) || height > (1u << 16))
+    crisp::invalidArgument("image to write to '" + p + "' has size " + std::to_string(width) + "x" +
+                           std::to_string(height));
+  const crisp::ImageView view = crisp::makeView(const_cast<void*>(ptr), crisp::Format(format), int(width),
+                                                int(height), pixelByteStride, rowByteStride);
+  crisp::checkViewLayout("image to write to '" + p + "'", view);  // as crispSetFilterImage checks its views
+  crisp::writeImage(p, view, storage);
+}
+
+}  // namespace
+
 void crispWriteImage(CrispContext context, const char* path, const void* ptr, CrispFormat format, size_t width,
                      size_t height, size_t pixelByteStride, size_t rowByteStride) {
   guardedVoid([&] {
-    need(context, "context");
-    std::string p = nameOf(path, "file");
-    if (!ptr) crisp::invalidArgument("image to write to '" + p + "' is NULL");
-    if (format != CRISP_FORMAT_FLOAT3 && format != CRISP_FORMAT_FLOAT4)
-      crisp::invalidArgument("image to write to '" + p + "' must be float3 or float4");
-    if (width == 0 || height == 0 || width > (1u << 16) || height > (1u << 16))
-      crisp::invalidArgument("image to write to '" + p + "' has size " + std::to_string(width) + "x" +
-                             std::to_string(height));
-    const crisp::ImageView view = crisp::makeView(const_cast<void*>(ptr), crisp::Format(format), int(width),
-                                                  int(height), pixelByteStride, rowByteStride);
-    crisp::checkViewLayout("image to write to '" + p + "'", view);  // as crispSetFilterImage checks its views
-    crisp::writeImage(p, view);
+    writeViewChecked(context, path, ptr, format, width, height, pixelByteStride, rowByteStride, {});
+  });
+}
+
+void crispWriteImageEXR(CrispContext context, const char* path, const void* ptr, CrispFormat format, size_t width,
+                        size_t height, size_t pixelByteStride, size_t rowByteStride, int bitDepth,
+                        const char* compression) {
+  guardedVoid([&] {
+    const std::string p = nameOf(path, "file");
+    const std::size_t dot = p.find_last_of('.');
+    std::string ext = dot == std::string::npos ? "" : p.substr(dot);
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext != ".exr") crisp::invalidArgument("crispWriteImageEXR writes .exr files, not '" + p + "'");
+    if (bitDepth != 16 && bitDepth != 32)
+      crisp::invalidArgument("EXR bit depth " + std::to_string(bitDepth) + " for '" + p + "' (16 or 32)");
+    crisp::ExrStorage storage;
+    storage.half = bitDepth == 16;
+    if (compression) storage.compression = compression;
+    crisp::checkExrStorage(storage);
+    writeViewChecked(context, path, ptr, format, width, height, pixelByteStride, rowByteStride, storage);
   });
 }
 

@@ -87,16 +87,33 @@ Frame readGeometryFrame(const std::string& path);
 // Throws as readFrame, naming the file.
 Image readMask(const std::string& path);
 
-// Writes RGB(A) float to .exr (float RGBA, alpha 1 if absent) or .png (8-bit
-// sRGB-encoded RGBA) by extension, through a temporary file in the same folder
-// renamed into place: an existing file is replaced whole or not at all.
-void writeImage(const std::string& path, const ImageView& image);
+// How an EXR's channels are stored, as Blender's Output properties say it
+// (Color Depth, Codec). The default is Crisp's own: 32-bit float, ZIP.
+struct ExrStorage {
+  // 16-bit float channels. Finite values beyond half's range (+-65504) are
+  // written as +-65504 rather than as infinities.
+  bool half = false;
+  std::string compression = "zip";  // one of exrCompressions()
+};
+// The codecs of Blender's OpenEXR output, by OpenEXR's names: none, zip, zips,
+// piz, pxr24, rle, b44, b44a, dwaa, dwab.
+const std::vector<std::string>& exrCompressions();
+// Throws CRISP_ERROR_INVALID_ARGUMENT for a compression not in
+// exrCompressions(), listing them.
+void checkExrStorage(const ExrStorage& storage);
+
+// Writes RGB(A) float to .exr (RGBA stored as `storage` says, alpha 1 if
+// absent) or .png (8-bit sRGB-encoded RGBA; storage unused) by extension,
+// through a temporary file in the same folder renamed into place: an existing
+// file is replaced whole or not at all.
+void writeImage(const std::string& path, const ImageView& image, const ExrStorage& storage = {});
 void writeImage(const std::string& path, const Image& image);
 // The same for an image that is a frame's display window (a filter's output),
 // placed where `windows` says: an EXR gets the display window's origin and the
 // colour's data window clipped to the display window (the pixels outside it,
 // which the reader filled, are left out; the whole display window if the two
 // do not overlap). A PNG, which has no windows, holds the whole image.
-void writeImage(const std::string& path, const ImageView& image, const FrameWindows& windows);
+void writeImage(const std::string& path, const ImageView& image, const FrameWindows& windows,
+                const ExrStorage& storage = {});
 
 }  // namespace crisp

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
-// writeImage: RGBA float EXR or 8-bit sRGB PNG, written through a temporary
-// file renamed into place (io/temporary_file.h), so `path` holds either its old
-// content or the whole new image.
+// writeImage: RGBA EXR (float or half, in any of Blender's codecs) or 8-bit
+// sRGB PNG, written through a temporary file renamed into place
+// (io/temporary_file.h), so `path` holds either its old content or the whole
+// new image.
 
 #include <algorithm>
 #include <cmath>
@@ -36,19 +37,38 @@ std::function<void(const std::string&)>& faultHook() {
   return hook;
 }
 
+// The largest finite half, 65504.
+constexpr float kHalfMax = 65504.0f;
+
 }  // namespace
+
+const std::vector<std::string>& exrCompressions() {
+  static const std::vector<std::string> names = {"none", "zip", "zips", "piz", "pxr24",
+                                                 "rle",  "b44", "b44a", "dwaa", "dwab"};
+  return names;
+}
+
+void checkExrStorage(const ExrStorage& storage) {
+  const auto& names = exrCompressions();
+  if (std::find(names.begin(), names.end(), storage.compression) != names.end()) return;
+  std::string known;
+  for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
+  invalidArgument("unknown EXR compression '" + storage.compression + "' (known: " + known + ")");
+}
 
 void setWriteImageFaultForTesting(std::function<void(const std::string&)> hook) { faultHook() = std::move(hook); }
 
-void writeImage(const std::string& path, const ImageView& image) {
+void writeImage(const std::string& path, const ImageView& image, const ExrStorage& storage) {
   FrameWindows whole;
   whole.dataWidth = image.width;
   whole.dataHeight = image.height;
-  writeImage(path, image, whole);
+  writeImage(path, image, whole, storage);
 }
 
-void writeImage(const std::string& path, const ImageView& image, const FrameWindows& windows) {
+void writeImage(const std::string& path, const ImageView& image, const FrameWindows& windows,
+                const ExrStorage& storage) {
   OiioErrorDrain drain;
+  checkExrStorage(storage);
   if (path.empty()) invalidArgument("cannot write an image: the file name is empty");
   if (!image.valid()) invalidArgument("image to write to '" + path + "' is NULL");
   const int channels = image.channels();
@@ -96,6 +116,11 @@ void writeImage(const std::string& path, const ImageView& image, const FrameWind
       } else {
         for (int k = 0; k < 3; ++k) rgbaFloat[o + std::size_t(k)] = s[k];
         rgbaFloat[o + 3] = a;
+        if (storage.half)  // a finite value stays finite (a half rounds 65520 and above to infinity)
+          for (int k = 0; k < 4; ++k) {
+            float& v = rgbaFloat[o + std::size_t(k)];
+            if (std::isfinite(v)) v = std::clamp(v, -kHalfMax, kHalfMax);
+          }
       }
     }
   }
@@ -103,7 +128,8 @@ void writeImage(const std::string& path, const ImageView& image, const FrameWind
   TemporaryFile tmp(path);
   std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(tmp.path());
   if (!out) ioError("cannot write '" + path + "': " + oiioErrors(static_cast<OIIO::ImageOutput*>(nullptr)));
-  OIIO::ImageSpec spec(image.width, image.height, 4, png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
+  OIIO::ImageSpec spec(image.width, image.height, 4,
+                       png ? OIIO::TypeDesc::UINT8 : storage.half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
   if (!png) {  // a PNG holds the display window, at origin 0
     spec.set_roi_full(display);
     spec.set_roi(data);
@@ -114,7 +140,7 @@ void writeImage(const std::string& path, const ImageView& image, const FrameWind
     spec.attribute("oiio:ColorSpace", "sRGB");
   } else {
     spec.attribute("oiio:ColorSpace", "Linear");
-    spec.attribute("compression", "zip");
+    spec.attribute("compression", storage.compression);
   }
   // The values above are the file's: OIIO would otherwise un-premultiply
   // colour for PNG again. The reader premultiplies a straight alpha's colour.

@@ -437,6 +437,66 @@ TEST(CApi, StridesThatWrapAreRefused) {
   EXPECT_EQ(crispGetError(nullptr), CRISP_ERROR_NONE);
 }
 
+// crispWriteImageEXR stores an .exr at Blender's Color Depth and Codec: a half-float DWAA file reads
+// back close to what was written (its firefly at half's largest value, not infinity), and is smaller
+// than crispWriteImage's float ZIP; a depth, codec or file type it cannot write is refused, naming
+// it, and leaves the file there as it was.
+TEST(CApi, WriteImageEXRStoresAtTheDepthAndCodecAsked) {
+  auto ctx = crisp::ContextRef::create();
+  const std::string stem = ::testing::TempDir() + "crisp_exr_" + std::to_string(::getpid());
+  const int w = 48, h = 40;
+  std::vector<float> rgba(std::size_t(w) * h * 4);
+  std::uint32_t seed = 12345u;  // a render's noise: every mantissa bit busy, as in a filtered frame
+  for (std::size_t i = 0; i < rgba.size(); ++i) {
+    seed = seed * 1664525u + 1013904223u;
+    rgba[i] = i % 4 == 3 ? 1.0f : 0.25f + 0.5f * float((i / 4) % w) / float(w) + float(seed >> 8) * 0x1p-30f;
+  }
+  rgba[4 * 50] = 3e5f;  // beyond half's range
+  auto sizeOf = [](const std::string& p) {
+    std::ifstream f(p, std::ios::binary | std::ios::ate);
+    return std::size_t(f.tellg());
+  };
+  crispWriteImage(ctx.handle(), (stem + "_float.exr").c_str(), rgba.data(), CRISP_FORMAT_FLOAT4, w, h, 0, 0);
+  ASSERT_EQ(lastError(), "");
+  ctx.writeImageEXR((stem + "_half.exr").c_str(), rgba.data(), CRISP_FORMAT_FLOAT4, w, h, 16, "dwaa");
+  EXPECT_LT(sizeOf(stem + "_half.exr"), sizeOf(stem + "_float.exr") / 2);
+  CrispFrame frame = crispLoadFrame(ctx.handle(), (stem + "_half.exr").c_str());
+  ASSERT_NE(frame, nullptr) << lastError();
+  CrispFormat format;
+  const float* color = static_cast<const float*>(crispGetFramePass(frame, "color", &format));
+  ASSERT_NE(color, nullptr);
+  EXPECT_EQ(crispGetFrameNonFiniteColour(frame), 0);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < rgba.size(); ++i)
+    if (i / 4 % w >= 8 || i / 4 / w >= 8) worst = std::max(worst, double(std::fabs(color[i] - rgba[i])));
+  EXPECT_LT(worst, 0.03);  // dwaa is lossy: about 2.5 % at most on this noise
+  EXPECT_GT(color[4 * 50], 60000.0f);
+  crispReleaseFrame(frame);
+  ctx.writeImageEXR((stem + "_zip32.exr").c_str(), rgba.data(), CRISP_FORMAT_FLOAT4, w, h, 32, nullptr);
+  EXPECT_EQ(sizeOf(stem + "_zip32.exr"), sizeOf(stem + "_float.exr"));  // NULL: crispWriteImage's zip
+  struct Case {
+    std::string path;
+    int depth;
+    const char* codec;
+    const char* words;
+  };
+  const Case cases[] = {{stem + "_float.exr", 8, "zip", "EXR bit depth 8"},
+                        {stem + "_float.exr", 16, "lzw", "unknown EXR compression 'lzw' (known: none, zip,"},
+                        {stem + "_float.exr", 16, "ZIP", "unknown EXR compression 'ZIP'"},
+                        {stem + ".png", 16, "zip", "writes .exr files, not"}};
+  const std::size_t before = sizeOf(stem + "_float.exr");
+  for (const Case& c : cases) {
+    CrispError code;
+    crispWriteImageEXR(ctx.handle(), c.path.c_str(), rgba.data(), CRISP_FORMAT_FLOAT4, w, h, 0, 0, c.depth, c.codec);
+    const std::string error = lastError(&code);
+    EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT) << error;
+    EXPECT_NE(error.find(c.words), std::string::npos) << error;
+  }
+  EXPECT_EQ(sizeOf(stem + "_float.exr"), before);
+  EXPECT_NE(::access((stem + ".png").c_str(), F_OK), 0);
+  for (const char* suffix : {"_float.exr", "_half.exr", "_zip32.exr"}) std::remove((stem + suffix).c_str());
+}
+
 // crispWriteImage checks its view as crispSetFilterImage does: a stride that wraps, one smaller
 // than a pixel or row, or a pointer or stride off the 4-byte grid is refused (it used to read
 // outside the buffer: SIGSEGV for a stride of (size_t)-16), and nothing is written.

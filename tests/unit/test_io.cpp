@@ -21,6 +21,7 @@
 #include <thread>
 #include <vector>
 
+#include <OpenImageIO/half.h>
 #include <OpenImageIO/imageio.h>
 
 #include "core/color.h"
@@ -679,6 +680,88 @@ TEST_F(IoTest, WrittenDataWindowIsClippedToTheDisplayWindow) {
   f = readFrame(file("away.exr"));
   writeImage(file("away_out.exr"), f.pass("color").view(), f.windows);
   EXPECT_EQ(windowsOf(file("away_out.exr")), (std::vector<int>{0, 0, 7, 5, 0, 0, 7, 5}));
+}
+
+// Every codec of Blender's OpenEXR output, at 32 and 16 bits (Color Depth), stored as asked and read
+// back: the lossless ones exactly (at 16 bits, as half rounds), the lossy ones close; half's
+// overflow is written as +-65504, not infinity; windows are kept; an unknown codec is refused.
+TEST_F(IoTest, ExrStoredAsBlendersOutputSettingsSay) {
+  const int w = 37, h = 21;  // odd sizes: partial blocks for b44 and dwa (4x4, 32 rows)
+  Image img(w, h, 4);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 4; ++c) img.at(x, y)[c] = c == 3 ? 1.0f : 0.05f + 0.9f * float((x * 7 + y * 3 + c * 5) % 31) / 30.0f;
+  img.at(3, 4)[0] = 1e6f;     // an HDR firefly beyond half's range
+  img.at(5, 6)[1] = -70000.0f;
+  const std::vector<std::string> lossless = {"none", "zip", "zips", "piz", "rle"};
+  for (const std::string& codec : exrCompressions()) {
+    for (bool half : {false, true}) {
+      SCOPED_TRACE(codec + (half ? " half" : " float"));
+      const std::string path = file("out_" + codec + (half ? "_16" : "_32") + ".exr");
+      ExrStorage storage;
+      storage.half = half;
+      storage.compression = codec;
+      FrameWindows windows;
+      windows.displayX = 4;
+      windows.displayY = 2;
+      windows.dataX = 4;
+      windows.dataY = 2;
+      windows.dataWidth = w;
+      windows.dataHeight = h;
+      writeImage(path, img.view(), windows, storage);
+      // The file's own values, through OIIO (readFrame would clamp to kMaxColor, which is 65504 too).
+      auto in = OIIO::ImageInput::open(path);
+      ASSERT_TRUE(in);
+      EXPECT_EQ(in->spec().format, half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
+      EXPECT_EQ(in->spec().get_string_attribute("compression"), codec);
+      Image back(w, h, 4);
+      ASSERT_TRUE(in->read_image(0, 0, 0, 4, OIIO::TypeDesc::FLOAT, back.data.data())) << in->geterror();
+      in.reset();
+      EXPECT_EQ(windowsOf(path), (std::vector<int>{4, 2, w, h, 4, 2, w, h}));
+      // Lossy: pxr24 keeps 24 of a float's 32 bits (and is lossless on half); b44 stores float
+      // channels as they are; dwa quantises colour (alpha too, at its default level 45).
+      const bool exact = std::find(lossless.begin(), lossless.end(), codec) != lossless.end() ||
+                         (half && codec == "pxr24") || (!half && (codec == "b44" || codec == "b44a"));
+      double worst = 0.0;
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          for (int c = 0; c < 4; ++c) {
+            float want = img.at(x, y)[c];
+            if (half) want = float(Imath::half(std::clamp(want, -65504.0f, 65504.0f)));
+            const float got = back.at(x, y)[c];
+            // b44 codes a 4x4 block of half by steps from its largest value: +-65504 beside
+            // values near 1 comes back infinite (the codec's range, Blender's files alike).
+            const bool b44Extreme = half && codec.rfind("b44", 0) == 0 && std::fabs(want) > 1.0f;
+            if (!b44Extreme) ASSERT_TRUE(std::isfinite(got)) << x << "," << y << "," << c;
+            if (exact) ASSERT_EQ(got, want) << x << "," << y << "," << c;
+            // Away from the fireflies' block (dwa's 8x8, b44's 4x4 lie in it), where lossy
+            // codecs spend their range on them.
+            if (exact || x >= 8 || y >= 8) worst = std::max(worst, double(std::fabs(got - want)));
+          }
+      // A lossy codec still holds the picture: dwa within 2 %, b44 (a 4x4 block's steps from its
+      // largest value, on this pattern's steps of 0.2 between pixels) within 6 %.
+      if (!exact) EXPECT_LT(worst, codec.rfind("b44", 0) == 0 ? 0.06 : 0.02);
+      if (exact) {
+        EXPECT_EQ(back.at(3, 4)[0], half ? 65504.0f : 1e6f);
+        EXPECT_EQ(back.at(5, 6)[1], half ? -65504.0f : -70000.0f);
+      }
+    }
+  }
+  ExrStorage unknown;
+  unknown.compression = "lzw";
+  writeImage(file("keep.exr"), img.view());
+  const auto before = std::filesystem::file_size(file("keep.exr"));
+  try {
+    writeImage(file("keep.exr"), img.view(), unknown);
+    ADD_FAILURE() << "an unknown codec was taken";
+  } catch (const Exception& e) {
+    EXPECT_EQ(e.code(), CRISP_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(std::string(e.what()).find("unknown EXR compression 'lzw' (known: none, zip, zips, piz, pxr24, rle, "
+                                         "b44, b44a, dwaa, dwab)"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(std::filesystem::file_size(file("keep.exr")), before);
 }
 
 // ------------------------------------------------------- multi-part EXRs ----

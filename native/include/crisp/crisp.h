@@ -228,6 +228,15 @@ CRISP_API void crispWriteImage(CrispContext context, const char* path, const voi
                                CrispFormat format, size_t width, size_t height,
                                size_t pixelByteStride, size_t rowByteStride);
 
+// The same for an .exr stored as Blender's OpenEXR output settings say:
+// bitDepth 32 (float) or 16 (half: finite values beyond +-65504 are written
+// as +-65504, not as infinities), compression one of none, zip, zips, piz,
+// pxr24, rle, b44, b44a, dwaa, dwab (NULL: zip). crispWriteImage writes 32, zip.
+CRISP_API void crispWriteImageEXR(CrispContext context, const char* path, const void* ptr,
+                                  CrispFormat format, size_t width, size_t height,
+                                  size_t pixelByteStride, size_t rowByteStride,
+                                  int bitDepth, const char* compression);
+
 // ---- metrics ---------------------------------------------------------------
 // Figures comparing a test image with a reference, on display-encoded values
 // (linear clamped to [0,1], sRGB-encoded). crispCompareImages writes the whole

@@ -165,6 +165,12 @@ class ContextRef : public Ref<CrispContext, crispRetainContext, crispReleaseCont
     crispWriteImage(h_, path, ptr, format, width, height, pixelByteStride, rowByteStride);
     checkError();
   }
+  // An .exr at bitDepth 16 or 32 in one of Blender's codecs (crispWriteImageEXR).
+  void writeImageEXR(const char* path, const float* ptr, CrispFormat format, size_t width, size_t height,
+                     int bitDepth, const char* compression, size_t pixelByteStride = 0, size_t rowByteStride = 0) {
+    crispWriteImageEXR(h_, path, ptr, format, width, height, pixelByteStride, rowByteStride, bitDepth, compression);
+    checkError();
+  }
 };
 
 }  // namespace crisp
