@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// crisp filter --method NAME [--set K=V]... INPUT... -o OUTDIR [--png]
+// crisp filter --method NAME [--set K=V]... INPUT... -o OUTDIR [--png] [--exr-depth 16|32] [--exr-codec NAME]
 //              [--frames A-B [--preroll N]] [--resume]
 // Inputs are filtered in the order given (temporal methods keep history
 // between them) and each result goes to OUTDIR/<input name>.exr. Methods that
@@ -11,6 +11,7 @@
 // rebuilt or not, output names) still look at every input, so every chunk of
 // one sequence makes the same ones.
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -165,21 +166,39 @@ struct StalePngs {
 // the PNG (a single zlib stream) is written on a thread of OIIO's pool while OpenEXR's threads write
 // the EXR (1920x1080 taa with --png, 8 frames: 515 -> 435 ms a frame). Both have ended when it returns or
 // throws, the EXR's error first.
-void writeOutputs(const std::string& base, const Image& output, const FrameWindows& windows, bool png,
-                  int numThreads) {
+void writeOutputs(const std::string& base, const Image& output, const FrameWindows& windows, const ExrStorage& exr,
+                  bool png, int numThreads) {
   if (!png || numThreads == 1 || OIIO::default_thread_pool()->size() < 1) {
-    writeImage(base + ".exr", output.view(), windows);
+    writeImage(base + ".exr", output.view(), windows, exr);
     if (png) writeImage(base + ".png", output);
     return;
   }
   std::future<void> pngWritten = OIIO::default_thread_pool()->push([&](int) { writeImage(base + ".png", output); });
   try {
-    writeImage(base + ".exr", output.view(), windows);
+    writeImage(base + ".exr", output.view(), windows, exr);
   } catch (...) {
     pngWritten.wait();  // it reads `output`
     throw;
   }
   pngWritten.get();  // the PNG's error, if any
+}
+
+// --exr-depth and --exr-codec, checked before anything is read or written.
+ExrStorage exrStorageOf(const ParsedArgs& args) {
+  ExrStorage exr;
+  const std::string depth = args.has("exr-depth") ? args.get("exr-depth") : "32";
+  if (depth != "16" && depth != "32") throw UsageError("--exr-depth expects 16 or 32, got '" + depth + "'");
+  exr.half = depth == "16";
+  if (args.has("exr-codec")) {  // Blender's names are upper case (ZIP, DWAA)
+    exr.compression = args.get("exr-codec");
+    for (char& c : exr.compression) c = char(std::tolower(static_cast<unsigned char>(c)));
+  }
+  try {
+    checkExrStorage(exr);
+  } catch (const Exception& e) {
+    throw UsageError(std::string("--exr-codec: ") + e.what());
+  }
+  return exr;
 }
 
 }  // namespace
@@ -189,6 +208,7 @@ int runFilter(const ParsedArgs& args) {
   const std::string outDir = args.get("output");
   const bool png = args.has("png");
   const bool quiet = args.has("quiet");
+  const ExrStorage exr = exrStorageOf(args);
 
   Context context;
   context.setInt("numThreads", parseIntOption(args, "threads", 0, 0, 1024));
@@ -240,6 +260,7 @@ int runFilter(const ParsedArgs& args) {
   nlohmann::json settings = {{"method", args.get("method")},
                              {"params", nlohmann::json::object()},
                              {"motion_from_sidecars", rebuildMotion},
+                             {"exr", {{"depth", exr.half ? 16 : 32}, {"codec", exr.compression}}},
                              {"build", buildStamp()}};
   for (const auto& [key, value] : settingsOf(args)) settings["params"][key] = value;
   const bool temporal = keepsHistory(*filter);
@@ -361,7 +382,7 @@ int runFilter(const ParsedArgs& args) {
     const std::string base = joinPath(outDir, fileStem(in));
     const std::string pngRecord = stamps.pngRecordOf(int(i) + 1);
     stamps.removeStamp(int(i) + 1);
-    writeOutputs(base, output, frame.windows, png, context.numThreads());
+    writeOutputs(base, output, frame.windows, exr, png, context.numThreads());
     stamps.makeFolder();  // for the PNG's record
     if (png) {
       writeTextFile(pngRecord, pngStampOf(base + ".png"));

@@ -34,6 +34,8 @@ const std::vector<OptionSpec>& options() {
       {"filter", "set", 's', "KEY=VALUE", false, false, "set a filter parameter (repeatable)"},
       {"filter", "output", 'o', "OUTDIR", false, true, "output folder (created if missing)"},
       {"filter", "png", 0, nullptr, false, false, "also write a display-encoded PNG beside each EXR"},
+      {"filter", "exr-depth", 0, "16|32", false, false, "bits per channel of the output EXRs, as Blender's Color Depth: 16 (half float) or 32 (default)"},
+      {"filter", "exr-codec", 0, "NAME", false, false, "compression of the output EXRs, as Blender's Codec: none, zip (default), zips, piz, pxr24, rle, b44, b44a, dwaa, dwab"},
       {"filter", "frames", 0, "A-B", false, false, "write only inputs A..B (1-based positions among the inputs); a farm chunk"},
       {"filter", "preroll", 0, "N", false, false, "with --frames: first filter the N inputs before A without writing them (a temporal method's history; a spatial one skips them)"},
       {"filter", "resume", 0, nullptr, false, false, "start at the first input whose output is missing or stale (pre-roll before it; a temporal method re-reads from the chunk's first pre-roll frame)"},

@@ -136,6 +136,9 @@ std::string OutputStamps::whyRemake(int position) const {
     return "has a stamp from an older crisp, which did not record all it was made from";
   if (had["build"] != settings_["build"])
     return "was made by another build of crisp (" + had["build"].get<std::string>() + ")";
+  if (had.value("exr", nlohmann::json()) != settings_.value("exr", nlohmann::json()))
+    return "was written as another EXR (" + had.value("exr", nlohmann::json()).dump() + ", now " +
+           settings_.value("exr", nlohmann::json()).dump() + ")";
   if (had.value("motion_from_sidecars", nlohmann::json()) != settings_["motion_from_sidecars"])
     return settings_["motion_from_sidecars"] == true
                ? "was made before the motion was rebuilt from the sidecars (every input has one now)"

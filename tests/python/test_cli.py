@@ -98,6 +98,9 @@ def test_help_prints_parameter_tables():
      ["--frames", "got '1-x'"]),
     (["render", "--scene", "still_life", "--shot", "9-1", "-o", "OUT", "--blender", "NOBLENDER"], 2,
      ["--shot expects A-B or A", "got '9-1'"]),
+    (["filter", "-m", "fxaa", "--exr-depth", "8", "IN", "-o", "OUT"], 2, ["--exr-depth expects 16 or 32, got '8'"]),
+    (["filter", "-m", "fxaa", "--exr-codec", "lzw", "IN", "-o", "OUT"], 2,
+     ["--exr-codec: unknown EXR compression 'lzw' (known: none, zip, zips, piz, pxr24, rle, b44, b44a, dwaa, dwab)"]),
     (["render", "--scene", "still_life", "--resolution", "0x36", "-o", "OUT", "--blender", "NOBLENDER"], 2,
      ["bad --resolution '0x36'"]),
     # Blender's smallest render size is 4 (it would render 4x4 and say nothing).
@@ -528,6 +531,34 @@ def test_filter_output_keeps_the_input_exr_windows(chart, tmp_path):
     assert not same_pixels([out / "cropped.exr"], [whole])
     for name in ("cropped", "shifted"):
         assert exr_windows(out / (name + ".png")) == (0, 0, 97, 61, 0, 0, 97, 61)
+
+
+def exr_storage(path):
+    """(pixel type, compression) of an EXR as OpenImageIO reads its header."""
+    p = subprocess.run(["oiiotool", "--info", "-v", str(path)], capture_output=True, text=True, check=True)
+    kind = p.stdout.split("channel, ", 1)[1].split()[0]
+    return kind, p.stdout.split('compression: "', 1)[1].split('"', 1)[0]
+
+
+def test_filter_writes_exrs_at_the_depth_and_codec_asked(chart, tmp_path):
+    """--exr-depth and --exr-codec store the output EXRs as Blender's Color Depth and Codec do (its
+    upper-case names taken too); the default stays float ZIP. The PNG does not change with them. A run
+    resumed with other EXR settings makes its outputs again, saying why."""
+    run("filter", "-m", "fxaa", "--png", chart / "chart_1spp.exr", "-o", tmp_path / "float")
+    run("filter", "-m", "fxaa", "--png", "--exr-depth", "16", "--exr-codec", "DWAA", chart / "chart_1spp.exr",
+        "-o", tmp_path / "half")
+    assert exr_storage(tmp_path / "float" / "chart_1spp.exr") == ("float", "zip")
+    assert exr_storage(tmp_path / "half" / "chart_1spp.exr") == ("half", "dwaa")
+    assert same_pixels([tmp_path / "float" / "chart_1spp.png"], [tmp_path / "half" / "chart_1spp.png"])
+    # dwaa is lossy: close, not equal (a few edge pixels of the chart move by 0.02-0.1)
+    half, full = tmp_path / "half" / "chart_1spp.exr", tmp_path / "float" / "chart_1spp.exr"
+    assert not same_pixels([half], [full])
+    assert subprocess.run(["oiiotool", str(half), str(full), "--fail", "0.1", "--diff"],
+                          capture_output=True).returncode == 0
+    p = run("filter", "-m", "fxaa", "--png", "--exr-codec", "piz", "--resume", chart / "chart_1spp.exr",
+            "-o", tmp_path / "half")
+    assert 'was written as another EXR ({"codec":"dwaa","depth":16}, now {"codec":"piz","depth":32})' in p.stderr
+    assert exr_storage(half) == ("float", "piz")
 
 
 def test_rerun_without_png_leaves_no_stale_png(chart, tmp_path):
