@@ -83,6 +83,7 @@ SIGNATURES = {
     "crispGetFramePasses": (_cp, [_vp]),
     "crispGetFramePass": (_vp, [_vp, _cp, ctypes.POINTER(_int)]),
     "crispWriteImage": (None, [_vp, _cp, _vp, _int, _sz, _sz, _sz, _sz]),
+    "crispWriteImageEXR": (None, [_vp, _cp, _vp, _int, _sz, _sz, _sz, _sz, _int, _cp]),
     "crispReconstructFrameMotion": (None, [_vp, _vp, _cp, _cp]),
     "crispAttachFrameSubsamples": (None, [_vp, _vp, _vp]),
     "crispCompareImages": (None, [_vp, _vp, _vp, _int, _sz, _sz, _vp, ctypes.POINTER(Metrics)]),
@@ -90,7 +91,7 @@ SIGNATURES = {
 # The C API this add-on is written for (crisp.h CRISP_VERSION_MAJOR, _MINOR): a library of another major
 # version may differ in what a call means (crisp.h: CrispMetrics grows only with a new major), and one of
 # an older minor version may lack a filter, parameter or pass this add-on sends.
-API_VERSION = (0, 1)
+API_VERSION = (0, 2)  # 0.2: crispWriteImageEXR
 # Calls that do not record errors (and crispGetError itself).
 _NO_CHECK = {"crispGetError", "crispGetVersion", "crispGetVersionString", "crispGetFilterTypes"}
 
@@ -551,8 +552,21 @@ class Frame(_Owner):
         return list((ctype * n).from_address(ptr)), FORMAT_CHANNELS[fmt]
 
 
-def write_image(context, path, ptr, fmt, width, height):
-    call("crispWriteImage", context.handle, _b(path), ptr, fmt, width, height, 0, 0)
+def write_image(context, path, ptr, fmt, width, height, exr=None):
+    """Writes .exr or .png by extension. exr: (bit depth 16 or 32, codec such as "zip" or "dwaa") of an
+    .exr, as Blender's Color Depth and Codec (exr_storage); None: float ZIP."""
+    if exr is not None and path.lower().endswith(".exr"):
+        call("crispWriteImageEXR", context.handle, _b(path), ptr, fmt, width, height, 0, 0, int(exr[0]), _b(exr[1]))
+    else:
+        call("crispWriteImage", context.handle, _b(path), ptr, fmt, width, height, 0, 0)
+
+
+def exr_storage(image_settings):
+    """The (bit depth, codec) write_image takes, from a scene's render.image_settings when its File Format
+    is OpenEXR (single or multilayer), as Blender would store its own render; None (float ZIP) otherwise."""
+    if getattr(image_settings, "file_format", "") not in ("OPEN_EXR", "OPEN_EXR_MULTILAYER"):
+        return None
+    return (16 if image_settings.color_depth == "16" else 32, str(image_settings.exr_codec).lower())
 
 
 def compare_images(context, reference_path, test_path):
@@ -720,8 +734,9 @@ class FrameFilter:
                 raise _bad_sidecar(side, "key 'jitter.%s' is not a finite number (%r)" % (key, value))
             self.filter.set_param(name, sign * float(value))
 
-    def run(self, input_path, output_paths, while_writing=None):
-        """Loads one frame, filters it, writes it to each path (.exr and/or .png). while_writing(), if
+    def run(self, input_path, output_paths, while_writing=None, exr=None):
+        """Loads one frame, filters it, writes it to each path (.exr, stored as exr says (write_image),
+        and/or .png). while_writing(), if
         given, is called on this thread while another writes the files (the library's call releases
         Python's lock), and may read the output (output_bottom_up); both have ended when run returns,
         which raises the writer's error, if any, else while_writing's.
@@ -768,7 +783,7 @@ class FrameFilter:
                     self.filter.unset_image(role)
         def write():
             for p in output_paths:
-                write_image(self.context, p, ctypes.addressof(self._out), FORMAT_FLOAT4, w, h)
+                write_image(self.context, p, ctypes.addressof(self._out), FORMAT_FLOAT4, w, h, exr)
         if while_writing is None:
             write()
         else:

@@ -237,14 +237,19 @@ def _drop_stale_png(png, log):
     log("note: kept %s (not written by Crisp, or changed since): it does not show this run's result" % png)
 
 
-def made_with(scene, method, params, samples, reference_samples, jitter, engine, filter_frames, scene_key):
+def made_with(scene, method, params, samples, reference_samples, jitter, engine, filter_frames, scene_key,
+              exr=None):
     """What makes a frame's outputs what they are, recorded in its input sidecar ("made_with"): a resume
     makes again every frame made otherwise, also by another build of the library. scene_key None
-    (unknown: a scene edited in this session) matches any."""
-    return {"scene": scene.name, "scene_key": scene_key, "resolution": list(render.render_size(scene)),
-            "method": method if filter_frames else None, "params": native.canonical_param_texts(method, params),
-            "samples": samples, "reference_samples": reference_samples, "jitter_distribution": jitter,
-            "engine": engine, "library": native.load().digest if filter_frames else None}
+    (unknown: a scene edited in this session) matches any. exr: how the filtered EXRs are stored
+    (native.exr_storage; None, Crisp's float ZIP, is not recorded, so frames of older builds match)."""
+    making = {"scene": scene.name, "scene_key": scene_key, "resolution": list(render.render_size(scene)),
+              "method": method if filter_frames else None, "params": native.canonical_param_texts(method, params),
+              "samples": samples, "reference_samples": reference_samples, "jitter_distribution": jitter,
+              "engine": engine, "library": native.load().digest if filter_frames else None}
+    if exr is not None and filter_frames:
+        making["exr"] = list(exr)
+    return making
 
 
 def same_making(recorded, wanted):
@@ -433,6 +438,11 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
         log("note: the film is transparent: %s anti-aliases the colour, not the alpha, which keeps the 1-sample "
             "render's hard edges; for clean edges, use a temporal method or render the background in the scene "
             "(Film > Transparent off)" % method)
+    # Read before any render: the renders set the scene's image settings to their own while they run.
+    exr = native.exr_storage(scene.render.image_settings) if filter_frames else None
+    if exr is not None:
+        log("info: the filtered EXRs are stored as the scene's Output properties say: %s, %s (Color Depth, Codec)"
+            % ("half float" if exr[0] == 16 else "full float", exr[1].upper()))
     if compositor.changes_the_image(scene):
         log("note: the scene's compositor is not applied to Crisp's frames (they are filtered as rendered); "
             "apply it to the filtered frames through the 'Crisp Result' node group")
@@ -448,6 +458,8 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
                                                    "shared_id_movers": facts.shared_id_movers},
               "jitter_distribution": jitter_distribution if the_plan.jitter else "none",
               "gi_cubemap_resolution": render.CUBEMAP_RESOLUTION, "frames": []}
+    if filter_frames:
+        result["exr"] = {"depth": exr[0], "codec": exr[1]} if exr else {"depth": 32, "codec": "zip"}
     if len(frames) > 2 and len({b - a for a, b in zip(frames, frames[1:])}) > 1:
         # frames_requested is the first and last frame; a list out of order or with uneven gaps (the Python
         # API takes any) is not that range, so it is recorded as given.
@@ -468,7 +480,7 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
         return result
 
     stamp = made_with(scene, method, params, samples, reference_samples,
-                      jitter_distribution if the_plan.jitter else "none", engine, filter_frames, scene_key)
+                      jitter_distribution if the_plan.jitter else "none", engine, filter_frames, scene_key, exr)
     previous_record = _read_json(run_json) if resume else None
 
     input_dir = os.path.join(out_dir, "input")
@@ -487,12 +499,12 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
         if "geometry_render_s" in info:  # rsaa's sub-samples: eight more renders, part of the frame's cost
             entry["geometry_render_s"] = round(info["geometry_render_s"], 4)
         if frame_filter is not None:
-            exr = os.path.join(filtered_dir, render.frame_name(f))
+            out_exr = os.path.join(filtered_dir, render.frame_name(f))
             png = os.path.join(filtered_dir, render.frame_name(f, ".png"))
             # The PNG, through the scene's colour management as its own PNGs, is made while the library
             # writes the EXR.
-            times = frame_filter.run(info["exr"], [exr], while_writing=(lambda: render.write_display_png(
-                scene, *frame_filter.output_bottom_up(), png)) if write_png else None)
+            times = frame_filter.run(info["exr"], [out_exr], while_writing=(lambda: render.write_display_png(
+                scene, *frame_filter.output_bottom_up(), png)) if write_png else None, exr=exr)
             if write_png:
                 _write_json(_png_record_path(png), _png_record(png))
             elif os.path.isfile(png):

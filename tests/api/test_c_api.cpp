@@ -79,7 +79,7 @@ bool withAddressSpaceHeadroom(std::size_t headroom, Fn&& fn) {
 
 TEST(CApi, VersionAndTypes) {
   EXPECT_EQ(crispGetVersion(), CRISP_VERSION);
-  EXPECT_STREQ(crispGetVersionString(), "0.1.0");
+  EXPECT_STREQ(crispGetVersionString(), "0.2.0");
   std::string types = crispGetFilterTypes();
   for (const char* t : {"none", "fxaa", "repair"}) EXPECT_NE(types.find(t), std::string::npos) << t;
 }

@@ -14,6 +14,7 @@ import unittest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import harness  # noqa: E402
+import exr_util  # noqa: E402
 
 import bpy  # noqa: E402
 import crisp  # noqa: E402
@@ -1108,6 +1109,51 @@ class AddonTest(unittest.TestCase):
                     self.assertTrue(a == b, "frame %d: %d values differ" % (f, sum(x != y for x, y in zip(a, b))))
         finally:
             scene.render.film_transparent = False
+
+    def test_filtered_exrs_follow_the_scenes_exr_output_settings(self):
+        """With the scene's File Format OpenEXR, the filtered EXRs are stored at its Color Depth and Codec,
+        as Blender stores its own render (they were always float ZIP); with another format (PNG), float ZIP.
+        The renders' own settings (float, no codec) never leak into them, the run says what it used, and a
+        resume after the settings changed makes the frames again."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 48, 27
+        settings = scene.render.image_settings
+        half, full = 1, 2  # the EXR channel list's pixel types
+        codes = {"NONE": 0, "ZIP": 3, "PIZ": 4, "DWAA": 8}  # the header's compression byte
+        try:
+            with tempfile.TemporaryDirectory() as d:
+                logged = []
+                pipeline.run(scene, "taa", [1, 2], d, log=logged.append)
+                self.assertFalse([s for s in logged if "stored as the scene's Output" in s], logged)
+                for f in (1, 2):
+                    names, attrs = exr_util.channels(os.path.join(d, "filtered", render.frame_name(f)))
+                    self.assertEqual(({t for _, t in attrs["channels"]}, attrs["compression"]), ({full}, codes["ZIP"]))
+                settings.file_format, settings.color_depth, settings.exr_codec = "OPEN_EXR", "16", "DWAA"
+                logged = []
+                pipeline.run(scene, "taa", [1, 2], d, log=logged.append, resume=True)
+                self.assertIn("info: the filtered EXRs are stored as the scene's Output properties say: half float, "
+                              "DWAA (Color Depth, Codec)", logged)
+                self.assertTrue([s for s in logged if s.startswith("frame 1 was made with other settings (exr ")],
+                                logged)
+                for f in (1, 2):
+                    names, attrs = exr_util.channels(os.path.join(d, "filtered", render.frame_name(f)))
+                    self.assertEqual(names, ["A", "B", "G", "R"])
+                    self.assertEqual(({t for _, t in attrs["channels"]}, attrs["compression"]), ({half}, codes["DWAA"]))
+                    names, attrs = exr_util.channels(os.path.join(d, "input", render.frame_name(f)))
+                    self.assertEqual(({t for _, t in attrs["channels"]}, attrs["compression"]), ({full}, codes["NONE"]))
+                    self.assertTrue(os.path.isfile(os.path.join(d, "filtered", render.frame_name(f, ".png"))))
+                with open(os.path.join(d, "run.json")) as fh:
+                    self.assertEqual(json.load(fh)["exr"], {"depth": 16, "codec": "dwaa"})
+                self.assertEqual((settings.file_format, settings.color_depth, settings.exr_codec),
+                                 ("OPEN_EXR", "16", "DWAA"), "put back after the renders")
+                # Full float PIZ, as a multilayer output: the filtered frames are still one RGBA layer.
+                settings.file_format, settings.color_depth, settings.exr_codec = "OPEN_EXR_MULTILAYER", "32", "PIZ"
+                pipeline.run(scene, "fxaa", [1], os.path.join(d, "multi"), log=lambda *a: None)
+                names, attrs = exr_util.channels(os.path.join(d, "multi", "filtered", render.frame_name(1)))
+                self.assertEqual(names, ["A", "B", "G", "R"])
+                self.assertEqual(({t for _, t in attrs["channels"]}, attrs["compression"]), ({full}, codes["PIZ"]))
+        finally:
+            settings.file_format, settings.color_depth, settings.exr_codec = "PNG", "8", "ZIP"
 
     def test_settings_crisp_leaves_out_are_said(self):
         """The scene's motion blur and its compositor are not applied to Crisp's frames: the log says so

@@ -32,7 +32,7 @@ extern "C" {
 #endif
 
 #define CRISP_VERSION_MAJOR 0
-#define CRISP_VERSION_MINOR 1
+#define CRISP_VERSION_MINOR 2
 #define CRISP_VERSION_PATCH 0
 #define CRISP_VERSION (CRISP_VERSION_MAJOR * 10000 + CRISP_VERSION_MINOR * 100 + CRISP_VERSION_PATCH)
 
@@ -72,7 +72,7 @@ typedef struct CrispFrameImpl* CrispFrame;
 
 // ---- version and errors ---------------------------------------------------
 CRISP_API int crispGetVersion(void);                 // CRISP_VERSION of the loaded library
-CRISP_API const char* crispGetVersionString(void);   // "0.1.0"
+CRISP_API const char* crispGetVersionString(void);   // "0.2.0"
 // Returns the first error recorded on this thread since the last query and
 // clears it. *outMessage (if not NULL) points to a thread-local string valid
 // until the next Crisp call on this thread, or is set to NULL when there is
