@@ -5,8 +5,8 @@
 #   1. the unit and API tests under AddressSanitizer + UBSan,
 #   2. the fast paths' equality tests in a Debug (-O0) build,
 #   3. the libFuzzer targets (EXR reader, C API, filters, sidecars) for a
-#      short fixed time, fuzz_c_api's and
-#      fuzz_filters' from seeds that reach each filter's output in place,
+#      short fixed time, fuzz_c_api's and fuzz_filters' from seeds that
+#      reach each filter's output in place,
 #   4. every CTest test of the release build (unit, API, Python/ctypes,
 #      headless Blender, benchmark smoke run).
 # Set CRISP_FUZZ_SECONDS (default 30 per target) to change step 3.
