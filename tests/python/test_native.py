@@ -279,21 +279,33 @@ def test_handles_dropped_without_close_are_released_once_when_collected(native, 
     assert len(made) == 4 and sorted(released) == sorted(made)
 
 
-def test_a_sidecar_without_a_frame_number_says_nothing_of_the_next(native, tmp_path):
-    """FrameFilter reads each frame's position from its sidecar; one without "frame" says nothing, so
-    history carries over to the frame after it (as after a frame without a sidecar). The next frame's
-    check added 1 to the missing number: TypeError, the sequence stopped."""
+def _write_frame(native, path, value=0.5):
+    """A 4x3 RGBA frame of one value, written by the library."""
+    rgba = (ctypes.c_float * (4 * 3 * 4))(*([value] * 48))
+    with native.Context() as ctx:
+        native.write_image(ctx, str(path), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 4, 3)
+
+
+@pytest.mark.parametrize("sidecars", [
+    # Without "frame": the next frame's check added 1 to the missing number (TypeError, the sequence stopped).
+    [{"camera": {"name": "Cam"}, "jitter": {"x": 0.1, "y": 0}},
+     {"frame": 2, "camera": {"name": "Cam"}, "jitter": {"x": -0.1, "y": 0}},
+     {"frame": 3, "camera": {"name": "Cam"}, "jitter": {"x": 0, "y": 0}}],
+    # A frame number or camera name of another type (a string, a list, a bool): TypeError or AttributeError.
+    [{"frame": "1", "camera": ["Cam"], "jitter": {"x": 0.1, "y": 0}},
+     {"frame": 2, "camera": {"name": 7}, "jitter": {"x": -0.1, "y": 0}},
+     {"frame": True, "camera": {"name": "Cam"}, "jitter": {"x": 0, "y": 0}}],
+], ids=["missing", "other_types"])
+def test_a_sidecar_frame_or_camera_left_out_or_of_another_type_says_nothing(native, tmp_path, sidecars):
+    """FrameFilter reads each frame's position and camera from its sidecar; a frame number or camera name
+    left out or of another type says nothing, so history carries over to the frame after it (as after a
+    frame without a sidecar) rather than an exception stopping the sequence."""
     import json
-    rgba = (ctypes.c_float * (4 * 3 * 4))(*([0.5] * 48))
-    sidecars = [{"camera": {"name": "Cam"}, "jitter": {"x": 0.1, "y": 0}},
-                {"frame": 2, "camera": {"name": "Cam"}, "jitter": {"x": -0.1, "y": 0}},
-                {"frame": 3, "camera": {"name": "Cam"}, "jitter": {"x": 0, "y": 0}}]
     ff = native.FrameFilter("taa", None, 1)
     try:
         for i, side in enumerate(sidecars, 1):
             exr = tmp_path / ("frame_%04d.exr" % i)
-            with native.Context() as ctx:
-                native.write_image(ctx, str(exr), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 4, 3)
+            _write_frame(native, exr)
             (tmp_path / ("frame_%04d.json" % i)).write_text(json.dumps(side))
             ff.run(str(exr), [str(tmp_path / ("out_%04d.exr" % i))])
             assert ff.restart_reason is None, i
@@ -307,10 +319,8 @@ def test_a_frame_filter_holds_no_image_of_a_frame_it_freed(native, tmp_path, met
     after that, so a commit and execute between frames (a caller's, or a run that failed before binding
     them all) read freed memory. Now every image is unbound when a run ends, however it ends: the next
     commit names the missing colour, and the next frame filters as if nothing had happened."""
-    rgba = (ctypes.c_float * (4 * 3 * 4))(*([0.5] * 48))
     exr = tmp_path / "frame_0001.exr"
-    with native.Context() as ctx:
-        native.write_image(ctx, str(exr), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 4, 3)
+    _write_frame(native, exr)
     ff = native.FrameFilter(method, None, 1, ("color",))
     try:
         ff.run(str(exr), [str(tmp_path / "out.exr")])
@@ -343,10 +353,8 @@ def test_a_broken_sidecar_is_named_with_what_is_wrong(native, tmp_path, text, sa
     """A temporal filter reads each frame's jitter from its sidecar. A broken one raised Python's own
     error (JSONDecodeError, "could not convert string to float", AttributeError of a list), naming
     neither the file nor the key; now a CrispError names both, as the library's reader does."""
-    rgba = (ctypes.c_float * (4 * 3 * 4))(*([0.5] * 48))
     exr = tmp_path / "frame_0001.exr"
-    with native.Context() as ctx:
-        native.write_image(ctx, str(exr), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 4, 3)
+    _write_frame(native, exr)
     sidecar = tmp_path / "frame_0001.json"
     sidecar.write_bytes(text if isinstance(text, bytes) else text.encode())
     ff = native.FrameFilter("taa", None, 1)
@@ -356,27 +364,6 @@ def test_a_broken_sidecar_is_named_with_what_is_wrong(native, tmp_path, text, sa
         assert str(e.value).startswith("sidecar '%s': " % sidecar), str(e.value)
         assert says in str(e.value), str(e.value)
         assert not (tmp_path / "out.exr").exists()
-    finally:
-        ff.close()
-
-
-def test_a_sidecar_frame_or_camera_of_another_type_says_nothing(native, tmp_path):
-    """A frame number or camera name of another type (a string, a list) is not compared: the history
-    carries over, as where the key is left out, rather than a TypeError stopping the sequence."""
-    import json
-    rgba = (ctypes.c_float * (4 * 3 * 4))(*([0.5] * 48))
-    sidecars = [{"frame": "1", "camera": ["Cam"], "jitter": {"x": 0.1, "y": 0}},
-                {"frame": 2, "camera": {"name": 7}, "jitter": {"x": -0.1, "y": 0}},
-                {"frame": True, "camera": {"name": "Cam"}, "jitter": {"x": 0, "y": 0}}]
-    ff = native.FrameFilter("taa", None, 1)
-    try:
-        for i, side in enumerate(sidecars, 1):
-            exr = tmp_path / ("frame_%04d.exr" % i)
-            with native.Context() as ctx:
-                native.write_image(ctx, str(exr), ctypes.addressof(rgba), native.FORMAT_FLOAT4, 4, 3)
-            (tmp_path / ("frame_%04d.json" % i)).write_text(json.dumps(side))
-            ff.run(str(exr), [str(tmp_path / ("out_%04d.exr" % i))])
-            assert ff.restart_reason is None, i
     finally:
         ff.close()
 
