@@ -13,6 +13,7 @@ import json
 import math
 import numbers
 import os
+import reprlib
 import struct
 import threading
 import time
@@ -629,7 +630,8 @@ def _read_sidecar(path):
     try:
         with open(path, "rb") as fh:
             side = json.loads(fh.read().decode("utf-8"))
-    except (OSError, ValueError) as e:  # UnicodeDecodeError and json's JSONDecodeError are ValueErrors
+    except (OSError, ValueError, RecursionError) as e:  # UnicodeDecodeError and JSONDecodeError are ValueErrors;
+        # RecursionError: lists nested deeper than Python's stack
         raise CrispError("sidecar '%s': cannot be read (%s)" % (path, e)) from None
     if not isinstance(side, dict):
         raise CrispError("sidecar '%s': is not a JSON object" % path)
@@ -725,14 +727,19 @@ class FrameFilter:
             self.filter.set_param("jitterX", self._base_jitter[0])
             self.filter.set_param("jitterY", self._base_jitter[1])
             return
-        jitter = side.get("jitter") or {}
-        if not isinstance(jitter, dict):
+        jitter = side.get("jitter", {})
+        if not isinstance(jitter, dict):  # false, [], 0 too: the library's reader refuses them alike
             raise _bad_sidecar(side, "key 'jitter' is not a JSON object")
         for key, name, sign in (("x", "jitterX", 1.0), ("y", "jitterY", -1.0)):
             value = jitter.get(key, 0.0)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise _bad_sidecar(side, "key 'jitter.%s' is not a finite number (%r)" % (key, value))
-            self.filter.set_param(name, sign * float(value))
+            try:  # an int of 400 digits overflows float()
+                number = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+            except OverflowError:
+                number = None
+            if number is None or not math.isfinite(number):
+                raise _bad_sidecar(side, "key 'jitter.%s' is not a finite number (%s)"
+                                   % (key, reprlib.repr(value)))
+            self.filter.set_param(name, sign * number)
 
     def run(self, input_path, output_paths, while_writing=None, exr=None):
         """Loads one frame, filters it, writes it to each path (.exr, stored as exr says (write_image),

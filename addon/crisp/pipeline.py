@@ -242,13 +242,14 @@ def made_with(scene, method, params, samples, reference_samples, jitter, engine,
     """What makes a frame's outputs what they are, recorded in its input sidecar ("made_with"): a resume
     makes again every frame made otherwise, also by another build of the library. scene_key None
     (unknown: a scene edited in this session) matches any. exr: how the filtered EXRs are stored
-    (native.exr_storage; None, Crisp's float ZIP, is not recorded, so frames of older builds match)."""
+    (native.exr_storage; None: Crisp's own float ZIP, recorded as [32, "zip"], as which OpenEXR's
+    defaults store them too)."""
     making = {"scene": scene.name, "scene_key": scene_key, "resolution": list(render.render_size(scene)),
               "method": method if filter_frames else None, "params": native.canonical_param_texts(method, params),
               "samples": samples, "reference_samples": reference_samples, "jitter_distribution": jitter,
               "engine": engine, "library": native.load().digest if filter_frames else None}
-    if exr is not None and filter_frames:
-        making["exr"] = list(exr)
+    if filter_frames:  # always: a resume compares only the keys the run it makes has
+        making["exr"] = list(exr) if exr is not None else [32, "zip"]
     return making
 
 

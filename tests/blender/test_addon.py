@@ -1146,6 +1146,15 @@ class AddonTest(unittest.TestCase):
                     self.assertEqual(json.load(fh)["exr"], {"depth": 16, "codec": "dwaa"})
                 self.assertEqual((settings.file_format, settings.color_depth, settings.exr_codec),
                                  ("OPEN_EXR", "16", "DWAA"), "put back after the renders")
+                # Back to PNG output: the resume makes the half DWAA frames again as float ZIP.
+                settings.file_format = "PNG"
+                logged = []
+                pipeline.run(scene, "taa", [1, 2], d, log=logged.append, resume=True)
+                self.assertTrue([s for s in logged if s.startswith("frame 1 was made with other settings (exr ")],
+                                logged)
+                for f in (1, 2):
+                    names, attrs = exr_util.channels(os.path.join(d, "filtered", render.frame_name(f)))
+                    self.assertEqual(({t for _, t in attrs["channels"]}, attrs["compression"]), ({full}, codes["ZIP"]))
                 # Full float PIZ, as a multilayer output: the filtered frames are still one RGBA layer.
                 settings.file_format, settings.color_depth, settings.exr_codec = "OPEN_EXR_MULTILAYER", "32", "PIZ"
                 pipeline.run(scene, "fxaa", [1], os.path.join(d, "multi"), log=lambda *a: None)

@@ -348,6 +348,9 @@ def test_a_frame_filter_holds_no_image_of_a_frame_it_freed(native, tmp_path, met
     ('{"frame": 1, "jitter": {"x": "0.1", "y": 0}}', "key 'jitter.x' is not a finite number ('0.1')"),
     ('{"frame": 1, "jitter": {"x": 0.1, "y": 1e999}}', "key 'jitter.y' is not a finite number (inf)"),
     ('{"frame": 1, "jitter": {"x": true, "y": 0}}', "key 'jitter.x' is not a finite number (True)"),
+    ('{"frame": 1, "jitter": false}', "key 'jitter' is not a JSON object"),    # was read as no jitter
+    ('{"frame": 1, "jitter": {"x": 1%s, "y": 0}}' % ("0" * 400), "key 'jitter.x' is not a finite number (1000"),
+    ("[" * 100000 + "]" * 100000, "cannot be read"),                          # RecursionError in json
 ])
 def test_a_broken_sidecar_is_named_with_what_is_wrong(native, tmp_path, text, says):
     """A temporal filter reads each frame's jitter from its sidecar. A broken one raised Python's own
