@@ -4,7 +4,7 @@
 bl_info = {
     "name": "Crisp",
     "author": "Crisp contributors",
-    "version": (0, 1, 0),
+    "version": (0, 2, 0),
     "blender": (3, 4, 0),
     "location": "Properties > Render > Crisp",
     "description": "Render at 1 sample with exactly the passes a filter needs, filter with libcrisp, compare",
