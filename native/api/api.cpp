@@ -1,7 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // The C boundary: every extern "C" function of crisp.h lives here. Nothing
 // thrown inside the library crosses it; errors go to the per-thread state.
-#include <cctype>
 #include <cstring>
 #include <exception>
 #include <map>
@@ -423,10 +422,8 @@ void crispWriteImageEXR(CrispContext context, const char* path, const void* ptr,
                         const char* compression) {
   guardedVoid([&] {
     const std::string p = nameOf(path, "file");
-    const std::size_t dot = p.find_last_of('.');
-    std::string ext = dot == std::string::npos ? "" : p.substr(dot);
-    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-    if (ext != ".exr") crisp::invalidArgument("crispWriteImageEXR writes .exr files, not '" + p + "'");
+    if (crisp::lowerExtension(p) != ".exr")
+      crisp::invalidArgument("crispWriteImageEXR writes .exr files, not '" + p + "'");
     if (bitDepth != 16 && bitDepth != 32)
       crisp::invalidArgument("EXR bit depth " + std::to_string(bitDepth) + " for '" + p + "' (16 or 32)");
     crisp::ExrStorage storage;

@@ -87,6 +87,10 @@ Frame readGeometryFrame(const std::string& path);
 // Throws as readFrame, naming the file.
 Image readMask(const std::string& path);
 
+// The file type writeImage takes from `path`: its extension, lower case, with
+// the dot (".exr"); "" without one.
+std::string lowerExtension(const std::string& path);
+
 // How an EXR's channels are stored, as Blender's Output properties say it
 // (Color Depth, Codec). The default is Crisp's own: 32-bit float, ZIP.
 struct ExrStorage {

@@ -26,12 +26,6 @@ namespace crisp {
 
 namespace {
 
-std::string lowerExtension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return ext;
-}
-
 std::function<void(const std::string&)>& faultHook() {
   static std::function<void(const std::string&)> hook;
   return hook;
@@ -41,6 +35,12 @@ std::function<void(const std::string&)>& faultHook() {
 constexpr float kHalfMax = 65504.0f;
 
 }  // namespace
+
+std::string lowerExtension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return ext;
+}
 
 const std::vector<std::string>& exrCompressions() {
   static const std::vector<std::string> names = {"none", "zip", "zips", "piz", "pxr24",
