@@ -553,9 +553,13 @@ class Frame(_Owner):
         return list((ctype * n).from_address(ptr)), FORMAT_CHANNELS[fmt]
 
 
+# How crispWriteImage stores an .exr, as (bit depth, codec): Crisp's own float ZIP.
+CRISP_EXR = (32, "zip")
+
+
 def write_image(context, path, ptr, fmt, width, height, exr=None):
     """Writes .exr or .png by extension. exr: (bit depth 16 or 32, codec such as "zip" or "dwaa") of an
-    .exr, as Blender's Color Depth and Codec (exr_storage); None: float ZIP."""
+    .exr, as Blender's Color Depth and Codec (exr_storage); None: CRISP_EXR."""
     if exr is not None and path.lower().endswith(".exr"):
         call("crispWriteImageEXR", context.handle, _b(path), ptr, fmt, width, height, 0, 0, int(exr[0]), _b(exr[1]))
     else:
@@ -564,7 +568,7 @@ def write_image(context, path, ptr, fmt, width, height, exr=None):
 
 def exr_storage(image_settings):
     """The (bit depth, codec) write_image takes, from a scene's render.image_settings when its File Format
-    is OpenEXR (single or multilayer), as Blender would store its own render; None (float ZIP) otherwise."""
+    is OpenEXR (single or multilayer), as Blender would store its own render; None (CRISP_EXR) otherwise."""
     if getattr(image_settings, "file_format", "") not in ("OPEN_EXR", "OPEN_EXR_MULTILAYER"):
         return None
     return (16 if image_settings.color_depth == "16" else 32, str(image_settings.exr_codec).lower())

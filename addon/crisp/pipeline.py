@@ -242,14 +242,13 @@ def made_with(scene, method, params, samples, reference_samples, jitter, engine,
     """What makes a frame's outputs what they are, recorded in its input sidecar ("made_with"): a resume
     makes again every frame made otherwise, also by another build of the library. scene_key None
     (unknown: a scene edited in this session) matches any. exr: how the filtered EXRs are stored
-    (native.exr_storage; None: Crisp's own float ZIP, recorded as [32, "zip"], as which OpenEXR's
-    defaults store them too)."""
+    (native.exr_storage; None: native.CRISP_EXR, recorded as such, as OpenEXR's defaults store them too)."""
     making = {"scene": scene.name, "scene_key": scene_key, "resolution": list(render.render_size(scene)),
               "method": method if filter_frames else None, "params": native.canonical_param_texts(method, params),
               "samples": samples, "reference_samples": reference_samples, "jitter_distribution": jitter,
               "engine": engine, "library": native.load().digest if filter_frames else None}
     if filter_frames:  # always: a resume compares only the keys the run it makes has
-        making["exr"] = list(exr) if exr is not None else [32, "zip"]
+        making["exr"] = list(exr or native.CRISP_EXR)
     return making
 
 
@@ -460,7 +459,7 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
               "jitter_distribution": jitter_distribution if the_plan.jitter else "none",
               "gi_cubemap_resolution": render.CUBEMAP_RESOLUTION, "frames": []}
     if filter_frames:
-        result["exr"] = {"depth": exr[0], "codec": exr[1]} if exr else {"depth": 32, "codec": "zip"}
+        result["exr"] = dict(zip(("depth", "codec"), exr or native.CRISP_EXR))
     if len(frames) > 2 and len({b - a for a, b in zip(frames, frames[1:])}) > 1:
         # frames_requested is the first and last frame; a list out of order or with uneven gaps (the Python
         # API takes any) is not that range, so it is recorded as given.
