@@ -778,7 +778,6 @@ Frame readFrame(const std::string& path, const std::string& viewLayer) {
   return readFrameReading(path, viewLayer, true);
 }
 
-
 Frame readGeometryFrame(const std::string& path) { return readFrameReading(path, std::string(), false); }
 
 Image readMask(const std::string& path) {
