@@ -6,7 +6,7 @@
         [--samples 1] [--reference-samples N] [--resolution WxH] [--scene-script test_scenes/NAME.py | NAME]
         [--scene-name NAME]
         [--plan-only] [--no-filter] [--no-png] [--threads N] [--library PATH] [--jitter blackman-harris|uniform]
-        [--engine eevee|cycles]
+        [--input-codec none|piz|zip] [--engine eevee|cycles]
 
 Arguments (after Blender's `--`):
   -o, --output OUTDIR      where everything goes (created; must be writable); //NAME is NAME beside
@@ -38,6 +38,9 @@ Arguments (after Blender's `--`):
   --library PATH           libcrisp.so to use (else $CRISP_LIBRARY, else <repo>/build/lib/libcrisp.so)
   --jitter DIST            sub-pixel jitter distribution of temporal methods (default: the panel's Jitter
                            when it was set in the .blend, else blackman-harris)
+  --input-codec NAME       OpenEXR codec of input/ and reference/: none (fastest), piz or zip (about 4.5x
+                           smaller at 0.1-0.2 s more a 1080p frame; all lossless, render.INPUT_CODECS);
+                           default: the panel's Input Codec when it was set in the .blend, else none
   --no-panel               ignore the scene's Crisp panel: the command line and the library's defaults only
                            (the Flamenco job type passes it: its fields took the panel at submission)
   --engine eevee|cycles    renderer of the input frames (default eevee); cycles renders the same frames
@@ -45,10 +48,11 @@ Arguments (after Blender's `--`):
                            to check reconstructed motion against it
 
 The scene's Crisp panel (scene.crisp, properties.py), as saved in the .blend, gives what the command
-line leaves out: the method and the jitter when the file set them, and the panel's parameters of the
-method that runs (given or not) that differ from the library's defaults, under --set key by key. A
-scene whose panel was never touched, or a run with --no-panel, runs fxaa with blackman-harris and the
-library's defaults where the command line says nothing. One line says what came from the panel.
+line leaves out: the method, jitter and input codec when the file set them, and the panel's parameters
+of the method that runs (given or not) that differ from the library's defaults, under --set key by key.
+A scene whose panel was never touched, or a run with --no-panel, runs fxaa with blackman-harris,
+uncompressed inputs and the library's defaults where the command line says nothing. One line says
+what came from the panel.
 
 Writes OUTDIR/input/frame_NNNN.exr + .json, OUTDIR/filtered/frame_NNNN.exr (+ .png),
 OUTDIR/reference/frame_NNNN.exr when asked, and OUTDIR/run.json (see pipeline.py), each through a
@@ -96,6 +100,7 @@ def make_parser():
     p.add_argument("--threads", type=int, default=0)
     p.add_argument("--library", default="")
     p.add_argument("--jitter", default=None)  # None: the panel's, else DEFAULT_JITTER
+    p.add_argument("--input-codec", default=None)  # None: the panel's (panel_codec), else none
     p.add_argument("--no-panel", action="store_true")
     p.add_argument("--engine", default="eevee")
     return p
@@ -258,6 +263,18 @@ def panel_settings(scene, method, jitter, given, use_panel=True):
     return method, jitter, dict(panel, **given), from_panel
 
 
+def panel_codec(scene, codec, use_panel=True):
+    """(the input codec, whether the scene's Crisp panel gave it): codec (None: not given) in lower case,
+    else the panel's Input Codec when the opened .blend set it, else render.INPUT_CODECS[0]. After
+    panel_settings, which registers the panel's settings."""
+    from crisp import render
+    if codec is not None:
+        return codec.lower(), False
+    if use_panel and scene.crisp.is_property_set("input_codec"):
+        return scene.crisp.input_codec, True
+    return render.INPUT_CODECS[0], False
+
+
 def panel_source():
     """The file a panel's settings come from, for messages: the .blend's name."""
     import bpy
@@ -300,10 +317,10 @@ def check_panel_params(method, params, from_panel, given, way_out="override them
     raise PanelError("%s: %s (parameters from %s)" % (method, bad, " and ".join(sources)), exit=5)
 
 
-def panel_line(method, jitter, from_panel, command="render", jitters=None):
+def panel_line(method, jitter, from_panel, command="render", jitters=None, codec=None):
     """The line saying what came from the panel ("" when nothing did), starting with the command's name:
     the jitter only when it is used (jitters; default: for a method that jitters, as crisp render runs
-    one method), the parameters by name."""
+    one method), the input codec when from_panel["input_codec"], the parameters by name."""
     from crisp import plan as plan_mod
     if jitters is None:
         jitters = method in plan_mod.TEMPORAL_METHODS
@@ -312,6 +329,8 @@ def panel_line(method, jitter, from_panel, command="render", jitters=None):
         parts.append("method " + method)
     if from_panel["jitter"] and jitters:
         parts.append("jitter " + jitter)
+    if from_panel.get("input_codec"):
+        parts.append("input codec " + codec)
     params = from_panel["params"]
     if params:
         parts.append("%d parameter%s (%s)" % (len(params), "s" * (len(params) != 1),
@@ -342,6 +361,9 @@ def main(argv):
         fail(2, "--preroll must be >= 0 frames, got %d" % args.preroll)
     if args.jitter is not None and args.jitter not in render.JITTER_DISTRIBUTIONS:
         fail(2, "unknown --jitter '%s' (known: %s)" % (args.jitter, ", ".join(render.JITTER_DISTRIBUTIONS)))
+    if args.input_codec is not None and args.input_codec.lower() not in render.INPUT_CODECS:
+        fail(2, "unknown --input-codec '%s' (known: %s; all lossless)" % (args.input_codec,
+                                                                         ", ".join(render.INPUT_CODECS)))
     if args.engine not in render.ENGINES:
         fail(2, "unknown --engine '%s' (known: %s)" % (args.engine, ", ".join(render.ENGINES)))
     params = {}
@@ -367,13 +389,14 @@ def main(argv):
         given = params
         method, jitter, params, from_panel = panel_settings(scene, args.method, args.jitter, given,
                                                             use_panel=not args.no_panel)
+        codec, from_panel["input_codec"] = panel_codec(scene, args.input_codec, use_panel=not args.no_panel)
         if not args.no_filter:
             check_panel_params(method, params, from_panel, given)
     except PanelError as e:
         fail(e.exit, str(e))
     except native.CrispError as e:
         fail(3, str(e))
-    said = panel_line(method, jitter, from_panel)
+    said = panel_line(method, jitter, from_panel, codec=codec)
     if said:
         print(said, flush=True)
     others = sorted(s.name for s in bpy.data.scenes if s != scene and s.library is None)
@@ -392,7 +415,7 @@ def main(argv):
                      filter_frames=not args.no_filter, threads=args.threads, jitter_distribution=jitter,
                      write_png=not args.no_png, log=lambda s: print(s, flush=True), engine_name=args.engine,
                      preroll=args.preroll or 0, shot=shot, resume=args.resume, scene_key=key,
-                     should_cancel=stopped)
+                     should_cancel=stopped, input_codec=codec)
     except pipeline.InputError as e:
         fail(2, str(e))
     except render.RenderFailed as e:

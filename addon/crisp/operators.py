@@ -263,7 +263,8 @@ class CRISP_OT_render(_FrameByFrame, bpy.types.Operator):
             result = yield from pipeline.iter_run(
                 scene, s.method, frames, out, params=props.changed_params(s, s.method),
                 threads=preferences.threads(context), jitter_distribution=s.jitter_distribution,
-                write_png=s.write_png, log=log, view_layer=context.view_layer, should_cancel=lambda: self.stop_asked)
+                write_png=s.write_png, log=log, view_layer=context.view_layer, should_cancel=lambda: self.stop_asked,
+                input_codec=s.input_codec)
             s.plan_text = "\n".join(
                 ["plan for %s:" % s.method] + ["  + %s: %s" % (p, result["plan"]["reasons"][p])
                                                for p in result["plan"]["passes"]])
@@ -304,7 +305,7 @@ class CRISP_OT_render_reference(_FrameByFrame, bpy.types.Operator):
                                                  made="rendered"))
         infos = yield from render.iter_render_reference(scene, frames, out, s.reference_samples,
                                                         view_layer=context.view_layer,
-                                                        should_cancel=lambda: self.stop_asked)
+                                                        should_cancel=lambda: self.stop_asked, codec=s.input_codec)
         mean = sum(i["render_s"] for i in infos) / max(len(infos), 1)
         stopped = " (stopped at frame %d)" % frames[len(infos)] if len(infos) < len(frames) else ""
         _done(self, scene, "Crisp: %d reference frame%s at %d samples (%.2f s/frame)%s"

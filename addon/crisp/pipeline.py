@@ -360,7 +360,7 @@ def scene_notes(scene, frames, view_layer, made="rendered and filtered"):
 def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_samples=0, plan_only=False,
              filter_frames=True, threads=0, jitter_distribution="blackman-harris", write_png=True, log=print,
              view_layer=None, should_cancel=None, engine_name="eevee", preroll=0, shot=None, resume=False,
-             scene_key=None):
+             scene_key=None, input_codec="none"):
     """A generator: yields after each frame rendered (render.iter_render_frames' info, also of pre-roll
     and reference frames) and returns the run.json dictionary (also written to out_dir/run.json); closed
     between frames, it records the run as cancelled at the next frame. engine_name: 'eevee', or
@@ -369,8 +369,10 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
     the chunk filtered but not written), resume (start at the first frame with a missing output); the
     result then goes to run_AAAA-BBBB.json so concurrent chunks never write the same file.
     scene_key: what the scene file holds (batch.py scene_key), or None when unknown (a scene edited in
-    this session); with it, frames of another scene file are never reused or resumed. out_dir: a folder;
-    one starting with // is relative to the saved .blend file, as Blender reads it (output_argument)."""
+    this session); with it, frames of another scene file are never reused or resumed. input_codec: the
+    OpenEXR codec of input/ and reference/ (render.INPUT_CODECS, all lossless: frames stored with another
+    are reused as they are). out_dir: a folder; one starting with // is relative to the saved .blend
+    file, as Blender reads it (output_argument)."""
     frames = list(frames)
     given = params
     # Before anything uses it: os.path reads "//x" as the root folder's x, where Blender renders beside
@@ -380,6 +382,7 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
         raise InputError("no frames to render (empty frame range)")
     if preroll < 0:
         raise InputError("pre-roll must be >= 0 frames, got %d" % preroll)
+    input_codec = render.checked_codec(input_codec)  # before anything is rendered
     shot = list(shot) if shot is not None else None
     if shot is not None and (not shot or frames[0] < shot[0] or frames[-1] > shot[-1]):
         raise InputError("frames %d-%d are not inside the shot %s" % (
@@ -457,7 +460,7 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
                                                    "camera_cuts": facts.camera_cuts,
                                                    "shared_id_movers": facts.shared_id_movers},
               "jitter_distribution": jitter_distribution if the_plan.jitter else "none",
-              "gi_cubemap_resolution": render.CUBEMAP_RESOLUTION, "frames": []}
+              "input_codec": input_codec, "gi_cubemap_resolution": render.CUBEMAP_RESOLUTION, "frames": []}
     if filter_frames:
         result["exr"] = dict(zip(("depth", "codec"), exr or native.CRISP_EXR))
     if len(frames) > 2 and len({b - a for a, b in zip(frames, frames[1:])}) > 1:
@@ -641,7 +644,8 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
                 yield from render.iter_render_frames(scene, the_plan, todo, input_dir, samples=samples,
                                                      jitter_distribution=jitter_distribution, view_layer=view_layer,
                                                      on_frame=on_frame, should_cancel=should_cancel,
-                                                     engine=engine if engine == "CYCLES" else None, made_with=stamp)
+                                                     engine=engine if engine == "CYCLES" else None, made_with=stamp,
+                                                     codec=input_codec)
         finally:
             if frame_filter is not None:
                 frame_filter.close()
@@ -656,7 +660,7 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
 
             yield from render.iter_render_reference(scene, todo, reference_dir, reference_samples,
                                                     view_layer=view_layer, on_frame=on_reference,
-                                                    should_cancel=should_cancel)
+                                                    should_cancel=should_cancel, codec=input_codec)
     except GeneratorExit:  # closed between frames (an operator Blender ended): as a stop by should_cancel
         result.setdefault("total_s", round(time.perf_counter() - t0, 3))
         try:

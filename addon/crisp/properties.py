@@ -220,6 +220,15 @@ class CrispSettings(bpy.types.PropertyGroup):
     jitter_distribution: bpy.props.EnumProperty(  # numbers fixed, as METHOD_NUMBERS
         name="Jitter", items=[("blackman-harris", "Blackman-Harris", "EEVEE's own sample distribution", 0),
                               ("uniform", "Uniform", "Halton points inside the pixel", 1)])
+    input_codec: bpy.props.EnumProperty(  # identifiers render.INPUT_CODECS; numbers fixed, as METHOD_NUMBERS
+        name="Input Codec", description="How the 1-sample renders kept in input/ (and reference/) are stored; "
+        "all lossless, so the filtered frames are the same with each",
+        items=[("none", "None", "Uncompressed: the fastest to save and read (about 41 MB a 1920x1080 frame with "
+                "colour and depth)", 0),
+               ("piz", "PIZ", "About 4.5x smaller; about 0.1 s more to save and 0.06 s more to read a 1920x1080 "
+                "frame", 1),
+               ("zip", "ZIP", "About 4.7x smaller; about 0.17 s more to save and 0.05 s more to read a 1920x1080 "
+                "frame", 2)])
     write_png: bpy.props.BoolProperty(name="Also write PNG", default=True)
     load_result: bpy.props.BoolProperty(name="Load into compositor", default=True)
     plan_text: bpy.props.StringProperty(name="Plan", default="")

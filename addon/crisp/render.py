@@ -30,6 +30,11 @@ CUBEMAP_RESOLUTION = "64"
 CUBEMAP_REASON = "the world probe is re-rendered per frame; 512 (default) costs ~1.4 s/frame, 64 ~0 s"
 HALTON_PERIOD = 16
 JITTER_DISTRIBUTIONS = ("blackman-harris", "uniform")
+# The OpenEXR codecs the 1-sample renders (input/, reference/) may be stored with: the lossless ones, so a
+# filter reads the same values whichever was chosen (and a frame stored with one is reused under another).
+# Measured at 1920x1080, colour + depth (docs/farm.md "Disk"): none 41.5 MB, saved in 0.02-0.04 s and read
+# by the library in 99 ms; piz 9.3 MB, 0.12 s, 162 ms; zip 8.9 MB, 0.20 s, 153 ms.
+INPUT_CODECS = ("none", "piz", "zip")
 # RSAA geometric sub-sample offsets in pixels (x right, y up): 8 points on two rotated squares, so
 # every direction through the centre is cut. The filter's offset table must be built for this pattern.
 RSAA_PATTERN = [(-0.375, -0.125), (0.125, -0.375), (0.375, 0.125), (-0.125, 0.375),
@@ -333,7 +338,7 @@ def object_table(scene, view_layer):
     return out
 
 
-def render_settings(scene, engine, samples):
+def render_settings(scene, engine, samples, codec="none"):
     r = scene.render
     w, h = render_size(scene)
     extra = {"cycles": dict(CYCLES_SETTINGS, samples=samples)} if engine == "CYCLES" else {}
@@ -341,7 +346,7 @@ def render_settings(scene, engine, samples):
             "filter_size": r.filter_size, "film_transparent": r.film_transparent,
             "gi_cubemap_resolution": scene.eevee.gi_cubemap_resolution, "gi_cubemap_reason": CUBEMAP_REASON,
             "view_transform": scene.view_settings.view_transform, "fps": r.fps / r.fps_base,
-            "motion_blur": False, "exr": "multilayer float32, codec NONE, linear scene-referred"}
+            "motion_blur": False, "exr": "multilayer float32, codec %s, linear scene-referred" % codec.upper()}
 
 
 # ---- temporary files ------------------------------------------------------------------------------
@@ -439,7 +444,16 @@ def write_json(path, data):
 
 # ---- rendering -------------------------------------------------------------------------------------
 
-def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_EXR_MULTILAYER"):
+def checked_codec(codec):
+    """codec (INPUT_CODECS, any case) in lower case; a RenderError naming the known ones otherwise."""
+    name = str(codec).lower()
+    if name not in INPUT_CODECS:
+        raise RenderError("the renders' EXR codec '%s' is not one of: %s (lossless, so the filters read the "
+                          "values rendered)" % (codec, ", ".join(INPUT_CODECS)))
+    return name
+
+
+def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_EXR_MULTILAYER", codec="none"):
     r = scene.render
     snap.set(r, "engine", engine)
     snap.set(scene.eevee, "taa_render_samples", samples)
@@ -468,7 +482,7 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
             snap.remember(r.ffmpeg, prop.identifier)
     snap.set(r.image_settings, "file_format", file_format)
     snap.set(r.image_settings, "color_depth", "32")
-    snap.set(r.image_settings, "exr_codec", "NONE")
+    snap.set(r.image_settings, "exr_codec", codec.upper())
     snap.set(r.image_settings, "color_mode", "RGBA")
     snap.set(r.image_settings, "use_preview", False)  # an EXR's preview: a JPEG beside each temporary name
     for prop in view_layer.bl_rna.properties:
@@ -580,9 +594,10 @@ def render_frames(*args, **kwargs):
 
 
 def iter_render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distribution="blackman-harris",
-                       view_layer=None, on_frame=None, should_cancel=None, engine=None, made_with=None):
-    """Renders `frames` of `scene` into out_dir/frame_NNNN.exr + .json with the plan's passes; the
-    sidecar records made_with (what the frame's outputs are made with, pipeline.made_with) when given.
+                       view_layer=None, on_frame=None, should_cancel=None, engine=None, made_with=None, codec="none"):
+    """Renders `frames` of `scene` into out_dir/frame_NNNN.exr + .json with the plan's passes, stored with
+    `codec` (INPUT_CODECS); the sidecar records made_with (what the frame's outputs are made with,
+    pipeline.made_with) when given.
     A generator: yields each frame's info once it is made, and returns the list of infos.
 
     on_frame(frame, info) is called after each frame (info: dict with render_s, paths, and rsaa's
@@ -590,6 +605,7 @@ def iter_render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distr
     The scene is restored on return, error, cancel or close() (the render settings stay in place while
     the generator waits between frames). engine: None (EEVEE) or 'CYCLES' (see CYCLES_SETTINGS)."""
     frames, view_layer = _checked_inputs(scene, frames, view_layer)
+    codec = checked_codec(codec)
     engine = engine or eevee_engine(scene)
     os.makedirs(out_dir, exist_ok=True)
     infos = []
@@ -623,7 +639,7 @@ def iter_render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distr
 
         cam_data, base_shift = frame_camera()
         snap.set(scene.render, "filepath", scene.render.filepath)
-        _prepare(snap, scene, view_layer, engine, samples, set(the_plan.render_flags()))
+        _prepare(snap, scene, view_layer, engine, samples, set(the_plan.render_flags()), codec=codec)
         # The sidecars' object matrices and geometry: what renders but is hidden in the viewport (an
         # object, a modifier reading another object) is not evaluated there.
         snap.undo_later(plan_mod.show_in_viewport(scene, view_layer) + plan_mod.show_render_modifiers(scene))
@@ -659,7 +675,7 @@ def iter_render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distr
                            "type": cam_data.type, "base_shift": list(base_shift)},
                 "objects": object_table(scene, view_layer),
                 "passes": list(the_plan.passes), "render_flags": the_plan.render_flags(),
-                "render_settings": render_settings(scene, engine, samples),
+                "render_settings": render_settings(scene, engine, samples, codec),
                 "blender_version": bpy.app.version_string, "render_s": render_s,
             }
             if made_with is not None:
@@ -741,18 +757,21 @@ def render_reference(*args, **kwargs):
     return drain(iter_render_reference(*args, **kwargs))
 
 
-def iter_render_reference(scene, frames, out_dir, samples, view_layer=None, on_frame=None, should_cancel=None):
+def iter_render_reference(scene, frames, out_dir, samples, view_layer=None, on_frame=None, should_cancel=None,
+                          codec="none"):
     """The same frames with `samples` EEVEE samples, no jitter, colour only, into out_dir/frame_NNNN.exr
-    (plain RGBA float EXR). A generator like iter_render_frames: yields each frame's info, returns
-    [{frame, render_s, exr}]. Hook for the sample curve (issue 3 item 5): call this once per sample
-    count and keep each render_s."""
+    (plain RGBA float EXR, stored with `codec`, INPUT_CODECS). A generator like iter_render_frames:
+    yields each frame's info, returns [{frame, render_s, exr}]. Hook for the sample curve (issue 3 item
+    5): call this once per sample count and keep each render_s."""
     frames, view_layer = _checked_inputs(scene, frames, view_layer)
+    codec = checked_codec(codec)
     engine = eevee_engine(scene)
     os.makedirs(out_dir, exist_ok=True)
     infos = []
     with Snapshot(scene) as snap:
         snap.set(scene.render, "filepath", scene.render.filepath)
-        _prepare(snap, scene, view_layer, engine, samples, {"use_pass_combined"}, file_format="OPEN_EXR")
+        _prepare(snap, scene, view_layer, engine, samples, {"use_pass_combined"}, file_format="OPEN_EXR",
+                 codec=codec)
         for f in frames:
             if should_cancel and should_cancel():
                 break

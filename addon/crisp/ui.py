@@ -35,6 +35,7 @@ class CRISP_PT_render(bpy.types.Panel):
             if s.method in plan_mod.TEMPORAL_METHODS:  # pipeline.with_scene_filter_size
                 box.label(text="filterSize: Film > Filter Size, %g px" % context.scene.render.filter_size)
         layout.prop(s, "jitter_distribution")
+        layout.prop(s, "input_codec")
         layout.prop(s, "reference_samples")
         layout.prop(s, "output_dir")
         if not s.output_dir:

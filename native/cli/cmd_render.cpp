@@ -4,9 +4,10 @@
 // with exactly the passes the method needs, filters them through libcrisp and
 // writes OUTDIR/{input,filtered,reference}/ and OUTDIR/run.json. A farm
 // chunk (--preroll, --shot, --resume) is handled by batch.py as well. What the
-// command line leaves out (method, jitter, parameters) comes from the .blend's
+// command line leaves out (method, jitter, input codec, parameters) comes from the .blend's
 // Crisp panel when the file set it (batch.py panel_settings).
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -36,6 +37,20 @@ std::string historyLines(const std::string& output) {
     begin = end + 1;
   }
   return out;
+}
+
+// --input-codec NAME for the driver, in lower case, refused here as batch.py
+// would refuse it once Blender has started (render.INPUT_CODECS: lossless only,
+// so the filters read the values rendered).
+void appendInputCodecOption(const ParsedArgs& args, std::vector<std::string>& cmd) {
+  if (!args.has("input-codec")) return;
+  std::string codec = args.get("input-codec");
+  std::transform(codec.begin(), codec.end(), codec.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if (codec != "none" && codec != "piz" && codec != "zip")
+    throw UsageError("--input-codec: unknown codec '" + args.get("input-codec") +
+                     "' (known: none, piz, zip; lossless, so the filters read the values rendered)");
+  cmd.push_back("--input-codec");
+  cmd.push_back(codec);
 }
 
 }  // namespace
@@ -78,6 +93,7 @@ int runRender(const ParsedArgs& args) {
     cmd.push_back(kv);
   }
   appendJitterOption(args, cmd);
+  appendInputCodecOption(args, cmd);
   if (args.has("plan")) cmd.push_back("--plan-only");
   if (args.has("resume")) cmd.push_back("--resume");
   if (args.has("no-panel")) cmd.push_back("--no-panel");

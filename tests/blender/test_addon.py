@@ -207,9 +207,12 @@ class AddonTest(unittest.TestCase):
                 self.assertEqual(pipeline.run(scene, method, [1], d, log=lambda *a: None)["params"], {})
             with tempfile.TemporaryDirectory() as d:
                 scene.render.filter_size = 5.0
-                with self.assertRaisesRegex(pipeline.InputError, r"'filterSize' = 5 is out of range.*Film > Filter "
-                                                                 r"Size, 5 px"):
-                    pipeline.run(scene, method, [1], d, log=lambda *a: None)
+                try:
+                    with self.assertRaisesRegex(pipeline.InputError, r"'filterSize' = 5 is out of range.*Film > "
+                                                                     r"Filter Size, 5 px"):
+                        pipeline.run(scene, method, [1], d, log=lambda *a: None)
+                finally:  # Blender's default again: the scene outlives this test (build_scene reuses it)
+                    scene.render.filter_size = 1.5
                 self.assertEqual(os.listdir(d), [])
 
     @unittest.skipUnless(harness.library_usable()[0], "libcrisp not built")
@@ -1163,6 +1166,56 @@ class AddonTest(unittest.TestCase):
                 self.assertEqual(({t for _, t in attrs["channels"]}, attrs["compression"]), ({full}, codes["PIZ"]))
         finally:
             settings.file_format, settings.color_depth, settings.exr_codec = "PNG", "8", "ZIP"
+
+    def test_the_renders_are_stored_with_the_input_codec_asked(self):
+        """input/ and reference/ are stored with the run's input codec (uncompressed unless asked), all of
+        them lossless: the filtered frames are those of uncompressed renders, value for value. The sidecar
+        and run.json say which; a resume under another codec keeps the frames (they would be the same); a
+        lossy codec is refused before anything is made."""
+        scene = harness.build_scene("spinning_cube")
+        scene.render.resolution_x, scene.render.resolution_y = 48, 27
+        codes = {"NONE": 0, "ZIP": 3, "PIZ": 4}  # the header's compression byte
+
+        def compression(path):
+            return exr_util.channels(path)[1]["compression"]
+
+        def pixels(path):
+            image = bpy.data.images.load(path, check_existing=False)
+            try:
+                return list(image.pixels)
+            finally:
+                bpy.data.images.remove(image)
+
+        with tempfile.TemporaryDirectory() as d:
+            runs = {"none": os.path.join(d, "none"), "piz": os.path.join(d, "piz"), "zip": os.path.join(d, "zip")}
+            for codec, out in runs.items():
+                pipeline.run(scene, "taa", [1, 2, 3], out, reference_samples=2, log=lambda *a: None,
+                             input_codec=codec.upper() if codec == "piz" else codec)
+                with open(os.path.join(out, "run.json")) as fh:
+                    self.assertEqual(json.load(fh)["input_codec"], codec)
+                for f in (1, 2, 3):
+                    for folder in ("input", "reference"):
+                        self.assertEqual(compression(os.path.join(out, folder, render.frame_name(f))),
+                                         codes[codec.upper()], (codec, folder, f))
+                    side = render.read_sidecar(os.path.join(out, "input"), f)
+                    self.assertIn("codec %s," % codec.upper(), side["render_settings"]["exr"])
+            self.assertLess(os.path.getsize(os.path.join(runs["piz"], "input", "frame_0002.exr")),
+                            os.path.getsize(os.path.join(runs["none"], "input", "frame_0002.exr")))
+            for f in (1, 2, 3):
+                plain = pixels(os.path.join(runs["none"], "filtered", render.frame_name(f)))
+                self.assertEqual(len(plain), 48 * 27 * 4)
+                for codec in ("piz", "zip"):
+                    self.assertTrue(pixels(os.path.join(runs[codec], "filtered", render.frame_name(f))) == plain,
+                                    (codec, f))
+            logged = []
+            pipeline.run(scene, "taa", [1, 2, 3], runs["piz"], reference_samples=2, log=logged.append, resume=True,
+                         input_codec="none")
+            self.assertIn("every output of frames 1-3 exists; nothing to do", logged)
+            lossy = os.path.join(d, "lossy")
+            with self.assertRaises(render.RenderError) as caught:
+                pipeline.run(scene, "taa", [1], lossy, log=lambda *a: None, input_codec="dwaa")
+            self.assertIn("'dwaa' is not one of: none, piz, zip", str(caught.exception))
+            self.assertFalse(os.path.exists(lossy))
 
     def test_settings_crisp_leaves_out_are_said(self):
         """The scene's motion blur and its compositor are not applied to Crisp's frames: the log says so

@@ -18,7 +18,7 @@ import harness  # noqa: E402
 
 import bpy  # noqa: E402
 import crisp  # noqa: E402
-from crisp import compositor, native, operators, pipeline  # noqa: E402
+from crisp import compositor, exr_file, native, operators, pipeline  # noqa: E402
 
 LIB_OK, LIB_WHY = harness.library_usable()
 
@@ -43,6 +43,7 @@ class OperatorTest(unittest.TestCase):
         s.reference_samples = 4
         s.output_dir = self.tmp.name
         s.load_result = True
+        s.input_codec = "piz"
 
         self.assertEqual(bpy.ops.crisp.render_reference(), {"FINISHED"})
         self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
@@ -50,6 +51,9 @@ class OperatorTest(unittest.TestCase):
 
         ref = sorted(f for f in os.listdir(os.path.join(self.tmp.name, "reference")) if f.endswith(".exr"))
         self.assertEqual(ref, ["frame_0001.exr", "frame_0002.exr"])
+        for folder in ("reference", "input"):  # the panel's Input Codec
+            with open(os.path.join(self.tmp.name, folder, "frame_0002.exr"), "rb") as fh:
+                self.assertEqual(exr_file.read_header(fh.read(1 << 16))[1]["compression"][1], b"\x04", folder)  # PIZ
         self.assertTrue(os.path.isfile(os.path.join(self.tmp.name, "filtered", "frame_0002.exr")))
         # Compare measured something real: a 4-sample reference is close to, not equal to, FXAA's frame.
         self.assertTrue(math.isfinite(s.last_psnr) and 15.0 < s.last_psnr < 60.0, s.last_compare)

@@ -73,6 +73,9 @@ class SavedMethodTest(unittest.TestCase):
         for number, name in enumerate(["blackman-harris", "uniform"]):  # the Jitter menu's, fixed too
             self.scene.crisp["jitter_distribution"] = number
             self.assertEqual(self.scene.crisp.jitter_distribution, name)
+        for number, name in enumerate(["none", "piz", "zip"]):  # the Input Codec menu's, fixed too
+            self.scene.crisp["input_codec"] = number
+            self.assertEqual(self.scene.crisp.input_codec, name)
 
     def test_a_method_added_or_moved_in_the_library_does_not_change_a_saved_scene(self):
         with tempfile.TemporaryDirectory() as d:

@@ -87,6 +87,9 @@ def test_help_prints_parameter_tables():
      ["--jitter: unknown distribution 'halton'", "blackman-harris, uniform"]),
     (["render", "--scene", "still_life", "--jitter", "halton", "-o", "OUT"], 2,
      ["--jitter: unknown distribution 'halton'"]),
+    # Lossy codecs are not offered for the renders the filters read.
+    (["render", "--scene", "still_life", "--input-codec", "dwaa", "-o", "OUT", "--blender", "NOBLENDER"], 2,
+     ["--input-codec: unknown codec 'dwaa' (known: none, piz, zip; lossless"]),
     # Before its settings file is written: a folder made by a refused size would refuse the right one.
     (["eval", "--scene", "still_life", "--resolution", "64x36x", "-o", "OUT"], 2, ["bad --resolution '64x36x'"]),
     (["eval", "--scene", "still_life", "--frames", "5-3", "-o", "OUT", "--blender", "NOBLENDER"], 2,
@@ -992,27 +995,29 @@ def frame_mse(a, b, tmp_path):
 
 
 needs_blender = pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
-PANEL_TAA = 's.method = "taa"; s.taa.sharpen = 0.5; s.jitter_distribution = "uniform"; s.fxaa.subpix = 0.25'
+PANEL_TAA = ('s.method = "taa"; s.taa.sharpen = 0.5; s.jitter_distribution = "uniform"; s.fxaa.subpix = 0.25; '
+             's.input_codec = "piz"')
 
 
 @pytest.fixture(scope="module")
 def panel_taa(tmp_path_factory):
-    """A .blend whose panel says taa with sharpen 0.5 and uniform jitter (and fxaa's subpix 0.25)."""
+    """A .blend whose panel says taa with sharpen 0.5, uniform jitter and PIZ inputs (and fxaa's subpix 0.25)."""
     return panel_blend(tmp_path_factory.mktemp("panel") / "shot.blend", PANEL_TAA)
 
 
 @needs_blender
 def test_render_takes_the_method_jitter_and_parameters_from_the_scenes_panel(panel_taa, tmp_path):
-    """Without --method, --jitter or --set, crisp render runs what the .blend's Crisp panel says, records
-    it (run.json, each input's sidecar, which a resume compares) and says so in one line; it ran fxaa with
-    blackman-harris and the library's defaults."""
+    """Without --method, --jitter, --input-codec or --set, crisp render runs what the .blend's Crisp panel
+    says, records it (run.json, each input's sidecar, which a resume compares) and says so in one line; it
+    ran fxaa with blackman-harris, uncompressed inputs and the library's defaults."""
     out = tmp_path / "out"
     p = render_panel(panel_taa, out)
-    assert "render: method taa, jitter uniform and 1 parameter (sharpen=0.5) from the scene's Crisp panel " \
-           "(shot.blend)" in p.stdout, p.stdout[-3000:]
+    assert "render: method taa, jitter uniform, input codec piz and 1 parameter (sharpen=0.5) from the scene's " \
+           "Crisp panel (shot.blend)" in p.stdout, p.stdout[-3000:]
     record = run_record(out)
-    assert (record["method"], record["params"], record["jitter_distribution"]) == ("taa", {"sharpen": "0.5"},
-                                                                                  "uniform")
+    assert (record["method"], record["params"], record["jitter_distribution"], record["input_codec"]) == (
+        "taa", {"sharpen": "0.5"}, "uniform", "piz")
+    assert exr_storage(out / "input" / "frame_0002.exr") == ("float", "piz")
     made = json.loads((out / "input" / "frame_0002.json").read_text())["made_with"]
     assert (made["method"], made["params"], made["jitter_distribution"]) == ("taa", {"sharpen": "0.5"}, "uniform")
     # Not fxaa's frames: the command line's --method fxaa (below) filters the same scene otherwise.
@@ -1028,18 +1033,20 @@ def test_render_takes_the_method_jitter_and_parameters_from_the_scenes_panel(pan
 @needs_blender
 def test_the_command_line_overrides_the_panel_key_by_key(panel_taa, tmp_path):
     """--method another method: it runs with that method's panel parameters (fxaa's subpix here); --set
-    replaces one panel parameter and adds others; --jitter replaces the panel's jitter."""
+    replaces one panel parameter and adds others; --jitter and --input-codec replace the panel's."""
     out = tmp_path / "fxaa"
     p = render_panel(panel_taa, out, "--method", "fxaa")
     record = run_record(out)
     assert (record["method"], record["params"]) == ("fxaa", {"subpix": "0.25"}), record["params"]
-    assert "render: 1 parameter (subpix=0.25) from the scene's Crisp panel (shot.blend)" in p.stdout
+    assert "render: input codec piz and 1 parameter (subpix=0.25) from the scene's Crisp panel (shot.blend)" \
+        in p.stdout, p.stdout[-2000:]
     out = tmp_path / "set"
     p = render_panel(panel_taa, out, "--set", "sharpen=0.25", "--set", "feedbackMin=0.6", "--jitter",
-                     "blackman-harris")
+                     "blackman-harris", "--input-codec", "ZIP")
     record = run_record(out)
-    assert (record["method"], record["params"], record["jitter_distribution"]) == (
-        "taa", {"sharpen": "0.25", "feedbackMin": "0.6"}, "blackman-harris"), record
+    assert (record["method"], record["params"], record["jitter_distribution"], record["input_codec"]) == (
+        "taa", {"sharpen": "0.25", "feedbackMin": "0.6"}, "blackman-harris", "zip"), record
+    assert exr_storage(out / "input" / "frame_0001.exr") == ("float", "zip")
     assert "render: method taa from the scene's Crisp panel (shot.blend)" in p.stdout, p.stdout[-2000:]
     # --method naming the panel's method keeps its parameters under --set.
     p = render_panel(panel_taa, tmp_path / "plan", "--method", "taa", "--set", "feedbackMin=0.6", "--plan")
@@ -1048,8 +1055,8 @@ def test_the_command_line_overrides_the_panel_key_by_key(panel_taa, tmp_path):
     p = render_panel(panel_taa, tmp_path / "taa", "--no-panel", "--method", "taa", "--set", "feedbackMin=0.6",
                      "--plan")
     record = run_record(tmp_path / "taa")
-    assert (record["method"], record["params"], record["jitter_distribution"]) == (
-        "taa", {"feedbackMin": "0.6"}, "blackman-harris"), record
+    assert (record["method"], record["params"], record["jitter_distribution"], record["input_codec"]) == (
+        "taa", {"feedbackMin": "0.6"}, "blackman-harris", "none"), record
     assert "Crisp panel" not in p.stdout, p.stdout[-2000:]
     render_panel(panel_taa, tmp_path / "none", "--no-panel", "--plan")
     assert (run_record(tmp_path / "none")["method"], run_record(tmp_path / "none")["params"]) == ("fxaa", {})
