@@ -1,9 +1,9 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 """The Flamenco job type's settings that follow the Crisp panel (flamenco/crisp-render.js: method, jitter,
-filter_params): their `eval` expressions, read out of the job type by Node.js, evaluated here as
-Flamenco's add-on evaluates them at submission (eval(expression, {}, locals) with C = bpy.context), give
-the panel's method, jitter and changed parameters with the Crisp add-on enabled, a filter_params that
-`crisp render --set` accepts, and the job type's defaults without the add-on."""
+input_codec, filter_params): their `eval` expressions, read out of the job type by Node.js, evaluated here
+as Flamenco's add-on evaluates them at submission (eval(expression, {}, locals) with C = bpy.context),
+give the panel's method, jitter, input codec and changed parameters with the Crisp add-on enabled, a
+filter_params that `crisp render --set` accepts, and the job type's defaults without the add-on."""
 
 import json
 import os
@@ -23,7 +23,7 @@ import crisp  # noqa: E402
 JOB_TYPE_SCRIPT = os.path.join(harness.SOURCE_DIR, "flamenco", "crisp-render.js")
 NODE = shutil.which("node")
 CLI = os.path.join(harness.BUILD_DIR, "bin", "crisp")
-PANEL_SETTINGS = ("method", "jitter", "filter_params")
+PANEL_SETTINGS = ("method", "jitter", "input_codec", "filter_params")
 
 
 def job_type():
@@ -65,6 +65,7 @@ class FlamencoSettingsTest(unittest.TestCase):
             s = bpy.context.scene.crisp
             s.method = "phlm"
             s.jitter_distribution = "uniform"
+            s.input_codec = "zip"
             setattr(s.phlm, "lambda", 0.99)  # a float (float32 in Blender), an int, a choice, a bool
             s.phlm.holdPeriod = 8
             s.phlm.modelFetch = "bilinear"
@@ -73,6 +74,7 @@ class FlamencoSettingsTest(unittest.TestCase):
             got = self.evaluated()
             self.assertEqual(got["method"], "phlm")
             self.assertEqual(got["jitter"], "uniform")
+            self.assertEqual(got["input_codec"], "zip")
             self.assertEqual(sorted(got["filter_params"].split(" ")),
                              ["footprintBox=false", "holdPeriod=8", "lambda=0.99", "modelFetch=bilinear"])
 
@@ -81,7 +83,7 @@ class FlamencoSettingsTest(unittest.TestCase):
             def plan(params):
                 with tempfile.TemporaryDirectory() as d:
                     cmd = [CLI, "render", "--plan", "--scene", "still_life", "--method", got["method"], "--jitter",
-                           got["jitter"], "-o", d]
+                           got["jitter"], "--input-codec", got["input_codec"], "-o", d]
                     for kv in params.split():
                         cmd += ["--set", kv]
                     return subprocess.run(cmd, capture_output=True, text=True, timeout=300)

@@ -166,13 +166,30 @@ test("the jitter choices are crisp render's and reach its command line", () => {
   assert.equal(flagValue(compile({ ...base, jitter: undefined })[0].commands[0].parameters.args, "--jitter"), undefined);
 });
 
-test("method, jitter and filter_params follow the scene's Crisp panel at submission", () => {
+test("the input codec choices are crisp render's and reach its command line", () => {
+  const context = vm.createContext(flamencoStub());
+  vm.runInContext(source + "\n;globalThis.__jobType = JOB_TYPE;", context);
+  const setting = context.__jobType.settings.find((s) => s.key === "input_codec");
+  const render = fs.readFileSync(path.join(here, "..", "..", "addon", "crisp", "render.py"), "utf8");
+  const known = /^INPUT_CODECS = \(([^)]*)\)/m.exec(render);
+  assert.ok(known, "render.py: INPUT_CODECS not found");
+  assert.deepEqual(Array.from(setting.choices), Array.from(known[1].matchAll(/"([^"]+)"/g), (m) => m[1]));
+  assert.equal(setting.default, "none");  // crisp render's default
+  for (const t of compile({ ...base, input_codec: "piz" }))
+    assert.equal(flagValue(t.commands[0].parameters.args, "--input-codec"), "piz");
+  // A job submitted before the setting existed: no flag, crisp render's default.
+  assert.equal(flagValue(compile({ ...base, input_codec: undefined })[0].commands[0].parameters.args, "--input-codec"),
+               undefined);
+});
+
+test("method, jitter, input_codec and filter_params follow the scene's Crisp panel at submission", () => {
   const context = vm.createContext(flamencoStub());
   vm.runInContext(source + "\n;globalThis.__jobType = JOB_TYPE;", context);
   const settings = Object.fromEntries(context.__jobType.settings.map((s) => [s.key, s]));
   // Flamenco's add-on evaluates `eval` at submission only while the setting is linked (evalInfo.showLinkButton,
   // linked by default); without it, only when the artist presses the setting's button.
-  const panel = { method: "method", jitter: "jitter_distribution", filter_params: "set_params_text" };
+  const panel = { method: "method", jitter: "jitter_distribution", input_codec: "input_codec",
+                  filter_params: "set_params_text" };
   for (const [key, attribute] of Object.entries(panel)) {
     const s = settings[key];
     assert.equal(typeof s.eval, "string", key + ": no eval");
@@ -191,6 +208,7 @@ test("method, jitter and filter_params follow the scene's Crisp panel at submiss
   assert.ok(settingsClass && /^    def set_params_text\(self\):/m.test(settingsClass[0]),
             "properties.py: CrispSettings.set_params_text not found");
   assert.ok(/jitter_distribution: bpy\.props\.EnumProperty/.test(settingsClass[0]), "properties.py: jitter_distribution");
+  assert.ok(/input_codec: bpy\.props\.EnumProperty/.test(settingsClass[0]), "properties.py: input_codec");
 });
 
 test("the submitting scene is the one rendered", () => {
@@ -282,6 +300,7 @@ test("bad settings raise an error naming the setting", () => {
     [{ filter_params: "feedback-min=0.8" }, /'filter_params' item 'feedback-min=0.8': 'feedback-min' is no parameter name/],
     [{ filter_params: "--set=0.8" }, /is no parameter name/],
     [{ jitter: "gauss" }, /'jitter' must be one of blackman-harris, uniform/],
+    [{ input_codec: "dwaa" }, /'input_codec' must be one of none, piz, zip/],
   ];
   for (const [override, message] of bad)
     assert.throws(() => compile({ ...base, ...override }), message, JSON.stringify(override));
