@@ -270,8 +270,13 @@ def panel_codec(scene, codec, use_panel=True):
     from crisp import render
     if codec is not None:
         return codec.lower(), False
-    if use_panel and scene.crisp.is_property_set("input_codec"):
-        return scene.crisp.input_codec, True
+    settings = scene.crisp
+    if use_panel and settings.is_property_set("input_codec"):
+        if not settings.input_codec:  # a number this add-on's menu does not hold (a newer add-on's codec)
+            raise PanelError("the scene's Crisp panel (%s) has an input codec this add-on does not offer (saved as "
+                             "number %s): choose one in the panel, or give --input-codec (%s)"
+                             % (panel_source(), settings.get("input_codec"), ", ".join(render.INPUT_CODECS)))
+        return settings.input_codec, True
     return render.INPUT_CODECS[0], False
 
 

@@ -370,8 +370,8 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
     result then goes to run_AAAA-BBBB.json so concurrent chunks never write the same file.
     scene_key: what the scene file holds (batch.py scene_key), or None when unknown (a scene edited in
     this session); with it, frames of another scene file are never reused or resumed. input_codec: the
-    OpenEXR codec of input/ and reference/ (render.INPUT_CODECS, all lossless: frames stored with another
-    are reused as they are). out_dir: a folder; one starting with // is relative to the saved .blend
+    OpenEXR codec of the frames this run renders into input/ and reference/ (render.INPUT_CODECS, all
+    lossless: frames kept from a run with another stay as they are; each sidecar says which). out_dir: a folder; one starting with // is relative to the saved .blend
     file, as Blender reads it (output_argument)."""
     frames = list(frames)
     given = params
@@ -382,7 +382,10 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
         raise InputError("no frames to render (empty frame range)")
     if preroll < 0:
         raise InputError("pre-roll must be >= 0 frames, got %d" % preroll)
-    input_codec = render.checked_codec(input_codec)  # before anything is rendered
+    try:
+        input_codec = render.checked_codec(input_codec)  # before anything is rendered
+    except render.RenderError as e:
+        raise InputError(str(e)) from None
     shot = list(shot) if shot is not None else None
     if shot is not None and (not shot or frames[0] < shot[0] or frames[-1] > shot[-1]):
         raise InputError("frames %d-%d are not inside the shot %s" % (

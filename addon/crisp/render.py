@@ -446,10 +446,10 @@ def write_json(path, data):
 
 def checked_codec(codec):
     """codec (INPUT_CODECS, any case) in lower case; a RenderError naming the known ones otherwise."""
-    name = str(codec).lower()
+    name = codec.lower() if isinstance(codec, str) else None
     if name not in INPUT_CODECS:
-        raise RenderError("the renders' EXR codec '%s' is not one of: %s (lossless, so the filters read the "
-                          "values rendered)" % (codec, ", ".join(INPUT_CODECS)))
+        raise RenderError("input codec %r is not one of: %s (lossless, so the filters read the values rendered)"
+                          % (codec, ", ".join(INPUT_CODECS)))
     return name
 
 

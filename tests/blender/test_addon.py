@@ -1212,9 +1212,10 @@ class AddonTest(unittest.TestCase):
                          input_codec="none")
             self.assertIn("every output of frames 1-3 exists; nothing to do", logged)
             lossy = os.path.join(d, "lossy")
-            with self.assertRaises(render.RenderError) as caught:
-                pipeline.run(scene, "taa", [1], lossy, log=lambda *a: None, input_codec="dwaa")
-            self.assertIn("'dwaa' is not one of: none, piz, zip", str(caught.exception))
+            for codec in ("dwaa", None):  # a lossy codec, and no codec at all (not read as "none")
+                with self.assertRaises(pipeline.InputError) as caught:
+                    pipeline.run(scene, "taa", [1], lossy, log=lambda *a: None, input_codec=codec)
+                self.assertIn("input codec %r is not one of: none, piz, zip" % codec, str(caught.exception))
             self.assertFalse(os.path.exists(lossy))
 
     def test_settings_crisp_leaves_out_are_said(self):

@@ -1101,6 +1101,24 @@ def test_a_panel_value_the_library_refuses_fails_before_rendering(tmp_path):
 
 
 @needs_blender
+def test_a_panel_choice_of_a_newer_addon_is_named_before_rendering(tmp_path):
+    """A method or input codec saved by a newer add-on (a number this one's menu does not hold) stops the
+    run with exit 2 before anything renders, naming the panel and the option that gives another; with the
+    option given, it runs."""
+    for setting, option, value, words in (("method", "--method", "fxaa", "has a method this library does not offer"),
+                                          ("input_codec", "--input-codec", "zip",
+                                           "has an input codec this add-on does not offer")):
+        blend = panel_blend(tmp_path / (setting + ".blend"), 's["%s"] = 9' % setting)
+        out = tmp_path / setting
+        p = render_panel(blend, out, ok=False)
+        assert p.returncode == 2, p.stdout[-2000:] + p.stderr[-2000:]
+        assert words in p.stderr and "(saved as number 9)" in p.stderr and option in p.stderr, p.stderr[-2000:]
+        assert not (out / "run.json").exists() and not (out / "input").exists()
+        render_panel(blend, out, option, value, "--plan")
+        assert run_record(out)[setting] == value
+
+
+@needs_blender
 def test_a_resume_sees_a_panel_edited_since(tmp_path):
     """A chunk made before the panel's parameter was edited (and the .blend saved) is made again by a
     resume, which names the parameter's change: the sidecars record the panel's values."""
