@@ -571,7 +571,17 @@ def exr_storage(image_settings):
     is OpenEXR (single or multilayer), as Blender would store its own render; None (CRISP_EXR) otherwise."""
     if getattr(image_settings, "file_format", "") not in ("OPEN_EXR", "OPEN_EXR_MULTILAYER"):
         return None
-    return (16 if image_settings.color_depth == "16" else 32, str(image_settings.exr_codec).lower())
+    depth, codec = image_settings.color_depth, image_settings.exr_codec
+    if not codec:
+        # B44 or B44A, which Blender's menu lists at half float only: chosen there and the depth set to full
+        # float since, the codec reads "" and Blender still writes it (float channels stored uncompressed
+        # inside it). It reads at 16 bits, and the depth goes back at once.
+        image_settings.color_depth = "16"
+        try:
+            codec = image_settings.exr_codec
+        finally:
+            image_settings.color_depth = depth
+    return (16 if depth == "16" else 32, str(codec).lower())
 
 
 def compare_images(context, reference_path, test_path):

@@ -154,6 +154,7 @@ class Snapshot:
         self._saved = []
         self._seen = set()
         self._undo = []  # calls that put back what is not a property (an object's eye: hide_set)
+        self._after = []  # calls that put back a property only they can set (restore_after)
 
     def remember(self, owner, attr):
         """Records a value that setting another property may change as a side effect."""
@@ -170,6 +171,15 @@ class Snapshot:
     def undo_later(self, calls):
         """Calls made on restore, last first, before the properties are put back."""
         self._undo += calls
+
+    def restore_after(self, owner, attr, call):
+        """A property that setting it back takes more than a value (call() puts it back, once the others
+        are back): set() leaves it to call, which restore makes after the properties, before a last pass
+        over them (in case call changed one as a side effect)."""
+        key = (owner.as_pointer() if hasattr(owner, "as_pointer") else id(owner), attr)
+        if key not in self._seen:
+            self._seen.add(key)
+            self._after.append(call)
 
     def __enter__(self):
         self._frame = (self.scene.frame_current, self.scene.frame_subframe)
@@ -204,7 +214,14 @@ class Snapshot:
             except Exception as e:  # keep restoring the rest
                 undo_errors["viewport visibility"] = str(e)
         self._undo.clear()
-        for _ in range(2):
+        after, self._after = ([] if gone else self._after), []  # (all of them put back the scene's own data)
+        for round in range(3 if after else 2):
+            if round == 2:
+                for call in reversed(after):
+                    try:
+                        call()
+                    except Exception as e:  # keep restoring the rest
+                        undo_errors["restore"] = str(e)
             errors.clear()
             for owner, attr, value, _ in reversed(self._saved):
                 try:
@@ -453,6 +470,28 @@ def checked_codec(codec):
     return name
 
 
+def _remember_exr_codec(snap, settings):
+    """Registers the scene's EXR codec with the snapshot. One that Blender's menu lists at half float only
+    (B44, B44A), chosen there before the Color Depth or File Format changed, reads "" and cannot be set
+    back as such (the run then ended with "could not restore", and the codec was lost). It reads in
+    OpenEXR at 16 bits (switched through snap, which puts format and depth back) and is put back the same
+    way once the rest is."""
+    if settings.exr_codec:
+        snap.remember(settings, "exr_codec")
+        return
+    snap.set(settings, "file_format", "OPEN_EXR")
+    snap.set(settings, "color_depth", "16")
+    codec = settings.exr_codec
+
+    def put_back():
+        file_format, depth = settings.file_format, settings.color_depth
+        settings.file_format, settings.color_depth = "OPEN_EXR", "16"
+        settings.exr_codec = codec
+        settings.file_format = file_format  # (an FFmpeg format's settings: the pass after this puts them back)
+        settings.color_depth = depth
+    snap.restore_after(settings, "exr_codec", put_back)
+
+
 def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_EXR_MULTILAYER", codec="none"):
     r = scene.render
     snap.set(r, "engine", engine)
@@ -473,13 +512,14 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
     snap.set(r, "use_stamp", False)
     snap.set(r, "use_border", False)
     snap.set(r, "use_file_extension", False)
-    for attr in ("color_depth", "exr_codec", "color_mode"):  # file_format changes them as a side effect
+    for attr in ("color_depth", "color_mode"):  # file_format changes them as a side effect
         snap.remember(r.image_settings, attr)
     # Switching the format back to FFmpeg resets a movie without audio to an MKV container and its H.264
     # preset: remembered before the switch, so they are put back after it.
     for prop in r.ffmpeg.bl_rna.properties:
         if not prop.is_readonly:
             snap.remember(r.ffmpeg, prop.identifier)
+    _remember_exr_codec(snap, r.image_settings)
     snap.set(r.image_settings, "file_format", file_format)
     snap.set(r.image_settings, "color_depth", "32")
     snap.set(r.image_settings, "exr_codec", codec.upper())

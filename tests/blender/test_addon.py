@@ -1167,6 +1167,39 @@ class AddonTest(unittest.TestCase):
         finally:
             settings.file_format, settings.color_depth, settings.exr_codec = "PNG", "8", "ZIP"
 
+    def test_a_codec_the_menu_lists_at_half_float_only_is_kept_and_followed(self):
+        """B44A chosen at half float, then the Color Depth or File Format changed: Blender's menu hides the
+        codec (exr_codec reads "") and Blender still writes it. A run leaves it as it was (it ended with
+        "could not restore" and lost it), and in OpenEXR at full float the filtered EXRs are B44A, as
+        Blender's own render of the scene is (the library was handed the codec "" and refused it)."""
+        scene = harness.build_scene("spinning_cube")
+        scene.render.resolution_x, scene.render.resolution_y = 48, 27
+        settings, ffmpeg = scene.render.image_settings, scene.render.ffmpeg
+        full, b44a = 2, 7  # the EXR channel list's pixel type, the header's compression byte
+
+        def state():
+            return (settings.file_format, settings.color_depth, settings.color_mode, settings.exr_codec,
+                    ffmpeg.format, ffmpeg.codec)
+
+        try:
+            for file_format, depth in (("OPEN_EXR", "32"), ("JPEG", "8"), ("FFMPEG", "8")):
+                settings.file_format, settings.color_depth, settings.exr_codec = "OPEN_EXR", "16", "B44A"
+                settings.file_format, settings.color_depth = file_format, depth
+                if file_format == "FFMPEG":  # not the defaults a switch of format back to FFmpeg gives
+                    ffmpeg.format, ffmpeg.codec = "QUICKTIME", "PNG"
+                before = state()
+                self.assertEqual(before[3], "", "the menu shows B44A")
+                with tempfile.TemporaryDirectory() as d:
+                    pipeline.run(scene, "fxaa", [1], d, log=lambda *a: None)
+                    if file_format == "OPEN_EXR":
+                        _, attrs = exr_util.channels(os.path.join(d, "filtered", render.frame_name(1)))
+                        self.assertEqual(({t for _, t in attrs["channels"]}, attrs["compression"]), ({full}, b44a))
+                self.assertEqual(state(), before, file_format)
+                settings.file_format, settings.color_depth = "OPEN_EXR", "16"
+                self.assertEqual(settings.exr_codec, "B44A", file_format)
+        finally:
+            settings.file_format, settings.color_depth, settings.exr_codec = "PNG", "8", "ZIP"
+
     def test_the_renders_are_stored_with_the_input_codec_asked(self):
         """input/ and reference/ are stored with the run's input codec (uncompressed unless asked), all of
         them lossless: the filtered frames are those of uncompressed renders, value for value. The sidecar
