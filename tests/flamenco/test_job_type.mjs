@@ -151,35 +151,29 @@ test("the method choices are crisp render's, and every temporal one gets a pre-r
   }
 });
 
-test("the jitter choices are crisp render's and reach its command line", () => {
-  const context = vm.createContext(flamencoStub());
-  vm.runInContext(source + "\n;globalThis.__jobType = JOB_TYPE;", context);
-  const setting = context.__jobType.settings.find((s) => s.key === "jitter");
-  const render = fs.readFileSync(path.join(here, "..", "..", "addon", "crisp", "render.py"), "utf8");
-  const known = /^JITTER_DISTRIBUTIONS = \(([^)]*)\)/m.exec(render);
-  assert.ok(known, "render.py: JITTER_DISTRIBUTIONS not found");
-  assert.deepEqual(Array.from(setting.choices), Array.from(known[1].matchAll(/"([^"]+)"/g), (m) => m[1]));
-  assert.equal(setting.default, "blackman-harris");  // crisp render's default: a job's frames equal a plain run's
-  for (const t of compile({ ...base, jitter: "uniform" }))
-    assert.equal(flagValue(t.commands[0].parameters.args, "--jitter"), "uniform");
-  // A job submitted before the setting existed: no flag, crisp render's default.
-  assert.equal(flagValue(compile({ ...base, jitter: undefined })[0].commands[0].parameters.args, "--jitter"), undefined);
-});
+// Settings whose choices are a tuple of render.py: [setting, tuple, crisp render's default, another, flag].
+// crisp render's default as the setting's: a job's frames equal a plain run's.
+const RENDER_CHOICES = [
+  ["jitter", "JITTER_DISTRIBUTIONS", "blackman-harris", "uniform", "--jitter"],
+  ["input_codec", "INPUT_CODECS", "none", "piz", "--input-codec"],
+];
 
-test("the input codec choices are crisp render's and reach its command line", () => {
+test("the jitter and input codec choices are crisp render's and reach its command line", () => {
   const context = vm.createContext(flamencoStub());
   vm.runInContext(source + "\n;globalThis.__jobType = JOB_TYPE;", context);
-  const setting = context.__jobType.settings.find((s) => s.key === "input_codec");
   const render = fs.readFileSync(path.join(here, "..", "..", "addon", "crisp", "render.py"), "utf8");
-  const known = /^INPUT_CODECS = \(([^)]*)\)/m.exec(render);
-  assert.ok(known, "render.py: INPUT_CODECS not found");
-  assert.deepEqual(Array.from(setting.choices), Array.from(known[1].matchAll(/"([^"]+)"/g), (m) => m[1]));
-  assert.equal(setting.default, "none");  // crisp render's default
-  for (const t of compile({ ...base, input_codec: "piz" }))
-    assert.equal(flagValue(t.commands[0].parameters.args, "--input-codec"), "piz");
-  // A job submitted before the setting existed: no flag, crisp render's default.
-  assert.equal(flagValue(compile({ ...base, input_codec: undefined })[0].commands[0].parameters.args, "--input-codec"),
-               undefined);
+  for (const [key, tuple, fallback, other, flag] of RENDER_CHOICES) {
+    const setting = context.__jobType.settings.find((s) => s.key === key);
+    const known = new RegExp("^" + tuple + " = \\(([^)]*)\\)", "m").exec(render);
+    assert.ok(known, "render.py: " + tuple + " not found");
+    assert.deepEqual(Array.from(setting.choices), Array.from(known[1].matchAll(/"([^"]+)"/g), (m) => m[1]), key);
+    assert.equal(setting.default, fallback, key);
+    for (const t of compile({ ...base, [key]: other }))
+      assert.equal(flagValue(t.commands[0].parameters.args, flag), other, key);
+    // A job submitted before the setting existed: no flag, crisp render's default.
+    assert.equal(flagValue(compile({ ...base, [key]: undefined })[0].commands[0].parameters.args, flag), undefined,
+                 key);
+  }
 });
 
 test("method, jitter, input_codec and filter_params follow the scene's Crisp panel at submission", () => {
