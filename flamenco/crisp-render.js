@@ -203,7 +203,8 @@ function compileJob(job) {
     if (settings.blender_exe) args.push("--blender", String(settings.blender_exe));
     if (resolution !== "") args.push("--resolution", resolution);
     if (jitter !== "") args.push("--jitter", jitter);
-    if (inputCodec !== "") args.push("--input-codec", inputCodec);
+    // Not "none", crisp render's default: a job that keeps it runs on workers whose crisp predates the option.
+    if (inputCodec !== "" && inputCodec !== "none") args.push("--input-codec", inputCodec);
     for (const kv of params) args.push("--set", kv);
     const task = author.Task("crisp-" + chunk.first + "-" + chunk.last, "blender");
     task.addCommand(author.Command("exec", { exe: crispExe, args: args }));

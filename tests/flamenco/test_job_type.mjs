@@ -174,6 +174,9 @@ test("the jitter and input codec choices are crisp render's and reach its comman
     assert.equal(flagValue(compile({ ...base, [key]: undefined })[0].commands[0].parameters.args, flag), undefined,
                  key);
   }
+  // Uncompressed inputs, crisp render's default, pass no flag: such jobs run on workers of an older crisp.
+  assert.equal(flagValue(compile({ ...base, input_codec: "none" })[0].commands[0].parameters.args, "--input-codec"),
+               undefined);
 });
 
 test("method, jitter, input_codec and filter_params follow the scene's Crisp panel at submission", () => {
