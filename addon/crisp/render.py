@@ -470,26 +470,32 @@ def checked_codec(codec):
     return name
 
 
-def _remember_exr_codec(snap, settings):
-    """Registers the scene's EXR codec with the snapshot. One that Blender's menu lists at half float only
-    (B44, B44A), chosen there before the Color Depth or File Format changed, reads "" and cannot be set
-    back as such (the run then ended with "could not restore", and the codec was lost). It reads in
-    OpenEXR at 16 bits (switched through snap, which puts format and depth back) and is put back the same
-    way once the rest is."""
-    if settings.exr_codec:
-        snap.remember(settings, "exr_codec")
+def _remember_hidden(snap, owner, attr, reveal):
+    """Registers owner.attr (an enum) with the snapshot. A value Blender's menu no longer lists reads ""
+    and cannot be set back as such, so the run ended with "could not restore" and the value was lost:
+    B44 or B44A as EXR codec, which the menu lists at half float only, after the Color Depth or File
+    Format changed; RGBA as an FFmpeg output's Color after its codec changed to one without alpha
+    (H.264). reveal: the (owner, attr, value) settings under which it is listed, in order; they are
+    switched through snap (which puts them back), the value is read, and once the rest is back it is put
+    back under them the same way (the pass after that puts back what the switch reset, as FFmpeg's
+    container). Without reveal, a hidden value is left as the run leaves it."""
+    if getattr(owner, attr) != "":
+        snap.remember(owner, attr)
         return
-    snap.set(settings, "file_format", "OPEN_EXR")
-    snap.set(settings, "color_depth", "16")
-    codec = settings.exr_codec
+    for o, a, value in reveal:
+        snap.set(o, a, value)
+    hidden = getattr(owner, attr)
 
     def put_back():
-        file_format, depth = settings.file_format, settings.color_depth
-        settings.file_format, settings.color_depth = "OPEN_EXR", "16"
-        settings.exr_codec = codec
-        settings.file_format = file_format  # (an FFmpeg format's settings: the pass after this puts them back)
-        settings.color_depth = depth
-    snap.restore_after(settings, "exr_codec", put_back)
+        if not hidden:
+            return
+        before = [(o, a, getattr(o, a)) for o, a, _ in reveal]
+        for o, a, value in reveal:
+            setattr(o, a, value)
+        setattr(owner, attr, hidden)
+        for o, a, value in before:  # in the same order: an 8-bit depth only once the format is back
+            setattr(o, a, value)
+    snap.restore_after(owner, attr, put_back)
 
 
 def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_EXR_MULTILAYER", codec="none"):
@@ -512,14 +518,18 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
     snap.set(r, "use_stamp", False)
     snap.set(r, "use_border", False)
     snap.set(r, "use_file_extension", False)
-    for attr in ("color_depth", "color_mode"):  # file_format changes them as a side effect
-        snap.remember(r.image_settings, attr)
     # Switching the format back to FFmpeg resets a movie without audio to an MKV container and its H.264
     # preset: remembered before the switch, so they are put back after it.
     for prop in r.ffmpeg.bl_rna.properties:
         if not prop.is_readonly:
             snap.remember(r.ffmpeg, prop.identifier)
-    _remember_exr_codec(snap, r.image_settings)
+    settings = r.image_settings
+    # file_format changes these as a side effect; each may hold a value its menu hides (_remember_hidden).
+    snap.remember(settings, "color_depth")
+    _remember_hidden(snap, settings, "color_mode",
+                     [(r.ffmpeg, "codec", "PNG")] if settings.file_format == "FFMPEG" else [])
+    _remember_hidden(snap, settings, "exr_codec",
+                     [(settings, "file_format", "OPEN_EXR"), (settings, "color_depth", "16")])
     snap.set(r.image_settings, "file_format", file_format)
     snap.set(r.image_settings, "color_depth", "32")
     snap.set(r.image_settings, "exr_codec", codec.upper())

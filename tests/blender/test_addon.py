@@ -1167,11 +1167,12 @@ class AddonTest(unittest.TestCase):
         finally:
             settings.file_format, settings.color_depth, settings.exr_codec = "PNG", "8", "ZIP"
 
-    def test_a_codec_the_menu_lists_at_half_float_only_is_kept_and_followed(self):
-        """B44A chosen at half float, then the Color Depth or File Format changed: Blender's menu hides the
-        codec (exr_codec reads "") and Blender still writes it. A run leaves it as it was (it ended with
-        "could not restore" and lost it), and in OpenEXR at full float the filtered EXRs are B44A, as
-        Blender's own render of the scene is (the library was handed the codec "" and refused it)."""
+    def test_values_the_output_menus_hide_are_kept_and_followed(self):
+        """Values Blender's Output menus no longer list read "" and Blender still writes them: B44A chosen at
+        half float before the Color Depth or File Format changed, RGBA chosen for an FFmpeg output before its
+        codec changed to H.264. A run leaves them as they were (it ended with "could not restore" and lost
+        them), and in OpenEXR at full float the filtered EXRs are B44A, as Blender's own render of the scene
+        is (the library was handed the codec "" and refused it)."""
         scene = harness.build_scene("spinning_cube")
         scene.render.resolution_x, scene.render.resolution_y = 48, 27
         settings, ffmpeg = scene.render.image_settings, scene.render.ffmpeg
@@ -1181,24 +1182,34 @@ class AddonTest(unittest.TestCase):
             return (settings.file_format, settings.color_depth, settings.color_mode, settings.exr_codec,
                     ffmpeg.format, ffmpeg.codec)
 
+        def hidden():  # what the menus hide, read where they list it (the FFmpeg colour first: a format
+            ffmpeg.codec = "PNG"  # switch would change it)
+            mode = settings.color_mode
+            settings.file_format, settings.color_depth = "OPEN_EXR", "16"
+            return settings.exr_codec, mode
+
         try:
-            for file_format, depth in (("OPEN_EXR", "32"), ("JPEG", "8"), ("FFMPEG", "8")):
+            for file_format, depth, rgba in (("OPEN_EXR", "32", False), ("JPEG", "8", False),
+                                             ("FFMPEG", "8", False), ("FFMPEG", "8", True)):
                 settings.file_format, settings.color_depth, settings.exr_codec = "OPEN_EXR", "16", "B44A"
                 settings.file_format, settings.color_depth = file_format, depth
                 if file_format == "FFMPEG":  # not the defaults a switch of format back to FFmpeg gives
                     ffmpeg.format, ffmpeg.codec = "QUICKTIME", "PNG"
+                    settings.color_mode = "RGBA" if rgba else "RGB"
+                    ffmpeg.codec = "H264" if rgba else "PNG"
                 before = state()
                 self.assertEqual(before[3], "", "the menu shows B44A")
+                self.assertEqual(before[2] == "", rgba, "the menu shows RGBA")
                 with tempfile.TemporaryDirectory() as d:
                     pipeline.run(scene, "fxaa", [1], d, log=lambda *a: None)
                     if file_format == "OPEN_EXR":
                         _, attrs = exr_util.channels(os.path.join(d, "filtered", render.frame_name(1)))
                         self.assertEqual(({t for _, t in attrs["channels"]}, attrs["compression"]), ({full}, b44a))
-                self.assertEqual(state(), before, file_format)
-                settings.file_format, settings.color_depth = "OPEN_EXR", "16"
-                self.assertEqual(settings.exr_codec, "B44A", file_format)
+                self.assertEqual(state(), before, (file_format, rgba))
+                self.assertEqual(hidden(), ("B44A", "RGBA" if rgba else before[2]), (file_format, rgba))
         finally:
             settings.file_format, settings.color_depth, settings.exr_codec = "PNG", "8", "ZIP"
+            settings.color_mode = "RGBA"
 
     def test_the_renders_are_stored_with_the_input_codec_asked(self):
         """input/ and reference/ are stored with the run's input codec (uncompressed unless asked), all of
