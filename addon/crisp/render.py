@@ -35,6 +35,8 @@ JITTER_DISTRIBUTIONS = ("blackman-harris", "uniform")
 # Measured at 1920x1080, colour + depth (docs/farm.md "Disk"): none 41.5 MB, saved in 0.02-0.04 s and read
 # by the library in 99 ms; piz 9.3 MB, 0.12 s, 162 ms; zip 8.9 MB, 0.20 s, 153 ms.
 INPUT_CODECS = ("none", "piz", "zip")
+# The EXR layer names of the passes the renders may write (BLENDER.md; Cryptomatte's are CryptoObject00, ...).
+PASS_NAMES = ("Combined", "Depth", "Normal", "Vector", "DiffCol")
 # RSAA geometric sub-sample offsets in pixels (x right, y up): 8 points on two rotated squares, so
 # every direction through the centre is cut. The filter's offset table must be built for this pattern.
 RSAA_PATTERN = [(-0.375, -0.125), (0.125, -0.375), (0.375, 0.125), (-0.125, 0.375),
@@ -543,6 +545,16 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
             snap.set(view_layer.eevee, prop.identifier, False)
     if "use_pass_cryptomatte_object" in flags:
         snap.set(view_layer, "pass_cryptomatte_depth", 2)  # one EXR layer: rank 0 is all a 1-sample pixel has
+    # An AOV named as a pass (a "Depth" AOV): beside the Z pass Blender 3.4 leaves it out of the file, and
+    # rsaa's renders crashed Blender (its own renders with that AOV and the Z pass crash too); without
+    # the pass, the AOV is written as the "Depth" layer, an RGBA depth no filter can read. Renamed for
+    # the renders, back afterwards.
+    names = {aov.name for aov in view_layer.aovs}
+    for aov in view_layer.aovs:
+        if aov.name in PASS_NAMES or aov.name.startswith("Crypto"):
+            name = next(n for n in ("%s (AOV %d)" % (aov.name, i) for i in itertools.count(1)) if n not in names)
+            names.add(name)
+            snap.set(aov, "name", name)
 
 
 def _render_to(scene, path):

@@ -1211,6 +1211,51 @@ class AddonTest(unittest.TestCase):
             settings.file_format, settings.color_depth, settings.exr_codec = "PNG", "8", "ZIP"
             settings.color_mode = "RGBA"
 
+    def test_an_aov_named_as_a_pass_is_renamed_for_the_renders(self):
+        """A view layer AOV named "Depth", which materials write: beside the Z pass Blender 3.4 left it out
+        of the renders, and rsaa's renders crashed Blender. The renders write it under another name, the
+        filtered frames are those of the scene without it, and it is "Depth" again afterwards."""
+        scene = harness.build_scene("spinning_cube")
+        scene.render.resolution_x, scene.render.resolution_y = 48, 27
+        layer = render.default_view_layer(scene)
+        nodes = []
+
+        def pixels(path):
+            image = bpy.data.images.load(path, check_existing=False)
+            try:
+                return list(image.pixels)
+            finally:
+                bpy.data.images.remove(image)
+
+        with tempfile.TemporaryDirectory() as d:
+            for method in ("taa", "rsaa"):
+                pipeline.run(scene, method, [1, 2], os.path.join(d, method + "_plain"), log=lambda *a: None)
+            aov = layer.aovs.add()
+            aov.name = "Depth"
+            try:
+                for material in bpy.data.materials:  # the AOV written with a value far from any depth
+                    if material.use_nodes:
+                        node = material.node_tree.nodes.new("ShaderNodeOutputAOV")
+                        node.name = "Depth"  # (Blender 3.4: the AOV node's name is the AOV it writes)
+                        node.inputs["Color"].default_value = (0.25, 0.5, 0.75, 1.0)
+                        nodes.append((material, node))
+                for method in ("taa", "rsaa"):
+                    out = os.path.join(d, method + "_aov")
+                    pipeline.run(scene, method, [1, 2], out, log=lambda *a: None)
+                    names, _ = exr_util.channels(os.path.join(out, "input", render.frame_name(2)))
+                    self.assertIn("ViewLayer.Depth (AOV 1).R", names)
+                    self.assertEqual([a.name for a in layer.aovs], ["Depth"])
+                    for f in (1, 2):
+                        self.assertTrue(pixels(os.path.join(out, "filtered", render.frame_name(f))) ==
+                                        pixels(os.path.join(d, method + "_plain", "filtered", render.frame_name(f))),
+                                        (method, f))
+            finally:
+                for material, node in nodes:
+                    material.node_tree.nodes.remove(node)
+                layer.active_aov_index = 0  # Blender 3.4's collection has no remove: the operator removes the active
+                with bpy.context.temp_override(view_layer=layer):
+                    bpy.ops.scene.view_layer_remove_aov()
+
     def test_the_renders_are_stored_with_the_input_codec_asked(self):
         """input/ and reference/ are stored with the run's input codec (uncompressed unless asked), all of
         them lossless: the filtered frames are those of uncompressed renders, value for value. The sidecar
