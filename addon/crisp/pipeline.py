@@ -100,6 +100,11 @@ def output_argument(text):
 def check_output_dir(out_dir, subfolders=()):
     """Creates out_dir if needed and proves it writable, or raises InputError naming it; likewise when
     one of `subfolders`, where a run writes frames of that name, is a file (the user's own)."""
+    if os.sep == "/" and "\\" in out_dir:
+        # Blender reads it as a folder separator in a render's path: the renders went to another folder
+        # ("shot\010" -> shot/010/), and the run failed with "Blender wrote no file".
+        raise InputError("output folder '%s' has a backslash in its path, which Blender reads as a folder "
+                         "separator: choose a path without one" % out_dir)
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise InputError("output folder '%s' is a file, not a folder: choose another" % out_dir)
     for sub in subfolders:

@@ -188,6 +188,8 @@ class BatchTest(unittest.TestCase):
             (["--frames", "1-2", "--scene-script", nocam, "-o", out], None, 2, "no camera"),
             (["--frames", "5-3", "-o", out], blend, 2, "frame range 5-3 is empty"),
             (["--frames", "1-2", "-o", os.path.join(blocker, "out")], blend, 2, "is not writable"),
+            # Blender reads a backslash in a render's path as a folder separator: it rendered elsewhere.
+            (["--frames", "1-2", "-o", out + "\\010"], blend, 2, "has a backslash in its path"),
             (["--frames", "1-2", "--method", "smaa", "-o", out], blend, 2, "unknown method 'smaa'"),
             (["--frames", "1-2", "--library", "/nonexistent/libcrisp.so", "-o", out], blend, 3,
              "/nonexistent/libcrisp.so: no such file"),
