@@ -87,6 +87,11 @@ def test_help_prints_parameter_tables():
      ["--jitter: unknown distribution 'halton'", "blackman-harris, uniform"]),
     (["render", "--scene", "still_life", "--jitter", "halton", "-o", "OUT"], 2,
      ["--jitter: unknown distribution 'halton'"]),
+    # Blender reads a backslash in a render's path as a folder separator (the renders would go elsewhere).
+    (["render", "--scene", "still_life", "-o", "OUT\\010", "--blender", "NOBLENDER"], 2,
+     ["-o '", "010' has a backslash in its path"]),
+    (["eval", "--scene", "still_life", "-o", "OUT\\010", "--blender", "NOBLENDER"], 2,
+     ["has a backslash in its path"]),
     # Lossy codecs are not offered for the renders the filters read.
     (["render", "--scene", "still_life", "--input-codec", "dwaa", "-o", "OUT", "--blender", "NOBLENDER"], 2,
      ["--input-codec: unknown codec 'dwaa' (known: none, piz, zip; lossless"]),
@@ -140,7 +145,8 @@ def test_help_prints_parameter_tables():
      ["--methods ',' names no method"]),
 ])
 def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
-    place = {"IN": str(chart / "chart_1spp.exr"), "OUT": str(tmp_path / "out"), "NOBLENDER": str(tmp_path / "none")}
+    place = {"IN": str(chart / "chart_1spp.exr"), "OUT": str(tmp_path / "out"), "NOBLENDER": str(tmp_path / "none"),
+             "OUT\\010": str(tmp_path / "out") + "\\010"}
     args = [place.get(a, a) for a in args]
     p = run(*args, ok=False)
     assert p.returncode == code, p.stderr
@@ -148,7 +154,7 @@ def test_usage_and_parameter_errors(chart, tmp_path, args, code, words):
         assert w in p.stderr
     assert not (tmp_path / "out" / "chart_1spp.exr").exists()
     if args[0] in ("eval", "render"):
-        assert not (tmp_path / "out").exists()  # refused before anything is made
+        assert not (tmp_path / "out").exists() and not (tmp_path / "out\\010").exists()  # refused before anything
 
 
 def test_eval_output_relative_to_the_blend_file_is_beside_it(tmp_path):
