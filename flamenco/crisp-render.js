@@ -66,7 +66,8 @@ const JOB_TYPE = {
     { key: "input_codec", type: "string", default: "none", choices: CRISP_INPUT_CODECS,
       eval: "getattr(getattr(C.scene, 'crisp', None), 'input_codec', 'none')",
       evalInfo: { showLinkButton: true, description: "Crisp panel's Input Codec" },
-      description: "OpenEXR codec of the 1-sample renders kept in input/: none (fastest), piz or zip (about 4.5x smaller)" },
+      description: "OpenEXR codec of the 1-sample renders kept in input/: none (fastest), piz or zip (about 4.5x " +
+        "smaller)" },
     // The panel's parameters of its method that differ from the library's defaults, as a render from the
     // panel sends them (properties.py set_params_text). No lambda may name C: eval's locals are not its scope.
     { key: "filter_params", type: "string", default: "",

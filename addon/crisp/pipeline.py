@@ -376,8 +376,9 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
     scene_key: what the scene file holds (batch.py scene_key), or None when unknown (a scene edited in
     this session); with it, frames of another scene file are never reused or resumed. input_codec: the
     OpenEXR codec of the frames this run renders into input/ and reference/ (render.INPUT_CODECS, all
-    lossless: frames kept from a run with another stay as they are; each sidecar says which). out_dir: a folder; one starting with // is relative to the saved .blend
-    file, as Blender reads it (output_argument)."""
+    lossless: frames kept from a run with another stay as they are; each sidecar says which). out_dir:
+    a folder; one starting with // is relative to the saved .blend file, as Blender reads it
+    (output_argument)."""
     frames = list(frames)
     given = params
     # Before anything uses it: os.path reads "//x" as the root folder's x, where Blender renders beside

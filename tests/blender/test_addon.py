@@ -60,6 +60,15 @@ def touched_state(scene):
     return state
 
 
+def image_pixels(path):
+    """The pixels of the image file at path as Blender loads them (a float image: linear RGBA)."""
+    image = bpy.data.images.load(path, check_existing=False)
+    try:
+        return list(image.pixels)
+    finally:
+        bpy.data.images.remove(image)
+
+
 def controlled_ball(kind, animated):
     """still_life with its ball reshaped by an empty ("Control", not rendered) through a hook on three
     vertices (kind "hook") or Geometry Nodes offsetting it by the empty's relative location (kind
@@ -1220,13 +1229,6 @@ class AddonTest(unittest.TestCase):
         layer = render.default_view_layer(scene)
         nodes = []
 
-        def pixels(path):
-            image = bpy.data.images.load(path, check_existing=False)
-            try:
-                return list(image.pixels)
-            finally:
-                bpy.data.images.remove(image)
-
         with tempfile.TemporaryDirectory() as d:
             for method in ("taa", "rsaa"):
                 pipeline.run(scene, method, [1, 2], os.path.join(d, method + "_plain"), log=lambda *a: None)
@@ -1246,8 +1248,8 @@ class AddonTest(unittest.TestCase):
                     self.assertIn("ViewLayer.Depth (AOV 1).R", names)
                     self.assertEqual([a.name for a in layer.aovs], ["Depth"])
                     for f in (1, 2):
-                        self.assertTrue(pixels(os.path.join(out, "filtered", render.frame_name(f))) ==
-                                        pixels(os.path.join(d, method + "_plain", "filtered", render.frame_name(f))),
+                        plain = image_pixels(os.path.join(d, method + "_plain", "filtered", render.frame_name(f)))
+                        self.assertTrue(image_pixels(os.path.join(out, "filtered", render.frame_name(f))) == plain,
                                         (method, f))
             finally:
                 for material, node in nodes:
@@ -1268,13 +1270,6 @@ class AddonTest(unittest.TestCase):
         def compression(path):
             return exr_util.channels(path)[1]["compression"]
 
-        def pixels(path):
-            image = bpy.data.images.load(path, check_existing=False)
-            try:
-                return list(image.pixels)
-            finally:
-                bpy.data.images.remove(image)
-
         with tempfile.TemporaryDirectory() as d:
             runs = {"none": os.path.join(d, "none"), "piz": os.path.join(d, "piz"), "zip": os.path.join(d, "zip")}
             for codec, out in runs.items():
@@ -1291,10 +1286,10 @@ class AddonTest(unittest.TestCase):
             self.assertLess(os.path.getsize(os.path.join(runs["piz"], "input", "frame_0002.exr")),
                             os.path.getsize(os.path.join(runs["none"], "input", "frame_0002.exr")))
             for f in (1, 2, 3):
-                plain = pixels(os.path.join(runs["none"], "filtered", render.frame_name(f)))
+                plain = image_pixels(os.path.join(runs["none"], "filtered", render.frame_name(f)))
                 self.assertEqual(len(plain), 48 * 27 * 4)
                 for codec in ("piz", "zip"):
-                    self.assertTrue(pixels(os.path.join(runs[codec], "filtered", render.frame_name(f))) == plain,
+                    self.assertTrue(image_pixels(os.path.join(runs[codec], "filtered", render.frame_name(f))) == plain,
                                     (codec, f))
             logged = []
             pipeline.run(scene, "taa", [1, 2, 3], runs["piz"], reference_samples=2, log=logged.append, resume=True,
