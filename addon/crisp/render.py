@@ -201,7 +201,8 @@ class Snapshot:
 
     def restore(self):
         """Puts every value back. Two passes: some values are only valid once another one is back
-        (an 8-bit colour depth is refused while the file format is still EXR). The scene deleted (or
+        (an 8-bit colour depth is refused while the file format is still EXR); then the restore_after
+        calls and one more pass. The scene deleted (or
         read again by an undo) while a clicked run waited between frames: its own data went with it and
         the Python objects of that data point at freed memory, so only the values of other data (a
         camera's shift, an animation curve) are put back."""
@@ -217,8 +218,8 @@ class Snapshot:
                 undo_errors["viewport visibility"] = str(e)
         self._undo.clear()
         after, self._after = ([] if gone else self._after), []  # (all of them put back the scene's own data)
-        for round in range(3 if after else 2):
-            if round == 2:
+        for sweep in range(3 if after else 2):
+            if sweep == 2:
                 for call in reversed(after):
                     try:
                         call()
