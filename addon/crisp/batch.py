@@ -268,10 +268,10 @@ def panel_codec(scene, codec, use_panel=True):
     else the panel's Input Codec when the opened .blend set it, else render.INPUT_CODECS[0]. After
     panel_settings, which registers the panel's settings."""
     from crisp import render
-    if codec is not None:
-        return codec.lower(), False
+    if codec is not None or not use_panel:  # (without the panel its settings may not be registered)
+        return (codec or render.INPUT_CODECS[0]).lower(), False
     settings = scene.crisp
-    if use_panel and settings.is_property_set("input_codec"):
+    if settings.is_property_set("input_codec"):
         if not settings.input_codec:  # a number this add-on's menu does not hold (a newer add-on's codec)
             raise PanelError("the scene's Crisp panel (%s) has an input codec this add-on does not offer (saved as "
                              "number %s): choose one in the panel, or give --input-codec (%s)"
