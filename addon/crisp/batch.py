@@ -193,7 +193,9 @@ def scene_key(script_path):
     """What the scene is made of, for reuse checks (pipeline.run scene_key): a hash of the bundled
     scene's script, the test_scenes/common.py it imports and the other bundled scenes it imports
     (light_switch: still_life), or of the .blend Blender opened (as saved: call before anything changes
-    the scene); None for an unsaved scene. Linked files are not in it."""
+    the scene) and of the library .blend files it links (an edited linked set or character renders other
+    frames; a resume kept the old ones); None for an unsaved scene. Images and other files it reads are
+    not in it."""
     import hashlib
     import bpy
     if script_path:
@@ -210,10 +212,24 @@ def scene_key(script_path):
     h = hashlib.sha256()
     for path in files:
         if os.path.isfile(path):
-            with open(path, "rb") as f:
-                for chunk in iter(lambda: f.read(1 << 20), b""):  # a .blend may be large
-                    h.update(chunk)
+            _hash_file(h, path)
+    # The libraries (also those linked through others), by content in a fixed order: a file of none hashes
+    # as before. One missing is named as such (Blender renders without its data).
+    libraries = sorted({os.path.normpath(bpy.path.abspath(lib.filepath, library=lib.parent))
+                        for lib in bpy.data.libraries})
+    for path in libraries:
+        h.update(b"\0library\0")
+        if os.path.isfile(path):
+            _hash_file(h, path)
+        else:
+            h.update(b"missing:" + path.encode("utf-8", "surrogateescape"))
     return "sha256:" + h.hexdigest()[:16]
+
+
+def _hash_file(h, path):
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):  # a .blend may be large
+            h.update(chunk)
 
 
 class PanelError(Exception):

@@ -1140,6 +1140,35 @@ def test_a_resume_sees_a_panel_edited_since(tmp_path):
     assert json.loads((out / "input" / "frame_0001.json").read_text())["made_with"]["params"] == {"sharpen": "0.25"}
 
 
+LINK_SCENE = """
+import bpy
+bpy.context.scene.name = "Main"  # the file's own scene, left behind
+with bpy.data.libraries.load(%r, link=True) as (src, dst):
+    dst.scenes = ["Scene"]
+bpy.context.window.scene = dst.scenes[0]
+bpy.ops.wm.save_as_mainfile(filepath=%r)
+"""
+
+
+@needs_blender
+def test_a_resume_sees_a_linked_library_edited_since(tmp_path):
+    """A shot whose scene is linked from another .blend: after that library was edited (its objects
+    moved) and saved, a resume makes the frames again, as for an edit of the opened file; they kept
+    the old picture, since only the opened file was hashed."""
+    library = panel_blend(tmp_path / "set.blend", "")
+    shot = tmp_path / "shot.blend"
+    p = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr",
+                        LINK_SCENE % (str(library), str(shot))], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0 and shot.is_file(), p.stdout[-2000:] + p.stderr[-2000:]
+    out, fresh = tmp_path / "out", tmp_path / "fresh"
+    render_panel(shot, out, "--method", "fxaa", "--no-panel")
+    panel_blend(library, "for o in bpy.data.objects:\n    o.location.x += 0.5 * (o.type != 'CAMERA')")
+    p = render_panel(shot, out, "--method", "fxaa", "--no-panel", "--resume")
+    assert "frame 1 was made with other settings (scene_key " in p.stdout, p.stdout[-3000:]
+    render_panel(shot, fresh, "--method", "fxaa", "--no-panel")
+    assert frame_mse(fresh / "filtered" / "frame_0002.exr", out / "filtered" / "frame_0002.exr", tmp_path) == 0
+
+
 @needs_blender
 def test_a_set_the_panel_completes_is_not_refused_before_blender(tmp_path):
     """--method with a --set that the library's defaults refuse (feedbackMin 0.9 above the default
