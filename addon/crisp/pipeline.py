@@ -595,7 +595,10 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
             kept = [f for f in frames if f not in todo]  # complete with these settings (is_complete)
 
             def merged(before, now):
-                before = {e.get("frame"): e for e in before if isinstance(e, dict)}
+                # A record edited by hand (or by another tool) may hold anything: entries without a frame
+                # number are left out, as is a list that is not one.
+                before = {e["frame"]: e for e in (before if isinstance(before, list) else [])
+                          if isinstance(e, dict) and isinstance(e.get("frame"), int)}
                 # In frame order: a spatial resume keeps frames after those it makes.
                 return sorted([before.get(f, {"frame": f}) for f in kept] + now, key=lambda e: e["frame"])
 

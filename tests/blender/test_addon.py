@@ -1258,6 +1258,28 @@ class AddonTest(unittest.TestCase):
                 with bpy.context.temp_override(view_layer=layer):
                     bpy.ops.scene.view_layer_remove_aov()
 
+    def test_a_resume_over_a_record_edited_by_hand(self):
+        """run.json's frames edited into something else than a list of entries (null, a number, entries
+        whose frame is not a number): a resume records the frames it keeps and makes without them; it
+        raised a TypeError, and so did every resume after it."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        with tempfile.TemporaryDirectory() as d:
+            pipeline.run(scene, "fxaa", [1, 2], d, log=lambda *a: None)
+            record = os.path.join(d, "run.json")
+            for frames in (None, 5, "1-2", [{"frame": [1]}, {"frame": "2"}, 7, {"frame": 2, "render_s": 0.5}]):
+                with open(record) as fh:
+                    data = json.load(fh)
+                data["frames"] = frames
+                with open(record, "w") as fh:
+                    json.dump(data, fh)
+                os.remove(os.path.join(d, "filtered", render.frame_name(2)))
+                pipeline.run(scene, "fxaa", [1, 2], d, log=lambda *a: None, resume=True)
+                with open(record) as fh:
+                    written = json.load(fh)
+                self.assertEqual([e["frame"] for e in written["frames"]], [1, 2], frames)
+                self.assertEqual(written["status"], "complete")
+
     def test_the_renders_are_stored_with_the_input_codec_asked(self):
         """input/ and reference/ are stored with the run's input codec (uncompressed unless asked), all of
         them lossless: the filtered frames are those of uncompressed renders, value for value. The sidecar
