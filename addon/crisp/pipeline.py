@@ -426,10 +426,11 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
     if the_plan.motion_source == "reconstruct" and shared and filter_frames:
         names = plan_mod.some_names(shared, quote=True)
         verbs = ("move", "render") if len(shared) > 1 else ("moves", "renders")
-        log("note: %s %s but %s more than once (instances of one source share its object ID), so the sidecars "
-            "cannot tell the copies' transforms apart and motion reconstruction treats their pixels as still: %s "
-            "may leave a trail behind them; for exact motion make the moving copies real objects (Object > Apply "
-            "> Make Instances Real)" % (names, verbs[0], verbs[1], method))
+        log("note: %s %s but %s more than once (instances of one source share its object ID, as do objects of "
+            "one name from different files), so the sidecars cannot tell the copies' transforms apart and motion "
+            "reconstruction treats their pixels as still: %s may leave a trail behind them; for exact motion make "
+            "the moving copies real objects (Object > Apply > Make Instances Real), or rename a local object "
+            "that has a linked one's name" % (names, verbs[0], verbs[1], method))
     legacy_eevee = engine == "BLENDER_EEVEE" and bpy.app.version < (4, 2, 0)  # the EEVEE whose probe this is
     if legacy_eevee and scene.eevee.gi_cubemap_resolution != render.CUBEMAP_RESOLUTION:
         # "info", not "note": Blender's default is 512, so nearly every scene would warn of it, and there is

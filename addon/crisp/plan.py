@@ -258,8 +258,9 @@ def _rendering_layer_collections(layer):
 
 
 def _render_collections_objects(layer):
-    """Names of the objects in the layer's collections that render."""
-    return {o.name for lc in _rendering_layer_collections(layer) for o in lc.collection.objects}
+    """The objects in the layer's collections that render, by as_pointer (a name is not unique: a linked
+    object may have a local one's)."""
+    return {o.as_pointer() for lc in _rendering_layer_collections(layer) for o in lc.collection.objects}
 
 
 def scenes_with_sets(scene):
@@ -287,13 +288,13 @@ def render_layers(layer):
 def _layer_objects(layer):
     """The objects of the layer's scene and of its background sets, each once, as [(object, the view
     layer that renders it, whether it is in a collection that renders there)]."""
-    out, names = [], set()
+    out, seen = [], set()
     for s, l in render_layers(layer):
         rendered = _render_collections_objects(l)
         for ob in s.objects:
-            if ob.name not in names:
-                names.add(ob.name)
-                out.append((ob, l, ob.name in rendered))
+            if ob.as_pointer() not in seen:
+                seen.add(ob.as_pointer())
+                out.append((ob, l, ob.as_pointer() in rendered))
     return out
 
 
@@ -511,7 +512,7 @@ def rendered_instances(layer):
     geometry nodes instances), as [(source object, instancer name, matrix_world as lists)], from
     the layer's depsgraph at the current frame. Cryptomatte names an instance by its source object, so
     instances of one source share one object ID."""
-    rendered = {ob.name for ob, _, r in _layer_objects(layer) if r}
+    rendered = {ob.as_pointer() for ob, _, r in _layer_objects(layer) if r}
     out = []
     for inst in layer.depsgraph.object_instances:
         if not inst.is_instance or inst.parent is None:
@@ -519,7 +520,7 @@ def rendered_instances(layer):
         source, parent = inst.object.original, inst.parent.original
         if source.type not in RENDERABLE_TYPES or source.hide_render or parent.hide_render:
             continue
-        if parent.name not in rendered:
+        if parent.as_pointer() not in rendered:
             continue
         out.append((source, parent.name, [list(r) for r in inst.matrix_world]))
     return out
@@ -557,7 +558,7 @@ def show_render_modifiers(scene):
     stays off), and off those shown in the viewport only (a hook off in renders reshapes nothing that
     renders); returns the calls that switch each back."""
     undo = []
-    for ob in {o.name: o for s in scenes_with_sets(scene) for o in s.objects}.values():
+    for ob in {o.as_pointer(): o for s in scenes_with_sets(scene) for o in s.objects}.values():
         if ob.type not in RENDERABLE_TYPES or ob.hide_render:
             continue
         for m in getattr(ob, "modifiers", ()):
@@ -614,7 +615,8 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
     first_cam = {}  # camera object name -> its matrix and projection at the first frame it is the scene's camera
     first, moving, names, named, cuts = {}, set(), [], set(), []
     first_geometry, deforming = {}, set()  # object name -> _geometry_fingerprint at the first frame; deforming
-    shared = set()  # sources that render more than once on a frame (instances, or instanced and visible itself)
+    shared = set()  # names that render more than once on a frame (instances, instanced and visible itself, or
+    # objects of one name from different files)
     instances = []  # the last frame's (rendered_instances)
     camera_moves = False
     previous_cam = None
@@ -646,20 +648,22 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                 elif not (_same(cm[0], first_cam[cam.name][0])
                           and _same(cm[1], first_cam[cam.name][1], rows=IMAGE_ROWS)):
                     camera_moves = True
+            # Each object by its full name (a linked object may have a local one's name), each fact by its
+            # name, as Cryptomatte's IDs are (hashing.cryptomatte_hex).
             for o in obs:
                 m = [list(r) for r in o.matrix_world]
-                if o.name not in first:
-                    first[o.name] = m
-                elif not _same(m, first[o.name]):
+                if o.name_full not in first:
+                    first[o.name_full] = m
+                elif not _same(m, first[o.name_full]):
                     moving.add(o.name)
             # Geometry that changes with no animation of its own (a hook or lattice whose control object
             # moves, Geometry Nodes reading another object): measured, as the matrices are.
             # Each frame's visible objects: one hidden from the render on later frames deforms on earlier ones.
             # A source is measured once per frame, however many times it is instanced.
-            measured = {o.name: o for o in obs}
+            measured = {o.name_full: o for o in obs}
             for source, _, _ in instances:
-                measured.setdefault(source.name, source)
-            for o in measured.values():
+                measured.setdefault(source.name_full, source)
+            for key, o in measured.items():
                 if o.name in deforming:
                     continue
                 if _deforms(o):
@@ -668,14 +672,17 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                 fp = _geometry_fingerprint(o, layer.depsgraph) if _may_deform(o) else None
                 if fp is None:
                     continue
-                if o.name not in first_geometry:
-                    first_geometry[o.name] = fp
-                elif fp != first_geometry[o.name]:
+                if key not in first_geometry:
+                    first_geometry[key] = fp
+                elif fp != first_geometry[key]:
                     deforming.add(o.name)
             # Cryptomatte names an instance by its source: how often each such ID renders on this frame.
-            renders, visible_now = {}, {o.name for o in obs}
+            # So are objects of one name (a linked object and a local one of the same name).
+            renders = {}
+            for o in obs:
+                renders[o.name] = renders.get(o.name, 0) + 1
             for source, _, _ in instances:
-                renders[source.name] = renders.get(source.name, int(source.name in visible_now)) + 1
+                renders[source.name] = renders.get(source.name, 0) + 1
             shared.update(name for name, n in renders.items() if n > 1)
             seen = {}  # an instance is told from the others of its source and instancer by its order
             for source, parent, m in instances:

@@ -13,6 +13,7 @@ Facts used (../../../shared/BLENDER.md, checked on Blender 3.4.1):
 """
 
 import bisect
+import collections
 import functools
 import itertools
 import json
@@ -340,7 +341,9 @@ def object_table(scene, view_layer):
     renders once (instances of one source share its ID, so their transforms cannot be told apart in
     the ID pass: those are left out, and motion reconstruction treats their pixels as still). A source
     that is also a visible object shares that object's ID: the object's matrix is listed, for both.
-    Objects that may deform also carry plan.geometry_record."""
+    Visible objects of one name (a linked one and a local one: Cryptomatte hashes the name alone) share
+    an ID too, and are left out like instances. Objects that may deform also carry
+    plan.geometry_record."""
     out = {}
     layer = view_layer or scene.view_layers[0]
     instances = plan_mod.rendered_instances(layer)
@@ -352,9 +355,15 @@ def object_table(scene, view_layer):
         if counts[source.name] == 1 and key not in out:
             out[key] = {"name": source.name, "matrix_world": _matrix(m),
                         **plan_mod.geometry_record(source, layer.depsgraph)}
-    for ob in plan_mod.visible_objects(scene, view_layer):
-        out[hashing.cryptomatte_hex(ob.name)] = {"name": ob.name, "matrix_world": _matrix(ob.matrix_world),
-                                                 **plan_mod.geometry_record(ob, layer.depsgraph)}
+    visible = plan_mod.visible_objects(scene, view_layer)
+    named = collections.Counter(ob.name for ob in visible)
+    for ob in visible:
+        key = hashing.cryptomatte_hex(ob.name)
+        if named[ob.name] > 1:
+            out.pop(key, None)
+            continue
+        out[key] = {"name": ob.name, "matrix_world": _matrix(ob.matrix_world),
+                    **plan_mod.geometry_record(ob, layer.depsgraph)}
     return out
 
 

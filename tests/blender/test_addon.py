@@ -1280,6 +1280,50 @@ class AddonTest(unittest.TestCase):
                 self.assertEqual([e["frame"] for e in written["frames"]], [1, 2], frames)
                 self.assertEqual(written["status"], "complete")
 
+    def test_a_linked_object_with_a_local_ones_name(self):
+        """still_life's still "Ball" beside a moving "Ball" linked from another file: the plan saw one of
+        them (objects were told apart by name) and no motion. Both are seen: the linked one moves, and
+        since Cryptomatte hashes the name alone they share an object ID, which the run says, as of
+        instances; the sidecars leave that ID out (its pixels taken as still)."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        local = bpy.data.objects["Ball"]
+        with tempfile.TemporaryDirectory() as d:
+            asset = os.path.join(d, "asset.blend")
+            local.name = "Ball (local)"  # the library's sphere takes the name, then the local one gets it back
+            props = bpy.data.collections.new("Props")
+            ball = bpy.data.objects.new("Ball", local.data)
+            props.objects.link(ball)
+            for frame, x in ((1, -1.0), (3, 1.0)):
+                ball.location = (x, 0.0, 0.5)
+                ball.keyframe_insert("location", frame=frame)
+            bpy.data.libraries.write(asset, {props}, fake_user=True)
+            action = ball.animation_data.action
+            bpy.data.objects.remove(ball)
+            bpy.data.collections.remove(props)
+            bpy.data.actions.remove(action)
+            local.name = "Ball"
+            with bpy.data.libraries.load(asset, link=True) as (_, linked):
+                linked.collections = ["Props"]
+            props = linked.collections[0]
+            scene.collection.children.link(props)
+            try:
+                self.assertEqual(sorted((o.name, o.library is not None) for o in bpy.data.objects if o.name == "Ball"),
+                                 [("Ball", False), ("Ball", True)])
+                the_plan, facts = pipeline.scene_plan(scene, "taa", [1, 2, 3])
+                self.assertIn("motion", the_plan.passes)
+                self.assertEqual((facts.moving_objects, facts.shared_id_movers), (["Ball"], ["Ball"]))
+                logged = []
+                pipeline.run(scene, "taa", [1, 2], os.path.join(d, "out"), log=logged.append)
+                self.assertTrue([s for s in logged if s.startswith("note: 'Ball' moves but renders more than once")],
+                                logged)
+                side = render.read_sidecar(os.path.join(d, "out", "input"), 2)
+                self.assertNotIn(hashing.cryptomatte_hex("Ball"), side["objects"])
+                self.assertIn(hashing.cryptomatte_hex("Floor"), side["objects"])
+            finally:
+                scene.collection.children.unlink(props)
+                bpy.data.libraries.remove(props.library)
+
     def test_the_renders_are_stored_with_the_input_codec_asked(self):
         """input/ and reference/ are stored with the run's input codec (uncompressed unless asked), all of
         them lossless: the filtered frames are those of uncompressed renders, value for value. The sidecar
