@@ -637,9 +637,12 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
             instances = rendered_instances(layer)
             # Over every frame: an object that appears later (hide_render keyed) renders there too, and
             # rsaa renders geometry only where something is visible.
-            for name in [o.name for o in obs] + sorted({source.name for source, _, _ in instances}):
-                if name not in named:  # a set: a list's `in` would cost objects x objects per frame
-                    named.add(name)
+            # Each object once (by its full name), listed by name: a linked object and a local one of the
+            # same name are two.
+            for key, name in ([(o.name_full, o.name) for o in obs]
+                              + sorted({(source.name_full, source.name) for source, _, _ in instances})):
+                if key not in named:  # a set: a list's `in` would cost objects x objects per frame
+                    named.add(key)
                     names.append(name)
             if cam is not None:
                 cm = ([list(r) for r in cam.matrix_world], camera_projection(cam, layer.depsgraph, scene))

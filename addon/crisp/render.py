@@ -347,23 +347,25 @@ def object_table(scene, view_layer):
     out = {}
     layer = view_layer or scene.view_layers[0]
     instances = plan_mod.rendered_instances(layer)
+    visible = plan_mod.visible_objects(scene, view_layer)
     counts = {}
     for source, _, _ in instances:
         counts[source.name] = counts.get(source.name, 0) + 1
+    # The objects of each name, visible or instanced (one object may be both): more than one, one ID.
+    objects_named = collections.defaultdict(set)
+    for ob in visible + [source for source, _, _ in instances]:
+        objects_named[ob.name].add(ob.name_full)
     for source, _, m in instances:
         key = hashing.cryptomatte_hex(source.name)
         if counts[source.name] == 1 and key not in out:
             out[key] = {"name": source.name, "matrix_world": _matrix(m),
                         **plan_mod.geometry_record(source, layer.depsgraph)}
-    visible = plan_mod.visible_objects(scene, view_layer)
-    named = collections.Counter(ob.name for ob in visible)
     for ob in visible:
-        key = hashing.cryptomatte_hex(ob.name)
-        if named[ob.name] > 1:
-            out.pop(key, None)
-            continue
-        out[key] = {"name": ob.name, "matrix_world": _matrix(ob.matrix_world),
-                    **plan_mod.geometry_record(ob, layer.depsgraph)}
+        out[hashing.cryptomatte_hex(ob.name)] = {"name": ob.name, "matrix_world": _matrix(ob.matrix_world),
+                                                 **plan_mod.geometry_record(ob, layer.depsgraph)}
+    for name, objects in objects_named.items():
+        if len(objects) > 1:
+            out.pop(hashing.cryptomatte_hex(name), None)
     return out
 
 

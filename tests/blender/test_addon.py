@@ -1281,10 +1281,11 @@ class AddonTest(unittest.TestCase):
                 self.assertEqual(written["status"], "complete")
 
     def test_a_linked_object_with_a_local_ones_name(self):
-        """still_life's still "Ball" beside a moving "Ball" linked from another file: the plan saw one of
-        them (objects were told apart by name) and no motion. Both are seen: the linked one moves, and
-        since Cryptomatte hashes the name alone they share an object ID, which the run says, as of
-        instances; the sidecars leave that ID out (its pixels taken as still)."""
+        """still_life's still "Ball" beside a moving "Ball" linked from another file, into the scene's
+        collections or through a collection instance: the plan saw one of them (objects were told apart
+        by name) and no motion. Both are seen: the linked one moves, and since Cryptomatte hashes the name
+        alone they share an object ID, which the run says, as of instances; the sidecars leave that ID
+        out (its pixels taken as still; the local Ball's matrix stood for the instance's)."""
         scene = harness.build_scene("still_life")
         scene.render.resolution_x, scene.render.resolution_y = 32, 18
         local = bpy.data.objects["Ball"]
@@ -1306,22 +1307,32 @@ class AddonTest(unittest.TestCase):
             with bpy.data.libraries.load(asset, link=True) as (_, linked):
                 linked.collections = ["Props"]
             props = linked.collections[0]
-            scene.collection.children.link(props)
             try:
-                self.assertEqual(sorted((o.name, o.library is not None) for o in bpy.data.objects if o.name == "Ball"),
-                                 [("Ball", False), ("Ball", True)])
-                the_plan, facts = pipeline.scene_plan(scene, "taa", [1, 2, 3])
-                self.assertIn("motion", the_plan.passes)
-                self.assertEqual((facts.moving_objects, facts.shared_id_movers), (["Ball"], ["Ball"]))
-                logged = []
-                pipeline.run(scene, "taa", [1, 2], os.path.join(d, "out"), log=logged.append)
-                self.assertTrue([s for s in logged if s.startswith("note: 'Ball' moves but renders more than once")],
-                                logged)
-                side = render.read_sidecar(os.path.join(d, "out", "input"), 2)
-                self.assertNotIn(hashing.cryptomatte_hex("Ball"), side["objects"])
-                self.assertIn(hashing.cryptomatte_hex("Floor"), side["objects"])
+                # Linked into the scene's collections, and instanced by an empty (Blender's default link).
+                for way in ("collection", "instance"):
+                    if way == "collection":
+                        scene.collection.children.link(props)
+                    else:
+                        scene.collection.children.unlink(props)
+                        empty = bpy.data.objects.new("Props instance", None)
+                        empty.instance_type, empty.instance_collection = "COLLECTION", props
+                        scene.collection.objects.link(empty)
+                    the_plan, facts = pipeline.scene_plan(scene, "taa", [1, 2, 3])
+                    self.assertIn("motion", the_plan.passes, way)
+                    self.assertEqual((facts.moving_objects, facts.shared_id_movers), (["Ball"], ["Ball"]), way)
+                    self.assertEqual(facts.visible_objects.count("Ball"), 2, way)
+                    logged = []
+                    pipeline.run(scene, "taa", [1, 2], os.path.join(d, way), log=logged.append)
+                    self.assertTrue([s for s in logged if s.startswith("note: 'Ball' moves but renders more than "
+                                                                       "once")], (way, logged))
+                    side = render.read_sidecar(os.path.join(d, way, "input"), 2)
+                    self.assertNotIn(hashing.cryptomatte_hex("Ball"), side["objects"], way)
+                    self.assertIn(hashing.cryptomatte_hex("Floor"), side["objects"], way)
             finally:
-                scene.collection.children.unlink(props)
+                if props.name in scene.collection.children:
+                    scene.collection.children.unlink(props)
+                if "Props instance" in bpy.data.objects:
+                    bpy.data.objects.remove(bpy.data.objects["Props instance"])
                 bpy.data.libraries.remove(props.library)
 
     def test_the_renders_are_stored_with_the_input_codec_asked(self):
