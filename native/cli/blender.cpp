@@ -113,11 +113,14 @@ std::vector<std::string> blenderDriverCommand(const ParsedArgs& args, const std:
 
 fs::path blenderOutputFolder(const ParsedArgs& args) {
   const std::string out = args.get("output");
+#ifndef _WIN32
   // Blender reads a backslash in a render's path as a folder separator: the renders would go elsewhere
-  // (batch.py refuses it too, pipeline.check_output_dir; said here before anything is made).
+  // (batch.py refuses it too, pipeline.check_output_dir; said here before anything is made). On
+  // Windows it is the separator.
   if (out.find('\\') != std::string::npos)
     throw UsageError("-o '" + out + "' has a backslash in its path, which Blender reads as a folder separator: "
                      "choose a path without one");
+#endif
   if (out.rfind("//", 0) != 0) return fs::absolute(out);
   const std::string scene = args.get("scene");
   if (fs::path(scene).extension() != ".blend")
