@@ -215,8 +215,8 @@ def scene_key(script_path):
             _hash_file(h, path)
     # The libraries (also those linked through others), by content in a fixed order: a file of none hashes
     # as before. One missing is named as such (Blender renders without its data).
-    libraries = sorted({os.path.normpath(bpy.path.abspath(lib.filepath, library=lib.parent))
-                        for lib in bpy.data.libraries})
+    # (Blender keeps each library's path relative to the opened file, nested ones too.)
+    libraries = sorted({os.path.normpath(bpy.path.abspath(lib.filepath)) for lib in bpy.data.libraries})
     for path in libraries:
         h.update(b"\0library\0")
         if os.path.isfile(path):
