@@ -97,7 +97,14 @@ def camera_problem(scene, frames=None):
     """Why Crisp cannot render the scene through its camera, or None: no camera, a scene camera that is
     not a camera object (Crisp jitters the camera's shift and records its projection), also one that a
     timeline marker makes the scene camera within `frames` (all markers without frames), stereoscopy
-    (Crisp renders and filters one view), or a render size of no pixel (a small resolution's percentage)."""
+    (Crisp renders and filters one view), a render size of no pixel (a small resolution's percentage),
+    or another scene of its name (Blender renders a scene by name)."""
+    same_name = [s for s in bpy.data.scenes if s.name == scene.name]
+    if len(same_name) > 1:  # the file's own and one linked from another file: the render took the file's
+        where = ["this file's own" if s.library is None else "one linked from '%s'" % s.library.filepath
+                 for s in same_name]
+        return ("%s scenes are named '%s' (%s): Blender renders a scene by its name, so Crisp could render the "
+                "other one; rename this file's own scene" % (len(same_name), scene.name, " and ".join(where)))
     cam = scene.camera
     bound = _camera_markers(scene, frames)
     if cam is None and bound:  # Blender would make a marker's camera the scene camera as the frame changes

@@ -1258,6 +1258,31 @@ class AddonTest(unittest.TestCase):
                 with bpy.context.temp_override(view_layer=layer):
                     bpy.ops.scene.view_layer_remove_aov()
 
+    def test_a_scene_linked_under_the_name_of_the_files_own_is_refused(self):
+        """The file's own scene and one linked from another file under the same name: Blender renders a
+        scene by its name, so a run of the linked one rendered the file's own into its frames. Refused
+        before anything is made, naming both and the way out."""
+        scene = harness.build_scene("still_life")
+        scene.render.resolution_x, scene.render.resolution_y = 32, 18
+        with tempfile.TemporaryDirectory() as d:
+            library = os.path.join(d, "set.blend")
+            bpy.data.libraries.write(library, {scene})
+            with bpy.data.libraries.load(library, link=True) as (_, linked):
+                linked.scenes = [scene.name]
+            twin = linked.scenes[0]
+            try:
+                self.assertEqual((twin.name, twin.library is not None), (scene.name, True))
+                for which in (scene, twin):
+                    out = os.path.join(d, "out")
+                    with self.assertRaises(pipeline.InputError) as caught:
+                        pipeline.run(which, "fxaa", [1], out, log=lambda *a: None)
+                    self.assertIn("2 scenes are named '%s' (this file's own and one linked from '%s')"
+                                  % (scene.name, twin.library.filepath), str(caught.exception))
+                    self.assertIn("rename this file's own scene", str(caught.exception))
+                    self.assertFalse(os.path.exists(out))
+            finally:
+                bpy.data.libraries.remove(twin.library)
+
     def test_a_resume_over_a_record_edited_by_hand(self):
         """run.json's frames edited into something else than a list of entries (null, a number, entries
         whose frame is not a number): a resume records the frames it keeps and makes without them; it
