@@ -237,30 +237,37 @@ def _output_takes_result(tree):
     return any(_is_result(tree.nodes[name]) for name in feeding)
 
 
-def _straight_from_render(socket, output):
-    """Whether an input takes the `output` socket of a Render Layers node straight (Blender's default tree)."""
+def _straight_from_render(socket, output, scene, layer):
+    """Whether an input takes the `output` socket of a Render Layers node straight (Blender's default tree)
+    that renders the scene's view layer `layer` (None: any of the scene's), the render Crisp's frames
+    stand for; one of another scene or view layer is the artist's plate, which the frames do not
+    replace."""
     link = socket.links[0] if socket.is_linked else None
-    return (link is not None and link.is_valid and not getattr(link, "is_muted", False)
-            and link.from_node.bl_idname == "CompositorNodeRLayers" and link.from_socket.identifier == output)
+    if link is None or not link.is_valid or getattr(link, "is_muted", False):
+        return False
+    node = link.from_node
+    return (node.bl_idname == "CompositorNodeRLayers" and link.from_socket.identifier == output
+            and (node.scene is None or node.scene == scene) and (layer is None or node.layer == layer))
 
 
-def _wire_output(tree, node):
+def _wire_output(tree, node, scene, layer):
     """Links Crisp's node into the Composite output where that takes the render as Blender's default tree
     does (its Image unlinked or straight from Render Layers; its Alpha too where linked straight from
     them), so that the render (F12, an animation) is the filtered frames. Where the artist's nodes are
     between (a grade), their tree is not rewired: output_note says how to connect it. Once for a node
     (WIRED_TAG, also when the artist connected it): one who links the render back afterwards chose to,
     and a later load or run leaves it so. A Viewer is left alone: it shows what the artist last looked
-    at (Ctrl+Shift+click), not what is rendered."""
+    at (Ctrl+Shift+click), not what is rendered. scene, layer: the render the frames are of
+    (_straight_from_render)."""
     if not node.get(NODE_TAG) or node.get(WIRED_TAG):
         return
     if not _output_takes_result(tree):
         for out in _outputs(tree):
             image, alpha = out.inputs["Image"], out.inputs.get("Alpha")  # (no Alpha input on later Blenders)
-            if image.is_linked and not _straight_from_render(image, "Image"):
+            if image.is_linked and not _straight_from_render(image, "Image", scene, layer):
                 continue
             tree.links.new(node.outputs["Image"], image)
-            if alpha is not None and _straight_from_render(alpha, "Alpha"):
+            if alpha is not None and _straight_from_render(alpha, "Alpha", scene, layer):
                 tree.links.new(node.outputs["Alpha"], alpha)
     if _output_takes_result(tree):
         node[WIRED_TAG] = True
@@ -285,10 +292,11 @@ def output_note(scene):
     return None
 
 
-def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
+def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr", layer=None):
     """The frames frame_start..frame_end of filtered_dir into the scene's compositor, from the first that
     exists (a run of a later part of the range, or one whose first frames were removed); the caller names
-    the missing ones (pipeline.sequence_warnings)."""
+    the missing ones (pipeline.sequence_warnings). layer: the name of the view layer they were rendered
+    from (None: any of the scene's), whose Render Layers node they replace in Composite."""
     def path(f):
         return os.path.join(filtered_dir, "frame_%04d%s" % (f, ext))
     if frame_start < 0:
@@ -305,7 +313,7 @@ def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr"):
     group = result_group(scene, filtered_dir, image, first, frame_end)
     image.name = "Crisp " + scene.name  # the name of the image it replaced, if that held it
     node = add_to_compositor(scene, group)
-    _wire_output(scene.node_tree, node)
+    _wire_output(scene.node_tree, node, scene, layer)
     return node
 
 

@@ -270,7 +270,8 @@ class CRISP_OT_render(_FrameByFrame, bpy.types.Operator):
                                                for p in result["plan"]["passes"]])
             made = [e["frame"] for e in result["frames"]]
             if s.load_result and made:
-                compositor.load_result(scene, os.path.join(out, "filtered"), frames[0], made[-1])
+                compositor.load_result(scene, os.path.join(out, "filtered"), frames[0], made[-1],
+                                       layer=result["view_layer"])
                 unwired = compositor.output_note(scene)
                 if unwired and not compositor.changes_the_image(scene):  # (else the run's note said so)
                     log("note: " + unwired)
@@ -353,7 +354,8 @@ class CRISP_OT_load_result(bpy.types.Operator):
         scene = context.scene
         try:
             out = output_folder.out_dir(scene, writing=False)
-            compositor.load_result(scene, os.path.join(out, "filtered"), scene.frame_start, scene.frame_end)
+            compositor.load_result(scene, os.path.join(out, "filtered"), scene.frame_start, scene.frame_end,
+                                   layer=render.default_view_layer(scene, context.view_layer).name)
         except (OSError, output_folder.UnsavedFile) as e:
             return _fail(self, e)
         warnings = pipeline.sequence_warnings(out, list(range(scene.frame_start, scene.frame_end + 1)))

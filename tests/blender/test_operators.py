@@ -381,6 +381,41 @@ class OperatorTest(unittest.TestCase):
             self.assertIn("Warning: Crisp: the compositor's Composite node does not take the filtered frames",
                           reports.getvalue())
 
+    def test_a_render_layers_plate_of_another_scene_or_layer_is_not_replaced(self):
+        """Composite taking a Render Layers node of another scene, or of another view layer of this one,
+        straight: that is the artist's plate, not the render Crisp filtered. Load into Compositor left it
+        in place of the filtered frames (the plate went from the render); it leaves their tree as it is
+        and says how to connect Crisp's node. A node of the filtered layer is still linked."""
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = self.small_scene(1, 1, load_result=False)
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        plate = bpy.data.scenes.new("Plate")
+        self.addCleanup(bpy.data.scenes.remove, plate)
+        layer = scene.view_layers.new("Plate Layer")
+        self.addCleanup(scene.view_layers.remove, layer)
+        scene.use_nodes = True
+        tree = scene.node_tree
+        for case in ("another scene", "another layer", "the filtered layer"):
+            tree.nodes.clear()
+            layers, composite = tree.nodes.new("CompositorNodeRLayers"), tree.nodes.new("CompositorNodeComposite")
+            if case == "another scene":
+                layers.scene = plate
+            elif case == "another layer":
+                layers.layer = "Plate Layer"
+            tree.links.new(layers.outputs["Image"], composite.inputs["Image"])
+            theirs = self.links(tree)
+            reports = io.StringIO()
+            with contextlib.redirect_stdout(reports):
+                self.assertEqual(bpy.ops.crisp.load_result(), {"FINISHED"})
+            node, = [n for n in tree.nodes if n.get(compositor.NODE_TAG)]
+            if case == "the filtered layer":
+                self.assertEqual(self.links(tree), [(node.name, node.outputs["Image"].identifier, "Composite",
+                                                     "Image")])
+            else:
+                self.assertEqual(self.links(tree), theirs, case)
+                self.assertIn("Warning: Crisp: the compositor's Composite node does not take the filtered frames",
+                              reports.getvalue())
+
     def test_loading_leaves_the_artists_compositing_and_says_how_to_connect(self):
         """Load into Compositor with the artist's nodes between Render Layers and Composite (a glare) does
         not rewire their tree: it says how to connect Crisp's node. The Viewer is left showing what the
