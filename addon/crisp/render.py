@@ -170,10 +170,16 @@ class Snapshot:
         """Records a value that setting another property may change as a side effect."""
         self.set(owner, attr, getattr(owner, attr))
 
-    def set(self, owner, attr, value):
+    def _first(self, owner, attr):
+        """Whether owner.attr is registered for the first time (and registers it)."""
         key = (owner.as_pointer() if hasattr(owner, "as_pointer") else id(owner), attr)
-        if key not in self._seen:
-            self._seen.add(key)
+        if key in self._seen:
+            return False
+        self._seen.add(key)
+        return True
+
+    def set(self, owner, attr, value):
+        if self._first(owner, attr):
             self._saved.append((owner, attr, getattr(owner, attr), self._of_scene(owner)))
         if getattr(owner, attr) != value:
             setattr(owner, attr, value)
@@ -186,9 +192,7 @@ class Snapshot:
         """A property that setting it back takes more than a value (call() puts it back, once the others
         are back): set() leaves it to call, which restore makes after the properties, before a last pass
         over them (in case call changed one as a side effect)."""
-        key = (owner.as_pointer() if hasattr(owner, "as_pointer") else id(owner), attr)
-        if key not in self._seen:
-            self._seen.add(key)
+        if self._first(owner, attr):
             self._after.append(call)
 
     def __enter__(self):
@@ -210,10 +214,9 @@ class Snapshot:
     def restore(self):
         """Puts every value back. Two passes: some values are only valid once another one is back
         (an 8-bit colour depth is refused while the file format is still EXR); then the restore_after
-        calls and one more pass. The scene deleted (or
-        read again by an undo) while a clicked run waited between frames: its own data went with it and
-        the Python objects of that data point at freed memory, so only the values of other data (a
-        camera's shift, an animation curve) are put back."""
+        calls and one more pass. The scene deleted (or read again by an undo) while a clicked run waited
+        between frames: its own data went with it and the Python objects of that data point at freed
+        memory, so only the values of other data (a camera's shift, an animation curve) are put back."""
         errors, undo_errors = {}, {}
         gone = self._scene_gone()
         if gone:  # the calls hide objects again in the scene's view layers and layer collections
@@ -226,13 +229,8 @@ class Snapshot:
                 undo_errors["viewport visibility"] = str(e)
         self._undo.clear()
         after, self._after = ([] if gone else self._after), []  # (all of them put back the scene's own data)
-        for sweep in range(3 if after else 2):
-            if sweep == 2:
-                for call in reversed(after):
-                    try:
-                        call()
-                    except Exception as e:  # keep restoring the rest
-                        undo_errors["restore"] = str(e)
+
+        def sweep():
             errors.clear()
             for owner, attr, value, _ in reversed(self._saved):
                 try:
@@ -240,6 +238,15 @@ class Snapshot:
                         setattr(owner, attr, value)
                 except Exception as e:  # keep restoring the rest
                     errors[attr] = str(e)
+        sweep()
+        sweep()
+        if after:
+            for call in reversed(after):
+                try:
+                    call()
+                except Exception as e:  # keep restoring the rest
+                    undo_errors["restore"] = str(e)
+            sweep()
         errors.update({attr: "still %r, not %r" % (getattr(o, attr), v) for o, attr, v, _ in self._saved
                        if attr not in errors and getattr(o, attr) != v})
         errors.update(undo_errors)
