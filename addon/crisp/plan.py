@@ -18,6 +18,7 @@ one needs in Blender:
     subsamples  extra geometry-only renders (depth + normal) at sub-pixel offsets (RSAA)
 """
 
+import collections
 import hashlib
 from array import array
 from dataclasses import dataclass, field
@@ -681,11 +682,8 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                     deforming.add(o.name)
             # Cryptomatte names an instance by its source: how often each such ID renders on this frame.
             # So are objects of one name (a linked object and a local one of the same name).
-            renders = {}
-            for o in obs:
-                renders[o.name] = renders.get(o.name, 0) + 1
-            for source, _, _ in instances:
-                renders[source.name] = renders.get(source.name, 0) + 1
+            renders = collections.Counter(o.name for o in obs)
+            renders.update(source.name for source, _, _ in instances)
             shared.update(name for name, n in renders.items() if n > 1)
             seen = {}  # an instance is told from the others of its source and instancer by its order
             for source, parent, m in instances:

@@ -362,9 +362,7 @@ def object_table(scene, view_layer):
     layer = view_layer or scene.view_layers[0]
     instances = plan_mod.rendered_instances(layer)
     visible = plan_mod.visible_objects(scene, view_layer)
-    counts = {}
-    for source, _, _ in instances:
-        counts[source.name] = counts.get(source.name, 0) + 1
+    counts = collections.Counter(source.name for source, _, _ in instances)
     # The objects of each name, visible or instanced (one object may be both): more than one, one ID.
     objects_named = collections.defaultdict(set)
     for ob in visible + [source for source, _, _ in instances]:
@@ -558,11 +556,11 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
                      [(r.ffmpeg, "codec", "PNG")] if settings.file_format == "FFMPEG" else [])
     _remember_hidden(snap, settings, "exr_codec",
                      [(settings, "file_format", "OPEN_EXR"), (settings, "color_depth", "16")])
-    snap.set(r.image_settings, "file_format", file_format)
-    snap.set(r.image_settings, "color_depth", "32")
-    snap.set(r.image_settings, "exr_codec", codec.upper())
-    snap.set(r.image_settings, "color_mode", "RGBA")
-    snap.set(r.image_settings, "use_preview", False)  # an EXR's preview: a JPEG beside each temporary name
+    snap.set(settings, "file_format", file_format)
+    snap.set(settings, "color_depth", "32")
+    snap.set(settings, "exr_codec", codec.upper())
+    snap.set(settings, "color_mode", "RGBA")
+    snap.set(settings, "use_preview", False)  # an EXR's preview: a JPEG beside each temporary name
     for prop in view_layer.bl_rna.properties:
         if prop.identifier.startswith("use_pass_"):
             snap.set(view_layer, prop.identifier, prop.identifier in flags or prop.identifier == "use_pass_combined")
