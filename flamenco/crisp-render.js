@@ -149,6 +149,15 @@ function crispFilterParams(text) {
   return items;
 }
 
+// A setting that names one of `choices`; "" when empty or absent (a job submitted before the setting
+// existed), which leaves crisp render's default.
+function crispOptionalChoice(settings, key, choices) {
+  const value = settings[key] === undefined || settings[key] === "" ? "" : String(settings[key]);
+  if (value !== "" && choices.indexOf(value) < 0)
+    crispFail("setting '" + key + "' must be one of " + choices.join(", ") + ", got '" + value + "'");
+  return value;
+}
+
 function compileJob(job) {
   const settings = job.settings;
   const shot = crispParseShot(settings.frames);
@@ -180,14 +189,8 @@ function compileJob(job) {
   const size = /^(\d+)x(\d+)$/.exec(resolution);
   if (resolution !== "" && !(size && [size[1], size[2]].every((side) => +side >= 4 && +side <= 65536)))
     crispFail("setting 'resolution' must be WxH, each 4 to 65536 (e.g. 1920x1080), or empty, got '" + resolution + "'");
-  // Absent (a job submitted before this setting existed): crisp render's default.
-  const jitter = settings.jitter === undefined || settings.jitter === "" ? "" : String(settings.jitter);
-  if (jitter !== "" && CRISP_JITTERS.indexOf(jitter) < 0)
-    crispFail("setting 'jitter' must be one of " + CRISP_JITTERS.join(", ") + ", got '" + jitter + "'");
-  const inputCodec =
-    settings.input_codec === undefined || settings.input_codec === "" ? "" : String(settings.input_codec);
-  if (inputCodec !== "" && CRISP_INPUT_CODECS.indexOf(inputCodec) < 0)
-    crispFail("setting 'input_codec' must be one of " + CRISP_INPUT_CODECS.join(", ") + ", got '" + inputCodec + "'");
+  const jitter = crispOptionalChoice(settings, "jitter", CRISP_JITTERS);
+  const inputCodec = crispOptionalChoice(settings, "input_codec", CRISP_INPUT_CODECS);
   const params = crispFilterParams(settings.filter_params);
 
   const shotText = shot.first + "-" + shot.last;
