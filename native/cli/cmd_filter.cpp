@@ -11,7 +11,6 @@
 // rebuilt or not, output names) still look at every input, so every chunk of
 // one sequence makes the same ones.
 #include <algorithm>
-#include <cctype>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -189,10 +188,7 @@ ExrStorage exrStorageOf(const ParsedArgs& args) {
   const std::string depth = args.has("exr-depth") ? args.get("exr-depth") : "32";
   if (depth != "16" && depth != "32") throw UsageError("--exr-depth expects 16 or 32, got '" + depth + "'");
   exr.half = depth == "16";
-  if (args.has("exr-codec")) {  // Blender's names are upper case (ZIP, DWAA)
-    exr.compression = args.get("exr-codec");
-    for (char& c : exr.compression) c = char(std::tolower(static_cast<unsigned char>(c)));
-  }
+  if (args.has("exr-codec")) exr.compression = lowerCase(args.get("exr-codec"));  // Blender's names: ZIP, DWAA
   try {
     checkExrStorage(exr);
   } catch (const Exception& e) {

@@ -4,10 +4,9 @@
 // with exactly the passes the method needs, filters them through libcrisp and
 // writes OUTDIR/{input,filtered,reference}/ and OUTDIR/run.json. A farm
 // chunk (--preroll, --shot, --resume) is handled by batch.py as well. What the
-// command line leaves out (method, jitter, input codec, parameters) comes from the .blend's
-// Crisp panel when the file set it (batch.py panel_settings).
+// command line leaves out (method, jitter, input codec, parameters) comes from
+// the .blend's Crisp panel when the file set it (batch.py panel_settings).
 #include <algorithm>
-#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -44,8 +43,7 @@ std::string historyLines(const std::string& output) {
 // so the filters read the values rendered).
 void appendInputCodecOption(const ParsedArgs& args, std::vector<std::string>& cmd) {
   if (!args.has("input-codec")) return;
-  std::string codec = args.get("input-codec");
-  std::transform(codec.begin(), codec.end(), codec.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  const std::string codec = lowerCase(args.get("input-codec"));
   if (codec != "none" && codec != "piz" && codec != "zip")
     throw UsageError("--input-codec: unknown codec '" + args.get("input-codec") +
                      "' (known: none, piz, zip; lossless, so the filters read the values rendered)");

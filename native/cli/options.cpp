@@ -227,12 +227,16 @@ int parseIntOption(const ParsedArgs& a, const std::string& name, int fallback, i
   return int(x);
 }
 
+std::string lowerCase(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return text;
+}
+
 namespace {
 constexpr int kLowestResolution = 4;  // Blender's smallest render size; the largest is the library's (kMaxDimension)
 
 bool parseResolution(const std::string& r, int& w, int& h) {
-  std::string lower = r;
-  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  const std::string lower = lowerCase(r);
   int consumed = 0;
   return std::sscanf(lower.c_str(), "%dx%d%n", &w, &h, &consumed) == 2 && consumed == int(r.size()) &&
          w >= kLowestResolution && h >= kLowestResolution && w <= kMaxDimension && h <= kMaxDimension;

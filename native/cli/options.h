@@ -57,6 +57,9 @@ std::string helpText(const std::string& command = "");
 
 int parseIntOption(const ParsedArgs& a, const std::string& name, int fallback, int lo, int hi);
 
+// text with its ASCII letters in lower case (option values given in Blender's upper case: ZIP, PIZ).
+std::string lowerCase(std::string text);
+
 // The options crisp render and eval pass on to the Blender driver (batch.py,
 // batch_eval.py), checked as the driver checks them, so that a mistake is said
 // before Blender starts: --resolution WxH, and the frame ranges "A-B" or "A"
