@@ -146,10 +146,11 @@ def result_group(scene, folder, image, frame_start, frame_end):
 
 
 def add_to_compositor(scene, group):
-    """Puts one group node in the scene's compositor (turning it on); leaves existing links alone (the
-    Composite output's are load_result's, _wire_output). The node Crisp put there before (tagged; it may
-    show the group of the scene's earlier folder, or of the scene it was copied from), or a node of the
-    one group all scenes shared before, is switched to the group; nodes the user added are left alone."""
+    """Puts one group node in the scene's compositor (turning it on: load_result turns it off again where
+    the artist had their nodes off); leaves existing links alone (the Composite output's are load_result's,
+    _wire_output). The node Crisp put there before (tagged; it may show the group of the scene's earlier
+    folder, or of the scene it was copied from), or a node of the one group all scenes shared before, is
+    switched to the group; nodes the user added are left alone."""
     scene.use_nodes = True
     tree = scene.node_tree
     groups = [n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup"]
@@ -174,19 +175,21 @@ _PASS_THROUGH = {"CompositorNodeRLayers", "CompositorNodeComposite", "Compositor
                  "NodeFrame", "NodeGroupInput", "NodeGroupOutput"}
 
 
-def _is_result(node):
-    """Whether a node shows Crisp's filtered frames as they are: Crisp's node, or a node of a Crisp result
-    group, the user's own too (add_to_compositor leaves that untagged), unless the group holds more than
-    result_group puts there (a copy the user edited, which keeps the tag)."""
+def _is_result(node, key):
+    """Whether a node shows the scene's filtered frames as they are: Crisp's node (load_result switches it
+    to the scene's group), or the user's own node of the group of those frames (key: the _path_key of
+    their folder; add_to_compositor leaves such a node untagged), unless the group holds more than
+    result_group puts there (a copy the user edited, which keeps the tag). A node of another folder's group
+    (another scene's frames, put in as a plate) is an image like any other."""
     if node.bl_idname != "CompositorNodeGroup" or node.mute:
         return False
     tree = node.node_tree
-    return bool(node.get(NODE_TAG)) or (tree is not None and FOLDER_TAG in tree and {
+    return bool(node.get(NODE_TAG)) or (tree is not None and FOLDER_TAG in tree and _folder_of(tree) == key and {
         n.bl_idname for n in tree.nodes} <= {"CompositorNodeImage", "NodeGroupOutput"})
 
 
-def _changes(node):
-    return not (node.bl_idname in _PASS_THROUGH or node.mute or _is_result(node))
+def _changes(node, key):
+    return not (node.bl_idname in _PASS_THROUGH or node.mute or _is_result(node, key))
 
 
 def _graph(tree):
@@ -215,26 +218,31 @@ def _outputs(tree):
     return [n for n in tree.nodes if n.bl_idname == "CompositorNodeComposite"]
 
 
-def changes_the_image(scene):
-    """Whether the scene's compositor would change its rendered frames: a node that feeds its Composite
-    output (every node where there is none) other than the pass-through ones, muted ones, Crisp's result
-    groups and the nodes those feed (the artist's grade of Crisp's frames, composited as the run's note
-    says to)."""
-    tree = scene.node_tree if scene.use_nodes and scene.render.use_compositing else None
-    if tree is None:
-        return False
+def _tree_changes(tree, key):
+    """Whether the tree changes the image its Composite output renders from what the scene's filtered frames
+    (key: the _path_key of their folder) are: a node that feeds a Composite output (every node where there
+    is none) other than the pass-through ones, muted ones, Crisp's result nodes and the nodes those feed
+    (the artist's grade of Crisp's frames, composited as the run's note says to)."""
     upstream, downstream = _graph(tree)
-    of_crisp = _reached([n for n in tree.nodes if _is_result(n)], lambda n: downstream.get(n.name, ()))
+    of_crisp = _reached([n for n in tree.nodes if _is_result(n, key)], lambda n: downstream.get(n.name, ()))
     outputs = _outputs(tree)
     feeding = _reached(outputs, lambda n: upstream.get(n.name, ())) if outputs else {n.name for n in tree.nodes}
-    return any(_changes(tree.nodes[name]) for name in feeding - of_crisp)
+    return any(_changes(tree.nodes[name], key) for name in feeding - of_crisp)
 
 
-def _output_takes_result(tree):
-    """Whether a Composite output takes the image of a Crisp result node (through any nodes)."""
+def changes_the_image(scene, filtered_dir):
+    """Whether the scene's compositor would change its rendered frames (_tree_changes); filtered_dir: the
+    folder of the scene's filtered frames."""
+    tree = scene.node_tree if scene.use_nodes and scene.render.use_compositing else None
+    return tree is not None and _tree_changes(tree, _path_key(filtered_dir))
+
+
+def _taking_result(tree, key):
+    """The Composite outputs that take the image of a result node of the frames of `key` (through any
+    nodes)."""
     upstream, _ = _graph(tree)
-    feeding = _reached(_outputs(tree), lambda n: upstream.get(n.name, ()))
-    return any(_is_result(tree.nodes[name]) for name in feeding)
+    return [out for out in _outputs(tree)
+            if any(_is_result(tree.nodes[name], key) for name in _reached([out], lambda n: upstream.get(n.name, ())))]
 
 
 def _straight_from_render(socket, output, scene, layer):
@@ -250,42 +258,61 @@ def _straight_from_render(socket, output, scene, layer):
             and (node.scene is None or node.scene == scene) and (layer is None or node.layer == layer))
 
 
-def _wire_output(tree, node, scene, layer):
-    """Links Crisp's node into the Composite output where that takes the render as Blender's default tree
-    does (its Image unlinked or straight from Render Layers; its Alpha too where linked straight from
-    them), so that the render (F12, an animation) is the filtered frames. Where the artist's nodes are
-    between (a grade), their tree is not rewired: output_note says how to connect it. Once for a node
-    (WIRED_TAG, also when the artist connected it): one who links the render back afterwards chose to,
-    and a later load or run leaves it so. A Viewer is left alone: it shows what the artist last looked
-    at (Ctrl+Shift+click), not what is rendered. scene, layer: the render the frames are of
-    (_straight_from_render)."""
+def _wire_output(tree, node, scene, layer, key):
+    """Links Crisp's node into each Composite output that takes the render as Blender's default tree does
+    (its Image unlinked or straight from Render Layers; its Alpha too where linked straight from them), so
+    that the render (F12, an animation) is the filtered frames (key: the _path_key of their folder). Where
+    the artist's nodes are between (a grade), their tree is not rewired: output_note says how to connect
+    it. Once for a node (WIRED_TAG, also when the artist connected it): one who links the render back
+    afterwards chose to, and a later load or run leaves it so. A Viewer is left alone: it shows what the
+    artist last looked at (Ctrl+Shift+click), not what is rendered. scene, layer: the render the frames are
+    of (_straight_from_render)."""
     if not node.get(NODE_TAG) or node.get(WIRED_TAG):
         return
-    if not _output_takes_result(tree):
-        for out in _outputs(tree):
-            image, alpha = out.inputs["Image"], out.inputs.get("Alpha")  # (no Alpha input on later Blenders)
-            if image.is_linked and not _straight_from_render(image, "Image", scene, layer):
-                continue
-            tree.links.new(node.outputs["Image"], image)
-            if alpha is not None and _straight_from_render(alpha, "Alpha", scene, layer):
-                tree.links.new(node.outputs["Alpha"], alpha)
-    if _output_takes_result(tree):
+    taking = _taking_result(tree, key)
+    for out in _outputs(tree):
+        image, alpha = out.inputs["Image"], out.inputs.get("Alpha")  # (no Alpha input on later Blenders)
+        if out in taking or image.is_linked and not _straight_from_render(image, "Image", scene, layer):
+            continue
+        tree.links.new(node.outputs["Image"], image)
+        if alpha is not None and _straight_from_render(alpha, "Alpha", scene, layer):
+            tree.links.new(node.outputs["Alpha"], alpha)
+    if _taking_result(tree, key):
         node[WIRED_TAG] = True
 
 
-def output_note(scene):
-    """What to tell the artist when the scene's render does not take Crisp's frames from the compositor
-    (it is then the unfiltered render), else None."""
-    tree = scene.node_tree if scene.use_nodes else None
+def output_note(scene, filtered_dir, after_run=False):
+    """What to tell the artist when the scene's render does not take Crisp's frames (those of
+    filtered_dir) from the compositor (it is then the unfiltered render), else None. after_run: told after
+    a run, whose note said that a compositor that changes the image is not applied to the frames, which
+    says what the note of a Composite node not taking them would."""
+    tree = scene.node_tree
     if tree is None:
         return None
-    if not _outputs(tree):
+    outputs, taking = _outputs(tree), _taking_result(tree, _path_key(filtered_dir))
+    if not scene.use_nodes:
+        return ("the compositor's Use Nodes is off, so the render (F12) is the unfiltered one; Crisp left it off "
+                "as your nodes there would then change the render: link the 'Crisp Result' node's Image output "
+                "into Composite (or into your nodes where the Render Layers Image goes in) and turn Use Nodes on")
+    if not outputs:
         return ("the compositor has no Composite node, so the render (F12) is not the filtered frames: add "
                 "one and link the 'Crisp Result' node's Image output into it")
-    if not _output_takes_result(tree):
+    if not taking:
+        if after_run and changes_the_image(scene, filtered_dir):
+            return None
         return ("the compositor's Composite node does not take the filtered frames, so the render (F12) is the "
                 "unfiltered one: link the 'Crisp Result' node's Image output into Composite's Image, or into "
                 "your nodes where the Render Layers Image goes in")
+    if len(taking) < len(outputs):
+        # Blender renders one Composite node, the active one (the last clicked), which Python cannot read.
+        rest = [o for o in outputs if o not in taking]
+        them = "them" if len(rest) > 1 else "it"
+        return ("the compositor has %d Composite nodes and Blender renders only the active one, which an add-on "
+                "cannot see; %s %s not take the filtered frames, so a render through %s is the unfiltered one: "
+                "link the 'Crisp Result' node's Image output into %s too (or into your nodes before %s), or "
+                "delete the Composite nodes you do not render"
+                % (len(outputs), " and ".join("'%s'" % o.name for o in rest), "do" if len(rest) > 1 else "does",
+                   them, them, them))
     if not scene.render.use_compositing:
         return ("Post Processing > Compositing is off, so the render (F12) is not the filtered frames of the "
                 "'Crisp Result' node: turn it on to render them")
@@ -312,8 +339,14 @@ def load_result(scene, filtered_dir, frame_start, frame_end, ext=".exr", layer=N
     image = load_sequence(path(first), "Crisp " + scene.name)
     group = result_group(scene, filtered_dir, image, first, frame_end)
     image.name = "Crisp " + scene.name  # the name of the image it replaced, if that held it
+    switched_off, key = not scene.use_nodes and scene.node_tree is not None, _path_key(filtered_dir)
     node = add_to_compositor(scene, group)
-    _wire_output(scene.node_tree, node, scene, layer)
+    tree = scene.node_tree
+    _wire_output(tree, node, scene, layer, key)
+    if switched_off and (_tree_changes(tree, key) or len(_taking_result(tree, key)) < len(_outputs(tree))):
+        # The artist's nodes, switched off: on, they would change the render (output_note says so). Off with
+        # Blender's default tree, or with none yet, it is turned on to render the frames.
+        scene.use_nodes = False
     return node
 
 

@@ -270,10 +270,10 @@ class CRISP_OT_render(_FrameByFrame, bpy.types.Operator):
                                                for p in result["plan"]["passes"]])
             made = [e["frame"] for e in result["frames"]]
             if s.load_result and made:
-                compositor.load_result(scene, os.path.join(out, "filtered"), frames[0], made[-1],
-                                       layer=result["view_layer"])
-                unwired = compositor.output_note(scene)
-                if unwired and not compositor.changes_the_image(scene):  # (else the run's note said so)
+                filtered = os.path.join(out, "filtered")
+                compositor.load_result(scene, filtered, frames[0], made[-1], layer=result["view_layer"])
+                unwired = compositor.output_note(scene, filtered, after_run=True)
+                if unwired:
                     log("note: " + unwired)
         except self.ERRORS:
             _report_notes(self, notes)  # what the run said before it failed still holds
@@ -354,14 +354,15 @@ class CRISP_OT_load_result(bpy.types.Operator):
         scene = context.scene
         try:
             out = output_folder.out_dir(scene, writing=False)
-            compositor.load_result(scene, os.path.join(out, "filtered"), scene.frame_start, scene.frame_end,
+            filtered = os.path.join(out, "filtered")
+            compositor.load_result(scene, filtered, scene.frame_start, scene.frame_end,
                                    layer=render.default_view_layer(scene, context.view_layer).name)
         except (OSError, output_folder.UnsavedFile) as e:
             return _fail(self, e)
         warnings = pipeline.sequence_warnings(out, list(range(scene.frame_start, scene.frame_end + 1)))
         if warnings:  # loaded all the same: the user sees what they have, and why it may not be one run
             self.report({"WARNING"}, "Crisp: " + "; ".join(warnings))
-        unwired = compositor.output_note(scene)
+        unwired = compositor.output_note(scene, filtered)
         if unwired:  # the artist's tree, not rewired: how to connect it
             self.report({"WARNING"}, "Crisp: " + unwired)
         return {"FINISHED"}

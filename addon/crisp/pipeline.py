@@ -456,7 +456,7 @@ def iter_run(scene, method, frames, out_dir, params=None, samples=1, reference_s
     if exr is not None:
         log("info: the filtered EXRs are stored as the scene's Output properties say: %s, %s (Color Depth, Codec)"
             % ("half float" if exr[0] == 16 else "full float", exr[1].upper()))
-    if compositor.changes_the_image(scene):
+    if compositor.changes_the_image(scene, os.path.join(out_dir, "filtered")):
         log("note: the scene's compositor is not applied to Crisp's frames (they are filtered as rendered); "
             "apply it to the filtered frames through the 'Crisp Result' node group")
     result = {"blender_version": bpy.app.version_string, "method": method, "params": dict(params or {}),

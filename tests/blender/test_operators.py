@@ -416,6 +416,111 @@ class OperatorTest(unittest.TestCase):
                 self.assertIn("Warning: Crisp: the compositor's Composite node does not take the filtered frames",
                               reports.getvalue())
 
+    def load_reports(self, op=None):
+        """Runs Load into Compositor (or `op`), FINISHED; what it printed (its reports)."""
+        reports = io.StringIO()
+        with contextlib.redirect_stdout(reports):
+            self.assertEqual((op or bpy.ops.crisp.load_result)(), {"FINISHED"})
+        return reports.getvalue()
+
+    def test_each_composite_node_takes_the_frames_or_is_named(self):
+        """Two Composite nodes, one through the artist's Invert and one straight from Render Layers: Blender
+        renders only the active one, which Python cannot read. Load into Compositor linked Crisp's node into
+        the straight one and said nothing, and the render (the inverted one, here) was not the filtered
+        frames; it still links the straight one, and names the other as not taking them. Two straight ones
+        both take them, without a note."""
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = self.small_scene(1, 1, load_result=False)
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        scene.use_nodes = True
+        tree = scene.node_tree
+        for graded in (True, False):
+            tree.nodes.clear()
+            layers = tree.nodes.new("CompositorNodeRLayers")
+            straight, other = (tree.nodes.new("CompositorNodeComposite") for _ in range(2))
+            straight.name, other.name = "Composite Straight", "Composite Graded"
+            tree.links.new(layers.outputs["Image"], straight.inputs["Image"])
+            if graded:
+                invert = tree.nodes.new("CompositorNodeInvert")
+                tree.links.new(layers.outputs["Image"], invert.inputs["Color"])
+                tree.links.new(invert.outputs["Color"], other.inputs["Image"])
+            else:
+                tree.links.new(layers.outputs["Image"], other.inputs["Image"])
+            tree.nodes.active = other
+            reports = self.load_reports()
+            node, = [n for n in tree.nodes if n.get(compositor.NODE_TAG)]
+            into = sorted(l.to_node.name for l in node.outputs["Image"].links)
+            if graded:
+                self.assertEqual(into, ["Composite Straight"])
+                self.assertIn("Warning: Crisp: the compositor has 2 Composite nodes and Blender renders only the "
+                              "active one, which an add-on cannot see; 'Composite Graded' does not take the "
+                              "filtered frames", reports)
+            else:
+                self.assertEqual(into, ["Composite Graded", "Composite Straight"])
+                self.assertNotIn("Composite", reports)
+
+    def test_compositing_switched_off_stays_off_where_the_artists_nodes_would_change_the_render(self):
+        """The artist's tree (Render Layers -> Glare -> Composite) with Use Nodes switched off: Render with
+        Crisp turned it on without a word, so the render took the Glare the artist had switched off. It is
+        left off, with Crisp's node in the tree and a note saying how to render the frames. Blender's
+        default tree switched off is turned on and takes the frames, as a scene without a tree."""
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = self.small_scene(1, 1, load_result=True)
+        scene.use_nodes = True
+        tree = scene.node_tree
+        tree.nodes.clear()
+        layers, composite = tree.nodes.new("CompositorNodeRLayers"), tree.nodes.new("CompositorNodeComposite")
+        glare = tree.nodes.new("CompositorNodeGlare")
+        tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
+        tree.links.new(glare.outputs["Image"], composite.inputs["Image"])
+        theirs = self.links(tree)
+        scene.use_nodes = False
+        reports = self.load_reports(bpy.ops.crisp.render)
+        self.assertFalse(scene.use_nodes)
+        self.assertEqual(self.links(tree), theirs)
+        self.assertEqual(len([n for n in tree.nodes if n.get(compositor.NODE_TAG)]), 1)
+        self.assertIn("Warning: Crisp: the compositor's Use Nodes is off, so the render (F12) is the unfiltered "
+                      "one", reports)
+        self.assertNotIn("is not applied to Crisp's frames", reports)
+        tree.nodes.remove(glare)
+        tree.links.new(layers.outputs["Image"], composite.inputs["Image"])
+        reports = self.load_reports()
+        self.assertTrue(scene.use_nodes)
+        node, = [n for n in tree.nodes if n.get(compositor.NODE_TAG)]
+        self.assertEqual([l.from_node for l in composite.inputs["Image"].links], [node])
+        self.assertNotIn("Warning", reports)
+
+    def test_a_plate_of_another_scenes_frames_is_not_taken_for_this_scenes(self):
+        """A second scene whose Composite takes a node of the first scene's result group (that shot's
+        filtered frames as a plate): its run took that node for its own frames, so its render showed the
+        other shot's frames and nothing was said. Its run says the compositor is not applied to its frames,
+        and Load into Compositor adds its own group's node and says its Composite does not take it."""
+        bpy.ops.wm.read_homefile(use_empty=True)
+        a = self.small_scene(1, 1, load_result=True)
+        self.assertEqual(bpy.ops.crisp.render(), {"FINISHED"})
+        theirs, = [n for n in a.node_tree.nodes if n.get(compositor.NODE_TAG)]
+        b = a.copy()
+        b.name = "Other Shot"
+        b.crisp.output_dir = os.path.join(self.tmp.name, "b")
+        tree = b.node_tree
+        for n in [n for n in tree.nodes if n.bl_idname == "CompositorNodeGroup"]:
+            tree.nodes.remove(n)
+        plate = tree.nodes.new("CompositorNodeGroup")
+        plate.node_tree = theirs.node_tree
+        plate.name = "Plate"
+        tree.links.new(plate.outputs["Image"], tree.nodes["Composite"].inputs["Image"])
+        wired = self.links(tree)
+        with bpy.context.temp_override(scene=b, view_layer=b.view_layers[0]):
+            reports = self.load_reports(bpy.ops.crisp.render)
+            self.assertIn("note: the scene's compositor is not applied to Crisp's frames", reports)
+            reports = self.load_reports()
+        self.assertIn("Warning: Crisp: the compositor's Composite node does not take the filtered frames", reports)
+        node, = [n for n in tree.nodes if n.get(compositor.NODE_TAG)]
+        self.assertNotEqual(node.node_tree, theirs.node_tree)
+        self.assertEqual(os.path.dirname(os.path.normpath(bpy.path.abspath(
+            node.node_tree.nodes["Crisp Frames"].image.filepath))), os.path.join(self.tmp.name, "b", "filtered"))
+        self.assertEqual([l for l in self.links(tree) if node.name not in (l[0], l[2])], wired)
+
     def test_loading_leaves_the_artists_compositing_and_says_how_to_connect(self):
         """Load into Compositor with the artist's nodes between Render Layers and Composite (a glare) does
         not rewire their tree: it says how to connect Crisp's node. The Viewer is left showing what the
