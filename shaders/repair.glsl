@@ -13,7 +13,7 @@
 //  5. REPAIR_RESOLVE_PASS   colorImage, gradientImage, statsImage (1x1);
 //                           push constants kappa, patchSize, mask, angleEstimator -> vec4 fragColor
 //                           (combineRowStats, then fitPatch / edgeDirection / smoothAt per edge pixel)
-// The global threshold of step 3 (mu + kappa sigma over the NON-ZERO gradient
+// The global threshold of step 3 (mu + kappa sigma over the non-black gradient
 // values) is a reduction: done on the GPU as a multi-pass 4x4 -> 1 tree
 // (GLSL 3.3 has no compute shaders or atomics on float), never read back.
 //
@@ -49,16 +49,21 @@ float sobelMagnitude(float n[9]) {
 }
 
 // ---------------------------------------------------------------- step 3 --
+// repair.h kBlackGradient: gradients below it are black (not counted, never
+// edges), so the float rounding of flat areas, which differs from the C++'s,
+// does not move T.
+const float kBlackGradient = 1e-5;
+
 // repair.h edgeValue (Algorithm 1, lines 4-10).
 float edgeValue(float z, float threshold) { return z >= threshold ? z : 0.0; }
 
 // repair.cpp combineRowStats, from the reduced (count, sum, sumSquares).
-// Returns T; no non-zero gradient -> +inf-like (nothing is an edge).
+// Returns T; no non-black gradient -> +inf-like (nothing is an edge).
 float thresholdOf(vec4 stats, float kappaValue) {
   if (stats.x == 0.0) return 3.0e38;
   float mean = stats.y / stats.x;
   float variance = max(0.0, stats.z / stats.x - mean * mean);
-  return mean + kappaValue * sqrt(variance);  // eq. 3.1 (Algorithm 2's sign flip fixed)
+  return max(mean + kappaValue * sqrt(variance), kBlackGradient);  // eq. 3.1 (Algorithm 2's sign flip fixed)
 }
 
 // ---------------------------------------------------------------- step 4 --
@@ -229,7 +234,7 @@ void repairStatsPass() {
       ivec2 q = base + ivec2(i, j);
       if (q.x >= size.x || q.y >= size.y) continue;
       float z = texelFetch(gradientImage, q, 0).r;
-      if (z != 0.0) s += vec4(1.0, z, z * z, 0.0);  // eq. 3.1 counts the non-black pixels only
+      if (z >= kBlackGradient) s += vec4(1.0, z, z * z, 0.0);  // eq. 3.1 counts the non-black pixels only
     }
   statsOut = s;
 }

@@ -3,8 +3,9 @@
 // REPAIR thesis: chapter 3, Algorithms 1-4). Five steps per frame:
 //   1. grey image, Y of YIQ (eq. 2.1) of the display-encoded colour;
 //   2. Sobel gradient magnitude (Fig. 2.9, eq. 2.2);
-//   3. threshold T = mu + kappa sigma over the non-zero gradient values
-//      (eq. 3.1); pixels below T are not edges (Algorithm 1, lines 3-10);
+//   3. threshold T = mu + kappa sigma over the non-black gradient values
+//      (eq. 3.1; black: below repair.h's kBlackGradient, 1e-5); pixels below
+//      T are not edges (Algorithm 1, lines 3-10);
 //   4. slope angle of each edge pixel from the n x n patch of thresholded
 //      gradient values by two simple linear regressions (eq. 3.2-3.6,
 //      Algorithm 3);
@@ -313,9 +314,8 @@ CRISP_LANES_INLINE void sobelRowBody(const float* up, const float* mid, const fl
 
 // Eight running sums, lane k taking the values at x = k mod 8 (so that the
 // compiler can vectorise the loop without reordering a sum), added lane 0..7
-// at the end, then the tail left to right. Zero gradient values add exactly 0
-// to the sums, so only the count needs the test (eq. 3.1 counts the
-// non-black pixels only). Gradients are >= 0.
+// at the end, then the tail left to right, of the non-black values only
+// (eq. 3.1; kBlackGradient, repair.h). Gradients are >= 0.
 namespace {
 CRISP_LANES_INLINE RowStats rowStatsBody(const float* row, int width) {
   double sum[8] = {}, squares[8] = {};
@@ -323,7 +323,7 @@ CRISP_LANES_INLINE RowStats rowStatsBody(const float* row, int width) {
   int x = 0;
   for (; x + 8 <= width; x += 8)
     for (int k = 0; k < 8; ++k) {
-      const double z = row[x + k];
+      const double z = row[x + k] >= kBlackGradient ? row[x + k] : 0.0f;
       count[k] += z != 0.0;
       sum[k] += z;
       squares[k] += z * z;
@@ -336,7 +336,7 @@ CRISP_LANES_INLINE RowStats rowStatsBody(const float* row, int width) {
     s.sumSquares += squares[k];
   }
   for (; x < width; ++x) {
-    const double z = row[x];
+    const double z = row[x] >= kBlackGradient ? row[x] : 0.0f;
     n += z != 0.0;
     s.sum += z;
     s.sumSquares += z * z;
@@ -401,7 +401,9 @@ ThresholdStats combineRowStats(const RowStats* rows, int height, float kappa) {
   // Population variance by its definition (1/n) sum (z - mu)^2, expanded.
   const double variance = std::max(0.0, all.sumSquares / all.count - t.mean * t.mean);
   t.sigma = std::sqrt(variance);
-  t.threshold = t.mean + double(kappa) * t.sigma;  // eq. 3.1 (Algorithm 2 line 13 flips the sign)
+  // eq. 3.1 (Algorithm 2 line 13 flips the sign); a negative kappa can take it below the black values,
+  // which are never edges.
+  t.threshold = std::max(t.mean + double(kappa) * t.sigma, double(kBlackGradient));
   return t;
 }
 
@@ -950,10 +952,11 @@ namespace {
 std::vector<ParamSpec> repairParams() {
   return {
       {"kappa", ParamType::Float, 0.0, -4.0, 4.0, nullptr,
-       "threshold weight: gradient values below mu + kappa sigma (over the non-zero gradient pixels) are not "
-       "edges. The thesis shows -2 and -1. Default 0 (T = mu): on the test chart it gains +1.4 dB on edge "
-       "pixels and +0.15 dB over the whole image, while -1 (+1.8 dB on edges) also blurs the flanks of the "
-       "Sobel band and costs 0.6 dB over the whole image (test_repair.cpp, RepairQuality, prints the figures)",
+       "threshold weight: gradient values below mu + kappa sigma (over the non-black gradient pixels, those "
+       "of at least 1e-5) are not edges. The thesis shows -2 and -1. Default 0 (T = mu): on the test chart it "
+       "gains +1.4 dB on edge pixels and +0.15 dB over the whole image, while -1 (+1.8 dB on edges) also blurs "
+       "the flanks of the Sobel band and costs 0.6 dB over the whole image (test_repair.cpp, RepairQuality, "
+       "prints the figures)",
        "eq. 3.1 (Algorithm 2's sigma slip and sign flip fixed)"},
       {"patchSize", ParamType::Int, 5, 3, 15, nullptr, "n of the n x n gradient patch for the slope angle (odd)",
        "eq. 3.2-3.3, Algorithm 3"},

@@ -50,7 +50,15 @@ float greyOf(float r, float g, float b);
 float sobelMagnitude(const float n[3][3]);
 
 // ---- Step 3: threshold (eq. 3.1 with the definition of sigma) ------------
-// Statistics of the NON-ZERO gradient values, accumulated in double: each
+// Gradient values below kBlackGradient are black: eq. 3.1 counts the
+// non-black pixels only, and they are never edges. Not exactly zero: float
+// rounding of the grey image (greys in [0, 1]) leaves Sobel values up to
+// ~1e-6 in flat areas, and which of them round to exactly 0 differs between
+// this code and the GPU's (shaders/repair.glsl), which moved T by 0.6 % on a
+// viewport image and made ~200 pixels edges on one side only. One 8-bit
+// display step of grey is 1/255 = 3.9e-3.
+constexpr float kBlackGradient = 1e-5f;
+// Statistics of the non-black gradient values, accumulated in double: each
 // row in a fixed order (eight running sums over x mod 8, then the tail), then
 // the row sums top to bottom, so the result does not depend on the number of
 // threads or on the path.
@@ -58,10 +66,10 @@ struct RowStats {
   double count = 0, sum = 0, sumSquares = 0;
 };
 struct ThresholdStats {
-  long count = 0;          // non-zero gradient pixels
+  long count = 0;          // non-black gradient pixels
   double mean = 0;         // mu
   double sigma = 0;        // population standard deviation
-  double threshold = 0;    // T = mu + kappa sigma
+  double threshold = 0;    // T = max(mu + kappa sigma, kBlackGradient)
 };
 RowStats rowStats(const float* gradientRow, int width);
 ThresholdStats combineRowStats(const RowStats* rows, int height, float kappa);

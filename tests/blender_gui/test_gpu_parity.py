@@ -96,6 +96,26 @@ def noise_image(seed=7):
     return out
 
 
+def shaded_image(seed=3):
+    """A render's flat areas and soft shading: the left half one colour with float-rounding noise (values
+    a few 1e-7 apart, as a render's flat wall: Sobel values of ~1e-7 that round to exactly 0 on one side
+    and not on the other), the right half a radial falloff whose gradient takes every value from 0 up,
+    so that some lie near REPAIR's threshold T, with a bright disc for edges."""
+    rng = random.Random(seed)
+    out = []
+    for y in range(H):
+        for x in range(W):
+            if x < W // 2:
+                v = 0.2 * (1.0 + 3e-7 * (2.0 * rng.random() - 1.0))
+                c = (v, v * 1.1, v * 0.9)
+            else:
+                d = math.hypot(x - 0.75 * W, y - 0.5 * H) / (0.5 * H)
+                v = 0.05 + 0.8 * max(0.0, 1.0 - d * d)
+                c = (1.0, 0.9, 0.6) if d < 0.3 else (v, v * 0.8, v * 0.6)
+            out.extend(c + (1.0,))
+    return out
+
+
 def library_filter(method, frames, params, every=False):
     """Runs the library on each frame in turn (one filter object: taa history carries over); frames is a
     list of (rgba list, per-frame params). Returns the last output as a flat list (every: each frame's)."""
@@ -340,6 +360,13 @@ class GpuParity(unittest.TestCase):
 
     def test_repair_chart_box3_kappa(self):
         self.check("repair chart box3 kappa=-1", "repair", [(chart_image(), {})], {"mask": "box3", "kappa": -1.0})
+
+    def test_repair_shaded_with_flat_areas(self):
+        # REPAIR's threshold counts the non-black gradient pixels: it counted the exactly non-zero ones, and
+        # which of a flat area's ~1e-7 Sobel values round to 0 differs between the two sides (0.86 % of the
+        # values of a 528x297 viewport image beyond the tolerance).
+        with image_size(264, 150):
+            self.check("repair shaded 264x150", "repair", [(shaded_image(), {})], {})
 
     def test_repair_noise_thesis(self):
         self.check("repair noise thesis n=7", "repair", [(noise_image(), {})],

@@ -135,16 +135,20 @@ TEST(RepairSobel, MagnitudeOfKnownNeighbourhoods) {
 // ---- step 3 ----------------------------------------------------------------
 
 TEST(RepairThreshold, EqualsDefinitionOnHandComputedValues) {
-  // Non-zero values 1, 2, 3, 6: mu = 3, sigma^2 = (4 + 1 + 0 + 9) / 4 = 3.5.
-  const float rowA[] = {0, 1, 2, 0};
-  const float rowB[] = {3, 0, 6, 0};
-  repair::RowStats rows[2] = {repair::rowStats(rowA, 4), repair::rowStats(rowB, 4)};
+  // Non-black values 1, 2, 3, 6: mu = 3, sigma^2 = (4 + 1 + 0 + 9) / 4 = 3.5. The black ones (below
+  // kBlackGradient: float rounding in a flat area) are not counted.
+  const float rowA[] = {0, 1, 2, 0, 9.9e-6f};
+  const float rowB[] = {3, 2e-7f, 6, 0, 0};
+  repair::RowStats rows[2] = {repair::rowStats(rowA, 5), repair::rowStats(rowB, 5)};
   for (float kappa : {-2.0f, -1.0f, 0.0f, 0.5f}) {
     const repair::ThresholdStats t = repair::combineRowStats(rows, 2, kappa);
     EXPECT_EQ(t.count, 4);
     EXPECT_DOUBLE_EQ(t.mean, 3.0);
     EXPECT_NEAR(t.sigma, std::sqrt(3.5), 1e-12);
-    EXPECT_NEAR(t.threshold, 3.0 + kappa * std::sqrt(3.5), 1e-12) << kappa;
+    // kappa -2 takes mu + kappa sigma below 0: T stops at the black values, which are never edges.
+    EXPECT_NEAR(t.threshold, std::max(3.0 + kappa * std::sqrt(3.5), double(repair::kBlackGradient)), 1e-12)
+        << kappa;
+    EXPECT_FALSE(repair::edgeValue(9.9e-6f, float(t.threshold)) > 0) << kappa;
   }
   // Algorithm 2 as printed (sigma^2 = s2 - 2 mu s + mu^2 = 50 - 72 + 9 < 0,
   // t = mu - kappa sigma) cannot give this: the fix matters.
@@ -153,7 +157,7 @@ TEST(RepairThreshold, EqualsDefinitionOnHandComputedValues) {
   EXPECT_FALSE(repair::edgeValue(0.0f, float(none.threshold)) > 0);
 }
 
-TEST(RepairThreshold, KernelMatchesDefinitionOverNonZeroGradient) {
+TEST(RepairThreshold, KernelMatchesDefinitionOverNonBlackGradient) {
   // Widths that are not multiples of the row statistics' vector width too, so its tail loop runs.
   for (int width : {96, 97, 101})
   for (float kappa : {-1.0f, 0.0f, 1.0f}) {
@@ -168,11 +172,11 @@ TEST(RepairThreshold, KernelMatchesDefinitionOverNonZeroGradient) {
     EXPECT_TRUE(lastColumn);
     long double sum = 0, n = 0;
     for (float z : k.gradient().data)
-      if (z != 0) sum += z, n += 1;
+      if (z >= repair::kBlackGradient) sum += z, n += 1;
     const long double mean = sum / n;
     long double squares = 0;
     for (float z : k.gradient().data)
-      if (z != 0) squares += (z - mean) * (z - mean);
+      if (z >= repair::kBlackGradient) squares += (z - mean) * (z - mean);
     const double sigma = double(std::sqrt(squares / n));
     EXPECT_EQ(k.threshold().count, long(n));
     EXPECT_NEAR(k.threshold().mean, double(mean), 1e-12);
