@@ -68,6 +68,7 @@ Messages start with "crisp: error:".
 
 import argparse
 import os
+import re
 import sys
 
 ADDON_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -193,9 +194,9 @@ def scene_key(script_path):
     """What the scene is made of, for reuse checks (pipeline.run scene_key): a hash of the bundled
     scene's script, the test_scenes/common.py it imports and the other bundled scenes it imports
     (light_switch: still_life), or of the .blend Blender opened (as saved: call before anything changes
-    the scene) and of the library .blend files it links (an edited linked set or character renders other
-    frames; a resume kept the old ones); None for an unsaved scene. Images and other files it reads are
-    not in it."""
+    the scene), of the library .blend files it links (an edited linked set or character renders other
+    frames; a resume kept the old ones) and of the other files it reads (external_files: an edited
+    texture); None for an unsaved scene."""
     import hashlib
     import bpy
     if script_path:
@@ -223,7 +224,66 @@ def scene_key(script_path):
             _hash_file(h, path)
         else:
             h.update(b"missing:" + path.encode("utf-8", "surrogateescape"))
+    if not script_path:
+        # By size and modification time, as make and rsync tell a changed file (and crisp filter its
+        # inputs): a shot's textures and plates may be gigabytes, read again by every farm task. A file of
+        # none hashes as before.
+        for name, path in external_files(libraries):
+            try:
+                st = os.stat(path)
+                seen = "%d %d" % (st.st_size, st.st_mtime_ns)
+            except OSError:
+                seen = "missing"
+            h.update(("\0file\0%s\0%s" % (name, seen)).encode("utf-8", "surrogateescape"))
     return "sha256:" + h.hexdigest()[:16]
+
+
+_NUMBERED = re.compile(r"^(.*?)(\d+)(\.[^.\d]*)?$")  # name, frame number, extension: seq.0001.png
+
+
+def external_files(libraries=()):
+    """[(name, absolute path)] of the files outside the .blend that Blender reads (bpy.utils.blend_paths:
+    images, movie clips, caches, volumes, fonts, sounds, of linked data too), sorted, each file once:
+    every file of an image sequence (beside the first, in its folder) and every tile of a UDIM image;
+    not packed files (in the .blend), nor the libraries given (hashed by content). The name is the path
+    relative to the .blend's folder where the file is inside it, so a moved project keeps its names."""
+    import bpy
+    from crisp import compositor
+    paths = {os.path.normpath(p) for p in bpy.utils.blend_paths(absolute=True, packed=False, local=False)}
+    # Crisp's own filtered frames, loaded into the compositor or previewed, which every run rewrites; the
+    # renders Crisp filters do not read them (it renders without the compositor, render.py).
+    own = {g.nodes["Crisp Frames"].image for g in bpy.data.node_groups
+           if compositor.FOLDER_TAG in g and "Crisp Frames" in g.nodes and g.nodes["Crisp Frames"].type == "IMAGE"}
+    own.update(i for i in bpy.data.images if i.get(compositor.PREVIEW_TAG))
+    for image in bpy.data.images:
+        if image.source not in ("FILE", "SEQUENCE", "TILED") or image.packed_file is not None or not image.filepath:
+            continue
+        first = os.path.normpath(bpy.path.abspath(image.filepath, library=image.library))
+        if image in own:
+            paths.discard(first)
+        elif image.source == "TILED":  # "<UDIM>" (1001...) or "<UVTILE>" (u1_v1...) in the name
+            paths.discard(first)
+            paths.update(first.replace("<UDIM>", str(t.number)).replace(
+                "<UVTILE>", "u%d_v%d" % ((t.number - 1001) % 10 + 1, (t.number - 1001) // 10 + 1))
+                for t in image.tiles)
+        elif image.source == "SEQUENCE":
+            folder, numbered = os.path.split(first)
+            match = _NUMBERED.match(numbered)
+            if match and os.path.isdir(folder):
+                for f in os.listdir(folder):
+                    other = _NUMBERED.match(f)
+                    if other and (other.group(1), other.group(3)) == (match.group(1), match.group(3)):
+                        paths.add(os.path.join(folder, f))
+    paths.difference_update(os.path.normpath(p) for p in libraries)
+    home = os.path.dirname(os.path.abspath(bpy.data.filepath)) if bpy.data.filepath else None
+
+    def name(path):
+        try:
+            inside = home is not None and os.path.commonpath([home, path]) == home
+        except ValueError:  # another drive (Windows)
+            inside = False
+        return os.path.relpath(path, home) if inside else path
+    return sorted((name(p), p) for p in paths)
 
 
 def _hash_file(h, path):

@@ -851,6 +851,46 @@ class OperatorTest(unittest.TestCase):
         self.assertEqual(pipeline.sequence_warnings(self.tmp.name, [1, 2, 3]),
                          ["frame 3 was made with other settings than frame 1"])
 
+    def test_the_scene_key_covers_the_files_the_renders_read(self):
+        """batch.external_files, what scene_key hashes beside the .blend: a texture (named relative to the
+        .blend), every frame of an image sequence and every UDIM tile, not a packed image, nor Crisp's own
+        filtered frames loaded into the compositor or previewed, which each run rewrites (a resume on a
+        farm would otherwise never find its frames made alike). Editing a texture changes the key."""
+        from crisp import batch
+        bpy.ops.wm.read_homefile(use_empty=True)
+        home = self.tmp.name
+        os.makedirs(os.path.join(home, "tex"))
+        os.makedirs(os.path.join(home, "out", "filtered"))
+
+        def pattern(path, colour="1,0,0"):
+            subprocess.run(["oiiotool", "--pattern", "constant:color=" + colour, "4x4", "3", "-d", "half", "-o",
+                            os.path.join(home, path)], check=True, capture_output=True)
+        for path in ("tex/wood.png", "tex/seq.0001.png", "tex/seq.0002.png", "tex/seq.0010.png", "tex/other.0001.png",
+                     "tex/u.1001.png", "tex/u.1002.png", "tex/packed.png", "out/filtered/frame_0001.exr",
+                     "out/filtered/frame_0002.exr"):
+            pattern(path)
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(home, "shot.blend"))
+        bpy.data.images.load(os.path.join(home, "tex", "wood.png"))
+        bpy.data.images.load(os.path.join(home, "tex", "seq.0001.png")).source = "SEQUENCE"
+        udim = bpy.data.images.load(os.path.join(home, "tex", "u.1001.png"))
+        udim.source = "TILED"
+        udim.tiles.new(1002)
+        bpy.data.images.load(os.path.join(home, "tex", "packed.png")).pack()
+        scene = bpy.context.scene
+        compositor.load_result(scene, os.path.join(home, "out", "filtered"), 1, 2)
+        compositor.preview(os.path.join(home, "out", "filtered", "frame_0002.exr"))
+        names = [name for name, _ in batch.external_files()]
+        self.assertEqual(names, [os.path.join("tex", f) for f in (
+            "seq.0001.png", "seq.0002.png", "seq.0010.png", "u.1001.png", "u.1002.png", "wood.png")])
+        key = batch.scene_key(None)
+        self.assertEqual(batch.scene_key(None), key)
+        pattern("out/filtered/frame_0001.exr", "0,1,0")  # a run writing its frames: the same key
+        self.assertEqual(batch.scene_key(None), key)
+        for edited in ("tex/wood.png", "tex/seq.0010.png", "tex/u.1002.png"):
+            pattern(edited, "0,0,1")
+            self.assertNotEqual(batch.scene_key(None), key, edited)
+            key = batch.scene_key(None)
+
     def test_a_run_into_a_folder_relative_to_the_blend_file_writes_beside_it(self):
         """pipeline.run(..., "//out") made /out (os.path reads // as the root) while Blender rendered
         beside the .blend, and the run failed finding no frame. It now reads // as Blender does, and

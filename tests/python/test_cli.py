@@ -1169,6 +1169,35 @@ def test_a_resume_sees_a_linked_library_edited_since(tmp_path):
     assert frame_mse(fresh / "filtered" / "frame_0002.exr", out / "filtered" / "frame_0002.exr", tmp_path) == 0
 
 
+SKY_TEXTURE = """
+w = bpy.context.scene.world
+w.use_nodes = True
+sky = w.node_tree.nodes.new("ShaderNodeTexEnvironment")
+sky.image = bpy.data.images.load(%r)
+w.node_tree.links.new(sky.outputs["Color"], w.node_tree.nodes["Background"].inputs["Color"])
+"""
+
+
+@needs_blender
+def test_a_resume_sees_a_texture_edited_since(tmp_path):
+    """A shot whose sky is an image file: a resume with nothing changed keeps its frames, and after the
+    image was edited it makes them again, as for an edit of the .blend; they kept the old sky, since
+    only the .blend and its libraries were hashed."""
+    texture = tmp_path / "tex" / "sky.png"
+    texture.parent.mkdir()
+    subprocess.run(["oiiotool", "--pattern", "constant:color=0.8,0.1,0.1", "8x8", "3", "-o", str(texture)], check=True)
+    shot = panel_blend(tmp_path / "shot.blend", SKY_TEXTURE % str(texture))
+    out, fresh = tmp_path / "out", tmp_path / "fresh"
+    render_panel(shot, out, "--method", "fxaa", "--no-panel")
+    p = render_panel(shot, out, "--method", "fxaa", "--no-panel", "--resume")
+    assert "nothing to do" in p.stdout, p.stdout[-3000:]
+    subprocess.run(["oiiotool", "--pattern", "constant:color=0.1,0.1,0.8", "8x8", "3", "-o", str(texture)], check=True)
+    p = render_panel(shot, out, "--method", "fxaa", "--no-panel", "--resume")
+    assert "frame 1 was made with other settings (scene_key " in p.stdout, p.stdout[-3000:]
+    render_panel(shot, fresh, "--method", "fxaa", "--no-panel")
+    assert frame_mse(fresh / "filtered" / "frame_0002.exr", out / "filtered" / "frame_0002.exr", tmp_path) == 0
+
+
 @needs_blender
 def test_a_set_the_panel_completes_is_not_refused_before_blender(tmp_path):
     """--method with a --set that the library's defaults refuse (feedbackMin 0.9 above the default
