@@ -756,7 +756,7 @@ def iter_render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distr
                            "sequence": "halton(2,3)", "index": index, "period": HALTON_PERIOD,
                            "distribution": jitter_distribution if the_plan.jitter else "none",
                            "filter_size": filter_size if jitter_distribution == "blackman-harris" else None},
-                "camera": {"name": scene.camera.name, "matrix_world": _matrix(scene.camera.matrix_world),
+                "camera": {"name": scene.camera.name_full, "matrix_world": _matrix(scene.camera.matrix_world),
                            "view": view, "projection": proj, "projection_unjittered": proj_plain,
                            "type": cam_data.type, "base_shift": list(base_shift)},
                 "objects": object_table(scene, view_layer),

@@ -34,7 +34,7 @@ struct Sidecar {
   // filter the frame was jittered over and EEVEE filters with; < 0 when the
   // sidecar does not give it.
   double filterSize = -1.0;
-  std::string camera;         // camera.name: the scene's camera this frame (empty if not given)
+  std::string camera;         // camera.name: the scene's camera this frame, by its full name (empty if not given)
   Mat4 view;                  // world -> camera (camera.view; camera looks down -Z)
   Mat4 projection;            // camera -> clip, with the jitter shift (camera.projection)
   Mat4 projectionUnjittered;  // camera -> clip, without it (camera.projection_unjittered)

@@ -162,5 +162,42 @@ class HistoryBreakTest(unittest.TestCase):
         self.assertEqual(reasons, [None, None, None])
         self.assertEqual(pixels(os.path.join(ours, "frame_0006.exr")), pixels(os.path.join(whole, "frame_0006.exr")))
 
+    def test_a_linked_camera_of_the_local_ones_name_is_a_cut(self):
+        """The marker at frame 4 switches to a camera linked from another file and named "Camera" as the
+        local one: the plan saw no cut and the sidecars named both "Camera" (cameras were told apart by
+        name), so the history carried over the cut. The plan lists it, the sidecars name the linked one by
+        its full name, and the run restarts there."""
+        import bpy
+        local = self.scene.camera
+        marker = next(m for m in self.scene.timeline_markers if m.frame == 4)
+        asset = os.path.join(self.tmp.name, "camera_asset.blend")
+        local.name = "Camera (local)"  # the library's camera takes the name, then the local one gets it back
+        other = bpy.data.objects.new("Camera", bpy.data.cameras.new("Asset lens"))
+        other.location, other.rotation_euler = (3.5, -4.0, 2.0), (1.2, 0.0, 0.6)
+        bpy.data.libraries.write(asset, {other}, fake_user=True)
+        bpy.data.objects.remove(other)
+        local.name = "Camera"
+        with bpy.data.libraries.load(asset, link=True) as (_, linked):
+            linked.objects = ["Camera"]
+        linked_camera = linked.objects[0]
+        self.scene.collection.objects.link(linked_camera)
+        bound = marker.camera
+        try:
+            marker.camera = linked_camera
+            self.assertEqual(plan.scene_facts(self.scene, 1, 6).camera_cuts, [4])
+            out = os.path.join(self.tmp.name, "linked_camera")
+            result = pipeline.run(self.scene, "taa", [3, 4], out, threads=1, log=lambda s: None)
+            names = []
+            for f in (3, 4):
+                with open(os.path.join(out, "input", "frame_%04d.json" % f)) as fh:
+                    names.append(json.load(fh)["camera"]["name"])
+            self.assertEqual(names, ["Camera", linked_camera.name_full])
+            restarted = {e["frame"]: e.get("history_restarted") for e in result["frames"]}
+            self.assertTrue(restarted[4], result["frames"])
+        finally:
+            marker.camera = bound
+            self.scene.collection.objects.unlink(linked_camera)
+            bpy.data.libraries.remove(linked_camera.library)
+
 if __name__ == "__main__":
     harness.run(HistoryBreakTest)
