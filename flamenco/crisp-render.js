@@ -42,7 +42,8 @@ const JOB_TYPE = {
     // Flamenco's add-on evaluates `eval` in the submitting Blender when the job is submitted, as long as
     // the setting's link button is on (its default; off, the field is edited by hand). Without the Crisp
     // add-on there is no scene.crisp and each gives its default: an expression that raised would stop
-    // the submission with a Python error.
+    // the submission with a Python error. A choice a newer add-on saved reads "" in this one's menu: the
+    // job is refused naming it (compileJob), rather than run with crisp's default.
     { key: "method", type: "string", required: true, default: "taa", choices: CRISP_METHODS,
       eval: "getattr(getattr(C.scene, 'crisp', None), 'method', 'taa')",
       evalInfo: { showLinkButton: true, description: "Crisp panel's Method" },
@@ -58,13 +59,14 @@ const JOB_TYPE = {
     // crisp render --jitter: the add-on's panel offers both (Jitter); a resume keeps only frames made
     // with the same one.
     { key: "jitter", type: "string", default: "blackman-harris", choices: CRISP_JITTERS,
-      eval: "getattr(getattr(C.scene, 'crisp', None), 'jitter_distribution', 'blackman-harris')",
+      eval: "getattr(getattr(C.scene, 'crisp', None), 'jitter_distribution', 'blackman-harris') or " +
+        "'unknown to this add-on'",
       evalInfo: { showLinkButton: true, description: "Crisp panel's Jitter" },
       description: "Sub-pixel jitter of a temporal method's frames: blackman-harris (EEVEE's own pixel filter) or uniform (inside the pixel)" },
     // crisp render --input-codec: how the 1-sample renders kept in input/ are stored (all lossless: the
     // filtered frames are the same with each; a resume keeps frames stored with another).
     { key: "input_codec", type: "string", default: "none", choices: CRISP_INPUT_CODECS,
-      eval: "getattr(getattr(C.scene, 'crisp', None), 'input_codec', 'none')",
+      eval: "getattr(getattr(C.scene, 'crisp', None), 'input_codec', 'none') or 'unknown to this add-on'",
       evalInfo: { showLinkButton: true, description: "Crisp panel's Input Codec" },
       description: "OpenEXR codec of the 1-sample renders kept in input/: none (fastest), piz or zip (about 4.5x " +
         "smaller)" },

@@ -93,6 +93,17 @@ class FlamencoSettingsTest(unittest.TestCase):
             self.assertNotEqual(refused.returncode, 0)
             self.assertIn("lambda", refused.stderr)
 
+            # A choice saved by a newer add-on (a number this one's menu does not hold, which reads ""): the
+            # job type refuses the value the expression gives, rather than run with crisp's default.
+            for prop, key in (("jitter_distribution", "jitter"), ("input_codec", "input_codec")):
+                saved = s[prop]
+                s[prop] = 9
+                try:
+                    self.assertEqual(self.evaluated()[key], "unknown to this add-on")
+                    self.assertNotIn(self.evaluated()[key], self.settings[key]["choices"])
+                finally:
+                    s[prop] = saved
+
             # Back at the library's defaults, nothing is sent.
             for name in ("lambda", "holdPeriod", "modelFetch", "footprintBox"):
                 s.phlm.property_unset(name)

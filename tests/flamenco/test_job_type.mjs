@@ -194,10 +194,12 @@ test("method, jitter, input_codec and filter_params follow the scene's Crisp pan
     assert.ok(s.eval.includes("'" + attribute + "'"), key + ": " + s.eval);
     assert.equal(s.evalInfo && s.evalInfo.showLinkButton, true, key);
     assert.ok(s.evalInfo.description, key);
-    // Without the Crisp add-on (no scene.crisp) the expression gives the setting's default.
-    const fallback = /'([^']*)'\)(?:\(\))?$/.exec(s.eval);
+    // Without the Crisp add-on (no scene.crisp) the expression gives the setting's default; a choice a newer
+    // add-on saved (read as "") gives a value compileJob refuses.
+    const fallback = /'([^']*)'\)(?:\(\))?(?: or '([^']*)')?$/.exec(s.eval);
     assert.ok(fallback, key + ": no fallback in " + s.eval);
     assert.equal(fallback[1], s.default, key);
+    if (fallback[2] !== undefined) assert.ok(s.choices && !s.choices.includes(fallback[2]), key);
   }
   // The panel's parameters come from the add-on's own conversion, a method of its scene settings.
   const properties = fs.readFileSync(path.join(here, "..", "..", "addon", "crisp", "properties.py"), "utf8");
