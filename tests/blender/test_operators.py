@@ -300,13 +300,7 @@ class OperatorTest(unittest.TestCase):
         bpy.ops.wm.read_homefile(use_empty=True)
         scene = self.small_scene(1, 3, load_result=True)
         scene.crisp.method = "taa"
-        scene.use_nodes = True
-        tree = scene.node_tree
-        tree.nodes.clear()
-        layers, composite = tree.nodes.new("CompositorNodeRLayers"), tree.nodes.new("CompositorNodeComposite")
-        glare = tree.nodes.new("CompositorNodeGlare")
-        tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
-        tree.links.new(glare.outputs["Image"], composite.inputs["Image"])
+        tree, layers, composite, glare = self.glare_tree(scene)
 
         links = self.links
 
@@ -349,6 +343,19 @@ class OperatorTest(unittest.TestCase):
         self.assertEqual((links(tree), links(group)), wired)
         self.assertEqual({n.name: tuple(n.location) for t in (tree, group) for n in t.nodes}, placed)
         self.assertEqual((frames.frame_start, frames.frame_duration, frames.frame_offset), (1, 3, 0))
+
+    @staticmethod
+    def glare_tree(scene):
+        """The scene's compositor in use with the artist's nodes: Render Layers -> Glare -> Composite.
+        Returns (tree, layers, composite, glare)."""
+        scene.use_nodes = True
+        tree = scene.node_tree
+        tree.nodes.clear()
+        layers, composite = tree.nodes.new("CompositorNodeRLayers"), tree.nodes.new("CompositorNodeComposite")
+        glare = tree.nodes.new("CompositorNodeGlare")
+        tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
+        tree.links.new(glare.outputs["Image"], composite.inputs["Image"])
+        return tree, layers, composite, glare
 
     @staticmethod
     def links(tree):
@@ -466,13 +473,7 @@ class OperatorTest(unittest.TestCase):
         default tree switched off is turned on and takes the frames, as a scene without a tree."""
         bpy.ops.wm.read_homefile(use_empty=True)
         scene = self.small_scene(1, 1, load_result=True)
-        scene.use_nodes = True
-        tree = scene.node_tree
-        tree.nodes.clear()
-        layers, composite = tree.nodes.new("CompositorNodeRLayers"), tree.nodes.new("CompositorNodeComposite")
-        glare = tree.nodes.new("CompositorNodeGlare")
-        tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
-        tree.links.new(glare.outputs["Image"], composite.inputs["Image"])
+        tree, layers, composite, glare = self.glare_tree(scene)
         theirs = self.links(tree)
         scene.use_nodes = False
         reports = self.load_reports(bpy.ops.crisp.render)
