@@ -36,8 +36,6 @@ JITTER_DISTRIBUTIONS = ("blackman-harris", "uniform")
 # Measured at 1920x1080, colour + depth (docs/farm.md "Disk"): none 41.5 MB, saved in 0.02-0.04 s and read
 # by the library in 99 ms; piz 9.3 MB, 0.12 s, 162 ms; zip 8.9 MB, 0.20 s, 153 ms.
 INPUT_CODECS = ("none", "piz", "zip")
-# The EXR layer names of the passes the renders may write (BLENDER.md; Cryptomatte's are CryptoObject00, ...).
-PASS_NAMES = ("Combined", "Depth", "Normal", "Vector", "DiffCol")
 # RSAA geometric sub-sample offsets in pixels (x right, y up): 8 points on two rotated squares, so
 # every direction through the centre is cut. The filter's offset table must be built for this pattern.
 RSAA_PATTERN = [(-0.375, -0.125), (0.125, -0.375), (0.375, 0.125), (-0.125, 0.375),
@@ -569,16 +567,43 @@ def _prepare(snap, scene, view_layer, engine, samples, flags, file_format="OPEN_
             snap.set(view_layer.eevee, prop.identifier, False)
     if "use_pass_cryptomatte_object" in flags:
         snap.set(view_layer, "pass_cryptomatte_depth", 2)  # one EXR layer: rank 0 is all a 1-sample pixel has
-    # An AOV named as a pass (a "Depth" AOV): beside the Z pass Blender 3.4 leaves it out of the file, and
-    # rsaa's renders crashed Blender (its own renders with that AOV and the Z pass crash too); without
-    # the pass, the AOV is written as the "Depth" layer, an RGBA depth no filter can read. Renamed for
-    # the renders, back afterwards.
-    names = {aov.name for aov in view_layer.aovs}
-    for aov in view_layer.aovs:
-        if aov.name in PASS_NAMES or aov.name.startswith("Crypto"):
-            name = next(n for n in ("%s (AOV %d)" % (aov.name, i) for i in itertools.count(1)) if n not in names)
-            names.add(name)
-            snap.set(aov, "name", name)
+    _leave_out_aovs(snap, scene, view_layer)
+
+
+def _leave_out_aovs(snap, scene, view_layer):
+    """Removes the view layer's AOVs for the renders and puts them back afterwards (their names, types,
+    order and the active one). No filter reads them, and EEVEE renders the scene once more per sample for
+    each: four made a 960x540 still_life frame about 4 times slower to render and 5 times larger on disk.
+    Blender 3.4 has no switch for an AOV and no remove in the collection's API, only the operator, which
+    removes the active one; an AOV named as a pass (a "Depth" AOV beside the Z pass) made rsaa's renders
+    crash Blender, so naming them out of the way is no way either. The compositor's links from their
+    Render Layers sockets stay (the sockets are hidden meanwhile)."""
+    if not len(view_layer.aovs):
+        return
+    active, removed = view_layer.active_aov_index, []
+
+    def put_back():
+        # Removed from the last: what is left (if a removal failed) is the first ones, so adding back in
+        # the reverse order of removal keeps the order.
+        for name, kind in reversed(removed):
+            aov = view_layer.aovs.add()
+            # The type first: named first, a value AOV would be a colour one for a moment, and the Render
+            # Layers node would make its socket again, dropping the compositor's links from it.
+            aov.type = kind
+            aov.name = name
+        removed.clear()
+        view_layer.active_aov_index = min(active, len(view_layer.aovs) - 1)
+
+    snap.restore_after(view_layer, "aovs", put_back)
+    with bpy.context.temp_override(scene=scene, view_layer=view_layer):
+        for n in range(len(view_layer.aovs), 0, -1):
+            last = view_layer.aovs[n - 1]
+            view_layer.active_aov_index = n - 1
+            entry = (last.name, last.type)
+            bpy.ops.scene.view_layer_remove_aov()
+            if len(view_layer.aovs) != n - 1:
+                raise RuntimeError("Blender did not remove the AOV '%s' for Crisp's renders" % entry[0])
+            removed.append(entry)
 
 
 def _render_to(scene, path):

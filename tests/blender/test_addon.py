@@ -1214,33 +1214,51 @@ class AddonTest(unittest.TestCase):
             settings.file_format, settings.color_depth, settings.exr_codec = "PNG", "8", "ZIP"
             settings.color_mode = "RGBA"
 
-    def test_an_aov_named_as_a_pass_is_renamed_for_the_renders(self):
-        """A view layer AOV named "Depth", which materials write: beside the Z pass Blender 3.4 left it out
-        of the renders, and rsaa's renders crashed Blender. The renders write it under another name, the
-        filtered frames are those of the scene without it, and it is "Depth" again afterwards."""
+    def test_aovs_are_left_out_of_the_renders_and_put_back(self):
+        """The view layer's AOVs, which no filter reads: EEVEE rendered each once more per frame into
+        Crisp's inputs (four made a frame about 4 times slower and 5 times larger), and one named "Depth"
+        beside the Z pass made rsaa's renders crash Blender. They are removed for the renders: the inputs
+        hold none, the filtered frames are those of the scene without them, and afterwards the AOVs are
+        back in their order, names and types, with the active one, and the compositor's link from one of
+        them still takes it."""
         scene = harness.build_scene("spinning_cube")
         scene.render.resolution_x, scene.render.resolution_y = 48, 27
         layer = render.default_view_layer(scene)
-        nodes = []
+        nodes, viewer = [], None
 
         with tempfile.TemporaryDirectory() as d:
             for method in ("taa", "rsaa"):
                 pipeline.run(scene, method, [1, 2], os.path.join(d, method + "_plain"), log=lambda *a: None)
-            aov = layer.aovs.add()
-            aov.name = "Depth"
+            aovs = [("Depth", "COLOR"), ("mask", "VALUE"), ("spec", "COLOR")]
+            for name, kind in aovs:
+                aov = layer.aovs.add()
+                aov.name, aov.type = name, kind
+            layer.active_aov_index = 1
             try:
-                for material in bpy.data.materials:  # the AOV written with a value far from any depth
+                for material in bpy.data.materials:  # each AOV written with a value far from any depth
                     if material.use_nodes:
-                        node = material.node_tree.nodes.new("ShaderNodeOutputAOV")
-                        node.name = "Depth"  # (Blender 3.4: the AOV node's name is the AOV it writes)
-                        node.inputs["Color"].default_value = (0.25, 0.5, 0.75, 1.0)
-                        nodes.append((material, node))
+                        for name, _ in aovs:
+                            node = material.node_tree.nodes.new("ShaderNodeOutputAOV")
+                            node.name = name  # (Blender 3.4: the AOV node's name is the AOV it writes)
+                            node.inputs["Color"].default_value = (0.25, 0.5, 0.75, 1.0)
+                            nodes.append((material, node))
+                scene.use_nodes = True
+                tree = scene.node_tree
+                viewer = tree.nodes.new("CompositorNodeViewer")
+                tree.links.new(tree.nodes["Render Layers"].outputs["mask"], viewer.inputs["Image"])
                 for method in ("taa", "rsaa"):
                     out = os.path.join(d, method + "_aov")
                     pipeline.run(scene, method, [1, 2], out, log=lambda *a: None)
                     names, _ = exr_util.channels(os.path.join(out, "input", render.frame_name(2)))
-                    self.assertIn("ViewLayer.Depth (AOV 1).R", names)
-                    self.assertEqual([a.name for a in layer.aovs], ["Depth"])
+                    layers = {}
+                    for n in names:
+                        layers.setdefault(n.split(".")[1], []).append(n.split(".")[-1])
+                    self.assertFalse({"mask", "spec"} & set(layers), (method, names))
+                    self.assertEqual(layers.get("Depth", ["Z"]), ["Z"], method)  # the Z pass, not the AOV's RGBA
+                    self.assertEqual([(a.name, a.type) for a in layer.aovs], aovs, method)
+                    self.assertEqual(layer.active_aov_index, 1, method)
+                    link, = viewer.inputs["Image"].links
+                    self.assertEqual((link.from_socket.name, link.is_valid), ("mask", True), method)
                     for f in (1, 2):
                         plain = image_pixels(os.path.join(d, method + "_plain", "filtered", render.frame_name(f)))
                         self.assertTrue(image_pixels(os.path.join(out, "filtered", render.frame_name(f))) == plain,
@@ -1248,9 +1266,12 @@ class AddonTest(unittest.TestCase):
             finally:
                 for material, node in nodes:
                     material.node_tree.nodes.remove(node)
-                layer.active_aov_index = 0  # Blender 3.4's collection has no remove: the operator removes the active
+                if viewer is not None:
+                    scene.node_tree.nodes.remove(viewer)
                 with bpy.context.temp_override(view_layer=layer):
-                    bpy.ops.scene.view_layer_remove_aov()
+                    while len(layer.aovs):  # Blender 3.4's collection has no remove: the operator removes the active
+                        layer.active_aov_index = 0
+                        bpy.ops.scene.view_layer_remove_aov()
 
     def test_a_scene_linked_under_the_name_of_the_files_own_is_refused(self):
         """The file's own scene and one linked from another file under the same name: Blender renders a

@@ -53,6 +53,8 @@ class UndoWithCrisp(unittest.TestCase):
         scene.frame_start = scene.frame_end = 1
         scene.crisp.method = "fxaa"
         scene.crisp.load_result = False
+        # An AOV, which the render removes for its renders with Blender's operator (no undo step of its own).
+        bpy.context.view_layer.aovs.add().name = "mask"
         bpy.ops.ed.undo_push(message="settings")
         cube = bpy.data.objects["Cube"]
         cube.location.x += 0.5
@@ -62,11 +64,14 @@ class UndoWithCrisp(unittest.TestCase):
         self.assertEqual(bpy.ops.crisp.render("EXEC_DEFAULT", True), {"FINISHED"})
         self.assertTrue(bpy.context.scene.crisp.output_dir)
         self.assertTrue(os.path.isfile(os.path.join(tmp.name, "crisp", "Scene", "filtered", "frame_0001.exr")))
+        self.assertEqual([a.name for a in bpy.context.view_layer.aovs], ["mask"])
         bpy.ops.ed.undo()
         self.assertEqual(bpy.context.scene.crisp.output_dir, "", "the render's own change is undone")
         self.assertAlmostEqual(bpy.data.objects["Cube"].location.x, 0.5, places=6, msg="the artist's edit stays")
+        self.assertEqual([a.name for a in bpy.context.view_layer.aovs], ["mask"])
         bpy.ops.ed.redo()
         self.assertTrue(bpy.context.scene.crisp.output_dir, "and redone")
+        self.assertEqual([a.name for a in bpy.context.view_layer.aovs], ["mask"])
 
     def test_undo_keeps_the_settings_the_preview_is_not_showing(self):
         settings = bpy.context.window_manager.crisp_viewport
