@@ -155,6 +155,10 @@ def main(argv):
         fail(2, "--reference-samples must be >= 1")
     methods = [m for m in args.methods.split(",") if m]
 
+    # What the opened .blend reads besides itself (its libraries, images and other files; batch.scene_key):
+    # crisp eval checks the .blend and a scene script before Blender starts (eval_settings.json), these
+    # only Blender can list. Taken before anything changes the scene.
+    files_key = None if args.scene_script else batch.scene_key(None)
     if args.scene_script:
         path = batch.scene_script_path(args.scene_script)
         sys.path.insert(0, os.path.dirname(path))
@@ -188,6 +192,15 @@ def main(argv):
         if problem:
             raise pipeline.InputError(problem)
         pipeline.check_output_dir(out)
+        # A resumed run reuses the renders it finds: those of a scene whose linked library or texture was
+        # edited since would be measured as this one's. (Records of earlier builds hold no key: taken as now.)
+        record = eval_renders.read_json(os.path.join(out, "scene.json"), {})
+        there = record.get("scene_files") if isinstance(record, dict) else None
+        if files_key and there and there != files_key:
+            raise pipeline.InputError(
+                "'%s' holds renders made when the scene's linked libraries, images or other files were "
+                "others (scene_files %s there, %s here); use another -o folder or delete it"
+                % (os.path.dirname(os.path.normpath(out)), there, files_key))
         plans, sets, unknown, facts = eval_renders.group_plans(scene, methods, frames)
         pipeline.check_camera_shifts(scene, list(plans))
     except pipeline.InputError as e:
@@ -211,7 +224,7 @@ def main(argv):
         "plans": {m: p.to_json() for m, p in plans.items()},
         "inputs": {m: eval_renders.input_set(plans.get(m)) for m in methods},
         "sets": {name: p.to_json() for name, p in sets.items()},
-        "unplanned_methods": unknown, "smaa": compositor.settings(),
+        "unplanned_methods": unknown, "smaa": compositor.settings(), "scene_files": files_key,
     }
     eval_renders.write_json(os.path.join(out, "scene.json"), info)
 

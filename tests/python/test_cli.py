@@ -1199,6 +1199,29 @@ def test_a_resume_sees_a_texture_edited_since(tmp_path):
 
 
 @needs_blender
+def test_eval_refuses_renders_of_a_linked_library_edited_since(tmp_path):
+    """crisp eval reuses the renders it finds in its folder; it checked the opened .blend before Blender
+    starts, not the library it links: after the library was edited, a second run measured the old
+    renders as the new scene's. It stops (exit 2) naming the edit, and leaves the renders as they were."""
+    library = panel_blend(tmp_path / "set.blend", "")
+    shot = tmp_path / "shot.blend"
+    p = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr",
+                        LINK_SCENE % (str(library), str(shot))], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0 and shot.is_file(), p.stdout[-2000:] + p.stderr[-2000:]
+    out = tmp_path / "eval"
+    eval_panel(shot, out, "--methods", "none", "--no-panel")
+    eval_panel(shot, out, "--methods", "none", "--no-panel")  # unchanged: runs again on its renders
+    frame = out / "renders" / "eevee_1" / "frame_0001.exr"
+    before = frame.read_bytes()
+    panel_blend(library, "for o in bpy.data.objects:\n    o.location.x += 0.5 * (o.type != 'CAMERA')")
+    p = eval_panel(shot, out, "--methods", "none", "--no-panel", ok=False)
+    assert p.returncode == 2, p.stdout[-3000:] + p.stderr[-3000:]
+    assert "holds renders made when the scene's linked libraries, images or other files were others" in p.stderr, \
+        p.stderr[-3000:]
+    assert frame.read_bytes() == before
+
+
+@needs_blender
 def test_a_set_the_panel_completes_is_not_refused_before_blender(tmp_path):
     """--method with a --set that the library's defaults refuse (feedbackMin 0.9 above the default
     feedbackMax 0.85) but the panel's feedbackMax 0.95 completes: the run takes both, so crisp does not
