@@ -224,9 +224,14 @@ std::string chooseLayer(const std::string& path, const std::vector<ChannelName>&
     invalidData("view layer '" + wanted + "' not found in '" + path + "' (layers: " + (list.empty() ? "none" : list) + ")");
   }
   // EXR stores channels sorted by name, so Blender's layer order is lost: prefer
-  // Blender's default layer names, else the first layer (by name) with Combined.
+  // Blender's default layer names, else the first layer (by name) with Combined
+  // other than "Composite", the compositor's result that Blender writes beside
+  // the view layers (a view layer "Main" sorts after it); Composite alone, where
+  // it is the only one.
   for (const char* preferred : {"ViewLayer", "View Layer", "RenderLayer"})
     if (std::find(withCombined.begin(), withCombined.end(), preferred) != withCombined.end()) return preferred;
+  for (const std::string& l : withCombined)
+    if (l != "Composite") return l;
   if (!withCombined.empty()) return withCombined.front();
   return std::string();  // plain image (or no colour at all: reported by the caller)
 }

@@ -371,6 +371,28 @@ TEST_F(IoTest, PicksBlenderDefaultLayerOrTheNamedOne) {
   expectError([&] { second.pass("depth"); }, CRISP_ERROR_INVALID_DATA, "depth", "layers.exr");
 }
 
+// Blender writes the compositor's result as layer "Composite" beside the view layers: a view layer
+// renamed "Main" sorts after it, and its passes were left for the composited colour alone.
+TEST_F(IoTest, TheCompositorsLayerIsNotTakenForAViewLayer) {
+  std::vector<Channel> ch = blenderChannels("Main", 7, 5, false);
+  for (const char* c : {"R", "G", "B", "A"})
+    ch.push_back({std::string("Composite.Combined.") + c, OIIO::TypeDesc::FLOAT, [](int, int) { return -7.0f; }});
+  ExrLayout layout;
+  writeExr(file("composite.exr"), ch, layout);
+  Frame f = readFrame(file("composite.exr"));
+  EXPECT_EQ(f.layer, "Main");
+  EXPECT_EQ(f.pass("color").at(1, 1)[0], pixelValue(1, 1, 0));
+  EXPECT_EQ(f.passList(), "color,depth,normal,id,albedo");
+  EXPECT_TRUE(f.layersNotRead.empty());
+  // Asked for by name it is read; a file of the compositor's layer alone is read from it.
+  EXPECT_EQ(readFrame(file("composite.exr"), "Composite").pass("color").at(1, 1)[0], -7.0f);
+  std::vector<Channel> alone;
+  for (const char* c : {"R", "G", "B", "A"})
+    alone.push_back({std::string("Composite.Combined.") + c, OIIO::TypeDesc::FLOAT, [](int, int) { return -7.0f; }});
+  writeExr(file("composite_alone.exr"), alone, layout);
+  EXPECT_EQ(readFrame(file("composite_alone.exr")).layer, "Composite");
+}
+
 TEST_F(IoTest, LayerNamesWithDotsSplitFromTheRight) {
   std::vector<Channel> ch = blenderChannels("My.Layer", 7, 5, false);
   ExrLayout layout;
