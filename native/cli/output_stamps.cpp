@@ -1,6 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "cli/output_stamps.h"
 
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -157,6 +161,10 @@ void OutputStamps::checkFolder() const {
   std::error_code ec;
   if (fs::exists(dir_, ec) && !fs::is_directory(dir_, ec))
     ioError("cannot keep stamps in '" + dir_ + "': it is a file, not a folder");
+  // One another user made (a farm's workers under other accounts): the first output would be written, and
+  // the run would stop at its stamp, leaving an output without one.
+  if (fs::is_directory(dir_, ec) && access(dir_.c_str(), W_OK | X_OK) != 0)
+    ioError("cannot keep stamps in '" + dir_ + "': the folder is not writable (" + std::strerror(errno) + ")");
 }
 
 void OutputStamps::reading(int position) {

@@ -955,6 +955,32 @@ def test_an_unreadable_input_is_named_with_the_reason(chart):
         shutil.rmtree(d)
 
 
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="needs root to run crisp as nobody")
+def test_a_stamps_folder_of_another_user_fails_before_any_output(chart):
+    """OUT/.crisp made by another user (a farm's workers under other accounts), OUT writable: crisp filter
+    wrote the first output and then stopped at its stamp, leaving an output without one. It stops first."""
+    import tempfile
+    nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+    if subprocess.run(nobody + [str(CRISP), "help"], capture_output=True).returncode != 0:
+        pytest.skip("nobody cannot run %s (a folder on its path is private)" % CRISP)
+    d = pathlib.Path(tempfile.mkdtemp())
+    try:
+        d.chmod(0o755)
+        out = d / "out"
+        (out / ".crisp").mkdir(parents=True)
+        out.chmod(0o777)
+        (out / ".crisp").chmod(0o755)
+        shutil.copy(chart / "chart_1spp.exr", d / "a.exr")
+        (d / "a.exr").chmod(0o644)
+        p = subprocess.run(nobody + [str(CRISP), "filter", "--method", "fxaa", str(d / "a.exr"), "-o", str(out)],
+                           capture_output=True, text=True, timeout=60)
+        assert p.returncode == 1, p.stderr
+        assert "cannot keep stamps in '%s': the folder is not writable" % (out / ".crisp") in p.stderr, p.stderr
+        assert sorted(f.name for f in out.iterdir()) == [".crisp"]
+    finally:
+        shutil.rmtree(d)
+
+
 # crisp render and the scene's Crisp panel (scene.crisp, addon/crisp/properties.py): what the command line
 # leaves out comes from the .blend's panel when the file set it (addon/crisp/batch.py panel_settings).
 SOURCE = pathlib.Path(os.environ.get("CRISP_SOURCE_DIR") or pathlib.Path(__file__).resolve().parents[2])
