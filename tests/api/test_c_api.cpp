@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <sstream>
 #include <limits>
 #include <map>
 #include <string>
@@ -541,6 +542,23 @@ TEST(CApi, BadViewsAreRefusedByWriteImageAndSetImage) {
   std::remove(path.c_str());
   crispSetFilterImage(f.handle(), "color", img.data(), static_cast<CrispFormat>(99), 4, 1, 0, 0);
   EXPECT_NE(lastError().find("unknown format 99"), std::string::npos);
+  // Negative ints too (CRISP_FORMAT_MIN_ENUM_: without it they were outside the enum's range, undefined
+  // behaviour that the sanitizer build stopped at), in every function taking a format.
+  for (int bad : {-1, INT32_MIN}) {
+    const CrispFormat format = static_cast<CrispFormat>(bad);
+    CrispError code = CRISP_ERROR_NONE;
+    crispSetFilterImage(f.handle(), "color", img.data(), format, 4, 1, 0, 0);
+    EXPECT_NE(lastError().find("unknown format " + std::to_string(bad)), std::string::npos) << bad;
+    crispWriteImage(ctx.handle(), path.c_str(), img.data(), format, 4, 1, 0, 0);
+    EXPECT_NE(lastError(&code), "") << bad;
+    EXPECT_EQ(code, CRISP_ERROR_INVALID_ARGUMENT) << bad;
+    crispWriteImageEXR(ctx.handle(), path.c_str(), img.data(), format, 4, 1, 0, 0, 32, "zip");
+    EXPECT_EQ((lastError(&code), code), CRISP_ERROR_INVALID_ARGUMENT) << bad;
+    CrispMetrics metrics;
+    crispCompareImages(ctx.handle(), img.data(), img.data(), format, 4, 1, nullptr, &metrics);
+    EXPECT_EQ((lastError(&code), code), CRISP_ERROR_INVALID_ARGUMENT) << bad;
+    EXPECT_NE(::access(path.c_str(), F_OK), 0) << bad;
+  }
   // No error: the message pointer is set to NULL, as crisp.h says.
   const char* message = "stale";
   EXPECT_EQ(crispGetError(&message), CRISP_ERROR_NONE);
@@ -705,6 +723,19 @@ TEST(CApi, WrapperSetsAFloatParameterFromADouble) {
   f.set("jitterX", 0.25);
   EXPECT_EQ(f.get<float>("jitterX"), 0.25f);
   EXPECT_THROW(f.set("jitterX", 4.5), crisp::Error);
+  EXPECT_EQ(f.get<float>("jitterX"), 0.25f);
+  // Beyond float's range it reached the library as an infinity, and the error named "inf" alone.
+  for (const double huge : {1e40, -1e300}) {
+    try {
+      f.set("jitterX", huge);
+      ADD_FAILURE() << huge << " was taken";
+    } catch (const crisp::Error& e) {
+      std::ostringstream given;
+      given << "(given " << huge << ", beyond a float's range)";
+      EXPECT_NE(std::string(e.what()).find(given.str()), std::string::npos) << e.what();
+      EXPECT_EQ(e.code(), CRISP_ERROR_INVALID_ARGUMENT);
+    }
+  }
   EXPECT_EQ(f.get<float>("jitterX"), 0.25f);
 }
 

@@ -61,8 +61,10 @@ typedef enum CrispFormat {
   // component x 32767, rounded). The rsaa filter's image "subsamples";
   // crispAttachFrameSubsamples makes it.
   CRISP_FORMAT_RSAA_SUBSAMPLES = 6,
-  // Never a format: makes the enum 32 bits wide, so any int a C caller passes is a
-  // value of it (and refused as an unknown format, INVALID_ARGUMENT).
+  // Never formats: make the enum a signed 32-bit one, so any int a C caller passes,
+  // negative ones too, is a value of it (in C++ a value outside an enum's range is
+  // undefined), refused as an unknown format (INVALID_ARGUMENT).
+  CRISP_FORMAT_MIN_ENUM_ = -0x7FFFFFFF - 1,
   CRISP_FORMAT_MAX_ENUM_ = 0x7FFFFFFF
 } CrispFormat;
 

@@ -3,6 +3,8 @@
 // failed call turns into a crisp::Error exception carrying the C error code.
 #pragma once
 
+#include <cmath>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -71,8 +73,19 @@ class FilterRef : public Ref<CrispFilter, crispRetainFilter, crispReleaseFilter>
     checkError();
   }
   // A double (a literal such as 0.25) sets a float parameter; without this overload the call was
-  // ambiguous between the int, float and bool ones and did not compile.
-  void set(const char* name, double v) { set(name, static_cast<float>(v)); }
+  // ambiguous between the int, float and bool ones and did not compile. One beyond float's range
+  // reaches the library as an infinity: its error says so, and names the value given.
+  void set(const char* name, double v) {
+    const float f = static_cast<float>(v);
+    try {
+      set(name, f);
+    } catch (const Error& e) {
+      if (!std::isinf(f) || std::isinf(v)) throw;
+      std::ostringstream message;
+      message << e.what() << " (given " << v << ", beyond a float's range)";
+      throw Error(e.code(), message.str());
+    }
+  }
   void set(const char* name, bool v) {
     crispSetFilterBool(h_, name, v ? 1 : 0);
     checkError();
