@@ -986,14 +986,7 @@ void Kernel::run(const Inputs& in, const ImageView& output, bool reference, int 
     invalidArgument("rsaa: images are " + std::to_string(in.color.width) + "x" + std::to_string(in.color.height) +
                     " but the kernel was allocated for " + std::to_string(width_) + "x" + std::to_string(height_));
   // Staging is needed only when the output overwrites colour that later pixels still fetch.
-  const auto span = [](const ImageView& v) {
-    const char* begin = static_cast<const char*>(v.ptr);
-    return std::pair<const char*, const char*>(begin, begin + v.rowStride * std::size_t(v.height - 1) +
-                                                          v.pixelStride * std::size_t(v.width));
-  };
-  const auto [cb, ce] = span(in.color);
-  const auto [ob, oe] = span(output);
-  direct_ = (oe <= cb || ce <= ob) ? &in.color : nullptr;
+  direct_ = viewsOverlap(in.color, output) ? nullptr : &in.color;
   simdFetch_ = !reference;
   const auto rows = [&](auto&& body) {
     if (reference)

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
@@ -224,6 +225,41 @@ TEST_F(RsaaApi, OutputInAnInputsBufferEqualsSeparateBuffers) {
                                    : std::vector<const char*>{"color", "sub0", "sub3", "sub7"})
       EXPECT_EQ(separate, runRsaa(context, scene, packed, role)) << "output in the '" << role << "' buffer";
   }
+}
+
+// A one-pixel-wide view addresses one column, so its pixel stride may be anything the address space holds
+// (crispSetFilterImage takes it). rsaa's overlap test of colour and output added a whole pixel stride
+// past each row: a pointer overflow, which the sanitizer build stopped at (found by a probe of the C API).
+TEST_F(RsaaApi, OneColumnViewsWithAHugePixelStride) {
+  const int H = 5;
+  std::vector<float> color(4 * H), depth(H), normal(3 * H, 0.0f), records(20 * H, 1.0f);
+  for (int y = 0; y < H; ++y) {
+    color[4 * y] = color[4 * y + 1] = color[4 * y + 2] = y < 2 ? 0.9f : 0.1f;
+    color[4 * y + 3] = 1.0f;
+    depth[y] = y < 2 ? 1.0f : 3.0f;
+    normal[3 * y + 2] = 1.0f;
+    const std::int16_t up[2] = {0, 32767};  // the records' normals: +z
+    for (int k = 8; k < 20; ++k) std::memcpy(&records[20 * y + k], up, sizeof up);
+  }
+  std::vector<float> outputs[2];
+  for (const std::size_t pixelStride : {std::size_t(0), std::size_t(0x7FFFFFFFFFFFFFF0ull)}) {
+    std::vector<float> out(4 * H, -1.0f);
+    CrispFilter f = crispNewFilter(context, "rsaa");
+    crispSetFilterImage(f, "color", color.data(), CRISP_FORMAT_FLOAT4, 1, H, pixelStride, 16);
+    crispSetFilterImage(f, "depth", depth.data(), CRISP_FORMAT_FLOAT, 1, H, pixelStride, 4);
+    crispSetFilterImage(f, "normal", normal.data(), CRISP_FORMAT_FLOAT3, 1, H, pixelStride, 12);
+    crispSetFilterImage(f, "subsamples", records.data(), CRISP_FORMAT_RSAA_SUBSAMPLES, 1, H, pixelStride, 80);
+    crispSetFilterImage(f, "output", out.data(), CRISP_FORMAT_FLOAT4, 1, H, pixelStride, 16);
+    crispCommitFilter(f);
+    crispExecuteFilter(f);
+    CrispError code;
+    const std::string msg = lastError(&code);
+    EXPECT_EQ(code, CRISP_ERROR_NONE) << pixelStride << ": " << msg;
+    crispReleaseFilter(f);
+    outputs[pixelStride != 0] = out;
+  }
+  EXPECT_EQ(outputs[0], outputs[1]);
+  EXPECT_NE(outputs[1][0], -1.0f);
 }
 
 TEST_F(RsaaApi, OnlyRsaaTakesTheCamera) {
