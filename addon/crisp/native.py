@@ -48,6 +48,15 @@ def _refused(detail, call=None):
                       detail)
 
 
+def _check_view(what, call, fmt, width, height):
+    """A view's format and size that ctypes would wrap (a format of 2**32 + 4 reached the library as 4, a
+    width of 2**64 + 2 as 2) are refused here, as given. what: "image 'color'" or "file 'x.exr'"."""
+    if not (isinstance(fmt, numbers.Integral) and C_INT_MIN <= fmt <= C_INT_MAX):
+        raise _refused("%s: unknown format %s" % (what, fmt), call)
+    if not all(isinstance(n, numbers.Integral) and 0 <= n < 2 ** 64 for n in (width, height)):
+        raise _refused("%s: size %sx%s is out of range [1, 65536]" % (what, width, height), call)
+
+
 class Metrics(ctypes.Structure):
     _fields_ = [(n, ctypes.c_double) for n in ("mse", "rmse", "psnr", "snr", "ssim", "flip")]
 
@@ -348,6 +357,9 @@ class Context(_Owner):
     _RELEASE = "crispReleaseContext"
 
     def __init__(self, threads=0):
+        if threads and not (isinstance(threads, numbers.Real) and float(threads).is_integer()):
+            # int() would truncate it: 0.5 made 0, all cores
+            raise _refused("context parameter 'numThreads' takes a whole number, not '%s'" % threads)
         if threads and not C_INT_MIN <= int(threads) <= C_INT_MAX:  # ctypes would wrap it (2**32 + 2 to 2)
             detail = "context parameter 'numThreads' = %d is out of range (not a C int)" % int(threads)
             raise _refused(detail, "crispSetContextInt")
@@ -390,6 +402,12 @@ class Filter(_Owner):
         if kind in ("int", "float") and name in self._param_types:  # an unknown name: the library's error
             self._check_representable(name, kind, value)
         if kind == "bool":
+            try:  # bool() took None, 0.5, NaN and [0]; True, False, 0, 1 and numpy's bools stay
+                either = value in (0, 1)
+            except (TypeError, ValueError):  # an array of several values
+                either = False
+            if not either:
+                raise _refused("parameter '%s' takes true or false, not '%s'" % (name, value))
             call("crispSetFilterBool", self.handle, _b(name), int(bool(value)))
         elif kind == "int":
             call("crispSetFilterInt", self.handle, _b(name), int(value))
@@ -424,9 +442,7 @@ class Filter(_Owner):
         raise _refused(detail, "crispSetFilter" + kind.capitalize())
 
     def set_image(self, name, ptr, fmt, width, height):
-        if not (0 <= width < 2 ** 64 and 0 <= height < 2 ** 64):  # ctypes' size_t would wrap it (2**64 + 2 to 2)
-            detail = "image '%s': size %dx%d is out of range [1, 65536]" % (name, width, height)
-            raise _refused(detail, "crispSetFilterImage")
+        _check_view("image '%s'" % name, "crispSetFilterImage", fmt, width, height)
         call("crispSetFilterImage", self.handle, _b(name), ptr, fmt, width, height, 0, 0)
 
     def unset_image(self, name):
@@ -560,6 +576,7 @@ CRISP_EXR = (32, "zip")
 def write_image(context, path, ptr, fmt, width, height, exr=None):
     """Writes .exr or .png by extension. exr: (bit depth 16 or 32, codec such as "zip" or "dwaa") of an
     .exr, as Blender's Color Depth and Codec (exr_storage); None: CRISP_EXR."""
+    _check_view("file '%s'" % path, "crispWriteImage", fmt, width, height)
     if exr is not None and path.lower().endswith(".exr"):
         call("crispWriteImageEXR", context.handle, _b(path), ptr, fmt, width, height, 0, 0, int(exr[0]), _b(exr[1]))
     else:

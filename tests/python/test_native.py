@@ -413,6 +413,39 @@ def test_an_image_size_ctypes_would_wrap_is_refused_as_typed(native, width, heig
             f.close()
 
 
+def test_formats_sizes_switches_and_threads_ctypes_or_python_would_change_are_refused(native, tmp_path):
+    """Values ctypes wraps or Python coerces before the library sees them: a format of 2**32 + 4 reached
+    it as 4 (float4) and was taken, write_image wrote a width of 2**64 + 2 as 2, a switch took None,
+    0.5, NaN or [0] through bool(), and Context(threads=0.5) meant every core. Each is refused as given,
+    naming it; True, False, 0, 1 and a whole float of threads are taken."""
+    buf = (ctypes.c_float * 16)()
+    path = str(tmp_path / "w.exr")
+    with native.Context() as ctx:
+        f = native.Filter(ctx, "taa")
+        try:
+            for fmt in (2 ** 32 + 4, -2 ** 31 - 1, 4.0, None):
+                with pytest.raises(native.CrispError) as e:
+                    f.set_image("color", ctypes.addressof(buf), fmt, 2, 2)
+                assert e.value.detail == "image 'color': unknown format %s" % fmt
+            with pytest.raises(native.CrispError) as e:
+                native.write_image(ctx, path, ctypes.addressof(buf), native.FORMAT_FLOAT4, 2 ** 64 + 2, 2)
+            assert e.value.detail == "file '%s': size %dx2 is out of range [1, 65536]" % (path, 2 ** 64 + 2)
+            assert not os.path.exists(path)
+            for value in (None, 0.5, float("nan"), [0], "maybe"):
+                with pytest.raises(native.CrispError) as e:
+                    f.set_param("staticClip", value)
+                assert "parameter 'staticClip'" in e.value.detail, value
+            for value in (True, False, 0, 1):
+                f.set_param("staticClip", value)
+        finally:
+            f.close()
+    for threads in (0.5, 3.9):
+        with pytest.raises(native.CrispError) as e:
+            native.Context(threads=threads)
+        assert e.value.detail == "context parameter 'numThreads' takes a whole number, not '%s'" % threads
+    native.Context(threads=2.0).close()
+
+
 def test_a_path_that_is_not_utf8_reaches_the_library(native, tmp_path):
     """A file name that is not UTF-8 (Latin-1 on an old share) comes from os.listdir as a str with
     surrogate escapes; it was encoded as UTF-8 (UnicodeEncodeError: the frame could not be named). Paths
