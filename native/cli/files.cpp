@@ -214,6 +214,12 @@ void bindJitter(Filter& filter, const Frame& frame, ShotPosition& shot) {
     parsed = readSidecar(side);
     s = &parsed;
   }
+  // The jitter is in pixels of the sidecar's resolution: another frame size is another render's sidecar
+  // (a moving shot's motion rebuild refused it; a still one took its jitter without a word).
+  if (s && (s->width != frame.width || s->height != frame.height))
+    invalidData("the frame is " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
+                " but its sidecar '" + side + "' says " + std::to_string(s->width) + "x" + std::to_string(s->height) +
+                " (render_settings.resolution), whose jitter it gives");
   const float x = s ? float(s->jitterX) : shot.jitterX, y = s ? float(-s->jitterY) : shot.jitterY;
   float size = shot.filterSize;
   if (sized && s && s->filterSize >= 0.0 && !shot.filterSizeGiven) size = *filterSizeForFilm(filter, s->filterSize);

@@ -1085,6 +1085,35 @@ def test_what_the_sidecars_decide_is_said(shot, tmp_path):
     assert not os.path.exists(tmp_path / "d")
 
 
+def test_a_sidecar_of_another_resolution_is_refused_before_the_first_output(shot, tmp_path):
+    """Sidecars that give another size than their frames (another render's): a moving shot's motion
+    rebuild refused the second frame after writing the first, and a still one took each sidecar's
+    jitter, in pixels of the other size, without a word. Both are refused at the frame, naming both
+    sizes and the sidecar."""
+    _, inputs = shot
+    sides = []
+    for f in (1, 2):
+        with open(inputs[f - 1][:-len(".exr")] + ".json") as fh:
+            sides.append(json.load(fh))
+    w, h = sides[0]["render_settings"]["resolution"]
+    for moving in (True, False):
+        d = tmp_path / ("moving" if moving else "still")
+        d.mkdir()
+        for f, data in zip((1, 2), json.loads(json.dumps(sides))):
+            shutil.copy(inputs[f - 1], d / frame(f))
+            data["render_settings"]["resolution"] = [2 * w, 2 * h]
+            if not moving:  # the first frame's camera and objects: nothing moves
+                data["camera"], data["objects"] = sides[0]["camera"], sides[0]["objects"]
+            with open(d / frame(f, ".json"), "w") as fh:
+                json.dump(data, fh)
+        out = tmp_path / ("out_" + d.name)
+        p = crisp("filter", "--method", "taa", "--quiet", "-o", out, d / frame(1), d / frame(2), ok=False)
+        assert p.returncode == 1, (d.name, p.stderr)
+        assert "the frame is %dx%d but its sidecar '%s' says %dx%d" % (w, h, d / frame(1, ".json"), 2 * w, 2 * h) \
+            in p.stderr, (d.name, p.stderr)
+        assert not list(out.glob("*.exr")), d.name
+
+
 def test_a_sidecar_jitter_out_of_range_names_the_sidecar(shot, tmp_path):
     """A sidecar holding a jitter the filters refuse fails the run with a message that names the
     sidecar and the frame, not only the parameter."""
