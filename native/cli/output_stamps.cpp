@@ -157,6 +157,11 @@ std::string OutputStamps::whyRemake(int position) const {
          "' or at the last cut or gap after it)";
 }
 
+bool OutputStamps::wroteOutput(int position) const {
+  const nlohmann::json had = nlohmann::json::parse(readText(stampPathOf(position)), nullptr, false);
+  return had.is_object() && had.contains("output") && had["output"] == sizeAndTime(base(position) + ".exr");
+}
+
 void OutputStamps::checkFolder() const {
   std::error_code ec;
   if (fs::exists(dir_, ec) && !fs::is_directory(dir_, ec))

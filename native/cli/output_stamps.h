@@ -53,6 +53,9 @@ class OutputStamps {
 
   // Fails before the first output when a file is in the stamps' way.
   void checkFolder() const;
+  // Whether the EXR at input `position`'s output name is one this command wrote and nobody changed
+  // since (its stamp's "output"); false when there is none.
+  bool wroteOutput(int position) const;
   // Before reading input `position`: records it as the read will see it (a
   // file replaced meanwhile is not stamped as read) and adds it to the
   // history digest. Inputs are read in order, from historyFirst on for a

@@ -955,6 +955,28 @@ def test_an_unreadable_input_is_named_with_the_reason(chart):
         shutil.rmtree(d)
 
 
+def test_an_exr_beside_its_input_that_crisp_did_not_write_is_not_replaced(chart, tmp_path):
+    """-o the inputs' folder, the inputs TIFFs beside Blender's multilayer EXRs of the same frames: the
+    output replaced the EXR (its depth lost) without a word; only inputs were protected. It is refused
+    (exit 2) and the EXR is left as it was. An output crisp filter wrote there itself is made again."""
+    shot = tmp_path / "shot"
+    shot.mkdir()
+    shutil.copy(chart / "chart_1spp.exr", shot / "frame_0001.exr")
+    subprocess.run(["oiiotool", str(chart / "chart_1spp.exr"), "-d", "uint16", "-o", str(shot / "frame_0001.tif")],
+                   check=True, capture_output=True)
+    before = (shot / "frame_0001.exr").read_bytes()
+    p = run("filter", "-m", "fxaa", shot / "frame_0001.tif", "-o", shot, ok=False)
+    assert p.returncode == 2, p.stderr
+    assert ("output '%s' would replace a file beside the input '%s' that crisp filter did not write"
+            % (shot / "frame_0001.exr", shot / "frame_0001.tif")) in p.stderr, p.stderr
+    assert (shot / "frame_0001.exr").read_bytes() == before
+    (shot / "frame_0001.exr").unlink()
+    run("filter", "-m", "fxaa", shot / "frame_0001.tif", "-o", shot)
+    made = (shot / "frame_0001.exr").read_bytes()
+    run("filter", "-m", "none", shot / "frame_0001.tif", "-o", shot)  # its own output, stamped: replaced
+    assert (shot / "frame_0001.exr").read_bytes() != made
+
+
 @pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="needs root to run crisp as nobody")
 def test_a_stamps_folder_of_another_user_fails_before_any_output(chart):
     """OUT/.crisp made by another user (a farm's workers under other accounts), OUT writable: crisp filter
