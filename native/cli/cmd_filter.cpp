@@ -258,7 +258,7 @@ int runFilter(const ParsedArgs& args) {
                              {"motion_from_sidecars", rebuildMotion},
                              {"exr", {{"depth", exr.half ? 16 : 32}, {"codec", exr.compression}}},
                              {"build", buildStamp()}};
-  for (const auto& [key, value] : settingsOf(args)) settings["params"][key] = value;
+  for (const auto& [key, value] : settingsOf(args)) settings["params"][key] = canonicalParamText(*filter, key);
   const bool temporal = keepsHistory(*filter);
   const int historyFirst = std::max(1, chunk.first - preroll);  // where the chunk's history starts
   OutputStamps stamps(outDir, args.positional, settings, temporal, historyFirst, png, readsSubsamples(*filter));

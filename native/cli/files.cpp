@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -283,6 +284,25 @@ std::vector<std::pair<std::string, std::string>> settingsOf(const ParsedArgs& ar
     out.emplace_back(key, trimmed(kv.substr(eq + 1)));
   }
   return out;
+}
+
+std::string canonicalParamText(const Filter& filter, const std::string& name) {
+  const ParamSet& params = filter.params();
+  const ParamSpec* spec = findParam(filter, name.c_str());
+  if (!spec) return std::string();
+  switch (spec->type) {
+    case ParamType::Int: return std::to_string(params.getInt(name));
+    case ParamType::Bool: return params.getBool(name) ? "true" : "false";
+    case ParamType::String: return params.getString(name);
+    case ParamType::Float: break;
+  }
+  const float v = params.getFloat(name);
+  char buf[32];
+  for (int digits = 6; digits <= 9; ++digits) {  // 9 significant digits read back any float
+    std::snprintf(buf, sizeof buf, "%.*g", digits, double(v));
+    if (std::strtof(buf, nullptr) == v) break;
+  }
+  return buf;
 }
 
 std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args,

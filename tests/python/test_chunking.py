@@ -181,6 +181,11 @@ def test_filter_resume_at_first_missing_output(shot, lib, tmp_path):
     p = crisp("filter", "--method", "taa", "--set", "feedbackMin=0.5", "--resume", "--quiet", "-o", out, *inputs)
     assert "frame_0001' was made with other settings" in p.stderr, p.stderr
     assert max_diff(lib, variant, out, range(1, 9)) == 0.0
+    # The same value spelled otherwise is the same setting: the outputs stay (each spelling made every
+    # frame again, as other settings).
+    for spelling in ("0.50", "5e-1", "+0.5"):
+        p = crisp("filter", "--method", "taa", "--set", "feedbackMin=" + spelling, "--resume", "-o", out, *inputs)
+        assert "nothing to do" in p.stdout and "other settings" not in p.stderr, (spelling, p.stderr)
     # A partial run with another method leaves the other frames' stamps: a resume makes them again too.
     crisp("filter", "--method", "fxaa", "--frames", "3-3", "--quiet", "-o", out, *inputs)
     p = crisp("filter", "--method", "fxaa", "--resume", "--quiet", "-o", out, *inputs)
