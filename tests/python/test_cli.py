@@ -933,26 +933,34 @@ def test_a_one_channel_mask_is_read_whatever_its_name(chart, tmp_path):
     assert p.returncode == 1 and "mask '%s' is a deep image" % deep in p.stderr, p.stderr
 
 
-@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="needs root to run crisp as nobody")
-def test_an_unreadable_input_is_named_with_the_reason(chart):
-    # Root reads every file, so the check runs as nobody, on a copy in a folder nobody may enter.
+NOBODY = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+
+
+@pytest.fixture
+def as_nobody():
+    """(the command prefix that runs a program as nobody, a folder nobody may enter): root reads and
+    writes every file, so the checks of permissions run as nobody. Skipped unless root."""
     import tempfile
-    nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
-    if subprocess.run(nobody + [str(CRISP), "help"], capture_output=True).returncode != 0:
+    if os.geteuid() != 0 or not shutil.which("setpriv"):
+        pytest.skip("needs root to run crisp as nobody")
+    if subprocess.run(NOBODY + [str(CRISP), "help"], capture_output=True).returncode != 0:
         pytest.skip("nobody cannot run %s (a folder on its path is private)" % CRISP)
     d = pathlib.Path(tempfile.mkdtemp())
-    try:
-        d.chmod(0o755)
-        f = d / "locked.exr"
-        shutil.copy(chart / "chart_1spp.exr", f)
-        f.chmod(0)
-        p = subprocess.run(nobody + [str(CRISP), "filter", "--method", "fxaa", str(f), "-o", str(d / "out")],
-                           capture_output=True, text=True, timeout=60)
-        assert p.returncode == 1, p.stderr
-        assert "cannot read '%s': Permission denied" % f in p.stderr, p.stderr
-        assert not (d / "out").exists()
-    finally:
-        shutil.rmtree(d)
+    d.chmod(0o755)
+    yield NOBODY, d
+    shutil.rmtree(d)
+
+
+def test_an_unreadable_input_is_named_with_the_reason(chart, as_nobody):
+    nobody, d = as_nobody
+    f = d / "locked.exr"
+    shutil.copy(chart / "chart_1spp.exr", f)
+    f.chmod(0)
+    p = subprocess.run(nobody + [str(CRISP), "filter", "--method", "fxaa", str(f), "-o", str(d / "out")],
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == 1, p.stderr
+    assert "cannot read '%s': Permission denied" % f in p.stderr, p.stderr
+    assert not (d / "out").exists()
 
 
 def test_an_exr_beside_its_input_that_crisp_did_not_write_is_not_replaced(chart, tmp_path):
@@ -977,30 +985,21 @@ def test_an_exr_beside_its_input_that_crisp_did_not_write_is_not_replaced(chart,
     assert (shot / "frame_0001.exr").read_bytes() != made
 
 
-@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="needs root to run crisp as nobody")
-def test_a_stamps_folder_of_another_user_fails_before_any_output(chart):
+def test_a_stamps_folder_of_another_user_fails_before_any_output(chart, as_nobody):
     """OUT/.crisp made by another user (a farm's workers under other accounts), OUT writable: crisp filter
     wrote the first output and then stopped at its stamp, leaving an output without one. It stops first."""
-    import tempfile
-    nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
-    if subprocess.run(nobody + [str(CRISP), "help"], capture_output=True).returncode != 0:
-        pytest.skip("nobody cannot run %s (a folder on its path is private)" % CRISP)
-    d = pathlib.Path(tempfile.mkdtemp())
-    try:
-        d.chmod(0o755)
-        out = d / "out"
-        (out / ".crisp").mkdir(parents=True)
-        out.chmod(0o777)
-        (out / ".crisp").chmod(0o755)
-        shutil.copy(chart / "chart_1spp.exr", d / "a.exr")
-        (d / "a.exr").chmod(0o644)
-        p = subprocess.run(nobody + [str(CRISP), "filter", "--method", "fxaa", str(d / "a.exr"), "-o", str(out)],
-                           capture_output=True, text=True, timeout=60)
-        assert p.returncode == 1, p.stderr
-        assert "cannot keep stamps in '%s': the folder is not writable" % (out / ".crisp") in p.stderr, p.stderr
-        assert sorted(f.name for f in out.iterdir()) == [".crisp"]
-    finally:
-        shutil.rmtree(d)
+    nobody, d = as_nobody
+    out = d / "out"
+    (out / ".crisp").mkdir(parents=True)
+    out.chmod(0o777)
+    (out / ".crisp").chmod(0o755)
+    shutil.copy(chart / "chart_1spp.exr", d / "a.exr")
+    (d / "a.exr").chmod(0o644)
+    p = subprocess.run(nobody + [str(CRISP), "filter", "--method", "fxaa", str(d / "a.exr"), "-o", str(out)],
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == 1, p.stderr
+    assert "cannot keep stamps in '%s': the folder is not writable" % (out / ".crisp") in p.stderr, p.stderr
+    assert sorted(f.name for f in out.iterdir()) == [".crisp"]
 
 
 # crisp render and the scene's Crisp panel (scene.crisp, addon/crisp/properties.py): what the command line

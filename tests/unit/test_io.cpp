@@ -347,11 +347,18 @@ TEST_F(IoTest, IdIsZeroWhereCoverageIsZero) {
   EXPECT_TRUE(f.objectIds.empty());
 }
 
+namespace {
+// A layer's Combined R, G, B, A channels of value -7 everywhere, appended to `ch`.
+void addCombinedOf(std::vector<Channel>& ch, const std::string& layer) {
+  for (const char* c : {"R", "G", "B", "A"})
+    ch.push_back({layer + ".Combined." + c, OIIO::TypeDesc::FLOAT, [](int, int) { return -7.0f; }});
+}
+}  // namespace
+
 TEST_F(IoTest, PicksBlenderDefaultLayerOrTheNamedOne) {
   // "Second" sorts before "ViewLayer" in the file; the default layer wins.
   std::vector<Channel> ch = blenderChannels("ViewLayer", 7, 5, false);
-  for (const char* c : {"R", "G", "B", "A"})
-    ch.push_back({std::string("Second.Combined.") + c, OIIO::TypeDesc::FLOAT, [](int, int) { return -7.0f; }});
+  addCombinedOf(ch, "Second");
   ExrLayout layout;
   writeExr(file("layers.exr"), ch, layout);
   Frame f = readFrame(file("layers.exr"));
@@ -375,8 +382,7 @@ TEST_F(IoTest, PicksBlenderDefaultLayerOrTheNamedOne) {
 // renamed "Main" sorts after it, and its passes were left for the composited colour alone.
 TEST_F(IoTest, TheCompositorsLayerIsNotTakenForAViewLayer) {
   std::vector<Channel> ch = blenderChannels("Main", 7, 5, false);
-  for (const char* c : {"R", "G", "B", "A"})
-    ch.push_back({std::string("Composite.Combined.") + c, OIIO::TypeDesc::FLOAT, [](int, int) { return -7.0f; }});
+  addCombinedOf(ch, "Composite");
   ExrLayout layout;
   writeExr(file("composite.exr"), ch, layout);
   Frame f = readFrame(file("composite.exr"));
@@ -387,8 +393,7 @@ TEST_F(IoTest, TheCompositorsLayerIsNotTakenForAViewLayer) {
   // Asked for by name it is read; a file of the compositor's layer alone is read from it.
   EXPECT_EQ(readFrame(file("composite.exr"), "Composite").pass("color").at(1, 1)[0], -7.0f);
   std::vector<Channel> alone;
-  for (const char* c : {"R", "G", "B", "A"})
-    alone.push_back({std::string("Composite.Combined.") + c, OIIO::TypeDesc::FLOAT, [](int, int) { return -7.0f; }});
+  addCombinedOf(alone, "Composite");
   writeExr(file("composite_alone.exr"), alone, layout);
   EXPECT_EQ(readFrame(file("composite_alone.exr")).layer, "Composite");
 }
