@@ -238,15 +238,16 @@ def scene_key(script_path):
     return "sha256:" + h.hexdigest()[:16]
 
 
-_NUMBERED = re.compile(r"^(.*?)(\d+)(\.[^.\d]*)?$")  # name, frame number, extension: seq.0001.png
+_NUMBERED = re.compile(r"^(.*?)(\d+)(\.[^.\d][^.]*)?$")  # name, frame number, extension: seq.0001.png, .jp2
 
 
 def external_files(libraries=()):
     """[(name, absolute path)] of the files outside the .blend that Blender reads (bpy.utils.blend_paths:
     images, movie clips, caches, volumes, fonts, sounds, of linked data too), sorted, each file once:
     every file of an image sequence (beside the first, in its folder) and every tile of a UDIM image;
-    not packed files (in the .blend), nor the libraries given (hashed by content). The name is the path
-    relative to the .blend's folder where the file is inside it, so a moved project keeps its names."""
+    not packed files (in the .blend), folders, nor the libraries given (hashed by content). The name is
+    the path relative to the .blend's folder (also of a file beside it, ../tex/a.png), so a moved project
+    keeps its names."""
     import bpy
     from crisp import compositor
     paths = {os.path.normpath(p) for p in bpy.utils.blend_paths(absolute=True, packed=False, local=False)}
@@ -278,12 +279,14 @@ def external_files(libraries=()):
     home = os.path.dirname(os.path.abspath(bpy.data.filepath)) if bpy.data.filepath else None
 
     def name(path):
+        if home is None:
+            return path
         try:
-            inside = home is not None and os.path.commonpath([home, path]) == home
+            return os.path.relpath(path, home)  # //../tex/a.png too: a moved project keeps its names
         except ValueError:  # another drive (Windows)
-            inside = False
-        return os.path.relpath(path, home) if inside else path
-    return sorted((name(p), p) for p in paths)
+            return path
+    # Files only: a folder (a fluid cache's, made when the file loads) changes its time with what is in it.
+    return sorted((name(p), p) for p in paths if not os.path.isdir(p))
 
 
 def _hash_file(h, path):

@@ -8,6 +8,7 @@ import io
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -854,9 +855,10 @@ class OperatorTest(unittest.TestCase):
 
     def test_the_scene_key_covers_the_files_the_renders_read(self):
         """batch.external_files, what scene_key hashes beside the .blend: a texture (named relative to the
-        .blend), every frame of an image sequence and every UDIM tile, not a packed image, nor Crisp's own
-        filtered frames loaded into the compositor or previewed, which each run rewrites (a resume on a
-        farm would otherwise never find its frames made alike). Editing a texture changes the key."""
+        .blend's folder, also from beside it: ../tex), every frame of an image sequence and every UDIM
+        tile, not a packed image, nor Crisp's own filtered frames loaded into the compositor or
+        previewed, which each run rewrites (a resume on a farm would otherwise never find its frames made
+        alike). Editing a texture changes the key; moving the project with its times does not."""
         from crisp import batch
         bpy.ops.wm.read_homefile(use_empty=True)
         home = self.tmp.name
@@ -870,18 +872,23 @@ class OperatorTest(unittest.TestCase):
                      "tex/u.1001.png", "tex/u.1002.png", "tex/packed.png", "out/filtered/frame_0001.exr",
                      "out/filtered/frame_0002.exr"):
             pattern(path)
-        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(home, "shot.blend"))
-        bpy.data.images.load(os.path.join(home, "tex", "wood.png"))
-        bpy.data.images.load(os.path.join(home, "tex", "seq.0001.png")).source = "SEQUENCE"
+        os.makedirs(os.path.join(home, "shots"))
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(home, "shots", "shot.blend"))
+        wood = bpy.data.images.load(os.path.join(home, "tex", "wood.png"))
+        sequence = bpy.data.images.load(os.path.join(home, "tex", "seq.0001.png"))
+        sequence.source = "SEQUENCE"
         udim = bpy.data.images.load(os.path.join(home, "tex", "u.1001.png"))
         udim.source = "TILED"
         udim.tiles.new(1002)
-        bpy.data.images.load(os.path.join(home, "tex", "packed.png")).pack()
+        packed = bpy.data.images.load(os.path.join(home, "tex", "packed.png"))
+        packed.pack()
+        for image in (wood, sequence, udim, packed):
+            image.use_fake_user = True  # (saved with the file, as a material's would be)
         scene = bpy.context.scene
         compositor.load_result(scene, os.path.join(home, "out", "filtered"), 1, 2)
         compositor.preview(os.path.join(home, "out", "filtered", "frame_0002.exr"))
         names = [name for name, _ in batch.external_files()]
-        self.assertEqual(names, [os.path.join("tex", f) for f in (
+        self.assertEqual(names, [os.path.join("..", "tex", f) for f in (
             "seq.0001.png", "seq.0002.png", "seq.0010.png", "u.1001.png", "u.1002.png", "wood.png")])
         key = batch.scene_key(None)
         self.assertEqual(batch.scene_key(None), key)
@@ -891,6 +898,16 @@ class OperatorTest(unittest.TestCase):
             pattern(edited, "0,0,1")
             self.assertNotEqual(batch.scene_key(None), key, edited)
             key = batch.scene_key(None)
+        # The project, its paths relative, copied elsewhere with its times (cp -a) and opened there: the
+        # same key.
+        bpy.ops.file.make_paths_relative()
+        bpy.ops.wm.save_mainfile()
+        key = batch.scene_key(None)
+        moved = home + "_moved"
+        self.addCleanup(shutil.rmtree, moved, True)
+        shutil.copytree(home, moved)  # (copy2: times kept)
+        bpy.ops.wm.open_mainfile(filepath=os.path.join(moved, "shots", "shot.blend"))
+        self.assertEqual(batch.scene_key(None), key)
 
     def test_a_run_into_a_folder_relative_to_the_blend_file_writes_beside_it(self):
         """pipeline.run(..., "//out") made /out (os.path reads // as the root) while Blender rendered
