@@ -262,17 +262,21 @@ int runFilter(const ParsedArgs& args) {
   const bool temporal = keepsHistory(*filter);
   const int historyFirst = std::max(1, chunk.first - preroll);  // where the chunk's history starts
   OutputStamps stamps(outDir, args.positional, settings, temporal, historyFirst, png, readsSubsamples(*filter));
-  // An EXR beside its input under the output's name (-o the inputs' folder, inputs of another format:
-  // frame_0001.tif beside Blender's frame_0001.exr) that this command did not write is another file of
-  // that frame, which the output would replace.
+  // An EXR (or, with --png, a PNG) beside its input under the output's name (-o the inputs' folder,
+  // inputs of another format: frame_0001.tif beside Blender's frame_0001.exr) that this command did not
+  // write is another file of that frame, which the output would replace.
   for (int position = chunk.first; position <= chunk.last; ++position) {
     const std::string& in = args.positional[std::size_t(position - 1)];
-    const fs::path out = joinPath(outDir, fileStem(in) + ".exr");
     std::error_code ec;
-    if (fs::is_regular_file(out, ec) && fs::equivalent(out.parent_path(), fs::path(in).parent_path(), ec) &&
-        !stamps.wroteOutput(position))
-      throw UsageError("output '" + out.string() + "' would replace a file beside the input '" + in +
-                       "' that crisp filter did not write (another file of that frame); choose another -o folder");
+    if (!fs::equivalent(fs::absolute(outDir, ec), fs::absolute(in, ec).parent_path(), ec)) continue;
+    const std::string base = joinPath(outDir, fileStem(in));
+    const bool exr = fs::is_regular_file(base + ".exr", ec) && !stamps.wroteOutput(position);
+    const bool pngMine = !png || !fs::is_regular_file(base + ".png", ec) ||
+                         pngMatchesRecord(base + ".png", stamps.pngRecordOf(position));
+    if (exr || !pngMine)
+      throw UsageError("output '" + base + (exr ? ".exr" : ".png") + "' would replace a file beside the input '" +
+                       in + "' that crisp filter did not write (another file of that frame); choose another -o "
+                       "folder");
   }
   const bool resume = args.has("resume");
   if (temporal && resume) {

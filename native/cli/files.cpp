@@ -296,7 +296,7 @@ std::string canonicalParamText(const Filter& filter, const std::string& name) {
     case ParamType::String: return params.getString(name);
     case ParamType::Float: break;
   }
-  const float v = params.getFloat(name);
+  const float v = params.getFloat(name) + 0.0f;  // -0 is 0
   char buf[32];
   for (int digits = 6; digits <= 9; ++digits) {  // 9 significant digits read back any float
     std::snprintf(buf, sizeof buf, "%.*g", digits, double(v));

@@ -963,6 +963,16 @@ def test_an_unreadable_input_is_named_with_the_reason(chart, as_nobody):
     assert not (d / "out").exists()
 
 
+def test_a_resume_takes_minus_zero_for_zero(chart, tmp_path):
+    """A --set value is stamped as the filter holds it (canonicalParamText), so a resume with 0.0, -0 or
+    0e3 keeps what 0 made; -0 was stamped apart from 0 and made the outputs again."""
+    out = tmp_path / "out"
+    run("filter", "-m", "taa", "--set", "jitterX=0", chart / "chart_1spp.exr", "-o", out)
+    for spelling in ("0.0", "-0", "0e3"):
+        p = run("filter", "-m", "taa", "--set", "jitterX=" + spelling, "--resume", chart / "chart_1spp.exr", "-o", out)
+        assert "nothing to do" in p.stdout, (spelling, p.stderr)
+
+
 def test_an_exr_beside_its_input_that_crisp_did_not_write_is_not_replaced(chart, tmp_path):
     """-o the inputs' folder, the inputs TIFFs beside Blender's multilayer EXRs of the same frames: the
     output replaced the EXR (its depth lost) without a word; only inputs were protected. It is refused
@@ -977,12 +987,25 @@ def test_an_exr_beside_its_input_that_crisp_did_not_write_is_not_replaced(chart,
     assert p.returncode == 2, p.stderr
     assert ("output '%s' would replace a file beside the input '%s' that crisp filter did not write"
             % (shot / "frame_0001.exr", shot / "frame_0001.tif")) in p.stderr, p.stderr
+    # Given from inside the folder too (an input without a folder, -o .).
+    p = subprocess.run([str(CRISP), "filter", "-m", "fxaa", "frame_0001.tif", "-o", "."], cwd=shot,
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2 and "would replace a file beside the input 'frame_0001.tif'" in p.stderr, p.stderr
     assert (shot / "frame_0001.exr").read_bytes() == before
     (shot / "frame_0001.exr").unlink()
     run("filter", "-m", "fxaa", shot / "frame_0001.tif", "-o", shot)
     made = (shot / "frame_0001.exr").read_bytes()
     run("filter", "-m", "none", shot / "frame_0001.tif", "-o", shot)  # its own output, stamped: replaced
     assert (shot / "frame_0001.exr").read_bytes() != made
+    # With --png, the artist's PNG of that frame likewise; one --png wrote is made again.
+    shutil.copy(shot / "frame_0001.tif", shot / "frame_0001.png")
+    artists = (shot / "frame_0001.png").read_bytes()
+    p = run("filter", "-m", "fxaa", "--png", shot / "frame_0001.tif", "-o", shot, ok=False)
+    assert p.returncode == 2 and "output '%s' would replace" % (shot / "frame_0001.png") in p.stderr, p.stderr
+    assert (shot / "frame_0001.png").read_bytes() == artists
+    (shot / "frame_0001.png").unlink()
+    run("filter", "-m", "fxaa", "--png", shot / "frame_0001.tif", "-o", shot)
+    run("filter", "-m", "none", "--png", shot / "frame_0001.tif", "-o", shot)
 
 
 def test_a_stamps_folder_of_another_user_fails_before_any_output(chart, as_nobody):
