@@ -291,9 +291,10 @@ def output_note(scene, filtered_dir, after_run=False):
         return None
     outputs, taking = _outputs(tree), _taking_result(tree, _path_key(filtered_dir))
     if not scene.use_nodes:
-        return ("the compositor's Use Nodes is off, so the render (F12) is the unfiltered one; Crisp left it off "
-                "as your nodes there would then change the render: link the 'Crisp Result' node's Image output "
-                "into Composite (or into your nodes where the Render Layers Image goes in) and turn Use Nodes on")
+        return ("the compositor's Use Nodes is off, so the render (F12) is the unfiltered one (Crisp turns it on "
+                "only where nothing but its frames would reach Composite): link the 'Crisp Result' node's Image "
+                "output into Composite (or into your nodes where the Render Layers Image goes in) and turn Use "
+                "Nodes on")
     if not outputs:
         return ("the compositor has no Composite node, so the render (F12) is not the filtered frames: add "
                 "one and link the 'Crisp Result' node's Image output into it")
