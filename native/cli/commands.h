@@ -49,7 +49,7 @@ struct ShotPosition {
 // (as batch.py strips them); a UsageError for one without KEY or '='.
 std::vector<std::pair<std::string, std::string>> settingsOf(const ParsedArgs& args);
 // A parameter's value as the filter holds it, in one spelling: --set 1e-3, 0.001 and +0.001 are one
-// value, whose stamps a resume compares (the shortest text that reads back to the same float).
+// value, whose stamps a resume compares (params.h valueText: the fewest digits that read back as it).
 std::string canonicalParamText(const Filter& filter, const std::string& name);
 // The method's filter with the --set KEY=VALUE settings of args applied
 // (throws naming a bad one, checkSettingsByCommit): what crisp filter runs,

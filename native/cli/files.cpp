@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -296,13 +295,7 @@ std::string canonicalParamText(const Filter& filter, const std::string& name) {
     case ParamType::String: return params.getString(name);
     case ParamType::Float: break;
   }
-  const float v = params.getFloat(name) + 0.0f;  // -0 is 0
-  char buf[32];
-  for (int digits = 6; digits <= 9; ++digits) {  // 9 significant digits read back any float
-    std::snprintf(buf, sizeof buf, "%.*g", digits, double(v));
-    if (std::strtof(buf, nullptr) == v) break;
-  }
-  return buf;
+  return valueText(params.getFloat(name) + 0.0f, true);  // (-0 is 0)
 }
 
 std::unique_ptr<Filter> configuredFilter(Context& context, const std::string& method, const ParsedArgs& args,

@@ -51,10 +51,9 @@ static std::string formatNumber(double v) {
   return s.str();
 }
 
-// A refused value, with as many digits as it takes not to print as a bound it exceeds: a float
-// just past 4 is 4.00000048, not "4 is out of range [-4, 4]". `single`: v is a float's value, which
-// nine digits give back.
-static std::string formatRefused(double v, bool single) {
+// As many digits as it takes to read back as v: a refused float just past 4 is 4.00000048, not "4 is
+// out of range [-4, 4]" (params.h).
+std::string valueText(double v, bool single) {
   std::string s = formatNumber(v);
   for (int digits : {9, 17}) {
     const double back = std::strtod(s.c_str(), nullptr);
@@ -101,7 +100,7 @@ void ParamSet::checkRange(const ParamSpec& s, double v) const {
   const double lo = single ? double(float(s.minValue)) : s.minValue;
   const double hi = single ? double(float(s.maxValue)) : s.maxValue;
   if (!std::isfinite(v) || v < lo || v > hi)
-    fail(std::string("parameter '") + s.name + "' = " + formatRefused(v, single) + " is out of range [" +
+    fail(std::string("parameter '") + s.name + "' = " + valueText(v, single) + " is out of range [" +
                     formatNumber(s.minValue) + ", " + formatNumber(s.maxValue) + "]");
 }
 

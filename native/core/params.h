@@ -13,6 +13,9 @@ enum class ParamType { Int, Float, Bool, String };
 const char* paramTypeName(ParamType t);
 // JSON string literal (quotes and escapes included).
 std::string jsonQuote(const std::string& s);
+// v in the fewest digits that read back as it (0.001, 4.00000048, 2147483647); `single`: v is a float's
+// value, which nine digits give back.
+std::string valueText(double v, bool single);
 
 struct ParamSpec {
   const char* name;
