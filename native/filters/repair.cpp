@@ -315,7 +315,7 @@ CRISP_LANES_INLINE void sobelRowBody(const float* up, const float* mid, const fl
 // Eight running sums, lane k taking the values at x = k mod 8 (so that the
 // compiler can vectorise the loop without reordering a sum), added lane 0..7
 // at the end, then the tail left to right, of the non-black values only
-// (eq. 3.1; kBlackGradient, repair.h). Gradients are >= 0.
+// (eq. 3.1; kBlackGradient, repair.h: edgeValue keeps those). Gradients are >= 0.
 namespace {
 CRISP_LANES_INLINE RowStats rowStatsBody(const float* row, int width) {
   double sum[8] = {}, squares[8] = {};
@@ -323,7 +323,7 @@ CRISP_LANES_INLINE RowStats rowStatsBody(const float* row, int width) {
   int x = 0;
   for (; x + 8 <= width; x += 8)
     for (int k = 0; k < 8; ++k) {
-      const double z = row[x + k] >= kBlackGradient ? row[x + k] : 0.0f;
+      const double z = edgeValue(row[x + k], kBlackGradient);
       count[k] += z != 0.0;
       sum[k] += z;
       squares[k] += z * z;
@@ -336,7 +336,7 @@ CRISP_LANES_INLINE RowStats rowStatsBody(const float* row, int width) {
     s.sumSquares += squares[k];
   }
   for (; x < width; ++x) {
-    const double z = row[x] >= kBlackGradient ? row[x] : 0.0f;
+    const double z = edgeValue(row[x], kBlackGradient);
     n += z != 0.0;
     s.sum += z;
     s.sumSquares += z * z;
