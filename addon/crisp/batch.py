@@ -253,8 +253,7 @@ def external_files(libraries=()):
     paths = {os.path.normpath(p) for p in bpy.utils.blend_paths(absolute=True, packed=False, local=False)}
     # Crisp's own filtered frames, loaded into the compositor or previewed, which every run rewrites; the
     # renders Crisp filters do not read them (it renders without the compositor, render.py).
-    own = {g.nodes["Crisp Frames"].image for g in bpy.data.node_groups
-           if compositor.FOLDER_TAG in g and "Crisp Frames" in g.nodes and g.nodes["Crisp Frames"].type == "IMAGE"}
+    own = {compositor.frames_image(g) for g in bpy.data.node_groups if compositor.FOLDER_TAG in g}
     own.update(i for i in bpy.data.images if i.get(compositor.PREVIEW_TAG))
     for image in bpy.data.images:
         if image.source not in ("FILE", "SEQUENCE", "TILED") or image.packed_file is not None or not image.filepath:

@@ -68,13 +68,18 @@ def load_sequence(first_path, name):
     return image
 
 
+def frames_image(group):
+    """The image of a result group's "Crisp Frames" node (the filtered frames), or None."""
+    node = group.nodes.get("Crisp Frames")
+    return node.image if node is not None and node.bl_idname == "CompositorNodeImage" else None
+
+
 def _folder_of(group):
     """The folder of the frames a result group shows: that of its image node's image, whose path is
     relative to the .blend where load_sequence made it so and which Blender rebases on Save As, so a
     moved or saved-elsewhere project still finds its group; the tag (FOLDER_TAG, absolute, the folder
     the group was made for) where the group has no image."""
-    node = group.nodes.get("Crisp Frames")
-    image = node.image if node is not None and node.bl_idname == "CompositorNodeImage" else None
+    image = frames_image(group)
     if image is None or not image.filepath:
         return group.get(FOLDER_TAG)
     return _path_key(os.path.dirname(bpy.path.abspath(image.filepath, library=image.library)))
@@ -269,15 +274,16 @@ def _wire_output(tree, node, scene, layer, key):
     of (_straight_from_render)."""
     if not node.get(NODE_TAG) or node.get(WIRED_TAG):
         return
-    taking = _taking_result(tree, key)
+    taking, wired = _taking_result(tree, key), False
     for out in _outputs(tree):
         image, alpha = out.inputs["Image"], out.inputs.get("Alpha")  # (no Alpha input on later Blenders)
         if out in taking or image.is_linked and not _straight_from_render(image, "Image", scene, layer):
             continue
         tree.links.new(node.outputs["Image"], image)
+        wired = True
         if alpha is not None and _straight_from_render(alpha, "Alpha", scene, layer):
             tree.links.new(node.outputs["Alpha"], alpha)
-    if _taking_result(tree, key):
+    if taking or (wired and _is_result(node, key)):  # an output takes the frames now (a muted node shows none)
         node[WIRED_TAG] = True
 
 

@@ -631,10 +631,10 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
         for f in range(frame_start, frame_end + 1):
             scene.frame_set(f)  # switches scene.camera at timeline markers bound to cameras
             cam = scene.camera
-            # By full name: a linked camera may have a local one's name.
-            if f > frame_start and (cam.name_full if cam else None) != previous_cam:
+            cam_key = cam.name_full if cam else None  # by full name: a linked camera may have a local one's name
+            if f > frame_start and cam_key != previous_cam:
                 cuts.append(f)
-            previous_cam = cam.name_full if cam else None
+            previous_cam = cam_key
             obs = visible_objects(scene, layer)
             instances = rendered_instances(layer)
             # Over every frame: an object that appears later (hide_render keyed) renders there too, and
@@ -648,10 +648,9 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
                     names.append(name)
             if cam is not None:
                 cm = ([list(r) for r in cam.matrix_world], camera_projection(cam, layer.depsgraph, scene))
-                if cam.name_full not in first_cam:
-                    first_cam[cam.name_full] = cm
-                elif not (_same(cm[0], first_cam[cam.name_full][0])
-                          and _same(cm[1], first_cam[cam.name_full][1], rows=IMAGE_ROWS)):
+                if cam_key not in first_cam:
+                    first_cam[cam_key] = cm
+                elif not (_same(cm[0], first_cam[cam_key][0]) and _same(cm[1], first_cam[cam_key][1], rows=IMAGE_ROWS)):
                     camera_moves = True
             # Each object by its full name (a linked object may have a local one's name), each fact by its
             # name, as Cryptomatte's IDs are (hashing.cryptomatte_hex).
