@@ -18,18 +18,17 @@ int runSynth(const ParsedArgs& args) {
       throw UsageError("--size expects WxH with 1..16384 each, got '" + s + "'");
   }
   const std::string dir = args.get("output");
-  makeDirectories(dir);
+  const RunFolder folder(dir);  // a run that fails leaves no folder it made behind
+  const char* names[] = {"chart_1spp.exr", "chart_1spp.png", "chart_reference.exr", "chart_reference.png", "chart_edges.exr"};
+  for (const char* name : names) checkOutputFile(joinPath(dir, name));  // a folder in a file's way: said before any write
   synth::Scene chart = synth::testChart(w, h);
   Image one = synth::renderCentre(chart, w, h);
   Image ref = synth::renderSupersampled(chart, w, h, 16);
   Image mask = synth::edgePixels(chart, w, h, 16);
   Image maskRgb(w, h, 3);
   for (std::size_t i = 0; i < mask.data.size(); ++i) maskRgb.data[3 * i] = maskRgb.data[3 * i + 1] = maskRgb.data[3 * i + 2] = mask.data[i];
-  for (const char* ext : {".exr", ".png"}) {
-    writeImage(joinPath(dir, std::string("chart_1spp") + ext), one);
-    writeImage(joinPath(dir, std::string("chart_reference") + ext), ref);
-  }
-  writeImage(joinPath(dir, "chart_edges.exr"), maskRgb);
+  const Image* images[] = {&one, &one, &ref, &ref, &maskRgb};
+  for (int i = 0; i < 5; ++i) writeImage(joinPath(dir, names[i]), *images[i]);
   std::printf("wrote %s/chart_1spp.exr/.png, chart_reference.exr/.png (16x16 supersampled, box), chart_edges.exr (%dx%d)\n",
               dir.c_str(), w, h);
   return 0;

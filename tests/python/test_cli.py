@@ -635,6 +635,18 @@ def test_tiny_and_odd_sizes(tmp_path):
             assert (d / m / "chart_1spp.exr").is_file()
 
 
+def test_synth_checks_every_output_name_before_writing(tmp_path):
+    # A folder named like its last file: said before any write, so no partial chart is left.
+    keep = tmp_path / "keep"
+    (keep / "chart_edges.exr").mkdir(parents=True)
+    p = run("synth", "-o", keep, "--size", "8x8", ok=False)
+    assert p.returncode == 1 and "chart_edges.exr" in p.stderr and "folder" in p.stderr, p.stderr
+    assert sorted(x.name for x in keep.iterdir()) == ["chart_edges.exr"]
+    run("synth", "-o", tmp_path / "fresh" / "deeper", "--size", "8x8")
+    assert sorted(x.name for x in (tmp_path / "fresh" / "deeper").iterdir()) == [
+        "chart_1spp.exr", "chart_1spp.png", "chart_edges.exr", "chart_reference.exr", "chart_reference.png"]
+
+
 @pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
 def test_quiet_render_drops_progress_but_not_blenders_errors(tmp_path):
     # Blender reports an unreadable .blend on stdout, which --quiet otherwise drops.
