@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <vector>
@@ -104,8 +105,11 @@ int runCompare(const ParsedArgs& args) {
   const std::string mapsDir = args.getOr("maps", "");
   const std::vector<std::string> stems = mapStems(tests);
   refuseClobbering(args, mapsDir, stems);
+  // The maps' folder first, so that --json may name a file in it; made by RunFolder, so that a
+  // run that fails leaves no empty folder behind.
+  std::optional<RunFolder> mapsFolder;
+  if (!mapsDir.empty()) mapsFolder.emplace(mapsDir);
   if (args.has("json")) checkOutputFile(args.get("json"));  // written last: said now, not after every frame
-  if (!mapsDir.empty()) makeDirectories(mapsDir);
 
   std::vector<Metrics> all;
   std::ostringstream frames;

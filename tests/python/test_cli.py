@@ -800,6 +800,18 @@ def test_compare_refuses_maps_and_json_that_would_replace_files(chart, tmp_path)
     assert victim.read_bytes() == before and (a / "frame.exr").read_bytes() == test.read_bytes()
 
 
+def test_compare_json_may_go_into_the_maps_folder_it_makes(chart, tmp_path):
+    ref, test = chart / "chart_reference.exr", chart / "chart_1spp.exr"
+    maps = tmp_path / "new" / "maps"
+    run("compare", "-q", "-r", ref, "-t", test, "--maps", maps, "--json", maps / "figures.json")
+    assert json.loads((maps / "figures.json").read_text())["frames"][0]["test"] == str(test)
+    # A run that fails (a test file that is not there) leaves no folder it made behind.
+    p = run("compare", "-q", "-r", ref, "-t", tmp_path / "missing.exr", "--maps", tmp_path / "other" / "maps",
+            "--json", tmp_path / "other" / "maps" / "figures.json", ok=False)
+    assert p.returncode == 1 and "missing.exr" in p.stderr, p.stderr
+    assert not (tmp_path / "other").exists()
+
+
 def test_a_text_file_that_cannot_be_written_whole_keeps_the_old_one(chart, tmp_path):
     """--json on a full disk (a file size limit, RLIMIT_FSIZE, with SIGXFSZ ignored so that the write
     fails with EFBIG): an error naming the file, the old file's bytes kept, no temporary file left."""
