@@ -239,8 +239,9 @@ int runFilter(const ParsedArgs& args) {
   }
   for (const std::string& in : args.positional) {
     std::error_code ec;
-    for (const char* ext : {".exr", ".png"})
-      if (inputs.count(fs::weakly_canonical(joinPath(outDir, fileStem(in) + ext), ec)))
+    for (const std::string ext : {".exr", ".png"})
+      if ((png || ext == ".exr") &&  // a PNG is written only with --png
+          inputs.count(fs::weakly_canonical(joinPath(outDir, fileStem(in) + ext), ec)))
         throw UsageError("output for '" + in + "' would overwrite an input file; choose another -o folder");
   }
   const RunFolder folder(outDir);

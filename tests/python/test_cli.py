@@ -624,6 +624,16 @@ def test_refuses_to_overwrite_inputs(chart, tmp_path):
     assert p.returncode == 2 and "overwrite an input" in p.stderr
     p = run("filter", "--method", "fxaa", src / "chart_1spp.exr", src / "chart_1spp.png", "-o", tmp_path / "o", ok=False)
     assert p.returncode == 2 and "overwrite each other" in p.stderr
+    # A PNG input filtered into its own folder: its output is an EXR, and only --png would replace it.
+    pngs = tmp_path / "pngs"
+    pngs.mkdir()
+    shutil.copy(src / "chart_1spp.png", pngs / "a.png")
+    before = (pngs / "a.png").read_bytes()
+    run("filter", "-q", "--method", "fxaa", pngs / "a.png", "-o", pngs)
+    assert (pngs / "a.exr").is_file() and (pngs / "a.png").read_bytes() == before
+    p = run("filter", "--method", "fxaa", "--png", pngs / "a.png", "-o", pngs, ok=False)
+    assert p.returncode == 2 and "overwrite an input" in p.stderr, p.stderr
+    assert (pngs / "a.png").read_bytes() == before
 
 
 def test_tiny_and_odd_sizes(tmp_path):
