@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -231,7 +232,19 @@ class StopSignalsToBlender {
   }
   void started(pid_t pid) {
     blenderPid = pid;
+    lastSent_ = std::chrono::steady_clock::now();
     if (stopSignal != 0) ::kill(pid, stopSignal);  // one that came before the pid was known
+  }
+  // A stop Blender has not acted on yet goes to it again, once a second: a single Ctrl-C only flags
+  // Blender's render to stop (its second one ends Blender) until a driver takes the signals over, and
+  // batch_eval.py never does; a signal that reached the child before exec was lost. Once batch.py
+  // takes them, the repeats change nothing: its first signal stops the run, the others wait for that.
+  void repeatStop() {
+    if (stopSignal == 0 || blenderPid <= 0) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (now - lastSent_ < std::chrono::seconds(1)) return;
+    lastSent_ = now;
+    ::kill(pid_t(blenderPid), stopSignal);
   }
   void ended() { blenderPid = 0; }  // reaped: its pid may be another process's now
   // After Blender ended: crisp's own handlers back and, if crisp was asked to
@@ -248,6 +261,7 @@ class StopSignalsToBlender {
  private:
   struct sigaction old_[std::size(kStopSignals)] {};
   bool installed_[std::size(kStopSignals)] = {};
+  std::chrono::steady_clock::time_point lastSent_;  // when Blender was last sent the stop (about)
 };
 
 }  // namespace
@@ -332,7 +346,8 @@ BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const 
   if (onProgress) reading.push_back({progress[0], POLLIN, 0});
   if (output == BlenderOutput::Captured) reading.push_back({capture[0], POLLIN, 0});
   while (!reading.empty()) {
-    if (poll(reading.data(), reading.size(), -1) < 0) {
+    stops.repeatStop();
+    if (poll(reading.data(), reading.size(), 250) < 0) {
       if (errno == EINTR) continue;
       for (const pollfd& p : reading) close(p.fd);  // not expected; Blender then gets SIGPIPE
       break;
@@ -355,7 +370,9 @@ BlenderRun runBlender(std::vector<std::string> cmd, BlenderOutput output, const 
   }
   if (onProgress && !lines.empty()) onProgress(lines);
   int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  for (pid_t got = 0; got == 0 || (got < 0 && errno == EINTR);) {
+    stops.repeatStop();
+    if ((got = waitpid(pid, &status, WNOHANG)) == 0) poll(nullptr, 0, 100);
   }
   stops.ended();
   if (WIFEXITED(status))
