@@ -150,6 +150,16 @@ int readScenePanel(const ParsedArgs& args, nlohmann::json& panel) {
   return run.signal == 0 && run.exitCode == 2 ? 2 : 1;  // batch_eval.py: 5 a refused value, 3 the library
 }
 
+// Whether a run into the folder rendered anything: an EXR anywhere under renders/ (not a hidden one, the
+// temporary name of a render that did not finish).
+bool holdsRenders(const fs::path& renders) {
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(renders, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec))
+    if (it->path().extension() == ".exr" && it->path().filename().string()[0] != '.') return true;
+  return false;
+}
+
 }  // namespace
 
 int runEval(const ParsedArgs& args) {
@@ -298,7 +308,9 @@ int runEval(const ParsedArgs& args) {
                                {"scene_contents", sceneFingerprint(args)},
                                {"resolution", canonicalResolution(args.getOr("resolution", ""))},
                                {"filter_size", filterSize ? filterSize : ""}};
-  if (fs::exists(settings)) {
+  // Settings with no render beside them bind nothing: a run stopped before its first render (Ctrl-C,
+  // kill -9, a lost machine) must not lock the folder against the corrected command.
+  if (fs::exists(settings) && holdsRenders(renders)) {
     std::ifstream in(settings);
     nlohmann::json have = nlohmann::json::parse(in, nullptr, false);
     if (have.is_object() && !have.contains("filter_size")) have["filter_size"] = "";
@@ -340,14 +352,10 @@ int runEval(const ParsedArgs& args) {
   const int code = run.signal ? 128 + run.signal : run.exitCode;
   double blenderSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!run.started || code != 0) {
-    // Nothing rendered (Blender could not start, or refused the scene or the arguments): the settings file
-    // must not lock the folder against the corrected command.
-    bool rendered = false;
+    // Nothing rendered (Blender could not start, or refused the scene or the arguments): no settings file
+    // is left to look as if it did.
     std::error_code ec;
-    for (auto it = fs::recursive_directory_iterator(renders, ec); !ec && it != fs::recursive_directory_iterator();
-         it.increment(ec))
-      rendered |= it->path().extension() == ".exr";
-    if (!rendered) fs::remove(settings, ec);
+    if (!holdsRenders(renders)) fs::remove(settings, ec);
     if (!run.started) return 1;  // said by runBlender
     std::fprintf(stderr, "crisp: error: Blender failed (exit %d); from %s:\n%s", code, log.c_str(),
                  blenderErrors(log).c_str());

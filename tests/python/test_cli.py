@@ -209,6 +209,27 @@ def test_eval_that_renders_nothing_leaves_no_settings(tmp_path):
     assert not (out / "eval_settings.json").exists() and not list(out.rglob("*.exr"))
 
 
+@pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
+def test_an_eval_stopped_before_its_first_render_does_not_lock_the_folder(tmp_path):
+    """Ctrl-C (SIGINT to the terminal's process group) once the settings file is written and before any
+    render: the corrected command (another size) runs, where it was refused for renders never made."""
+    out = tmp_path / "out"
+    args = ["eval", "--scene", "still_life", "--frames", "1-1", "--methods", "fxaa", "--reference-samples", "2",
+            "--curve", "1", "--quiet", "-o", str(out)]
+    p = subprocess.Popen([str(CRISP), *args, "--resolution", "48x27"], stdout=subprocess.DEVNULL,
+                         stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + 60
+    while not (out / "eval_settings.json").exists() and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.002)
+    os.killpg(p.pid, signal.SIGINT)
+    p.wait(timeout=60)
+    assert (out / "eval_settings.json").exists(), "the run was stopped before it wrote its settings: nothing tested"
+    assert not [f for f in out.rglob("*.exr") if not f.name.startswith(".")], "stopped too late: it rendered"
+    run(*args, "--resolution", "64x36")
+    assert json.loads((out / "eval_settings.json").read_text())["resolution"] == "64x36"
+    assert (out / "report.html").is_file()
+
+
 def test_eval_refuses_a_filter_size_a_temporal_method_refuses_before_rendering(tmp_path):
     """A temporal method filters with the renders' Film > Filter Size (their sidecars), which
     CRISP_EVAL_FILTER_SIZE sets: a size it refuses (above 4 px) is refused before Blender starts,
