@@ -68,6 +68,14 @@ bool toPixel(const Vec4d& clip, int width, int height, double& px, double& py) {
   return std::isfinite(px) && std::isfinite(py);
 }
 
+// A perspective projection whose centre is the camera's origin (Blender's,
+// lens shift and jitter included): clip.w = P32 * z alone, no x, y or constant
+// term in clip.x, clip.y.
+bool isPerspectiveFromOrigin(const Mat4& P) {
+  return P.m[3][0] == 0.0 && P.m[3][1] == 0.0 && P.m[3][2] != 0.0 && P.m[3][3] == 0.0 && P.m[0][3] == 0.0 &&
+         P.m[1][3] == 0.0;
+}
+
 bool anyObjectMoves(const Sidecar& a, const Sidecar& b) {
   for (const auto& kv : a.objects) {
     const SidecarObject* o = b.object(kv.first);
@@ -101,6 +109,7 @@ struct Setup {
   const Image* ids;
   std::uint32_t loneObject;
   std::vector<double> ndcX;  // per column, as motionOfPixel computes it
+  bool perspective;          // P projects from the camera's origin: a background pixel is a direction
 
   const ObjectChains* findObject(std::uint32_t hash) const {
     auto it = std::lower_bound(objects.begin(), objects.end(), hash,
@@ -136,6 +145,38 @@ std::uint32_t pairOutcome(bool matched, bool projects, double dx, double dy, flo
   return validFlag;
 }
 
+// A background pixel (depth read as infinity: the world, the sky) is a
+// direction, not a point: the camera's rotation moves it across the image, its
+// translation does not. Its ray through the jittered projection, (X, Y, -1)
+// for the point at planar depth 1 (motionOfPixel's solve), goes through the
+// static world's chains with w = 0, which drops their translations. An
+// orthographic camera's rays share one direction, whose world colour is the
+// same on every pixel: motion 0 there. Both paths call this for every
+// background pixel: the same bits.
+std::uint32_t backgroundMotion(const Setup& s, int x, int y, float* m) {
+  if (!s.perspective) return kMotionBackground;
+  const Mat4& P = s.P;
+  const double ndcX = s.ndcX[std::size_t(x)], ndcY = 1.0 - 2.0 * (y + 0.5) / s.H;
+  // P (X, Y, -1, 1) with the perspective's zero terms: clip.w = -P32, and clip.xy / clip.w = ndc.
+  const double a00 = P.m[0][0], a01 = P.m[0][1], a10 = P.m[1][0], a11 = P.m[1][1];
+  const double b0 = -ndcX * P.m[3][2] + P.m[0][2], b1 = -ndcY * P.m[3][2] + P.m[1][2];
+  const double det = a00 * a11 - a01 * a10;
+  const Vec4d direction{(b0 * a11 - a01 * b1) / det, (a00 * b1 - b0 * a10) / det, -1.0, 0.0};
+  double cx, cy;
+  if (det == 0.0 || !toPixel(s.currentClip * direction, s.W, s.H, cx, cy)) return kMotionBackground;
+  std::uint32_t flags = kMotionBackground;
+  double px = 0.0, py = 0.0;
+  bool projects = s.staticPrevious.valid && toPixel(s.staticPrevious.toClip * direction, s.W, s.H, px, py);
+  flags |= pairOutcome(s.staticPrevious.valid, projects, snapStill(px - cx), snapStill(py - cy), m,
+                       kMotionPreviousValid);
+  if (s.hasNext) {
+    projects = s.staticNext.valid && toPixel(s.staticNext.toClip * direction, s.W, s.H, px, py);
+    flags |= pairOutcome(s.staticNext.valid, projects, snapStill(cx - px), snapStill(cy - py), m + 2,
+                         kMotionNextValid);
+  }
+  return flags;
+}
+
 // The reference: one pixel's motion and flags (motion starts at 0, written
 // only where a pair is valid).
 void motionOfPixel(const Setup& s, const Image& depth, int x, int y, FrameMotion& out) {
@@ -157,7 +198,7 @@ void motionOfPixel(const Setup& s, const Image& depth, int x, int y, FrameMotion
   // background.
   const float d = *depth.at(x, y);
   if (isBackgroundDepth(d)) {
-    out.flags.setUint(x, y, kMotionBackground);
+    out.flags.setUint(x, y, backgroundMotion(s, x, y, m));
     return;
   }
   if (!(d > 0.0f) || !std::isfinite(d)) {
@@ -332,12 +373,12 @@ CRISP_MOTION_INLINE void groupMath(const Setup& s, double ndcY, double a10, doub
 
 // motionOfPixel's decisions on each lane, and the stores.
 template <bool HasNext>
-CRISP_MOTION_INLINE void groupFinish(const Group& g, int y, FrameMotion& out) {
+CRISP_MOTION_INLINE void groupFinish(const Setup& s, const Group& g, int y, FrameMotion& out) {
   for (int l = 0; l < kLanes; ++l) {
     const int x = g.x + l;
     const float d = g.depth[l];
     if (g.background[l]) {
-      out.flags.setUint(x, y, kMotionBackground);
+      out.flags.setUint(x, y, backgroundMotion(s, x, y, out.motion.at(x, y)));
       continue;
     }
     if (!(d > 0.0f) || !std::isfinite(d) || !g.pointOk[l]) {
@@ -372,22 +413,23 @@ CRISP_MOTION_INLINE void motionRowLanes(const Setup& s, const Image& depth, int 
   for (; x + 2 * kLanes <= s.W; x += 2 * kLanes) {
     loadGroup(depth, x, y, a);
     loadGroup(depth, x + kLanes, y, b);
-    if (!a.anyPoint && !b.anyPoint) {  // the sky: no arithmetic
-      for (int l = 0; l < 2 * kLanes; ++l) out.flags.setUint(x + l, y, kMotionBackground);
+    if (!a.anyPoint && !b.anyPoint) {  // the sky: directions, no points
+      for (int l = 0; l < 2 * kLanes; ++l)
+        out.flags.setUint(x + l, y, backgroundMotion(s, x + l, y, out.motion.at(x + l, y)));
       continue;
     }
     groupObjects(s, y, run, a);
     groupObjects(s, y, run, b);
     groupMath<HasNext>(s, ndcY, a10, a11, current, a);
     groupMath<HasNext>(s, ndcY, a10, a11, current, b);
-    groupFinish<HasNext>(a, y, out);
-    groupFinish<HasNext>(b, y, out);
+    groupFinish<HasNext>(s, a, y, out);
+    groupFinish<HasNext>(s, b, y, out);
   }
   if (x + kLanes <= s.W) {
     loadGroup(depth, x, y, a);
     groupObjects(s, y, run, a);
     groupMath<HasNext>(s, ndcY, a10, a11, current, a);
-    groupFinish<HasNext>(a, y, out);
+    groupFinish<HasNext>(s, a, y, out);
     x += kLanes;
   }
   for (; x < s.W; ++x) motionOfPixel(s, depth, x, y, out);
@@ -459,7 +501,8 @@ FrameMotion reconstructMotion(const Image& depth, const Image* ids, const Sideca
     objects.push_back(oc);
   }
   Setup setup{W, H, current.projection, current.projectionUnjittered, staticPrevious, staticNext, next != nullptr,
-              std::move(objects), ids, loneObject, std::vector<double>(std::size_t(W))};
+              std::move(objects), ids, loneObject, std::vector<double>(std::size_t(W)),
+              isPerspectiveFromOrigin(current.projection)};
   for (int x = 0; x < W; ++x) setup.ndcX[std::size_t(x)] = 2.0 * (x + 0.5) / W - 1.0;
   FrameMotion out;
   out.motion = Image(W, H, 4, 0.0f);

@@ -17,9 +17,10 @@
 // Exact for rigid motion (objects whose world matrix describes all their
 // movement: translation, rotation, scale, parenting, constraints). Not covered:
 // deforming meshes (armatures, shape keys, simulations, modifiers), texture or
-// UV animation, changes of lens/shift over time other than through the
-// projection matrices, and the background, which gets motion 0 (flagged) even
-// when the camera rotates.
+// UV animation, and changes of lens/shift over time other than through the
+// projection matrices. The background (depth at infinity) is a direction: a
+// perspective camera's rotation moves it, its translation does not; under an
+// orthographic camera it gets motion 0.
 #pragma once
 
 #include <cstdint>
@@ -35,7 +36,8 @@ namespace crisp {
 enum MotionFlag : std::uint32_t {
   kMotionPreviousValid = 1u << 0,   // motion.xy was reconstructed
   kMotionNextValid = 1u << 1,       // motion.zw was reconstructed (a next sidecar was given)
-  kMotionBackground = 1u << 2,      // depth reads as background: motion 0
+  kMotionBackground = 1u << 2,      // depth reads as background: moved as a direction (its pairs' valid
+                                    // bits say where it was), or 0 under an orthographic camera
   kMotionInvalidPoint = 1u << 3,    // depth <= 0/NaN, the point is on or behind the previous or
                                     // next camera's plane, or the maths was not finite: that pair 0
   kMotionUnknownObject = 1u << 4,   // ID not in this frame's sidecar: moved as a static world point

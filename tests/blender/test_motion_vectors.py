@@ -10,6 +10,8 @@ the add-on's sidecars) against Cycles' own Vector pass of the same frames, in th
   a third, unjittered EEVEE render separates the half-float error from the jitter's:
   previous pair (xy) of frames 2 and 3, next pair (zw) of frame 2. Median and 95th percentile of the
   error length in pixels are printed; the Cycles-depth figures are asserted against stated bounds.
+* A turning camera: the rebuilt motion of the background (a direction: moved by the camera's rotation)
+  against that of a far wall in the same pixels; Cycles' Vector leaves the background at 0.
 * A moving-quad probe: an orthographic camera and a quad moving (+2, +1) px/frame (x right, y up).
   Cycles' raw Vector pass must read (-2, -1, -2, -1) (BLENDER.md), so a Blender change of the sign
   convention fails here; the library's reader must turn it into (-2, +1, -2, +1) (y down), and the
@@ -17,8 +19,8 @@ the add-on's sidecars) against Cycles' own Vector pass of the same frames, in th
 
 Not covered (the reconstruction is exact for rigid motion only): deforming meshes (armatures, shape
 keys, simulations, modifiers), moving textures, camera lens/sensor animation other than through the
-recorded projection, motion of the background (reconstructed as 0, flagged), transparency and
-anything behind the first surface; only 1-sample renders (one surface per pixel).
+recorded projection, transparency and anything behind the first surface; only 1-sample renders (one
+surface per pixel).
 """
 
 import ctypes
@@ -285,5 +287,57 @@ class MovingQuadProbe(unittest.TestCase):
             self.assertEqual(p.motion[0:4], [0.0, 0.0, 0.0, 0.0])
 
 
+def build_turning_camera(backdrop):
+    """A perspective camera turning about its own centre (pan, tilt) over frames 1-3, over the world's
+    background or, with `backdrop`, a wall 400 units away that fills the view: no parallax either way."""
+    scene = common.reset(1, 3, resolution=(64, 36))
+    common.world((0.2, 0.3, 0.5))
+    cam = common.camera((0, 0, 1.5), (0, 10, 1.5), lens=35)
+    cam.data.clip_end = 1000.0
+    common.keyframes(cam, "rotation_euler", [(1.45, 0.0, 0.12), (1.62, 0.0, -0.1)], [1, 3])
+    if backdrop:
+        wall = common.mesh_object("Wall", "plane", common.emission("Wall", (1, 1, 1)), size=4000.0)
+        wall.location, wall.rotation_euler = (0, 400, 0), (1.5708, 0, 0)
+    return scene
+
+
+@unittest.skipUnless(LIB_OK, "library not usable: " + LIB_WHY)
+class TurningCameraBackground(unittest.TestCase):
+    """Cycles' Vector pass leaves the background at 0, so the truth is a point at a finite depth in the same
+    pixel: a camera turning about its centre moves every point by one vector whatever its depth, and the
+    rebuilt background of EEVEE's jittered renders, from the sidecars as written, must move as the wall does."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.dirs = {}
+        for backdrop in (False, True):
+            cls.dirs[backdrop] = os.path.join(cls.tmp.name, "wall" if backdrop else "sky")
+            render.render_frames(build_turning_camera(backdrop), EEVEE_PLAN, FRAMES, cls.dirs[backdrop])
+        cls.ctx = native.Context()
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.ctx.close()
+        cls.tmp.cleanup()
+
+    def test_the_background_turns_with_the_camera(self):
+        sky, wall = (Passes(self.ctx, self.dirs[b], 2, rebuild=True) for b in (False, True))
+        self.assertTrue(all(d >= 65504.0 for d in sky.depth), "the sky render should be all background")
+        self.assertTrue(all(d < 65504.0 for d in wall.depth), "the wall should fill the view")
+        errors, lengths = [], []
+        for i in range(sky.width * sky.height):
+            self.assertEqual(sky.flags[i], 4 | FLAG_PREVIOUS_VALID | FLAG_NEXT_VALID)
+            self.assertEqual(wall.flags[i], FLAG_PREVIOUS_VALID | FLAG_NEXT_VALID)
+            for c in (0, 2):
+                errors.append(math.hypot(sky.motion[4 * i + c] - wall.motion[4 * i + c],
+                                         sky.motion[4 * i + c + 1] - wall.motion[4 * i + c + 1]))
+                lengths.append(math.hypot(wall.motion[4 * i + c], wall.motion[4 * i + c + 1]))
+        print("motion: background vs a wall 400 units away, turning camera: max %.2e px (|v| median %.2f px)"
+              % (max(errors), percentile(lengths, 0.5)), flush=True)
+        self.assertGreater(percentile(lengths, 0.5), 1.0, "the camera should turn the view by pixels")
+        self.assertLess(max(errors), 0.01)
+
+
 if __name__ == "__main__":
-    harness.run(SpinningCubeAgainstCycles, MovingQuadProbe)
+    harness.run(SpinningCubeAgainstCycles, MovingQuadProbe, TurningCameraBackground)

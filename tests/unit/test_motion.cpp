@@ -226,7 +226,8 @@ TEST(Motion, NextFrameGivesCurrentMinusNext) {
     }
 }
 
-TEST(Motion, BackgroundIsZeroAndFlagged) {
+// The background is at infinity: a camera that only moves leaves it where it was.
+TEST(Motion, BackgroundIsStillUnderACameraThatOnlyMoves) {
   Image depth = constantDepth(4.0f);
   *depth.at(1, 1) = kFarDepth;          // Blender 3.x half-float background
   *depth.at(2, 1) = kBackgroundDepth;   // 1e10
@@ -235,10 +236,53 @@ TEST(Motion, BackgroundIsZeroAndFlagged) {
                                            nullptr, "bg", 1);
   for (int x : {1, 2, 3}) {
     EXPECT_EQ(fm.motion.at(x, 1)[0], 0.0f);
-    EXPECT_EQ(flagsAt(fm, x, 1), std::uint32_t(kMotionBackground));
+    EXPECT_EQ(fm.motion.at(x, 1)[1], 0.0f);
+    EXPECT_EQ(flagsAt(fm, x, 1), std::uint32_t(kMotionBackground | kMotionPreviousValid));
   }
   EXPECT_GT(fm.motion.at(4, 1)[0], 1.0f);
   EXPECT_EQ(flagsAt(fm, 4, 1), std::uint32_t(kMotionPreviousValid));
+}
+
+// A camera turning about its own centre moves every point by the same vector whatever its depth, so
+// the background (a direction) must move as a point at any depth in the same pixel does: a rolling,
+// panning, tilting, jittered camera with lens shift, the previous and the next frame.
+TEST(Motion, BackgroundTurnsWithTheCamera) {
+  const double s = 1.6;
+  auto turn = [](double yaw, double pitch, double roll) {
+    Mat4 y = Mat4::identity(), p = Mat4::identity();
+    y.m[0][0] = std::cos(yaw), y.m[0][2] = std::sin(yaw), y.m[2][0] = -std::sin(yaw), y.m[2][2] = std::cos(yaw);
+    p.m[1][1] = std::cos(pitch), p.m[1][2] = -std::sin(pitch), p.m[2][1] = std::sin(pitch), p.m[2][2] = std::cos(pitch);
+    return translation(0.4, -2.0, 1.5) * y * p * rotationZ(roll);
+  };
+  const Sidecar prev = sidecar(turn(0.06, -0.02, 0.03), perspective(s, 0.3, 0.2), perspective(s, 0.3, 0.2), 0, 0);
+  const Sidecar cur = sidecar(turn(0.0, 0.0, 0.0), perspective(s, 0.3 - 0.21, 0.2 + 0.33), perspective(s, 0.3, 0.2),
+                              -0.21, 0.33);
+  const Sidecar next = sidecar(turn(-0.05, 0.04, -0.02), perspective(s, 0.3, 0.2), perspective(s, 0.3, 0.2));
+  const FrameMotion sky = reconstructMotion(constantDepth(kFarDepth), nullptr, cur, prev, &next, "sky", 1);
+  const FrameMotion wall = reconstructMotion(constantDepth(9.0f), nullptr, cur, prev, &next, "wall", 1);
+  double largest = 0.0;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      ASSERT_EQ(flagsAt(sky, x, y), std::uint32_t(kMotionBackground | kMotionPreviousValid | kMotionNextValid));
+      for (int c = 0; c < 4; ++c) {
+        ASSERT_NEAR(sky.motion.at(x, y)[c], wall.motion.at(x, y)[c], 1e-3) << x << "," << y << " c" << c;
+        largest = std::max(largest, std::fabs(double(sky.motion.at(x, y)[c])));
+      }
+    }
+  EXPECT_GT(largest, 1.0) << "the camera should turn the sky by pixels";
+}
+
+// An orthographic camera's rays share one direction: its background keeps motion 0, flagged.
+TEST(Motion, OrthographicBackgroundIsZero) {
+  const Sidecar prev = sidecar(rotationZ(0.2), orthographic(6.0), orthographic(6.0));
+  const Sidecar cur = sidecar(Mat4::identity(), orthographic(6.0), orthographic(6.0));
+  const FrameMotion fm = reconstructMotion(constantDepth(kFarDepth), nullptr, cur, prev, nullptr, "ortho", 1);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      ASSERT_EQ(flagsAt(fm, x, y), std::uint32_t(kMotionBackground));
+      ASSERT_EQ(fm.motion.at(x, y)[0], 0.0f);
+      ASSERT_EQ(fm.motion.at(x, y)[1], 0.0f);
+    }
 }
 
 TEST(Motion, PointsBehindThePreviousCameraAndBadDepthsAreInvalid) {
@@ -253,7 +297,9 @@ TEST(Motion, PointsBehindThePreviousCameraAndBadDepthsAreInvalid) {
                                            &next, "behind", 1);
   EXPECT_EQ(flagsAt(fm, 0, 0), kMotionPreviousValid | kMotionNextValid);
   for (int x : {1, 2, 3}) {
-    EXPECT_EQ(flagsAt(fm, x, 0), std::uint32_t(x == 1 ? kMotionBackground : kMotionInvalidPoint)) << x;
+    // The background is a direction: the cameras' translations leave it still, both pairs valid.
+    const std::uint32_t background = kMotionBackground | kMotionPreviousValid | kMotionNextValid;
+    EXPECT_EQ(flagsAt(fm, x, 0), std::uint32_t(x == 1 ? background : kMotionInvalidPoint)) << x;
     for (int c = 0; c < 4; ++c) EXPECT_EQ(fm.motion.at(x, 0)[c], 0.0f);
   }
   const std::uint32_t f = flagsAt(fm, 5, 5);
@@ -471,13 +517,15 @@ TEST(Motion, FastPathEqualsReference) {
             }
             const FrameMotion ref =
                 reconstructMotion(depth, idp, c, p, withNext ? &n : nullptr, "ref", 1, MotionPath::Reference);
-            int valid = 0, still = 0;
+            int valid = 0, still = 0, turnedSky = 0;
             for (int y = 0; y < h; ++y)
               for (int x = 0; x < w; ++x) {
                 const bool reconstructed = (flagsAt(ref, x, y) & kMotionPreviousValid) != 0;
                 valid += reconstructed;
                 still += reconstructed && ref.motion.at(x, y)[0] == 0.0f;
+                turnedSky += (flagsAt(ref, x, y) & kMotionBackground) && ref.motion.at(x, y)[0] != 0.0f;
               }
+            EXPECT_EQ(turnedSky > 0, cameraMoves) << "the turning camera moves the sky, the still one does not";
             if (w * h > 20) {
               EXPECT_GT(valid, w * h / 4) << "the inputs should give mostly real motion";
               if (!cameraMoves && withIds) {

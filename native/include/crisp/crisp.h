@@ -202,7 +202,8 @@ CRISP_API void* crispGetFramePass(CrispFrame frame, const char* role, CrispForma
 // replaces the frame's "motion" pass (float4, pixels, y down: xy = previous -
 // current, zw = current - next, 0 without nextSidecar; jitter removed) and a
 // "motion_flags" pass (uint32 bits per pixel: 1 xy valid, 2 zw valid,
-// 4 background, 8 invalid point (depth <= 0, behind the previous/next camera),
+// 4 background: depth at infinity, moved by the camera's rotation alone (0
+// under an orthographic camera), 8 invalid point (depth <= 0, behind the previous/next camera),
 // 16 ID unknown to the sidecar (moved as static), 32 object missing from the
 // previous/next sidecar); motion is 0 wherever its valid bit is clear.
 // Exact for rigid object and camera motion; not for deforming meshes.
