@@ -91,6 +91,9 @@ class SceneFacts:
     camera_cuts: list = field(default_factory=list)         # frames whose camera is another than the frame before's
     # moving objects whose ID several rendered instances share (render.object_table leaves them out)
     shared_id_movers: list = field(default_factory=list)
+    # what changes the image over the range with no geometry moving (a keyed material, a light, what
+    # renders), as "material 'Belt'": a still pixel's history would keep the old image
+    image_changes: list = field(default_factory=list)
 
 
 @dataclass
@@ -101,6 +104,10 @@ class Plan:
     skipped: dict                 # pass -> why it is not rendered
     jitter: bool                  # per-frame sub-pixel jitter (temporal methods)
     motion_source: str = "none"   # "renderer" | "reconstruct" | "none"
+    # False: the image changes where nothing moves (SceneFacts.image_changes), so the temporal filter
+    # must not average still pixels (pipeline.with_plan_params turns that off)
+    still_average: bool = True
+    history_note: str = ""        # why still_average is off, for describe()
 
     def render_flags(self):
         """View-layer flags to switch on (everything else off)."""
@@ -111,7 +118,8 @@ class Plan:
 
     def to_json(self):
         return {"method": self.method, "passes": list(self.passes), "reasons": dict(self.reasons),
-                "skipped": dict(self.skipped), "jitter": self.jitter, "motion_source": self.motion_source}
+                "skipped": dict(self.skipped), "jitter": self.jitter, "motion_source": self.motion_source,
+                "still_average": self.still_average}
 
     def describe(self):
         lines = ["plan for %s:" % self.method]
@@ -121,6 +129,8 @@ class Plan:
             lines.append("  - %-10s %s" % (p, why))
         lines.append("  jitter: %s; motion: %s" % ("per-frame Halton(2,3)" if self.jitter else "none",
                                                      self.motion_source))
+        if self.history_note:
+            lines.append("  history: " + self.history_note)
         return "\n".join(lines)
 
 
@@ -128,6 +138,9 @@ def some_names(names, most=4, quote=False):
     """At most `most` names joined by commas (quoted with quote), and how many more there are."""
     shown = ["'%s'" % n if quote else n for n in names[:most]]
     return ", ".join(shown) + (" and %d more" % (len(names) - most) if len(names) > most else "")
+
+
+RENDERER_SOURCE = "from the renderer's Vector pass"
 
 
 def make_plan(method, facts):
@@ -140,13 +153,32 @@ def make_plan(method, facts):
     single = len(facts.visible_objects) <= 1
     passes, reasons, skipped = [], {}, {}
     motion_source = "none"
+    # The library averages every pixel whose motion is zero (static accumulation), moving scene or not:
+    # where the image changes there without motion, that average would keep the old image (a ghost).
+    changes = some_names(facts.image_changes)
+    still_average = not (method in TEMPORAL_METHODS and facts.image_changes)
+    history_note = "" if still_average else (
+        "%s change%s the image over frames %d-%d with no motion, so pixels that do not move are blended "
+        "with neighbourhood clipping as moving ones are, not averaged (an average would keep the old image)"
+        % (changes, "s" if len(facts.image_changes) == 1 else "", facts.frame_start, facts.frame_end))
 
-    def movers():
-        what = []
-        if facts.camera_moves:
-            what.append("the camera")
-        what += facts.moving_objects + facts.deforming_objects
-        return some_names(what)
+    def rigid_movers():
+        return (["the camera"] if facts.camera_moves else []) + facts.moving_objects
+
+    def motion_reason(use, source):
+        """Why motion is read: what moves, and what deforms, said apart: reconstruction is rigid."""
+        parts = []
+        if rigid_movers():
+            parts.append("%s move" % some_names(rigid_movers()))
+        if facts.deforming_objects:
+            parts.append("%s deform%s" % (some_names(facts.deforming_objects),
+                                          "s" if len(facts.deforming_objects) == 1 else ""))
+        text = "%s: %s; %s" % (" and ".join(parts), use, source)
+        if facts.deforming_objects and source != RENDERER_SOURCE:
+            # native/motion/reconstruct.h moves each pixel with its object's transform alone.
+            text += ("; deforming geometry is reprojected rigidly (with its object's transform, not its "
+                     "vertices' motion), so %s may leave a trail" % some_names(facts.deforming_objects))
+        return text
 
     for p in wanted:
         use = USE.get((method, p), "")
@@ -160,16 +192,18 @@ def make_plan(method, facts):
             if not moving:
                 skipped[p] = ("nothing moves over frames %d-%d (camera and every visible object keep their "
                               "world matrix): motion is zero" % (facts.frame_start, facts.frame_end))
+                if facts.image_changes:
+                    skipped[p] += "; the image changes all the same (%s): see history" % changes
                 continue
             passes.append(p)
             if facts.renderer_motion_pass:
                 motion_source = "renderer"
-                reasons[p] = "%s move: %s; from the renderer's Vector pass" % (movers(), use)
+                reasons[p] = motion_reason(use, RENDERER_SOURCE)
             else:
                 motion_source = "reconstruct"
-                reasons[p] = ("%s move: %s; this renderer has no Vector pass, so the library reconstructs it "
-                              "from depth, the camera matrices and the object transforms in the sidecars"
-                              % (movers(), use))
+                reasons[p] = motion_reason(use, "this renderer has no Vector pass, so the library reconstructs "
+                                                "it from depth, the camera matrices and the object transforms "
+                                                "in the sidecars")
         elif method == "rsaa" and p != "color" and not facts.visible_objects:
             # Nothing to render: no geometry, no geometric edges; rsaa keeps every pixel's colour.
             skipped[p] = "no visible object: no geometric edges, so rsaa keeps every colour and renders no geometry"
@@ -204,7 +238,8 @@ def make_plan(method, facts):
         skipped["motion"] = "%s does not read it" % method
     passes.sort(key=PASS_ORDER.index)
     return Plan(method=method, passes=passes, reasons=reasons, skipped=skipped,
-                jitter=method in TEMPORAL_METHODS, motion_source=motion_source)
+                jitter=method in TEMPORAL_METHODS, motion_source=motion_source, still_average=still_average,
+                history_note=history_note)
 
 
 def render_set_name(p):
@@ -601,6 +636,106 @@ def _show_instanced(instancer, undo, seen):
     walk(collection)
 
 
+# Animated object properties that scene_facts sees otherwise: as motion (the world matrix: transforms,
+# constraints, parenting), as deformation (modifiers, a pose, custom properties that drive them) or as
+# a change of what renders (hide_render); not named again as a change of the image.
+OBJECT_MOTION_PATHS = {"location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle", "scale",
+                       "delta_location", "delta_rotation_euler", "delta_rotation_quaternion", "delta_scale",
+                       "hide_render", "hide_viewport"}
+OBJECT_MOTION_PREFIXES = ("modifiers[", "constraints[", "pose.", "grease_pencil_modifiers[", "shader_effects[", "[")
+
+# Image sources that show another picture on each frame.
+MOVING_IMAGE_SOURCES = {"SEQUENCE", "MOVIE"}
+
+
+def _label(kind, id_data):
+    return "%s '%s'" % (kind, id_data.name)
+
+
+def rendered_lights(layer):
+    """The light objects that light the layer's render (and its background sets'), not hidden from it."""
+    return [ob for ob, _, rendered in _layer_objects(layer) if rendered and ob.type == "LIGHT" and not ob.hide_render]
+
+
+def _node_trees(tree, seen):
+    """A node tree and the groups inside it, each once."""
+    if tree is None or tree.as_pointer() in seen:
+        return
+    seen.add(tree.as_pointer())
+    yield tree
+    for node in tree.nodes:
+        yield from _node_trees(getattr(node, "node_tree", None), seen)
+
+
+def shading_ids(scene, objects, lights):
+    """(label, datablock) of what shades the render besides geometry: the scene's own settings (and its
+    background sets'), its world, the rendered objects and their materials, the lights and their data,
+    the camera's data (depth of field), each with the node trees inside (a keyed Mapping node is
+    animation of the material's node tree, not of the material)."""
+    out, seen = [], set()
+
+    def add(label, id_data):
+        if id_data is None or id_data.as_pointer() in seen:
+            return
+        seen.add(id_data.as_pointer())
+        out.append((label, id_data))
+        for tree in _node_trees(getattr(id_data, "node_tree", None), seen):
+            out.append((label, tree))
+
+    for s in scenes_with_sets(scene):
+        add(_label("scene", s), s)
+        if s.world is not None:
+            add(_label("world", s.world), s.world)
+    if scene.camera is not None:
+        add(_label("camera", scene.camera), scene.camera.data)
+    for ob in lights:
+        add(_label("light", ob), ob)
+        add(_label("light", ob), ob.data)
+    for ob in objects:
+        add(_label("object", ob), ob)
+        for slot in getattr(ob, "material_slots", ()):
+            if slot.material is not None:
+                add(_label("material", slot.material), slot.material)
+    return out
+
+
+def _comparable(value):
+    """A property's value as something == compares (arrays as tuples), floats to 6 places."""
+    if isinstance(value, str):
+        return value
+    try:
+        return tuple(_comparable(v) for v in value)
+    except TypeError:
+        return round(value, 6) if isinstance(value, float) else value
+
+
+def animated_values(id_data):
+    """{data path: value} of a datablock's animated properties (keyframes, NLA strips, drivers) as the
+    current frame evaluates them; an object's that scene_facts sees as motion are left out."""
+    is_object = hasattr(id_data, "matrix_world")
+    out = {}
+    for path in _animated_paths(id_data):
+        if path in out or is_object and (path in OBJECT_MOTION_PATHS or path.startswith(OBJECT_MOTION_PREFIXES)):
+            continue
+        try:
+            out[path] = _comparable(id_data.path_resolve(path))
+        except (ValueError, AttributeError, TypeError):  # a curve whose property no longer exists
+            continue
+    return out
+
+
+def moving_images(shading):
+    """Labels of the image sequences and movies that the node trees of `shading` (shading_ids) show:
+    another picture on each frame."""
+    out = set()
+    for _, id_data in shading:
+        for node in getattr(id_data, "nodes", ()):
+            image = getattr(node, "image", None)
+            if image is not None and getattr(image, "source", None) in MOVING_IMAGE_SOURCES:
+                out.add(_label("image", image))
+    return out
+
+
 def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_pass=False):
     """Steps through the frame range and compares world matrices with the first frame's (each camera's
     with its own, and its projection: a zoom or an animated shift moves the picture; a switch of cameras
@@ -621,6 +756,9 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
     instances = []  # the last frame's (rendered_instances)
     camera_moves = False
     previous_cam = None
+    # What changes the image with no geometry moving: label -> nothing; first values of each animated
+    # property by (label, path), the first frame's rendered objects and lights, lights' matrices.
+    changes, first_values, first_rendered, first_light = set(), {}, None, {}
     shown = []
     try:
         # What is hidden in the viewport alone still renders, but the viewport's depsgraph does not
@@ -637,6 +775,22 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
             previous_cam = cam_key
             obs = visible_objects(scene, layer)
             instances = rendered_instances(layer)
+            lights = rendered_lights(layer)
+            rendered_now = {o.name_full: o.name for o in obs + lights}
+            if first_rendered is None:
+                first_rendered = rendered_now
+            changes.update("visibility of '%s'" % name for key, name in
+                           (rendered_now.items() ^ first_rendered.items()))
+            for o in lights:  # a light that moves moves the shading, not the pixels
+                m = [list(r) for r in o.matrix_world]
+                if first_light.setdefault(o.name_full, m) is not m and not _same(m, first_light[o.name_full]):
+                    changes.add(_label("light", o))
+            shading = shading_ids(scene, obs, lights)
+            changes.update(moving_images(shading))
+            for label, id_data in shading:
+                for path, value in animated_values(id_data).items():
+                    if first_values.setdefault((label, path), value) != value:
+                        changes.add(label)
             # Over every frame: an object that appears later (hide_render keyed) renders there too, and
             # rsaa renders geometry only where something is visible.
             # Each object once (by its full name), listed by name: a linked object and a local one of the
@@ -698,7 +852,9 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
             restore()
         scene.frame_set(saved[0], subframe=saved[1])
         scene.camera = saved[2]
+    if camera_moves:  # its animated lens or shift is motion, already said
+        changes = {c for c in changes if not c.startswith("camera ")}
     return SceneFacts(frame_start=frame_start, frame_end=frame_end, camera_moves=camera_moves,
                       moving_objects=sorted(moving), deforming_objects=sorted(deforming),
                       visible_objects=names, renderer_motion_pass=renderer_motion_pass, camera_cuts=cuts,
-                      shared_id_movers=sorted(shared & (moving | deforming)))
+                      shared_id_movers=sorted(shared & (moving | deforming)), image_changes=sorted(changes))
