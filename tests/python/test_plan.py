@@ -167,3 +167,31 @@ def test_murmurhash3_known_values_and_cryptomatte_float_guard():
         h = hashing.cryptomatte_hash(name)
         assert ((h >> 23) & 0xFF) not in (0, 255)
         assert hashing.cryptomatte_hex(name) == "%08x" % h
+
+
+def test_an_image_that_changes_where_nothing_moves_is_not_averaged():
+    """A keyed material (or light, or visibility) on a still scene: the passes stay those of a still scene
+    (motion is zero), but the temporal methods must not average still pixels, and the plan says what
+    changes; a spatial method is unaffected."""
+    changing = facts(image_changes=["material 'Belt'"])
+    for method in plan.TEMPORAL_METHODS:
+        p = plan.make_plan(method, changing)
+        assert not p.still_average and "material 'Belt'" in p.history_note, (method, p.history_note)
+        assert "material 'Belt'" in p.skipped["motion"] and "history: " in p.describe()
+        assert p.passes == plan.make_plan(method, facts()).passes
+        assert plan.make_plan(method, facts()).still_average
+    for method in ("fxaa", "rsaa", "none"):
+        assert plan.make_plan(method, changing).still_average
+    assert plan.make_plan("taa", changing).to_json()["still_average"] is False
+
+
+def test_deforming_objects_are_not_said_to_be_reprojected_exactly():
+    """Motion reconstruction is rigid (native/motion/reconstruct.h): the reason says so for what deforms,
+    and names it apart from what moves; a renderer's Vector pass follows the deformation."""
+    p = plan.make_plan("taa", facts(moving_objects=["A"], deforming_objects=["Sphere"]))
+    reason = p.reasons["motion"]
+    assert reason.startswith("A move and Sphere deforms:"), reason
+    assert "rigidly" in reason and "trail" in reason, reason
+    rendered = plan.make_plan("taa", facts(deforming_objects=["Sphere"], renderer_motion_pass=True))
+    assert "rigidly" not in rendered.reasons["motion"]
+    assert "rigidly" not in plan.make_plan("taa", facts(moving_objects=["A"])).reasons["motion"]

@@ -1,0 +1,117 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""Change of the image with no geometry moving (plan.scene_facts image_changes): a keyed material, a
+keyed hide_render, a light switched on. Where nothing moves, the temporal filters average every
+still pixel, which keeps the old image where it changed; such a scene must say what changes and have
+its run blend still pixels with neighbourhood clipping (pipeline.with_plan_params). still_life, where
+nothing changes, keeps the average. Also the frame-step note, which names a history only for the
+temporal methods."""
+
+import os
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import harness  # noqa: E402
+
+import bpy  # noqa: E402
+from crisp import pipeline, plan  # noqa: E402
+
+
+def small(scene):
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 64, 36, 100
+    scene.frame_start, scene.frame_end = 1, 4
+    return scene
+
+
+def scroll_material(scene, ob):
+    """A checker on ob scrolled by a keyed Mapping node (animation of the material's node tree)."""
+    mat = bpy.data.materials.new("Belt")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    checker, mapping = nodes.new("ShaderNodeTexChecker"), nodes.new("ShaderNodeMapping")
+    links.new(nodes.new("ShaderNodeTexCoord").outputs["UV"], mapping.inputs["Vector"])
+    links.new(mapping.outputs["Vector"], checker.inputs["Vector"])
+    links.new(checker.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
+    location = mapping.inputs["Location"]
+    location.keyframe_insert("default_value", frame=1)
+    location.default_value = (0.3, 0.1, 0.0)
+    location.keyframe_insert("default_value", frame=4)
+    ob.data.materials.clear()
+    ob.data.materials.append(mat)
+    return mat
+
+
+class ImageChangeTest(unittest.TestCase):
+    def setUp(self):
+        self.scene = small(harness.build_scene("still_life"))
+        self.tmp = tempfile.TemporaryDirectory()
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def mesh(self):
+        return next(o for o in plan.visible_objects(self.scene) if o.type == "MESH")
+
+    def test_still_life_stays_still(self):
+        facts = plan.scene_facts(self.scene, 1, 4)
+        self.assertEqual(facts.image_changes, [])
+        p = plan.make_plan("taa", facts)
+        self.assertTrue(p.still_average)
+        self.assertNotIn("history:", p.describe())
+
+    def test_keyed_material_is_named_and_not_averaged(self):
+        scroll_material(self.scene, self.mesh())
+        facts = plan.scene_facts(self.scene, 1, 4)
+        self.assertFalse(facts.camera_moves or facts.moving_objects or facts.deforming_objects)
+        self.assertEqual(facts.image_changes, ["material 'Belt'"])
+        logged = []
+        result = pipeline.run(self.scene, "taa", [1, 2], os.path.join(self.tmp.name, "taa"), threads=1,
+                              log=logged.append)
+        self.assertFalse(result["plan"]["still_average"])
+        self.assertIs(result["params"].get("staticAccumulation"), False)  # the clipped blend, run for real
+        self.assertIn("history: material 'Belt' changes the image", "\n".join(logged))
+        # A parameter the artist sets is kept.
+        result = pipeline.run(self.scene, "taa", [1], os.path.join(self.tmp.name, "own"), threads=1,
+                              params={"staticAccumulation": True}, log=lambda s: None)
+        self.assertIs(result["params"]["staticAccumulation"], True)
+        # phlm forgets still pixels as fast as moving ones, and a spatial method has nothing to change.
+        phlm = pipeline.with_plan_params("phlm", None, plan.make_plan("phlm", facts))
+        self.assertEqual((phlm["lambda"], phlm["footprintBox"]), (0.7, False))
+        self.assertIsNone(pipeline.with_plan_params("fxaa", None, plan.make_plan("fxaa", facts)))
+
+    def test_keyed_hide_render_is_named(self):
+        ob = self.mesh()
+        ob.hide_render = True
+        ob.keyframe_insert("hide_render", frame=1)
+        ob.hide_render = False
+        ob.keyframe_insert("hide_render", frame=3)
+        facts = plan.scene_facts(self.scene, 1, 4)
+        self.assertIn("visibility of '%s'" % ob.name, facts.image_changes)
+        self.assertFalse(plan.make_plan("taa-improved", facts).still_average)
+
+    def test_light_energy_and_light_motion_are_named(self):
+        light = next(o for o in self.scene.objects if o.type == "LIGHT")
+        light.data.keyframe_insert("energy", frame=1)
+        light.data.energy *= 3
+        light.data.keyframe_insert("energy", frame=4)
+        self.assertEqual(plan.scene_facts(self.scene, 1, 4).image_changes, ["light '%s'" % light.name])
+        light.data.animation_data_clear()
+        light.keyframe_insert("location", frame=1)
+        light.location.x += 1
+        light.keyframe_insert("location", frame=4)
+        facts = plan.scene_facts(self.scene, 1, 4)
+        self.assertEqual((facts.image_changes, facts.moving_objects), (["light '%s'" % light.name], []))
+
+    def test_frame_step_note_names_a_history_only_for_temporal_methods(self):
+        self.scene.frame_step = 2
+        notes = {m: "\n".join(pipeline.scene_notes(self.scene, [1, 2, 3], self.scene.view_layers[0], method=m))
+                 for m in ("fxaa", "rsaa", "taa")}
+        for m in ("fxaa", "rsaa"):
+            self.assertIn("the scene's frame step 2 is not used", notes[m])
+            self.assertNotIn("history", notes[m])
+        self.assertIn("taa's history needs every frame", notes["taa"])
+
+
+if __name__ == "__main__":
+    harness.run(ImageChangeTest)
