@@ -221,7 +221,9 @@ def main(argv):
         "facts": {"camera_moves": facts.camera_moves, "moving_objects": facts.moving_objects,
                   "deforming_objects": facts.deforming_objects, "visible_objects": facts.visible_objects,
                   "camera_cuts": facts.camera_cuts},
-        "plans": {m: p.to_json() for m, p in plans.items()},
+        # With what the plan asks of each filter (pipeline.with_plan_params), which eval.cpp sets where the
+        # row's own settings do not: the rows measure what the add-on runs.
+        "plans": {m: dict(p.to_json(), params=pipeline.with_plan_params(m, None, p) or {}) for m, p in plans.items()},
         "inputs": {m: eval_renders.input_set(plans.get(m)) for m in methods},
         "sets": {name: p.to_json() for name, p in sets.items()},
         "unplanned_methods": unknown, "smaa": compositor.settings(), "scene_files": files_key,

@@ -94,6 +94,9 @@ class SceneFacts:
     # what changes the image over the range with no geometry moving (a keyed material, a light, what
     # renders), as "material 'Belt'": a still pixel's history would keep the old image
     image_changes: list = field(default_factory=list)
+    # the same for a change on a few frames only, a step, as "light 'Switched' (frame 41)": the filters'
+    # hold release takes it in, so still pixels keep their average
+    image_steps: list = field(default_factory=list)
 
 
 @dataclass
@@ -107,7 +110,7 @@ class Plan:
     # False: the image changes where nothing moves (SceneFacts.image_changes), so the temporal filter
     # must not average still pixels (pipeline.with_plan_params turns that off)
     still_average: bool = True
-    history_note: str = ""        # why still_average is off, for describe()
+    history_note: str = ""        # what changes the image with no motion, and what the filter does of it
 
     def render_flags(self):
         """View-layer flags to switch on (everything else off)."""
@@ -119,7 +122,7 @@ class Plan:
     def to_json(self):
         return {"method": self.method, "passes": list(self.passes), "reasons": dict(self.reasons),
                 "skipped": dict(self.skipped), "jitter": self.jitter, "motion_source": self.motion_source,
-                "still_average": self.still_average}
+                "still_average": self.still_average, "history_note": self.history_note}
 
     def describe(self):
         lines = ["plan for %s:" % self.method]
@@ -161,6 +164,11 @@ def make_plan(method, facts):
         "%s change%s the image over frames %d-%d with no motion, so pixels that do not move are blended "
         "with neighbourhood clipping as moving ones are, not averaged (an average would keep the old image)"
         % (changes, "s" if len(facts.image_changes) == 1 else "", facts.frame_start, facts.frame_end))
+    if method in TEMPORAL_METHODS and facts.image_steps:
+        history_note += ("; " if history_note else "") + (
+            "%s change%s the image in a step with no motion: still pixels keep their average until the hold's "
+            "release takes the change in, about two jitter periods later (holdRelease)"
+            % (some_names(facts.image_steps), "s" if len(facts.image_steps) == 1 else ""))
 
     def rigid_movers():
         return (["the camera"] if facts.camera_moves else []) + facts.moving_objects
@@ -756,9 +764,10 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
     instances = []  # the last frame's (rendered_instances)
     camera_moves = False
     previous_cam = None
-    # What changes the image with no geometry moving: label -> nothing; first values of each animated
-    # property by (label, path), the first frame's rendered objects and lights, lights' matrices.
-    changes, first_values, first_rendered, first_light = set(), {}, None, {}
+    # What changes the image with no geometry moving: label -> the frames where it differs from the frame
+    # before; the last frame's values of each animated property by (label, path), rendered objects and
+    # lights, and lights' matrices; what shows another picture on every frame (image sequences).
+    changed_at, last_values, last_rendered, last_light, every_frame = collections.defaultdict(set), {}, None, {}, set()
     shown = []
     try:
         # What is hidden in the viewport alone still renders, but the viewport's depsgraph does not
@@ -777,20 +786,21 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
             instances = rendered_instances(layer)
             lights = rendered_lights(layer)
             rendered_now = {o.name_full: o.name for o in obs + lights}
-            if first_rendered is None:
-                first_rendered = rendered_now
-            changes.update("visibility of '%s'" % name for key, name in
-                           (rendered_now.items() ^ first_rendered.items()))
+            for _, name in rendered_now.items() ^ (last_rendered or rendered_now).items():
+                changed_at["visibility of '%s'" % name].add(f)
+            last_rendered = rendered_now
             for o in lights:  # a light that moves moves the shading, not the pixels
                 m = [list(r) for r in o.matrix_world]
-                if first_light.setdefault(o.name_full, m) is not m and not _same(m, first_light[o.name_full]):
-                    changes.add(_label("light", o))
+                if last_light.setdefault(o.name_full, m) is not m and not _same(m, last_light[o.name_full]):
+                    changed_at[_label("light", o)].add(f)
+                last_light[o.name_full] = m
             shading = shading_ids(scene, obs, lights)
-            changes.update(moving_images(shading))
+            every_frame.update(moving_images(shading))
             for label, id_data in shading:
                 for path, value in animated_values(id_data).items():
-                    if first_values.setdefault((label, path), value) != value:
-                        changes.add(label)
+                    if last_values.setdefault((label, path), value) != value:
+                        changed_at[label].add(f)
+                    last_values[(label, path)] = value
             # Over every frame: an object that appears later (hide_render keyed) renders there too, and
             # rsaa renders geometry only where something is visible.
             # Each object once (by its full name), listed by name: a linked object and a local one of the
@@ -853,8 +863,15 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
         scene.frame_set(saved[0], subframe=saved[1])
         scene.camera = saved[2]
     if camera_moves:  # its animated lens or shift is motion, already said
-        changes = {c for c in changes if not c.startswith("camera ")}
+        changed_at = {c: at for c, at in changed_at.items() if not c.startswith("camera ")}
+    # A change on a few frames (a light switched on, an object popping in) is a step, which the filters'
+    # hold release takes in (temporal/hold_release.h) while still pixels keep their average; one that
+    # goes on, on most frames (a scrolling texture, a moving light, a sequence), would leave that average
+    # behind.
+    going_on = every_frame | {c for c, at in changed_at.items() if 2 * len(at) > frame_end - frame_start}
+    stepped = {c: at for c, at in changed_at.items() if c not in going_on}
     return SceneFacts(frame_start=frame_start, frame_end=frame_end, camera_moves=camera_moves,
                       moving_objects=sorted(moving), deforming_objects=sorted(deforming),
                       visible_objects=names, renderer_motion_pass=renderer_motion_pass, camera_cuts=cuts,
-                      shared_id_movers=sorted(shared & (moving | deforming)), image_changes=sorted(changes))
+                      shared_id_movers=sorted(shared & (moving | deforming)), image_changes=sorted(going_on),
+                      image_steps=["%s (frame %s)" % (c, ", ".join(map(str, sorted(at)))) for c, at in sorted(stepped.items())])

@@ -322,6 +322,10 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   std::unique_ptr<Filter> filter = createFilter(context, e.method);
   const MethodSpec spec = parseMethodSpec(e.name);
   for (const auto& [key, value] : spec.params) filter->params().setFromText(key, value);
+  // What the scene's plan asks of the filter (a still-pixel average switched off where the image changes
+  // with nothing moving; scene.json "plans"), as the add-on runs it, where the row's settings do not say.
+  for (const auto& [key, value] : e.planParams)
+    if (!spec.gives(key)) filter->params().setFromText(key, value);
   // rsaa on a plan that rendered no geometry (no visible object, so no geometric edge) keeps every
   // colour, as the add-on filters it (native.FrameFilter): 'none'; setting its parameters above checked them.
   if (readsSubsamples(*filter) && !e.subsamplesRendered) filter = createFilter(context, "none");
@@ -651,6 +655,16 @@ int run(const Options& o) {
     e.inputSet = set;
     const json& plan = scene["plans"].contains(e.method) ? scene["plans"][e.method] : json::object();
     e.temporal = plan.value("jitter", false);
+    if (plan.contains("params") && plan["params"].is_object())
+      for (const auto& [key, value] : plan["params"].items()) {
+        const MethodSpec spec = parseMethodSpec(m);
+        if (spec.gives(key)) continue;
+        e.planParams.emplace_back(key, value.is_string() ? value.get<std::string>() : value.dump());
+        // Said under --quiet too: it changes what the row measures.
+        std::fprintf(stderr, "crisp eval: %s runs with %s=%s, as its plan for this scene asks (%s)\n", m.c_str(),
+                     key.c_str(), e.planParams.back().second.c_str(),
+                     plan.value("history_note", std::string("the scene's plan")).c_str());
+      }
     if (plan.contains("passes") && plan["passes"].is_array()) {
       const json& passes = plan["passes"];
       e.subsamplesRendered = std::find(passes.begin(), passes.end(), "subsamples") != passes.end();

@@ -61,6 +61,8 @@ struct Entry {
   bool temporal = false;
   bool subsamplesRendered = true;  // false: its plan renders no geometric sub-samples (rsaa, nothing visible)
   bool panel = false;    // the setting of the scene's Crisp panel (Options::panel "row")
+  // What the scene's plan sets (scene.json "plans" "params") where the spec does not, as text.
+  std::vector<std::pair<std::string, std::string>> planParams;
   std::string error;     // not empty: the method failed, this says why
   std::vector<FrameFigures> frames;
   double psnr = kNaN, ssim = kNaN, flip = kNaN, temporalError = kNaN;

@@ -80,6 +80,31 @@ class ImageChangeTest(unittest.TestCase):
         self.assertEqual((phlm["lambda"], phlm["footprintBox"]), (0.7, False))
         self.assertIsNone(pipeline.with_plan_params("fxaa", None, plan.make_plan("fxaa", facts)))
 
+    def test_eval_measures_what_the_add_on_runs(self):
+        """crisp eval's taa row runs with the plan's staticAccumulation=false too, and says so; a row that
+        sets it keeps its own value."""
+        import json
+        import subprocess
+        scroll_material(self.scene, self.mesh())
+        blend = os.path.join(self.tmp.name, "scroll.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+        out = os.path.join(self.tmp.name, "eval")
+        p = subprocess.run([os.path.join(harness.BUILD_DIR, "bin", "crisp"), "eval", "--scene", blend, "--frames",
+                            "1-2", "--methods", "taa,taa:staticAccumulation=true", "--resolution", "48x27",
+                            "--reference-samples", "2", "--curve", "1", "-q", "-o", out],
+                           capture_output=True, text=True, timeout=600)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("taa runs with staticAccumulation=false, as its plan for this scene asks (material 'Belt'",
+                      p.stderr)
+        self.assertNotIn("taa:staticAccumulation=true runs with", p.stderr)
+        with open(os.path.join(out, "renders", "scene.json")) as f:
+            self.assertEqual(json.load(f)["plans"]["taa"]["params"], {"staticAccumulation": False})
+        with open(os.path.join(out, "results.json")) as f:
+            rows = {m["name"]: m for m in json.load(f)["scenes"][0]["methods"]}
+        # The two settings differ on the second frame, where the average and the clipped blend part.
+        a, b = (rows[n]["frames"][-1]["psnr"] for n in ("taa", "taa:staticAccumulation=true"))
+        self.assertNotEqual(a, b)
+
     def test_keyed_hide_render_is_named(self):
         ob = self.mesh()
         ob.hide_render = True
@@ -87,8 +112,28 @@ class ImageChangeTest(unittest.TestCase):
         ob.hide_render = False
         ob.keyframe_insert("hide_render", frame=3)
         facts = plan.scene_facts(self.scene, 1, 4)
+        # A pop-in is a step: the hold's release takes it in, and still pixels keep their average.
+        self.assertEqual(facts.image_steps, ["visibility of '%s' (frame 3)" % ob.name])
+        self.assertEqual(facts.image_changes, [])
+        self.assertTrue(plan.make_plan("taa-improved", facts).still_average)
+        # Switched on and off on most frames, it goes on: no average.
+        for f in (2, 3, 4):  # keys: hidden at 1, shown at 2, hidden at 3, shown at 4
+            ob.hide_render = f == 3
+            ob.keyframe_insert("hide_render", frame=f)
+        facts = plan.scene_facts(self.scene, 1, 4)
         self.assertIn("visibility of '%s'" % ob.name, facts.image_changes)
         self.assertFalse(plan.make_plan("taa-improved", facts).still_average)
+
+    def test_a_light_switched_on_is_a_step_that_keeps_the_average(self):
+        """light_switch's lamp (CONSTANT keys, on at frame 41): the hold's release takes it in, so the
+        average stays, and the plan says when the image changes."""
+        scene = small(harness.build_scene("light_switch"))
+        facts = plan.scene_facts(scene, 1, 80)
+        self.assertEqual((facts.image_changes, facts.image_steps), ([], ["light 'Switched' (frame 41)"]))
+        p = plan.make_plan("taa", facts)
+        self.assertTrue(p.still_average)
+        self.assertIn("light 'Switched' (frame 41) changes the image in a step", p.describe())
+        self.assertIsNone(pipeline.with_plan_params("taa", None, p))
 
     def test_light_energy_and_light_motion_are_named(self):
         light = next(o for o in self.scene.objects if o.type == "LIGHT")
