@@ -300,6 +300,45 @@ def test_eval_settings_take_a_size_however_it_is_spelled(tmp_path):
     assert p.returncode == 2 and 'resolution "64x36" there, "48x27" here' in p.stderr, p.stderr
 
 
+def report_links_missing(out):
+    """The files out/results.json names (frames, crops, the pictures of its methods) that are not there."""
+    if not (out / "results.json").exists():
+        return []
+    missing = []
+    for scene in json.loads((out / "results.json").read_text())["scenes"]:
+        named = [f for c in scene["crops"] for files in c["files"].values() for f in files]
+        named += [f["file"] for e in scene["methods"] + scene["eevee_curve"] for f in e["frames"] if f.get("file")]
+        named += ["images/full/%s.png" % e["name"] for e in scene["methods"] if not e["error"]]
+        missing += [f for f in named if not (out / f).exists()]
+    return missing
+
+
+@pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
+def test_a_rerun_failing_while_it_measures_leaves_no_report_of_missing_pictures(tmp_path):
+    """A rerun removed the last run's pictures as it began to measure and kept its report.html and
+    results.json: one stopped there (Ctrl-C, or here an unreadable method frame) left a report whose images
+    were gone. Now no report is left; the next run makes it whole again."""
+    out = tmp_path / "out"
+    args = ["eval", "--scene", "still_life", "--frames", "1-1", "--methods", "fxaa", "--resolution", "48x27",
+            "--reference-samples", "2", "--curve", "1", "--quiet", "-o", out]
+    run(*args)
+    assert (out / "report.html").is_file() and not report_links_missing(out)
+    frame = out / "methods" / "fxaa" / "frame_0001.exr"
+    frame.write_bytes(b"not an EXR")  # taken as done (its input unchanged), read only once measuring began
+    p = run(*args, ok=False)
+    assert p.returncode != 0 and str(frame) in p.stderr, p.stderr
+    assert not (out / "images" / "full" / "fxaa.png").exists(), "failed before the pictures went: nothing tested"
+    assert not (out / "report.html").exists() and not (out / "results.csv").exists(), p.stderr
+    assert not report_links_missing(out)
+    frame.unlink()
+    # The list of the pictures to remove, as a run stopped after withdrawing it leaves it: the next run removes them.
+    (out / "images" / "full" / "gone.png").write_bytes(b"")
+    (out / ".results_withdrawn.json").write_text(json.dumps({"scenes": [{"methods": [{"name": "gone"}]}]}))
+    run(*args)
+    assert (out / "report.html").is_file() and (out / "results.json").is_file() and not report_links_missing(out)
+    assert not (out / ".results_withdrawn.json").exists() and not (out / "images" / "full" / "gone.png").exists()
+
+
 def _method_child_of(pid):
     """A process crisp eval forked to run a method (its executable is crisp), or None."""
     for children in glob.glob("/proc/%d/task/*/children" % pid):
@@ -1481,3 +1520,4 @@ def test_render_of_a_file_with_several_scenes_says_which_it_renders(tmp_path):
     p = subprocess.run([str(CRISP), "render", "--scene", "still_life", "--scene-name", "Scene", "--plan", "-o",
                         str(tmp_path / "bundled")], capture_output=True, text=True, timeout=60)
     assert p.returncode == 2 and "--scene-name picks a scene of a .blend file" in p.stderr, p.stderr
+
