@@ -257,6 +257,9 @@ def main(argv):
         missing = sum(len(eval_renders.TimeBook(os.path.join(out, n)).missing(frames)) for n, _ in jobs)
         if missing:
             eval_renders.warm_up(scene, os.path.join(out, "warmup"))
+        for name, the_plan in sets.items():  # each pass configuration's first render costs more still
+            if eval_renders.input_frames_to_render(scene, the_plan, frames, os.path.join(out, name), args.jitter):
+                eval_renders.warm_up(scene, os.path.join(out, "warmup", name), the_plan, args.jitter)
         t_last[0] = time.perf_counter()
         # Frame by frame across the curve and the input sets, so that load from other processes on a
         # shared machine spreads over every sample count instead of skewing one of them.
