@@ -164,6 +164,10 @@ def main(argv):
         sys.path.insert(0, os.path.dirname(path))
         runpy.run_path(path, run_name="__main__")
     scene = batch.named_scene(args.scene_name)
+    said = batch.active_scene_line(scene, args.scene_name)
+    if said:  # Blender's output goes to the log: crisp eval shows a "say" line of the progress pipe
+        progress.write("say %s\n" % said)
+        progress.flush()
     # An experiment knob (issue 5): EEVEE's pixel filter (render.filter_size, px) for every render of
     # the run. The 1-sample frames do not depend on it (their one sample sits on the pixel centre);
     # the reference and the curve do: EEVEE spreads its samples over +-filter_size px with

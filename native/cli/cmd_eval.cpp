@@ -346,7 +346,11 @@ int runEval(const ParsedArgs& args) {
   auto t0 = std::chrono::steady_clock::now();
   const bool tty = isatty(fileno(stderr)) != 0;
   const BlenderRun run = runBlender(cmd, BlenderOutput::Logged, log.string(), [&](const std::string& line) {
-    if (!quiet) showRenderProgress(line, tty);
+    if (quiet) return;
+    if (line.rfind("say ", 0) == 0)  // a line for the user (batch_eval.py: which scene of the file it took)
+      std::fprintf(stderr, "%s", line.substr(4).c_str());
+    else
+      showRenderProgress(line, tty);
   });
   if (!quiet && tty) std::fprintf(stderr, "\n");
   const int code = run.signal ? 128 + run.signal : run.exitCode;

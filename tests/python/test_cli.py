@@ -1543,3 +1543,26 @@ def test_eval_warms_each_pass_configuration_up_before_timing_it(tmp_path):
     run(*args)
     assert not (out / "renders" / "warmup").exists(), "warmed up with nothing to render"
 
+
+TWO_SCENES = ('o = bpy.data.scenes.new("Other Shot"); o.collection.objects.link(bpy.context.scene.camera); '
+              'o.camera = bpy.context.scene.camera')
+
+
+@needs_blender
+def test_eval_of_a_file_with_several_scenes_says_which_it_measures(tmp_path):
+    """crisp eval of a .blend holding several scenes said nothing of which it took (crisp render names it and
+    the others, and the README says eval does): it says so in the same line, and the report's heading names
+    the scene beside the file's name."""
+    blend = panel_blend(tmp_path / "two.blend", TWO_SCENES)
+    out = tmp_path / "out"
+    p = eval_panel(blend, out, "--methods", "none", "--no-panel")
+    scene = eval_results(out)[2]
+    assert scene["blender_scene"] != "Other Shot" and scene["name"] == "two"
+    assert "crisp: scene '%s', the file's active scene (others: 'Other Shot';" % scene["blender_scene"] in p.stderr, \
+        p.stderr[-3000:]
+    if shutil.which("chromium"):
+        dom = subprocess.run(["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--user-data-dir=" +
+                              str(tmp_path / "profile"), "--virtual-time-budget=3000", "--dump-dom",
+                              "file://" + str(out / "report.html")], capture_output=True, text=True, timeout=120)
+        assert "Scene <b>two</b> (its scene <b>%s</b>)" % scene["blender_scene"] in dom.stdout, dom.stdout[:3000]
+
