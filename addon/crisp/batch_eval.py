@@ -205,6 +205,15 @@ def main(argv):
                 "'%s' holds renders made when the scene's linked libraries, images or other files were "
                 "others (scene_files %s there, %s here); use another -o folder or delete it"
                 % (os.path.dirname(os.path.normpath(out)), there, files_key))
+        # crisp eval's settings key holds the file, not which of its scenes: the scene the renders are of
+        # is the record's, however it was chosen (--scene-name, or the file's active scene).
+        there = record.get("scene") if isinstance(record, dict) else None
+        if there and there != scene.name and eval_renders.holds_renders(out):
+            raise pipeline.InputError(
+                "'%s' holds renders of the scene '%s', not of '%s' (%s); give --scene-name '%s' to measure that "
+                "one, use another -o folder or delete it"
+                % (os.path.dirname(os.path.normpath(out)), there, scene.name,
+                   "--scene-name" if args.scene_name else "the file's active scene", there))
         plans, sets, unknown, facts = eval_renders.group_plans(scene, methods, frames)
         pipeline.check_camera_shifts(scene, list(plans))
     except pipeline.InputError as e:

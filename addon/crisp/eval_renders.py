@@ -112,6 +112,12 @@ def warm_up(scene, folder, the_plan=None, jitter_distribution="blackman-harris")
     return time.perf_counter() - t0
 
 
+def holds_renders(folder):
+    """Whether a run rendered anything into folder: an EXR anywhere under it (not a hidden one, the
+    temporary name of a render that did not finish), as crisp eval tells (cmd_eval.cpp holdsRenders)."""
+    return any(f.endswith(".exr") and not f.startswith(".") for _, _, files in os.walk(folder) for f in files)
+
+
 def render_curve_set(scene, frames, folder, samples, step):
     book = TimeBook(folder)
     for f in frames:

@@ -1566,3 +1566,28 @@ def test_eval_of_a_file_with_several_scenes_says_which_it_measures(tmp_path):
                               "file://" + str(out / "report.html")], capture_output=True, text=True, timeout=120)
         assert "Scene <b>two</b> (its scene <b>%s</b>)" % scene["blender_scene"] in dom.stdout, dom.stdout[:3000]
 
+
+@needs_blender
+def test_eval_keys_a_folder_to_its_scene_however_it_is_chosen(tmp_path):
+    """The folder's key held a --scene-name only when given: naming the active scene after a run without the
+    option was refused as other settings (scene_contents). The same scene is accepted however chosen;
+    another is refused naming --scene-name; settings written by the builds before are still read."""
+    blend = panel_blend(tmp_path / "two.blend", TWO_SCENES)
+    out = tmp_path / "out"
+    eval_panel(blend, out, "--methods", "none", "--no-panel")
+    active = eval_results(out)[2]["blender_scene"]
+    eval_panel(blend, out, "--methods", "none", "--no-panel", "--scene-name", active)
+    p = eval_panel(blend, out, "--methods", "none", "--no-panel", "--scene-name", "Other Shot", ok=False)
+    assert p.returncode == 2, p.stderr[-3000:]
+    assert "holds renders of the scene '%s', not of 'Other Shot' (--scene-name); give --scene-name '%s'" % (
+        active, active) in p.stderr, p.stderr[-3000:]
+    # The key of the builds before, which hashed a --scene-name given after the file's bytes (FNV-1a 64).
+    key = 0xcbf29ce484222325
+    for byte in blend.read_bytes() + ("\nscene-name\n" + active).encode():
+        key = ((key ^ byte) * 0x100000001b3) & 0xffffffffffffffff
+    settings = json.loads((out / "eval_settings.json").read_text())
+    (out / "eval_settings.json").write_text(json.dumps(dict(settings, scene_contents="fnv1a64:%016x" % key)))
+    eval_panel(blend, out, "--methods", "none", "--no-panel", "--scene-name", active)
+    assert json.loads((out / "eval_settings.json").read_text()) == settings
+    eval_panel(blend, out, "--methods", "none", "--no-panel")
+
