@@ -186,7 +186,18 @@ int runEval(const ParsedArgs& args) {
     if (m == "blender-smaa") continue;  // always measured
     // Bad parameters are refused now, before anything is rendered.
     settingOf[m] = checkedMethodSpec(m, "--methods '" + m + "'");
-    if (std::find(methods.begin(), methods.end(), m) == methods.end()) methods.push_back(m);
+    // Another spelling of a setting listed before ("taa:sharpen=.5" after "taa:sharpen=0.5") would be a
+    // second row of the same figures: measured once, under the first spelling.
+    const auto same = std::find_if(methods.begin(), methods.end(), [&](const std::string& k) {
+      return settingOf.count(k) && settingOf[k] == settingOf[m];
+    });
+    if (same != methods.end()) {
+      if (*same != m)
+        std::fprintf(stderr, "crisp eval: --methods '%s' is the setting of '%s': measured once, as '%s'\n",
+                     m.c_str(), same->c_str(), same->c_str());
+      continue;
+    }
+    methods.push_back(m);
     addRendered(m);
   }
   std::string curve = args.getOr("curve", "");

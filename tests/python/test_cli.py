@@ -1591,3 +1591,15 @@ def test_eval_keys_a_folder_to_its_scene_however_it_is_chosen(tmp_path):
     assert json.loads((out / "eval_settings.json").read_text()) == settings
     eval_panel(blend, out, "--methods", "none", "--no-panel")
 
+
+@needs_blender
+def test_eval_measures_two_spellings_of_one_setting_once(tmp_path):
+    """--methods taa:sharpen=0.5,taa:sharpen=.5 measured two rows of the same figures; the code knew them
+    equal (checkedMethodSpec) and used it only for the panel's row. One row, the first spelling, said so."""
+    out = tmp_path / "out"
+    p = run("eval", "--scene", "still_life", "--frames", "1-1", "--methods", "taa:sharpen=0.5,fxaa,taa:sharpen=.5",
+            "--resolution", "48x27", "--reference-samples", "2", "--curve", "1", "--quiet", "-o", out)
+    assert eval_results(out)[0] == ["none", "taa:sharpen=0.5", "fxaa", "blender-smaa"]
+    assert "crisp eval: --methods 'taa:sharpen=.5' is the setting of 'taa:sharpen=0.5': measured once, as " \
+           "'taa:sharpen=0.5'" in p.stderr, p.stderr
+    assert not (out / "methods" / "taa:sharpen=.5").exists()
