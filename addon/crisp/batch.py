@@ -162,6 +162,18 @@ def named_scene(name):
     return scene
 
 
+def active_scene_line(scene, name):
+    """Blender opens a .blend at the scene it was saved with: the line that says which, when the file holds
+    others and --scene-name (name) did not choose it; else None. crisp render and crisp eval say it."""
+    import bpy
+    from crisp import plan
+    others = sorted(s.name for s in bpy.data.scenes if s != scene and s.library is None)
+    if not others or name:
+        return None
+    return ("crisp: scene '%s', the file's active scene (others: %s; --scene-name NAME renders another)"
+            % (scene.name, plan.some_names(others, quote=True)))
+
+
 def scene_script_path(text):
     if os.path.isfile(text):
         return os.path.abspath(text)
@@ -427,7 +439,7 @@ def panel_line(method, jitter, from_panel, command="render", jitters=None, codec
 def main(argv):
     import runpy
     import bpy
-    from crisp import native, pipeline, plan, render
+    from crisp import native, pipeline, render
 
     class ArgError(Exception):
         pass
@@ -482,10 +494,9 @@ def main(argv):
     said = panel_line(method, jitter, from_panel, codec=codec)
     if said:
         print(said, flush=True)
-    others = sorted(s.name for s in bpy.data.scenes if s != scene and s.library is None)
-    if others and not args.scene_name:  # Blender opens a .blend at the scene it was saved with: say which
-        print("crisp: scene '%s', the file's active scene (others: %s; --scene-name NAME renders another)"
-              % (scene.name, plan.some_names(others, quote=True)), flush=True)
+    said = active_scene_line(scene, args.scene_name)
+    if said:
+        print(said, flush=True)
 
     try:
         out = pipeline.output_argument(args.output)

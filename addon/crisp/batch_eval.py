@@ -164,6 +164,10 @@ def main(argv):
         sys.path.insert(0, os.path.dirname(path))
         runpy.run_path(path, run_name="__main__")
     scene = batch.named_scene(args.scene_name)
+    said = batch.active_scene_line(scene, args.scene_name)
+    if said:  # Blender's output goes to the log: crisp eval shows a "say" line of the progress pipe
+        progress.write("say %s\n" % said)
+        progress.flush()
     # An experiment knob (issue 5): EEVEE's pixel filter (render.filter_size, px) for every render of
     # the run. The 1-sample frames do not depend on it (their one sample sits on the pixel centre);
     # the reference and the curve do: EEVEE spreads its samples over +-filter_size px with
@@ -201,6 +205,15 @@ def main(argv):
                 "'%s' holds renders made when the scene's linked libraries, images or other files were "
                 "others (scene_files %s there, %s here); use another -o folder or delete it"
                 % (os.path.dirname(os.path.normpath(out)), there, files_key))
+        # crisp eval's settings key holds the file, not which of its scenes: the scene the renders are of
+        # is the record's, however it was chosen (--scene-name, or the file's active scene).
+        there = record.get("scene") if isinstance(record, dict) else None
+        if there and there != scene.name and eval_renders.holds_renders(out):
+            raise pipeline.InputError(
+                "'%s' holds renders of the scene '%s', not of '%s' (%s); give --scene-name '%s' to measure that "
+                "one, use another -o folder or delete it"
+                % (os.path.dirname(os.path.normpath(out)), there, scene.name,
+                   "--scene-name" if args.scene_name else "the file's active scene", there))
         plans, sets, unknown, facts = eval_renders.group_plans(scene, methods, frames)
         pipeline.check_camera_shifts(scene, list(plans))
     except pipeline.InputError as e:
@@ -259,6 +272,9 @@ def main(argv):
         missing = sum(len(eval_renders.TimeBook(os.path.join(out, n)).missing(frames)) for n, _ in jobs)
         if missing:
             eval_renders.warm_up(scene, os.path.join(out, "warmup"))
+        for name, the_plan in sets.items():  # each pass configuration's first render costs more still
+            if eval_renders.input_frames_to_render(scene, the_plan, frames, os.path.join(out, name), args.jitter):
+                eval_renders.warm_up(scene, os.path.join(out, "warmup", name), the_plan, args.jitter)
         t_last[0] = time.perf_counter()
         # Frame by frame across the curve and the input sets, so that load from other processes on a
         # shared machine spreads over every sample count instead of skewing one of them.

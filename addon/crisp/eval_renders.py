@@ -98,12 +98,24 @@ def input_set(plan):
     return plan_mod.render_set_name(plan)
 
 
-def warm_up(scene, folder):
+def warm_up(scene, folder, the_plan=None, jitter_distribution="blackman-harris"):
     """One untimed 1-sample render: EEVEE compiles its shaders on the first render of a process
-    (~10 s here), which would otherwise land on whichever render comes first."""
+    (~10 s here), which would otherwise land on whichever render comes first; and again, ~1.3 s against
+    ~0.05 s after, on the first render with other passes (an input set's plan), which would land on that
+    set's first frame."""
     t0 = time.perf_counter()
-    render.render_reference(scene, [scene.frame_current], folder, 1)
+    if the_plan is None:
+        render.render_reference(scene, [scene.frame_current], folder, 1)
+    else:
+        render.render_frames(scene, the_plan, [scene.frame_current], folder, samples=1,
+                             jitter_distribution=jitter_distribution)
     return time.perf_counter() - t0
+
+
+def holds_renders(folder):
+    """Whether a run rendered anything into folder: an EXR anywhere under it (not a hidden one, the
+    temporary name of a render that did not finish), as crisp eval tells (cmd_eval.cpp holdsRenders)."""
+    return any(f.endswith(".exr") and not f.startswith(".") for _, _, files in os.walk(folder) for f in files)
 
 
 def render_curve_set(scene, frames, folder, samples, step):
@@ -117,13 +129,21 @@ def render_curve_set(scene, frames, folder, samples, step):
         step(os.path.basename(folder), f, samples)
 
 
-def render_input_set(scene, the_plan, frames, folder, jitter_distribution, step):
-    """Renders the frames of one input set that are missing, or were rendered with other passes or
-    settings (an earlier run with other methods: reusing them would hand a method fewer passes)."""
+def input_frames_to_render(scene, the_plan, frames, folder, jitter_distribution):
+    """The frames of an input set that are missing, or were rendered with other passes or settings (an
+    earlier run with other methods: reusing them would hand a method fewer passes)."""
     book = TimeBook(folder)
     engine = render.eevee_engine(scene)
+    return [f for f in frames
+            if not (book.done(f) and render.reusable_input(scene, engine, folder, f, the_plan, 1, jitter_distribution))]
+
+
+def render_input_set(scene, the_plan, frames, folder, jitter_distribution, step):
+    """Renders the frames of one input set that input_frames_to_render lists."""
+    to_render = input_frames_to_render(scene, the_plan, frames, folder, jitter_distribution)
+    book = TimeBook(folder)
     for f in frames:
-        if book.done(f) and render.reusable_input(scene, engine, folder, f, the_plan, 1, jitter_distribution):
+        if f not in to_render:
             step(os.path.basename(folder), f, 1, skipped=True)
             continue
         info = render.render_frames(scene, the_plan, [f], folder, samples=1,

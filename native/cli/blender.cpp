@@ -130,7 +130,7 @@ fs::path blenderOutputFolder(const ParsedArgs& args) {
   return fs::absolute(scene).parent_path() / out.substr(2);
 }
 
-std::string sceneFingerprint(const ParsedArgs& args) {
+std::string sceneFingerprint(const ParsedArgs& args, const std::string& olderBuildsSceneName) {
   const std::string scene = args.get("scene");
   std::vector<fs::path> files;
   if (fs::path(scene).extension() == ".blend") {
@@ -149,9 +149,9 @@ std::string sceneFingerprint(const ParsedArgs& args) {
   std::uint64_t hash = kFnv1a64Seed;
   for (const fs::path& f : files)
     if (!fnv1a64OfFile(f.string(), hash)) fail(CRISP_ERROR_IO, "cannot read the scene file '" + f.string() + "'");
-  // Another scene of the same file is other frames (a name only where one is given: the keys of earlier
-  // runs, of the saved scene, stay the same).
-  if (args.has("scene-name")) fnv1a64OfText("\nscene-name\n" + args.get("scene-name"), hash);
+  // Builds before this one hashed --scene-name in where it was given: the same scene chosen as the file's
+  // active one had another key, and a folder was refused to the same scene named.
+  if (!olderBuildsSceneName.empty()) fnv1a64OfText("\nscene-name\n" + olderBuildsSceneName, hash);
   return "fnv1a64:" + hex64(hash);
 }
 

@@ -186,7 +186,18 @@ int runEval(const ParsedArgs& args) {
     if (m == "blender-smaa") continue;  // always measured
     // Bad parameters are refused now, before anything is rendered.
     settingOf[m] = checkedMethodSpec(m, "--methods '" + m + "'");
-    if (std::find(methods.begin(), methods.end(), m) == methods.end()) methods.push_back(m);
+    // Another spelling of a setting listed before ("taa:sharpen=.5" after "taa:sharpen=0.5") would be a
+    // second row of the same figures: measured once, under the first spelling.
+    const auto same = std::find_if(methods.begin(), methods.end(), [&](const std::string& k) {
+      return settingOf.count(k) && settingOf[k] == settingOf[m];
+    });
+    if (same != methods.end()) {
+      if (*same != m)
+        std::fprintf(stderr, "crisp eval: --methods '%s' is the setting of '%s': measured once, as '%s'\n",
+                     m.c_str(), same->c_str(), same->c_str());
+      continue;
+    }
+    methods.push_back(m);
     addRendered(m);
   }
   std::string curve = args.getOr("curve", "");
@@ -300,9 +311,11 @@ int runEval(const ParsedArgs& args) {
   // frame must match the first run's: the scene (its name or path, and what its .blend or script
   // holds: sceneFingerprint), its size and EEVEE's pixel filter (CRISP_EVAL_FILTER_SIZE,
   // batch_eval.py), which shapes the reference, the curve and the Blackman-Harris jitter. (A changed
-  // --jitter renders the jittered set again: its sidecars say how it was drawn.) Settings files of
-  // older builds lack the last two: the filter size was the scene's; the contents are taken as
-  // they are now.
+  // --jitter renders the jittered set again: its sidecars say how it was drawn; which scene of the
+  // file the renders are of, batch_eval.py checks against their record, as only Blender knows the
+  // file's active scene.) Settings files of older builds lack the last two: the filter size was the
+  // scene's; the contents are taken as they are now. Those of builds that hashed a --scene-name into
+  // the contents are read as the key of the scene their renders record.
   const fs::path settings = outDir / "eval_settings.json";
   const nlohmann::json want = {{"scene", scene},
                                {"scene_contents", sceneFingerprint(args)},
@@ -315,6 +328,13 @@ int runEval(const ParsedArgs& args) {
     nlohmann::json have = nlohmann::json::parse(in, nullptr, false);
     if (have.is_object() && !have.contains("filter_size")) have["filter_size"] = "";
     if (have.is_object() && !have.contains("scene_contents")) have["scene_contents"] = want["scene_contents"];
+    if (have.is_object() && have["scene_contents"] != want["scene_contents"]) {
+      std::ifstream recordFile(renders / "scene.json");
+      const nlohmann::json record = nlohmann::json::parse(recordFile, nullptr, false);
+      const std::string named = record.is_object() ? record.value("scene", std::string()) : std::string();
+      if (!named.empty() && have["scene_contents"] == sceneFingerprint(args, named))
+        have["scene_contents"] = want["scene_contents"];
+    }
     if (have.is_object() && have.contains("resolution") && have["resolution"].is_string())  // spelled as then
       have["resolution"] = canonicalResolution(have["resolution"].get<std::string>());
     if (have != want) {
@@ -346,7 +366,11 @@ int runEval(const ParsedArgs& args) {
   auto t0 = std::chrono::steady_clock::now();
   const bool tty = isatty(fileno(stderr)) != 0;
   const BlenderRun run = runBlender(cmd, BlenderOutput::Logged, log.string(), [&](const std::string& line) {
-    if (!quiet) showRenderProgress(line, tty);
+    if (quiet) return;
+    if (line.rfind("say ", 0) == 0)  // a line for the user (batch_eval.py: which scene of the file it took)
+      std::fprintf(stderr, "%s", line.substr(4).c_str());
+    else
+      showRenderProgress(line, tty);
   });
   if (!quiet && tty) std::fprintf(stderr, "\n");
   const int code = run.signal ? 128 + run.signal : run.exitCode;

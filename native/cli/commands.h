@@ -135,8 +135,10 @@ std::filesystem::path blenderOutputFolder(const ParsedArgs& args);
 // What the --scene of args is made of, as "fnv1a64:<hex>": the bytes of the
 // .blend, or of the bundled scene's script, the test_scenes/common.py it
 // imports and the other bundled scenes it imports (light_switch: still_life).
-// Files the scene links or loads (textures, libraries) are not in it.
-std::string sceneFingerprint(const ParsedArgs& args);
+// Files the scene links or loads (textures, libraries) are not in it, nor
+// which of the file's scenes is meant (only Blender knows the active one).
+// olderBuildsSceneName: the key earlier builds wrote for that --scene-name.
+std::string sceneFingerprint(const ParsedArgs& args, const std::string& olderBuildsSceneName = "");
 // Whether the run reads the --scene's Crisp panel (addon/crisp/batch.py
 // panel_settings): a .blend's, unless --no-panel (a bundled scene's is never set).
 bool readsScenePanel(const ParsedArgs& args);

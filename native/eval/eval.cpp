@@ -508,12 +508,12 @@ double valueAt(const std::map<int, double>& m, int f) {
   return it == m.end() ? kNaN : it->second;
 }
 
-// The pictures the last run into `out` listed in its results.json (its crops' frames, its methods'
+// The pictures a run into `out` listed in `record` (its results.json: its crops' frames, its methods'
 // maps and full images), so that a shorter run, or one with fewer methods, does not leave them beside
 // its own. Only those: anything else in the folder is left alone, and a listed path that leads out
 // of out/images is ignored.
-void removeLastRunsPictures(const fs::path& out) {
-  const json last = readJson(out / "results.json", false);
+void removePicturesListedIn(const fs::path& out, const fs::path& record) {
+  const json last = readJson(record, false);
   if (!last.is_object() || !last.contains("scenes") || !last["scenes"].is_array()) return;
   std::error_code ec;
   const fs::path images = fs::weakly_canonical(out / "images", ec);
@@ -552,6 +552,25 @@ void removeLastRunsPictures(const fs::path& out) {
     if (it->is_directory(ec)) folders.push_back(it->path());
   for (auto f = folders.rbegin(); f != folders.rend(); ++f)
     if (fs::is_empty(*f, ec)) fs::remove(*f, ec);
+}
+
+// The last run's report and pictures, withdrawn before this run changes a file they show (the methods'
+// frames, then the pictures): a run stopped or failing halfway leaves no report at all rather than one
+// linking missing or newer files. The report goes first; results.json, the list of the pictures, is
+// renamed out of the way at once (a reader never finds it without its pictures) and removed only after
+// them, so a run stopped in between leaves the list for the next run to finish the job.
+void withdrawLastReport(const fs::path& out) {
+  std::error_code ec;
+  fs::remove(out / "report.html", ec);
+  fs::remove(out / "results.csv", ec);
+  const fs::path withdrawn = out / ".results_withdrawn.json";
+  if (fs::exists(withdrawn, ec)) removePicturesListedIn(out, withdrawn);  // left by a run stopped here
+  if (fs::exists(out / "results.json", ec)) {
+    fs::rename(out / "results.json", withdrawn, ec);
+    if (ec) ioError("cannot withdraw the last report's '" + (out / "results.json").string() + "': " + ec.message());
+    removePicturesListedIn(out, withdrawn);
+  }
+  fs::remove(withdrawn, ec);
 }
 
 json figuresJson(const Entry& e, const EdgeFigures& x, int meanFrom) {
@@ -687,6 +706,8 @@ int run(const Options& o) {
     curve.push_back(e);
   }
 
+  withdrawLastReport(out);
+
   // 1. Run the library methods, frames in order, each in a child process so that a method that
   // crashes is reported in the page instead of taking the evaluation down. Nothing in this process
   // has used the thread pool yet, so each child starts its own.
@@ -804,7 +825,6 @@ int run(const Options& o) {
   Image errorSum(width, height, 1);  // the 1-sample frames' squared error, summed over errorFrames frames
   int errorFrames = 0;
   const fs::path images = out / "images";
-  removeLastRunsPictures(out);
   cli::makeDirectories((images / "full").string());
   cli::makeDirectories((images / "maps").string());
   if (edgeMasks.count(mapFrame)) {

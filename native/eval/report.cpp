@@ -170,7 +170,7 @@ const stillFrames = temporalListed && S.frames[1] > S.frames[0] &&
 // ---- the page ----
 const failed = S.methods.filter(m => m.error);
 h(`<h1>Crisp: anti-aliasing error against run time</h1>
-<p class="sub">Scene <b>${esc(S.name)}</b>, ${S.resolution[0]}&times;${S.resolution[1]}, frames ${S.frames[0]}–${S.frames[1]},
+<p class="sub">Scene <b>${esc(S.name)}</b>${S.blender_scene && S.blender_scene !== S.name ? ` (its scene <b>${esc(S.blender_scene)}</b>)` : ""}, ${S.resolution[0]}&times;${S.resolution[1]}, frames ${S.frames[0]}–${S.frames[1]},
 reference = EEVEE ${S.reference.samples} samples (${fmt(S.reference.time_s, 2)} s per frame)${S.reference.samples < 256 ? ", fewer than the 256 METHODS.md asks of final figures: read these as a quick run's" : ""}.
 Every method filters a 1-sample render (the temporal methods a jittered one, rsaa one with its geometry passes: column "input"); time per frame = that render + the filter.${perSample()}</p>` +
   (failed.length ? `<p class="err">Failed (details in the table): ${failed.map(m => esc(m.name) + " (" + esc(m.error.length > 90 ? m.error.slice(0, 90) + "…" : m.error) + ")").join("; ")}</p>` : ""));
