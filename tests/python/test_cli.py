@@ -216,7 +216,8 @@ def test_an_eval_stopped_before_its_first_render_does_not_lock_the_folder(tmp_pa
     out = tmp_path / "out"
     args = ["eval", "--scene", "still_life", "--frames", "1-1", "--methods", "fxaa", "--reference-samples", "2",
             "--curve", "1", "--quiet", "-o", str(out)]
-    p = subprocess.Popen([str(CRISP), *args, "--resolution", "48x27"], stdout=subprocess.DEVNULL,
+    # A size whose first render takes seconds: Blender acts on a stop only once it has started.
+    p = subprocess.Popen([str(CRISP), *args, "--resolution", "1920x1080"], stdout=subprocess.DEVNULL,
                          stderr=subprocess.DEVNULL, start_new_session=True)
     deadline = time.monotonic() + 60
     while not (out / "eval_settings.json").exists() and p.poll() is None and time.monotonic() < deadline:
