@@ -682,16 +682,18 @@ def shading_ids(scene, objects, lights):
     animation of the material's node tree, not of the material)."""
     out, seen = [], set()
 
-    def add(label, id_data):
+    def add(label, id_data, trees=True):
         if id_data is None or id_data.as_pointer() in seen:
             return
         seen.add(id_data.as_pointer())
         out.append((label, id_data))
-        for tree in _node_trees(getattr(id_data, "node_tree", None), seen):
+        for tree in _node_trees(getattr(id_data, "node_tree", None) if trees else None, seen):
             out.append((label, tree))
 
     for s in scenes_with_sets(scene):
-        add(_label("scene", s), s)
+        # Not its node tree: the compositor works on the render after Crisp's filters (and shows Crisp's
+        # own results as an image sequence).
+        add(_label("scene", s), s, trees=False)
         if s.world is not None:
             add(_label("world", s.world), s.world)
     if scene.camera is not None:
@@ -719,11 +721,16 @@ def _comparable(value):
 
 def animated_values(id_data):
     """{data path: value} of a datablock's animated properties (keyframes, NLA strips, drivers) as the
-    current frame evaluates them; an object's that scene_facts sees as motion are left out."""
+    current frame evaluates them; an object's that scene_facts sees as motion are left out, and of a
+    camera's data all but its depth of field (its projection is motion; its clipping changes the image
+    only where geometry crosses it)."""
     is_object = hasattr(id_data, "matrix_world")
+    is_camera = hasattr(id_data, "lens")
     out = {}
     for path in _animated_paths(id_data):
         if path in out or is_object and (path in OBJECT_MOTION_PATHS or path.startswith(OBJECT_MOTION_PREFIXES)):
+            continue
+        if is_camera and not path.startswith("dof."):
             continue
         try:
             out[path] = _comparable(id_data.path_resolve(path))

@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <vector>
 
@@ -187,9 +188,16 @@ int runEval(const ParsedArgs& args) {
     // Bad parameters are refused now, before anything is rendered.
     settingOf[m] = checkedMethodSpec(m, "--methods '" + m + "'");
     // Another spelling of a setting listed before ("taa:sharpen=.5" after "taa:sharpen=0.5") would be a
-    // second row of the same figures: measured once, under the first spelling.
+    // second row of the same figures: measured once, under the first spelling. Only where both give the
+    // same keys: a key left out takes what the scene's plan or Film > Filter Size sets ("taa" and
+    // "taa:staticAccumulation=true" differ on a scene whose plan turns the average off).
+    auto givenKeys = [](const std::string& spec) {
+      std::set<std::string> keys;
+      for (const auto& kv : eval::parseMethodSpec(spec).params) keys.insert(kv.first);
+      return keys;
+    };
     const auto same = std::find_if(methods.begin(), methods.end(), [&](const std::string& k) {
-      return settingOf.count(k) && settingOf[k] == settingOf[m];
+      return settingOf.count(k) && settingOf[k] == settingOf[m] && givenKeys(k) == givenKeys(m);
     });
     if (same != methods.end()) {
       if (*same != m)

@@ -54,6 +54,16 @@ class ImageChangeTest(unittest.TestCase):
         return next(o for o in plan.visible_objects(self.scene) if o.type == "MESH")
 
     def test_still_life_stays_still(self):
+        # Neither the compositor's image sequence (Crisp's own results, shown after the filters) nor an
+        # animated clipping distance changes what the filters see.
+        self.scene.use_nodes = True
+        shown = self.scene.node_tree.nodes.new("CompositorNodeImage")
+        shown.image = bpy.data.images.new("Crisp Frames", 4, 4)
+        shown.image.source = "SEQUENCE"
+        cam = self.scene.camera.data
+        cam.keyframe_insert("clip_end", frame=1)
+        cam.clip_end *= 2
+        cam.keyframe_insert("clip_end", frame=4)
         facts = plan.scene_facts(self.scene, 1, 4)
         self.assertEqual(facts.image_changes, [])
         p = plan.make_plan("taa", facts)
