@@ -376,7 +376,7 @@ int runEval(const ParsedArgs& args) {
   const BlenderRun run = runBlender(cmd, BlenderOutput::Logged, log.string(), [&](const std::string& line) {
     if (quiet) return;
     if (line.rfind("say ", 0) == 0)  // a line for the user (batch_eval.py: which scene of the file it took)
-      std::fprintf(stderr, "%s", line.substr(4).c_str());
+      std::fprintf(stderr, "%s\n", line.substr(4).c_str());
     else
       showRenderProgress(line, tty);
   });

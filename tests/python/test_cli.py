@@ -1559,8 +1559,8 @@ def test_eval_of_a_file_with_several_scenes_says_which_it_measures(tmp_path):
     p = eval_panel(blend, out, "--methods", "none", "--no-panel")
     scene = eval_results(out)[2]
     assert scene["blender_scene"] != "Other Shot" and scene["name"] == "two"
-    assert "crisp: scene '%s', the file's active scene (others: 'Other Shot';" % scene["blender_scene"] in p.stderr, \
-        p.stderr[-3000:]
+    said = "crisp: scene '%s', the file's active scene (others: 'Other Shot'; --scene-name NAME renders another)\n"
+    assert said % scene["blender_scene"] in p.stderr, p.stderr[-3000:]  # a line of its own
     if shutil.which("chromium"):
         dom = subprocess.run(["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--user-data-dir=" +
                               str(tmp_path / "profile"), "--virtual-time-budget=3000", "--dump-dom",
