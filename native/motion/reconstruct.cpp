@@ -76,6 +76,15 @@ bool isPerspectiveFromOrigin(const Mat4& P) {
          P.m[1][3] == 0.0;
 }
 
+// Whether two frames' cameras look the same way through the same unjittered lens: the rotation part of
+// their views and their unjittered projections are equal, bit for bit.
+bool sameTurn(const Sidecar& a, const Sidecar& b) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      if (a.view.m[r][c] != b.view.m[r][c]) return false;
+  return a.projectionUnjittered == b.projectionUnjittered;
+}
+
 bool anyObjectMoves(const Sidecar& a, const Sidecar& b) {
   for (const auto& kv : a.objects) {
     const SidecarObject* o = b.object(kv.first);
@@ -110,6 +119,9 @@ struct Setup {
   std::uint32_t loneObject;
   std::vector<double> ndcX;  // per column, as motionOfPixel computes it
   bool perspective;          // P projects from the camera's origin: a background pixel is a direction
+  // The camera turned neither its view nor its projection since the previous / until the next frame
+  // (a still camera, or one that only moves): every direction stays put (sameTurn).
+  bool skyStillPrevious, skyStillNext;
 
   const ObjectChains* findObject(std::uint32_t hash) const {
     auto it = std::lower_bound(objects.begin(), objects.end(), hash,
@@ -155,6 +167,11 @@ std::uint32_t pairOutcome(bool matched, bool projects, double dx, double dy, flo
 // background pixel: the same bits.
 std::uint32_t backgroundMotion(const Setup& s, int x, int y, float* m) {
   if (!s.perspective) return kMotionBackground;
+  // Where the camera did not turn, the arithmetic below gives 0 after snapStill (the chains' rotation
+  // is the identity up to ~1e-16, far below its 1e-6 px): said without it, in both paths alike.
+  if (s.skyStillPrevious && (!s.hasNext || s.skyStillNext))
+    return kMotionBackground | (s.staticPrevious.valid ? kMotionPreviousValid : kMotionUnmatchedObject) |
+           (!s.hasNext ? 0u : s.staticNext.valid ? kMotionNextValid : kMotionUnmatchedObject);
   const Mat4& P = s.P;
   const double ndcX = s.ndcX[std::size_t(x)], ndcY = 1.0 - 2.0 * (y + 0.5) / s.H;
   // P (X, Y, -1, 1) with the perspective's zero terms: clip.w = -P32, and clip.xy / clip.w = ndc.
@@ -502,7 +519,8 @@ FrameMotion reconstructMotion(const Image& depth, const Image* ids, const Sideca
   }
   Setup setup{W, H, current.projection, current.projectionUnjittered, staticPrevious, staticNext, next != nullptr,
               std::move(objects), ids, loneObject, std::vector<double>(std::size_t(W)),
-              isPerspectiveFromOrigin(current.projection)};
+              isPerspectiveFromOrigin(current.projection), sameTurn(current, previous),
+              next != nullptr && sameTurn(current, *next)};
   for (int x = 0; x < W; ++x) setup.ndcX[std::size_t(x)] = 2.0 * (x + 0.5) / W - 1.0;
   FrameMotion out;
   out.motion = Image(W, H, 4, 0.0f);
