@@ -169,9 +169,12 @@ std::uint32_t backgroundMotion(const Setup& s, int x, int y, float* m) {
   if (!s.perspective) return kMotionBackground;
   // Where the camera did not turn, the arithmetic below gives 0 after snapStill (the chains' rotation
   // is the identity up to ~1e-16, far below its 1e-6 px): said without it, in both paths alike.
-  if (s.skyStillPrevious && (!s.hasNext || s.skyStillNext))
-    return kMotionBackground | (s.staticPrevious.valid ? kMotionPreviousValid : kMotionUnmatchedObject) |
-           (!s.hasNext ? 0u : s.staticNext.valid ? kMotionNextValid : kMotionUnmatchedObject);
+  if (s.skyStillPrevious && (!s.hasNext || s.skyStillNext)) {
+    std::uint32_t flags =
+        kMotionBackground | pairOutcome(s.staticPrevious.valid, true, 0.0, 0.0, m, kMotionPreviousValid);
+    if (s.hasNext) flags |= pairOutcome(s.staticNext.valid, true, 0.0, 0.0, m + 2, kMotionNextValid);
+    return flags;
+  }
   const Mat4& P = s.P;
   const double ndcX = s.ndcX[std::size_t(x)], ndcY = 1.0 - 2.0 * (y + 0.5) / s.H;
   // P (X, Y, -1, 1) with the perspective's zero terms: clip.w = -P32, and clip.xy / clip.w = ndc.
