@@ -323,9 +323,8 @@ void runMethod(Entry& e, const Options& o, const std::vector<int>& frames, const
   const MethodSpec spec = parseMethodSpec(e.name);
   for (const auto& [key, value] : spec.params) filter->params().setFromText(key, value);
   // What the scene's plan asks of the filter (a still-pixel average switched off where the image changes
-  // with nothing moving; scene.json "plans"), as the add-on runs it, where the row's settings do not say.
-  for (const auto& [key, value] : e.planParams)
-    if (!spec.gives(key)) filter->params().setFromText(key, value);
+  // with nothing moving), as the add-on runs it: only keys the row's settings do not give (run()).
+  for (const auto& [key, value] : e.planParams) filter->params().setFromText(key, value);
   // rsaa on a plan that rendered no geometry (no visible object, so no geometric edge) keeps every
   // colour, as the add-on filters it (native.FrameFilter): 'none'; setting its parameters above checked them.
   if (readsSubsamples(*filter) && !e.subsamplesRendered) filter = createFilter(context, "none");
@@ -667,7 +666,8 @@ int run(const Options& o) {
   for (const std::string& m : o.methods) {
     Entry e;
     e.name = m;
-    e.method = parseMethodSpec(m).method;
+    const MethodSpec spec = parseMethodSpec(m);
+    e.method = spec.method;
     e.kind = "method";
     e.panel = o.panel.is_object() && o.panel.value("row", json()) == json(m);
     std::string set = scene["inputs"].value(e.method, std::string("eevee_1"));
@@ -676,7 +676,6 @@ int run(const Options& o) {
     e.temporal = plan.value("jitter", false);
     if (plan.contains("params") && plan["params"].is_object())
       for (const auto& [key, value] : plan["params"].items()) {
-        const MethodSpec spec = parseMethodSpec(m);
         if (spec.gives(key)) continue;
         e.planParams.emplace_back(key, value.is_string() ? value.get<std::string>() : value.dump());
         // Said under --quiet too: it changes what the row measures.
