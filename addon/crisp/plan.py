@@ -798,14 +798,14 @@ def scene_facts(scene, frame_start, frame_end, view_layer=None, renderer_motion_
             last_rendered = rendered_now
             for o in lights:  # a light that moves moves the shading, not the pixels
                 m = [list(r) for r in o.matrix_world]
-                if last_light.setdefault(o.name_full, m) is not m and not _same(m, last_light[o.name_full]):
+                if o.name_full in last_light and not _same(m, last_light[o.name_full]):
                     changed_at[_label("light", o)].add(f)
                 last_light[o.name_full] = m
             shading = shading_ids(scene, obs, lights)
             every_frame.update(moving_images(shading))
             for label, id_data in shading:
                 for path, value in animated_values(id_data).items():
-                    if last_values.setdefault((label, path), value) != value:
+                    if last_values.get((label, path), value) != value:
                         changed_at[label].add(f)
                     last_values[(label, path)] = value
             # Over every frame: an object that appears later (hide_render keyed) renders there too, and
