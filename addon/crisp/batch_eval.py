@@ -124,15 +124,21 @@ def read_panel(jitter, scene_name=""):
     print("crisp-panel: " + json.dumps(record), flush=True)
 
 
+def stop_line(stop, done, total):
+    """What crisp eval says of a run a signal stopped (the progress pipe's `stop` line): which signal, and
+    how far it came; the renders it made are kept (eval_renders: whole files only), and the same command
+    resumes from them."""
+    why = "Ctrl-C (SIGINT)" if isinstance(stop, KeyboardInterrupt) else str(stop)[len("stopped by "):]
+    if total == 0:
+        return "stopped by %s before its first render" % why
+    return ("stopped by %s after the render it was on: %d of %d renders are done, and the same command goes "
+            "on from them" % (why, done, total))
+
+
 def main(argv):
-    import runpy
-    import bpy
-    from crisp import batch, eval_renders, pipeline, render
+    from crisp import batch, render
 
-    def fail(code, message):
-        print("crisp: error: " + message, file=sys.stderr, flush=True)
-        sys.exit(code)
-
+    fail = batch.fail
     parser = make_parser()
     parser.error = lambda msg: fail(2, msg)
     args = parser.parse_args(argv)
@@ -154,7 +160,26 @@ def main(argv):
     if args.reference_samples < 1:
         fail(2, "--reference-samples must be >= 1")
     methods = [m for m in args.methods.split(",") if m]
+    # Ctrl-C, SIGTERM (crisp eval passes on its own), SIGHUP: the run ends after the render it is on
+    # (each is written whole, through a temporary name) and crisp eval says how far it came.
+    should_cancel = batch.stop_on_signals()
+    count = {"done": 0, "total": 0}
+    try:
+        render_all(args, progress, curve, filter_size_limits, methods, count, should_cancel)
+    except (KeyboardInterrupt, batch.Stopped) as e:
+        line = stop_line(e, count["done"], count["total"])
+        progress.write("stop %s\n" % line)
+        progress.flush()
+        fail(4, line)
 
+
+def render_all(args, progress, curve, filter_size_limits, methods, count, should_cancel):
+    """The renders of main's arguments into args.output; count: {"done", "total"} renders, as they go."""
+    import runpy
+    import bpy
+    from crisp import batch, eval_renders, pipeline, render
+
+    fail = batch.fail
     # What the opened .blend reads besides itself (its libraries, images and other files; batch.scene_key):
     # crisp eval checks the .blend and a scene script before Blender starts (eval_settings.json), these
     # only Blender can list. Taken before anything changes the scene.
@@ -250,13 +275,14 @@ def main(argv):
     jobs += [("reference_%d" % args.reference_samples, args.reference_samples), ("blender-smaa", 1)]
     cost_total = sum(c for _, c in jobs) * len(frames)
     state = {"done": 0, "cost": 0, "rendered_cost": 0, "rendered_s": 0.0}
-    total = len(jobs) * len(frames)
+    total = count["total"] = len(jobs) * len(frames)
     t_start = time.perf_counter()
     t_last = [t_start]
 
     def step(name, frame, cost, skipped=False):
         now = time.perf_counter()
         state["done"] += 1
+        count["done"] = state["done"]
         state["cost"] += cost
         if not skipped:
             state["rendered_cost"] += cost
@@ -267,6 +293,7 @@ def main(argv):
         progress.write("progress %d %d %d %d %.1f %s frame %d%s\n" % (
             state["done"], total, state["cost"], cost_total, left, name, frame, " (done before)" if skipped else ""))
         progress.flush()
+        should_cancel()  # a stop Blender's own Python swallowed (a scene's frame change handler)
 
     try:
         missing = sum(len(eval_renders.TimeBook(os.path.join(out, n)).missing(frames)) for n, _ in jobs)

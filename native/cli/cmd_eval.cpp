@@ -63,13 +63,14 @@ std::string commandLine() {
 }
 
 // Shows a progress line of batch_eval.py ("progress DONE TOTAL COST COST_TOTAL SECONDS_LEFT ITEM").
-void showRenderProgress(const std::string& line, bool tty) {
+// Returns whether the line was progress (and so was shown).
+bool showRenderProgress(const std::string& line, bool tty) {
   int done = 0, total = 0, consumed = 0;
   long cost = 0, costTotal = 0;
   double left = 0;
   if (std::sscanf(line.c_str(), "progress %d %d %ld %ld %lf %n", &done, &total, &cost, &costTotal, &left,
                   &consumed) < 5)
-    return;
+    return false;
   std::string item = line.substr(std::size_t(consumed));
   while (!item.empty() && (item.back() == '\n' || item.back() == '\r')) item.pop_back();
   const int width = 30;
@@ -80,6 +81,7 @@ void showRenderProgress(const std::string& line, bool tty) {
   else
     std::fprintf(stderr, "render %d/%d %s (%.0fs left)\n", done, total, item.c_str(), left);
   std::fflush(stderr);
+  return true;
 }
 
 // The lines of Blender's log that say what went wrong.
@@ -373,14 +375,25 @@ int runEval(const ParsedArgs& args) {
   if (!quiet) std::fprintf(stderr, "crisp eval: rendering in Blender (log: %s)\n", log.c_str());
   auto t0 = std::chrono::steady_clock::now();
   const bool tty = isatty(fileno(stderr)) != 0;
+  bool barShown = false;  // a tty's progress bar ends the line it is on
   const BlenderRun run = runBlender(cmd, BlenderOutput::Logged, log.string(), [&](const std::string& line) {
+    // How far a run a signal stopped came (batch_eval.py stop_line), said also with --quiet: crisp ends
+    // by that signal next, which says nothing of the renders kept.
+    if (line.rfind("stop ", 0) == 0) {
+      std::fprintf(stderr, "%scrisp eval: %s (renders in %s)\n", barShown ? "\n" : "", line.substr(5).c_str(),
+                   renders.c_str());
+      barShown = false;
+      return;
+    }
     if (quiet) return;
-    if (line.rfind("say ", 0) == 0)  // a line for the user (batch_eval.py: which scene of the file it took)
-      std::fprintf(stderr, "%s\n", line.substr(4).c_str());
-    else
-      showRenderProgress(line, tty);
+    if (line.rfind("say ", 0) == 0) {  // a line for the user (batch_eval.py: which scene of the file it took)
+      std::fprintf(stderr, "%s%s\n", barShown ? "\n" : "", line.substr(4).c_str());
+      barShown = false;
+    } else {
+      barShown = showRenderProgress(line, tty) && tty;
+    }
   });
-  if (!quiet && tty) std::fprintf(stderr, "\n");
+  if (barShown) std::fprintf(stderr, "\n");
   const int code = run.signal ? 128 + run.signal : run.exitCode;
   double blenderSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!run.started || code != 0) {

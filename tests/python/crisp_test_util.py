@@ -34,6 +34,18 @@ def needs_cli_and_blender():
             pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")]
 
 
+def addon_with_spinning_cube_ending(tmp_path, code):
+    """A copy of this tree's add-on and test scenes whose spinning_cube script ends with `code`; returns
+    the add-on folder, for CRISP_ADDON_DIR."""
+    tree = os.path.join(str(tmp_path), "tree")
+    for d in ("addon", "test_scenes"):
+        shutil.copytree(os.path.join(SOURCE, d), os.path.join(tree, d))
+    with open(os.path.join(tree, "test_scenes", "spinning_cube.py"), "a") as f:
+        f.write("\n\n" + "".join(line + "  # noqa: E402\n" if line.startswith("import ") else line + "\n"
+                                   for line in code.splitlines()))
+    return os.path.join(tree, "addon")
+
+
 def run_eval(args, prefix, timeout=900):
     """Runs `crisp eval ARGS -o OUT` into a new temporary folder OUT; returns (OUT, stdout, stderr) of a run
     that must succeed. The caller removes OUT."""

@@ -37,7 +37,8 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from crisp_test_util import CRISP, LIBRARY, SOURCE, Lib, psnr  # noqa: E402  (reads EXRs through libcrisp's C API)
+from crisp_test_util import (CRISP, LIBRARY, SOURCE, Lib,  # noqa: E402  (Lib reads EXRs through libcrisp's C API)
+                             addon_with_spinning_cube_ending, psnr)
 
 SIZE = "64x36"
 SHOT = (1, 8)
@@ -570,18 +571,6 @@ def test_render_chunk_without_shot_and_resume_of_lost_files(tmp_path):
     assert os.stat(whole / "filtered" / frame(1)).st_mtime_ns == kept, "frame 1 was complete"
     record = json.loads((whole / "run.json").read_text())
     assert record["status"] == "complete", record["status"]
-
-
-def addon_with_spinning_cube_ending(tmp_path, code):
-    """A copy of this tree's add-on and test scenes whose spinning_cube script ends with `code`; returns
-    the add-on folder, for CRISP_ADDON_DIR."""
-    tree = tmp_path / "tree"
-    for d in ("addon", "test_scenes"):
-        shutil.copytree(os.path.join(SOURCE, d), tree / d)
-    with open(tree / "test_scenes" / "spinning_cube.py", "a") as f:
-        f.write("\n\n" + "".join(line + "  # noqa: E402\n" if line.startswith("import ") else line + "\n"
-                                   for line in code.splitlines()))
-    return str(tree / "addon")
 
 
 def _processes_naming(text):

@@ -231,6 +231,45 @@ def test_an_eval_stopped_before_its_first_render_does_not_lock_the_folder(tmp_pa
     assert (out / "report.html").is_file()
 
 
+@pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
+def test_an_eval_stopped_while_it_renders_says_how_far_it_came_and_resumes(tmp_path):
+    """Ctrl-C (SIGINT to the terminal's process group) part-way through the renders: Blender stops after
+    the render it is on and crisp eval says so, also with --quiet, naming how many renders are done and the
+    folder they are kept in, and ends by the signal; the same command then goes on from them: it renders
+    only the rest (its progress calls the others done before) and writes its report. A scene whose frame
+    change handler is slow (spinning_cube, 0.3 s a frame) makes the run long enough to stop part-way."""
+    import re
+    from crisp_test_util import addon_with_spinning_cube_ending
+    env = dict(os.environ, CRISP_ADDON_DIR=addon_with_spinning_cube_ending(
+        tmp_path, "import bpy\nimport time\nbpy.app.handlers.frame_change_pre.append(lambda *_: time.sleep(0.3))\n"))
+    out = tmp_path / "out"
+    args = [str(CRISP), "eval", "--scene", "spinning_cube", "--frames", "1-4", "--resolution", "64x36", "--methods",
+            "fxaa", "--reference-samples", "2", "--curve", "1", "-o", str(out)]
+    p = subprocess.Popen([*args, "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                         start_new_session=True)
+    times = out / "renders" / "eevee_1" / "times.json"
+    deadline = time.monotonic() + 120
+    while not times.exists() and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert p.poll() is None, "the run ended before it was stopped: " + p.communicate()[1][-2000:]
+    os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == -signal.SIGINT, err
+    said = re.search(r"crisp eval: stopped by Ctrl-C \(SIGINT\) after the render it was on: (\d+) of (\d+) renders "
+                     r"are done, and the same command goes on from them \(renders in (.*)\)\n", err)
+    assert said, err
+    done, total = int(said.group(1)), int(said.group(2))
+    assert said.group(3) == str(out / "renders")
+    recorded = sum(len(json.loads(t.read_text())) for t in (out / "renders").glob("*/times.json"))
+    assert 0 < done == recorded < total, (done, recorded, total)
+    assert not [f for f in out.rglob("*") if f.name.startswith(".")], "a temporary file was left"
+    again = subprocess.run(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, timeout=300)
+    assert again.returncode == 0, again.stderr[-3000:]
+    progress = [line for line in again.stderr.splitlines() if line.startswith("render ")]
+    assert len(progress) == total and sum("(done before)" in line for line in progress) == done, again.stderr
+    assert (out / "report.html").is_file()
+
+
 def test_eval_refuses_a_filter_size_a_temporal_method_refuses_before_rendering(tmp_path):
     """A temporal method filters with the renders' Film > Filter Size (their sidecars), which
     CRISP_EVAL_FILTER_SIZE sets: a size it refuses (above 4 px) is refused before Blender starts,
