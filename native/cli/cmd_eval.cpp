@@ -5,10 +5,13 @@
 // methods through the library, measures them and writes the report
 // (native/eval/). Blender's own output goes to OUTDIR/logs/blender.log; its
 // progress comes back on a pipe (runBlender, cli/blender.cpp). Finished frames are never redone.
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -163,6 +166,33 @@ bool holdsRenders(const fs::path& renders) {
   return false;
 }
 
+// Held while a run uses its output folder: a second crisp eval into it would render the same frames again
+// and rewrite the first's records (times.json, scene.json, the report) under it. An flock on the folder
+// itself: nothing to leave behind, and released however crisp ends (kill -9 included; the method
+// processes it forks hold it with it and end with it). Blender, which it execs, does not inherit it. A
+// file system that keeps no locks (ENOLCK, some network mounts) runs unlocked, as before.
+class FolderLock {
+ public:
+  explicit FolderLock(const fs::path& folder) : fd_(::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)) {
+    if (fd_ < 0 || ::flock(fd_, LOCK_EX | LOCK_NB) == 0) return;
+    const int err = errno;
+    ::close(fd_);
+    fd_ = -1;
+    if (err == EWOULDBLOCK)
+      throw UsageError("'" + folder.string() + "' is the output folder of another crisp eval still running; wait for "
+                           "it to end or use another -o folder",
+                       false);
+  }
+  ~FolderLock() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  FolderLock(const FolderLock&) = delete;
+  FolderLock& operator=(const FolderLock&) = delete;
+
+ private:
+  int fd_;
+};
+
 }  // namespace
 
 int runEval(const ParsedArgs& args) {
@@ -314,6 +344,7 @@ int runEval(const ParsedArgs& args) {
     cmd.insert(cmd.end(), {"--jitter", panel["jitter"].get<std::string>()});
   cmd.insert(cmd.end(), sizeLimits.begin(), sizeLimits.end());
   makeDirectories(outDir.string());
+  const FolderLock lock(outDir);
   const fs::path renders = outDir / "renders", logs = outDir / "logs";
   makeDirectories(renders.string());
   makeDirectories(logs.string());

@@ -270,6 +270,40 @@ def test_an_eval_stopped_while_it_renders_says_how_far_it_came_and_resumes(tmp_p
     assert (out / "report.html").is_file()
 
 
+@pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
+def test_a_second_eval_into_a_folder_in_use_is_refused(tmp_path):
+    """Two crisp evals into one folder would render the same frames twice and rewrite each other's
+    records: the second is refused while the first runs, before it writes anything there (the first's
+    settings file is untouched, even by other settings), and the first goes on to its report."""
+    from crisp_test_util import addon_with_spinning_cube_ending
+    env = dict(os.environ, CRISP_ADDON_DIR=addon_with_spinning_cube_ending(
+        tmp_path, "import bpy\nimport time\nbpy.app.handlers.frame_change_pre.append(lambda *_: time.sleep(0.3))\n"))
+    out = tmp_path / "out"
+    args = [str(CRISP), "eval", "--scene", "spinning_cube", "--frames", "1-2", "--methods", "fxaa",
+            "--reference-samples", "2", "--curve", "1", "--quiet", "-o", str(out)]
+    first = subprocess.Popen([*args, "--resolution", "64x36"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True, env=env)
+    try:
+        settings = out / "eval_settings.json"
+        deadline = time.monotonic() + 60
+        while not settings.exists() and first.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        written = settings.read_text()
+        # The first renders for seconds more (Blender starts, then 8 renders of 0.3 s or more each).
+        assert first.poll() is None, "the first run ended before the second started: nothing tested"
+        second = subprocess.run([*args, "--resolution", "48x32"], capture_output=True, text=True, env=env, timeout=60)
+        assert second.returncode == 2, second.stderr
+        assert ("'%s' is the output folder of another crisp eval still running; wait for it to end or use another "
+                "-o folder" % out) in second.stderr
+        assert settings.read_text() == written
+        _, err = first.communicate(timeout=300)
+    finally:
+        if first.poll() is None:
+            first.kill()
+    assert first.returncode == 0, err[-3000:]
+    assert (out / "report.html").is_file()
+
+
 def test_eval_refuses_a_filter_size_a_temporal_method_refuses_before_rendering(tmp_path):
     """A temporal method filters with the renders' Film > Filter Size (their sidecars), which
     CRISP_EVAL_FILTER_SIZE sets: a size it refuses (above 4 px) is refused before Blender starts,
