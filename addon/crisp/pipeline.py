@@ -173,22 +173,14 @@ def with_scene_filter_size(scene, method, params):
     return dict(params or {}, filterSize=size)
 
 
-# The parameters that stop a temporal filter from averaging still pixels (Plan.still_average False), each
-# method's "path with neighbourhood clipping": taa and taa-improved blend them as moving ones; phlm forgets
-# them as fast as moving ones (lambdaMoving: its value is read from the library) and keeps the 3x3 box.
-# Measured on a keyed scrolling checker, still camera, 240x136, 8 frames, 16-sample reference: taa 16.93 ->
-# 19.61 dB, phlm 16.19 -> 19.52 dB (method none 20.86 dB).
-NO_STILL_AVERAGE = {"taa": {"staticAccumulation": False}, "taa-improved": {"staticAccumulation": False},
-                    "phlm": {"lambda": "lambdaMoving", "footprintBox": False}}
-
-
 def with_plan_params(method, params, the_plan):
-    """params with what the plan asks of the filter (NO_STILL_AVERAGE where the image changes with no
-    motion), each where params do not set it (crisp render --set, the panel's)."""
-    if the_plan.still_average or method not in NO_STILL_AVERAGE:
+    """params with what the plan asks of the filter (plan.NO_STILL_AVERAGE where the image changes with no
+    motion), each where params do not set it (crisp render --set, the panel's). crisp filter does the same
+    from the sidecars (cmd_filter.cpp applyPlanParams)."""
+    if the_plan.still_average or method not in plan_mod.NO_STILL_AVERAGE:
         return params
     out = dict(params or {})
-    for name, value in NO_STILL_AVERAGE[method].items():
+    for name, value in plan_mod.NO_STILL_AVERAGE[method].items():
         if name in out:
             continue
         if isinstance(value, str):  # another parameter's value: the one given, else its default

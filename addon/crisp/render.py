@@ -791,6 +791,9 @@ def iter_render_frames(scene, the_plan, frames, out_dir, samples=1, jitter_distr
             }
             if made_with is not None:
                 sidecar["made_with"] = made_with
+            if not the_plan.still_average:  # what crisp filter then sets, as the add-on does (with_plan_params)
+                sidecar["history"] = {"still_average": False, "note": the_plan.history_note,
+                                      "params": plan_mod.NO_STILL_AVERAGE}
             if "subsamples" in the_plan.passes:
                 sidecar["subsamples"] = _render_subsamples(snap, scene, view_layer, f, out_dir, base_shift,
                                                            shift_per_pixel(scene), dx, dy)

@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <future>
 #include <set>
 #include <vector>
@@ -91,6 +92,49 @@ void checkSidecarSettings(const Filter& filter, const ParsedArgs& args, const Si
             "nothing moved";
   std::fprintf(stderr, "filter: warning: %zu of %zu inputs come without a sidecar (the first: '%s'): %s\n",
                inputs.size() - with, inputs.size(), sidecars.firstWithout.c_str(), what.c_str());
+}
+
+// What the renders' plan asks of a temporal filter, from the first input's sidecar: "history", which the
+// add-on writes where the image changes with nothing moving (a still pixel's average would keep the old
+// image), set as crisp render sets it (pipeline.with_plan_params) for each parameter --set leaves out: a
+// value, or the name of another parameter whose value it takes (phlm's lambda = lambdaMoving). Said also
+// under --quiet, as crisp eval says it: it changes what the run makes.
+void applyPlanParams(Filter& filter, const ParsedArgs& args, const Sidecars& sidecars) {
+  if (!keepsHistory(filter)) return;
+  std::error_code ec;
+  const auto path = std::find_if(sidecars.paths.begin(), sidecars.paths.end(),
+                                 [&](const std::string& p) { return fs::is_regular_file(p, ec); });
+  if (path == sidecars.paths.end()) return;
+  std::ifstream in(*path);
+  const nlohmann::json side = nlohmann::json::parse(in, nullptr, false);
+  if (!side.is_object() || !side.contains("history")) return;  // unreadable: readSidecar names it at the frame
+  const nlohmann::json& history = side["history"];
+  const std::string where = "sidecar '" + *path + "' history";
+  if (!history.is_object() || !history.contains("still_average") || !history["still_average"].is_boolean())
+    invalidData(where + ": expected an object with still_average true or false");
+  if (history["still_average"].get<bool>()) return;
+  const nlohmann::json table = history.value("params", nlohmann::json::object());
+  const nlohmann::json params = table.is_object() ? table.value(filter.type(), nlohmann::json::object()) : nullptr;
+  if (!params.is_object()) invalidData(where + ".params: expected an object of parameters per method");
+  std::set<std::string> given;
+  for (const auto& [key, value] : settingsOf(args)) given.insert(key);
+  for (const auto& [key, value] : params.items()) {
+    if (given.count(key)) continue;
+    const std::string at = where + ".params." + filter.type() + "." + key;
+    // A parameter's name: its value (canonicalParamText gives "" for a name the filter lacks).
+    std::string text = value.is_string() ? canonicalParamText(filter, value.get<std::string>()) : std::string();
+    if (value.is_boolean() || value.is_number()) text = value.dump();
+    if (text.empty())
+      invalidData(at + ": expected a value or the name of a parameter of " + filter.type() + ", got " + value.dump());
+    try {
+      filter.params().setFromText(key, text);
+    } catch (const Exception& e) {
+      throw Exception(e.code(), at + ": " + e.what());
+    }
+    std::fprintf(stderr, "filter: %s runs with %s=%s, as the renders' plan asks (%s; --set %s=... to choose)\n",
+                 filter.type(), key.c_str(), canonicalParamText(filter, key).c_str(),
+                 history.value("note", std::string("their sidecars")).c_str(), key.c_str());
+  }
 }
 
 // Non-finite colour is read as the library reads it (NaN -> 0, +-Inf ->
@@ -212,6 +256,7 @@ int runFilter(const ParsedArgs& args) {
 
   const Sidecars sidecars(args.positional);
   checkSidecarSettings(*filter, args, sidecars);
+  applyPlanParams(*filter, args, sidecars);
 
   // The chunk to write (default: every input) and its pre-roll, checked before anything is written.
   const int count = int(args.positional.size());

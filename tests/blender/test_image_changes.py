@@ -115,6 +115,64 @@ class ImageChangeTest(unittest.TestCase):
         a, b = (rows[n]["frames"][-1]["psnr"] for n in ("taa", "taa:staticAccumulation=true"))
         self.assertNotEqual(a, b)
 
+    def test_crisp_filter_runs_what_the_add_on_runs(self):
+        """crisp filter over the add-on's inputs takes the plan's parameters from their sidecars: its taa
+        frames are the add-on's to the bit, and it says what it set; a parameter --set gives is kept
+        (another image); phlm's lambda takes lambdaMoving's value as --set gives it."""
+        import glob
+        import json
+        import subprocess
+        import numpy as np
+        scroll_material(self.scene, self.mesh())
+        crisp = os.path.join(harness.BUILD_DIR, "bin", "crisp")
+        out = os.path.join(self.tmp.name, "taa")
+        pipeline.run(self.scene, "taa", [1, 2, 3], out, threads=1, log=lambda s: None)
+        inputs = sorted(glob.glob(os.path.join(out, "input", "frame_*.exr")))
+        self.assertEqual(len(inputs), 3)
+
+        def pixels(path):
+            image = bpy.data.images.load(path)
+            try:
+                return np.array(image.pixels[:], dtype=np.float32)
+            finally:
+                bpy.data.images.remove(image)
+
+        def crisp_filter(method, folder, *options):
+            p = subprocess.run([crisp, "filter", "-m", method, "--threads", "1", "-q", *options, "-o", folder, *inputs],
+                               capture_output=True, text=True, timeout=300)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            return p.stderr
+
+        cli = os.path.join(self.tmp.name, "cli")
+        said = crisp_filter("taa", cli)
+        self.assertIn("filter: taa runs with staticAccumulation=false, as the renders' plan asks (material 'Belt' "
+                      "changes the image", said)
+        for f in inputs:
+            name = os.path.basename(f)
+            self.assertTrue(np.array_equal(pixels(os.path.join(cli, name)), pixels(os.path.join(out, "filtered", name))),
+                            name)
+        averaged = os.path.join(self.tmp.name, "averaged")
+        self.assertNotIn("runs with", crisp_filter("taa", averaged, "--set", "staticAccumulation=true"))
+        last = os.path.basename(inputs[-1])
+        self.assertFalse(np.array_equal(pixels(os.path.join(averaged, last)), pixels(os.path.join(cli, last))))
+        # taa's inputs carry every pass phlm reads on a still scene.
+        said = crisp_filter("phlm", os.path.join(self.tmp.name, "phlm"), "--set", "lambdaMoving=0.8")
+        self.assertIn("filter: phlm runs with lambda=0.8, as the renders' plan asks", said)
+        self.assertIn("filter: phlm runs with footprintBox=false, as the renders' plan asks", said)
+        # A sidecar whose plan gives what no parameter takes is refused, naming the key, before any output.
+        side = inputs[0][:-len(".exr")] + ".json"
+        with open(side) as f:
+            record = json.load(f)
+        record["history"]["params"]["taa"]["staticAccumulation"] = "fast"
+        with open(side, "w") as f:
+            json.dump(record, f)
+        bad = os.path.join(self.tmp.name, "bad")
+        p = subprocess.run([crisp, "filter", "-m", "taa", "-q", "-o", bad, *inputs], capture_output=True, text=True)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("sidecar '%s' history.params.taa.staticAccumulation: expected a value or the name of a "
+                      "parameter of taa, got \"fast\"" % side, p.stderr)
+        self.assertFalse(glob.glob(os.path.join(bad, "*.exr")))
+
     def test_keyed_hide_render_is_named(self):
         ob = self.mesh()
         ob.hide_render = True
