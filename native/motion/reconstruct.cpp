@@ -123,6 +123,9 @@ struct Setup {
   // (a still camera, or one that only moves): every direction stays put (sameTurn).
   bool skyStillPrevious, skyStillNext;
 
+  // The background moves: a perspective camera that turned (backgroundMotion's arithmetic runs).
+  bool skyTurns() const { return perspective && !(skyStillPrevious && (!hasNext || skyStillNext)); }
+
   const ObjectChains* findObject(std::uint32_t hash) const {
     auto it = std::lower_bound(objects.begin(), objects.end(), hash,
                                [](const ObjectChains& o, std::uint32_t h) { return o.hash < h; });
@@ -169,7 +172,7 @@ std::uint32_t backgroundMotion(const Setup& s, int x, int y, float* m) {
   if (!s.perspective) return kMotionBackground;
   // Where the camera did not turn, the arithmetic below gives 0 after snapStill (the chains' rotation
   // is the identity up to ~1e-16, far below its 1e-6 px): said without it, in both paths alike.
-  if (s.skyStillPrevious && (!s.hasNext || s.skyStillNext)) {
+  if (!s.skyTurns()) {
     std::uint32_t flags =
         kMotionBackground | pairOutcome(s.staticPrevious.valid, true, 0.0, 0.0, m, kMotionPreviousValid);
     if (s.hasNext) flags |= pairOutcome(s.staticNext.valid, true, 0.0, 0.0, m + 2, kMotionNextValid);
@@ -292,8 +295,8 @@ CRISP_MOTION_INLINE PixelLanes toPixelLanes(const DL clip[3], double width, doub
 }
 
 // Rows 0, 1 and 3 of a chain's matrix (x, y, w of the clip point) times the point
-// (X, Y, Z, 1), each lane with its own chain, as Mat4 * Vec4d sums them.
-CRISP_MOTION_INLINE void clipLanes(const Chain* const c[kLanes], DL X, DL Y, DL Z, DL clip[3]) {
+// (X, Y, Z, W) (W 1: a point; 0: a direction), each lane with its own chain, as Mat4 * Vec4d sums them.
+CRISP_MOTION_INLINE void clipLanes(const Chain* const c[kLanes], DL X, DL Y, DL Z, DL W, DL clip[3]) {
   const int rows[3] = {0, 1, 3};
   bool shared = true;
   for (int l = 1; l < kLanes; ++l) shared &= c[l] == c[0];
@@ -304,7 +307,7 @@ CRISP_MOTION_INLINE void clipLanes(const Chain* const c[kLanes], DL X, DL Y, DL 
       if (!shared)
         for (int l = 1; l < kLanes; ++l) m[k][l] = c[l]->toClip.m[rows[r]][k];
     }
-    clip[r] = m[0] * X + m[1] * Y + m[2] * Z + m[3] * 1.0;
+    clip[r] = m[0] * X + m[1] * Y + m[2] * Z + m[3] * W;
   }
 }
 
@@ -375,16 +378,17 @@ CRISP_MOTION_INLINE void groupMath(const Setup& s, double ndcY, double a10, doub
   const DL b1 = ndcY * (P.m[3][2] * Z + P.m[3][3]) - P.m[1][2] * Z - P.m[1][3];
   const DL det = a00 * a11 - a01 * a10;
   const DL X = (b0 * a11 - a01 * b1) / det, Y = (a00 * b1 - b0 * a10) / det;
+  const DL one = splat(1.0);
   DL clip[3];
-  clipLanes(current, X, Y, Z, clip);
+  clipLanes(current, X, Y, Z, one, clip);
   const PixelLanes c = toPixelLanes(clip, s.W, s.H);
   g.pointOk = (det != 0.0) & c.ok;
-  clipLanes(g.toPrevious, X, Y, Z, clip);
+  clipLanes(g.toPrevious, X, Y, Z, one, clip);
   g.previous = toPixelLanes(clip, s.W, s.H);
   g.mx = snapStillLanes(g.previous.x - c.x);
   g.my = snapStillLanes(g.previous.y - c.y);
   if constexpr (HasNext) {
-    clipLanes(g.toNext, X, Y, Z, clip);
+    clipLanes(g.toNext, X, Y, Z, one, clip);
     g.next = toPixelLanes(clip, s.W, s.H);
     g.nx = snapStillLanes(c.x - g.next.x);
     g.ny = snapStillLanes(c.y - g.next.y);
@@ -414,6 +418,61 @@ CRISP_MOTION_INLINE void groupFinish(const Setup& s, const Group& g, int y, Fram
   }
 }
 
+// backgroundMotion's arithmetic on a group of background pixels under a camera that turned (skyTurns):
+// the same operations in the same order, so the same bits; its decisions and stores stay per lane.
+struct SkyGroup {
+  int x;
+  ML ok;  // the direction projects into the current frame
+  PixelLanes previous, next;
+  DL mx, my, nx, ny;
+};
+
+template <bool HasNext>
+CRISP_MOTION_INLINE void skyGroupMath(const Setup& s, double ndcY, const Chain* const current[kLanes],
+                                      const Chain* const toPrevious[kLanes], const Chain* const toNext[kLanes],
+                                      SkyGroup& g) {
+  const Mat4& P = s.P;
+  DL ndcX;
+  std::memcpy(&ndcX, &s.ndcX[std::size_t(g.x)], sizeof ndcX);
+  const double a00 = P.m[0][0], a01 = P.m[0][1], a10 = P.m[1][0], a11 = P.m[1][1];
+  const DL b0 = -ndcX * P.m[3][2] + P.m[0][2];
+  const double b1 = -ndcY * P.m[3][2] + P.m[1][2];
+  const double det = a00 * a11 - a01 * a10;
+  const DL X = (b0 * a11 - a01 * b1) / det, Y = (a00 * b1 - b0 * a10) / det;
+  const DL Z = splat(-1.0), W = splat(0.0);
+  DL clip[3];
+  clipLanes(current, X, Y, Z, W, clip);
+  const PixelLanes c = toPixelLanes(clip, s.W, s.H);
+  g.ok = (splat(det) != 0.0) & c.ok;
+  clipLanes(toPrevious, X, Y, Z, W, clip);
+  g.previous = toPixelLanes(clip, s.W, s.H);
+  g.mx = snapStillLanes(g.previous.x - c.x);
+  g.my = snapStillLanes(g.previous.y - c.y);
+  if constexpr (HasNext) {
+    clipLanes(toNext, X, Y, Z, W, clip);
+    g.next = toPixelLanes(clip, s.W, s.H);
+    g.nx = snapStillLanes(c.x - g.next.x);
+    g.ny = snapStillLanes(c.y - g.next.y);
+  }
+}
+
+template <bool HasNext>
+CRISP_MOTION_INLINE void skyGroupFinish(const Setup& s, const SkyGroup& g, int y, FrameMotion& out) {
+  for (int l = 0; l < kLanes; ++l) {
+    const int x = g.x + l;
+    std::uint32_t f = kMotionBackground;
+    if (g.ok[l]) {
+      float* m = out.motion.at(x, y);
+      f |= pairOutcome(s.staticPrevious.valid, s.staticPrevious.valid && g.previous.ok[l], g.mx[l], g.my[l], m,
+                       kMotionPreviousValid);
+      if constexpr (HasNext)
+        f |= pairOutcome(s.staticNext.valid, s.staticNext.valid && g.next.ok[l], g.nx[l], g.ny[l], m + 2,
+                         kMotionNextValid);
+    }
+    out.flags.setUint(x, y, f);
+  }
+}
+
 // Row y: two lane groups a step, their arithmetic side by side so that the
 // two chains of divisions overlap (one group's latency, not its throughput,
 // bounds it), then a last group, then the tail pixel by pixel.
@@ -425,6 +484,13 @@ CRISP_MOTION_INLINE void motionRowLanes(const Setup& s, const Image& depth, int 
   const Chain staticChain{s.currentClip, true};
   const Chain* current[kLanes];
   for (int l = 0; l < kLanes; ++l) current[l] = &staticChain;
+  const Chain* skyPrevious[kLanes];
+  const Chain* skyNext[kLanes];
+  for (int l = 0; l < kLanes; ++l) {
+    skyPrevious[l] = &s.staticPrevious;
+    skyNext[l] = &s.staticNext;
+  }
+  const bool skyTurns = s.skyTurns();
   ObjectRun run;
   run.toPrevious = &s.staticPrevious;
   run.toNext = s.hasNext ? &s.staticNext : nullptr;
@@ -434,8 +500,18 @@ CRISP_MOTION_INLINE void motionRowLanes(const Setup& s, const Image& depth, int 
     loadGroup(depth, x, y, a);
     loadGroup(depth, x + kLanes, y, b);
     if (!a.anyPoint && !b.anyPoint) {  // the sky: directions, no points
-      for (int l = 0; l < 2 * kLanes; ++l)
-        out.flags.setUint(x + l, y, backgroundMotion(s, x + l, y, out.motion.at(x + l, y)));
+      if (skyTurns) {
+        SkyGroup sa, sb;
+        sa.x = x;
+        sb.x = x + kLanes;
+        skyGroupMath<HasNext>(s, ndcY, current, skyPrevious, skyNext, sa);
+        skyGroupMath<HasNext>(s, ndcY, current, skyPrevious, skyNext, sb);
+        skyGroupFinish<HasNext>(s, sa, y, out);
+        skyGroupFinish<HasNext>(s, sb, y, out);
+      } else {  // backgroundMotion's still sky: no arithmetic
+        for (int l = 0; l < 2 * kLanes; ++l)
+          out.flags.setUint(x + l, y, backgroundMotion(s, x + l, y, out.motion.at(x + l, y)));
+      }
       continue;
     }
     groupObjects(s, y, run, a);

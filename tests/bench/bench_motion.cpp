@@ -24,8 +24,9 @@ using crisp::Sidecar;
 constexpr std::uint32_t kIds[3] = {0x4a8fce86u, 0x3f123456u, 0x40abcdefu};
 using crisp::test::translation;
 
-// Frame `frame` of the dolly: the camera 0.1 closer each frame, object 1 moving sideways.
-Sidecar dollyFrame(int width, int height, int frame, double jx, double jy) {
+// Frame `frame` of the dolly: the camera 0.1 closer each frame, object 1 moving sideways; with
+// `turns`, the camera also rolls 0.01 rad a frame, which moves the background (the sky's directions).
+Sidecar dollyFrame(int width, int height, int frame, double jx, double jy, bool turns = false) {
   Sidecar s;
   s.path = "frame_" + std::to_string(frame) + ".json";
   s.frame = frame;
@@ -33,7 +34,8 @@ Sidecar dollyFrame(int width, int height, int frame, double jx, double jy) {
   s.height = height;
   s.jitterX = jx;
   s.jitterY = jy;
-  crisp::invert(translation(0.0, 0.0, 10.0 - 0.1 * frame), s.view);
+  crisp::invert(translation(0.0, 0.0, 10.0 - 0.1 * frame) * crisp::test::rotationZ(turns ? 0.01 * frame : 0.0),
+                s.view);
   s.projection = crisp::test::perspective(1.8, width, height, jx, jy);
   s.projectionUnjittered = crisp::test::perspective(1.8, width, height);
   for (int k = 0; k < 3; ++k) {
@@ -46,7 +48,7 @@ Sidecar dollyFrame(int width, int height, int frame, double jx, double jy) {
 }
 
 void reconstruct(benchmark::State& state, int width, int height, int threads,
-                 crisp::MotionPath path = crisp::MotionPath::Fast) {
+                 crisp::MotionPath path = crisp::MotionPath::Fast, bool turns = false) {
   // Depth a slanted plane with some background, ids in three vertical bands.
   Image depth(width, height, 1), ids = Image::uintImage(width, height);
   for (int y = 0; y < height; ++y)
@@ -54,7 +56,8 @@ void reconstruct(benchmark::State& state, int width, int height, int threads,
       *depth.at(x, y) = y < height / 8 ? 1e10f : 4.0f + 6.0f * float(y) / float(height) + 0.5f * std::sin(0.01f * x);
       ids.setUint(x, y, kIds[3 * x / width]);
     }
-  const Sidecar previous = dollyFrame(width, height, 1, 0.3, -0.2), current = dollyFrame(width, height, 2, -0.4, 0.1);
+  const Sidecar previous = dollyFrame(width, height, 1, 0.3, -0.2, turns),
+                current = dollyFrame(width, height, 2, -0.4, 0.1, turns);
   for (auto _ : state) {
     crisp::FrameMotion m = crisp::reconstructMotion(depth, &ids, current, previous, nullptr, "bench", threads, path);
     benchmark::DoNotOptimize(m.motion.data.data());
@@ -70,6 +73,13 @@ void registerAll() {
                          [w, h](benchmark::State& st) { reconstruct(st, w, h, 0); });
     bench::registerTimed("motion.reconstruct.st" + bench::sizeTag(w, h),
                          [w, h](benchmark::State& st) { reconstruct(st, w, h, 1); });
+    // A camera that also turns: the background's eighth of the frame moves too.
+    bench::registerTimed("motion.reconstruct.turn.mt" + bench::sizeTag(w, h), [w, h](benchmark::State& st) {
+      reconstruct(st, w, h, 0, crisp::MotionPath::Fast, true);
+    });
+    bench::registerTimed("motion.reconstruct.turn.st" + bench::sizeTag(w, h), [w, h](benchmark::State& st) {
+      reconstruct(st, w, h, 1, crisp::MotionPath::Fast, true);
+    });
     // The scalar reference, one pixel at a time (the fast path's baseline).
     bench::registerTimed("motion.reconstruct.reference.mt" + bench::sizeTag(w, h), [w, h](benchmark::State& st) {
       reconstruct(st, w, h, 0, crisp::MotionPath::Reference);

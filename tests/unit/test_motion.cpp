@@ -487,8 +487,9 @@ TEST(Motion, FastPathEqualsReference) {
                                      perspective(s, 0.2, -0.3), perspective(s), 0.2, -0.3));
         Sidecar cur = sized(sidecar(cameraMoves ? Mat4::identity() : pose, perspective(s, -0.37, 0.41), perspective(s),
                                     -0.37, 0.41));
-        Sidecar next = sized(sidecar(translation(-0.1, 0.05, -0.4), perspective(s, 0.11, 0.07), perspective(s),
-                                     0.11, 0.07));
+        // The next camera turns too (a roll): the sky moves towards both frames.
+        Sidecar next = sized(sidecar(translation(-0.1, 0.05, -0.4) * rotationZ(-0.15), perspective(s, 0.11, 0.07),
+                                     perspective(s), 0.11, 0.07));
         cur.objects[kCube] = {"Cube", rotationZ(0.4) * translation(0.5, 0, -3), "", false};
         prev.objects[kCube] = {"Cube", rotationZ(0.3) * translation(0.45, 0, -3), "", false};
         next.objects[kCube] = {"Cube", rotationZ(0.5) * translation(0.55, 0, -3), "", false};
@@ -499,7 +500,7 @@ TEST(Motion, FastPathEqualsReference) {
           for (int x = 0; x < w; ++x) {
             const int i = y * w + x;
             float d = 1.0f + 0.37f * float((i * 7919) % 23);  // 1 .. 9: some behind the previous camera
-            if (y == 0 && x < 8) d = kFarDepth;               // whole background groups
+            if ((y == 0 && x < 8) || (y == h - 1 && x >= 4 && x < 20)) d = kFarDepth;  // whole background groups
             if (i % 5 == 3) d = odd[(i / 5) % 10];
             *depth.at(x, y) = d;
             const std::uint32_t choice[] = {0u, kCube, kBall, kStranger, kCube};
