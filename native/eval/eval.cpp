@@ -621,6 +621,73 @@ std::string csvText(const std::string& text) {
   return out + "\"";
 }
 
+// A stop signal (Ctrl-C, kill PID, a farm's SIGTERM, SIGHUP) while eval runs or measures the methods ends
+// crisp as before (by the handler crisp had: its temporary files removed, then the signal's default) after
+// one line saying which step it stopped and that the same command goes on from what is kept (the renders
+// say their own stop, cmd_eval.cpp). The line is made before each step with the signals blocked; the
+// handler only writes it (write(2) is async-signal-safe). A signal the shell made crisp ignore stays so.
+constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
+struct sigaction stopPrevious[std::size(kStopSignals)];
+bool stopInstalled[std::size(kStopSignals)];
+char stopLine[1024];
+std::size_t stopLength = 0;
+bool stopOnTerminal = false;
+
+void writeAll(const char* text, std::size_t n) {
+  while (n > 0) {
+    const ssize_t w = ::write(STDERR_FILENO, text, n);
+    if (w <= 0) return;
+    text += w;
+    n -= std::size_t(w);
+  }
+}
+
+extern "C" void sayStopAndPassOn(int sig) {
+  const char* name = sig == SIGINT ? "Ctrl-C (SIGINT)" : sig == SIGTERM ? "SIGTERM" : "SIGHUP";
+  const char head[] = "\ncrisp eval: stopped by ";  // on a terminal, a new line: a progress bar may hold the last
+  writeAll(head + (stopOnTerminal ? 0 : 1), sizeof head - (stopOnTerminal ? 1 : 2));
+  writeAll(name, std::strlen(name));
+  writeAll(stopLine, stopLength);
+  // The previous handler takes it once this one returns (the signal is blocked until then).
+  for (std::size_t i = 0; i < std::size(kStopSignals); ++i)
+    if (kStopSignals[i] == sig) ::sigaction(sig, &stopPrevious[i], nullptr);
+  ::raise(sig);
+}
+
+class StopNotice {
+ public:
+  StopNotice() {
+    stopOnTerminal = ::isatty(STDERR_FILENO) != 0;
+    for (std::size_t i = 0; i < std::size(kStopSignals); ++i) {
+      struct sigaction action {};
+      action.sa_handler = sayStopAndPassOn;
+      sigemptyset(&action.sa_mask);
+      stopInstalled[i] = ::sigaction(kStopSignals[i], nullptr, &stopPrevious[i]) == 0 &&
+                         stopPrevious[i].sa_handler != SIG_IGN && ::sigaction(kStopSignals[i], &action, nullptr) == 0;
+    }
+  }
+  ~StopNotice() { restore(); }
+  StopNotice(const StopNotice&) = delete;
+  StopNotice& operator=(const StopNotice&) = delete;
+  // What a stop during the next step says after "stopped by SIGNAL ".
+  void step(const std::string& text) {
+    sigset_t block, old;
+    sigemptyset(&block);
+    for (int sig : kStopSignals) sigaddset(&block, sig);
+    ::sigprocmask(SIG_BLOCK, &block, &old);
+    stopLength = std::min(text.size() + 2, sizeof stopLine);
+    stopLine[0] = ' ';
+    std::memcpy(stopLine + 1, text.data(), stopLength - 2);
+    stopLine[stopLength - 1] = '\n';
+    ::sigprocmask(SIG_SETMASK, &old, nullptr);
+  }
+  // The handlers crisp had (a forked method process takes them back: the line is its parent's to say).
+  static void restore() {
+    for (std::size_t i = 0; i < std::size(kStopSignals); ++i)
+      if (stopInstalled[i]) ::sigaction(kStopSignals[i], &stopPrevious[i], nullptr);
+  }
+};
+
 }  // namespace
 
 double equivalentSamples(const std::vector<int>& samples, const std::vector<double>& psnr, double value,
@@ -707,11 +774,14 @@ int run(const Options& o) {
 
   withdrawLastReport(out);
 
+  StopNotice stopNotice;
   // 1. Run the library methods, frames in order, each in a child process so that a method that
   // crashes is reported in the page instead of taking the evaluation down. Nothing in this process
   // has used the thread pool yet, so each child starts its own.
   for (Entry& e : methods) {
     if (e.kind != "method") continue;
+    stopNotice.step("while it ran method '" + e.name + "': the frames made are kept in " + (out / "methods").string() +
+                    ", and the same command goes on from them");
     const fs::path errorFile = out / "methods" / e.name / "error.txt";
     std::error_code ec;
     fs::remove(errorFile, ec);
@@ -725,6 +795,7 @@ int run(const Options& o) {
       // (its temporary files removed by their signal handler) rather than going on alone, writing into the
       // folder, as Blender does (cli/blender.cpp).
       prctl(PR_SET_PDEATHSIG, SIGTERM);
+      StopNotice::restore();
       if (getppid() != parent) _exit(1);  // crisp died before that
       int code = 0;
       try {
@@ -755,6 +826,7 @@ int run(const Options& o) {
       std::fprintf(stderr, "crisp: method '%s' failed (reported in the page): %s\n", e.name.c_str(), e.error.c_str());
   }
 
+  stopNotice.step("while it measured: the methods' frames are kept, and the same command measures them again");
   // 2. Measure. Every image is read once per entry; the reference frames are kept.
   std::map<int, Image> refs;
   for (int f : frames) refs[f] = readFrame((refDir / frameName(f)).string()).pass("color");

@@ -7,6 +7,7 @@ import glob
 import json
 import os
 import pathlib
+import re
 import shutil
 import signal
 import subprocess
@@ -238,7 +239,6 @@ def test_an_eval_stopped_while_it_renders_says_how_far_it_came_and_resumes(tmp_p
     folder they are kept in, and ends by the signal; the same command then goes on from them: it renders
     only the rest (its progress calls the others done before) and writes its report. A scene whose frame
     change handler is slow (spinning_cube, 0.3 s a frame) makes the run long enough to stop part-way."""
-    import re
     from crisp_test_util import addon_with_spinning_cube_ending
     env = dict(os.environ, CRISP_ADDON_DIR=addon_with_spinning_cube_ending(
         tmp_path, "import bpy\nimport time\nbpy.app.handlers.frame_change_pre.append(lambda *_: time.sleep(0.3))\n"))
@@ -442,13 +442,16 @@ def _running(pid):
 def test_a_stopped_eval_leaves_no_method_writing(tmp_path):
     """kill PID (a farm cancelling its task) stops crisp eval with the method it is running: eval runs each
     method in a child process, which must not go on alone writing into the folder after crisp has exited
-    (Blender does not: blender.cpp). The renders are made first; the second run only runs the methods."""
+    (Blender does not: blender.cpp). crisp eval says once, also with --quiet, that it stopped and where the
+    frames made are kept. The renders are made first; the second run only runs the methods."""
     out = tmp_path / "out"
     args = ["eval", "--scene", "still_life", "--resolution", "1920x1080", "--frames", "1-4", "--methods", "repair",
             "--reference-samples", "1", "--curve", "1", "--quiet", "-o", str(out)]
     run(*args)
     shutil.rmtree(out / "methods")
-    p = subprocess.Popen([str(CRISP), *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    err = tmp_path / "stderr"
+    with open(err, "w") as f:
+        p = subprocess.Popen([str(CRISP), *args], stdout=subprocess.DEVNULL, stderr=f)
     child, deadline = None, time.monotonic() + 120
     while child is None and p.poll() is None and time.monotonic() < deadline:
         child = _method_child_of(p.pid)
@@ -463,6 +466,10 @@ def test_a_stopped_eval_leaves_no_method_writing(tmp_path):
     listing = sorted((f.name, f.stat().st_size) for f in (out / "methods").rglob("*"))
     time.sleep(1.0)
     assert sorted((f.name, f.stat().st_size) for f in (out / "methods").rglob("*")) == listing
+    said = err.read_text()
+    assert said.count("crisp eval: stopped by") == 1, said
+    assert re.search(r"(^|\n)crisp eval: stopped by SIGTERM while it ran method '(none|repair)': the frames made are "
+                     r"kept in %s, and the same command goes on from them\n" % re.escape(str(out / "methods")), said), said
 
 
 @pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
@@ -518,7 +525,6 @@ def test_bad_files_name_the_file_and_write_nothing(chart, tmp_path):
 def test_temporary_files_of_a_killed_run_are_removed(chart, tmp_path):
     """kill -9 mid-write leaves '.<name>.tmp-<host>-<pid>-<n><ext>'; the next run on
     this host removes those whose process is gone and that are a minute old, no other."""
-    import re
     import socket
     import sys
     host = re.sub(r"[^A-Za-z0-9_.-]", "_", socket.gethostname())[:64]
