@@ -256,7 +256,8 @@ _NUMBERED = re.compile(r"^(.*?)(\d+)(\.[^.\d][^.]*)?$")  # name, frame number, e
 def external_files(libraries=()):
     """[(name, absolute path)] of the files outside the .blend that Blender reads (bpy.utils.blend_paths:
     images, movie clips, caches, volumes, fonts, sounds, of linked data too), sorted, each file once:
-    every file of an image sequence (beside the first, in its folder) and every tile of a UDIM image;
+    every file of an image or movie clip sequence (beside the first, in its folder) and every tile of a
+    UDIM image;
     not packed files (in the .blend), folders, nor the libraries given (hashed by content). The name is
     the path relative to the .blend's folder (also of a file beside it, ../tex/a.png), so a moved project
     keeps its names."""
@@ -279,13 +280,10 @@ def external_files(libraries=()):
                 "<UVTILE>", "u%d_v%d" % ((t.number - 1001) % 10 + 1, (t.number - 1001) // 10 + 1))
                 for t in image.tiles)
         elif image.source == "SEQUENCE":
-            folder, numbered = os.path.split(first)
-            match = _NUMBERED.match(numbered)
-            if match and os.path.isdir(folder):
-                for f in os.listdir(folder):
-                    other = _NUMBERED.match(f)
-                    if other and (other.group(1), other.group(3)) == (match.group(1), match.group(3)):
-                        paths.add(os.path.join(folder, f))
+            paths.update(_sequence_files(first))
+    for clip in bpy.data.movieclips:  # a plate as numbered images: blend_paths gives its first file alone
+        if clip.source == "SEQUENCE" and clip.filepath:
+            paths.update(_sequence_files(os.path.normpath(bpy.path.abspath(clip.filepath, library=clip.library))))
     paths.difference_update(os.path.normpath(p) for p in libraries)
     home = os.path.dirname(os.path.abspath(bpy.data.filepath)) if bpy.data.filepath else None
 
@@ -298,6 +296,18 @@ def external_files(libraries=()):
             return path
     # Files only: a folder (a fluid cache's, made when the file loads) changes its time with what is in it.
     return sorted((name(p), p) for p in paths if not os.path.isdir(p))
+
+
+def _sequence_files(first):
+    """The files of the numbered sequence whose first file is `first` (seq.0001.png: seq.NNNN.png beside it)."""
+    def stem_and_extension(name):
+        match = _NUMBERED.match(name)
+        return match and (match.group(1), match.group(3))
+    folder, numbered = os.path.split(first)
+    want = stem_and_extension(numbered)
+    if not want or not os.path.isdir(folder):
+        return []
+    return [os.path.join(folder, f) for f in os.listdir(folder) if stem_and_extension(f) == want]
 
 
 def _hash_file(h, path):

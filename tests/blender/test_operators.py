@@ -855,10 +855,10 @@ class OperatorTest(unittest.TestCase):
 
     def test_the_scene_key_covers_the_files_the_renders_read(self):
         """batch.external_files, what scene_key hashes beside the .blend: a texture (named relative to the
-        .blend's folder, also from beside it: ../tex), every frame of an image sequence and every UDIM
-        tile, not a packed image, nor Crisp's own filtered frames loaded into the compositor or
-        previewed, which each run rewrites (a resume on a farm would otherwise never find its frames made
-        alike). Editing a texture changes the key; moving the project with its times does not."""
+        .blend's folder, also from beside it: ../tex), every frame of an image sequence, of a movie clip of
+        numbered images and every UDIM tile, not a packed image, nor Crisp's own filtered frames loaded into
+        the compositor or previewed, which each run rewrites (a resume on a farm would otherwise never find
+        its frames made alike). Editing a texture changes the key; moving the project with its times does not."""
         from crisp import batch
         bpy.ops.wm.read_homefile(use_empty=True)
         home = self.tmp.name
@@ -870,7 +870,7 @@ class OperatorTest(unittest.TestCase):
                             os.path.join(home, path)], check=True, capture_output=True)
         for path in ("tex/wood.png", "tex/seq.0001.png", "tex/seq.0002.png", "tex/seq.0010.png", "tex/other.0001.png",
                      "tex/u.1001.png", "tex/u.1002.png", "tex/packed.png", "out/filtered/frame_0001.exr",
-                     "out/filtered/frame_0002.exr"):
+                     "out/filtered/frame_0002.exr", "tex/plate.0001.png", "tex/plate.0002.png"):
             pattern(path)
         os.makedirs(os.path.join(home, "shots"))
         bpy.ops.wm.save_as_mainfile(filepath=os.path.join(home, "shots", "shot.blend"))
@@ -882,19 +882,22 @@ class OperatorTest(unittest.TestCase):
         udim.tiles.new(1002)
         packed = bpy.data.images.load(os.path.join(home, "tex", "packed.png"))
         packed.pack()
-        for image in (wood, sequence, udim, packed):
+        plate = bpy.data.movieclips.load(os.path.join(home, "tex", "plate.0001.png"))  # a clip of numbered images
+        self.assertEqual(plate.source, "SEQUENCE")
+        for image in (wood, sequence, udim, packed, plate):
             image.use_fake_user = True  # (saved with the file, as a material's would be)
         scene = bpy.context.scene
         compositor.load_result(scene, os.path.join(home, "out", "filtered"), 1, 2)
         compositor.preview(os.path.join(home, "out", "filtered", "frame_0002.exr"))
         names = [name for name, _ in batch.external_files()]
         self.assertEqual(names, [os.path.join("..", "tex", f) for f in (
-            "seq.0001.png", "seq.0002.png", "seq.0010.png", "u.1001.png", "u.1002.png", "wood.png")])
+            "plate.0001.png", "plate.0002.png", "seq.0001.png", "seq.0002.png", "seq.0010.png", "u.1001.png",
+            "u.1002.png", "wood.png")])
         key = batch.scene_key(None)
         self.assertEqual(batch.scene_key(None), key)
         pattern("out/filtered/frame_0001.exr", "0,1,0")  # a run writing its frames: the same key
         self.assertEqual(batch.scene_key(None), key)
-        for edited in ("tex/wood.png", "tex/seq.0010.png", "tex/u.1002.png"):
+        for edited in ("tex/wood.png", "tex/seq.0010.png", "tex/u.1002.png", "tex/plate.0002.png"):
             pattern(edited, "0,0,1")
             self.assertNotEqual(batch.scene_key(None), key, edited)
             key = batch.scene_key(None)
