@@ -162,19 +162,23 @@ def main(argv):
     methods = [m for m in args.methods.split(",") if m]
     # Ctrl-C, SIGTERM (crisp eval passes on its own), SIGHUP: the run ends after the render it is on
     # (each is written whole, through a temporary name) and crisp eval says how far it came.
-    should_cancel = batch.stop_on_signals()
-    count = {"done": 0, "total": 0}
+    count = {"total": 0, "done": lambda: 0}
     try:
+        should_cancel = batch.stop_on_signals()
         render_all(args, progress, curve, filter_size_limits, methods, count, should_cancel)
     except (KeyboardInterrupt, batch.Stopped) as e:
-        line = stop_line(e, count["done"], count["total"])
-        progress.write("stop %s\n" % line)
-        progress.flush()
+        line = stop_line(e, count["done"](), count["total"])
+        try:
+            progress.write("stop %s\n" % line)
+            progress.flush()
+        except OSError:  # crisp is gone (killed outright): the log still says it
+            pass
         fail(4, line)
 
 
 def render_all(args, progress, curve, filter_size_limits, methods, count, should_cancel):
-    """The renders of main's arguments into args.output; count: {"done", "total"} renders, as they go."""
+    """The renders of main's arguments into args.output; count: {"total": renders, "done": () -> how many
+    of them are made, as their folders' times.json record them}."""
     import runpy
     import bpy
     from crisp import batch, eval_renders, pipeline, render
@@ -276,13 +280,14 @@ def render_all(args, progress, curve, filter_size_limits, methods, count, should
     cost_total = sum(c for _, c in jobs) * len(frames)
     state = {"done": 0, "cost": 0, "rendered_cost": 0, "rendered_s": 0.0}
     total = count["total"] = len(jobs) * len(frames)
+    count["done"] = lambda: sum(len(frames) - len(eval_renders.TimeBook(os.path.join(out, n)).missing(frames))
+                                for n, _ in jobs)
     t_start = time.perf_counter()
     t_last = [t_start]
 
     def step(name, frame, cost, skipped=False):
         now = time.perf_counter()
         state["done"] += 1
-        count["done"] = state["done"]
         state["cost"] += cost
         if not skipped:
             state["rendered_cost"] += cost

@@ -922,9 +922,9 @@ def read_sidecar(input_dir, f):
 
 
 def reusable_input(scene, engine, input_dir, f, the_plan, samples, jitter_distribution, scene_key=None):
-    """Whether input/frame f was rendered as this run would render it (same passes, size, samples and
-    jitter, and with scene_key given the same scene file: its sidecar's made_with), so it can be read
-    instead of rendered again (a pre-roll, eval's input sets); stale or foreign inputs are not."""
+    """Whether input/frame f was rendered as this run would render it (same passes, size, samples, jitter
+    and plan history, and with scene_key given the same scene file: its sidecar's made_with), so it can be
+    read instead of rendered again (a pre-roll, eval's input sets); stale or foreign inputs are not."""
     if not input_complete(input_dir, f):
         return False
     side = read_sidecar(input_dir, f)
@@ -934,6 +934,8 @@ def reusable_input(scene, engine, input_dir, f, the_plan, samples, jitter_distri
         return (side["passes"] == list(the_plan.passes) and settings["samples"] == samples
                 and settings["engine"] == engine and settings["resolution"] == list(render_size(scene))
                 and jitter["distribution"] == (jitter_distribution if the_plan.jitter else "none")
+                # what crisp filter reads of the plan (the still average): a frame of an older build or plan
+                and (side.get("history") or {}).get("still_average", True) == the_plan.still_average
                 and (scene_key is None or (side.get("made_with") or {}).get("scene_key") == scene_key))
-    except (KeyError, TypeError):
+    except (KeyError, TypeError, AttributeError):
         return False

@@ -94,28 +94,55 @@ void checkSidecarSettings(const Filter& filter, const ParsedArgs& args, const Si
                inputs.size() - with, inputs.size(), sidecars.firstWithout.c_str(), what.c_str());
 }
 
-// What the renders' plan asks of a temporal filter, from the first input's sidecar: "history", which the
-// add-on writes where the image changes with nothing moving (a still pixel's average would keep the old
-// image), set as crisp render sets it (pipeline.with_plan_params) for each parameter --set leaves out: a
-// value, or the name of another parameter whose value it takes (phlm's lambda = lambdaMoving). Said also
-// under --quiet, as crisp eval says it: it changes what the run makes.
-void applyPlanParams(Filter& filter, const ParsedArgs& args, const Sidecars& sidecars) {
-  if (!keepsHistory(filter)) return;
-  std::error_code ec;
-  const auto path = std::find_if(sidecars.paths.begin(), sidecars.paths.end(),
-                                 [&](const std::string& p) { return fs::is_regular_file(p, ec); });
-  if (path == sidecars.paths.end()) return;
-  std::ifstream in(*path);
+// A sidecar's "history", which the add-on writes where the image changes with nothing moving (a still
+// pixel's average would keep the old image): null where it gives none, or keeps the still average.
+nlohmann::json sidecarHistory(const std::string& path) {
+  std::ifstream in(path);
   const nlohmann::json side = nlohmann::json::parse(in, nullptr, false);
-  if (!side.is_object() || !side.contains("history")) return;  // unreadable: readSidecar names it at the frame
+  if (!side.is_object() || !side.contains("history")) return nullptr;  // unreadable: readSidecar names it
   const nlohmann::json& history = side["history"];
-  const std::string where = "sidecar '" + *path + "' history";
+  const std::string where = "sidecar '" + path + "' history";
   if (!history.is_object() || !history.contains("still_average") || !history["still_average"].is_boolean())
     invalidData(where + ": expected an object with still_average true or false");
-  if (history["still_average"].get<bool>()) return;
+  if (history.contains("note") && !history["note"].is_string()) invalidData(where + ".note: expected text");
+  return history["still_average"].get<bool>() ? nlohmann::json() : history;
+}
+
+// What the renders' plan asks of a temporal filter, from the first input's sidecar ("history"), set as
+// crisp render sets it (pipeline.with_plan_params) for each parameter --set leaves out: a value, or the
+// name of another parameter whose value it takes (phlm's lambda = lambdaMoving). Said also under --quiet,
+// as crisp eval says it: it changes what the run makes. Sidecars that disagree (inputs of an older build,
+// kept by a resume) are named: the first input's plan is taken for every frame.
+void applyPlanParams(Filter& filter, const ParsedArgs& args, const Sidecars& sidecars) {
+  if (!keepsHistory(filter)) return;
+  nlohmann::json history;
+  std::string first, other;
+  for (const std::string& path : sidecars.paths) {
+    std::error_code ec;
+    if (!fs::is_regular_file(path, ec)) continue;
+    const nlohmann::json h = sidecarHistory(path);
+    if (first.empty()) {
+      first = path;
+      history = h;
+    } else if (other.empty() && h.is_null() != history.is_null()) {
+      other = path;
+    }
+  }
+  if (!other.empty()) {
+    const char* averages = "keeps the still average";
+    const char* blends = "blends still pixels as moving ones";
+    std::fprintf(stderr,
+                 "filter: warning: the inputs' sidecars disagree on the renders' plan: '%s' %s, '%s' %s (frames of "
+                 "another build or plan); the first input's is taken for every frame\n",
+                 first.c_str(), history.is_null() ? averages : blends, other.c_str(),
+                 history.is_null() ? blends : averages);
+  }
+  if (history.is_null()) return;
+  const std::string where = "sidecar '" + first + "' history";
   const nlohmann::json table = history.value("params", nlohmann::json::object());
   const nlohmann::json params = table.is_object() ? table.value(filter.type(), nlohmann::json::object()) : nullptr;
   if (!params.is_object()) invalidData(where + ".params: expected an object of parameters per method");
+  const std::string note = history.value("note", std::string("their sidecars"));
   std::set<std::string> given;
   for (const auto& [key, value] : settingsOf(args)) given.insert(key);
   for (const auto& [key, value] : params.items()) {
@@ -132,8 +159,7 @@ void applyPlanParams(Filter& filter, const ParsedArgs& args, const Sidecars& sid
       throw Exception(e.code(), at + ": " + e.what());
     }
     std::fprintf(stderr, "filter: %s runs with %s=%s, as the renders' plan asks (%s; --set %s=... to choose)\n",
-                 filter.type(), key.c_str(), canonicalParamText(filter, key).c_str(),
-                 history.value("note", std::string("their sidecars")).c_str(), key.c_str());
+                 filter.type(), key.c_str(), canonicalParamText(filter, key).c_str(), note.c_str(), key.c_str());
   }
 }
 

@@ -661,7 +661,8 @@ class StopNotice {
     for (std::size_t i = 0; i < std::size(kStopSignals); ++i) {
       struct sigaction action {};
       action.sa_handler = sayStopAndPassOn;
-      sigemptyset(&action.sa_mask);
+      sigemptyset(&action.sa_mask);  // one stop at a time: a second signal waits for the first to end crisp
+      for (int sig : kStopSignals) sigaddset(&action.sa_mask, sig);
       stopInstalled[i] = ::sigaction(kStopSignals[i], nullptr, &stopPrevious[i]) == 0 &&
                          stopPrevious[i].sa_handler != SIG_IGN && ::sigaction(kStopSignals[i], &action, nullptr) == 0;
     }
@@ -671,16 +672,22 @@ class StopNotice {
   StopNotice& operator=(const StopNotice&) = delete;
   // What a stop during the next step says after "stopped by SIGNAL ".
   void step(const std::string& text) {
-    sigset_t block, old;
-    sigemptyset(&block);
-    for (int sig : kStopSignals) sigaddset(&block, sig);
-    ::sigprocmask(SIG_BLOCK, &block, &old);
+    const sigset_t held = hold();
     stopLength = std::min(text.size() + 2, sizeof stopLine);
     stopLine[0] = ' ';
     std::memcpy(stopLine + 1, text.data(), stopLength - 2);
     stopLine[stopLength - 1] = '\n';
-    ::sigprocmask(SIG_SETMASK, &old, nullptr);
+    release(held);
   }
+  // The stop signals blocked (they wait); returns the mask to release.
+  static sigset_t hold() {
+    sigset_t block, old;
+    sigemptyset(&block);
+    for (int sig : kStopSignals) sigaddset(&block, sig);
+    ::sigprocmask(SIG_BLOCK, &block, &old);
+    return old;
+  }
+  static void release(const sigset_t& old) { ::sigprocmask(SIG_SETMASK, &old, nullptr); }
   // The handlers crisp had (a forked method process takes them back: the line is its parent's to say).
   static void restore() {
     for (std::size_t i = 0; i < std::size(kStopSignals); ++i)
@@ -788,14 +795,19 @@ int run(const Options& o) {
     std::fflush(stdout);
     std::fflush(stderr);
     const pid_t parent = getpid();
+    // The stop signals wait while the child is made and takes the previous handlers back: one that came
+    // in between would have it say the parent's line too.
+    const sigset_t held = StopNotice::hold();
     pid_t pid = fork();
+    if (pid != 0) StopNotice::release(held);
     if (pid < 0) ioError("cannot run method '" + e.name + "' (fork failed)");
     if (pid == 0) {
       // crisp stopped (kill PID, a farm cancelling its task) or killed outright: the method stops with it
       // (its temporary files removed by their signal handler) rather than going on alone, writing into the
       // folder, as Blender does (cli/blender.cpp).
-      prctl(PR_SET_PDEATHSIG, SIGTERM);
       StopNotice::restore();
+      StopNotice::release(held);
+      prctl(PR_SET_PDEATHSIG, SIGTERM);
       if (getppid() != parent) _exit(1);  // crisp died before that
       int code = 0;
       try {

@@ -159,13 +159,29 @@ class ImageChangeTest(unittest.TestCase):
         said = crisp_filter("phlm", os.path.join(self.tmp.name, "phlm"), "--set", "lambdaMoving=0.8")
         self.assertIn("filter: phlm runs with lambda=0.8, as the renders' plan asks", said)
         self.assertIn("filter: phlm runs with footprintBox=false, as the renders' plan asks", said)
+        def edit_sidecar(exr, change):
+            side = exr[:-len(".exr")] + ".json"
+            with open(side) as f:
+                record = json.load(f)
+            change(record)
+            with open(side, "w") as f:
+                json.dump(record, f)
+            return side
+        # A frame of another build (no history) among them: named, and the first input's plan is taken.
+        older = edit_sidecar(inputs[-1], lambda record: record.pop("history"))
+        said = crisp_filter("taa", os.path.join(self.tmp.name, "mixed"))
+        self.assertIn("filter: warning: the inputs' sidecars disagree on the renders' plan: '%s' blends still pixels "
+                      "as moving ones, '%s' keeps the still average" % (inputs[0][:-len(".exr")] + ".json", older), said)
+        self.assertIn("taa runs with staticAccumulation=false", said)
+        # ... and the add-on renders such a frame again rather than reading it (a pre-roll, a resume).
+        from crisp import render
+        the_plan = plan.make_plan("taa", plan.scene_facts(self.scene, 1, 3))
+        reusable = [render.reusable_input(self.scene, render.eevee_engine(self.scene), os.path.join(out, "input"), f,
+                                          the_plan, 1, "blackman-harris") for f in (2, 3)]
+        self.assertEqual(reusable, [True, False])
         # A sidecar whose plan gives what no parameter takes is refused, naming the key, before any output.
-        side = inputs[0][:-len(".exr")] + ".json"
-        with open(side) as f:
-            record = json.load(f)
-        record["history"]["params"]["taa"]["staticAccumulation"] = "fast"
-        with open(side, "w") as f:
-            json.dump(record, f)
+        side = edit_sidecar(inputs[0], lambda record: record["history"]["params"]["taa"].update(
+            staticAccumulation="fast"))
         bad = os.path.join(self.tmp.name, "bad")
         p = subprocess.run([crisp, "filter", "-m", "taa", "-q", "-o", bad, *inputs], capture_output=True, text=True)
         self.assertEqual(p.returncode, 1, p.stderr)

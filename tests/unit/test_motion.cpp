@@ -500,12 +500,22 @@ TEST(Motion, FastPathEqualsReference) {
           for (int x = 0; x < w; ++x) {
             const int i = y * w + x;
             float d = 1.0f + 0.37f * float((i * 7919) % 23);  // 1 .. 9: some behind the previous camera
-            if ((y == 0 && x < 8) || (y == h - 1 && x >= 4 && x < 20)) d = kFarDepth;  // whole background groups
-            if (i % 5 == 3) d = odd[(i / 5) % 10];
+            const bool sky = (y == 0 && x < 8) || (y == h - 1 && x >= 4 && x < 20);  // whole background groups
+            if (sky) d = kFarDepth;
+            if (i % 5 == 3 && !sky) d = odd[(i / 5) % 10];
             *depth.at(x, y) = d;
             const std::uint32_t choice[] = {0u, kCube, kBall, kStranger, kCube};
             ids.setUint(x, y, choice[(i * 31) % 5]);
           }
+        // The fast path takes eight pixels a step (x = 0, 8, ...): a step all background runs the sky's lanes.
+        int skySteps = 0;
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x + 8 <= w; x += 8) {
+            bool all = true;
+            for (int k = 0; k < 8; ++k) all &= isBackgroundDepth(*depth.at(x + k, y));
+            skySteps += all;
+          }
+        if (w >= 8) EXPECT_GE(skySteps, 2) << w << "x" << h;
         for (const bool withNext : {false, true})
           for (const bool withIds : {false, true}) {
             const Image* idp = withIds ? &ids : nullptr;
