@@ -316,6 +316,33 @@ CRISP_MOTION_INLINE DL snapStillLanes(DL v) {
   return a < 1e-6 ? splat(0.0) : v;
 }
 
+// The lanes' (X, Y, Z, W) through the current chain and each lane's previous and next: where they fall in
+// the current frame and the motions towards the other two, with motionOfPixel's and backgroundMotion's
+// sums and snaps.
+struct Projected {
+  PixelLanes current, previous, next;
+  DL mx, my, nx, ny;
+};
+
+template <bool HasNext>
+CRISP_MOTION_INLINE void projectLanes(const Setup& s, const Chain* const current[kLanes],
+                                      const Chain* const toPrevious[kLanes], const Chain* const toNext[kLanes], DL X,
+                                      DL Y, DL Z, DL W, Projected& p) {
+  DL clip[3];
+  clipLanes(current, X, Y, Z, W, clip);
+  p.current = toPixelLanes(clip, s.W, s.H);
+  clipLanes(toPrevious, X, Y, Z, W, clip);
+  p.previous = toPixelLanes(clip, s.W, s.H);
+  p.mx = snapStillLanes(p.previous.x - p.current.x);
+  p.my = snapStillLanes(p.previous.y - p.current.y);
+  if constexpr (HasNext) {
+    clipLanes(toNext, X, Y, Z, W, clip);
+    p.next = toPixelLanes(clip, s.W, s.H);
+    p.nx = snapStillLanes(p.current.x - p.next.x);
+    p.ny = snapStillLanes(p.current.y - p.next.y);
+  }
+}
+
 // One lane group of a row: its inputs, and what the vector steps leave for
 // the per-pixel epilogue.
 struct Group {
@@ -327,8 +354,7 @@ struct Group {
   const Chain* toNext[kLanes];
   std::uint32_t flags[kLanes];
   ML pointOk;
-  PixelLanes previous, next;
-  DL mx, my, nx, ny;
+  Projected p;
 };
 
 // The per-row state of the object lookups: IDs come in runs, and the last
@@ -378,21 +404,8 @@ CRISP_MOTION_INLINE void groupMath(const Setup& s, double ndcY, double a10, doub
   const DL b1 = ndcY * (P.m[3][2] * Z + P.m[3][3]) - P.m[1][2] * Z - P.m[1][3];
   const DL det = a00 * a11 - a01 * a10;
   const DL X = (b0 * a11 - a01 * b1) / det, Y = (a00 * b1 - b0 * a10) / det;
-  const DL one = splat(1.0);
-  DL clip[3];
-  clipLanes(current, X, Y, Z, one, clip);
-  const PixelLanes c = toPixelLanes(clip, s.W, s.H);
-  g.pointOk = (det != 0.0) & c.ok;
-  clipLanes(g.toPrevious, X, Y, Z, one, clip);
-  g.previous = toPixelLanes(clip, s.W, s.H);
-  g.mx = snapStillLanes(g.previous.x - c.x);
-  g.my = snapStillLanes(g.previous.y - c.y);
-  if constexpr (HasNext) {
-    clipLanes(g.toNext, X, Y, Z, one, clip);
-    g.next = toPixelLanes(clip, s.W, s.H);
-    g.nx = snapStillLanes(c.x - g.next.x);
-    g.ny = snapStillLanes(c.y - g.next.y);
-  }
+  projectLanes<HasNext>(s, current, g.toPrevious, g.toNext, X, Y, Z, splat(1.0), g.p);
+  g.pointOk = (det != 0.0) & g.p.current.ok;
 }
 
 // motionOfPixel's decisions on each lane, and the stores.
@@ -411,9 +424,9 @@ CRISP_MOTION_INLINE void groupFinish(const Setup& s, const Group& g, int y, Fram
     }
     float* m = out.motion.at(x, y);
     std::uint32_t f = g.flags[l];
-    f |= pairOutcome(g.toPrevious[l]->valid, g.previous.ok[l], g.mx[l], g.my[l], m, kMotionPreviousValid);
+    f |= pairOutcome(g.toPrevious[l]->valid, g.p.previous.ok[l], g.p.mx[l], g.p.my[l], m, kMotionPreviousValid);
     if constexpr (HasNext)
-      f |= pairOutcome(g.toNext[l]->valid, g.next.ok[l], g.nx[l], g.ny[l], m + 2, kMotionNextValid);
+      f |= pairOutcome(g.toNext[l]->valid, g.p.next.ok[l], g.p.nx[l], g.p.ny[l], m + 2, kMotionNextValid);
     out.flags.setUint(x, y, f);
   }
 }
@@ -423,8 +436,7 @@ CRISP_MOTION_INLINE void groupFinish(const Setup& s, const Group& g, int y, Fram
 struct SkyGroup {
   int x;
   ML ok;  // the direction projects into the current frame
-  PixelLanes previous, next;
-  DL mx, my, nx, ny;
+  Projected p;
 };
 
 template <bool HasNext>
@@ -439,21 +451,8 @@ CRISP_MOTION_INLINE void skyGroupMath(const Setup& s, double ndcY, const Chain* 
   const double b1 = -ndcY * P.m[3][2] + P.m[1][2];
   const double det = a00 * a11 - a01 * a10;
   const DL X = (b0 * a11 - a01 * b1) / det, Y = (a00 * b1 - b0 * a10) / det;
-  const DL Z = splat(-1.0), W = splat(0.0);
-  DL clip[3];
-  clipLanes(current, X, Y, Z, W, clip);
-  const PixelLanes c = toPixelLanes(clip, s.W, s.H);
-  g.ok = (splat(det) != 0.0) & c.ok;
-  clipLanes(toPrevious, X, Y, Z, W, clip);
-  g.previous = toPixelLanes(clip, s.W, s.H);
-  g.mx = snapStillLanes(g.previous.x - c.x);
-  g.my = snapStillLanes(g.previous.y - c.y);
-  if constexpr (HasNext) {
-    clipLanes(toNext, X, Y, Z, W, clip);
-    g.next = toPixelLanes(clip, s.W, s.H);
-    g.nx = snapStillLanes(c.x - g.next.x);
-    g.ny = snapStillLanes(c.y - g.next.y);
-  }
+  projectLanes<HasNext>(s, current, toPrevious, toNext, X, Y, splat(-1.0), splat(0.0), g.p);
+  g.ok = (splat(det) != 0.0) & g.p.current.ok;
 }
 
 template <bool HasNext>
@@ -463,10 +462,10 @@ CRISP_MOTION_INLINE void skyGroupFinish(const Setup& s, const SkyGroup& g, int y
     std::uint32_t f = kMotionBackground;
     if (g.ok[l]) {
       float* m = out.motion.at(x, y);
-      f |= pairOutcome(s.staticPrevious.valid, s.staticPrevious.valid && g.previous.ok[l], g.mx[l], g.my[l], m,
+      f |= pairOutcome(s.staticPrevious.valid, s.staticPrevious.valid && g.p.previous.ok[l], g.p.mx[l], g.p.my[l], m,
                        kMotionPreviousValid);
       if constexpr (HasNext)
-        f |= pairOutcome(s.staticNext.valid, s.staticNext.valid && g.next.ok[l], g.nx[l], g.ny[l], m + 2,
+        f |= pairOutcome(s.staticNext.valid, s.staticNext.valid && g.p.next.ok[l], g.p.nx[l], g.p.ny[l], m + 2,
                          kMotionNextValid);
     }
     out.flags.setUint(x, y, f);
