@@ -26,6 +26,7 @@
 #include "cli/frame_range.h"
 #include "cli/output_stamps.h"
 #include "cli/progress.h"
+#include "cli/stop_notice.h"
 #include "core/error.h"
 #include "core/filter.h"
 #include "io/sidecar.h"
@@ -315,6 +316,10 @@ int runFilter(const ParsedArgs& args) {
           inputs.count(fs::weakly_canonical(joinPath(outDir, fileStem(in) + ext), ec)))
         throw UsageError("output for '" + in + "' would overwrite an input file; choose another -o folder");
   }
+  // A stop signal (Ctrl-C, a farm cancelling its task) says where the run was, also under --quiet:
+  // a farm's log then tells a cancelled task from a failed one.
+  StopNotice stopNotice("filter");
+  stopNotice.step("before its first input: no output is written");
   const RunFolder folder(outDir);
   // A folder in an output's place (named like it) would fail the run only when it reaches that frame.
   for (int position = chunk.first; position <= chunk.last; ++position) {
@@ -400,6 +405,11 @@ int runFilter(const ParsedArgs& args) {
   for (std::size_t i = std::size_t(run.start - 1); i < std::size_t(run.last); ++i) {
     const std::string& in = args.positional[i];
     const bool write = int(i) + 1 >= run.first;
+    stopNotice.step(write ? "while it filtered '" + in + "' (input " + std::to_string(i + 1) + " of " +
+                                std::to_string(chunk.first) + "-" + std::to_string(chunk.last) +
+                                "): the outputs before it are whole, and the same command with --resume goes on "
+                                "from them"
+                          : "while it read the pre-roll ('" + in + "'): no output is written yet");
     // A spatial method's outputs stand alone: its resume keeps every complete
     // output, also after the first one it makes again (planChunk asked up to it).
     // (Not with motion rebuilt from the sidecars, which reads the inputs beside it; no spatial

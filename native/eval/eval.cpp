@@ -29,6 +29,7 @@
 
 #include "cli/commands.h"
 #include "cli/progress.h"
+#include "cli/stop_notice.h"
 #include "core/color.h"
 #include "core/error.h"
 #include "core/filter.h"
@@ -621,80 +622,6 @@ std::string csvText(const std::string& text) {
   return out + "\"";
 }
 
-// A stop signal (Ctrl-C, kill PID, a farm's SIGTERM, SIGHUP) while eval runs or measures the methods ends
-// crisp as before (by the handler crisp had: its temporary files removed, then the signal's default) after
-// one line saying which step it stopped and that the same command goes on from what is kept (the renders
-// say their own stop, cmd_eval.cpp). The line is made before each step with the signals blocked; the
-// handler only writes it (write(2) is async-signal-safe). A signal the shell made crisp ignore stays so.
-constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
-struct sigaction stopPrevious[std::size(kStopSignals)];
-bool stopInstalled[std::size(kStopSignals)];
-char stopLine[1024];
-std::size_t stopLength = 0;
-bool stopOnTerminal = false;
-
-void writeAll(const char* text, std::size_t n) {
-  while (n > 0) {
-    const ssize_t w = ::write(STDERR_FILENO, text, n);
-    if (w <= 0) return;
-    text += w;
-    n -= std::size_t(w);
-  }
-}
-
-extern "C" void sayStopAndPassOn(int sig) {
-  const char* name = sig == SIGINT ? "Ctrl-C (SIGINT)" : sig == SIGTERM ? "SIGTERM" : "SIGHUP";
-  const char head[] = "\ncrisp eval: stopped by ";  // on a terminal, a new line: a progress bar may hold the last
-  writeAll(head + (stopOnTerminal ? 0 : 1), sizeof head - (stopOnTerminal ? 1 : 2));
-  writeAll(name, std::strlen(name));
-  writeAll(stopLine, stopLength);
-  // The previous handler takes it once this one returns (the signal is blocked until then).
-  for (std::size_t i = 0; i < std::size(kStopSignals); ++i)
-    if (kStopSignals[i] == sig) ::sigaction(sig, &stopPrevious[i], nullptr);
-  ::raise(sig);
-}
-
-class StopNotice {
- public:
-  StopNotice() {
-    stopOnTerminal = ::isatty(STDERR_FILENO) != 0;
-    for (std::size_t i = 0; i < std::size(kStopSignals); ++i) {
-      struct sigaction action {};
-      action.sa_handler = sayStopAndPassOn;
-      sigemptyset(&action.sa_mask);  // one stop at a time: a second signal waits for the first to end crisp
-      for (int sig : kStopSignals) sigaddset(&action.sa_mask, sig);
-      stopInstalled[i] = ::sigaction(kStopSignals[i], nullptr, &stopPrevious[i]) == 0 &&
-                         stopPrevious[i].sa_handler != SIG_IGN && ::sigaction(kStopSignals[i], &action, nullptr) == 0;
-    }
-  }
-  ~StopNotice() { restore(); }
-  StopNotice(const StopNotice&) = delete;
-  StopNotice& operator=(const StopNotice&) = delete;
-  // What a stop during the next step says after "stopped by SIGNAL ".
-  void step(const std::string& text) {
-    const sigset_t held = hold();
-    stopLength = std::min(text.size() + 2, sizeof stopLine);
-    stopLine[0] = ' ';
-    std::memcpy(stopLine + 1, text.data(), stopLength - 2);
-    stopLine[stopLength - 1] = '\n';
-    release(held);
-  }
-  // The stop signals blocked (they wait); returns the mask to release.
-  static sigset_t hold() {
-    sigset_t block, old;
-    sigemptyset(&block);
-    for (int sig : kStopSignals) sigaddset(&block, sig);
-    ::sigprocmask(SIG_BLOCK, &block, &old);
-    return old;
-  }
-  static void release(const sigset_t& old) { ::sigprocmask(SIG_SETMASK, &old, nullptr); }
-  // The handlers crisp had (a forked method process takes them back: the line is its parent's to say).
-  static void restore() {
-    for (std::size_t i = 0; i < std::size(kStopSignals); ++i)
-      if (stopInstalled[i]) ::sigaction(kStopSignals[i], &stopPrevious[i], nullptr);
-  }
-};
-
 }  // namespace
 
 double equivalentSamples(const std::vector<int>& samples, const std::vector<double>& psnr, double value,
@@ -781,7 +708,7 @@ int run(const Options& o) {
 
   withdrawLastReport(out);
 
-  StopNotice stopNotice;
+  cli::StopNotice stopNotice("crisp eval");
   // 1. Run the library methods, frames in order, each in a child process so that a method that
   // crashes is reported in the page instead of taking the evaluation down. Nothing in this process
   // has used the thread pool yet, so each child starts its own.
@@ -797,16 +724,16 @@ int run(const Options& o) {
     const pid_t parent = getpid();
     // The stop signals wait while the child is made and takes the previous handlers back: one that came
     // in between would have it say the parent's line too.
-    const sigset_t held = StopNotice::hold();
+    const sigset_t held = cli::StopNotice::hold();
     pid_t pid = fork();
-    if (pid != 0) StopNotice::release(held);
+    if (pid != 0) cli::StopNotice::release(held);
     if (pid < 0) ioError("cannot run method '" + e.name + "' (fork failed)");
     if (pid == 0) {
       // crisp stopped (kill PID, a farm cancelling its task) or killed outright: the method stops with it
       // (its temporary files removed by their signal handler) rather than going on alone, writing into the
       // folder, as Blender does (cli/blender.cpp).
-      StopNotice::restore();
-      StopNotice::release(held);
+      cli::StopNotice::restore();
+      cli::StopNotice::release(held);
       prctl(PR_SET_PDEATHSIG, SIGTERM);
       if (getppid() != parent) _exit(1);  // crisp died before that
       int code = 0;

@@ -3,6 +3,7 @@
 each failure is said before any work is lost, naming the file, and nothing read is dropped without a
 word."""
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -137,16 +138,20 @@ def test_inputs_that_are_not_regular_files_are_refused_before_they_are_opened(ch
         server.close()
 
 
-def interrupt_filter(src, out, started):
+def interrupt_filter(src, out, started, said=None):
     """Runs crisp filter on src into out, and Ctrl-C (SIGINT) once started() is true; returns the
-    exit status (-SIGINT: ended by the signal)."""
-    p = subprocess.Popen([CRISP, "filter", "-q", "-m", "taa", "-o", str(out), str(src)])
+    exit status (-SIGINT: ended by the signal). said: a list its stderr is appended to."""
+    p = subprocess.Popen([CRISP, "filter", "-q", "-m", "taa", "-o", str(out), str(src)], stderr=subprocess.PIPE,
+                         text=True)
     try:
         deadline = time.monotonic() + 60
         while not started() and p.poll() is None and time.monotonic() < deadline:
             time.sleep(0.001)
         p.send_signal(signal.SIGINT)
-        return p.wait(timeout=60)
+        _, err = p.communicate(timeout=60)
+        if said is not None:
+            said.append(err)
+        return p.returncode
     finally:
         if p.poll() is None:
             p.kill()
@@ -155,22 +160,30 @@ def interrupt_filter(src, out, started):
 def test_ctrl_c_before_the_first_output_leaves_no_empty_output_folder(chart, tmp_path):
     """A run stopped by Ctrl-C (SIGINT) while it filtered its first frame left the output folders it
     had made behind, empty (an error did not). They are removed; a folder that was there before, or
-    that holds anything, is kept."""
+    that holds anything, is kept. The run says where it stopped."""
     big = tmp_path / "big.exr"  # a frame that takes a while, so the signal comes before its output
     oiiotool(chart / "chart_1spp.exr", "--resize", "3200x2000", "-o", big)
     out = tmp_path / "new" / "out"
-    status = interrupt_filter(big, out, out.exists)
+    said = []
+    status = interrupt_filter(big, out, out.exists, said)
     assert status == -signal.SIGINT, status
     assert not (tmp_path / "new").exists(), os.listdir(tmp_path / "new")
     # A folder that holds something when the signal comes is kept (here: a file put in it meanwhile).
-    status = interrupt_filter(big, out, lambda: out.exists() and (out / "mine.txt").write_text("mine") > 0)
+    status = interrupt_filter(big, out, lambda: out.exists() and (out / "mine.txt").write_text("mine") > 0, said)
     assert status == -signal.SIGINT and os.listdir(out) == ["mine.txt"], status
     # A folder that was there before is kept.
     there = tmp_path / "there"
     there.mkdir()
     start = time.monotonic()
-    status = interrupt_filter(big, there, lambda: time.monotonic() - start > 0.3)
+    status = interrupt_filter(big, there, lambda: time.monotonic() - start > 0.3, said)
     assert status == -signal.SIGINT and there.is_dir(), status
+    # Each run said once where it stopped (also under -q: a farm's log tells a cancelled task from a failed
+    # one): before its input, or in it.
+    assert len(said) == 3
+    for err in said:
+        assert re.fullmatch(r"filter: stopped by Ctrl-C \(SIGINT\) (before its first input: no output is written|while "
+                            r"it filtered '%s' \(input 1 of 1-1\): the outputs before it are whole, and the same "
+                            r"command with --resume goes on from them)\n" % re.escape(str(big)), err), err
 
 
 def test_files_whose_names_begin_with_a_dash_go_after_a_double_dash(chart, tmp_path, monkeypatch):
