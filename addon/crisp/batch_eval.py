@@ -129,7 +129,7 @@ def stop_line(stop, done, total):
     how far it came; the renders it made are kept (eval_renders: whole files only), and the same command
     resumes from them."""
     why = "Ctrl-C (SIGINT)" if isinstance(stop, KeyboardInterrupt) else str(stop)[len("stopped by "):]
-    if total == 0:
+    if done == 0:  # (also in the warm-up render, which is not kept)
         return "stopped by %s before its first render" % why
     return ("stopped by %s after the render it was on: %d of %d renders are done, and the same command goes "
             "on from them" % (why, done, total))
