@@ -167,7 +167,11 @@ def main(argv):
         should_cancel = batch.stop_on_signals()
         render_all(args, progress, curve, filter_size_limits, methods, count, should_cancel)
     except (KeyboardInterrupt, batch.Stopped) as e:
-        line = stop_line(e, count["done"](), count["total"])
+        try:
+            done = count["done"]()
+        except OSError:  # (the folder gone, a full disk): said without the count
+            done = 0
+        line = stop_line(e, done, count["total"])
         try:
             progress.write("stop %s\n" % line)
             progress.flush()
@@ -281,7 +285,7 @@ def render_all(args, progress, curve, filter_size_limits, methods, count, should
     state = {"done": 0, "cost": 0, "rendered_cost": 0, "rendered_s": 0.0}
     total = count["total"] = len(jobs) * len(frames)
     count["done"] = lambda: sum(len(frames) - len(eval_renders.TimeBook(os.path.join(out, n)).missing(frames))
-                                for n, _ in jobs)
+                                for n, _ in jobs if os.path.isdir(os.path.join(out, n)))  # (makes no folder)
     t_start = time.perf_counter()
     t_last = [t_start]
 

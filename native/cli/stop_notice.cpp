@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <iterator>
 
@@ -11,35 +12,49 @@ namespace crisp::cli {
 
 namespace {
 
-// The handler reads only these: the line is made before each step with the signals blocked, and the
-// handler writes it with write(2), which is async-signal-safe.
+// What the handler reads. Each step's line goes into the buffer the handler is not pointed at, then the
+// index flips (lock-free): a stop on any thread reads a whole line. write(2) is async-signal-safe.
 constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
 struct sigaction stopPrevious[std::size(kStopSignals)];
 bool stopInstalled[std::size(kStopSignals)];
 char stopHead[64];  // "\n<who>: stopped by "
 std::size_t stopHeadLength = 0;
-char stopLine[1024];  // " <step>\n"
-std::size_t stopLength = 0;
+struct Line {
+  char text[1024];  // " <step>\n"
+  std::size_t length = 0;
+};
+Line stopLines[2];
+std::atomic<int> stopCurrent{0};
+static_assert(std::atomic<int>::is_always_lock_free);
 bool stopOnTerminal = false;
 
 void writeAll(const char* text, std::size_t n) {
   while (n > 0) {
     const ssize_t w = ::write(STDERR_FILENO, text, n);
-    if (w <= 0) return;
+    if (w <= 0) return;  // stderr closed, or a pipe whose reader is gone (SIGPIPE is ignored meanwhile)
     text += w;
     n -= std::size_t(w);
   }
 }
 
 extern "C" void sayStopAndPassOn(int sig) {
+  // A pipe whose reader went first (`| tee log`, Ctrl-C to both) must not end crisp by SIGPIPE before
+  // the previous handler removes its temporary files.
+  struct sigaction ignore {}, pipeBefore {};
+  ignore.sa_handler = SIG_IGN;
+  sigemptyset(&ignore.sa_mask);
+  const bool pipeSaved = ::sigaction(SIGPIPE, &ignore, &pipeBefore) == 0;
   const char* name = sig == SIGINT ? "Ctrl-C (SIGINT)" : sig == SIGTERM ? "SIGTERM" : "SIGHUP";
   // On a terminal, a new line first: a progress bar may hold the last one.
   writeAll(stopHead + (stopOnTerminal ? 0 : 1), stopHeadLength - (stopOnTerminal ? 0 : 1));
   writeAll(name, std::strlen(name));
-  writeAll(stopLine, stopLength);
-  // The previous handler takes it once this one returns (the stop signals are blocked until then).
+  const Line& line = stopLines[stopCurrent.load()];
+  writeAll(line.text, line.length);
+  if (pipeSaved) ::sigaction(SIGPIPE, &pipeBefore, nullptr);
+  // Every previous handler back (a second stop signal is not said again); this one takes the signal once
+  // this handler returns (the stop signals are blocked until then).
   for (std::size_t i = 0; i < std::size(kStopSignals); ++i)
-    if (kStopSignals[i] == sig) ::sigaction(sig, &stopPrevious[i], nullptr);
+    if (stopInstalled[i]) ::sigaction(kStopSignals[i], &stopPrevious[i], nullptr);
   ::raise(sig);
 }
 
@@ -51,10 +66,9 @@ void copyText(char* to, std::size_t size, std::size_t& length, const std::string
 }  // namespace
 
 StopNotice::StopNotice(const std::string& who) {
-  const sigset_t held = hold();
-  copyText(stopHead, sizeof stopHead, stopHeadLength, "\n" + who + ": stopped by ");
-  stopLength = 0;
-  release(held);
+  const std::string head = "\n" + who + ": stopped by ";
+  copyText(stopHead, sizeof stopHead, stopHeadLength, head);
+  for (Line& line : stopLines) copyText(line.text, sizeof line.text, line.length, "\n");  // until a step
   stopOnTerminal = ::isatty(STDERR_FILENO) != 0;
   for (std::size_t i = 0; i < std::size(kStopSignals); ++i) {
     struct sigaction action {};
@@ -69,9 +83,10 @@ StopNotice::StopNotice(const std::string& who) {
 StopNotice::~StopNotice() { restore(); }
 
 void StopNotice::step(const std::string& text) {
-  const sigset_t held = hold();
-  copyText(stopLine, sizeof stopLine, stopLength, " " + text.substr(0, sizeof stopLine - 2) + "\n");
-  release(held);
+  const std::string line = " " + text.substr(0, sizeof stopLines[0].text - 2) + "\n";
+  const int next = 1 - stopCurrent.load();
+  copyText(stopLines[next].text, sizeof stopLines[next].text, stopLines[next].length, line);
+  stopCurrent.store(next);
 }
 
 sigset_t StopNotice::hold() {

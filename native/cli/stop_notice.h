@@ -21,8 +21,8 @@ class StopNotice {
   // What a stop during the next step says after "stopped by SIGNAL ".
   void step(const std::string& text);
 
-  // The stop signals blocked (they wait); returns the mask to release. Around a fork, so that the
-  // child takes the previous handlers back (restore) before a stop can reach it.
+  // The stop signals blocked on this thread (they wait); returns the mask to release. Around a fork, so
+  // that the child takes the previous handlers back (restore) before a stop can reach it.
   static sigset_t hold();
   static void release(const sigset_t& old);
   // The handlers crisp had before the notice.
