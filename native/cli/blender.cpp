@@ -23,6 +23,7 @@
 #include <string>
 
 #include "cli/commands.h"
+#include "cli/stop_notice.h"
 #include "core/error.h"
 
 namespace crisp::cli {
@@ -204,7 +205,6 @@ bool readSome(int fd, std::string& buffer) {
 // Blender's pid while it runs, and the first stop signal crisp got meanwhile.
 volatile sig_atomic_t blenderPid = 0;
 volatile sig_atomic_t stopSignal = 0;
-constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
 
 // Only async-signal-safe calls: kill.
 extern "C" void passStopToBlender(int sig) {
@@ -222,13 +222,7 @@ class StopSignalsToBlender {
   StopSignalsToBlender() {
     stopSignal = 0;
     blenderPid = 0;
-    for (std::size_t i = 0; i < std::size(kStopSignals); ++i) {
-      struct sigaction action {};
-      action.sa_handler = passStopToBlender;
-      sigemptyset(&action.sa_mask);
-      installed_[i] = ::sigaction(kStopSignals[i], nullptr, &old_[i]) == 0 && old_[i].sa_handler != SIG_IGN &&
-                      ::sigaction(kStopSignals[i], &action, nullptr) == 0;
-    }
+    handlers_.install(passStopToBlender, false);
   }
   void started(pid_t pid) {
     blenderPid = pid;
@@ -251,16 +245,14 @@ class StopSignalsToBlender {
   // stop, it stops now by the same signal.
   ~StopSignalsToBlender() {
     blenderPid = 0;
-    for (std::size_t i = 0; i < std::size(kStopSignals); ++i)
-      if (installed_[i]) ::sigaction(kStopSignals[i], &old_[i], nullptr);
+    handlers_.restore();
     if (stopSignal != 0) ::raise(stopSignal);
   }
   StopSignalsToBlender(const StopSignalsToBlender&) = delete;
   StopSignalsToBlender& operator=(const StopSignalsToBlender&) = delete;
 
  private:
-  struct sigaction old_[std::size(kStopSignals)] {};
-  bool installed_[std::size(kStopSignals)] = {};
+  StopHandlers handlers_;
   std::chrono::steady_clock::time_point lastSent_;  // when Blender was last sent the stop (about)
 };
 

@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <atomic>
 #include <cstring>
-#include <iterator>
 
 namespace crisp::cli {
 
@@ -14,9 +13,7 @@ namespace {
 
 // What the handler reads. Each step's line goes into the buffer the handler is not pointed at, then the
 // index flips (lock-free): a stop on any thread reads a whole line. write(2) is async-signal-safe.
-constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
-struct sigaction stopPrevious[std::size(kStopSignals)];
-bool stopInstalled[std::size(kStopSignals)];
+StopHandlers stopHandlers;
 char stopHead[64];  // "\n<who>: stopped by "
 std::size_t stopHeadLength = 0;
 struct Line {
@@ -53,8 +50,7 @@ extern "C" void sayStopAndPassOn(int sig) {
   if (pipeSaved) ::sigaction(SIGPIPE, &pipeBefore, nullptr);
   // Every previous handler back (a second stop signal is not said again); this one takes the signal once
   // this handler returns (the stop signals are blocked until then).
-  for (std::size_t i = 0; i < std::size(kStopSignals); ++i)
-    if (stopInstalled[i]) ::sigaction(kStopSignals[i], &stopPrevious[i], nullptr);
+  stopHandlers.restore();
   ::raise(sig);
 }
 
@@ -70,14 +66,7 @@ StopNotice::StopNotice(const std::string& who) {
   copyText(stopHead, sizeof stopHead, stopHeadLength, head);
   for (Line& line : stopLines) copyText(line.text, sizeof line.text, line.length, "\n");  // until a step
   stopOnTerminal = ::isatty(STDERR_FILENO) != 0;
-  for (std::size_t i = 0; i < std::size(kStopSignals); ++i) {
-    struct sigaction action {};
-    action.sa_handler = sayStopAndPassOn;
-    sigemptyset(&action.sa_mask);  // one stop at a time: a second signal waits for the first to end crisp
-    for (int sig : kStopSignals) sigaddset(&action.sa_mask, sig);
-    stopInstalled[i] = ::sigaction(kStopSignals[i], nullptr, &stopPrevious[i]) == 0 &&
-                       stopPrevious[i].sa_handler != SIG_IGN && ::sigaction(kStopSignals[i], &action, nullptr) == 0;
-  }
+  stopHandlers.install(sayStopAndPassOn, true);  // one stop at a time: a second waits for the first to end crisp
 }
 
 StopNotice::~StopNotice() { restore(); }
@@ -99,9 +88,6 @@ sigset_t StopNotice::hold() {
 
 void StopNotice::release(const sigset_t& old) { ::sigprocmask(SIG_SETMASK, &old, nullptr); }
 
-void StopNotice::restore() {
-  for (std::size_t i = 0; i < std::size(kStopSignals); ++i)
-    if (stopInstalled[i]) ::sigaction(kStopSignals[i], &stopPrevious[i], nullptr);
-}
+void StopNotice::restore() { stopHandlers.restore(); }
 
 }  // namespace crisp::cli

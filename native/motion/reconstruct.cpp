@@ -481,11 +481,9 @@ CRISP_MOTION_INLINE void motionRowLanes(const Setup& s, const Image& depth, int 
   const double ndcY = 1.0 - 2.0 * (y + 0.5) / s.H;
   const double a10 = P.m[1][0] - ndcY * P.m[3][0], a11 = P.m[1][1] - ndcY * P.m[3][1];
   const Chain staticChain{s.currentClip, true};
-  const Chain* current[kLanes];
-  for (int l = 0; l < kLanes; ++l) current[l] = &staticChain;
-  const Chain* skyPrevious[kLanes];
-  const Chain* skyNext[kLanes];
+  const Chain *current[kLanes], *skyPrevious[kLanes], *skyNext[kLanes];  // the static world's, every lane
   for (int l = 0; l < kLanes; ++l) {
+    current[l] = &staticChain;
     skyPrevious[l] = &s.staticPrevious;
     skyNext[l] = &s.staticNext;
   }
