@@ -128,11 +128,11 @@ def stop_line(stop, done, total):
     """What crisp eval says of a run a signal stopped (the progress pipe's `stop` line): which signal, and
     how far it came; the renders it made are kept (eval_renders: whole files only), and the same command
     resumes from them."""
-    why = "Ctrl-C (SIGINT)" if isinstance(stop, KeyboardInterrupt) else str(stop)[len("stopped by "):]
+    stopped = "stopped by Ctrl-C (SIGINT)" if isinstance(stop, KeyboardInterrupt) else str(stop)  # batch.Stopped's
     if done == 0:  # (also in the warm-up render, which is not kept)
-        return "stopped by %s before its first render" % why
-    return ("stopped by %s after the render it was on: %d of %d renders are done, and the same command goes "
-            "on from them" % (why, done, total))
+        return "%s before its first render" % stopped
+    return ("%s after the render it was on: %d of %d renders are done, and the same command goes on from them"
+            % (stopped, done, total))
 
 
 def main(argv):
@@ -284,8 +284,12 @@ def render_all(args, progress, curve, filter_size_limits, methods, count, should
     cost_total = sum(c for _, c in jobs) * len(frames)
     state = {"done": 0, "cost": 0, "rendered_cost": 0, "rendered_s": 0.0}
     total = count["total"] = len(jobs) * len(frames)
-    count["done"] = lambda: sum(len(frames) - len(eval_renders.TimeBook(os.path.join(out, n)).missing(frames))
-                                for n, _ in jobs if os.path.isdir(os.path.join(out, n)))  # (makes no folder)
+
+    def renders_missing():
+        """How many of the renders are still to make, as their sets' times.json say (makes no folder)."""
+        return sum(len(eval_renders.TimeBook(os.path.join(out, n)).missing(frames))
+                   if os.path.isdir(os.path.join(out, n)) else len(frames) for n, _ in jobs)
+    count["done"] = lambda: total - renders_missing()
     t_start = time.perf_counter()
     t_last = [t_start]
 
@@ -305,8 +309,7 @@ def render_all(args, progress, curve, filter_size_limits, methods, count, should
         should_cancel()  # a stop Blender's own Python swallowed (a scene's frame change handler)
 
     try:
-        missing = sum(len(eval_renders.TimeBook(os.path.join(out, n)).missing(frames)) for n, _ in jobs)
-        if missing:
+        if renders_missing():
             eval_renders.warm_up(scene, os.path.join(out, "warmup"))
         for name, the_plan in sets.items():  # each pass configuration's first render costs more still
             if eval_renders.input_frames_to_render(scene, the_plan, frames, os.path.join(out, name), args.jitter):

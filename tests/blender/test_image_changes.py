@@ -159,6 +159,7 @@ class ImageChangeTest(unittest.TestCase):
         said = crisp_filter("phlm", os.path.join(self.tmp.name, "phlm"), "--set", "lambdaMoving=0.8")
         self.assertIn("filter: phlm runs with lambda=0.8, as the renders' plan asks", said)
         self.assertIn("filter: phlm runs with footprintBox=false, as the renders' plan asks", said)
+
         def edit_sidecar(exr, change):
             side = exr[:-len(".exr")] + ".json"
             with open(side) as f:

@@ -15,6 +15,7 @@ import time
 
 import pytest
 
+from crisp_test_util import addon_with_spinning_cube_ending
 from crisp_test_util import run_crisp as run
 
 BUILD = pathlib.Path(os.environ.get("CRISP_BUILD_DIR", pathlib.Path(__file__).resolve().parents[2] / "build"))
@@ -232,6 +233,13 @@ def test_an_eval_stopped_before_its_first_render_does_not_lock_the_folder(tmp_pa
     assert (out / "report.html").is_file()
 
 
+def slow_frames_env(tmp_path):
+    """The environment of a crisp run whose spinning_cube takes 0.3 s a frame change (a slow frame change
+    handler): long enough to act on it part-way."""
+    return dict(os.environ, CRISP_ADDON_DIR=addon_with_spinning_cube_ending(
+        tmp_path, "import bpy\nimport time\nbpy.app.handlers.frame_change_pre.append(lambda *_: time.sleep(0.3))\n"))
+
+
 @pytest.mark.skipif(shutil.which("blender") is None, reason="blender not installed")
 def test_an_eval_stopped_while_it_renders_says_how_far_it_came_and_resumes(tmp_path):
     """Ctrl-C (SIGINT to the terminal's process group) part-way through the renders: Blender stops after
@@ -239,9 +247,7 @@ def test_an_eval_stopped_while_it_renders_says_how_far_it_came_and_resumes(tmp_p
     folder they are kept in, and ends by the signal; the same command then goes on from them: it renders
     only the rest (its progress calls the others done before) and writes its report. A scene whose frame
     change handler is slow (spinning_cube, 0.3 s a frame) makes the run long enough to stop part-way."""
-    from crisp_test_util import addon_with_spinning_cube_ending
-    env = dict(os.environ, CRISP_ADDON_DIR=addon_with_spinning_cube_ending(
-        tmp_path, "import bpy\nimport time\nbpy.app.handlers.frame_change_pre.append(lambda *_: time.sleep(0.3))\n"))
+    env = slow_frames_env(tmp_path)
     out = tmp_path / "out"
     args = [str(CRISP), "eval", "--scene", "spinning_cube", "--frames", "1-4", "--resolution", "64x36", "--methods",
             "fxaa", "--reference-samples", "2", "--curve", "1", "-o", str(out)]
@@ -275,9 +281,7 @@ def test_a_second_eval_into_a_folder_in_use_is_refused(tmp_path):
     """Two crisp evals into one folder would render the same frames twice and rewrite each other's
     records: the second is refused while the first runs, before it writes anything there (the first's
     settings file is untouched, even by other settings), and the first goes on to its report."""
-    from crisp_test_util import addon_with_spinning_cube_ending
-    env = dict(os.environ, CRISP_ADDON_DIR=addon_with_spinning_cube_ending(
-        tmp_path, "import bpy\nimport time\nbpy.app.handlers.frame_change_pre.append(lambda *_: time.sleep(0.3))\n"))
+    env = slow_frames_env(tmp_path)
     out = tmp_path / "out"
     args = [str(CRISP), "eval", "--scene", "spinning_cube", "--frames", "1-2", "--methods", "fxaa",
             "--reference-samples", "2", "--curve", "1", "--quiet", "-o", str(out)]
